@@ -1,0 +1,232 @@
+"""Command line: ``python -m ddsolve COMMAND ...`` (``./run COMMAND ...`` prepares the environment).
+
+PETSc options go last (from the first single-dash option that is not ddsolve's own), e.g.
+``ddsolve solve partial-closure -u_minus_ksp_type cg -u_minus_pc_type gamg -log_view``.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+from . import __version__
+from .errors import DDSolveError
+
+OWN_SHORT_OPTIONS = {"-n", "-o", "-h"}
+
+
+def split_petsc_options(argv: list[str]) -> tuple[list[str], list[str]]:
+    """Split argv at the first PETSc-looking option (``-name``, not ours, not a negative number)."""
+    for i, arg in enumerate(argv):
+        if arg == "--":
+            return argv[:i], argv[i + 1:]
+        if arg.startswith("-") and not arg.startswith("--") and arg not in OWN_SHORT_OPTIONS:
+            try:
+                float(arg)
+            except ValueError:
+                return argv[:i], argv[i:]
+    return argv, []
+
+
+def mpiexec_command(ranks: int, arguments: list[str]) -> list[str]:
+    """``mpiexec -n N python -m mpi4py -m ddsolve ARGS`` (quiet Open MPI: our errors are one line)."""
+    mpiexec = os.environ.get("MPIEXEC", "mpiexec")
+    if shutil.which(mpiexec) is None:
+        raise DDSolveError(f"{mpiexec} not found: install Open MPI or MPICH, or set MPIEXEC")
+    command = [mpiexec]
+    version = subprocess.run([mpiexec, "--version"], capture_output=True, text=True).stdout
+    if "Open MPI" in version or "OpenRTE" in version:
+        command.append("--quiet")
+    return command + ["-n", str(ranks), sys.executable, "-m", "mpi4py", "-m", "ddsolve", *arguments]
+
+
+def _init_petsc(options: list[str]) -> None:
+    import petsc4py
+
+    petsc4py.init([sys.argv[0], *options])
+
+
+def _root_print(*args, **kwargs) -> None:
+    from mpi4py import MPI
+
+    if MPI.COMM_WORLD.rank == 0:
+        print(*args, **kwargs, flush=True)
+
+
+def _load_scene(args):
+    from . import scene
+
+    return scene.load(args.scene, args.set or [])
+
+
+def _default_output(args) -> Path:
+    return Path(args.output) if args.output else Path(Path(args.scene).stem + ".h5")
+
+
+# --- commands -------------------------------------------------------------------------------
+def cmd_solve(args, petsc_options: list[str]) -> int:
+    if args.ranks is not None:  # launcher mode: start the ranks under mpiexec
+        forwarded = list(args.argv)
+        i = next(j for j, a in enumerate(forwarded) if a.startswith("-n"))
+        del forwarded[i:i + (2 if forwarded[i] == "-n" else 1)]
+        command = mpiexec_command(args.ranks, forwarded)
+        os.execvp(command[0], command)
+    _init_petsc(petsc_options)
+    from mpi4py import MPI
+
+    from . import driver
+    from .exchange import collective
+
+    comm = MPI.COMM_WORLD
+    scene = collective(comm, lambda: _load_scene(args), root_only=True)
+    scene = comm.bcast(scene, root=0)
+    output = _default_output(args)
+    result = driver.solve(scene, comm, output, progress=_root_print)
+    if result is not None:
+        print(f"{result.method}: converged after {result.iterations} iterations, {result.solves} rounds of "
+              f"block solves, {result.wall_time:.3f} s on {result.ranks} ranks -> {output}", flush=True)
+    return 0
+
+
+def cmd_reference(args, petsc_options: list[str]) -> int:
+    _init_petsc(petsc_options)
+    from . import io, mesh, reference
+
+    scene = _load_scene(args)
+    lower, upper = mesh.build(scene)
+    result = reference.solve(scene, lower, upper)
+    output = _default_output(args)
+    io.write(output, result)
+    print(f"reference: {result.iterations} active-set steps, {result.wall_time:.3f} s -> {output}")
+    return 0
+
+
+def cmd_compare(args, _petsc_options) -> int:
+    from . import analysis, io
+
+    comparison = analysis.compare(io.read(args.result), io.read(args.reference))
+    print(f"relative energy-norm error {comparison.energy_error:.3e}   "
+          f"max nodal difference {comparison.max_difference:.3e} (max |u| {comparison.max_displacement:.3e})")
+    return 0
+
+
+def cmd_check(args, _petsc_options) -> int:
+    from . import analysis, io
+
+    c = analysis.constraints(io.read(args.result))
+    print(f"max penetration {c.penetration:.3e}   max gluing gap {c.gluing_gap:.3e}   "
+          f"complementarity {c.complementarity:.3e}   (relative to max |u| = {c.max_displacement:.3e}); "
+          f"min mu_c {c.min_mu_c:.3e}")
+    return 0
+
+
+def cmd_plot(args, _petsc_options) -> int:
+    from . import io, plots
+
+    result = io.read(args.result)
+    stem = Path(args.result).with_suffix("")
+    plots.deformed_layers(result, Path(f"{stem}-deformed.png"), args.scale)
+    plots.interface_jumps([(result.method, result)], Path(f"{stem}-jump.png"))
+    written = [f"{stem}-deformed.png", f"{stem}-jump.png"]
+    if len(result.history):
+        plots.convergence([(result.method, result)], Path(f"{stem}-convergence.png"))
+        written.append(f"{stem}-convergence.png")
+    print("wrote " + ", ".join(written))
+    return 0
+
+
+def cmd_mesh(args, _petsc_options) -> int:
+    from . import mesh
+
+    scene = _load_scene(args)
+    lower, upper = mesh.build(scene)
+    print(f"{'half':6s} {'h_min':>8s} {'h_max':>8s} {'vertices':>9s} {'triangles':>10s}")
+    for half in (lower, upper):
+        s = mesh.statistics(half)
+        print(f"{half.name:6s} {s.h_min:8.4f} {s.h_max:8.4f} {s.vertices:9d} {s.triangles:10d}")
+    print(f"Σ vertices {len(lower.sigma())}, boundary vertices {mesh.boundary_vertex_count(lower, upper)}")
+    return 0
+
+
+def cmd_scenes(_args, _petsc_options) -> int:
+    from . import scene
+
+    for name, text in sorted(scene.builtin_scenes().items()):
+        print(f"{name:18s} {scene.loads(text).title}")
+    return 0
+
+
+def cmd_version(_args, petsc_options) -> int:
+    _init_petsc(petsc_options)
+    from mpi4py import MPI
+    from petsc4py import PETSc
+
+    from .blocks import default_factor_package
+
+    petsc = ".".join(map(str, PETSc.Sys.getVersion()))
+    print(f"ddsolve {__version__}; PETSc {petsc} (factorization: {default_factor_package()}); "
+          f"{MPI.Get_library_version().splitlines()[0].strip()}")
+    return 0
+
+
+def parser() -> argparse.ArgumentParser:
+    top = argparse.ArgumentParser(prog="ddsolve", description=__doc__.splitlines()[0])
+    sub = top.add_subparsers(dest="command", required=True)
+
+    def scene_command(name: str, help_text: str) -> argparse.ArgumentParser:
+        p = sub.add_parser(name, help=help_text)
+        p.add_argument("scene", help="scene file or built-in scene name (see `ddsolve scenes`)")
+        p.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a scene entry")
+        return p
+
+    p = scene_command("solve", "domain-decomposition solve (under mpiexec, or -n N to launch it)")
+    p.add_argument("-n", dest="ranks", type=int, choices=(1, 2, 4), help="launch N ranks with mpiexec")
+    p.add_argument("-o", dest="output", help="result file (default: SCENE.h5)")
+    p.set_defaults(run=cmd_solve)
+    p = scene_command("reference", "monolithic reference solve (one process)")
+    p.add_argument("-o", dest="output", help="result file (default: SCENE.h5)")
+    p.set_defaults(run=cmd_reference)
+    p = scene_command("mesh", "mesh statistics per half (as the paper's Table 1)")
+    p.set_defaults(run=cmd_mesh)
+    p = sub.add_parser("compare", help="error of a result against a reference result")
+    p.add_argument("result")
+    p.add_argument("reference")
+    p.set_defaults(run=cmd_compare)
+    p = sub.add_parser("check", help="constraint residuals of a result")
+    p.add_argument("result")
+    p.set_defaults(run=cmd_check)
+    p = sub.add_parser("plot", help="PNG pictures of a result")
+    p.add_argument("result")
+    p.add_argument("--scale", type=float, default=500.0, help="displacement magnification (default 500)")
+    p.set_defaults(run=cmd_plot)
+    sub.add_parser("scenes", help="list the built-in scenes").set_defaults(run=cmd_scenes)
+    sub.add_parser("version", help="versions of ddsolve, PETSc and MPI").set_defaults(run=cmd_version)
+    return top
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    own, petsc_options = split_petsc_options(argv)
+    args = parser().parse_args(own)
+    args.argv = argv
+    try:
+        return args.run(args, petsc_options)
+    except DDSolveError as exc:
+        _report(f"ddsolve: error: {exc}")
+        return exc.exit_status
+    except KeyboardInterrupt:
+        _report("ddsolve: interrupted")
+        return 130
+
+
+def _report(message: str) -> None:
+    """Print an error once (on rank 0 when MPI is running)."""
+    if "mpi4py.MPI" in sys.modules:
+        from mpi4py import MPI
+
+        if MPI.COMM_WORLD.rank != 0:
+            return
+    print(message, file=sys.stderr, flush=True)

@@ -1,0 +1,184 @@
+"""The domain-decomposition solve: scene -> meshes -> blocks on ranks -> multiplier method -> result.
+
+Rank 0 reads the scene and builds the meshes; every rank assembles and factors the blocks it owns;
+rank 0 runs the multiplier method while the other ranks serve rounds of block solves
+(:func:`serve`); rank 0 gathers the block solutions and writes the result.
+"""
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from . import __version__, assembly, io, mesh, methods
+from .blocks import Block
+from .errors import DDSolveError, DivergedError, NotConvergedError, SolverError
+from .exchange import Exchange, collective
+from .interface import BLOCKS, Interface
+from .scene import Scene
+
+STOP, SOLVE_LOAD, SOLVE_FULL, FLEXIBILITY, REPORT_ERROR = range(5)
+SUPPORTED_RANKS = (1, 2, 4)
+
+
+class BlockServer:
+    """The blocks this rank owns and what a round does with them."""
+
+    def __init__(self, blocks: list[Block]):
+        self.blocks = blocks
+        self.solutions: list[np.ndarray] = [np.zeros(0)] * len(blocks)
+        self.error = ""
+
+    def run(self, command: int, loads: np.ndarray | None) -> np.ndarray:
+        """One round on the local blocks; each result row ends with a status flag (0 ok, 1 failed)."""
+        try:
+            if command == FLEXIBILITY:
+                rows = [block.flexibility().ravel() for block in self.blocks]
+            else:
+                rows = [self._solve(i, load, command == SOLVE_FULL) for i, load in enumerate(loads)]
+            return np.array([np.append(row, 0.0) for row in rows])
+        except DDSolveError as exc:
+            self.error = str(exc)
+            width = (loads.shape[1] + 1) if loads is not None else len(self.blocks[0].trace_dofs) ** 2
+            failed = np.full((len(self.blocks), width + 1), np.nan)
+            failed[:, -1] = 1.0
+            return failed
+
+    def _solve(self, i: int, load: np.ndarray, full: bool) -> np.ndarray:
+        block = self.blocks[i]
+        x = block.solve(load, body=full)
+        energy = float(np.dot(x, block.rhs.getArray(readonly=True)))
+        if full:
+            self.solutions[i] = x.copy()
+        return np.append(x[block.trace_dofs], energy)
+
+
+class ParallelRounds:
+    """Rank 0's implementation of :class:`~ddsolve.methods.Rounds` over an :class:`Exchange`."""
+
+    def __init__(self, exchange: Exchange, server: BlockServer, trace_size: int):
+        self.exchange, self.server, self.trace_size = exchange, server, trace_size
+        self.count = 0
+
+    def _round(self, command: int, loads: np.ndarray | None) -> np.ndarray:
+        self.exchange.command(command)
+        local = None
+        if loads is not None:
+            local = self.exchange.scatter(loads, self.trace_size)
+        results = self.exchange.gather(self.server.run(command, local))
+        self.count += 1
+        if np.any(results[:, -1] != 0.0):
+            self.exchange.command(REPORT_ERROR)
+            messages = self.exchange.comm.gather(self.server.error, root=0)
+            raise SolverError(next(m for m in messages if m))
+        return results[:, :-1]
+
+    def solve(self, loads: np.ndarray, full: bool) -> tuple[np.ndarray, np.ndarray]:
+        results = self._round(SOLVE_FULL if full else SOLVE_LOAD, loads)
+        return results[:, :-1], results[:, -1]
+
+    def flexibility(self) -> np.ndarray:
+        return self._round(FLEXIBILITY, None).reshape(-1, self.trace_size, self.trace_size)
+
+    def stop(self) -> None:
+        self.exchange.command(STOP)
+
+
+def serve(exchange: Exchange, server: BlockServer, trace_size: int) -> None:
+    """Worker loop: answer rank 0's rounds until it says STOP."""
+    while True:
+        command = exchange.command()
+        if command == STOP:
+            return
+        if command == REPORT_ERROR:
+            exchange.comm.gather(server.error, root=0)
+            continue
+        local = exchange.scatter(None, trace_size) if command in (SOLVE_LOAD, SOLVE_FULL) else None
+        exchange.gather(server.run(command, local))
+
+
+METHODS = {"uzawa": methods.uzawa}
+#: Default block factorization per method: iterative methods are dominated by the cost of one solve,
+#: where PETSc's own Cholesky is about 3x faster than MUMPS (`./run bench factor` measures both).
+FACTOR_PACKAGE = {"uzawa": "petsc"}
+
+
+def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print) -> io.Result:
+    """Run the domain decomposition for ``scene`` on ``comm``; write ``output`` on rank 0."""
+    if comm.size not in SUPPORTED_RANKS:
+        raise DDSolveError(f"unsupported number of ranks {comm.size}: use 1, 2 or 4")
+    timings: dict[str, float] = {}
+    start = time.perf_counter()
+    stages = {name: PETSc.Log.Stage(name) for name in ("Setup", "Factorization", "Iterations", "Output")}
+
+    stages["Setup"].push()
+    lower, upper = comm.bcast(collective(comm, lambda: mesh.build(scene), root_only=True), root=0)
+    exchange = Exchange(comm, len(BLOCKS))
+    blocks = collective(comm, lambda: [
+        Block(s, factor_package=FACTOR_PACKAGE[scene.solver.method])
+        for s in assembly.block_systems(scene, lower, upper, exchange.local_blocks)])
+    interface = Interface(lower.points[lower.sigma(), 0], scene.crack, scene.contact)
+    stages["Setup"].pop()
+    timings["setup"] = time.perf_counter() - start
+
+    stages["Factorization"].push()
+    mark = time.perf_counter()
+    collective(comm, lambda: [block.factor() for block in blocks])
+    comm.Barrier()
+    timings["factorization"] = time.perf_counter() - mark
+    stages["Factorization"].pop()
+
+    stages["Iterations"].push()
+    mark = time.perf_counter()
+    server = BlockServer(blocks)
+    outcome, failure = None, None
+    if exchange.is_root:
+        rounds = ParallelRounds(exchange, server, interface.trace_size)
+        try:
+            label = scene.solver.method
+            outcome = METHODS[label](rounds, interface, scene.solver, methods.Progress(label, out=progress))
+            if outcome.converged or outcome.iterations >= scene.solver.max_iterations:
+                rounds.solve(interface.loads(outcome.lam), full=True)  # the displacements for λ
+        except DDSolveError as exc:
+            failure = exc
+        rounds.stop()
+    else:
+        serve(exchange, server, interface.trace_size)
+    if exchange.is_root and failure is None and not outcome.converged:
+        failure = (NotConvergedError if outcome.iterations >= scene.solver.max_iterations else DivergedError)(
+            outcome.message)
+    failure = comm.bcast(failure, root=0)
+    if failure is not None and not isinstance(failure, NotConvergedError):
+        raise failure
+    timings["iterations"] = time.perf_counter() - mark
+    stages["Iterations"].pop()
+
+    stages["Output"].push()
+    mark = time.perf_counter()
+    sizes = [2 * len((lower if spec.side < 0 else upper).points) for spec in BLOCKS]
+    solutions = exchange.gather_varying(server.solutions, sizes)
+    result = None
+    if exchange.is_root:
+        timings["update"] = outcome.update_time
+        result = io.Result(
+            scene=scene.text, method=scene.solver.method, converged=outcome.converged,
+            iterations=outcome.iterations, solves=rounds.count, wall_time=timings["factorization"] + timings["iterations"],
+            ranks=comm.size, lower=lower, upper=upper,
+            solution={spec.name: x.reshape(-1, 2) for spec, x in zip(BLOCKS, solutions)},
+            interface_x=interface.x, crack=interface.crack, multipliers=interface.split(outcome.lam),
+            history=np.array(outcome.history), timings=timings, message=outcome.message,
+            attrs={"version": __version__, "stop": scene.solver.stop, "tol": scene.solver.tol},
+        )
+    if output is not None:
+        collective(comm, lambda: io.write(output, result), root_only=True)
+    if exchange.is_root:
+        timings["output"] = time.perf_counter() - mark
+    stages["Output"].pop()
+    for block in blocks:
+        block.destroy()
+    if failure is not None:  # not converged: the result is written with converged = false
+        raise failure
+    return result

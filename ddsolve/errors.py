@@ -1,0 +1,31 @@
+"""Errors a user can cause or meet; each carries a one-line message and an exit status."""
+
+
+class DDSolveError(Exception):
+    """Base class: reported as one line, never as a traceback."""
+
+    exit_status = 1
+
+
+class SceneError(DDSolveError):
+    """A scene file or an override is invalid."""
+
+
+class MeshError(DDSolveError):
+    """A mesh cannot be generated, read, or fails a check."""
+
+
+class SolverError(DDSolveError):
+    """A block solve failed (singular block, KSP not converged)."""
+
+
+class DivergedError(DDSolveError):
+    """The multiplier iteration diverged."""
+
+    exit_status = 4
+
+
+class NotConvergedError(DDSolveError):
+    """max_iterations was reached; the result is written with converged = false."""
+
+    exit_status = 3

@@ -1,0 +1,177 @@
+"""The interface Σ: the four blocks, the Lagrange multipliers that couple them, and their signs.
+
+Every block has the same *trace*: the displacements of the Σ vertices strictly inside (−1, 1),
+ordered by x, interleaved (x, y) — a vector of length 2k.  The multipliers are nodal values
+(densities, as in the paper) stacked into one vector λ = [μᶜ | μᵍ | μ⁻ | μ⁺]:
+
+==========  ======================  ===================  ========================
+multiplier  vertices                gap it enforces      admissible set
+==========  ======================  ===================  ========================
+μᶜ          crack (inside (a, b))   (u⁻ − u⁺)·ν ≤ 0      0 ≤ μᶜ ≤ p
+μᵍ (x, y)   glued (not crack)       u⁻ − u⁺ = 0          −p ≤ μᵍ ≤ p
+μ⁻ (x, y)   all                     u⁻ − v⁻ = 0          −p ≤ μ⁻ ≤ p
+μ⁺ (x, y)   all                     u⁺ − v⁺ = 0          −p ≤ μ⁺ ≤ p
+==========  ======================  ===================  ========================
+
+With the lumped weights w (half the length of the Σ edges at a vertex) the discrete coupling is
+gap = Σ_b C_b t_b and block b receives the nodal force −C_bᵀ W λ on its trace.  μᶜ exists only
+when the scene has a crack and non-penetration; without it the crack faces are simply free.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .mesh import TOL
+
+
+@dataclass(frozen=True)
+class BlockSpec:
+    name: str
+    layer: str
+    side: int  # -1: lower half, +1: upper half
+
+
+BLOCKS = (
+    BlockSpec("u_minus", "layer1", -1),
+    BlockSpec("u_plus", "layer1", +1),
+    BlockSpec("v_minus", "layer2", -1),
+    BlockSpec("v_plus", "layer2", +1),
+)
+U_MINUS, U_PLUS, V_MINUS, V_PLUS = range(4)
+
+
+@dataclass(frozen=True)
+class Coupling:
+    """Entries of C_b: multiplier row, trace position, sign."""
+
+    rows: np.ndarray
+    trace: np.ndarray
+    sign: np.ndarray
+
+
+class Interface:
+    """Multiplier layout and the maps between traces, gaps, multipliers and interface loads."""
+
+    def __init__(self, sigma_x: np.ndarray, crack: tuple[float, float] | None, contact: bool):
+        """``sigma_x``: x of all Σ vertices in increasing order, endpoints ±1 included."""
+        sigma_x = np.asarray(sigma_x, dtype=np.float64)
+        self.x = sigma_x[1:-1]
+        self.weights = 0.5 * (sigma_x[2:] - sigma_x[:-2])
+        k = len(self.x)
+        if crack is None:
+            self.crack = np.zeros(k, dtype=bool)
+        else:
+            self.crack = (self.x > crack[0] + TOL) & (self.x < crack[1] - TOL)
+        self.contact = bool(contact and self.crack.any())
+        contact_vertices = np.flatnonzero(self.crack) if self.contact else np.zeros(0, dtype=np.int64)
+        glued_vertices = np.flatnonzero(~self.crack)
+        all_vertices = np.arange(k)
+
+        # Multiplier rows: (vertex, component) for each family, in the order of the class docstring.
+        families = {
+            "mu_c": (contact_vertices, np.ones(len(contact_vertices), dtype=np.int64)),
+            "mu_g": _both_components(glued_vertices),
+            "mu_minus": _both_components(all_vertices),
+            "mu_plus": _both_components(all_vertices),
+        }
+        self.slices: dict[str, slice] = {}
+        start = 0
+        for name, (vertices, _) in families.items():
+            self.slices[name] = slice(start, start + len(vertices))
+            start += len(vertices)
+        self.size = start
+        self.vertex = np.concatenate([v for v, _ in families.values()])
+        self.component = np.concatenate([c for _, c in families.values()])
+        self.trace_index = 2 * self.vertex + self.component
+        self.row_weights = self.weights[self.vertex]
+        self.is_contact = np.zeros(self.size, dtype=bool)
+        self.is_contact[self.slices["mu_c"]] = True
+
+        # (family, block, sign): gap rows are u⁻ − u⁺ (c, g), u⁻ − v⁻ (−), u⁺ − v⁺ (+).
+        signs = [("mu_c", U_MINUS, 1.0), ("mu_c", U_PLUS, -1.0),
+                 ("mu_g", U_MINUS, 1.0), ("mu_g", U_PLUS, -1.0),
+                 ("mu_minus", U_MINUS, 1.0), ("mu_minus", V_MINUS, -1.0),
+                 ("mu_plus", U_PLUS, 1.0), ("mu_plus", V_PLUS, -1.0)]
+        self.couplings = []
+        for block in range(len(BLOCKS)):
+            rows = np.concatenate([np.arange(self.size)[self.slices[f]] for f, b, _ in signs if b == block])
+            sign = np.concatenate([np.full(self.slices[f].stop - self.slices[f].start, s)
+                                   for f, b, s in signs if b == block])
+            self.couplings.append(Coupling(rows, self.trace_index[rows], sign))
+
+    @property
+    def trace_size(self) -> int:
+        return 2 * len(self.x)
+
+    def bounds(self, p: float | None) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper bounds of λ: μᶜ in [0, p], the others in [−p, p] (p = None: unbounded)."""
+        p = np.inf if p is None else p
+        lower = np.full(self.size, -p)
+        lower[self.is_contact] = 0.0
+        return lower, np.full(self.size, p)
+
+    def gap(self, traces: np.ndarray) -> np.ndarray:
+        """Constraint values Σ_b C_b t_b for traces ``(4, 2k)``."""
+        out = np.zeros(self.size)
+        for coupling, trace in zip(self.couplings, traces):
+            out[coupling.rows] += coupling.sign * trace[coupling.trace]
+        return out
+
+    def loads(self, lam: np.ndarray) -> np.ndarray:
+        """Interface nodal forces −C_bᵀ W λ on each block's trace, ``(4, 2k)``."""
+        out = np.zeros((len(BLOCKS), self.trace_size))
+        force = self.row_weights * lam
+        for coupling, load in zip(self.couplings, out):
+            np.add.at(load, coupling.trace, -coupling.sign * force[coupling.rows])
+        return out
+
+    def multipliers(self, loads: np.ndarray) -> np.ndarray:
+        """The λ with ``self.loads(λ) == loads`` when ``loads`` is in the range of that map.
+
+        v⁻ and v⁺ carry only μ⁻ and μ⁺ (force +W μ); u⁻ carries −W(μᶜν + μᵍ + μ⁻).
+        """
+        lam = np.zeros(self.size)
+        for name, block in (("mu_minus", V_MINUS), ("mu_plus", V_PLUS)):
+            rows = self.slices[name]
+            lam[rows] = loads[block][self.trace_index[rows]] / self.row_weights[rows]
+        minus = lam[self.slices["mu_minus"]]  # indexed by trace position
+        for name in ("mu_c", "mu_g"):
+            rows = self.slices[name]
+            traces = self.trace_index[rows]
+            lam[rows] = -loads[U_MINUS][traces] / self.row_weights[rows] - minus[traces]
+        return lam
+
+    def coupling_matrix(self, block: int) -> np.ndarray:
+        """Dense C_b ``(size, 2k)``."""
+        coupling = self.couplings[block]
+        C = np.zeros((self.size, self.trace_size))
+        C[coupling.rows, coupling.trace] = coupling.sign
+        return C
+
+    def split(self, lam: np.ndarray) -> dict[str, np.ndarray]:
+        """Per-vertex arrays for output: mu_c ``(k,)``, mu_g, mu_minus, mu_plus ``(k, 2)``; 0 where absent."""
+        k = len(self.x)
+        out = {"mu_c": np.zeros(k)}
+        out["mu_c"][self.vertex[self.slices["mu_c"]]] = lam[self.slices["mu_c"]]
+        for name in ("mu_g", "mu_minus", "mu_plus"):
+            values = np.zeros((k, 2))
+            rows = self.slices[name]
+            values[self.vertex[rows], self.component[rows]] = lam[rows]
+            out[name] = values
+        return out
+
+    def join(self, values: dict[str, np.ndarray]) -> np.ndarray:
+        """Inverse of :meth:`split`."""
+        lam = np.zeros(self.size)
+        rows = self.slices["mu_c"]
+        lam[rows] = values["mu_c"][self.vertex[rows]]
+        for name in ("mu_g", "mu_minus", "mu_plus"):
+            rows = self.slices[name]
+            lam[rows] = values[name][self.vertex[rows], self.component[rows]]
+        return lam
+
+
+def _both_components(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    return np.repeat(vertices, 2), np.tile(np.array([0, 1]), len(vertices))

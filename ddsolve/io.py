@@ -1,0 +1,160 @@
+"""Result files: HDF5 (the layout of docs/usage.md) written atomically, and XDMF for ParaView."""
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from .errors import DDSolveError
+from .interface import BLOCKS
+from .mesh import HalfMesh
+
+MULTIPLIERS = ("mu_c", "mu_g", "mu_minus", "mu_plus")
+
+
+@dataclass
+class Result:
+    """Everything a run produces; the same schema for the DD solve and the reference."""
+
+    scene: str
+    method: str
+    converged: bool
+    iterations: int
+    solves: int
+    wall_time: float
+    ranks: int
+    lower: HalfMesh
+    upper: HalfMesh
+    solution: dict[str, np.ndarray]  # block name -> (n, 2) nodal displacements
+    interface_x: np.ndarray
+    crack: np.ndarray
+    multipliers: dict[str, np.ndarray]
+    history: np.ndarray
+    timings: dict[str, float] = field(default_factory=dict)
+    message: str = ""
+    attrs: dict = field(default_factory=dict)
+
+    def half(self, block: str) -> HalfMesh:
+        return self.lower if block.endswith("minus") else self.upper
+
+
+def _atomic(path: Path, write) -> None:
+    """Call ``write(temporary_path)`` then rename over ``path``: never a truncated file."""
+    path = Path(path)
+    folder = path.parent if str(path.parent) else Path(".")
+    if not folder.is_dir():
+        raise DDSolveError(f"{path}: output directory {folder} does not exist")
+    try:
+        handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+        os.close(handle)
+    except OSError as exc:
+        raise DDSolveError(f"{path}: cannot write in {folder} ({exc.strerror})") from None
+    try:
+        write(temporary)
+        os.chmod(temporary, 0o644)
+        os.replace(temporary, path)
+    except OSError as exc:
+        raise DDSolveError(f"{path}: cannot write ({exc.strerror or exc})") from None
+    finally:
+        if os.path.exists(temporary):
+            os.unlink(temporary)
+
+
+def write(path: Path, result: Result) -> None:
+    """Write ``path`` (HDF5) and the XDMF file beside it, each atomically."""
+    path = Path(path)
+    _atomic(path, lambda name: _write_hdf5(name, result))
+    _atomic(path.with_suffix(".xdmf"), lambda name: Path(name).write_text(xdmf(path.name, result)))
+
+
+def _write_hdf5(name: str, result: Result) -> None:
+    from .plots import layer_stresses  # von Mises per cell for the ParaView fields
+
+    with h5py.File(name, "w") as f:
+        for key in ("converged", "iterations", "solves", "method", "wall_time", "ranks", "scene", "message"):
+            f.attrs[key] = getattr(result, key)
+        for key, value in result.attrs.items():
+            f.attrs[key] = value
+        timings = f.create_group("timings")
+        for key, value in result.timings.items():
+            timings.attrs[key] = value
+        for half in (result.lower, result.upper):
+            f[f"mesh/{half.name}/points"] = half.points
+            f[f"mesh/{half.name}/cells"] = half.cells
+        for name, values in result.solution.items():
+            f[f"solution/{name}"] = values
+        f["interface/x"] = result.interface_x
+        f["interface/crack"] = result.crack
+        for name in MULTIPLIERS:
+            f[f"interface/{name}"] = result.multipliers[name]
+        f["history/criterion"] = np.asarray(result.history, dtype=np.float64)
+        stresses = layer_stresses(result)
+        for spec in BLOCKS:
+            padded = np.zeros((len(result.solution[spec.name]), 3))
+            padded[:, :2] = result.solution[spec.name]
+            f[f"paraview/{spec.name}/displacement"] = padded
+            f[f"paraview/{spec.name}/von_mises"] = stresses[spec.name]
+
+
+def xdmf(h5_name: str, result: Result) -> str:
+    """XDMF 3 text: one grid per block (mesh of its half), displacement and von Mises stress."""
+    grids = []
+    for spec in BLOCKS:
+        half = result.half(spec.name)
+        n, m = len(half.points), len(half.cells)
+        item = f'Format="HDF" Precision="8" NumberType="Float"'
+        grids.append(f"""    <Grid Name="{spec.name}" GridType="Uniform">
+      <Topology TopologyType="Triangle" NumberOfElements="{m}">
+        <DataItem Dimensions="{m} 3" NumberType="Int" Precision="8" Format="HDF">{h5_name}:/mesh/{half.name}/cells</DataItem>
+      </Topology>
+      <Geometry GeometryType="XY">
+        <DataItem Dimensions="{n} 2" {item}>{h5_name}:/mesh/{half.name}/points</DataItem>
+      </Geometry>
+      <Attribute Name="displacement" AttributeType="Vector" Center="Node">
+        <DataItem Dimensions="{n} 3" {item}>{h5_name}:/paraview/{spec.name}/displacement</DataItem>
+      </Attribute>
+      <Attribute Name="von_mises" AttributeType="Scalar" Center="Cell">
+        <DataItem Dimensions="{m}" {item}>{h5_name}:/paraview/{spec.name}/von_mises</DataItem>
+      </Attribute>
+    </Grid>""")
+    body = "\n".join(grids)
+    return f"""<?xml version="1.0" ?>
+<Xdmf Version="3.0">
+  <Domain>
+  <Grid Name="ddsolve" GridType="Collection" CollectionType="Spatial">
+{body}
+  </Grid>
+  </Domain>
+</Xdmf>
+"""
+
+
+def read(path: Path) -> Result:
+    """Read a result file written by :func:`write`."""
+    path = Path(path)
+    if not path.is_file():
+        raise DDSolveError(f"{path}: result file not found")
+    try:
+        with h5py.File(path, "r") as f:
+            halves = {side: HalfMesh(f[f"mesh/{name}/points"][()], f[f"mesh/{name}/cells"][()], side)
+                      for side, name in ((-1, "lower"), (1, "upper"))}
+            known = {"converged", "iterations", "solves", "method", "wall_time", "ranks", "scene", "message"}
+            return Result(
+                scene=str(f.attrs["scene"]), method=str(f.attrs["method"]),
+                converged=bool(f.attrs["converged"]), iterations=int(f.attrs["iterations"]),
+                solves=int(f.attrs["solves"]), wall_time=float(f.attrs["wall_time"]),
+                ranks=int(f.attrs["ranks"]), lower=halves[-1], upper=halves[1],
+                solution={spec.name: f[f"solution/{spec.name}"][()] for spec in BLOCKS},
+                interface_x=f["interface/x"][()], crack=f["interface/crack"][()].astype(bool),
+                multipliers={name: f[f"interface/{name}"][()] for name in MULTIPLIERS},
+                history=f["history/criterion"][()],
+                timings={k: float(v) for k, v in f["timings"].attrs.items()} if "timings" in f else {},
+                message=str(f.attrs.get("message", "")),
+                attrs={k: v for k, v in f.attrs.items() if k not in known},
+            )
+    except (OSError, KeyError) as exc:
+        raise DDSolveError(f"{path}: not a ddsolve result file ({exc})") from None

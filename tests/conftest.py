@@ -1,0 +1,61 @@
+"""Shared test helpers: small structured meshes and launching ddsolve under mpiexec."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import meshio
+import numpy as np
+import pytest
+
+from ddsolve.mesh import HalfMesh, split
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def structured_square(nx: int, ny: int, shear: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Triangulated (−1,1)² with nx cells across and ny cells per half; y = 0 is a grid line.
+
+    ``shear`` moves interior vertices sideways (an unstructured-looking but valid mesh).
+    """
+    x = np.linspace(-1.0, 1.0, nx + 1)
+    y = np.linspace(-1.0, 1.0, 2 * ny + 1)
+    X, Y = np.meshgrid(x, y)
+    points = np.column_stack([X.ravel(), Y.ravel()])
+    inner = (np.abs(points[:, 0]) < 1) & (np.abs(points[:, 1]) < 1) & (points[:, 1] != 0)
+    points[inner, 0] += shear * (1.0 / nx) * np.sin(7.0 * points[inner, 1] + 3.0 * points[inner, 0])
+    v = np.arange((nx + 1) * (2 * ny + 1)).reshape(2 * ny + 1, nx + 1)
+    a, b, c, d = v[:-1, :-1].ravel(), v[:-1, 1:].ravel(), v[1:, 1:].ravel(), v[1:, :-1].ravel()
+    cells = np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d])])
+    return points, cells
+
+
+def structured_halves(nx: int = 8, ny: int = 4, shear: float = 0.0) -> tuple[HalfMesh, HalfMesh]:
+    points, cells = structured_square(nx, ny, shear)
+    return split(points, cells, "test mesh")
+
+
+@pytest.fixture
+def mesh_file(tmp_path) -> Path:
+    """A small structured mesh of the square in a meshio-readable file (crack tips ±0.5 on vertices)."""
+    points, cells = structured_square(8, 4, shear=0.3)
+    path = tmp_path / "square.vtu"
+    meshio.write(path, meshio.Mesh(points, [("triangle", cells)]))
+    return path
+
+
+def ddsolve(*args: str, ranks: int | None = None, check: bool = True, timeout: float = 300) -> subprocess.CompletedProcess:
+    """Run ``python -m ddsolve ARGS`` (under mpiexec with ``ranks``), capturing output."""
+    command = [sys.executable, "-m", "ddsolve", *args]
+    if ranks is not None:
+        from ddsolve.cli import mpiexec_command
+
+        command = mpiexec_command(ranks, list(args))
+    completed = subprocess.run(command, capture_output=True, text=True, timeout=timeout,
+                               stdin=subprocess.DEVNULL, env={**os.environ, "MPLBACKEND": "Agg"})
+    if check and completed.returncode != 0:
+        raise AssertionError(f"{' '.join(command)} failed ({completed.returncode}):\n"
+                             f"{completed.stdout}\n{completed.stderr}")
+    return completed

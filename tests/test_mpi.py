@@ -1,0 +1,97 @@
+"""End-to-end runs under mpiexec with 1, 2 and 4 ranks, against the monolithic reference."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ddsolve import analysis, io
+
+from conftest import ddsolve
+
+SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
+TIGHT = ["--set", "solver.stop=relative", "--set", "solver.tol=1e-12"]
+
+
+@pytest.fixture(scope="module")
+def references(tmp_path_factory):
+    """Reference results of the three paper scenes on a small mesh, computed once."""
+    folder = tmp_path_factory.mktemp("references")
+    out = {}
+    for name in ("partial-closure", "full-opening", "linear"):
+        out[name] = folder / f"{name}.h5"
+        ddsolve("reference", name, *SMALL, "-o", str(out[name]))
+    return out
+
+
+@pytest.mark.parametrize("name", ["partial-closure", "full-opening", "linear"])
+def test_dd_equals_the_reference(tmp_path, references, name):
+    output = tmp_path / "dd.h5"
+    ddsolve("solve", name, *SMALL, *TIGHT, "-o", str(output), ranks=4)
+    result, reference = io.read(output), io.read(references[name])
+    assert result.converged and result.ranks == 4 and result.method == "uzawa"
+    assert result.solves == result.iterations + 2
+    comparison = analysis.compare(result, reference)
+    assert comparison.energy_error < 1e-8
+    checks = analysis.constraints(result)
+    assert checks.gluing_gap < 1e-9
+    if name == "partial-closure":
+        assert checks.penetration < 1e-9 and checks.min_mu_c >= 0.0
+        assert reference.attrs["closed_vertices"] > 0  # contact on part of the crack
+    if name == "full-opening":
+        assert reference.attrs["closed_vertices"] == 0 and np.all(result.multipliers["mu_c"] == 0.0)
+
+
+def test_contact_where_the_linear_problem_overlaps(references):
+    from ddsolve.plots import normal_jump
+
+    contact, linear = io.read(references["partial-closure"]), io.read(references["linear"])
+    crack = contact.crack
+    assert normal_jump(linear)[crack].min() < 0.0  # the free faces overlap ...
+    assert normal_jump(contact)[crack].min() > -1e-12 * np.abs(normal_jump(linear)).max()  # ... contact does not
+    overlap = normal_jump(linear) < 0
+    assert np.all(contact.multipliers["mu_c"][crack & ~overlap] < 1e-9)
+
+
+def test_rank_counts_agree(tmp_path):
+    results = {}
+    for ranks in (1, 2, 4):
+        output = tmp_path / f"n{ranks}.h5"
+        ddsolve("solve", "partial-closure", *SMALL, "-o", str(output), ranks=ranks)
+        results[ranks] = io.read(output)
+    assert len({r.iterations for r in results.values()}) == 1
+    for ranks in (1, 2):
+        assert results[ranks].ranks == ranks
+        assert analysis.compare(results[ranks], results[4]).energy_error < 1e-10
+        assert np.array_equal(results[ranks].history, results[4].history)
+
+
+def test_unsupported_rank_count_fails_on_every_rank(tmp_path):
+    from ddsolve.cli import mpiexec_command
+    import subprocess
+
+    command = mpiexec_command(3, ["solve", "partial-closure", *SMALL, "-o", str(tmp_path / "x.h5")])
+    completed = subprocess.run(command, capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
+    assert completed.returncode != 0
+    assert completed.stderr.strip() == "ddsolve: error: unsupported number of ranks 3: use 1, 2 or 4"
+    assert not (tmp_path / "x.h5").exists()
+
+
+def test_max_iterations_writes_an_unconverged_result(tmp_path):
+    output = tmp_path / "short.h5"
+    completed = ddsolve("solve", "partial-closure", *SMALL, "--set", "solver.max_iterations=25",
+                        "-o", str(output), ranks=2, check=False)
+    assert completed.returncode == 3
+    assert "no convergence in 25 iterations" in completed.stderr
+    result = io.read(output)
+    assert not result.converged and result.iterations == 25 and len(result.history) == 25
+
+
+def test_divergence_stops_early_and_keeps_the_previous_file(tmp_path):
+    output = tmp_path / "kept.h5"
+    output.write_bytes(b"previous result")
+    completed = ddsolve("solve", "partial-closure", *SMALL, "--set", "solver.theta=200",
+                        "-o", str(output), ranks=4, check=False)
+    assert completed.returncode == 4
+    lines = completed.stderr.strip().splitlines()
+    assert len(lines) == 1 and "uzawa diverged at iteration" in lines[0] and "stable bound" in lines[0]
+    assert output.read_bytes() == b"previous result"

@@ -1,0 +1,104 @@
+"""Scene parsing, validation and overrides."""
+import pytest
+
+from ddsolve import scene
+from ddsolve.errors import SceneError
+
+MINIMAL = """
+[mesh]
+sigma_vertices = 12
+boundary_vertices = 32
+[materials.layer1]
+E = 200.0
+nu = 0.28
+[materials.layer2]
+E = 112.0
+nu = 0.32
+[solver]
+method = "uzawa"
+theta = 65.0
+"""
+
+
+def test_builtin_scenes_are_the_papers_examples():
+    shipped = scene.builtin_scenes()
+    assert {"partial-closure", "full-opening", "linear"} <= set(shipped)
+    ex1 = scene.load("partial-closure")
+    assert ex1.crack == (-0.5, 0.5) and ex1.contact
+    assert ex1.loads[("layer1", "bottom")].y == (0.0, 0.078125)
+    assert ex1.loads[("layer1", "top")].y == (0.0, -0.078125)
+    assert ("layer2", "bottom") not in ex1.loads  # no table: the boundary is not integrated
+    assert (ex1.solver.theta, ex1.solver.p, ex1.solver.tol, ex1.solver.stop) == (65.0, 1e7, 1e-6, "paper")
+    assert ex1.materials["layer1"].E == 200.0 and ex1.materials["layer2"].nu == 0.32
+    assert not scene.load("linear").contact
+    assert scene.load("full-opening").loads[("layer1", "top")].y == (0.078125,)
+
+
+def test_defaults_and_round_trip():
+    s = scene.loads(MINIMAL)
+    assert s.crack == (-0.5, 0.5) and s.nonpenetration and s.loads == {}
+    assert s.solver.max_iterations == 20000 and s.solver.stop == "paper"
+    again = scene.loads(s.text)
+    assert again == s
+
+
+def test_overrides_are_typed_and_validated():
+    s = scene.loads(MINIMAL, ["solver.stop=relative", "solver.tol=1e-11", "mesh.sigma_vertices=48",
+                              "loads.layer2.top.x=[1, 2]", "geometry.crack=[]"])
+    assert s.solver.stop == "relative" and s.solver.tol == 1e-11 and s.sigma_vertices == 48
+    assert s.loads[("layer2", "top")].x == (1.0, 2.0)
+    assert s.crack is None and not s.contact
+    assert "stop = \"relative\"" in s.text and "crack = []" in s.text
+
+
+@pytest.mark.parametrize("override, message", [
+    ("solver.thta=1", "unknown key solver.thta (did you mean solver.theta?)"),
+    ("solver.theta=-1", "solver.theta must be > 0"),
+    ("solver.tol=0", "solver.tol must be > 0"),
+    ("solver.method=newton", "solver.method must be one of"),
+    ("solver.stop=sometimes", "solver.stop must be one of"),
+    ("materials.layer1.E=0", "materials.layer1.E must be > 0"),
+    ("materials.layer2.nu=0.5", "materials.layer2.nu must be in (-1, 0.5)"),
+    ("materials.layer2.nu=-1", "materials.layer2.nu must be in (-1, 0.5)"),
+    ("materials.layer1.E=\"hard\"", "materials.layer1.E must be a number"),
+    ("geometry.crack=[0.5, -0.5]", "geometry.crack must be [a, b] with -1 < a < b < 1"),
+    ("geometry.crack=[-1.0, 0.5]", "the crack must stay off the clamped ends"),
+    ("geometry.crack=[0.1]", "geometry.crack must be [a, b] or []"),
+    ("mesh.sigma_vertices=2", "mesh.sigma_vertices must be at least 5"),
+    ("mesh.boundary_vertices=4", "mesh.boundary_vertices must be at least 8"),
+    ("mesh.boundary_vertices=1000", "mesh.boundary_vertices = 1000 is inconsistent with mesh.sigma_vertices = 12"),
+    ("mesh.sigma_vertices=12.5", "mesh.sigma_vertices must be an integer"),
+    ("mesh.file=x.msh", "mesh.file excludes"),
+    ("contact.nonpenetration=1", "contact.nonpenetration must be true or false"),
+    ("loads.layer1.left.y=[1]", "unknown key loads.layer1.left"),
+    ("materials=3", "materials must be a table"),
+    ("solver.max_iterations=0", "solver.max_iterations must be at least 1"),
+    ("nokey", "expected KEY=VALUE"),
+])
+def test_bad_values_name_the_key(override, message):
+    with pytest.raises(SceneError) as error:
+        scene.loads(MINIMAL, [override], origin="s.toml")
+    assert message in str(error.value)
+    assert str(error.value).startswith("s.toml: ") or "--set" in str(error.value)
+    assert "\n" not in str(error.value)
+
+
+def test_missing_and_malformed():
+    with pytest.raises(SceneError, match="missing key materials.layer1.E"):
+        scene.loads(MINIMAL.replace("E = 200.0", ""))
+    with pytest.raises(SceneError, match="solver.theta is required by method uzawa"):
+        scene.loads(MINIMAL.replace("theta = 65.0", ""))
+    with pytest.raises(SceneError, match="missing key mesh.boundary_vertices"):
+        scene.loads(MINIMAL.replace("boundary_vertices = 32", ""))
+    with pytest.raises(SceneError, match="malformed TOML"):
+        scene.loads("[mesh\nsigma_vertices = 3")
+    with pytest.raises(SceneError, match="no such scene file or built-in scene"):
+        scene.load("no-such-scene")
+
+
+def test_bare_words_are_strings_and_mesh_files_resolve_against_the_scene(tmp_path):
+    assert scene.parse_override("solver.stop=relative") == (["solver", "stop"], "relative")
+    assert scene.parse_override("solver.tol=1e-8") == (["solver", "tol"], 1e-8)
+    path = tmp_path / "s.toml"
+    path.write_text(MINIMAL.replace("sigma_vertices = 12\nboundary_vertices = 32", 'file = "m.vtu"'))
+    assert scene.load(path).mesh_file == tmp_path / "m.vtu"
