@@ -1,0 +1,103 @@
+"""Result files and the command line (serial)."""
+import xml.etree.ElementTree as ElementTree
+
+import h5py
+import numpy as np
+import pytest
+
+from ddsolve import cli, io
+
+from conftest import ddsolve
+
+SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
+
+
+@pytest.fixture(scope="module")
+def reference_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("io") / "ref.h5"
+    ddsolve("reference", "partial-closure", *SMALL, "-o", str(path))
+    return path
+
+
+def test_result_layout_and_round_trip(reference_file):
+    with h5py.File(reference_file) as f:
+        for name in ("mesh/lower/points", "mesh/lower/cells", "mesh/upper/points", "mesh/upper/cells",
+                     "solution/u_minus", "solution/v_minus", "solution/u_plus", "solution/v_plus",
+                     "interface/x", "interface/crack", "interface/mu_c", "interface/mu_g",
+                     "interface/mu_minus", "interface/mu_plus", "history/criterion"):
+            assert name in f, name
+        for key in ("converged", "iterations", "solves", "method", "wall_time", "ranks", "scene", "version"):
+            assert key in f.attrs, key
+        k = len(f["interface/x"])
+        assert f["interface/mu_g"].shape == (k, 2) and f["interface/mu_c"].shape == (k,)
+        assert f["solution/u_minus"].shape == f["mesh/lower/points"].shape
+        assert f.attrs["method"] == "reference"
+    result = io.read(reference_file)
+    copy = reference_file.with_name("copy.h5")
+    io.write(copy, result)
+    again = io.read(copy)
+    assert again.scene == result.scene and np.array_equal(again.solution["v_plus"], result.solution["v_plus"])
+
+
+def test_xdmf_points_at_existing_datasets(reference_file):
+    tree = ElementTree.parse(reference_file.with_suffix(".xdmf"))
+    grids = tree.findall(".//Grid[@GridType='Uniform']")
+    assert [g.get("Name") for g in grids] == ["u_minus", "u_plus", "v_minus", "v_plus"]
+    with h5py.File(reference_file) as f:
+        for item in tree.iter("DataItem"):
+            file_name, dataset = item.text.split(":")
+            assert file_name == reference_file.name  # relative to the XDMF file
+            assert f[dataset].shape == tuple(int(d) for d in item.get("Dimensions").split())
+
+
+def test_output_directory_must_exist_and_nothing_partial_is_left(tmp_path, reference_file):
+    result = io.read(reference_file)
+    from ddsolve.errors import DDSolveError
+
+    with pytest.raises(DDSolveError, match="does not exist"):
+        io.write(tmp_path / "missing" / "out.h5", result)
+    io.write(tmp_path / "out.h5", result)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.h5", "out.xdmf"]
+
+
+def test_petsc_options_are_split_off():
+    assert cli.split_petsc_options(["solve", "s.toml", "-o", "x.h5", "--set", "a.b=-1", "-log_view"]) == (
+        ["solve", "s.toml", "-o", "x.h5", "--set", "a.b=-1"], ["-log_view"])
+    assert cli.split_petsc_options(["solve", "s", "-u_minus_ksp_type", "cg", "-v_plus_pc_type", "gamg"])[1] == [
+        "-u_minus_ksp_type", "cg", "-v_plus_pc_type", "gamg"]
+    assert cli.split_petsc_options(["solve", "s", "--", "-x"]) == (["solve", "s"], ["-x"])
+
+
+@pytest.mark.parametrize("arguments, message", [
+    (["solve", "nope.toml"], "nope.toml: no such scene file or built-in scene"),
+    (["solve", "partial-closure", "--set", "solver.thta=3"], "did you mean solver.theta?"),
+    (["reference", "partial-closure", "--set", "mesh.file=missing.msh", "--set", "mesh.sigma_vertices=[]"],
+     "mesh.sigma_vertices must be an integer"),
+    (["compare", "missing-a.h5", "missing-b.h5"], "missing-a.h5: result file not found"),
+])
+def test_bad_input_is_one_line_and_nonzero(tmp_path, arguments, message):
+    completed = ddsolve(*arguments, check=False)
+    assert completed.returncode == 1
+    assert completed.stderr.strip().count("\n") == 0 and message in completed.stderr
+    assert "Traceback" not in completed.stderr
+
+
+def test_missing_mesh_file_is_reported(tmp_path):
+    scene = tmp_path / "s.toml"
+    scene.write_text('[mesh]\nfile = "absent.msh"\n[materials.layer1]\nE = 1.0\nnu = 0.3\n'
+                     '[materials.layer2]\nE = 1.0\nnu = 0.3\n[solver]\ntheta = 1.0\n')
+    completed = ddsolve("solve", str(scene), ranks=4, check=False)
+    assert completed.returncode == 1
+    assert completed.stderr.strip() == f"ddsolve: error: {tmp_path / 'absent.msh'}: mesh file not found"
+
+
+def test_compare_check_and_plot(tmp_path, reference_file):
+    out = ddsolve("compare", str(reference_file), str(reference_file)).stdout
+    assert "relative energy-norm error 0.000e+00" in out
+    out = ddsolve("check", str(reference_file)).stdout
+    assert "max penetration 0.000e+00" in out
+    local = tmp_path / "r.h5"
+    local.write_bytes(reference_file.read_bytes())
+    ddsolve("plot", str(local), "--scale", "100")
+    assert (tmp_path / "r-deformed.png").stat().st_size > 10_000
+    assert (tmp_path / "r-jump.png").exists()
