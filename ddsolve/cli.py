@@ -10,6 +10,7 @@ import os
 import shutil
 import subprocess
 import sys
+import traceback
 from pathlib import Path
 
 from . import __version__
@@ -168,7 +169,7 @@ def cmd_version(_args, petsc_options) -> int:
 
     petsc = ".".join(map(str, PETSc.Sys.getVersion()))
     print(f"ddsolve {__version__}; PETSc {petsc} (factorization: {default_factor_package()}); "
-          f"{MPI.Get_library_version().splitlines()[0].strip()}")
+          f"{MPI.Get_library_version().replace(chr(0), '').splitlines()[0].strip()}")
     return 0
 
 
@@ -215,18 +216,40 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return args.run(args, petsc_options)
     except DDSolveError as exc:
-        _report(f"ddsolve: error: {exc}")
+        _report(f"ddsolve: error: {exc}", everywhere=not exc.collective)
+        if not exc.collective:  # raised on this rank only: the others cannot know, so stop them
+            _abort(exc.exit_status)
         return exc.exit_status
     except KeyboardInterrupt:
-        _report("ddsolve: interrupted")
+        _report("ddsolve: interrupted", everywhere=True)
+        _abort(130)
         return 130
+    except Exception:
+        traceback.print_exc()
+        _abort(1)
+        raise
 
 
-def _report(message: str) -> None:
-    """Print an error once (on rank 0 when MPI is running)."""
-    if "mpi4py.MPI" in sys.modules:
-        from mpi4py import MPI
+def _world():
+    """MPI.COMM_WORLD if mpi4py is in use, else None."""
+    if "mpi4py.MPI" not in sys.modules:
+        return None
+    from mpi4py import MPI
 
-        if MPI.COMM_WORLD.rank != 0:
-            return
-    print(message, file=sys.stderr, flush=True)
+    return MPI.COMM_WORLD if MPI.Is_initialized() and not MPI.Is_finalized() else None
+
+
+def _abort(status: int) -> None:
+    """End every rank at once: waiting for the others (PETSc's finalize does) would hang."""
+    world = _world()
+    if world is not None and world.size > 1:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        world.Abort(status)
+
+
+def _report(message: str, everywhere: bool = False) -> None:
+    """Print an error once (on rank 0 when MPI is running, unless it happened on one rank only)."""
+    world = _world()
+    if world is None or world.rank == 0 or everywhere:
+        print(message, file=sys.stderr, flush=True)

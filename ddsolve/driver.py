@@ -57,13 +57,21 @@ class BlockServer:
 
 
 class ParallelRounds:
-    """Rank 0's implementation of :class:`~ddsolve.methods.Rounds` over an :class:`Exchange`."""
+    """Rank 0's implementation of :class:`~ddsolve.methods.Rounds` over an :class:`Exchange`.
 
-    def __init__(self, exchange: Exchange, server: BlockServer, trace_size: int):
-        self.exchange, self.server, self.trace_size = exchange, server, trace_size
+    Between rounds rank 0 is updating multipliers: that time is logged in the PETSc stage
+    ``Update``, the rounds themselves in ``Rounds``.
+    """
+
+    def __init__(self, exchange: Exchange, server: BlockServer, trace_size: int, stages: dict):
+        self.exchange, self.server, self.trace_size, self.stages = exchange, server, trace_size, stages
         self.count = 0
+        self.elapsed = 0.0  # seconds inside rounds
 
     def _round(self, command: int, loads: np.ndarray | None) -> np.ndarray:
+        self.stages["Update"].pop()
+        self.stages["Rounds"].push()
+        started = time.perf_counter()
         self.exchange.command(command)
         local = None
         if loads is not None:
@@ -74,6 +82,9 @@ class ParallelRounds:
             self.exchange.command(REPORT_ERROR)
             messages = self.exchange.comm.gather(self.server.error, root=0)
             raise SolverError(next(m for m in messages if m))
+        self.elapsed += time.perf_counter() - started
+        self.stages["Rounds"].pop()
+        self.stages["Update"].push()
         return results[:, :-1]
 
     def solve(self, loads: np.ndarray, full: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -87,98 +98,121 @@ class ParallelRounds:
         self.exchange.command(STOP)
 
 
-def serve(exchange: Exchange, server: BlockServer, trace_size: int) -> None:
+def serve(exchange: Exchange, server: BlockServer, trace_size: int, stages: dict) -> None:
     """Worker loop: answer rank 0's rounds until it says STOP."""
+    stages["Rounds"].push()
     while True:
         command = exchange.command()
         if command == STOP:
-            return
+            break
         if command == REPORT_ERROR:
             exchange.comm.gather(server.error, root=0)
             continue
         local = exchange.scatter(None, trace_size) if command in (SOLVE_LOAD, SOLVE_FULL) else None
         exchange.gather(server.run(command, local))
+    stages["Rounds"].pop()
 
 
-METHODS = {"uzawa": methods.uzawa}
-#: Default block factorization per method: iterative methods are dominated by the cost of one solve,
-#: where PETSc's own Cholesky is about 3x faster than MUMPS (`./run bench factor` measures both).
-FACTOR_PACKAGE = {"uzawa": "petsc"}
+#: Default block factorization per method.  The iterative methods make one solve per round with one
+#: factorization, where PETSc's own Cholesky is about 3x faster than MUMPS; ``schur`` needs MUMPS for
+#: the Schur complements (``./run bench factor`` measures both).
+FACTOR_PACKAGE = {"uzawa": "petsc", "fista": "petsc", "mprgp": "petsc", "schur": "mumps"}
+STAGES = ("Setup", "Factorization", "Rounds", "Update", "Output")
 
 
-def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print) -> io.Result:
-    """Run the domain decomposition for ``scene`` on ``comm``; write ``output`` on rank 0."""
+def run_method(scene: Scene, exchange: Exchange, server: BlockServer, interface: Interface, stages: dict,
+               progress) -> tuple[methods.Outcome | None, ParallelRounds | None, DDSolveError | None]:
+    """Rank 0 runs the multiplier method (then the final round); the others serve rounds."""
+    if not exchange.is_root:
+        serve(exchange, server, interface.trace_size, stages)
+        return None, None, None
+    rounds = ParallelRounds(exchange, server, interface.trace_size, stages)
+    outcome, failure = None, None
+    stages["Update"].push()
+    try:
+        method = scene.solver.method
+        outcome = methods.METHODS[method](rounds, interface, scene.solver, methods.Progress(method, out=progress))
+        if not outcome.diverged:
+            rounds.solve(interface.loads(outcome.lam), full=True)  # the displacements for λ
+    except DDSolveError as exc:
+        failure = exc
+    else:
+        if outcome.diverged:
+            failure = DivergedError(outcome.message)
+        elif not outcome.converged:
+            failure = NotConvergedError(outcome.message)
+    finally:
+        stages["Update"].pop()
+    rounds.stop()
+    return outcome, rounds, failure
+
+
+def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print) -> io.Result | None:
+    """Run the domain decomposition for ``scene`` on ``comm``; write ``output`` on rank 0.
+
+    Returns the result on rank 0 (None elsewhere).  A run that reaches max_iterations writes its
+    result with converged = false and then raises NotConvergedError on every rank.
+    """
     if comm.size not in SUPPORTED_RANKS:
-        raise DDSolveError(f"unsupported number of ranks {comm.size}: use 1, 2 or 4")
+        error = DDSolveError(f"unsupported number of ranks {comm.size}: use 1, 2 or 4")
+        error.collective = True  # every rank sees the same size
+        raise error
     timings: dict[str, float] = {}
-    start = time.perf_counter()
-    stages = {name: PETSc.Log.Stage(name) for name in ("Setup", "Factorization", "Iterations", "Output")}
+    stages = {name: PETSc.Log.Stage(name) for name in STAGES}
+    method = scene.solver.method
 
+    mark = time.perf_counter()
     stages["Setup"].push()
     lower, upper = comm.bcast(collective(comm, lambda: mesh.build(scene), root_only=True), root=0)
     exchange = Exchange(comm, len(BLOCKS))
     blocks = collective(comm, lambda: [
-        Block(s, factor_package=FACTOR_PACKAGE[scene.solver.method])
-        for s in assembly.block_systems(scene, lower, upper, exchange.local_blocks)])
+        Block(system, factor_package=FACTOR_PACKAGE[method])
+        for system in assembly.block_systems(scene, lower, upper, exchange.local_blocks)])
     interface = Interface(lower.points[lower.sigma(), 0], scene.crack, scene.contact)
     stages["Setup"].pop()
-    timings["setup"] = time.perf_counter() - start
+    timings["setup"] = time.perf_counter() - mark
 
-    stages["Factorization"].push()
     mark = time.perf_counter()
-    collective(comm, lambda: [block.factor() for block in blocks])
+    stages["Factorization"].push()
+    collective(comm, lambda: [block.factor(schur=method == "schur") for block in blocks])
     comm.Barrier()
-    timings["factorization"] = time.perf_counter() - mark
     stages["Factorization"].pop()
+    timings["factorization"] = time.perf_counter() - mark
 
-    stages["Iterations"].push()
     mark = time.perf_counter()
     server = BlockServer(blocks)
-    outcome, failure = None, None
-    if exchange.is_root:
-        rounds = ParallelRounds(exchange, server, interface.trace_size)
-        try:
-            label = scene.solver.method
-            outcome = METHODS[label](rounds, interface, scene.solver, methods.Progress(label, out=progress))
-            if outcome.converged or outcome.iterations >= scene.solver.max_iterations:
-                rounds.solve(interface.loads(outcome.lam), full=True)  # the displacements for λ
-        except DDSolveError as exc:
-            failure = exc
-        rounds.stop()
-    else:
-        serve(exchange, server, interface.trace_size)
-    if exchange.is_root and failure is None and not outcome.converged:
-        failure = (NotConvergedError if outcome.iterations >= scene.solver.max_iterations else DivergedError)(
-            outcome.message)
+    outcome, rounds, failure = run_method(scene, exchange, server, interface, stages, progress)
     failure = comm.bcast(failure, root=0)
+    if failure is not None:
+        failure.collective = True
+    timings["iterations"] = time.perf_counter() - mark
     if failure is not None and not isinstance(failure, NotConvergedError):
         raise failure
-    timings["iterations"] = time.perf_counter() - mark
-    stages["Iterations"].pop()
 
-    stages["Output"].push()
     mark = time.perf_counter()
+    stages["Output"].push()
     sizes = [2 * len((lower if spec.side < 0 else upper).points) for spec in BLOCKS]
     solutions = exchange.gather_varying(server.solutions, sizes)
     result = None
     if exchange.is_root:
-        timings["update"] = outcome.update_time
+        timings["update"] = timings["iterations"] - rounds.elapsed
         result = io.Result(
-            scene=scene.text, method=scene.solver.method, converged=outcome.converged,
-            iterations=outcome.iterations, solves=rounds.count, wall_time=timings["factorization"] + timings["iterations"],
-            ranks=comm.size, lower=lower, upper=upper,
-            solution={spec.name: x.reshape(-1, 2) for spec, x in zip(BLOCKS, solutions)},
+            scene=scene.text, method=method, converged=outcome.converged, iterations=outcome.iterations,
+            solves=rounds.count, wall_time=timings["factorization"] + timings["iterations"], ranks=comm.size,
+            lower=lower, upper=upper, solution={spec.name: x.reshape(-1, 2) for spec, x in zip(BLOCKS, solutions)},
             interface_x=interface.x, crack=interface.crack, multipliers=interface.split(outcome.lam),
             history=np.array(outcome.history), timings=timings, message=outcome.message,
-            attrs={"version": __version__, "stop": scene.solver.stop, "tol": scene.solver.tol},
+            attrs={"version": __version__, "stop": scene.solver.stop, "tol": scene.solver.tol,
+                   "petsc": ".".join(map(str, PETSc.Sys.getVersion())),
+                   "mpi": MPI.Get_library_version().replace("\x00", "").splitlines()[0].strip(),
+                   **outcome.details},
         )
+        timings["output"] = time.perf_counter() - mark  # gathering; io.write adds its own "write" time
     if output is not None:
         collective(comm, lambda: io.write(output, result), root_only=True)
-    if exchange.is_root:
-        timings["output"] = time.perf_counter() - mark
     stages["Output"].pop()
     for block in blocks:
         block.destroy()
-    if failure is not None:  # not converged: the result is written with converged = false
+    if failure is not None:
         raise failure
     return result

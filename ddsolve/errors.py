@@ -2,9 +2,14 @@
 
 
 class DDSolveError(Exception):
-    """Base class: reported as one line, never as a traceback."""
+    """Base class: reported as one line, never as a traceback.
+
+    ``collective`` is set when every rank raises the same error (then all exit normally);
+    an error raised on one rank only aborts the MPI job.
+    """
 
     exit_status = 1
+    collective = False
 
 
 class SceneError(DDSolveError):

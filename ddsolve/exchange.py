@@ -30,6 +30,7 @@ def collective(comm: MPI.Comm, work: Callable[[], T], root_only: bool = False) -
     errors = comm.allgather(error)
     first = next((e for e in errors if e is not None), None)
     if first is not None:
+        first.collective = True
         raise first
     return value
 

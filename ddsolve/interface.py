@@ -150,6 +150,14 @@ class Interface:
         C[coupling.rows, coupling.trace] = coupling.sign
         return C
 
+    def dual_matrix(self, flexibilities: np.ndarray) -> np.ndarray:
+        """F = Σ_b W C_b G_b C_bᵀ W from the blocks' flexibilities G_b ``(4, 2k, 2k)``."""
+        F = np.zeros((self.size, self.size))
+        for coupling, G in zip(self.couplings, flexibilities):
+            scaled = coupling.sign * self.row_weights[coupling.rows]
+            F[np.ix_(coupling.rows, coupling.rows)] += np.outer(scaled, scaled) * G[np.ix_(coupling.trace, coupling.trace)]
+        return F
+
     def split(self, lam: np.ndarray) -> dict[str, np.ndarray]:
         """Per-vertex arrays for output: mu_c ``(k,)``, mu_g, mu_minus, mu_plus ``(k, 2)``; 0 where absent."""
         k = len(self.x)

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -74,6 +75,7 @@ def write(path: Path, result: Result) -> None:
 def _write_hdf5(name: str, result: Result) -> None:
     from .plots import layer_stresses  # von Mises per cell for the ParaView fields
 
+    started = time.perf_counter()
     with h5py.File(name, "w") as f:
         for key in ("converged", "iterations", "solves", "method", "wall_time", "ranks", "scene", "message"):
             f.attrs[key] = getattr(result, key)
@@ -98,6 +100,7 @@ def _write_hdf5(name: str, result: Result) -> None:
             padded[:, :2] = result.solution[spec.name]
             f[f"paraview/{spec.name}/displacement"] = padded
             f[f"paraview/{spec.name}/von_mises"] = stresses[spec.name]
+        timings.attrs["write"] = time.perf_counter() - started
 
 
 def xdmf(h5_name: str, result: Result) -> str:

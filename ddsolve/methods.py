@@ -3,7 +3,17 @@
 A method sees the blocks only through a :class:`Rounds` object: each call is one round of block
 solves on all ranks (``solve``) or one collection of interface flexibilities (``flexibility``).
 Loads, traces and multipliers are related by :class:`~ddsolve.interface.Interface`:
-x_b(λ) = K_b⁻¹(f_b + E ℓ_b(λ)) with ℓ(λ) = −Cᵀ W λ, and the gap is C t.
+x_b(λ) = K_b⁻¹(f_b + ℓ_b(λ)) with ℓ(λ) = −Cᵀ W λ, and the constraint gap is C t.
+
+The fast methods solve the dual problem in the W-scaled variable y = W^½ λ,
+
+    minimize ½ yᵀ A y − bᵀ y  subject to  lower ≤ y ≤ upper,
+    A = W^½ C K⁻¹ Cᵀ W^½,  b = W^½ C K⁻¹ f,  gradient A y − b = −W^½ gap(x(λ)),
+
+where the scaling makes A's spectrum that of the Uzawa iteration operator C K⁻¹ Cᵀ W (so 2/λmax(A)
+is Uzawa's stable bound on θ) and ‖A y − b‖ the L²(Σ) norm of the constraint violation.  Their
+stopping rule ``kkt`` is the norm of the projected gradient (violated equalities, penetration,
+and contact forces on open crack faces) relative to its value for λ = 0, the uncoupled blocks.
 """
 from __future__ import annotations
 
@@ -13,6 +23,7 @@ from typing import Callable, Protocol
 
 import numpy as np
 
+from .errors import SolverError
 from .interface import Interface
 from .scene import Solver
 
@@ -40,7 +51,8 @@ class Outcome:
     iterations: int
     history: list[float] = field(default_factory=list)
     message: str = ""
-    update_time: float = 0.0  # rank-0 time spent in the multiplier update
+    diverged: bool = False  # stopped because the iteration blew up (nothing is written)
+    details: dict = field(default_factory=dict)  # method-specific numbers for the result file
 
 
 class Progress:
@@ -58,6 +70,7 @@ class Progress:
             self.last = now
 
 
+# --- the paper's Uzawa method ----------------------------------------------------------------
 def block_criterion(rule: str, step_energy: np.ndarray, energy: np.ndarray) -> float:
     """Stopping-rule value from the energies ‖xᵏ − xᵏ⁻¹‖² and ‖xᵏ‖² of the four blocks.
 
@@ -81,37 +94,42 @@ def uzawa(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
 
     Blocks are solved for the load increments, so ‖xᵏ − xᵏ⁻¹‖ is computed from the increment
     itself (no cancellation) and ‖xᵏ‖² is updated from traces: ‖x + Δx‖² = ‖x‖² + 2 t·Δℓ + ‖Δx‖².
+    With ``stop = "kkt"`` the criterion is the dual one of the fast methods.
     """
     lower, upper = interface.bounds(solver.p)
     lam = np.zeros(interface.size)
     traces, energy = rounds.solve(interface.loads(lam), full=True)
+    sqrt_w = np.sqrt(interface.row_weights)
+    scale = np.linalg.norm(sqrt_w * interface.gap(traces))
     outcome = Outcome(lam, converged=False, iterations=0)
     steps: list[float] = []
     smallest_step = np.inf
     for iteration in range(1, solver.max_iterations + 1):
-        started = time.perf_counter()
         new = np.clip(lam + solver.theta * interface.gap(traces), lower, upper)
         increment = interface.loads(new - lam)
-        steps.append(float(np.sqrt(np.sum(interface.row_weights * (new - lam) ** 2))))
+        steps.append(float(np.linalg.norm(sqrt_w * (new - lam))))
         lam = new
-        outcome.update_time += time.perf_counter() - started
         delta, step_energy = rounds.solve(increment, full=False)
         energy = energy + 2.0 * np.sum(traces * increment, axis=1) + step_energy
         traces = traces + delta
-        criterion = block_criterion(solver.stop, step_energy, energy)
+        if solver.stop == "kkt":
+            gradient = -sqrt_w * interface.gap(traces)
+            criterion = kkt_criterion(sqrt_w * lam, gradient, sqrt_w * lower, sqrt_w * upper, scale)
+        else:
+            criterion = block_criterion(solver.stop, step_energy, energy)
         outcome.history.append(criterion)
         outcome.iterations = iteration
         progress(iteration, criterion)
         smallest_step = min(smallest_step, steps[-1])
         if not np.isfinite(criterion) or steps[-1] > DIVERGENCE_GROWTH * smallest_step:
             outcome.message = _divergence_message(iteration, solver.theta, steps)
+            outcome.diverged = True
             break
         if criterion < solver.tol:
             outcome.converged = True
             break
     else:
-        outcome.message = (f"uzawa: no convergence in {solver.max_iterations} iterations "
-                           f"(criterion {outcome.history[-1]:.3e}, tol {solver.tol:g})")
+        outcome.message = _no_convergence("uzawa", solver, outcome.history)
     progress(outcome.iterations, outcome.history[-1] if outcome.history else 0.0, final=True)
     outcome.lam = lam
     return outcome
@@ -120,7 +138,7 @@ def uzawa(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
 def _divergence_message(iteration: int, theta: float, steps: list[float]) -> str:
     """Explain a divergence, estimating λmax of the iteration operator from the step growth.
 
-    Near divergence the multiplier steps are dominated by the top eigenvector of B K⁻¹ Bᵀ W,
+    Near divergence the multiplier steps are dominated by the top eigenvector of C K⁻¹ Cᵀ W,
     which the iteration multiplies by |1 − θ λmax| = ρ per step, so 2/λmax ≈ 2θ / (1 + ρ).
     """
     recent = np.array(steps[-10:])
@@ -133,3 +151,254 @@ def _divergence_message(iteration: int, theta: float, steps: list[float]) -> str
             message += (f": theta = {theta:g} is above the stable bound 2/lambda_max ~ {bound:.3g} "
                         f"(estimated from the growth rate {rate:.3g} per iteration)")
     return message
+
+
+def _no_convergence(name: str, solver: Solver, history: list[float]) -> str:
+    last = history[-1] if history else float("nan")
+    return (f"{name}: no convergence in {solver.max_iterations} iterations "
+            f"(criterion {last:.3e}, tol {solver.tol:g})")
+
+
+# --- the dual problem shared by the fast methods --------------------------------------------
+def projected_gradient(y: np.ndarray, gradient: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+    """Gradient with the components that push against an active bound removed."""
+    out = gradient.copy()
+    out[(y <= lower) & (gradient > 0)] = 0.0
+    out[(y >= upper) & (gradient < 0)] = 0.0
+    return out
+
+
+def kkt_criterion(y, gradient, lower, upper, scale: float) -> float:
+    """‖projected gradient‖ / ‖gradient at λ = 0‖ (0 when both vanish: nothing to couple)."""
+    norm = float(np.linalg.norm(projected_gradient(y, gradient, lower, upper)))
+    if scale == 0.0:
+        return 0.0 if norm == 0.0 else np.inf
+    return norm / scale
+
+
+class DualProblem:
+    """The W-scaled dual QP (see the module docstring); ``apply`` costs one round of block solves."""
+
+    def __init__(self, rounds: Rounds, interface: Interface, solver: Solver):
+        self.rounds, self.interface, self.solver = rounds, interface, solver
+        self.sqrt_w = np.sqrt(interface.row_weights)
+        traces, _ = rounds.solve(interface.loads(np.zeros(interface.size)), full=True)
+        self.b = self.sqrt_w * interface.gap(traces)
+        lower, upper = interface.bounds(solver.p)
+        self.lower, self.upper = lower * self.sqrt_w, upper * self.sqrt_w
+        self.scale = float(np.linalg.norm(self.b))
+
+    def apply(self, y: np.ndarray) -> np.ndarray:
+        traces, _ = self.rounds.solve(self.interface.loads(y / self.sqrt_w), full=False)
+        return -self.sqrt_w * self.interface.gap(traces)
+
+    def criterion(self, y: np.ndarray, gradient: np.ndarray) -> float:
+        return kkt_criterion(y, gradient, self.lower, self.upper, self.scale)
+
+    def project(self, y: np.ndarray) -> np.ndarray:
+        return np.clip(y, self.lower, self.upper)
+
+    def multipliers(self, y: np.ndarray) -> np.ndarray:
+        return y / self.sqrt_w
+
+
+def largest_eigenvalue(apply: Callable[[np.ndarray], np.ndarray], size: int, iterations: int = 12,
+                       tolerance: float = 1e-3) -> float:
+    """Power iteration (Rayleigh quotients) for λmax of an SPD operator; ``apply`` may cost a round each."""
+    v = np.random.default_rng(12345).standard_normal(size)
+    v /= np.linalg.norm(v)
+    estimate = 0.0
+    for _ in range(iterations):
+        w = apply(v)
+        previous, estimate = estimate, float(v @ w)
+        v = w / np.linalg.norm(w)
+        if abs(estimate - previous) <= tolerance * estimate:
+            break
+    return estimate
+
+
+def _iterate(name: str, problem: DualProblem, progress: Progress, steps) -> Outcome:
+    """Drive a generator of (y, criterion) pairs until the tolerance or max_iterations."""
+    solver = problem.solver
+    outcome = Outcome(np.zeros(problem.interface.size), converged=False, iterations=0)
+    y = np.zeros(problem.interface.size)
+    for iteration, (y, criterion) in enumerate(steps):  # iteration 0: the starting point
+        if iteration > 0:
+            outcome.history.append(criterion)
+            outcome.iterations = iteration
+            progress(iteration, criterion)
+        if not np.isfinite(criterion):
+            outcome.message = f"{name} broke down at iteration {iteration} (non-finite criterion)"
+            outcome.diverged = True
+            break
+        if criterion < solver.tol:
+            outcome.converged = True
+            break
+        if iteration >= solver.max_iterations:
+            outcome.message = _no_convergence(name, solver, outcome.history)
+            break
+    progress(outcome.iterations, outcome.history[-1] if outcome.history else 0.0, final=True)
+    outcome.lam = problem.multipliers(y)
+    return outcome
+
+
+# --- accelerated projected gradient ----------------------------------------------------------
+def fista(rounds: Rounds, interface: Interface, solver: Solver, progress: Progress) -> Outcome:
+    """Projected gradient with Nesterov/FISTA momentum and adaptive (gradient) restart.
+
+    The step is 1/L with L = 1.1 λmax(A) from a power iteration (a few rounds); no θ is needed.
+    One round per iteration; the criterion is the KKT residual at the gradient-mapping point.
+    """
+    problem = DualProblem(rounds, interface, solver)
+    lipschitz = 1.1 * largest_eigenvalue(problem.apply, interface.size)
+
+    def steps():
+        x = np.zeros(interface.size)
+        y, t = x.copy(), 1.0
+        while True:
+            gradient = problem.apply(y) - problem.b
+            new = problem.project(y - gradient / lipschitz)
+            mapping = lipschitz * (y - new)  # the projected gradient when y is feasible
+            yield new, (float(np.linalg.norm(mapping)) / problem.scale if problem.scale else 0.0)
+            if np.dot(y - new, new - x) > 0.0:  # the momentum points uphill: restart
+                t = 1.0
+            t_next = 0.5 * (1.0 + np.sqrt(1.0 + 4.0 * t * t))
+            y = new + ((t - 1.0) / t_next) * (new - x)
+            x, t = new, t_next
+
+    outcome = _iterate("fista", problem, progress, steps())
+    outcome.details["lambda_max"] = lipschitz / 1.1
+    return outcome
+
+
+# --- MPRGP ------------------------------------------------------------------------------------
+def mprgp(rounds: Rounds, interface: Interface, solver: Solver, progress: Progress,
+          proportioning: float = 1.0) -> Outcome:
+    """Dostál's MPRGP for box constraints: conjugate gradients on the free set, expansion steps
+    with the fixed step ᾱ = 1.9/λmax(A), proportioning steps that release active constraints.
+
+    One round per CG or proportioning step, two per expansion step.
+    """
+    problem = DualProblem(rounds, interface, solver)
+    lam_max = largest_eigenvalue(problem.apply, interface.size)
+    alpha_bar = 1.9 / (1.05 * lam_max)
+    lower, upper = problem.lower, problem.upper
+
+    def free_gradient(y, g):
+        return np.where((y > lower) & (y < upper), g, 0.0)
+
+    def chopped_gradient(y, g):
+        return np.where(y <= lower, np.minimum(g, 0.0), 0.0) + np.where(y >= upper, np.maximum(g, 0.0), 0.0)
+
+    def reduced_free_gradient(y, g):
+        phi = free_gradient(y, g)
+        return np.where(phi > 0, np.minimum((y - lower) / alpha_bar, phi), np.maximum((y - upper) / alpha_bar, phi))
+
+    def feasible_step(y, direction):
+        """Largest α with lower ≤ y − α·direction ≤ upper."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            down = np.where(direction > 0, (y - lower) / direction, np.inf)
+            up = np.where(direction < 0, (y - upper) / direction, np.inf)
+        return float(min(down.min(initial=np.inf), up.min(initial=np.inf)))
+
+    def steps():
+        y = np.zeros(interface.size)
+        g = -problem.b
+        p = free_gradient(y, g)
+        while True:
+            yield y, problem.criterion(y, g)
+            beta = chopped_gradient(y, g)
+            phi = free_gradient(y, g)
+            if beta @ beta <= proportioning ** 2 * (reduced_free_gradient(y, g) @ phi):
+                Ap = problem.apply(p)
+                curvature = p @ Ap
+                if curvature <= 0.0:  # p = 0: only chopped components left; nothing to minimize freely
+                    p = phi
+                    continue
+                alpha_cg = (g @ p) / curvature
+                if alpha_cg <= feasible_step(y, p):  # conjugate gradient step
+                    y = y - alpha_cg * p
+                    g = g - alpha_cg * Ap
+                    p = free_gradient(y, g) - ((free_gradient(y, g) @ Ap) / curvature) * p
+                else:  # expansion step
+                    alpha_f = feasible_step(y, p)
+                    y = y - alpha_f * p
+                    g = g - alpha_f * Ap
+                    new = problem.project(y - alpha_bar * free_gradient(y, g))
+                    g = g + problem.apply(new - y)
+                    y = new
+                    p = free_gradient(y, g)
+            else:  # proportioning step
+                Ad = problem.apply(beta)
+                alpha = min((g @ beta) / (beta @ Ad), feasible_step(y, beta))
+                y = problem.project(y - alpha * beta)
+                g = g - alpha * Ad
+                p = free_gradient(y, g)
+
+    outcome = _iterate("mprgp", problem, progress, steps())
+    outcome.details["lambda_max"] = lam_max
+    return outcome
+
+
+# --- exact dual solve from the interface flexibilities ----------------------------------------
+def box_qp(A: np.ndarray, b: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+           max_steps: int = 200) -> tuple[np.ndarray, int]:
+    """Minimize ½ yᵀAy − bᵀy over lower ≤ y ≤ upper (A dense SPD) by a primal-dual active set method.
+
+    Returns the solution and the number of active-set steps.  Each step solves the free rows
+    with the active ones at their bounds; the sets are updated from the signs of the gradient on
+    active rows and the bound violations on free rows, until they no longer change.
+    """
+    at_lower = np.zeros(len(b), dtype=bool)
+    at_upper = np.zeros(len(b), dtype=bool)
+    for step in range(1, max_steps + 1):
+        y = np.where(at_lower, lower, np.where(at_upper, upper, 0.0))
+        free = ~(at_lower | at_upper)
+        fixed = ~free
+        if free.any():
+            rhs = b[free] - A[np.ix_(free, fixed)] @ y[fixed]
+            y[free] = np.linalg.solve(A[np.ix_(free, free)], rhs)
+        gradient = A @ y - b
+        new_lower = (at_lower & (gradient >= 0)) | (free & (y < lower))
+        new_upper = (at_upper & (gradient <= 0)) | (free & (y > upper))
+        if np.array_equal(new_lower, at_lower) and np.array_equal(new_upper, at_upper):
+            return y, step
+        at_lower, at_upper = new_lower, new_upper
+    raise SolverError(f"the active-set QP solver did not settle in {max_steps} steps")
+
+
+def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progress) -> Outcome:
+    """Exact dual solve: A assembled on rank 0 from the blocks' flexibilities, QP solved directly.
+
+    Rounds: one to collect the flexibilities (from MUMPS' Schur complements when available), one
+    for the uncoupled solutions (b); the driver adds the final one.  The gluing rows, which have no
+    active bound in practice, are eliminated once; the active-set iteration runs on the contact
+    rows only.  Should a gluing bound ±p be violated, the full problem is solved with all bounds.
+    """
+    flexibilities = rounds.flexibility()
+    problem = DualProblem(rounds, interface, solver)
+    started = time.perf_counter()
+    A = interface.dual_matrix(flexibilities) / np.outer(problem.sqrt_w, problem.sqrt_w)
+    contact = interface.is_contact
+    glued = ~contact
+    lower, upper, b = problem.lower, problem.upper, problem.b
+    # Eliminate the glued rows: y_g = A_gg⁻¹ (b_g − A_gc y_c).
+    solved = np.linalg.solve(A[np.ix_(glued, glued)], np.column_stack([b[glued], A[np.ix_(glued, contact)]]))
+    reduced = A[np.ix_(contact, contact)] - A[np.ix_(contact, glued)] @ solved[:, 1:]
+    y = np.zeros(interface.size)
+    y[contact], steps = box_qp(reduced, b[contact] - A[np.ix_(contact, glued)] @ solved[:, 0],
+                               lower[contact], upper[contact])
+    y[glued] = solved[:, 0] - solved[:, 1:] @ y[contact]
+    if np.any(y < lower) or np.any(y > upper):
+        y, more = box_qp(A, b, lower, upper)
+        steps += more
+    criterion = problem.criterion(y, A @ y - b)
+    progress(steps, criterion, final=True)
+    converged = criterion < solver.tol
+    message = "" if converged else (f"schur: the exact dual solution has criterion {criterion:.3e}, above tol "
+                                    f"{solver.tol:g} (the round-off level of this problem)")
+    return Outcome(problem.multipliers(y), converged=converged, iterations=steps, history=[criterion],
+                   message=message, details={"rank0_qp_time": time.perf_counter() - started})
+
+
+METHODS: dict[str, Callable[..., Outcome]] = {"schur": schur, "mprgp": mprgp, "fista": fista, "uzawa": uzawa}

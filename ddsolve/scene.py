@@ -21,9 +21,12 @@ except ModuleNotFoundError:  # Python < 3.11
 
 from .errors import SceneError
 
-METHODS = ("uzawa",)
-DEFAULT_METHOD = "uzawa"
-STOP_RULES = ("paper", "relative")
+METHODS = ("schur", "mprgp", "fista", "uzawa")
+DEFAULT_METHOD = "schur"
+STOP_RULES = ("paper", "relative", "kkt")
+#: Default stopping rule of each method and default tolerance of each rule.
+DEFAULT_STOP = {"uzawa": "paper", "schur": "kkt", "mprgp": "kkt", "fista": "kkt"}
+DEFAULT_TOL = {"paper": 1e-6, "relative": 1e-6, "kkt": 1e-8}
 LAYERS = ("layer1", "layer2")
 MAX_SPACING_RATIO = 10.0
 SIDES = ("bottom", "top")
@@ -46,8 +49,8 @@ class Traction:
 @dataclass(frozen=True)
 class Solver:
     method: str
-    theta: float | None
-    p: float
+    theta: float | None  # Uzawa's step; the other methods need none
+    p: float | None  # multiplier bound; None: μᶜ ≥ 0 only
     tol: float
     stop: str
     max_iterations: int
@@ -172,9 +175,9 @@ SCHEMA: dict[str, Any] = {
     "solver": {
         "method": (_choice(METHODS), DEFAULT_METHOD),
         "theta": (_positive(_number), None),
-        "p": (_positive(_number), 1.0e7),
-        "tol": (_positive(_number), 1.0e-6),
-        "stop": (_choice(STOP_RULES), "paper"),
+        "p": (_positive(_number), None),
+        "tol": (_positive(_number), None),
+        "stop": (_choice(STOP_RULES), None),
         "max_iterations": (_vertex_count(1), 20000),
     },
 }
@@ -237,6 +240,13 @@ def _cross_checks(data: dict, origin: str) -> None:
     solver = data["solver"]
     if solver["method"] == "uzawa" and solver["theta"] is None:
         raise SceneError(f"{origin}: solver.theta is required by method uzawa")
+    if solver["stop"] is None:
+        solver["stop"] = DEFAULT_STOP[solver["method"]]
+    if solver["method"] != "uzawa" and solver["stop"] != "kkt":
+        raise SceneError(f"{origin}: solver.stop = {solver['stop']} is available for method uzawa only "
+                         f"(method {solver['method']} stops on kkt)")
+    if solver["tol"] is None:
+        solver["tol"] = DEFAULT_TOL[solver["stop"]]
 
 
 def _to_scene(data: dict, text: str, base: Path | None) -> Scene:

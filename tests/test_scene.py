@@ -28,7 +28,9 @@ def test_builtin_scenes_are_the_papers_examples():
     assert ex1.loads[("layer1", "bottom")].y == (0.0, 0.078125)
     assert ex1.loads[("layer1", "top")].y == (0.0, -0.078125)
     assert ("layer2", "bottom") not in ex1.loads  # no table: the boundary is not integrated
-    assert (ex1.solver.theta, ex1.solver.p, ex1.solver.tol, ex1.solver.stop) == (65.0, 1e7, 1e-6, "paper")
+    assert (ex1.solver.method, ex1.solver.stop, ex1.solver.tol) == ("schur", "kkt", 1e-8)
+    paper = scene.load("partial-closure", ["solver.method=uzawa"]).solver
+    assert (paper.theta, paper.p, paper.tol, paper.stop) == (65.0, 1e7, 1e-6, "paper")
     assert ex1.materials["layer1"].E == 200.0 and ex1.materials["layer2"].nu == 0.32
     assert not scene.load("linear").contact
     assert scene.load("full-opening").loads[("layer1", "top")].y == (0.078125,)
@@ -37,7 +39,7 @@ def test_builtin_scenes_are_the_papers_examples():
 def test_defaults_and_round_trip():
     s = scene.loads(MINIMAL)
     assert s.crack == (-0.5, 0.5) and s.nonpenetration and s.loads == {}
-    assert s.solver.max_iterations == 20000 and s.solver.stop == "paper"
+    assert s.solver.max_iterations == 20000 and s.solver.stop == "paper" and s.solver.p is None
     again = scene.loads(s.text)
     assert again == s
 
@@ -90,6 +92,8 @@ def test_missing_and_malformed():
         scene.loads(MINIMAL.replace("theta = 65.0", ""))
     with pytest.raises(SceneError, match="missing key mesh.boundary_vertices"):
         scene.loads(MINIMAL.replace("boundary_vertices = 32", ""))
+    with pytest.raises(SceneError, match="solver.stop = paper is available for method uzawa only"):
+        scene.loads(MINIMAL, ["solver.stop=paper", "solver.method=mprgp"])
     with pytest.raises(SceneError, match="malformed TOML"):
         scene.loads("[mesh\nsigma_vertices = 3")
     with pytest.raises(SceneError, match="no such scene file or built-in scene"):
