@@ -48,7 +48,7 @@ class Block:
         pc.setFactorSolverType(default_factor_package(factor_package))
         self.ksp.setFromOptions()
         self.rhs, self.x = self.matrix.createVecLeft(), self.matrix.createVecRight()
-        self._schur = False
+        self._schur: np.ndarray | None = None  # as stored by MUMPS (one triangle valid)
 
     @property
     def trace_dofs(self) -> np.ndarray:
@@ -61,17 +61,23 @@ class Block:
         """Set up the solver (factorization for direct solvers).
 
         With ``schur`` and MUMPS, the Schur complement on the trace dofs is requested from the
-        factorization, so :meth:`flexibility` costs no extra solves.
+        factorization, so :meth:`schur_complement` costs no extra solves.
         """
         pc = self.ksp.getPC()
+        schur = schur and self.is_direct() and pc.getFactorSolverType() == "mumps" and _petsc_c() is not None
         try:
-            if schur and self.is_direct() and pc.getFactorSolverType() == "mumps" and _petsc_c() is not None:
+            if schur:
                 pc.setFactorSetUpSolverType()
                 trace = PETSc.IS().createGeneral(self.trace_dofs.astype(PETSc.IntType), comm=PETSc.COMM_SELF)
                 _call("MatFactorSetSchurIS", pc.getFactorMatrix().handle, trace.handle)
                 trace.destroy()
-                self._schur = True
             self.ksp.setUp()
+            if schur:
+                # Copy S now: solves factor the stored Schur complement in place.  Factor it once here,
+                # otherwise every later solve factors it again.
+                factor = pc.getFactorMatrix().handle
+                self._schur = _schur_complement(factor, len(self.trace_dofs))
+                _call("MatFactorFactorizeSchurComplement", factor)
         except PETSc.Error as exc:
             raise SolverError(f"block {self.name}: solver setup failed (PETSc error {exc.ierr}); "
                               "is the block clamped?") from None
@@ -90,16 +96,27 @@ class Block:
             raise SolverError(f"block {self.name}: KSP did not converge (reason {reason})")
         return self.x.getArray(readonly=True)
 
-    def flexibility(self) -> np.ndarray:
-        """Dense (2k, 2k) interface flexibility E^T K⁻¹ E (inverse of the Schur complement on Σ)."""
-        if self._schur:
-            factor = self.ksp.getPC().getFactorMatrix()
-            _call("MatFactorInvertSchurComplement", factor.handle)
-            inverse = _schur_complement(factor.handle, len(self.trace_dofs))
-            return 0.5 * (inverse + inverse.T)
-        return self._flexibility_by_solves()
+    def schur_complement(self) -> np.ndarray:
+        """Dense (2k, 2k) Schur complement of K on the trace dofs: S = (E K⁻¹ Eᵀ)⁻¹.
 
-    def _flexibility_by_solves(self) -> np.ndarray:
+        With MUMPS it comes from the factorization.  MUMPS fills only one triangle of a symmetric
+        Schur complement; which one may depend on the version, so one solve with a random trace
+        load decides (S t must give back the load) and also validates the matrix.
+        """
+        k = len(self.trace_dofs)
+        if self._schur is not None:
+            stored = self._schur
+            load = np.random.default_rng(7).standard_normal(k)
+            trace = self.solve(load, body=False)[self.trace_dofs]
+            candidates = [np.tril(stored) + np.tril(stored, -1).T, np.triu(stored) + np.triu(stored, 1).T]
+            residuals = [np.linalg.norm(S @ trace - load) for S in candidates]
+            best = int(np.argmin(residuals))
+            if residuals[best] <= 1e-8 * np.linalg.norm(load):
+                return candidates[best]
+        return np.linalg.inv(self.flexibility())
+
+    def flexibility(self) -> np.ndarray:
+        """Dense (2k, 2k) interface flexibility E K⁻¹ Eᵀ, by multi-column solves with the factor."""
         dofs = self.trace_dofs
         k = len(dofs)
         out = np.empty((k, k))
@@ -164,7 +181,7 @@ def _call(function: str, *args) -> None:
 
 
 def _schur_complement(factor_handle: int, size: int) -> np.ndarray:
-    """Copy the (inverted) dense Schur complement held by a MUMPS factor."""
+    """Copy the dense Schur complement held by a MUMPS factor, as stored (see ``schur_complement``)."""
     lib = _petsc_c()
     schur = ctypes.c_void_p()
     status = ctypes.c_int()

@@ -74,7 +74,7 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
         i = next(j for j, a in enumerate(forwarded) if a.startswith("-n"))
         del forwarded[i:i + (2 if forwarded[i] == "-n" else 1)]
         command = mpiexec_command(args.ranks, forwarded)
-        os.execvp(command[0], command)
+        os.execvpe(command[0], command, dict(os.environ))
     _init_petsc(petsc_options)
     from mpi4py import MPI
 
@@ -152,6 +152,40 @@ def cmd_mesh(args, _petsc_options) -> int:
     return 0
 
 
+def _meshes(text: str | None):
+    from .bench import BENCH_MESHES
+
+    if not text:
+        return BENCH_MESHES
+    try:
+        return tuple(tuple(int(v) for v in pair.split(":")) for pair in text.split(","))
+    except ValueError:
+        raise DDSolveError(f"--meshes {text}: expected P:M pairs separated by commas, e.g. 48:80,96:144") from None
+
+
+def cmd_bench(args, petsc_options) -> int:
+    from . import bench
+
+    if args.what == "factor":
+        _init_petsc(petsc_options)
+        for P, M in _meshes(args.meshes or "200:256"):
+            bench.factor(P, M)
+    else:
+        bench.methods(_meshes(args.meshes), Path(args.output), Path("docs"))
+        print(f"wrote {args.output}, docs/results.md (bench-methods section), docs/bench-methods.png")
+    return 0
+
+
+def cmd_bench_mesh(args, petsc_options) -> int:
+    _init_petsc(petsc_options)
+    from mpi4py import MPI
+
+    from . import bench
+
+    bench.bench_mesh(args.P, args.M, Path(args.output), MPI.COMM_WORLD)
+    return 0
+
+
 def cmd_scenes(_args, _petsc_options) -> int:
     from . import scene
 
@@ -203,6 +237,17 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("result")
     p.add_argument("--scale", type=float, default=500.0, help="displacement magnification (default 500)")
     p.set_defaults(run=cmd_plot)
+    p = sub.add_parser("bench", help="benchmarks: `methods` (all methods, Table 1 meshes and P = 400) or "
+                                     "`factor` (block factorization packages)")
+    p.add_argument("what", choices=("methods", "factor"))
+    p.add_argument("--meshes", help="comma-separated P:M pairs (default: Table 1 and 400:512)")
+    p.add_argument("-o", dest="output", default="results/bench-methods.h5", help="HDF5 file for `methods`")
+    p.set_defaults(run=cmd_bench)
+    p = sub.add_parser("bench-mesh")  # one benchmark launch under mpiexec (used by `bench methods`)
+    p.add_argument("P", type=int)
+    p.add_argument("M", type=int)
+    p.add_argument("output")
+    p.set_defaults(run=cmd_bench_mesh)
     sub.add_parser("scenes", help="list the built-in scenes").set_defaults(run=cmd_scenes)
     sub.add_parser("version", help="versions of ddsolve, PETSc and MPI").set_defaults(run=cmd_version)
     return top

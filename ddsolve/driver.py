@@ -13,14 +13,14 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import __version__, assembly, io, mesh, methods
+from . import assembly, io, mesh, methods
 from .blocks import Block
 from .errors import DDSolveError, DivergedError, NotConvergedError, SolverError
 from .exchange import Exchange, collective
 from .interface import BLOCKS, Interface
 from .scene import Scene
 
-STOP, SOLVE_LOAD, SOLVE_FULL, FLEXIBILITY, REPORT_ERROR = range(5)
+STOP, SOLVE_LOAD, SOLVE_FULL, SCHUR, REPORT_ERROR = range(5)
 SUPPORTED_RANKS = (1, 2, 4)
 
 
@@ -35,8 +35,8 @@ class BlockServer:
     def run(self, command: int, loads: np.ndarray | None) -> np.ndarray:
         """One round on the local blocks; each result row ends with a status flag (0 ok, 1 failed)."""
         try:
-            if command == FLEXIBILITY:
-                rows = [block.flexibility().ravel() for block in self.blocks]
+            if command == SCHUR:
+                rows = [block.schur_complement().ravel() for block in self.blocks]
             else:
                 rows = [self._solve(i, load, command == SOLVE_FULL) for i, load in enumerate(loads)]
             return np.array([np.append(row, 0.0) for row in rows])
@@ -91,8 +91,8 @@ class ParallelRounds:
         results = self._round(SOLVE_FULL if full else SOLVE_LOAD, loads)
         return results[:, :-1], results[:, -1]
 
-    def flexibility(self) -> np.ndarray:
-        return self._round(FLEXIBILITY, None).reshape(-1, self.trace_size, self.trace_size)
+    def schur_complements(self) -> np.ndarray:
+        return self._round(SCHUR, None).reshape(-1, self.trace_size, self.trace_size)
 
     def stop(self) -> None:
         self.exchange.command(STOP)
@@ -202,10 +202,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print) -> 
             lower=lower, upper=upper, solution={spec.name: x.reshape(-1, 2) for spec, x in zip(BLOCKS, solutions)},
             interface_x=interface.x, crack=interface.crack, multipliers=interface.split(outcome.lam),
             history=np.array(outcome.history), timings=timings, message=outcome.message,
-            attrs={"version": __version__, "stop": scene.solver.stop, "tol": scene.solver.tol,
-                   "petsc": ".".join(map(str, PETSc.Sys.getVersion())),
-                   "mpi": MPI.Get_library_version().replace("\x00", "").splitlines()[0].strip(),
-                   **outcome.details},
+            attrs={**io.provenance(), "stop": scene.solver.stop, "tol": scene.solver.tol, **outcome.details},
         )
         timings["output"] = time.perf_counter() - mark  # gathering; io.write adds its own "write" time
     if output is not None:

@@ -158,6 +158,24 @@ class Interface:
             F[np.ix_(coupling.rows, coupling.rows)] += np.outer(scaled, scaled) * G[np.ix_(coupling.trace, coupling.trace)]
         return F
 
+    def trace_unknowns(self, closed: np.ndarray | None = None) -> np.ndarray:
+        """``(4, 2k)``: one interface unknown per trace entry, tied entries sharing it.
+
+        Glued vertices tie all four blocks; a crack vertex ties u⁻ with v⁻ (lower face) and u⁺ with
+        v⁺ (upper face), and also the faces' normal components where ``closed`` (per μᶜ row).
+        """
+        k = len(self.x)
+        lower = np.arange(2 * k)
+        upper = lower + 2 * k
+        glued = np.repeat(~self.crack, 2)
+        upper[glued] = lower[glued]
+        if closed is not None:
+            normal = 2 * self.vertex[self.slices["mu_c"]][closed] + 1
+            upper[normal] = lower[normal]
+        _, numbers = np.unique(np.concatenate([lower, upper]), return_inverse=True)
+        lower, upper = numbers[:2 * k], numbers[2 * k:]
+        return np.array([lower, upper, lower, upper])
+
     def split(self, lam: np.ndarray) -> dict[str, np.ndarray]:
         """Per-vertex arrays for output: mu_c ``(k,)``, mu_g, mu_minus, mu_plus ``(k, 2)``; 0 where absent."""
         k = len(self.x)

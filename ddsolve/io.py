@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+import subprocess
 import tempfile
 import time
 from dataclasses import dataclass, field
@@ -43,7 +44,7 @@ class Result:
         return self.lower if block.endswith("minus") else self.upper
 
 
-def _atomic(path: Path, write) -> None:
+def atomic(path: Path, write) -> None:
     """Call ``write(temporary_path)`` then rename over ``path``: never a truncated file."""
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
@@ -65,11 +66,39 @@ def _atomic(path: Path, write) -> None:
             os.unlink(temporary)
 
 
+def provenance() -> dict[str, str]:
+    """What produced a file: ddsolve version and git commit, PETSc, MPI, Python, PETSc options."""
+    import platform
+
+    from petsc4py import PETSc
+    from mpi4py import MPI
+
+    from . import __version__
+
+    checkout = Path(__file__).resolve().parent.parent
+    try:
+        commit = subprocess.run(["git", "-C", str(checkout), "rev-parse", "HEAD"], capture_output=True,
+                                text=True, timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(checkout), "status", "--porcelain", "--untracked-files=no"],
+                               capture_output=True, text=True, timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        commit, dirty = "", ""
+    options = PETSc.Options().getAll()
+    return {
+        "version": __version__,
+        "git_commit": (commit + ("-modified" if dirty else "")) or "unknown",
+        "petsc": ".".join(map(str, PETSc.Sys.getVersion())),
+        "mpi": MPI.Get_library_version().replace("\x00", "").splitlines()[0].strip(),
+        "python": platform.python_version(),
+        "petsc_options": " ".join(f"-{k} {v}".strip() for k, v in sorted(options.items())),
+    }
+
+
 def write(path: Path, result: Result) -> None:
     """Write ``path`` (HDF5) and the XDMF file beside it, each atomically."""
     path = Path(path)
-    _atomic(path, lambda name: _write_hdf5(name, result))
-    _atomic(path.with_suffix(".xdmf"), lambda name: Path(name).write_text(xdmf(path.name, result)))
+    atomic(path, lambda name: _write_hdf5(name, result))
+    atomic(path.with_suffix(".xdmf"), lambda name: Path(name).write_text(xdmf(path.name, result)))
 
 
 def _write_hdf5(name: str, result: Result) -> None:

@@ -1,7 +1,7 @@
 """Multiplier methods, run on rank 0.
 
 A method sees the blocks only through a :class:`Rounds` object: each call is one round of block
-solves on all ranks (``solve``) or one collection of interface flexibilities (``flexibility``).
+solves on all ranks (``solve``) or one collection of the blocks' Schur complements on Σ.
 Loads, traces and multipliers are related by :class:`~ddsolve.interface.Interface`:
 x_b(λ) = K_b⁻¹(f_b + ℓ_b(λ)) with ℓ(λ) = −Cᵀ W λ, and the constraint gap is C t.
 
@@ -40,8 +40,8 @@ class Rounds(Protocol):
         With ``full`` the blocks keep their solutions for output.
         """
 
-    def flexibility(self) -> np.ndarray:
-        """The blocks' interface flexibilities E^T K_b⁻¹ E, ``(4, 2k, 2k)``."""
+    def schur_complements(self) -> np.ndarray:
+        """The blocks' Schur complements on their traces, S_b = (E K_b⁻¹ Eᵀ)⁻¹, ``(4, 2k, 2k)``."""
 
 
 @dataclass
@@ -183,6 +183,7 @@ class DualProblem:
         self.rounds, self.interface, self.solver = rounds, interface, solver
         self.sqrt_w = np.sqrt(interface.row_weights)
         traces, _ = rounds.solve(interface.loads(np.zeros(interface.size)), full=True)
+        self.initial_traces = traces  # of the uncoupled blocks (λ = 0)
         self.b = self.sqrt_w * interface.gap(traces)
         lower, upper = interface.bounds(solver.p)
         self.lower, self.upper = lower * self.sqrt_w, upper * self.sqrt_w
@@ -368,37 +369,54 @@ def box_qp(A: np.ndarray, b: np.ndarray, lower: np.ndarray, upper: np.ndarray,
 
 
 def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progress) -> Outcome:
-    """Exact dual solve: A assembled on rank 0 from the blocks' flexibilities, QP solved directly.
+    """Exact solve from the blocks' Schur complements S_b on Σ; three rounds in all.
 
-    Rounds: one to collect the flexibilities (from MUMPS' Schur complements when available), one
-    for the uncoupled solutions (b); the driver adds the final one.  The gluing rows, which have no
-    active bound in practice, are eliminated once; the active-set iteration runs on the contact
-    rows only.  Should a gluing bound ±p be violated, the full problem is solved with all bounds.
+    Rounds: one to collect S_b (from MUMPS with the factorization), one for the uncoupled traces
+    t⁰_b; the driver adds the final one.  Rank 0 assembles the interface stiffness
+    S = Σ_b P_bᵀ S_b P_b on the tied interface unknowns (every gluing constraint holds exactly),
+    with body loads Σ P_bᵀ S_b t⁰_b.  Eliminating it leaves the dual problem on the crack rows only,
+
+        A_c = W^½ B S⁻¹ Bᵀ W^½,  b_c = W^½ B S⁻¹ r,  y_c ≥ 0   (B z: the normal gap u⁻ − u⁺),
+
+    solved exactly by the active-set method; every multiplier then follows from the block residuals
+    ℓ_b = S_b (t_b − t⁰_b).  Should that violate a bound ±p, the full dual problem (A from
+    G_b = S_b⁻¹) is solved with all bounds.
     """
-    flexibilities = rounds.flexibility()
+    schur_complements = rounds.schur_complements()
     problem = DualProblem(rounds, interface, solver)
+    initial = problem.initial_traces
     started = time.perf_counter()
-    A = interface.dual_matrix(flexibilities) / np.outer(problem.sqrt_w, problem.sqrt_w)
-    contact = interface.is_contact
-    glued = ~contact
-    lower, upper, b = problem.lower, problem.upper, problem.b
-    # Eliminate the glued rows: y_g = A_gg⁻¹ (b_g − A_gc y_c).
-    solved = np.linalg.solve(A[np.ix_(glued, glued)], np.column_stack([b[glued], A[np.ix_(glued, contact)]]))
-    reduced = A[np.ix_(contact, contact)] - A[np.ix_(contact, glued)] @ solved[:, 1:]
-    y = np.zeros(interface.size)
-    y[contact], steps = box_qp(reduced, b[contact] - A[np.ix_(contact, glued)] @ solved[:, 0],
-                               lower[contact], upper[contact])
-    y[glued] = solved[:, 0] - solved[:, 1:] @ y[contact]
-    if np.any(y < lower) or np.any(y > upper):
-        y, more = box_qp(A, b, lower, upper)
+    unknowns = interface.trace_unknowns()
+    size = int(unknowns.max()) + 1
+    stiffness, body = np.zeros((size, size)), np.zeros(size)
+    for S_b, numbers, t0 in zip(schur_complements, unknowns, initial):
+        stiffness[np.ix_(numbers, numbers)] += S_b
+        body[numbers] += S_b @ t0
+    contact = interface.slices["mu_c"]
+    normal = 2 * interface.vertex[contact] + 1
+    sqrt_w = problem.sqrt_w[contact]
+    jump = np.zeros((size, len(normal)))  # Bᵀ W^½: force pattern of a unit scaled contact multiplier
+    jump[unknowns[0][normal], np.arange(len(normal))] += sqrt_w
+    jump[unknowns[1][normal], np.arange(len(normal))] -= sqrt_w
+    solved = np.linalg.solve(stiffness, np.column_stack([body, jump]))
+    y_c, steps = box_qp(jump.T @ solved[:, 1:], jump.T @ solved[:, 0], problem.lower[contact], problem.upper[contact])
+    traces = (solved[:, 0] - solved[:, 1:] @ y_c)[unknowns]
+    loads = np.einsum("bij,bj->bi", schur_complements, traces - initial)
+    y = problem.sqrt_w * interface.multipliers(loads)
+    y[contact] = y_c
+    if np.any(y < problem.lower) or np.any(y > problem.upper):  # a bound ±p is active: all bounds
+        A = interface.dual_matrix(np.linalg.inv(schur_complements)) / np.outer(problem.sqrt_w, problem.sqrt_w)
+        y, more = box_qp(A, problem.b, problem.lower, problem.upper)
         steps += more
-    criterion = problem.criterion(y, A @ y - b)
+        traces = initial + np.einsum("bij,bj->bi", np.linalg.inv(schur_complements), interface.loads(y / problem.sqrt_w))
+    criterion = problem.criterion(y, -problem.sqrt_w * interface.gap(traces))
     progress(steps, criterion, final=True)
     converged = criterion < solver.tol
-    message = "" if converged else (f"schur: the exact dual solution has criterion {criterion:.3e}, above tol "
+    message = "" if converged else (f"schur: the exact solution has criterion {criterion:.3e}, above tol "
                                     f"{solver.tol:g} (the round-off level of this problem)")
     return Outcome(problem.multipliers(y), converged=converged, iterations=steps, history=[criterion],
-                   message=message, details={"rank0_qp_time": time.perf_counter() - started})
+                   message=message, details={"rank0_solve_time": time.perf_counter() - started,
+                                             "interface_unknowns": size})
 
 
 METHODS: dict[str, Callable[..., Outcome]] = {"schur": schur, "mprgp": mprgp, "fista": fista, "uzawa": uzawa}

@@ -12,12 +12,12 @@ import time
 
 import numpy as np
 
-from . import __version__, assembly
+from . import assembly
 from .assembly import BlockSystem, coo_to_csr
 from .blocks import Block
 from .errors import SolverError
-from .interface import BLOCKS, U_MINUS, U_PLUS, V_MINUS, V_PLUS, Interface
-from .io import Result
+from .interface import BLOCKS, Interface
+from .io import Result, provenance
 from .mesh import HalfMesh
 from .scene import Scene
 
@@ -26,20 +26,12 @@ MAX_ACTIVE_SET_STEPS = 100
 
 def numbering(systems: list[BlockSystem], interface: Interface, closed: np.ndarray) -> list[np.ndarray]:
     """Global unknown of every block dof; tied dofs share one.  ``closed``: crack vertices in contact."""
-    k = len(interface.x)
-    lower = np.arange(2 * k)  # trace entries of u⁻ and v⁻
-    upper = lower + 2 * k  # trace entries of u⁺ and v⁺
-    glued = np.repeat(~interface.crack, 2)
-    upper[glued] = lower[glued]
-    normal = 2 * interface.vertex[interface.slices["mu_c"]][closed] + 1
-    upper[normal] = lower[normal]
-    _, groups = np.unique(np.concatenate([lower, upper]), return_inverse=True)
-    trace_groups = {U_MINUS: groups[:2 * k], V_MINUS: groups[:2 * k], U_PLUS: groups[2 * k:], V_PLUS: groups[2 * k:]}
-    following = groups.max(initial=-1) + 1
+    traces = interface.trace_unknowns(closed)
+    following = traces.max(initial=-1) + 1
     numbers = []
-    for index, system in enumerate(systems):
+    for system, trace in zip(systems, traces):
         number = np.full(system.size, -1, dtype=np.int64)
-        number[system.trace_dofs] = trace_groups[index]
+        number[system.trace_dofs] = trace
         own = number < 0
         number[own] = following + np.arange(own.sum())
         following += own.sum()
@@ -103,5 +95,5 @@ def solve(scene: Scene, lower: HalfMesh, upper: HalfMesh) -> Result:
         solution={spec.name: u.reshape(-1, 2) for spec, u in zip(BLOCKS, fields)},
         interface_x=interface.x, crack=interface.crack, multipliers=interface.split(lam),
         history=np.array(history), timings={"factorization": factorization, "total": elapsed},
-        attrs={"version": __version__, "closed_vertices": int(closed.sum())},
+        attrs={**provenance(), "closed_vertices": int(closed.sum())},
     )

@@ -1,0 +1,293 @@
+"""Benchmarks: every method against the monolithic reference, and the block factorization packages.
+
+``ddsolve bench methods`` launches one MPI job per mesh (``ddsolve bench-mesh`` on 4 ranks). In that
+job rank 0 computes the reference, all ranks measure the floor of any method with this DD structure
+(one factorization and one solve of every block, with each package), then every method runs at
+several tolerances; times are measured side by side in the same launch.  The results go to one
+HDF5 file, a table in docs/results.md and a speed-against-error plot.
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import scene as scenes
+from .errors import DDSolveError
+
+#: The paper's Table 1 meshes (P, M) and one finer mesh.
+TABLE1_MESHES = ((12, 32), (24, 48), (48, 80), (96, 144), (200, 256))
+BENCH_MESHES = (*TABLE1_MESHES, (400, 512))
+#: Tolerances per method for the speed-against-error curves; uzawa's first entry is the paper's setting.
+TOLERANCES = {
+    "schur": [("kkt", 1e-8)],
+    "mprgp": [("kkt", 1e-4), ("kkt", 1e-6), ("kkt", 1e-8), ("kkt", 1e-10)],
+    "fista": [("kkt", 1e-4), ("kkt", 1e-6), ("kkt", 1e-8)],
+    "uzawa": [("paper", 1e-6), ("relative", 1e-4), ("relative", 1e-6), ("relative", 1e-8)],
+}
+#: Above this P, uzawa runs only the paper's setting (each run takes minutes).
+UZAWA_SWEEP_MAX_P = 200
+
+
+@dataclass
+class Run:
+    P: int
+    M: int
+    method: str
+    stop: str
+    tol: float
+    converged: bool
+    iterations: int
+    rounds: int
+    wall_time: float
+    factorization: float
+    update: float
+    energy_error: float
+    penetration: float
+
+
+def section(path: Path, name: str, text: str) -> None:
+    """Replace (or append) the block between ``<!-- name:start -->`` and ``<!-- name:end -->``."""
+    begin, end = f"<!-- {name}:start -->", f"<!-- {name}:end -->"
+    block = f"{begin}\n{text.rstrip()}\n{end}"
+    content = path.read_text() if path.exists() else "# Results\n"
+    if begin in content and end in content:
+        content = content[:content.index(begin)] + block + content[content.index(end) + len(end):]
+    else:
+        content = content.rstrip() + "\n\n" + block + "\n"
+    path.write_text(content)
+
+
+def paper_scene(P: int, M: int, overrides: list[str] = ()) -> scenes.Scene:
+    """Example 1 of the paper on the (P, M) mesh."""
+    return scenes.load("partial-closure", [f"mesh.sigma_vertices={P}", f"mesh.boundary_vertices={M}", *overrides])
+
+
+# --- inside the MPI launch ------------------------------------------------------------------
+def floor_time(scene: scenes.Scene, lower, upper, comm, package: str) -> float:
+    """Wall time for one factorization and one solve of every block, all ranks together."""
+    from . import assembly
+    from .blocks import Block
+    from .exchange import Exchange
+
+    exchange = Exchange(comm, 4)
+    blocks = [Block(s, factor_package=package) for s in assembly.block_systems(scene, lower, upper, exchange.local_blocks)]
+    comm.Barrier()
+    started = time.perf_counter()
+    for block in blocks:
+        block.factor()
+        block.solve(np.zeros(len(block.trace_dofs)), body=True)
+    comm.Barrier()
+    elapsed = time.perf_counter() - started
+    for block in blocks:
+        block.destroy()
+    return comm.bcast(elapsed, root=0)
+
+
+def bench_mesh(P: int, M: int, output: Path, comm) -> None:
+    """Reference, floors and every method on one mesh; rank 0 writes JSON to ``output``."""
+    from . import analysis, driver, mesh, reference
+    from .io import provenance
+
+    base = paper_scene(P, M)
+    lower, upper = comm.bcast(mesh.build(base) if comm.rank == 0 else None, root=0)
+    record: dict = {"P": P, "M": M, "vertices": [len(lower.points), len(upper.points)], "runs": []}
+    ref = None
+    if comm.rank == 0:
+        ref = reference.solve(base, lower, upper)
+        record["reference_time"] = ref.wall_time
+        record["reference_steps"] = ref.iterations
+    comm.Barrier()
+    record["floor"] = {package: floor_time(base, lower, upper, comm, package) for package in ("mumps", "petsc")}
+    for method, settings in TOLERANCES.items():
+        for stop, tol in settings:
+            if method == "uzawa" and P > UZAWA_SWEEP_MAX_P and stop != "paper":
+                continue
+            scene = paper_scene(P, M, [f"solver.method={method}", f"solver.stop={stop}", f"solver.tol={tol}"])
+            try:
+                result = driver.solve(scene, comm, None, progress=lambda line: None)
+            except DDSolveError as exc:
+                if comm.rank == 0:
+                    print(f"  P={P} {method} {stop} {tol:g}: {exc}", flush=True)
+                continue
+            if comm.rank == 0:
+                run = Run(P, M, method, stop, tol, result.converged, result.iterations, result.solves,
+                          result.wall_time, result.timings["factorization"], result.timings["update"],
+                          analysis.compare(result, ref).energy_error, analysis.constraints(result).penetration)
+                record["runs"].append(asdict(run))
+                print(f"  P={P:4d} {method:6s} {stop:8s} tol {tol:7.0e}: {run.rounds:6d} rounds "
+                      f"{run.wall_time:8.3f} s  error {run.energy_error:.2e}", flush=True)
+    if comm.rank == 0:
+        record["provenance"] = provenance()
+        output.write_text(json.dumps(record))
+
+
+# --- the serial driver ----------------------------------------------------------------------
+def methods(meshes=BENCH_MESHES, output: Path = Path("results/bench-methods.h5"),
+            docs: Path = Path("docs")) -> list[dict]:
+    """Run :func:`bench_mesh` in one 4-rank launch per mesh; write HDF5, the docs table and plot.
+
+    This process starts no MPI itself (mpiexec cannot be started from an MPI process).
+    """
+    from .cli import mpiexec_command
+
+    output.parent.mkdir(parents=True, exist_ok=True)
+    records = []
+    for P, M in meshes:
+        print(f"bench methods: P = {P}, M = {M}", flush=True)
+        part = output.with_name(f".{output.stem}-{P}.json")
+        # env: Python's view of the environment, without what an MPI library may have added in C
+        completed = subprocess.run(mpiexec_command(4, ["bench-mesh", str(P), str(M), str(part)]),
+                                   env=dict(os.environ))
+        if completed.returncode != 0:
+            raise DDSolveError(f"bench methods: the launch for P = {P} failed (exit {completed.returncode})")
+        records.append(json.loads(part.read_text()))
+        part.unlink()
+    _write_methods_hdf5(output, records, records[0]["provenance"])
+    section(docs / "results.md", "bench-methods", methods_table(records))
+    speed_error_plot(records, docs / "bench-methods.png")
+    return records
+
+
+def _write_methods_hdf5(path: Path, records: list[dict], attrs: dict) -> None:
+    import h5py
+
+    from .io import atomic
+
+    def write(name):
+        with h5py.File(name, "w") as f:
+            for key, value in attrs.items():
+                f.attrs[key] = value
+            for record in records:
+                group = f.create_group(f"P{record['P']}")
+                for key in ("P", "M", "reference_time", "reference_steps"):
+                    group.attrs[key] = record[key]
+                group.attrs["vertices"] = record["vertices"]
+                for package, seconds in record["floor"].items():
+                    group.attrs[f"floor_{package}"] = seconds
+                runs = record["runs"]
+                for key in runs[0]:
+                    values = [run[key] for run in runs]
+                    group[f"runs/{key}"] = np.array(values, dtype="S" if isinstance(values[0], str) else None)
+
+    atomic(path, write)
+
+
+def _default_run(record: dict) -> dict:
+    return next(r for r in record["runs"] if r["method"] == scenes.DEFAULT_METHOD)
+
+
+def _paper_run(record: dict) -> dict | None:
+    return next((r for r in record["runs"] if r["method"] == "uzawa" and r["stop"] == "paper"), None)
+
+
+def methods_table(records: list[dict]) -> str:
+    """Markdown: the summary per mesh, then every run."""
+    lines = [
+        "Example 1, 4 ranks (one per block) on this 2-core machine, every time measured in the same launch.",
+        "*floor*: one factorization and one solve of every block (the cheaper package), the least any method",
+        "with this DD structure can take; *paper*: `uzawa` with θ = 65 and the paper's stop rule.",
+        "",
+        "| P | M | DOFs | reference (s) | floor (s) | default rounds | default (s) | default / floor | default error "
+        "| paper rounds | paper (s) | paper error | rounds ratio | time ratio | reference / default |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for record in records:
+        best = _default_run(record)
+        paper = _paper_run(record)
+        floor = min(record["floor"].values())
+        dofs = 4 * sum(record["vertices"])
+        paper_cells = ("| — " * 5) if paper is None else (
+            f"| {paper['rounds']} | {paper['wall_time']:.3f} | {paper['energy_error']:.1e} "
+            f"| {paper['rounds'] / best['rounds']:.0f}× | {paper['wall_time'] / best['wall_time']:.0f}× ")
+        lines.append(
+            f"| {record['P']} | {record['M']} | {dofs} | {record['reference_time']:.3f} | {floor:.3f} "
+            f"| {best['rounds']} | {best['wall_time']:.3f} | {best['wall_time'] / floor:.2f} "
+            f"| {best['energy_error']:.1e} {paper_cells}| {record['reference_time'] / best['wall_time']:.1f}× |")
+    lines += ["", "All runs (error: relative energy-norm error against the reference; penetration: max (u⁻ − u⁺)·ν "
+              "/ max |u|):", "",
+              "| P | method | stop | tol | rounds | wall (s) | factorization (s) | rank-0 update (s) | error | penetration |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
+    for record in records:
+        for run in record["runs"]:
+            lines.append(f"| {run['P']} | {run['method']} | {run['stop']} | {run['tol']:.0e} | {run['rounds']} "
+                         f"| {run['wall_time']:.3f} | {run['factorization']:.3f} | {run['update']:.3f} "
+                         f"| {run['energy_error']:.1e} | {run['penetration']:.1e} |")
+    return "\n".join(lines)
+
+
+def speed_error_plot(records: list[dict], path: Path) -> None:
+    """Wall time against energy error, one curve per method, one panel per mesh (the largest three)."""
+    from .plots import _pyplot
+
+    plt = _pyplot()
+    shown = records[-3:]
+    fig, axes = plt.subplots(1, len(shown), figsize=(5 * len(shown), 4.2), constrained_layout=True, squeeze=False)
+    for ax, record in zip(axes[0], shown):
+        for method in TOLERANCES:
+            runs = [r for r in record["runs"] if r["method"] == method and r["stop"] != "paper"]
+            if runs:
+                ax.loglog([r["wall_time"] for r in runs], [max(r["energy_error"], 1e-16) for r in runs],
+                          marker="o", label=method)
+        paper = _paper_run(record)
+        if paper is not None:
+            ax.loglog([paper["wall_time"]], [paper["energy_error"]], marker="*", markersize=12, linestyle="none",
+                      color="black", label="uzawa, paper's rule")
+        ax.axvline(min(record["floor"].values()), color="gray", linestyle=":", label="floor")
+        ax.axvline(record["reference_time"], color="gray", linestyle="--", label="monolithic reference")
+        ax.set_title(f"P = {record['P']}, M = {record['M']}")
+        ax.set_xlabel("wall time of the solve phase (s)")
+        ax.set_ylabel("relative energy error")
+        ax.grid(alpha=0.3, which="both")
+    axes[0][0].legend(fontsize=8)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def factor(P: int = 200, M: int = 256, solves: int = 50) -> None:
+    """Time the block factorization packages side by side on one block of the (P, M) mesh."""
+    from . import assembly, mesh
+    from .blocks import Block, default_factor_package
+
+    scene = paper_scene(P, M)
+    lower, upper = mesh.build(scene)
+    system = assembly.block_systems(scene, lower, upper, [0])[0]
+    print(f"block u_minus of P = {P}, M = {M}: {system.size} unknowns, trace {len(system.trace_dofs)}")
+    rows = {}
+    for package, schur in (("petsc", False), ("mumps", False), ("mumps", True)):
+        if default_factor_package(package) != package:
+            continue
+        best = (np.inf, np.inf, np.inf)
+        for _ in range(3):  # best of three: the first MUMPS call also pays its initialization
+            block = Block(system, factor_package=package)
+            started = time.perf_counter()
+            block.factor(schur=schur)
+            factor_time = time.perf_counter() - started
+            load = np.ones(len(system.trace_dofs))
+            started = time.perf_counter()
+            for _ in range(solves):
+                block.solve(load, body=False)
+            solve_time = (time.perf_counter() - started) / solves
+            started = time.perf_counter()
+            block.schur_complement() if schur else block.flexibility()
+            flexibility_time = time.perf_counter() - started
+            block.destroy()
+            best = tuple(min(a, b) for a, b in zip(best, (factor_time, solve_time, flexibility_time)))
+        label = package + (" + Schur complement" if schur else "")
+        rows[label] = best
+        factor_time, solve_time, flexibility_time = best
+        print(f"  {label:26s} factor {factor_time * 1e3:8.1f} ms   solve {solve_time * 1e3:7.2f} ms   "
+              f"interface matrix {flexibility_time * 1e3:8.1f} ms")
+    if "petsc" in rows and "mumps" in rows:
+        p, m = rows["petsc"], rows["mumps"]
+        print(f"  ratios mumps/petsc: factor {m[0] / p[0]:.2f}, solve {m[1] / p[1]:.2f}, "
+              f"flexibility by multi-column solves {m[2] / p[2]:.2f}")
+    if "mumps + Schur complement" in rows and "mumps" in rows:
+        s, m = rows["mumps + Schur complement"], rows["mumps"]
+        print(f"  Schur complement from the factorization: factor time {s[0] / m[0]:.2f}x the plain one; "
+              f"the interface matrix {m[2] / s[2]:.0f}x faster than by multi-column solves")
