@@ -9,15 +9,13 @@ HDF5 file, a table in docs/results.md and a speed-against-error plot.
 from __future__ import annotations
 
 import json
-import os
-import subprocess
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
-from . import scene as scenes
+from . import report, scene as scenes
 from .errors import DDSolveError
 
 #: The paper's Table 1 meshes (P, M) and one finer mesh.
@@ -49,18 +47,6 @@ class Run:
     update: float
     energy_error: float
     penetration: float
-
-
-def section(path: Path, name: str, text: str) -> None:
-    """Replace (or append) the block between ``<!-- name:start -->`` and ``<!-- name:end -->``."""
-    begin, end = f"<!-- {name}:start -->", f"<!-- {name}:end -->"
-    block = f"{begin}\n{text.rstrip()}\n{end}"
-    content = path.read_text() if path.exists() else "# Results\n"
-    if begin in content and end in content:
-        content = content[:content.index(begin)] + block + content[content.index(end) + len(end):]
-    else:
-        content = content.rstrip() + "\n\n" + block + "\n"
-    path.write_text(content)
 
 
 def paper_scene(P: int, M: int, overrides: list[str] = ()) -> scenes.Scene:
@@ -130,52 +116,16 @@ def bench_mesh(P: int, M: int, output: Path, comm) -> None:
 # --- the serial driver ----------------------------------------------------------------------
 def methods(meshes=BENCH_MESHES, output: Path = Path("results/bench-methods.h5"),
             docs: Path = Path("docs")) -> list[dict]:
-    """Run :func:`bench_mesh` in one 4-rank launch per mesh; write HDF5, the docs table and plot.
-
-    This process starts no MPI itself (mpiexec cannot be started from an MPI process).
-    """
-    from .cli import mpiexec_command
-
+    """Run :func:`bench_mesh` in one 4-rank launch per mesh; write HDF5, the docs table and plot."""
     output.parent.mkdir(parents=True, exist_ok=True)
     records = []
     for P, M in meshes:
         print(f"bench methods: P = {P}, M = {M}", flush=True)
-        part = output.with_name(f".{output.stem}-{P}.json")
-        # env: Python's view of the environment, without what an MPI library may have added in C
-        completed = subprocess.run(mpiexec_command(4, ["bench-mesh", str(P), str(M), str(part)]),
-                                   env=dict(os.environ))
-        if completed.returncode != 0:
-            raise DDSolveError(f"bench methods: the launch for P = {P} failed (exit {completed.returncode})")
-        records.append(json.loads(part.read_text()))
-        part.unlink()
-    _write_methods_hdf5(output, records, records[0]["provenance"])
-    section(docs / "results.md", "bench-methods", methods_table(records))
+        records.append(report.launch(4, ["bench-mesh", str(P), str(M)], output.with_name(f".{output.stem}-{P}.json")))
+    report.write_records(output, records, records[0]["provenance"])
+    report.section(docs / "results.md", "bench-methods", methods_table(records))
     speed_error_plot(records, docs / "bench-methods.png")
     return records
-
-
-def _write_methods_hdf5(path: Path, records: list[dict], attrs: dict) -> None:
-    import h5py
-
-    from .io import atomic
-
-    def write(name):
-        with h5py.File(name, "w") as f:
-            for key, value in attrs.items():
-                f.attrs[key] = value
-            for record in records:
-                group = f.create_group(f"P{record['P']}")
-                for key in ("P", "M", "reference_time", "reference_steps"):
-                    group.attrs[key] = record[key]
-                group.attrs["vertices"] = record["vertices"]
-                for package, seconds in record["floor"].items():
-                    group.attrs[f"floor_{package}"] = seconds
-                runs = record["runs"]
-                for key in runs[0]:
-                    values = [run[key] for run in runs]
-                    group[f"runs/{key}"] = np.array(values, dtype="S" if isinstance(values[0], str) else None)
-
-    atomic(path, write)
 
 
 def _default_run(record: dict) -> dict:
