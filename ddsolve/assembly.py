@@ -57,7 +57,7 @@ def element_stiffness(points: np.ndarray, cells: np.ndarray, material: Material)
 def coo_to_csr(n: int, rows: np.ndarray, cols: np.ndarray, values: np.ndarray):
     """Sum duplicate COO triplets of an n×n matrix; return (indptr, indices, data), rows sorted."""
     key = rows.astype(np.int64) * n + cols
-    order = np.argsort(key, kind="stable")
+    order = np.argsort(key)  # duplicates are summed, so their order does not matter
     key = key[order]
     first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
     data = np.add.reduceat(values[order], first) if len(first) else np.zeros(0)

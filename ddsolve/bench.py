@@ -75,39 +75,54 @@ def floor_time(scene: scenes.Scene, lower, upper, comm, package: str) -> float:
     return comm.bcast(elapsed, root=0)
 
 
-def bench_mesh(P: int, M: int, output: Path, comm) -> None:
-    """Reference, floors and every method on one mesh; rank 0 writes JSON to ``output``."""
+def method_runs() -> list[tuple[str, str, float]]:
+    """(method, stop, tol) of ``bench methods``."""
+    return [(method, stop, tol) for method, settings in TOLERANCES.items() for stop, tol in settings]
+
+
+#: Runs of ``table1``: the paper's algorithm and the default method.
+TABLE1_RUNS = [("uzawa", "paper", 1e-6), (scenes.DEFAULT_METHOD, "kkt", 1e-8)]
+PLANS = {"methods": (method_runs, True), "table1": (lambda: TABLE1_RUNS, False)}
+
+
+def bench_mesh(P: int, M: int, plan: str, output: Path, comm) -> None:
+    """On one mesh: statistics, the reference, the floor (if the plan wants it) and the plan's runs.
+
+    Every rank takes part; rank 0 writes the record as JSON to ``output``.
+    """
     from . import analysis, driver, mesh, reference
     from .io import provenance
 
+    runs, with_floor = PLANS[plan]
     base = paper_scene(P, M)
-    lower, upper = comm.bcast(mesh.build(base) if comm.rank == 0 else None, root=0)
-    record: dict = {"P": P, "M": M, "vertices": [len(lower.points), len(upper.points)], "runs": []}
+    meshes = comm.bcast(mesh.build(base) if comm.rank == 0 else None, root=0)
+    record: dict = {"P": P, "M": M, "vertices": [len(half.points) for half in meshes],
+                    "mesh": {half.name: asdict(mesh.statistics(half)) for half in meshes}, "runs": []}
     ref = None
     if comm.rank == 0:
-        ref = reference.solve(base, lower, upper)
+        ref = reference.solve(base, *meshes)
         record["reference_time"] = ref.wall_time
         record["reference_steps"] = ref.iterations
     comm.Barrier()
-    record["floor"] = {package: floor_time(base, lower, upper, comm, package) for package in ("mumps", "petsc")}
-    for method, settings in TOLERANCES.items():
-        for stop, tol in settings:
-            if method == "uzawa" and P > UZAWA_SWEEP_MAX_P and stop != "paper":
-                continue
-            scene = paper_scene(P, M, [f"solver.method={method}", f"solver.stop={stop}", f"solver.tol={tol}"])
-            try:
-                result = driver.solve(scene, comm, None, progress=lambda line: None)
-            except DDSolveError as exc:
-                if comm.rank == 0:
-                    print(f"  P={P} {method} {stop} {tol:g}: {exc}", flush=True)
-                continue
+    if with_floor:
+        record["floor"] = {package: floor_time(base, *meshes, comm, package) for package in ("mumps", "petsc")}
+    for method, stop, tol in runs():
+        if method == "uzawa" and P > UZAWA_SWEEP_MAX_P and stop != "paper":
+            continue
+        scene = paper_scene(P, M, [f"solver.method={method}", f"solver.stop={stop}", f"solver.tol={tol}"])
+        try:
+            result = driver.solve(scene, comm, None, progress=lambda line: None, meshes=meshes)
+        except DDSolveError as exc:
             if comm.rank == 0:
-                run = Run(P, M, method, stop, tol, result.converged, result.iterations, result.solves,
-                          result.wall_time, result.timings["factorization"], result.timings["update"],
-                          analysis.compare(result, ref).energy_error, analysis.constraints(result).penetration)
-                record["runs"].append(asdict(run))
-                print(f"  P={P:4d} {method:6s} {stop:8s} tol {tol:7.0e}: {run.rounds:6d} rounds "
-                      f"{run.wall_time:8.3f} s  error {run.energy_error:.2e}", flush=True)
+                print(f"  P={P} {method} {stop} {tol:g}: {exc}", flush=True)
+            continue
+        if comm.rank == 0:
+            run = Run(P, M, method, stop, tol, result.converged, result.iterations, result.solves,
+                      result.wall_time, result.timings["factorization"], result.timings["update"],
+                      analysis.compare(result, ref).energy_error, analysis.constraints(result).penetration)
+            record["runs"].append(asdict(run))
+            print(f"  P={P:4d} {method:6s} {stop:8s} tol {tol:7.0e}: {run.rounds:6d} rounds "
+                  f"{run.wall_time:8.3f} s  error {run.energy_error:.2e}", flush=True)
     if comm.rank == 0:
         record["provenance"] = provenance()
         output.write_text(json.dumps(record))
@@ -121,7 +136,8 @@ def methods(meshes=BENCH_MESHES, output: Path = Path("results/bench-methods.h5")
     records = []
     for P, M in meshes:
         print(f"bench methods: P = {P}, M = {M}", flush=True)
-        records.append(report.launch(4, ["bench-mesh", str(P), str(M)], output.with_name(f".{output.stem}-{P}.json")))
+        records.append(report.launch(4, ["bench-mesh", "methods", str(P), str(M)],
+                                     output.with_name(f".{output.stem}-{P}.json")))
     report.write_records(output, records, records[0]["provenance"])
     report.section(docs / "results.md", "bench-methods", methods_table(records))
     speed_error_plot(records, docs / "bench-methods.png")

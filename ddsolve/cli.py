@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import traceback
@@ -33,7 +34,12 @@ def split_petsc_options(argv: list[str]) -> tuple[list[str], list[str]]:
 
 
 def mpiexec_command(ranks: int, arguments: list[str]) -> list[str]:
-    """``mpiexec -n N python -m mpi4py -m ddsolve ARGS`` (quiet Open MPI: our errors are one line)."""
+    """``mpiexec -n N python -m ddsolve ARGS`` (quiet Open MPI: our errors are one line).
+
+    :func:`main` gives the semantics of ``python -m mpi4py``: an error on one rank, an unexpected
+    exception or an interrupt aborts every rank.  Errors that every rank raises together end every
+    rank normally with the same status, so no abort (and no Open MPI banner) is needed for them.
+    """
     mpiexec = os.environ.get("MPIEXEC", "mpiexec")
     if shutil.which(mpiexec) is None:
         raise DDSolveError(f"{mpiexec} not found: install Open MPI or MPICH, or set MPIEXEC")
@@ -41,7 +47,7 @@ def mpiexec_command(ranks: int, arguments: list[str]) -> list[str]:
     version = subprocess.run([mpiexec, "--version"], capture_output=True, text=True).stdout
     if "Open MPI" in version or "OpenRTE" in version:
         command.append("--quiet")
-    return command + ["-n", str(ranks), sys.executable, "-m", "mpi4py", "-m", "ddsolve", *arguments]
+    return command + ["-n", str(ranks), sys.executable, "-m", "ddsolve", *arguments]
 
 
 def _init_petsc(options: list[str]) -> None:
@@ -182,7 +188,34 @@ def cmd_bench_mesh(args, petsc_options) -> int:
 
     from . import bench
 
-    bench.bench_mesh(args.P, args.M, Path(args.output), MPI.COMM_WORLD)
+    bench.bench_mesh(args.P, args.M, args.plan, Path(args.output), MPI.COMM_WORLD)
+    return 0
+
+
+def cmd_paper(args, _petsc_options) -> int:
+    from . import paper
+
+    getattr(paper, args.experiment)()
+    return 0
+
+
+def cmd_theta_mesh(args, petsc_options) -> int:
+    _init_petsc(petsc_options)
+    from mpi4py import MPI
+
+    from . import paper
+
+    paper.theta_mesh(args.P, args.M, args.scene, Path(args.output), MPI.COMM_WORLD)
+    return 0
+
+
+def cmd_accuracy_mesh(args, petsc_options) -> int:
+    _init_petsc(petsc_options)
+    from mpi4py import MPI
+
+    from . import paper
+
+    paper.accuracy_mesh(args.P, args.M, Path(args.fine), Path(args.output), MPI.COMM_WORLD)
     return 0
 
 
@@ -243,14 +276,40 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--meshes", help="comma-separated P:M pairs (default: Table 1 and 400:512)")
     p.add_argument("-o", dest="output", default="results/bench-methods.h5", help="HDF5 file for `methods`")
     p.set_defaults(run=cmd_bench)
-    p = sub.add_parser("bench-mesh")  # one benchmark launch under mpiexec (used by `bench methods`)
+    p = sub.add_parser("bench-mesh")  # one benchmark launch under mpiexec (used by `bench methods`, `table1`)
+    p.add_argument("plan", choices=("methods", "table1"))
     p.add_argument("P", type=int)
     p.add_argument("M", type=int)
     p.add_argument("output")
     p.set_defaults(run=cmd_bench_mesh)
+    for name, help_text in (("table1", "the paper's Table 1 beside ours (docs/results.md)"),
+                            ("theta-sweep", "iterations against θ and the divergence thresholds (Fig. 2)"),
+                            ("figures", "the paper's Figs. 1, 3 and 4 (docs/*.png)"),
+                            ("accuracy", "discretization error under refinement, total error against time")):
+        sub.add_parser(name, help=help_text).set_defaults(run=cmd_paper, experiment=name.replace("-", "_"))
+    p = sub.add_parser("theta-mesh")  # one launch of theta-sweep
+    p.add_argument("P", type=int)
+    p.add_argument("M", type=int)
+    p.add_argument("scene")
+    p.add_argument("output")
+    p.set_defaults(run=cmd_theta_mesh)
+    p = sub.add_parser("accuracy-mesh")  # one launch of accuracy
+    p.add_argument("P", type=int)
+    p.add_argument("M", type=int)
+    p.add_argument("fine")
+    p.add_argument("output")
+    p.set_defaults(run=cmd_accuracy_mesh)
     sub.add_parser("scenes", help="list the built-in scenes").set_defaults(run=cmd_scenes)
     sub.add_parser("version", help="versions of ddsolve, PETSc and MPI").set_defaults(run=cmd_version)
     return top
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, turned into an exception so that temporary files are removed on the way out."""
+
+
+def _terminate(signum, _frame) -> None:
+    raise Terminated(signal.Signals(signum).name)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -258,6 +317,7 @@ def main(argv: list[str] | None = None) -> int:
     own, petsc_options = split_petsc_options(argv)
     args = parser().parse_args(own)
     args.argv = argv
+    signal.signal(signal.SIGTERM, _terminate)
     try:
         return args.run(args, petsc_options)
     except DDSolveError as exc:
@@ -265,10 +325,11 @@ def main(argv: list[str] | None = None) -> int:
         if not exc.collective:  # raised on this rank only: the others cannot know, so stop them
             _abort(exc.exit_status)
         return exc.exit_status
-    except KeyboardInterrupt:
-        _report("ddsolve: interrupted", everywhere=True)
-        _abort(130)
-        return 130
+    except KeyboardInterrupt as exc:
+        status = 143 if isinstance(exc, Terminated) else 130
+        _report("ddsolve: terminated" if status == 143 else "ddsolve: interrupted")
+        _abort(status)
+        return status
     except Exception:
         traceback.print_exc()
         _abort(1)

@@ -7,6 +7,7 @@ rank 0 runs the multiplier method while the other ranks serve rounds of block so
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -147,12 +148,32 @@ def run_method(scene: Scene, exchange: Exchange, server: BlockServer, interface:
     return outcome, rounds, failure
 
 
-def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print) -> io.Result | None:
-    """Run the domain decomposition for ``scene`` on ``comm``; write ``output`` on rank 0.
+def peak_memory_mb() -> float:
+    """This process's peak resident memory so far, in MB."""
+    import resource
 
-    Returns the result on rank 0 (None elsewhere).  A run that reaches max_iterations writes its
-    result with converged = false and then raises NotConvergedError on every rank.
-    """
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # kB on Linux
+
+
+@dataclass
+class Setup:
+    """What every rank holds after assembly and factorization."""
+
+    lower: mesh.HalfMesh
+    upper: mesh.HalfMesh
+    exchange: Exchange
+    blocks: list[Block]
+    interface: Interface
+    stages: dict
+    timings: dict
+
+    def destroy(self) -> None:
+        for block in self.blocks:
+            block.destroy()
+
+
+def prepare(scene: Scene, comm: MPI.Comm, meshes: tuple[mesh.HalfMesh, mesh.HalfMesh] | None = None) -> Setup:
+    """Build (or take) the meshes on rank 0, assemble and factor every rank's blocks."""
     if comm.size not in SUPPORTED_RANKS:
         error = DDSolveError(f"unsupported number of ranks {comm.size}: use 1, 2 or 4")
         error.collective = True  # every rank sees the same size
@@ -163,7 +184,9 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print) -> 
 
     mark = time.perf_counter()
     stages["Setup"].push()
-    lower, upper = comm.bcast(collective(comm, lambda: mesh.build(scene), root_only=True), root=0)
+    if meshes is None:
+        meshes = comm.bcast(collective(comm, lambda: mesh.build(scene), root_only=True), root=0)
+    lower, upper = meshes
     exchange = Exchange(comm, len(BLOCKS))
     blocks = collective(comm, lambda: [
         Block(system, factor_package=FACTOR_PACKAGE[method])
@@ -178,38 +201,73 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print) -> 
     comm.Barrier()
     stages["Factorization"].pop()
     timings["factorization"] = time.perf_counter() - mark
+    return Setup(lower, upper, exchange, blocks, interface, stages, timings)
 
-    mark = time.perf_counter()
-    server = BlockServer(blocks)
-    outcome, rounds, failure = run_method(scene, exchange, server, interface, stages, progress)
-    failure = comm.bcast(failure, root=0)
-    if failure is not None:
-        failure.collective = True
-    timings["iterations"] = time.perf_counter() - mark
-    if failure is not None and not isinstance(failure, NotConvergedError):
-        raise failure
 
-    mark = time.perf_counter()
-    stages["Output"].push()
-    sizes = [2 * len((lower if spec.side < 0 else upper).points) for spec in BLOCKS]
-    solutions = exchange.gather_varying(server.solutions, sizes)
-    result = None
-    if exchange.is_root:
-        timings["update"] = timings["iterations"] - rounds.elapsed
-        result = io.Result(
-            scene=scene.text, method=method, converged=outcome.converged, iterations=outcome.iterations,
-            solves=rounds.count, wall_time=timings["factorization"] + timings["iterations"], ranks=comm.size,
-            lower=lower, upper=upper, solution={spec.name: x.reshape(-1, 2) for spec, x in zip(BLOCKS, solutions)},
-            interface_x=interface.x, crack=interface.crack, multipliers=interface.split(outcome.lam),
-            history=np.array(outcome.history), timings=timings, message=outcome.message,
-            attrs={**io.provenance(), "stop": scene.solver.stop, "tol": scene.solver.tol, **outcome.details},
-        )
-        timings["output"] = time.perf_counter() - mark  # gathering; io.write adds its own "write" time
-    if output is not None:
-        collective(comm, lambda: io.write(output, result), root_only=True)
-    stages["Output"].pop()
-    for block in blocks:
-        block.destroy()
-    if failure is not None:
-        raise failure
-    return result
+def bound(scene: Scene, comm: MPI.Comm, meshes=None, iterations: int = 300) -> float:
+    """λmax of the dual operator C K⁻¹ Cᵀ W by power iteration (one round each); 2/λmax bounds Uzawa's θ."""
+    setup = prepare(scene, comm, meshes)
+    server = BlockServer(setup.blocks)
+    estimate = None
+    if setup.exchange.is_root:
+        rounds = ParallelRounds(setup.exchange, server, setup.interface.trace_size, setup.stages)
+        setup.stages["Update"].push()
+        problem = methods.DualProblem(rounds, setup.interface, scene.solver)
+        estimate = methods.largest_eigenvalue(problem.apply, setup.interface.size, iterations, tolerance=1e-9)
+        setup.stages["Update"].pop()
+        rounds.stop()
+    else:
+        serve(setup.exchange, server, setup.interface.trace_size, setup.stages)
+    setup.destroy()
+    return comm.bcast(estimate, root=0)
+
+
+def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, meshes=None) -> io.Result | None:
+    """Run the domain decomposition for ``scene`` on ``comm``; write ``output`` on rank 0.
+
+    Returns the result on rank 0 (None elsewhere).  A run that reaches max_iterations writes its
+    result with converged = false and then raises NotConvergedError on every rank.  ``meshes``
+    (on every rank) skips building them.
+    """
+    setup = prepare(scene, comm, meshes)
+    lower, upper, exchange, blocks, interface, stages, timings = (
+        setup.lower, setup.upper, setup.exchange, setup.blocks, setup.interface, setup.stages, setup.timings)
+    method = scene.solver.method
+
+    try:
+        mark = time.perf_counter()
+        server = BlockServer(blocks)
+        outcome, rounds, failure = run_method(scene, exchange, server, interface, stages, progress)
+        failure = comm.bcast(failure, root=0)
+        if failure is not None:
+            failure.collective = True
+        timings["iterations"] = time.perf_counter() - mark
+        if failure is not None and not isinstance(failure, NotConvergedError):
+            raise failure
+
+        mark = time.perf_counter()
+        stages["Output"].push()
+        sizes = [2 * len((lower if spec.side < 0 else upper).points) for spec in BLOCKS]
+        solutions = exchange.gather_varying(server.solutions, sizes)
+        memory = comm.gather(peak_memory_mb(), root=0)
+        result = None
+        if exchange.is_root:
+            timings["update"] = timings["iterations"] - rounds.elapsed
+            result = io.Result(
+                scene=scene.text, method=method, converged=outcome.converged, iterations=outcome.iterations,
+                solves=rounds.count, wall_time=timings["factorization"] + timings["iterations"], ranks=comm.size,
+                lower=lower, upper=upper, solution={spec.name: x.reshape(-1, 2) for spec, x in zip(BLOCKS, solutions)},
+                interface_x=interface.x, crack=interface.crack, multipliers=interface.split(outcome.lam),
+                history=np.array(outcome.history), timings=timings, message=outcome.message,
+                attrs={**io.provenance(), "stop": scene.solver.stop, "tol": scene.solver.tol,
+                       "peak_memory_mb": memory, **outcome.details},
+            )
+            timings["output"] = time.perf_counter() - mark  # gathering; io.write adds its own "write" time
+        if output is not None:
+            collective(comm, lambda: io.write(output, result), root_only=True)
+        stages["Output"].pop()
+        if failure is not None:  # not converged: the result is written with converged = false
+            raise failure
+        return result
+    finally:
+        setup.destroy()

@@ -8,6 +8,7 @@ of contiguous float64 buffers.  Errors found on any rank are raised on every ran
 """
 from __future__ import annotations
 
+import time
 from typing import Callable, TypeVar
 
 import numpy as np
@@ -19,6 +20,20 @@ T = TypeVar("T")
 ROOT = 0
 
 
+def wait(request: MPI.Request) -> None:
+    """Complete a nonblocking operation, polling briefly and then sleeping between tests.
+
+    A blocking MPI call busy-polls: with more ranks than cores, ranks that wait for a long rank-0
+    phase (meshing, reading a file) would take CPU time from it.
+    """
+    started = time.perf_counter()
+    pause = 0.0
+    while not request.Test():
+        if time.perf_counter() - started > 1e-3:  # after a millisecond of polling, yield the core
+            pause = min(2.0 * pause or 5e-5, 2e-3)
+            time.sleep(pause)
+
+
 def collective(comm: MPI.Comm, work: Callable[[], T], root_only: bool = False) -> T:
     """Run ``work`` (on every rank, or on rank 0 only), then raise the first error on all ranks."""
     value, error = None, None
@@ -27,6 +42,8 @@ def collective(comm: MPI.Comm, work: Callable[[], T], root_only: bool = False) -
             value = work()
         except DDSolveError as exc:
             error = exc
+    if root_only:
+        wait(comm.Ibarrier())
     errors = comm.allgather(error)
     first = next((e for e in errors if e is not None), None)
     if first is not None:
@@ -50,7 +67,7 @@ class Exchange:
         return self.comm.rank == ROOT
 
     def command(self, code: int | None = None) -> int:
-        """Broadcast a command code from rank 0."""
+        """Broadcast a command code from rank 0 (a blocking call: between rounds, latency matters most)."""
         if self.is_root:
             self._command[0] = code
         self.comm.Bcast(self._command, root=ROOT)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import io
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -40,17 +41,26 @@ class HalfMesh:
         """Indices of the vertices on Γ_D (x = ±1)."""
         return np.flatnonzero(np.abs(self.points[:, 0]) == 1.0)
 
+    def _edge_keys(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every cell edge as (vertex pair, integer key smaller·n + larger), 3 per cell."""
+        pairs = self.cells[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+        return pairs, pairs.min(axis=1) * len(self.points) + pairs.max(axis=1)
+
     def edges(self) -> np.ndarray:
         """Unique edges ``(e, 2)``, each with its smaller vertex first."""
-        pairs = self.cells[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-        return np.unique(np.sort(pairs, axis=1), axis=0)
+        _, keys = self._edge_keys()
+        keys = np.unique(keys)
+        return np.column_stack([keys // len(self.points), keys % len(self.points)])
+
+    @cached_property
+    def _boundary_edges(self) -> np.ndarray:
+        pairs, keys = self._edge_keys()
+        _, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
+        return pairs[counts[inverse] == 1]
 
     def boundary_edges(self) -> np.ndarray:
         """Edges used by exactly one triangle, oriented counter-clockwise around the half."""
-        pairs = self.cells[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-        keys = np.sort(pairs, axis=1)
-        _, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
-        return pairs[counts[inverse.ravel()] == 1]
+        return self._boundary_edges
 
     def edges_on_line(self, y: float) -> np.ndarray:
         """Boundary edges lying on the horizontal line at height ``y``."""

@@ -297,7 +297,7 @@ def mprgp(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
 
     def feasible_step(y, direction):
         """Largest α with lower ≤ y − α·direction ≤ upper."""
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # infinite bounds: infinite steps
             down = np.where(direction > 0, (y - lower) / direction, np.inf)
             up = np.where(direction < 0, (y - upper) / direction, np.inf)
         return float(min(down.min(initial=np.inf), up.min(initial=np.inf)))

@@ -11,20 +11,30 @@ import numpy as np
 from .errors import DDSolveError
 
 
-def launch(ranks: int, arguments: list[str], part: Path) -> dict:
-    """Run ``ddsolve ARGUMENTS PART`` on ``ranks`` MPI ranks; return the JSON it wrote to PART.
+def run(ranks: int, arguments: list[str]) -> None:
+    """Run ``ddsolve ARGUMENTS`` on ``ranks`` MPI ranks, raising if it fails.
 
     The calling process must not have started MPI (mpiexec cannot be nested in an MPI process);
     the child gets Python's view of the environment, without what an MPI library added in C.
     """
     from .cli import mpiexec_command
 
-    completed = subprocess.run(mpiexec_command(ranks, [*arguments, str(part)]), env=dict(os.environ))
+    completed = subprocess.run(mpiexec_command(ranks, arguments), env=dict(os.environ))
     if completed.returncode != 0:
         raise DDSolveError(f"{' '.join(arguments)}: the launch failed (exit {completed.returncode})")
+
+
+def launch(ranks: int, arguments: list[str], part: Path) -> dict:
+    """Run ``ddsolve ARGUMENTS PART`` on ``ranks`` ranks; return the JSON record it wrote to PART."""
+    run(ranks, [*arguments, str(part)])
     record = json.loads(part.read_text())
     part.unlink()
     return record
+
+
+def run_solve(arguments: list[str], ranks: int = 4) -> None:
+    """``ddsolve solve ...`` on ``ranks`` ranks (the default method unless the arguments say otherwise)."""
+    run(ranks, arguments)
 
 
 def write_records(path: Path, records: list[dict], attrs: dict) -> None:

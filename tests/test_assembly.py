@@ -102,3 +102,12 @@ def test_block_system_decouples_clamped_dofs_and_lists_the_trace():
     sigma = lower.sigma()[1:-1]
     assert np.array_equal(system.trace_dofs, np.column_stack([2 * sigma, 2 * sigma + 1]).ravel())
     assert np.all(np.diff(lower.points[sigma, 0]) > 0)
+
+
+def test_interpolation_is_exact_for_linear_fields_and_errors_vanish_on_the_same_mesh():
+    from ddsolve.analysis import interpolate
+
+    coarse, _ = structured_halves(4, 2, shear=0.3)
+    fine, _ = structured_halves(12, 6, shear=0.1)
+    linear = lambda p: np.column_stack([1 + 2 * p[:, 0] - p[:, 1], 3 * p[:, 1]])  # noqa: E731
+    assert np.allclose(interpolate(coarse, linear(coarse.points), fine.points), linear(fine.points), atol=1e-13)

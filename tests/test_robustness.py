@@ -1,0 +1,240 @@
+"""Hard numerical cases and bad input (docs/robustness.md lists each with its measured outcome)."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import time
+
+import meshio
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings, strategies as st
+
+from ddsolve import analysis, io, scene
+from ddsolve.errors import SceneError
+
+from conftest import ddsolve, structured_square
+
+SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
+
+
+def solve_and_reference(tmp_path, name, *overrides, method_args=(), ranks=4):
+    """The default (or given) method and the reference on the same scene; (result, reference)."""
+    dd, ref = tmp_path / "dd.h5", tmp_path / "ref.h5"
+    ddsolve("solve", name, *overrides, *method_args, "-o", str(dd), ranks=ranks)
+    ddsolve("reference", name, *overrides, "-o", str(ref))
+    return io.read(dd), io.read(ref)
+
+
+# --- hard numerical cases ---------------------------------------------------------------------
+@pytest.mark.parametrize("overrides", [
+    ["--set", "materials.layer2.E=0.02"],  # E2/E1 = 1e-4
+    ["--set", "materials.layer2.E=2e6"],  # E2/E1 = 1e4
+    ["--set", "materials.layer1.nu=0.49", "--set", "materials.layer2.nu=0.49"],
+    ["--set", "materials.layer1.nu=0.4999", "--set", "materials.layer2.nu=0.4999"],
+    ["--set", "geometry.crack=[-0.98, 0.98]"],
+    ["--set", "geometry.crack=[0.0, 0.05]"],  # one Σ element: no crack vertex inside
+    ["--set", "geometry.crack=[]"],
+], ids=["E-ratio-1e-4", "E-ratio-1e4", "nu-0.49", "nu-0.4999", "crack-almost-all", "crack-one-element",
+        "no-crack"])
+def test_default_method_matches_the_reference_on_hard_cases(tmp_path, overrides):
+    result, reference = solve_and_reference(tmp_path, "partial-closure", *SMALL, *overrides)
+    assert result.converged and result.solves == 3
+    assert analysis.compare(result, reference).energy_error < 1e-6
+    assert analysis.constraints(result).penetration < 1e-9
+
+
+@pytest.mark.parametrize("name", ["full-closure", "full-opening"])
+def test_full_closure_and_full_opening(tmp_path, name):
+    result, reference = solve_and_reference(tmp_path, name, *SMALL)
+    assert analysis.compare(result, reference).energy_error < 1e-6
+    crack = result.crack
+    if name == "full-closure":
+        assert np.all(result.multipliers["mu_c"][crack] > 0)
+        assert reference.attrs["closed_vertices"] == crack.sum()
+    else:
+        assert np.all(result.multipliers["mu_c"][crack] == 0)
+
+
+def test_load_on_layer_2_only(tmp_path):
+    overrides = ["--set", "loads.layer1.bottom.y=[]", "--set", "loads.layer1.top.y=[]",
+                 "--set", "loads.layer2.bottom.y=[0.0, 0.05]", "--set", "loads.layer2.top.x=[0.02]"]
+    result, reference = solve_and_reference(tmp_path, "partial-closure", *SMALL, *overrides)
+    assert analysis.compare(result, reference).energy_error < 1e-6
+    assert np.abs(result.solution["u_minus"]).max() > 0  # layer 1 moves through the gluing
+
+
+@pytest.mark.parametrize("method", ["schur", "mprgp", "fista", "uzawa"])
+def test_zero_load_gives_exactly_zero_without_division_by_zero(tmp_path, method):
+    overrides = ["--set", "loads.layer1.bottom.y=[0.0]", "--set", "loads.layer1.top.y=[0.0]",
+                 "--set", f"solver.method={method}"]
+    output = tmp_path / "zero.h5"
+    ddsolve("solve", "partial-closure", *SMALL, *overrides, "-o", str(output), ranks=2)
+    result = io.read(output)
+    assert result.converged and result.iterations <= 1
+    assert all(np.all(values == 0.0) for values in result.solution.values())
+    assert np.all(np.isfinite(result.history))
+
+
+@pytest.mark.parametrize("method", ["schur", "mprgp", "fista"])
+def test_scaled_loads_give_scaled_solutions_in_the_same_iterations(tmp_path, method):
+    results = {}
+    for factor in (1e-12, 1.0, 1e12):
+        c = 0.078125 * factor
+        output = tmp_path / f"scaled-{factor:g}.h5"
+        # p = 1e7 (the scene's) would be an active bound at 1e12 × the loads: lift it
+        ddsolve("solve", "partial-closure", *SMALL, "--set", f"solver.method={method}", "--set", "solver.p=1e300",
+                "--set", f"loads.layer1.bottom.y=[0.0, {c!r}]", "--set", f"loads.layer1.top.y=[0.0, {-c!r}]",
+                "-o", str(output), ranks=4)
+        results[factor] = io.read(output)
+    assert len({r.iterations for r in results.values()}) == 1
+    agreement = 1e-12 if method == "schur" else 1e-6  # round-off differences, grown over the iterations
+    for factor in (1e-12, 1e12):
+        for name, values in results[1.0].solution.items():
+            difference = np.abs(results[factor].solution[name] / factor - values).max()
+            assert difference <= agreement * np.abs(values).max()
+
+
+def test_strongly_graded_and_distorted_mesh(tmp_path):
+    """Cells of aspect ratio about 60 at Σ, growing geometrically (×1.6) towards y = ±1."""
+    points, cells = structured_square(16, 12)
+    ratio, n = 1.6, 12
+    heights = (ratio ** np.arange(n + 1) - 1.0) / (ratio ** n - 1.0)
+    levels = np.concatenate([-heights[::-1], heights[1:]])
+    points[:, 1] = levels[np.round((points[:, 1] + 1.0) * n).astype(int)]
+    path = tmp_path / "graded.vtu"
+    meshio.write(path, meshio.Mesh(points, [("triangle", cells)]))
+    scene_file = tmp_path / "graded.toml"
+    scene_file.write_text(scene.builtin_scenes()["partial-closure"].replace(
+        "sigma_vertices = 96\nboundary_vertices = 144", f'file = "{path.name}"'))
+    lower, _ = __import__("ddsolve.mesh", fromlist=["read"]).read(path)
+    p = lower.points[lower.cells]
+    edges = np.linalg.norm(p - p[:, [1, 2, 0]], axis=2)
+    area = np.abs(lower.areas())
+    assert (edges.max(axis=1) ** 2 / (2 * area)).max() > 50  # longest edge / height
+    result, reference = solve_and_reference(tmp_path, str(scene_file))
+    assert analysis.compare(result, reference).energy_error < 1e-6
+
+
+def test_uzawa_above_the_stable_bound_with_a_closed_crack(tmp_path):
+    completed = ddsolve("solve", "full-closure", "--set", "mesh.sigma_vertices=48", "--set",
+                        "mesh.boundary_vertices=80", "--set", "solver.method=uzawa", "-o", str(tmp_path / "x.h5"),
+                        ranks=4, check=False)
+    assert completed.returncode == 4
+    message = completed.stderr.strip()
+    iteration = int(message.split("diverged at iteration ")[1].split(":")[0])
+    bound = float(message.split("stable bound 2/lambda_max ~ ")[1].split()[0])
+    assert iteration < 500 and 50 < bound < 65  # power iteration: 2/lambda_max = 58.1 on this mesh
+
+
+# --- bad input --------------------------------------------------------------------------------
+def one_line_failure(completed: subprocess.CompletedProcess, fragment: str, status: int = 1) -> None:
+    assert completed.returncode == status, completed.stderr
+    lines = completed.stderr.strip().splitlines()
+    assert len(lines) == 1 and fragment in lines[0], completed.stderr
+    assert "Traceback" not in completed.stdout + completed.stderr
+
+
+def test_five_ranks_are_refused_on_every_rank(tmp_path):
+    completed = ddsolve("solve", "partial-closure", *SMALL, "-o", str(tmp_path / "x.h5"), ranks=5, check=False)
+    one_line_failure(completed, "unsupported number of ranks 5: use 1, 2 or 4")
+
+
+def test_unwritable_output_is_reported_and_all_ranks_exit(tmp_path):
+    completed = ddsolve("solve", "partial-closure", *SMALL, "-o", "/proc/ddsolve-result.h5", ranks=4,
+                        check=False, timeout=120)
+    one_line_failure(completed, "/proc/ddsolve-result.h5: cannot write")
+
+
+def test_halves_with_different_sigma_vertices_are_rejected(tmp_path):
+    points, cells = structured_square(8, 2)
+    upper = points[:, 1] > 0
+    shifted = points.copy()
+    on_sigma = (points[:, 1] == 0) & (np.abs(points[:, 0]) < 1) & (np.abs(points[:, 0]) != 0.5)
+    duplicate = np.flatnonzero(on_sigma)
+    shifted = np.vstack([points, points[duplicate] + [0.05, 0.0]])  # the upper half's own Σ vertices, moved
+    renumber = np.arange(len(points))
+    renumber[duplicate] = len(points) + np.arange(len(duplicate))
+    upper_cells = np.any(upper[cells], axis=1)
+    cells = np.where(upper_cells[:, None], renumber[cells], cells)
+    path = tmp_path / "mismatch.vtu"
+    meshio.write(path, meshio.Mesh(shifted, [("triangle", cells)]))
+    scene_file = tmp_path / "s.toml"
+    scene_file.write_text(scene.builtin_scenes()["partial-closure"].replace(
+        "sigma_vertices = 96\nboundary_vertices = 144", f'file = "{path.name}"'))
+    completed = ddsolve("solve", str(scene_file), ranks=2, check=False)
+    one_line_failure(completed, "Σ vertices of the two halves do not match")
+
+
+def test_a_block_solver_failing_on_one_rank_stops_every_rank(tmp_path):
+    output = tmp_path / "kept.h5"
+    output.write_bytes(b"previous")
+    completed = ddsolve("solve", "partial-closure", *SMALL, "--set", "solver.method=mprgp", "-o", str(output),
+                        "-v_plus_ksp_type", "cg", "-v_plus_pc_type", "none", "-v_plus_ksp_max_it", "2",
+                        ranks=4, check=False, timeout=120)
+    one_line_failure(completed, "block v_plus: KSP did not converge")
+    assert output.read_bytes() == b"previous"
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_stops_every_rank_promptly_and_keeps_the_previous_file(tmp_path, signum):
+    from ddsolve.cli import mpiexec_command
+
+    output = tmp_path / "kept.h5"
+    output.write_bytes(b"previous")
+    command = mpiexec_command(4, ["solve", "partial-closure", "--set", "solver.method=uzawa",
+                                  "--set", "solver.stop=relative", "--set", "solver.tol=1e-300",
+                                  "--set", "solver.max_iterations=10000000", "-o", str(output)])
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               stdin=subprocess.DEVNULL, env=dict(os.environ))
+    time.sleep(8.0)  # well into the iterations
+    assert process.poll() is None
+    sent = time.perf_counter()
+    process.send_signal(signum)
+    _, stderr = process.communicate(timeout=30)
+    assert time.perf_counter() - sent < 10.0
+    assert process.returncode != 0
+    assert "Traceback" not in stderr
+    assert output.read_bytes() == b"previous"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["kept.h5"]
+
+
+# --- fuzzing the scene parser -----------------------------------------------------------------
+KEYS = ["title", "geometry.crack", "mesh.sigma_vertices", "mesh.boundary_vertices", "mesh.file",
+        "materials.layer1.E", "materials.layer2.nu", "loads.layer1.bottom.y", "loads.layer2.top.x",
+        "contact.nonpenetration", "solver.method", "solver.theta", "solver.p", "solver.tol", "solver.stop",
+        "solver.max_iterations", "solver", "materials", "loads.layer1", "nope", "solver.nope", ""]
+VALUES = st.one_of(st.integers(-10**6, 10**6).map(str), st.floats(allow_nan=True).map(repr),
+                   st.sampled_from(["true", "false", "[]", "[1, 2]", "[-0.5, 0.5]", "[0.5, -0.5]", "{}",
+                                    "\"uzawa\"", "uzawa", "mprgp", "kkt", "paper", "inf", "nan", "[1, \"a\"]",
+                                    "1e400", "-0", "=", "[[1]]"]),
+                   st.text(max_size=12))
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.tuples(st.sampled_from(KEYS), VALUES), max_size=5))
+def test_overrides_never_raise_anything_but_scene_errors(pairs):
+    overrides = [f"{key}={value}" for key, value in pairs]
+    try:
+        scene.load("partial-closure", overrides)
+    except SceneError as error:
+        assert "\n" not in str(error)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.text(max_size=200))
+def test_arbitrary_text_never_raises_anything_but_scene_errors(text):
+    try:
+        scene.loads(text)
+    except SceneError as error:
+        assert "\n" not in str(error)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.sampled_from(scene.builtin_scenes()["partial-closure"].splitlines()), max_size=40))
+def test_shuffled_scene_lines_never_raise_anything_but_scene_errors(lines):
+    try:
+        scene.loads("\n".join(lines))
+    except SceneError as error:
+        assert "\n" not in str(error)
