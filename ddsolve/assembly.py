@@ -54,16 +54,18 @@ def element_stiffness(points: np.ndarray, cells: np.ndarray, material: Material)
     return area[:, None, None] * np.einsum("mki,kl,mlj->mij", B, elasticity_matrix(material), B)
 
 
-def coo_to_csr(n: int, rows: np.ndarray, cols: np.ndarray, values: np.ndarray):
-    """Sum duplicate COO triplets of an n×n matrix; return (indptr, indices, data), rows sorted."""
-    key = rows.astype(np.int64) * n + cols
+def coo_to_csr(n: int, rows: np.ndarray, cols: np.ndarray, values: np.ndarray, columns: int | None = None):
+    """Sum duplicate COO triplets of an n×``columns`` matrix (square by default); return
+    (indptr, indices, data) with rows in order."""
+    columns = n if columns is None else columns
+    key = rows.astype(np.int64) * columns + cols
     order = np.argsort(key)  # duplicates are summed, so their order does not matter
     key = key[order]
     first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
     data = np.add.reduceat(values[order], first) if len(first) else np.zeros(0)
     key = key[first]
-    indptr = np.searchsorted(key // n, np.arange(n + 1)).astype(np.int64)
-    return indptr, (key % n).astype(np.int64), data
+    indptr = np.searchsorted(key // columns, np.arange(n + 1)).astype(np.int64)
+    return indptr, (key % columns).astype(np.int64), data
 
 
 def stiffness(points: np.ndarray, cells: np.ndarray, material: Material):
@@ -115,10 +117,12 @@ def von_mises(points: np.ndarray, cells: np.ndarray, material: Material, u: np.n
 
 @dataclass(frozen=True)
 class BlockSystem:
-    """One block's linear system K x = rhs (+ interface loads on ``trace_dofs``).
+    """One block's linear system K x = rhs (+ interface loads on ``trace_dofs``), or the rows
+    ``first … first + len(rhs) − 1`` of it when the block is distributed.
 
     Clamped dofs (x = ±1) are decoupled: their rows and columns are empty except for a diagonal
-    entry of the same size as the stiffness diagonal, and their right-hand side is zero.
+    entry of the size of the stiffness diagonal (λ + 2μ), and their right-hand side is zero.
+    ``indptr``, ``indices``, ``data`` are the CSR arrays of the local rows with global columns.
     """
 
     name: str
@@ -126,46 +130,62 @@ class BlockSystem:
     indices: np.ndarray
     data: np.ndarray
     rhs: np.ndarray
-    trace_dofs: np.ndarray
+    trace_dofs: np.ndarray  # global dofs of the inner Σ vertices (all of them, in trace order)
+    size: int  # global number of dofs
+    first: int = 0
+    coordinates: np.ndarray | None = None  # (local vertices, 2), for the rigid-body near-null space
     block_size: int = 2
 
     @property
-    def size(self) -> int:
-        return len(self.rhs)
+    def rows(self) -> range:
+        return range(self.first, self.first + len(self.rhs))
 
 
-def block_system(name: str, half: HalfMesh, material: Material, traction: Traction | None) -> BlockSystem:
-    """Assemble a block: stiffness with clamped dofs decoupled, traction load on the outer side."""
+def row_ranges(vertices: int, parts: int) -> list[tuple[int, int]]:
+    """Split a block's dofs into ``parts`` contiguous ranges of whole vertices (as PETSc would)."""
+    bounds = np.linspace(0, vertices, parts + 1).round().astype(int)
+    return [(2 * a, 2 * b) for a, b in zip(bounds[:-1], bounds[1:])]
+
+
+def block_system(name: str, half: HalfMesh, material: Material, traction: Traction | None,
+                 rows: tuple[int, int] | None = None) -> BlockSystem:
+    """Assemble a block (or its ``rows``): stiffness with clamped dofs decoupled, traction load."""
     n = 2 * len(half.points)
-    rows, cols, values = stiffness(half.points, half.cells, material)
+    first, last = rows if rows is not None else (0, n)
+    owned = np.zeros(len(half.points), dtype=bool)
+    owned[first // 2:last // 2] = True
+    cells = half.cells[owned[half.cells].any(axis=1)]  # the cells that contribute to these rows
+    rows_, cols, values = stiffness(half.points, cells, material)
     clamped = np.zeros(n, dtype=bool)
     clamped[element_dofs(half.clamped()[:, None]).ravel()] = True
-    keep = ~(clamped[rows] | clamped[cols])
-    diagonal = np.bincount(rows[rows == cols], values[rows == cols], minlength=n)
-    fixed = np.flatnonzero(clamped)
-    scale = diagonal[~clamped].mean() if (~clamped).any() else 1.0
+    keep = (rows_ >= first) & (rows_ < last) & ~(clamped[rows_] | clamped[cols])
+    fixed = np.flatnonzero(clamped[first:last]) + first
+    mu, lam = lame(material)
     indptr, indices, data = coo_to_csr(
-        n,
-        np.concatenate([rows[keep], fixed]),
+        last - first,
+        np.concatenate([rows_[keep], fixed]) - first,
         np.concatenate([cols[keep], fixed]),
-        np.concatenate([values[keep], np.full(len(fixed), scale)]),
+        np.concatenate([values[keep], np.full(len(fixed), lam + 2.0 * mu)]),
+        columns=n,
     )
     rhs = np.zeros(n)
     if traction is not None:
         rhs = traction_load(half.points, half.edges_on_line(float(half.side)), traction)
         rhs[clamped] = 0.0
     inner = half.sigma()[1:-1]
-    return BlockSystem(name, indptr, indices, data, rhs, element_dofs(inner[:, None]).ravel())
+    return BlockSystem(name, indptr, indices, data, rhs[first:last], element_dofs(inner[:, None]).ravel(), n,
+                       first, half.points[first // 2:last // 2])
 
 
-def block_systems(scene: Scene, lower: HalfMesh, upper: HalfMesh, which=range(len(BLOCKS))) -> list[BlockSystem]:
-    """Assemble the scene's blocks with indices in ``which`` (all four by default)."""
+def block_systems(scene: Scene, lower: HalfMesh, upper: HalfMesh, which=range(len(BLOCKS)),
+                  rows: tuple[int, int] | None = None) -> list[BlockSystem]:
+    """Assemble the scene's blocks with indices in ``which`` (all four by default), or their ``rows``."""
     systems = []
     for index in which:
         spec = BLOCKS[index]
         half = lower if spec.side < 0 else upper
         traction = scene.loads.get((spec.layer, "bottom" if spec.side < 0 else "top"))
-        systems.append(block_system(spec.name, half, scene.materials[spec.layer], traction))
+        systems.append(block_system(spec.name, half, scene.materials[spec.layer], traction, rows))
     return systems
 
 

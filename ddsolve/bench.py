@@ -57,12 +57,11 @@ def paper_scene(P: int, M: int, overrides: list[str] = ()) -> scenes.Scene:
 # --- inside the MPI launch ------------------------------------------------------------------
 def floor_time(scene: scenes.Scene, lower, upper, comm, package: str) -> float:
     """Wall time for one factorization and one solve of every block, all ranks together."""
-    from . import assembly
-    from .blocks import Block
+    from .driver import make_blocks
     from .exchange import Exchange
 
     exchange = Exchange(comm, 4)
-    blocks = [Block(s, factor_package=package) for s in assembly.block_systems(scene, lower, upper, exchange.local_blocks)]
+    blocks = make_blocks(scene, lower, upper, exchange, package)
     comm.Barrier()
     started = time.perf_counter()
     for block in blocks:
@@ -72,6 +71,7 @@ def floor_time(scene: scenes.Scene, lower, upper, comm, package: str) -> float:
     elapsed = time.perf_counter() - started
     for block in blocks:
         block.destroy()
+    exchange.free()
     return comm.bcast(elapsed, root=0)
 
 

@@ -28,31 +28,53 @@ def default_factor_package(preferred: str = "mumps") -> str:
 class Block:
     """K x = rhs + E·load for one block, where E puts a trace load onto the Σ degrees of freedom.
 
-    ``factor_package`` is the default Cholesky package (``mumps`` or ``petsc``); the options
-    ``-<name>_pc_factor_mat_solver_type`` and friends override it.
+    The block lives on ``comm``: PETSc.COMM_SELF, or a block communicator over which its matrix is
+    distributed by contiguous rows (``system`` then holds this rank's rows).  ``factor_package`` is
+    the default Cholesky package (``mumps`` or ``petsc``; PETSc's own is sequential, so distributed
+    blocks use MUMPS); the options ``-<name>_pc_factor_mat_solver_type`` and friends override it.
+    The matrix carries the rigid-body modes as near-null space, for ``-<name>_pc_type gamg``.
+    Traces, energies and solutions are collected on the block's first rank (its *leader*).
     """
 
     def __init__(self, system: BlockSystem, comm: PETSc.Comm = PETSc.COMM_SELF, factor_package: str = "mumps"):
         self.system = system
         self.name = system.name
-        n = system.size
+        self.mpi = comm.tompi4py()
+        local, n = len(system.rhs), system.size
         csr = tuple(a.astype(PETSc.IntType) for a in (system.indptr, system.indices)) + (system.data,)
-        self.matrix = PETSc.Mat().createAIJ(size=(n, n), bsize=system.block_size, csr=csr, comm=comm)
+        self.matrix = PETSc.Mat().createAIJ(size=((local, n), (local, n)), bsize=system.block_size, csr=csr,
+                                            comm=comm)
         self.matrix.setOption(PETSc.Mat.Option.SPD, True)
+        if system.coordinates is not None:
+            coordinates = PETSc.Vec().createWithArray(system.coordinates.ravel().copy(), bsize=2, comm=comm)
+            self.matrix.setNearNullSpace(PETSc.NullSpace().createRigidBody(coordinates))
+            coordinates.destroy()
         self.ksp = PETSc.KSP().create(comm=comm)
         self.ksp.setOptionsPrefix(f"{self.name}_")
         self.ksp.setOperators(self.matrix)
         self.ksp.setType(PETSc.KSP.Type.PREONLY)
         pc = self.ksp.getPC()
         pc.setType(PETSc.PC.Type.CHOLESKY)
-        pc.setFactorSolverType(default_factor_package(factor_package))
+        pc.setFactorSolverType(default_factor_package("mumps" if self.mpi.size > 1 else factor_package))
         self.ksp.setFromOptions()
         self.rhs, self.x = self.matrix.createVecLeft(), self.matrix.createVecRight()
         self._schur: np.ndarray | None = None  # as stored by MUMPS (one triangle valid)
+        # The trace entries this rank owns: their positions in the trace and their local rows.
+        trace = system.trace_dofs
+        mine = (trace >= system.first) & (trace < system.first + local)
+        self.trace_positions = np.flatnonzero(mine)
+        self.trace_rows = trace[mine] - system.first
+        gathered = self.mpi.gather(self.trace_positions, root=0)
+        self._trace_order = np.concatenate(gathered) if self.is_leader else None
+        self._trace_counts = [len(p) for p in gathered] if self.is_leader else None
 
     @property
     def trace_dofs(self) -> np.ndarray:
         return self.system.trace_dofs
+
+    @property
+    def is_leader(self) -> bool:
+        return self.mpi.rank == 0
 
     def is_direct(self) -> bool:
         return self.ksp.getType() == PETSc.KSP.Type.PREONLY and self.ksp.getPC().getType() in _FACTOR_TYPES
@@ -60,11 +82,12 @@ class Block:
     def factor(self, schur: bool = False) -> None:
         """Set up the solver (factorization for direct solvers).
 
-        With ``schur`` and MUMPS, the Schur complement on the trace dofs is requested from the
-        factorization, so :meth:`schur_complement` costs no extra solves.
+        With ``schur``, MUMPS and one rank, the Schur complement on the trace dofs is requested from
+        the factorization, so :meth:`schur_complement` costs no extra solves.
         """
         pc = self.ksp.getPC()
-        schur = schur and self.is_direct() and pc.getFactorSolverType() == "mumps" and _petsc_c() is not None
+        schur = (schur and self.mpi.size == 1 and self.is_direct() and pc.getFactorSolverType() == "mumps"
+                 and _petsc_c() is not None)
         try:
             if schur:
                 pc.setFactorSetUpSolverType()
@@ -83,10 +106,13 @@ class Block:
                               "is the block clamped?") from None
 
     def solve(self, load: np.ndarray, body: bool) -> np.ndarray:
-        """x = K⁻¹(rhs·[body] + E load); returns a read-only view valid until the next solve."""
+        """This rank's rows of x = K⁻¹(rhs·[body] + E load) (a read-only view valid until the next solve).
+
+        ``load`` is the whole trace load, on every rank of the block.
+        """
         b = self.rhs.getArray()
         b[:] = self.system.rhs if body else 0.0
-        b[self.trace_dofs] += load
+        b[self.trace_rows] += load[self.trace_positions]
         try:
             self.ksp.solve(self.rhs, self.x)
         except PETSc.Error as exc:
@@ -96,12 +122,44 @@ class Block:
             raise SolverError(f"block {self.name}: KSP did not converge (reason {reason})")
         return self.x.getArray(readonly=True)
 
-    def schur_complement(self) -> np.ndarray:
-        """Dense (2k, 2k) Schur complement of K on the trace dofs: S = (E K⁻¹ Eᵀ)⁻¹.
+    def trace(self, x: np.ndarray) -> np.ndarray | None:
+        """The trace of the solution whose local rows are ``x``, on the leader."""
+        return self._gather_trace(x[self.trace_rows])
 
-        With MUMPS it comes from the factorization.  MUMPS fills only one triangle of a symmetric
-        Schur complement; which one may depend on the version, so one solve with a random trace
-        load decides (S t must give back the load) and also validates the matrix.
+    def energy(self) -> float | None:
+        """xᵀ(K x) = xᵀ b of the last solve, on the leader."""
+        return self.mpi.reduce(float(np.dot(self.x.getArray(readonly=True), self.rhs.getArray(readonly=True))), root=0)
+
+    def gather(self, x: np.ndarray) -> np.ndarray | None:
+        """The whole solution (rows in order) on the leader."""
+        counts = self.mpi.gather(len(x), root=0)
+        out = np.empty(self.system.size) if self.is_leader else None
+        self.mpi.Gatherv(np.ascontiguousarray(x), (out, counts) if self.is_leader else None, root=0)
+        return out
+
+    def _gather_trace(self, values: np.ndarray) -> np.ndarray | None:
+        """Trace rows owned here (``(owned,)`` or ``(owned, c)``) -> all of them in trace order, on the leader."""
+        if self.mpi.size == 1:
+            out = np.empty_like(values)
+            out[self.trace_positions] = values
+            return out
+        width = 1 if values.ndim == 1 else values.shape[1]
+        gathered = np.empty(len(self.trace_dofs) * width) if self.is_leader else None
+        counts = [c * width for c in self._trace_counts] if self.is_leader else None
+        self.mpi.Gatherv(np.ascontiguousarray(values).ravel(), (gathered, counts) if self.is_leader else None, root=0)
+        if not self.is_leader:
+            return None
+        out = np.empty((len(self.trace_dofs), width))
+        out[self._trace_order] = gathered.reshape(-1, width)
+        return out if values.ndim == 2 else out[:, 0]
+
+    def schur_complement(self) -> np.ndarray | None:
+        """Dense (2k, 2k) Schur complement of K on the trace dofs, S = (E K⁻¹ Eᵀ)⁻¹, on the leader.
+
+        With MUMPS on one rank it comes from the factorization.  MUMPS fills only one triangle of a
+        symmetric Schur complement; which one may depend on the version, so one solve with a random
+        trace load decides (S t must give back the load) and also validates the matrix.  Otherwise
+        (distributed blocks, other packages) it is the inverse of :meth:`flexibility`.
         """
         k = len(self.trace_dofs)
         if self._schur is not None:
@@ -113,35 +171,42 @@ class Block:
             best = int(np.argmin(residuals))
             if residuals[best] <= 1e-8 * np.linalg.norm(load):
                 return candidates[best]
-        return np.linalg.inv(self.flexibility())
+        flexibility = self.flexibility()
+        return np.linalg.inv(flexibility) if self.is_leader else None
 
-    def flexibility(self) -> np.ndarray:
-        """Dense (2k, 2k) interface flexibility E K⁻¹ Eᵀ, by multi-column solves with the factor."""
-        dofs = self.trace_dofs
-        k = len(dofs)
-        out = np.empty((k, k))
-        if self.is_direct():
-            factor = self.ksp.getPC().getFactorMatrix()
-            n = self.system.size
-            for start in range(0, k, _CHUNK):
-                cols = np.arange(start, min(start + _CHUNK, k))
-                B = PETSc.Mat().createDense((n, len(cols)), comm=PETSc.COMM_SELF)
+    def flexibility(self) -> np.ndarray | None:
+        """Dense (2k, 2k) interface flexibility E K⁻¹ Eᵀ on the leader, by multi-column solves."""
+        k = len(self.trace_dofs)
+        out = np.empty((k, k)) if self.is_leader else None
+        comm = self.matrix.getComm()
+        local, n = len(self.system.rhs), self.system.size
+        for start in range(0, k, _CHUNK):
+            columns = np.arange(start, min(start + _CHUNK, k))
+            if self.is_direct():
+                B = PETSc.Mat().createDense(((local, n), (None, len(columns))), comm=comm)
                 B.setUp()
-                B.getDenseArray()[dofs[cols], np.arange(len(cols))] = 1.0
+                dense = B.getDenseArray()
+                chosen = (self.trace_positions >= columns[0]) & (self.trace_positions <= columns[-1])
+                dense[self.trace_rows[chosen], self.trace_positions[chosen] - columns[0]] = 1.0
                 B.assemble()
-                X = PETSc.Mat().createDense((n, len(cols)), comm=PETSc.COMM_SELF)
+                X = PETSc.Mat().createDense(((local, n), (None, len(columns))), comm=comm)
                 X.setUp()
-                factor.matSolve(B, X)
-                out[:, cols] = X.getDenseArray()[dofs, :]
+                X.assemble()
+                self.ksp.getPC().getFactorMatrix().matSolve(B, X)
+                block = X.getDenseArray()[self.trace_rows, :]
                 B.destroy()
                 X.destroy()
-        else:
-            unit = np.zeros(k)
-            for j in range(k):
-                unit[j] = 1.0
-                out[:, j] = self.solve(unit, body=False)[dofs]
-                unit[j] = 0.0
-        return 0.5 * (out + out.T)
+            else:
+                unit = np.zeros(k)
+                block = np.empty((len(self.trace_rows), len(columns)))
+                for j, column in enumerate(columns):
+                    unit[column] = 1.0
+                    block[:, j] = self.solve(unit, body=False)[self.trace_rows]
+                    unit[column] = 0.0
+            gathered = self._gather_trace(block)
+            if self.is_leader:
+                out[:, columns] = gathered
+        return 0.5 * (out + out.T) if self.is_leader else None
 
     def destroy(self) -> None:
         for obj in (self.ksp, self.matrix, self.rhs, self.x):

@@ -251,7 +251,8 @@ def parser() -> argparse.ArgumentParser:
         return p
 
     p = scene_command("solve", "domain-decomposition solve (under mpiexec, or -n N to launch it)")
-    p.add_argument("-n", dest="ranks", type=int, choices=(1, 2, 4), help="launch N ranks with mpiexec")
+    p.add_argument("-n", dest="ranks", type=int, metavar="N",
+                   help="launch N ranks with mpiexec: 1, 2, 4 (a block per rank) or 4k (a block on k ranks)")
     p.add_argument("-o", dest="output", help="result file (default: SCENE.h5)")
     p.set_defaults(run=cmd_solve)
     p = scene_command("reference", "monolithic reference solve (one process)")

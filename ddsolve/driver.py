@@ -22,39 +22,48 @@ from .interface import BLOCKS, Interface
 from .scene import Scene
 
 STOP, SOLVE_LOAD, SOLVE_FULL, SCHUR, REPORT_ERROR = range(5)
-SUPPORTED_RANKS = (1, 2, 4)
 
 
 class BlockServer:
-    """The blocks this rank owns and what a round does with them."""
+    """The blocks this rank works on and what a round does with them."""
 
-    def __init__(self, blocks: list[Block]):
-        self.blocks = blocks
-        self.solutions: list[np.ndarray] = [np.zeros(0)] * len(blocks)
+    def __init__(self, blocks: list[Block], exchange: Exchange):
+        self.blocks, self.exchange = blocks, exchange
+        self.solutions: dict[int, np.ndarray] = {}  # led blocks' solutions from the last full solve
         self.error = ""
 
-    def run(self, command: int, loads: np.ndarray | None) -> np.ndarray:
-        """One round on the local blocks; each result row ends with a status flag (0 ok, 1 failed)."""
+    def run(self, command: int, loads: list[np.ndarray] | None, width: int) -> np.ndarray:
+        """One round on the local blocks: the rows of the led blocks, each ending with a status flag."""
+        rows, failed = {}, False
         try:
-            if command == SCHUR:
-                rows = [block.schur_complement().ravel() for block in self.blocks]
-            else:
-                rows = [self._solve(i, load, command == SOLVE_FULL) for i, load in enumerate(loads)]
-            return np.array([np.append(row, 0.0) for row in rows])
+            for i, (index, block) in enumerate(zip(self.exchange.local_blocks, self.blocks)):
+                if command == SCHUR:
+                    value = block.schur_complement()
+                else:
+                    value = self._solve(index, block, loads[i], full=command == SOLVE_FULL)
+                if block.is_leader:
+                    rows[index] = value
         except DDSolveError as exc:
-            self.error = str(exc)
-            width = (loads.shape[1] + 1) if loads is not None else len(self.blocks[0].trace_dofs) ** 2
-            failed = np.full((len(self.blocks), width + 1), np.nan)
-            failed[:, -1] = 1.0
-            return failed
+            self.error, failed = str(exc), True
+        # Every rank of a block learns whether one of them failed (PETSc errors are collective anyway).
+        for group in self.exchange.groups:
+            if group.size > 1:
+                failed = group.allreduce(failed, op=MPI.LOR)
+        out = np.full((len(self.exchange.led_blocks), width + 1), np.nan)
+        out[:, -1] = float(failed)
+        if not failed:
+            for i, index in enumerate(self.exchange.led_blocks):
+                out[i, :-1] = rows[index].ravel()
+        return out
 
-    def _solve(self, i: int, load: np.ndarray, full: bool) -> np.ndarray:
-        block = self.blocks[i]
+    def _solve(self, index: int, block: Block, load: np.ndarray, full: bool) -> np.ndarray | None:
         x = block.solve(load, body=full)
-        energy = float(np.dot(x, block.rhs.getArray(readonly=True)))
+        trace, energy = block.trace(x), block.energy()
         if full:
-            self.solutions[i] = x.copy()
-        return np.append(x[block.trace_dofs], energy)
+            whole = block.gather(x)
+            if block.is_leader:
+                self.solutions[index] = whole
+        return np.append(trace, energy) if block.is_leader else None
 
 
 class ParallelRounds:
@@ -77,7 +86,8 @@ class ParallelRounds:
         local = None
         if loads is not None:
             local = self.exchange.scatter(loads, self.trace_size)
-        results = self.exchange.gather(self.server.run(command, local))
+        width = self.trace_size ** 2 if command == SCHUR else self.trace_size + 1
+        results = self.exchange.gather(self.server.run(command, local, width), width + 1)
         self.count += 1
         if np.any(results[:, -1] != 0.0):
             self.exchange.command(REPORT_ERROR)
@@ -110,7 +120,8 @@ def serve(exchange: Exchange, server: BlockServer, trace_size: int, stages: dict
             exchange.comm.gather(server.error, root=0)
             continue
         local = exchange.scatter(None, trace_size) if command in (SOLVE_LOAD, SOLVE_FULL) else None
-        exchange.gather(server.run(command, local))
+        width = trace_size ** 2 if command == SCHUR else trace_size + 1
+        exchange.gather(server.run(command, local, width), width + 1)
     stages["Rounds"].pop()
 
 
@@ -170,12 +181,43 @@ class Setup:
     def destroy(self) -> None:
         for block in self.blocks:
             block.destroy()
+        self.exchange.free()
+
+
+def supported(size: int) -> bool:
+    """1, 2 or 4 ranks (whole blocks per rank), or a multiple of 4 (each block on size/4 ranks)."""
+    return size in (1, 2) or size % len(BLOCKS) == 0
+
+
+def build_meshes(scene: Scene, comm: MPI.Comm) -> tuple[mesh.HalfMesh, mesh.HalfMesh]:
+    """The scene's meshes on every rank; with 2 ranks or more the two halves are meshed at once."""
+    if scene.mesh_file is not None or comm.size == 1:
+        return comm.bcast(collective(comm, lambda: mesh.build(scene), root_only=True), root=0)
+    side = {0: -1, 1: 1}.get(comm.rank)
+    mine = collective(comm, lambda: mesh.generate(scene.sigma_vertices, scene.boundary_vertices, scene.crack, side)
+                      if side else None)
+    lower = comm.bcast(mine, root=0)
+    upper = comm.bcast(mine, root=1)
+    collective(comm, lambda: mesh.check(lower, upper, scene.crack, mesh.origin(scene)), root_only=True)
+    return lower, upper
+
+
+def make_blocks(scene: Scene, lower: mesh.HalfMesh, upper: mesh.HalfMesh, exchange: Exchange,
+                package: str) -> list[Block]:
+    """Assemble this rank's blocks (or its rows of them) and wrap them in PETSc objects."""
+    blocks = []
+    for index, group in zip(exchange.local_blocks, exchange.groups):
+        half = lower if BLOCKS[index].side < 0 else upper
+        rows = assembly.row_ranges(len(half.points), group.size)[group.rank] if group.size > 1 else None
+        system = assembly.block_systems(scene, lower, upper, [index], rows)[0]
+        blocks.append(Block(system, comm=PETSc.Comm(group), factor_package=package))
+    return blocks
 
 
 def prepare(scene: Scene, comm: MPI.Comm, meshes: tuple[mesh.HalfMesh, mesh.HalfMesh] | None = None) -> Setup:
-    """Build (or take) the meshes on rank 0, assemble and factor every rank's blocks."""
-    if comm.size not in SUPPORTED_RANKS:
-        error = DDSolveError(f"unsupported number of ranks {comm.size}: use 1, 2 or 4")
+    """Build (or take) the meshes, assemble and factor every rank's blocks."""
+    if not supported(comm.size):
+        error = DDSolveError(f"unsupported number of ranks {comm.size}: use 1, 2 or a multiple of 4")
         error.collective = True  # every rank sees the same size
         raise error
     timings: dict[str, float] = {}
@@ -184,13 +226,9 @@ def prepare(scene: Scene, comm: MPI.Comm, meshes: tuple[mesh.HalfMesh, mesh.Half
 
     mark = time.perf_counter()
     stages["Setup"].push()
-    if meshes is None:
-        meshes = comm.bcast(collective(comm, lambda: mesh.build(scene), root_only=True), root=0)
-    lower, upper = meshes
+    lower, upper = meshes if meshes is not None else build_meshes(scene, comm)
     exchange = Exchange(comm, len(BLOCKS))
-    blocks = collective(comm, lambda: [
-        Block(system, factor_package=FACTOR_PACKAGE[method])
-        for system in assembly.block_systems(scene, lower, upper, exchange.local_blocks)])
+    blocks = collective(comm, lambda: make_blocks(scene, lower, upper, exchange, FACTOR_PACKAGE[method]))
     interface = Interface(lower.points[lower.sigma(), 0], scene.crack, scene.contact)
     stages["Setup"].pop()
     timings["setup"] = time.perf_counter() - mark
@@ -207,7 +245,7 @@ def prepare(scene: Scene, comm: MPI.Comm, meshes: tuple[mesh.HalfMesh, mesh.Half
 def bound(scene: Scene, comm: MPI.Comm, meshes=None, iterations: int = 300) -> float:
     """λmax of the dual operator C K⁻¹ Cᵀ W by power iteration (one round each); 2/λmax bounds Uzawa's θ."""
     setup = prepare(scene, comm, meshes)
-    server = BlockServer(setup.blocks)
+    server = BlockServer(setup.blocks, setup.exchange)
     estimate = None
     if setup.exchange.is_root:
         rounds = ParallelRounds(setup.exchange, server, setup.interface.trace_size, setup.stages)
@@ -236,7 +274,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
 
     try:
         mark = time.perf_counter()
-        server = BlockServer(blocks)
+        server = BlockServer(blocks, exchange)
         outcome, rounds, failure = run_method(scene, exchange, server, interface, stages, progress)
         failure = comm.bcast(failure, root=0)
         if failure is not None:
@@ -248,7 +286,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
         mark = time.perf_counter()
         stages["Output"].push()
         sizes = [2 * len((lower if spec.side < 0 else upper).points) for spec in BLOCKS]
-        solutions = exchange.gather_varying(server.solutions, sizes)
+        solutions = exchange.gather_varying([server.solutions[b] for b in exchange.led_blocks], sizes)
         memory = comm.gather(peak_memory_mb(), root=0)
         result = None
         if exchange.is_root:

@@ -23,8 +23,8 @@ ROOT = 0
 def wait(request: MPI.Request) -> None:
     """Complete a nonblocking operation, polling briefly and then sleeping between tests.
 
-    A blocking MPI call busy-polls: with more ranks than cores, ranks that wait for a long rank-0
-    phase (meshing, reading a file) would take CPU time from it.
+    A blocking MPI call busy-polls: with more ranks than cores, ranks that wait for a long phase
+    of other ranks (meshing, reading a file, assembling) would take CPU time from them.
     """
     started = time.perf_counter()
     pause = 0.0
@@ -42,8 +42,7 @@ def collective(comm: MPI.Comm, work: Callable[[], T], root_only: bool = False) -
             value = work()
         except DDSolveError as exc:
             error = exc
-    if root_only:
-        wait(comm.Ibarrier())
+    wait(comm.Ibarrier())  # ranks that finish early yield their core to those still working
     errors = comm.allgather(error)
     first = next((e for e in errors if e is not None), None)
     if first is not None:
@@ -53,13 +52,30 @@ def collective(comm: MPI.Comm, work: Callable[[], T], root_only: bool = False) -
 
 
 class Exchange:
-    """Scatter/gather of per-block arrays between block owners and rank 0."""
+    """Which blocks this rank works on, and scatter/gather of per-block arrays with rank 0.
+
+    With 1, 2 or 4 ranks, rank r owns blocks r·m … (r+1)·m − 1 (m = 4/size), each on COMM_SELF.
+    With 4k ranks, block b is distributed over ranks b·k … (b+1)·k − 1 (its *block communicator*);
+    the first of them is the block's *leader*.  Rank 0 exchanges per-block arrays with the leaders
+    (Scatterv/Gatherv); each leader shares them with its block communicator.
+    """
 
     def __init__(self, comm: MPI.Comm, n_blocks: int):
         self.comm = comm
-        self.per_rank = n_blocks // comm.size
         self.n_blocks = n_blocks
-        self.local_blocks = range(comm.rank * self.per_rank, (comm.rank + 1) * self.per_rank)
+        size, rank = comm.size, comm.rank
+        if size <= n_blocks:
+            per = n_blocks // size
+            self.local_blocks = list(range(rank * per, (rank + 1) * per))
+            self.groups = [MPI.COMM_SELF] * per
+            self.led_blocks = self.local_blocks
+        else:
+            per = size // n_blocks  # ranks per block
+            block = rank // per
+            self.local_blocks = [block]
+            self.groups = [comm.Split(color=block, key=rank)]
+            self.led_blocks = [block] if rank % per == 0 else []
+        self.led_counts = comm.allgather(len(self.led_blocks))
         self._command = np.zeros(1, dtype=np.int64)
 
     @property
@@ -73,26 +89,42 @@ class Exchange:
         self.comm.Bcast(self._command, root=ROOT)
         return int(self._command[0])
 
-    def scatter(self, per_block: np.ndarray | None, width: int) -> np.ndarray:
-        """Rank 0's ``(n_blocks, width)`` rows -> this rank's ``(per_rank, width)`` rows."""
-        local = np.empty((self.per_rank, width))
-        send = np.ascontiguousarray(per_block, dtype=np.float64) if self.is_root else None
-        self.comm.Scatter(send, local, root=ROOT)
-        return local
+    def scatter(self, per_block: np.ndarray | None, width: int) -> list[np.ndarray]:
+        """Rank 0's ``(n_blocks, width)`` rows -> one row per local block, on every rank of the block."""
+        led = np.empty((len(self.led_blocks), width))
+        send = None
+        if self.is_root:
+            send = (np.ascontiguousarray(per_block, dtype=np.float64), [c * width for c in self.led_counts])
+        self.comm.Scatterv(send, led, root=ROOT)
+        rows = []
+        for block, group in zip(self.local_blocks, self.groups):
+            row = led[self.led_blocks.index(block)] if block in self.led_blocks else np.empty(width)
+            if group.size > 1:
+                group.Bcast(row, root=0)
+            rows.append(row)
+        return rows
 
-    def gather(self, local: np.ndarray) -> np.ndarray | None:
-        """This rank's ``(per_rank, ...)`` rows -> ``(n_blocks, ...)`` on rank 0 (None elsewhere)."""
-        local = np.ascontiguousarray(local, dtype=np.float64)
-        out = np.empty((self.n_blocks, *local.shape[1:])) if self.is_root else None
-        self.comm.Gather(local, out, root=ROOT)
+    def gather(self, led: np.ndarray, width: int) -> np.ndarray | None:
+        """The leaders' ``(led blocks, width)`` rows -> ``(n_blocks, width)`` on rank 0 (None elsewhere)."""
+        out = np.empty((self.n_blocks, width)) if self.is_root else None
+        receive = (out, [c * width for c in self.led_counts]) if self.is_root else None
+        self.comm.Gatherv(np.ascontiguousarray(led, dtype=np.float64).reshape(-1), receive, root=ROOT)
         return out
 
-    def gather_varying(self, local: list[np.ndarray], sizes: list[int]) -> list[np.ndarray] | None:
-        """Gather one 1-D array per block whose lengths differ (``sizes`` known on every rank)."""
-        send = np.concatenate(local) if local else np.zeros(0)
-        counts = [sum(sizes[r * self.per_rank:(r + 1) * self.per_rank]) for r in range(self.comm.size)]
+    def gather_varying(self, led: list[np.ndarray], sizes: list[int]) -> list[np.ndarray] | None:
+        """One 1-D array per led block, lengths ``sizes`` per block (known everywhere) -> rank 0."""
+        send = np.concatenate(led) if led else np.zeros(0)
+        counts, start = [], 0
+        for count in self.led_counts:
+            counts.append(sum(sizes[start:start + count]))
+            start += count
         out = np.empty(sum(sizes)) if self.is_root else None
         self.comm.Gatherv(send, (out, counts) if self.is_root else None, root=ROOT)
         if not self.is_root:
             return None
         return np.split(out, np.cumsum(sizes)[:-1])
+
+    def free(self) -> None:
+        for group in self.groups:
+            if group != MPI.COMM_SELF:
+                group.Free()

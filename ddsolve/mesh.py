@@ -99,8 +99,13 @@ def snap(points: np.ndarray) -> np.ndarray:
 
 
 def _compact(points: np.ndarray, cells: np.ndarray, side: int) -> HalfMesh:
-    """Keep only the vertices the cells use, renumbered in their original order."""
+    """Keep only the vertices the cells use, numbered by x (then y).
+
+    Consecutive vertices then form vertical slabs, so a block distributed by contiguous row
+    ranges gives each rank a compact piece of the half with a short boundary.
+    """
     used = np.unique(cells)
+    used = used[np.lexsort((points[used, 1], points[used, 0]))]
     renumber = np.full(len(points), -1, dtype=np.int64)
     renumber[used] = np.arange(len(used))
     return HalfMesh(points[used], renumber[cells], side)
@@ -208,12 +213,16 @@ def apportion(total: int, lengths) -> np.ndarray:
     return count
 
 
-def generate(sigma_vertices: int, boundary_vertices: int, crack: tuple[float, float] | None) -> tuple[HalfMesh, HalfMesh]:
-    """Unstructured graded triangulations of both halves with gmsh (deterministic, one thread).
+def generate(sigma_vertices: int, boundary_vertices: int, crack: tuple[float, float] | None,
+             side: int) -> HalfMesh:
+    """Unstructured graded triangulation of one half (side −1: lower, +1: upper) with gmsh.
 
     Σ gets P vertices (endpoints and crack tips included), spaced uniformly on each Σ piece; the
     square's boundary gets M vertices (bottom, top and the four half-sides in proportion to length).
     Inside, the size grows from the Σ spacing 2/(P − 1) to 1.2 × the boundary spacing 8/M at y = ±1.
+    Each half is meshed on its own (one thread, deterministic): the Σ vertices come from the same
+    transfinite curves, so the halves match, and a half is the same whether it is meshed alone in a
+    process or after the other one.
     """
     import gmsh  # imported here: importing gmsh changes the SIGINT handler until finalize
 
@@ -231,12 +240,14 @@ def generate(sigma_vertices: int, boundary_vertices: int, crack: tuple[float, fl
         sigma = [geo.addLine(a, b) for a, b in zip(on_sigma[:-1], on_sigma[1:])]
         corners = [geo.addPoint(x, y, 0.0) for x, y in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
         bottom, top = geo.addLine(corners[0], corners[1]), geo.addLine(corners[2], corners[3])
-        sides = [geo.addLine(corners[1], on_sigma[-1]), geo.addLine(on_sigma[0], corners[0]),
+        edges = [geo.addLine(corners[1], on_sigma[-1]), geo.addLine(on_sigma[0], corners[0]),
                  geo.addLine(on_sigma[-1], corners[2]), geo.addLine(corners[3], on_sigma[0])]
-        lower = geo.addPlaneSurface([geo.addCurveLoop([bottom, sides[0], *[-c for c in sigma[::-1]], sides[1]])])
-        upper = geo.addPlaneSurface([geo.addCurveLoop([*sigma, sides[2], top, sides[3]])])
+        if side < 0:
+            surface = geo.addPlaneSurface([geo.addCurveLoop([bottom, edges[0], *[-c for c in sigma[::-1]], edges[1]])])
+        else:
+            surface = geo.addPlaneSurface([geo.addCurveLoop([*sigma, edges[2], top, edges[3]])])
         geo.synchronize()
-        curves = [*sigma, bottom, top, *sides]
+        curves = [*sigma, bottom, top, *edges]
         counts = [*apportion(sigma_vertices - 1, np.diff(sigma_x)),
                   *apportion(boundary_vertices, [2.0, 2.0, 1.0, 1.0, 1.0, 1.0])]
         for curve, count in zip(curves, counts):
@@ -252,17 +263,13 @@ def generate(sigma_vertices: int, boundary_vertices: int, crack: tuple[float, fl
         points = snap(np.asarray(coordinates, dtype=np.float64).reshape(-1, 3)[:, :2])
         position = np.full(int(tags.max()) + 1, -1, dtype=np.int64)
         position[tags] = np.arange(len(tags))
-        halves = []
-        for surface, side in ((lower, -1), (upper, +1)):
-            _, nodes = gmsh.model.mesh.getElementsByType(2, surface)
-            cells = position[np.asarray(nodes, dtype=np.int64).reshape(-1, 3)]
-            half = _compact(points, cells, side)
-            clockwise = half.areas() < 0
-            half.cells[clockwise] = half.cells[clockwise][:, ::-1]
-            halves.append(half)
+        _, nodes = gmsh.model.mesh.getElementsByType(2, surface)
+        half = _compact(points, position[np.asarray(nodes, dtype=np.int64).reshape(-1, 3)], side)
+        clockwise = half.areas() < 0
+        half.cells[clockwise] = half.cells[clockwise][:, ::-1]
     finally:
         gmsh.finalize()
-    return halves[0], halves[1]
+    return half
 
 
 def boundary_vertex_count(lower: HalfMesh, upper: HalfMesh) -> int:
@@ -279,9 +286,12 @@ def build(scene) -> tuple[HalfMesh, HalfMesh]:
     """The scene's meshes: read from ``mesh.file`` or generated from P and M; always checked."""
     if scene.mesh_file is not None:
         lower, upper = read(scene.mesh_file)
-        origin = str(scene.mesh_file)
     else:
-        lower, upper = generate(scene.sigma_vertices, scene.boundary_vertices, scene.crack)
-        origin = "generated mesh"
-    check(lower, upper, scene.crack, origin)
+        lower, upper = (generate(scene.sigma_vertices, scene.boundary_vertices, scene.crack, side) for side in (-1, 1))
+    check(lower, upper, scene.crack, origin(scene))
     return lower, upper
+
+
+def origin(scene) -> str:
+    """How to name the scene's mesh in messages."""
+    return str(scene.mesh_file) if scene.mesh_file is not None else "generated mesh"

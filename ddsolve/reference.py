@@ -50,7 +50,7 @@ def merged_system(systems: list[BlockSystem], numbers: list[np.ndarray]) -> Bloc
         values.append(system.data)
         rhs += np.bincount(number, system.rhs, minlength=size)
     indptr, indices, data = coo_to_csr(size, np.concatenate(rows), np.concatenate(cols), np.concatenate(values))
-    return BlockSystem("reference", indptr, indices, data, rhs, np.zeros(0, dtype=np.int64), block_size=1)
+    return BlockSystem("reference", indptr, indices, data, rhs, np.zeros(0, dtype=np.int64), size, block_size=1)
 
 
 def solve(scene: Scene, lower: HalfMesh, upper: HalfMesh) -> Result:

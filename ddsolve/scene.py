@@ -186,11 +186,16 @@ OPTIONAL_TABLES = {("loads",), *(("loads", layer) for layer in LAYERS),
                    *(("loads", layer, side) for layer in LAYERS for side in SIDES)}
 
 
+def printable(text: str) -> str:
+    """``text`` for a one-line message: as is if printable, else escaped."""
+    return text if text.isprintable() else repr(text)[1:-1]
+
+
 def _check_table(raw: dict, schema: dict, path: tuple[str, ...], origin: str) -> dict:
     """Validate one table against its schema; return the checked values (defaults filled in)."""
     for key in raw:
         if key not in schema:
-            dotted = ".".join((*path, key))
+            dotted = printable(".".join((*path, key)))
             close = difflib.get_close_matches(key, list(schema), n=1)
             hint = f" (did you mean {'.'.join((*path, close[0]))}?)" if close else ""
             valid = ", ".join(sorted(schema))
@@ -281,7 +286,7 @@ def parse_override(item: str) -> tuple[list[str], Any]:
     key, sep, value = item.partition("=")
     path = key.strip().split(".")
     if not sep or not all(p.strip() for p in path):
-        raise SceneError(f"--set {item}: expected KEY=VALUE with a dotted key, e.g. solver.tol=1e-8")
+        raise SceneError(f"--set {printable(item)}: expected KEY=VALUE with a dotted key, e.g. solver.tol=1e-8")
     try:
         parsed = tomllib.loads(f"value = {value.strip()}")["value"]
     except tomllib.TOMLDecodeError:
@@ -297,7 +302,7 @@ def apply_overrides(raw: dict, overrides: list[str]) -> dict:
         for depth, part in enumerate(path[:-1]):
             table = table.setdefault(part, {})
             if not isinstance(table, dict):
-                raise SceneError(f"--set {item}: {'.'.join(path[:depth + 1])} is not a table")
+                raise SceneError(f"--set {printable(item)}: {printable('.'.join(path[:depth + 1]))} is not a table")
         table[path[-1]] = value
     return raw
 
@@ -322,7 +327,7 @@ def load(source: str | Path, overrides: list[str] = ()) -> Scene:
         shipped = builtin_scenes()
         if str(source) not in shipped:
             names = ", ".join(sorted(shipped))
-            raise SceneError(f"{source}: no such scene file or built-in scene (built-in: {names})")
+            raise SceneError(f"{printable(str(source))}: no such scene file or built-in scene (built-in: {names})")
         text = shipped[str(source)]
     return loads(text, overrides, origin=str(source), base=base)
 
@@ -332,7 +337,7 @@ def loads(text: str, overrides: list[str] = (), origin: str = "scene", base: Pat
     try:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"{origin}: malformed TOML: {exc}") from None
+        raise SceneError(f"{origin}: malformed TOML: {' '.join(str(exc).split())}") from None
     apply_overrides(raw, list(overrides))
     data = _check_table(raw, SCHEMA, (), origin)
     _cross_checks(data, origin)
