@@ -215,21 +215,21 @@ def speed_error_plot(records: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
-def factor(P: int = 200, M: int = 256, solves: int = 50) -> None:
-    """Time the block factorization packages side by side on one block of the (P, M) mesh."""
+def block_timings(P: int, M: int, solves: int = 20, repeats: int = 3) -> dict:
+    """One block of the (P, M) mesh, best of ``repeats``: factorization, one solve and the interface
+    matrix, for each factorization package (with MUMPS also with the Schur complement requested)."""
     from . import assembly, mesh
     from .blocks import Block, default_factor_package
 
     scene = paper_scene(P, M)
-    lower, upper = mesh.build(scene)
-    system = assembly.block_systems(scene, lower, upper, [0])[0]
-    print(f"block u_minus of P = {P}, M = {M}: {system.size} unknowns, trace {len(system.trace_dofs)}")
-    rows = {}
+    lower = mesh.generate(P, M, scene.crack, -1)
+    system = assembly.block_systems(scene, lower, lower, [0])[0]
+    out = {"P": P, "M": M, "unknowns": system.size, "trace": len(system.trace_dofs)}
     for package, schur in (("petsc", False), ("mumps", False), ("mumps", True)):
         if default_factor_package(package) != package:
             continue
-        best = (np.inf, np.inf, np.inf)
-        for _ in range(3):  # best of three: the first MUMPS call also pays its initialization
+        best = np.full(3, np.inf)
+        for _ in range(repeats):  # the first MUMPS call also pays its initialization
             block = Block(system, factor_package=package)
             started = time.perf_counter()
             block.factor(schur=schur)
@@ -241,19 +241,28 @@ def factor(P: int = 200, M: int = 256, solves: int = 50) -> None:
             solve_time = (time.perf_counter() - started) / solves
             started = time.perf_counter()
             block.schur_complement() if schur else block.flexibility()
-            flexibility_time = time.perf_counter() - started
+            interface_time = time.perf_counter() - started
             block.destroy()
-            best = tuple(min(a, b) for a, b in zip(best, (factor_time, solve_time, flexibility_time)))
-        label = package + (" + Schur complement" if schur else "")
-        rows[label] = best
-        factor_time, solve_time, flexibility_time = best
-        print(f"  {label:26s} factor {factor_time * 1e3:8.1f} ms   solve {solve_time * 1e3:7.2f} ms   "
-              f"interface matrix {flexibility_time * 1e3:8.1f} ms")
-    if "petsc" in rows and "mumps" in rows:
-        p, m = rows["petsc"], rows["mumps"]
-        print(f"  ratios mumps/petsc: factor {m[0] / p[0]:.2f}, solve {m[1] / p[1]:.2f}, "
-              f"flexibility by multi-column solves {m[2] / p[2]:.2f}")
-    if "mumps + Schur complement" in rows and "mumps" in rows:
-        s, m = rows["mumps + Schur complement"], rows["mumps"]
-        print(f"  Schur complement from the factorization: factor time {s[0] / m[0]:.2f}x the plain one; "
-              f"the interface matrix {m[2] / s[2]:.0f}x faster than by multi-column solves")
+            best = np.minimum(best, [factor_time, solve_time, interface_time])
+        out[package + ("_schur" if schur else "")] = {"factor": best[0], "solve": best[1], "interface": best[2]}
+    return out
+
+
+def factor(P: int = 200, M: int = 256) -> None:
+    """Print the block factorization packages' timings side by side on one block of the (P, M) mesh."""
+    t = block_timings(P, M)
+    print(f"block u_minus of P = {P}, M = {M}: {t['unknowns']} unknowns, trace {t['trace']}")
+    labels = {"petsc": "petsc", "mumps": "mumps", "mumps_schur": "mumps + Schur complement"}
+    for key, label in labels.items():
+        if key in t:
+            row = t[key]
+            print(f"  {label:26s} factor {row['factor'] * 1e3:8.1f} ms   solve {row['solve'] * 1e3:7.2f} ms   "
+                  f"interface matrix {row['interface'] * 1e3:8.1f} ms")
+    if "petsc" in t and "mumps" in t:
+        p, m = t["petsc"], t["mumps"]
+        print(f"  ratios mumps/petsc: factor {m['factor'] / p['factor']:.2f}, solve {m['solve'] / p['solve']:.2f}, "
+              f"flexibility by multi-column solves {m['interface'] / p['interface']:.2f}")
+    if "mumps_schur" in t and "mumps" in t:
+        s, m = t["mumps_schur"], t["mumps"]
+        print(f"  Schur complement from the factorization: factor time {s['factor'] / m['factor']:.2f}x the plain "
+              f"one; the interface matrix {m['interface'] / s['interface']:.0f}x faster than by multi-column solves")

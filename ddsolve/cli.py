@@ -199,6 +199,35 @@ def cmd_paper(args, _petsc_options) -> int:
     return 0
 
 
+def cmd_scaling(_args, _petsc_options) -> int:
+    from . import scaling
+
+    scaling.scaling()
+    print("wrote docs/scaling.md, docs/scaling-measured.png, docs/scaling-model.png, results/scaling.h5")
+    return 0
+
+
+def cmd_robustness(_args, _petsc_options) -> int:
+    from . import robustness
+
+    robustness.robustness()
+    print("wrote docs/robustness.md")
+    return 0
+
+
+def cmd_scaling_part(args, petsc_options) -> int:
+    _init_petsc(petsc_options)
+    from mpi4py import MPI
+
+    from . import scaling
+
+    if args.part == "network":
+        scaling.network(Path(args.output), MPI.COMM_WORLD)
+    else:
+        scaling.calibrate(Path(args.output))
+    return 0
+
+
 def cmd_theta_mesh(args, petsc_options) -> int:
     _init_petsc(petsc_options)
     from mpi4py import MPI
@@ -288,6 +317,16 @@ def parser() -> argparse.ArgumentParser:
                             ("figures", "the paper's Figs. 1, 3 and 4 (docs/*.png)"),
                             ("accuracy", "discretization error under refinement, total error against time")):
         sub.add_parser(name, help=help_text).set_defaults(run=cmd_paper, experiment=name.replace("-", "_"))
+    sub.add_parser("scaling", help="strong and weak scaling, large meshes, the cost model "
+                                   "(docs/scaling.md)").set_defaults(run=cmd_scaling)
+    sub.add_parser("robustness", help="measure the hard cases and bad input (docs/robustness.md)").set_defaults(
+        run=cmd_robustness)
+    p = sub.add_parser("scaling-calibrate")  # one launch of scaling
+    p.add_argument("output")
+    p.set_defaults(run=cmd_scaling_part, part="calibrate")
+    p = sub.add_parser("scaling-network")  # one launch of scaling
+    p.add_argument("output")
+    p.set_defaults(run=cmd_scaling_part, part="network")
     p = sub.add_parser("theta-mesh")  # one launch of theta-sweep
     p.add_argument("P", type=int)
     p.add_argument("M", type=int)
