@@ -136,10 +136,6 @@ class BlockSystem:
     coordinates: np.ndarray | None = None  # (local vertices, 2), for the rigid-body near-null space
     block_size: int = 2
 
-    @property
-    def rows(self) -> range:
-        return range(self.first, self.first + len(self.rhs))
-
 
 def row_ranges(vertices: int, parts: int) -> list[tuple[int, int]]:
     """Split a block's dofs into ``parts`` contiguous ranges of whole vertices (as PETSc would)."""
@@ -177,11 +173,11 @@ def block_system(name: str, half: HalfMesh, material: Material, traction: Tracti
                        first, half.points[first // 2:last // 2])
 
 
-def block_systems(scene: Scene, lower: HalfMesh, upper: HalfMesh, which=range(len(BLOCKS)),
+def block_systems(scene: Scene, lower: HalfMesh, upper: HalfMesh, which: list[int] | None = None,
                   rows: tuple[int, int] | None = None) -> list[BlockSystem]:
     """Assemble the scene's blocks with indices in ``which`` (all four by default), or their ``rows``."""
     systems = []
-    for index in which:
+    for index in range(len(BLOCKS)) if which is None else which:
         spec = BLOCKS[index]
         half = lower if spec.side < 0 else upper
         traction = scene.loads.get((spec.layer, "bottom" if spec.side < 0 else "top"))

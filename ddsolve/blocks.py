@@ -1,8 +1,9 @@
 """One elasticity block as a PETSc matrix and KSP, factored once and solved many times.
 
 Each block's KSP has the options prefix ``<block name>_`` (``u_minus_``, ``u_plus_``, ``v_minus_``,
-``v_plus_``).  Code defaults (preonly + Cholesky, MUMPS when PETSc has it) are set first and
-``setFromOptions`` last, so ``-u_minus_ksp_type cg -u_minus_pc_type gamg`` work from the command line.
+``v_plus_``).  Code defaults (preonly + Cholesky with the method's factorization package) are set
+first and ``setFromOptions`` last, so ``-u_minus_ksp_type cg -u_minus_pc_type gamg`` work from the
+command line.
 """
 from __future__ import annotations
 
@@ -47,7 +48,9 @@ class Block:
         self.matrix.setOption(PETSc.Mat.Option.SPD, True)
         if system.coordinates is not None:
             coordinates = PETSc.Vec().createWithArray(system.coordinates.ravel().copy(), bsize=2, comm=comm)
-            self.matrix.setNearNullSpace(PETSc.NullSpace().createRigidBody(coordinates))
+            modes = PETSc.NullSpace().createRigidBody(coordinates)
+            self.matrix.setNearNullSpace(modes)  # the matrix keeps its own reference
+            modes.destroy()
             coordinates.destroy()
         self.ksp = PETSc.KSP().create(comm=comm)
         self.ksp.setOptionsPrefix(f"{self.name}_")

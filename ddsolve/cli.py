@@ -182,69 +182,44 @@ def cmd_bench(args, petsc_options) -> int:
     return 0
 
 
-def cmd_bench_mesh(args, petsc_options) -> int:
+#: Experiments: command -> (module, function, what it writes).
+EXPERIMENTS = {
+    "table1": ("paper", "table1", "docs/results.md (table1)"),
+    "theta-sweep": ("paper", "theta_sweep", "docs/results.md (theta-sweep), docs/theta-sweep.png"),
+    "figures": ("paper", "figures", "docs/results.md (figures), docs/fig*.png"),
+    "accuracy": ("paper", "accuracy", "docs/results.md (accuracy), docs/accuracy.png"),
+    "scaling": ("scaling", "scaling", "docs/scaling.md, docs/scaling-*.png, results/scaling.h5"),
+    "robustness": ("robustness", "robustness", "docs/robustness.md"),
+}
+#: One MPI launch of an experiment: command -> (module, function, typed arguments before OUTPUT).
+#: The function is called with those arguments, the output path and MPI.COMM_WORLD.
+PARTS = {
+    "bench-mesh": ("bench", "bench_mesh", (("plan", str), ("P", int), ("M", int))),
+    "theta-mesh": ("paper", "theta_mesh", (("P", int), ("M", int), ("scene", str))),
+    "accuracy-mesh": ("paper", "accuracy_mesh", (("P", int), ("M", int), ("fine", Path))),
+    "scaling-network": ("scaling", "network", ()),
+    "scaling-calibrate": ("scaling", "calibrate", ()),
+}
+
+
+def cmd_experiment(args, _petsc_options) -> int:
+    import importlib
+
+    module, function, written = EXPERIMENTS[args.command]
+    getattr(importlib.import_module(f".{module}", __package__), function)()
+    print(f"wrote {written}")
+    return 0
+
+
+def cmd_part(args, petsc_options) -> int:
+    import importlib
+
     _init_petsc(petsc_options)
     from mpi4py import MPI
 
-    from . import bench
-
-    bench.bench_mesh(args.P, args.M, args.plan, Path(args.output), MPI.COMM_WORLD)
-    return 0
-
-
-def cmd_paper(args, _petsc_options) -> int:
-    from . import paper
-
-    getattr(paper, args.experiment)()
-    return 0
-
-
-def cmd_scaling(_args, _petsc_options) -> int:
-    from . import scaling
-
-    scaling.scaling()
-    print("wrote docs/scaling.md, docs/scaling-measured.png, docs/scaling-model.png, results/scaling.h5")
-    return 0
-
-
-def cmd_robustness(_args, _petsc_options) -> int:
-    from . import robustness
-
-    robustness.robustness()
-    print("wrote docs/robustness.md")
-    return 0
-
-
-def cmd_scaling_part(args, petsc_options) -> int:
-    _init_petsc(petsc_options)
-    from mpi4py import MPI
-
-    from . import scaling
-
-    if args.part == "network":
-        scaling.network(Path(args.output), MPI.COMM_WORLD)
-    else:
-        scaling.calibrate(Path(args.output))
-    return 0
-
-
-def cmd_theta_mesh(args, petsc_options) -> int:
-    _init_petsc(petsc_options)
-    from mpi4py import MPI
-
-    from . import paper
-
-    paper.theta_mesh(args.P, args.M, args.scene, Path(args.output), MPI.COMM_WORLD)
-    return 0
-
-
-def cmd_accuracy_mesh(args, petsc_options) -> int:
-    _init_petsc(petsc_options)
-    from mpi4py import MPI
-
-    from . import paper
-
-    paper.accuracy_mesh(args.P, args.M, Path(args.fine), Path(args.output), MPI.COMM_WORLD)
+    module, function, arguments = PARTS[args.command]
+    values = [getattr(args, name) for name, _ in arguments]
+    getattr(importlib.import_module(f".{module}", __package__), function)(*values, Path(args.output), MPI.COMM_WORLD)
     return 0
 
 
@@ -306,39 +281,14 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--meshes", help="comma-separated P:M pairs (default: Table 1 and 400:512)")
     p.add_argument("-o", dest="output", default="results/bench-methods.h5", help="HDF5 file for `methods`")
     p.set_defaults(run=cmd_bench)
-    p = sub.add_parser("bench-mesh")  # one benchmark launch under mpiexec (used by `bench methods`, `table1`)
-    p.add_argument("plan", choices=("methods", "table1"))
-    p.add_argument("P", type=int)
-    p.add_argument("M", type=int)
-    p.add_argument("output")
-    p.set_defaults(run=cmd_bench_mesh)
-    for name, help_text in (("table1", "the paper's Table 1 beside ours (docs/results.md)"),
-                            ("theta-sweep", "iterations against θ and the divergence thresholds (Fig. 2)"),
-                            ("figures", "the paper's Figs. 1, 3 and 4 (docs/*.png)"),
-                            ("accuracy", "discretization error under refinement, total error against time")):
-        sub.add_parser(name, help=help_text).set_defaults(run=cmd_paper, experiment=name.replace("-", "_"))
-    sub.add_parser("scaling", help="strong and weak scaling, large meshes, the cost model "
-                                   "(docs/scaling.md)").set_defaults(run=cmd_scaling)
-    sub.add_parser("robustness", help="measure the hard cases and bad input (docs/robustness.md)").set_defaults(
-        run=cmd_robustness)
-    p = sub.add_parser("scaling-calibrate")  # one launch of scaling
-    p.add_argument("output")
-    p.set_defaults(run=cmd_scaling_part, part="calibrate")
-    p = sub.add_parser("scaling-network")  # one launch of scaling
-    p.add_argument("output")
-    p.set_defaults(run=cmd_scaling_part, part="network")
-    p = sub.add_parser("theta-mesh")  # one launch of theta-sweep
-    p.add_argument("P", type=int)
-    p.add_argument("M", type=int)
-    p.add_argument("scene")
-    p.add_argument("output")
-    p.set_defaults(run=cmd_theta_mesh)
-    p = sub.add_parser("accuracy-mesh")  # one launch of accuracy
-    p.add_argument("P", type=int)
-    p.add_argument("M", type=int)
-    p.add_argument("fine")
-    p.add_argument("output")
-    p.set_defaults(run=cmd_accuracy_mesh)
+    for name, (_, _, written) in EXPERIMENTS.items():
+        sub.add_parser(name, help=f"experiment: writes {written}").set_defaults(run=cmd_experiment)
+    for name, (_, _, arguments) in PARTS.items():  # internal: one MPI launch of an experiment
+        p = sub.add_parser(name)
+        for argument, kind in arguments:
+            p.add_argument(argument, type=kind)
+        p.add_argument("output")
+        p.set_defaults(run=cmd_part)
     sub.add_parser("scenes", help="list the built-in scenes").set_defaults(run=cmd_scenes)
     sub.add_parser("version", help="versions of ddsolve, PETSc and MPI").set_defaults(run=cmd_version)
     return top

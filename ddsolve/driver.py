@@ -1,8 +1,8 @@
 """The domain-decomposition solve: scene -> meshes -> blocks on ranks -> multiplier method -> result.
 
-Rank 0 reads the scene and builds the meshes; every rank assembles and factors the blocks it owns;
-rank 0 runs the multiplier method while the other ranks serve rounds of block solves
-(:func:`serve`); rank 0 gathers the block solutions and writes the result.
+Rank 0 reads the scene; two ranks mesh a half each; every rank assembles and factors the blocks (or
+the rows of a block) it owns; rank 0 runs the multiplier method while the other ranks serve rounds of
+block solves (:func:`serve`); rank 0 gathers the block solutions and writes the result.
 """
 from __future__ import annotations
 
@@ -22,6 +22,11 @@ from .interface import BLOCKS, Interface
 from .scene import Scene
 
 STOP, SOLVE_LOAD, SOLVE_FULL, SCHUR, REPORT_ERROR = range(5)
+
+
+def result_width(command: int, trace_size: int) -> int:
+    """Values per block a round returns (before the status flag): a Schur complement, or trace + energy."""
+    return trace_size ** 2 if command == SCHUR else trace_size + 1
 
 
 class BlockServer:
@@ -86,7 +91,7 @@ class ParallelRounds:
         local = None
         if loads is not None:
             local = self.exchange.scatter(loads, self.trace_size)
-        width = self.trace_size ** 2 if command == SCHUR else self.trace_size + 1
+        width = result_width(command, self.trace_size)
         results = self.exchange.gather(self.server.run(command, local, width), width + 1)
         self.count += 1
         if np.any(results[:, -1] != 0.0):
@@ -120,7 +125,7 @@ def serve(exchange: Exchange, server: BlockServer, trace_size: int, stages: dict
             exchange.comm.gather(server.error, root=0)
             continue
         local = exchange.scatter(None, trace_size) if command in (SOLVE_LOAD, SOLVE_FULL) else None
-        width = trace_size ** 2 if command == SCHUR else trace_size + 1
+        width = result_width(command, trace_size)
         exchange.gather(server.run(command, local, width), width + 1)
     stages["Rounds"].pop()
 

@@ -143,13 +143,6 @@ class Interface:
             lam[rows] = -loads[U_MINUS][traces] / self.row_weights[rows] - minus[traces]
         return lam
 
-    def coupling_matrix(self, block: int) -> np.ndarray:
-        """Dense C_b ``(size, 2k)``."""
-        coupling = self.couplings[block]
-        C = np.zeros((self.size, self.trace_size))
-        C[coupling.rows, coupling.trace] = coupling.sign
-        return C
-
     def dual_matrix(self, flexibilities: np.ndarray) -> np.ndarray:
         """F = Σ_b W C_b G_b C_bᵀ W from the blocks' flexibilities G_b ``(4, 2k, 2k)``."""
         F = np.zeros((self.size, self.size))
@@ -187,16 +180,6 @@ class Interface:
             values[self.vertex[rows], self.component[rows]] = lam[rows]
             out[name] = values
         return out
-
-    def join(self, values: dict[str, np.ndarray]) -> np.ndarray:
-        """Inverse of :meth:`split`."""
-        lam = np.zeros(self.size)
-        rows = self.slices["mu_c"]
-        lam[rows] = values["mu_c"][self.vertex[rows]]
-        for name in ("mu_g", "mu_minus", "mu_plus"):
-            rows = self.slices[name]
-            lam[rows] = values[name][self.vertex[rows], self.component[rows]]
-        return lam
 
 
 def _both_components(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

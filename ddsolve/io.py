@@ -138,7 +138,7 @@ def xdmf(h5_name: str, result: Result) -> str:
     for spec in BLOCKS:
         half = result.half(spec.name)
         n, m = len(half.points), len(half.cells)
-        item = f'Format="HDF" Precision="8" NumberType="Float"'
+        item = 'Format="HDF" Precision="8" NumberType="Float"'
         grids.append(f"""    <Grid Name="{spec.name}" GridType="Uniform">
       <Topology TopologyType="Triangle" NumberOfElements="{m}">
         <DataItem Dimensions="{m} 3" NumberType="Int" Precision="8" Format="HDF">{h5_name}:/mesh/{half.name}/cells</DataItem>

@@ -405,10 +405,11 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
     y = problem.sqrt_w * interface.multipliers(loads)
     y[contact] = y_c
     if np.any(y < problem.lower) or np.any(y > problem.upper):  # a bound ±p is active: all bounds
-        A = interface.dual_matrix(np.linalg.inv(schur_complements)) / np.outer(problem.sqrt_w, problem.sqrt_w)
+        flexibilities = np.linalg.inv(schur_complements)
+        A = interface.dual_matrix(flexibilities) / np.outer(problem.sqrt_w, problem.sqrt_w)
         y, more = box_qp(A, problem.b, problem.lower, problem.upper)
         steps += more
-        traces = initial + np.einsum("bij,bj->bi", np.linalg.inv(schur_complements), interface.loads(y / problem.sqrt_w))
+        traces = initial + np.einsum("bij,bj->bi", flexibilities, interface.loads(y / problem.sqrt_w))
     criterion = problem.criterion(y, -problem.sqrt_w * interface.gap(traces))
     progress(steps, criterion, final=True)
     converged = criterion < solver.tol

@@ -98,26 +98,37 @@ class Cases:
         self.rows.append((case, outcome, why, test))
 
     def signal(self, case: str, why: str, signum: int, test: str) -> None:
-        from .cli import mpiexec_command
+        outcome = interrupt(self.folder, signum)
+        kept = "kept" if outcome["kept"] else "LOST"
+        left = "; temporary files left: " + ", ".join(outcome["leftovers"]) if outcome["leftovers"] else ""
+        self.rows.append((case, f"exit {outcome['status']} {outcome['seconds']:.1f} s after the signal, "
+                                f"«{outcome['message']}»; previous file {kept}{left}", why, test))
 
-        kept = self.folder / "kept.h5"
-        kept.write_bytes(b"previous result")
-        command = mpiexec_command(4, ["solve", "partial-closure", "--set", "solver.method=uzawa",
-                                      "--set", "solver.stop=relative", "--set", "solver.tol=1e-300",
-                                      "--set", "solver.max_iterations=10000000", "-o", str(kept)])
-        process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                   stdin=subprocess.DEVNULL, env=dict(os.environ))
-        time.sleep(6.0)
-        sent = time.perf_counter()
-        process.send_signal(signum)
-        _, stderr = process.communicate(timeout=60)
-        elapsed = time.perf_counter() - sent
-        leftovers = sorted(p.name for p in self.folder.iterdir() if p.name.startswith(".kept"))
-        self.rows.append((case, f"exit {process.returncode} {elapsed:.1f} s after the signal, "
-                                f"«{stderr.strip().splitlines()[0] if stderr.strip() else ''}»; previous file "
-                                f"{'kept' if kept.read_bytes() == b'previous result' else 'LOST'}"
-                                f"{'; temporary files left: ' + ', '.join(leftovers) if leftovers else ''}",
-                          why, test))
+
+def interrupt(folder: Path, signum: int, wait: float = 6.0) -> dict:
+    """Start a long run writing to ``folder/kept.h5`` (which holds a previous result), signal mpiexec.
+
+    Returns the exit status, the seconds from the signal to the exit, the first line of standard
+    error, whether the previous file survived and which temporary files are left in ``folder``.
+    """
+    from .cli import mpiexec_command
+
+    kept = folder / "kept.h5"
+    kept.write_bytes(b"previous result")
+    command = mpiexec_command(4, ["solve", "partial-closure", "--set", "solver.method=uzawa",
+                                  "--set", "solver.stop=relative", "--set", "solver.tol=1e-300",
+                                  "--set", "solver.max_iterations=10000000", "-o", str(kept)])
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               stdin=subprocess.DEVNULL, env=dict(os.environ))
+    time.sleep(wait)  # well into the iterations
+    running = process.poll() is None
+    sent = time.perf_counter()
+    process.send_signal(signum)
+    _, stderr = process.communicate(timeout=60)
+    return {"running": running, "status": process.returncode, "seconds": time.perf_counter() - sent,
+            "message": stderr.strip().splitlines()[0] if stderr.strip() else "",
+            "traceback": "Traceback" in stderr, "kept": kept.read_bytes() == b"previous result",
+            "leftovers": sorted(p.name for p in folder.iterdir() if p.name != "kept.h5")}
 
 
 def _mesh_file(folder: Path, name: str, points, cells) -> Path:

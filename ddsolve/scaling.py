@@ -57,12 +57,13 @@ def network(output: Path, comm) -> None:
                                       "bandwidth": 1.0 / inverse_bandwidth, "provenance": provenance()}))
 
 
-def calibrate(output: Path) -> None:
-    """One block at each calibration size: factorization, solve and interface-matrix times."""
+def calibrate(output: Path, comm) -> None:
+    """One block at each calibration size, on one rank: factorization, solve and interface-matrix times."""
     from .bench import block_timings
 
-    output.write_text(json.dumps({"blocks": [block_timings(P, M, solves=10, repeats=2)
-                                             for P, M in CALIBRATION_MESHES]}))
+    if comm.rank == 0:
+        output.write_text(json.dumps({"blocks": [block_timings(P, M, solves=10, repeats=2)
+                                                 for P, M in CALIBRATION_MESHES]}))
 
 
 # --- the cost model ---------------------------------------------------------------------------
@@ -278,7 +279,7 @@ def text(record: dict, model: CostModel) -> str:
         "# Scaling",
         "",
         "`./run scaling` (about 6 minutes) regenerates this page: calibration, strong and weak scaling on "
-        f"N = 1, 2, 4, 8 ranks, the two largest meshes, the fitted cost model and its predictions. Result files "
+        "N = 1, 2, 4, 8 ranks, the two largest meshes, the fitted cost model and its predictions. Result files "
         "of every run are in `results/scaling/`, the aggregate in `results/scaling.h5`.",
         "",
         f"**This machine has {c} cores.** With more ranks than cores the ranks share cores (Open MPI "

@@ -24,7 +24,7 @@ def test_read_splits_the_square_into_matching_halves(mesh_file):
     assert np.all(lower.areas() > 0) and np.all(upper.areas() > 0)
     stats = mesh.statistics(lower)
     assert (stats.vertices, stats.triangles) == (45, 64)
-    assert 0.25 < stats.h_min < stats.h_max < 0.25 * 2 ** 0.5 * 1.2  # triangle diameters
+    assert 0.25 < stats.h_min < stats.h_max < 0.25 * 2 ** 0.5 * 1.3  # circumdiameters
     assert mesh.boundary_vertex_count(lower, upper) == 32
 
 

@@ -121,3 +121,16 @@ def test_eight_ranks_split_every_block_over_two(tmp_path, method, options):
     assert results[8].ranks == 8 and results[8].converged
     assert analysis.compare(results[8], results[4]).energy_error < 1e-8
     assert len(results[8].attrs["peak_memory_mb"]) == 8
+
+
+def test_an_active_multiplier_bound_p_is_honoured_by_schur_and_mprgp(tmp_path):
+    """With p smaller than the gluing forces, schur's fallback (all bounds) and MPRGP solve the same QP."""
+    results = {}
+    for method in ("schur", "mprgp"):
+        output = tmp_path / f"{method}.h5"
+        ddsolve("solve", "partial-closure", *SMALL, "--set", f"solver.method={method}", "--set", "solver.p=0.005",
+                "--set", "solver.tol=1e-11", "-o", str(output), ranks=4)
+        results[method] = io.read(output)
+    multipliers = np.concatenate([np.ravel(v) for v in results["schur"].multipliers.values()])
+    assert np.abs(multipliers).max() == pytest.approx(0.005)  # the bound is active
+    assert analysis.compare(results["mprgp"], results["schur"]).energy_error < 1e-6

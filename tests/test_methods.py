@@ -1,0 +1,45 @@
+"""The rank-0 algorithms on small dense problems (no MPI, no PETSc)."""
+import numpy as np
+import pytest
+
+from ddsolve.methods import box_qp, kkt_criterion, largest_eigenvalue, projected_gradient
+
+
+def random_problem(seed: int, n: int = 12):
+    rng = np.random.default_rng(seed)
+    X = rng.standard_normal((n, n))
+    A = X @ X.T + 0.5 * np.eye(n)
+    b = rng.standard_normal(n) * 3
+    lower = np.where(rng.random(n) < 0.5, 0.0, -np.inf)
+    upper = np.where(rng.random(n) < 0.3, 0.5, np.inf)
+    return A, b, lower, upper
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_box_qp_satisfies_the_kkt_conditions(seed):
+    A, b, lower, upper = random_problem(seed)
+    y, steps = box_qp(A, b, lower, upper)
+    assert np.all(y >= lower - 1e-12) and np.all(y <= upper + 1e-12)
+    gradient = A @ y - b
+    assert np.abs(projected_gradient(y, gradient, lower, upper)).max() < 1e-10
+    # and it is the minimizer: projected gradient descent from anywhere ends there
+    z, step = np.zeros_like(b), 1.0 / np.linalg.eigvalsh(A).max()
+    for _ in range(20000):
+        z = np.clip(z - step * (A @ z - b), lower, upper)
+    assert np.allclose(y, z, atol=1e-8)
+
+
+def test_kkt_criterion_is_scale_free_and_zero_for_nothing_to_do():
+    A, b, lower, upper = random_problem(3)
+    y = np.zeros_like(b)
+    gradient = A @ y - b
+    value = kkt_criterion(y, gradient, lower, upper, np.linalg.norm(b))
+    assert kkt_criterion(1e12 * y, 1e12 * gradient, 1e12 * lower, 1e12 * upper, 1e12 * np.linalg.norm(b)) == \
+        pytest.approx(value, rel=1e-12)
+    assert kkt_criterion(y, 0 * gradient, lower, upper, 0.0) == 0.0
+
+
+def test_power_iteration_finds_the_largest_eigenvalue():
+    A, *_ = random_problem(5, n=30)
+    estimate = largest_eigenvalue(lambda v: A @ v, 30, iterations=500, tolerance=1e-12)
+    assert estimate == pytest.approx(np.linalg.eigvalsh(A).max(), rel=1e-6)
