@@ -137,30 +137,44 @@ FACTOR_PACKAGE = {"uzawa": "petsc", "fista": "petsc", "mprgp": "petsc", "schur":
 STAGES = ("Setup", "Factorization", "Rounds", "Update", "Output")
 
 
-def run_method(scene: Scene, exchange: Exchange, server: BlockServer, interface: Interface, stages: dict,
-               progress) -> tuple[methods.Outcome | None, ParallelRounds | None, DDSolveError | None]:
-    """Rank 0 runs the multiplier method (then the final round); the others serve rounds."""
+def drive(setup: "Setup", server: BlockServer, work) -> tuple[object, ParallelRounds | None, DDSolveError | None]:
+    """Rank 0 runs ``work(rounds)`` (its time between rounds is the Update stage) while the other
+    ranks serve rounds; rank 0 always sends STOP, so an error there cannot leave the others waiting.
+    Returns (value, rounds, error) on rank 0 and (None, None, None) elsewhere."""
+    exchange, stages = setup.exchange, setup.stages
     if not exchange.is_root:
-        serve(exchange, server, interface.trace_size, stages)
+        serve(exchange, server, setup.interface.trace_size, stages)
         return None, None, None
-    rounds = ParallelRounds(exchange, server, interface.trace_size, stages)
-    outcome, failure = None, None
+    rounds = ParallelRounds(exchange, server, setup.interface.trace_size, stages)
+    value, failure = None, None
     stages["Update"].push()
     try:
+        value = work(rounds)
+    except DDSolveError as exc:
+        failure = exc
+    finally:
+        stages["Update"].pop()
+    rounds.stop()
+    return value, rounds, failure
+
+
+def run_method(scene: Scene, setup: "Setup", server: BlockServer, progress):
+    """The scene's multiplier method on rank 0, then the final round; (outcome, rounds, failure)."""
+    interface = setup.interface
+
+    def work(rounds):
         method = scene.solver.method
         outcome = methods.METHODS[method](rounds, interface, scene.solver, methods.Progress(method, out=progress))
         if not outcome.diverged:
             rounds.solve(interface.loads(outcome.lam), full=True)  # the displacements for λ
-    except DDSolveError as exc:
-        failure = exc
-    else:
+        return outcome
+
+    outcome, rounds, failure = drive(setup, server, work)
+    if failure is None and outcome is not None:
         if outcome.diverged:
             failure = DivergedError(outcome.message)
         elif not outcome.converged:
             failure = NotConvergedError(outcome.message)
-    finally:
-        stages["Update"].pop()
-    rounds.stop()
     return outcome, rounds, failure
 
 
@@ -250,19 +264,19 @@ def prepare(scene: Scene, comm: MPI.Comm, meshes: tuple[mesh.HalfMesh, mesh.Half
 def bound(scene: Scene, comm: MPI.Comm, meshes=None, iterations: int = 300) -> float:
     """λmax of the dual operator C K⁻¹ Cᵀ W by power iteration (one round each); 2/λmax bounds Uzawa's θ."""
     setup = prepare(scene, comm, meshes)
-    server = BlockServer(setup.blocks, setup.exchange)
-    estimate = None
-    if setup.exchange.is_root:
-        rounds = ParallelRounds(setup.exchange, server, setup.interface.trace_size, setup.stages)
-        setup.stages["Update"].push()
-        problem = methods.DualProblem(rounds, setup.interface, scene.solver)
-        estimate = methods.largest_eigenvalue(problem.apply, setup.interface.size, iterations, tolerance=1e-9)
-        setup.stages["Update"].pop()
-        rounds.stop()
-    else:
-        serve(setup.exchange, server, setup.interface.trace_size, setup.stages)
-    setup.destroy()
-    return comm.bcast(estimate, root=0)
+    try:
+        def work(rounds):
+            problem = methods.DualProblem(rounds, setup.interface, scene.solver)
+            return methods.largest_eigenvalue(problem.apply, setup.interface.size, iterations, tolerance=1e-9)
+
+        estimate, _, failure = drive(setup, BlockServer(setup.blocks, setup.exchange), work)
+        failure = comm.bcast(failure, root=0)
+        if failure is not None:
+            failure.collective = True
+            raise failure
+        return comm.bcast(estimate, root=0)
+    finally:
+        setup.destroy()
 
 
 def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, meshes=None) -> io.Result | None:
@@ -280,7 +294,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
     try:
         mark = time.perf_counter()
         server = BlockServer(blocks, exchange)
-        outcome, rounds, failure = run_method(scene, exchange, server, interface, stages, progress)
+        outcome, rounds, failure = run_method(scene, setup, server, progress)
         failure = comm.bcast(failure, root=0)
         if failure is not None:
             failure.collective = True

@@ -1,10 +1,10 @@
-"""Message passing between the ranks that own blocks and rank 0, which owns the multipliers.
+"""Message passing between the ranks that work on blocks and rank 0, which owns the multipliers.
 
-Rank r owns blocks ``r·m … (r+1)·m − 1`` with m = 4 / size.  Every round is driven by rank 0:
-it broadcasts a command, scatters one trace load per block, every rank solves its blocks, and the
-results are gathered back on rank 0 in block order — one small broadcast, one Scatter and one Gather
-of contiguous float64 buffers.  Errors found on any rank are raised on every rank
-(:func:`collective`), so all ranks leave together.
+Every round is driven by rank 0: it broadcasts a command, scatters one trace load per block to the
+blocks' leaders (which share it with their block communicators), every rank solves its part, and
+the results come back to rank 0 in block order — a small broadcast, a Scatterv and a Gatherv of
+contiguous float64 buffers.  Errors found on any rank are raised on every rank (:func:`collective`),
+so all ranks leave together.
 """
 from __future__ import annotations
 

@@ -1,6 +1,7 @@
 """Result files: HDF5 (the layout of docs/usage.md) written atomically, and XDMF for ParaView."""
 from __future__ import annotations
 
+import functools
 import os
 import subprocess
 import tempfile
@@ -66,8 +67,12 @@ def atomic(path: Path, write) -> None:
             os.unlink(temporary)
 
 
+@functools.lru_cache(maxsize=None)
 def provenance() -> dict[str, str]:
-    """What produced a file: ddsolve version and git commit, PETSc, MPI, Python, PETSc options."""
+    """What produced a file: ddsolve version and git commit, PETSc, MPI, Python, PETSc options.
+
+    Computed once per process (it asks git); do not modify the returned dict.
+    """
     import platform
 
     from petsc4py import PETSc

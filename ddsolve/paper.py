@@ -221,7 +221,7 @@ def figures() -> None:
     for figure, scene_name, scale in FIGURES:
         path = RESULTS / f"{figure}-{scene_name}.h5"
         print(f"figures: {scene_name} -> {path}", flush=True)
-        report.run_solve(["solve", scene_name, "--set", "mesh.sigma_vertices=96", "--set",
+        report.run(4, ["solve", scene_name, "--set", "mesh.sigma_vertices=96", "--set",
                           "mesh.boundary_vertices=144", "-o", str(path)])
         results[scene_name] = io.read(path)
         plots.deformed_layers(results[scene_name], DOCS / f"{figure}-{scene_name}.png", scale)
@@ -313,7 +313,7 @@ def accuracy() -> list[dict]:
     P, M = FINE_MESH
     print(f"accuracy: fine solution P = {P}, M = {M} -> {fine}", flush=True)
     started = time.perf_counter()
-    report.run_solve(["solve", "partial-closure", "--set", f"mesh.sigma_vertices={P}",
+    report.run(4, ["solve", "partial-closure", "--set", f"mesh.sigma_vertices={P}",
                       "--set", f"mesh.boundary_vertices={M}", "-o", str(fine)])
     fine_time = time.perf_counter() - started
     from . import analysis, io

@@ -32,11 +32,6 @@ def launch(ranks: int, arguments: list[str], part: Path) -> dict:
     return record
 
 
-def run_solve(arguments: list[str], ranks: int = 4) -> None:
-    """``ddsolve solve ...`` on ``ranks`` ranks (the default method unless the arguments say otherwise)."""
-    run(ranks, arguments)
-
-
 def write_records(path: Path, records: list[dict], attrs: dict) -> None:
     """One HDF5 group per record: scalars as attributes, lists of numbers and of dicts as datasets."""
     import h5py

@@ -78,3 +78,25 @@ def test_options_prefix_selects_the_block_solver(system):
     finally:
         for key in ("u_minus_ksp_type", "u_minus_pc_type", "u_minus_ksp_rtol"):
             options.delValue(key)
+
+
+def test_power_iteration_bound_is_the_largest_eigenvalue_of_the_dual_operator():
+    """driver.bound (rounds of block solves, here on one rank) against the assembled dense operator."""
+    from mpi4py import MPI
+
+    from ddsolve import driver, mesh, scene
+    from ddsolve.interface import Interface
+
+    s = scene.load("partial-closure", ["mesh.sigma_vertices=13", "mesh.boundary_vertices=32", "solver.method=uzawa"])
+    lower, upper = mesh.build(s)
+    interface = Interface(lower.points[lower.sigma(), 0], s.crack, s.contact)
+    flexibilities = []
+    for system in assembly.block_systems(s, lower, upper):
+        block = Block(system)
+        block.factor()
+        flexibilities.append(block.flexibility())
+        block.destroy()
+    sqrt_w = np.sqrt(interface.row_weights)
+    dense = interface.dual_matrix(np.array(flexibilities)) / np.outer(sqrt_w, sqrt_w)
+    expected = np.linalg.eigvalsh(dense).max()
+    assert driver.bound(s, MPI.COMM_WORLD, (lower, upper)) == pytest.approx(expected, rel=1e-6)
