@@ -8,7 +8,7 @@ import numpy as np
 from . import assembly, scene as scenes
 from .errors import DDSolveError
 from .interface import BLOCKS
-from .io import Result
+from .result import Result
 
 
 def block_energies(result: Result, difference: Result | None = None) -> np.ndarray:
@@ -108,3 +108,17 @@ def discretization_error(coarse: Result, fine: Result) -> float:
         error += assembly.energy(half.points, half.cells, materials[spec.layer], field - coarse_field)
         reference += assembly.energy(half.points, half.cells, materials[spec.layer], field)
     return float(np.sqrt(error / reference))
+
+
+def layer_stresses(result: Result) -> dict[str, np.ndarray]:
+    """Per-cell von Mises stress of each block."""
+    materials = scenes.loads(result.scene).materials
+    return {spec.name: assembly.von_mises(result.half(spec.name).points, result.half(spec.name).cells,
+                                          materials[spec.layer], result.solution[spec.name])
+            for spec in BLOCKS}
+
+
+def normal_jump(result: Result) -> np.ndarray:
+    """[u]·ν = u⁺_y − u⁻_y of layer 1 at the inner Σ vertices (negative: overlap)."""
+    lower, upper = result.lower.sigma()[1:-1], result.upper.sigma()[1:-1]
+    return result.solution["u_plus"][upper, 1] - result.solution["u_minus"][lower, 1]

@@ -7,15 +7,14 @@ from __future__ import annotations
 
 import argparse
 import os
-import shutil
 import signal
-import subprocess
 import sys
 import traceback
 from pathlib import Path
 
 from . import __version__
 from .errors import DDSolveError
+from .launch import mpiexec_command
 
 OWN_SHORT_OPTIONS = {"-n", "-o", "-h"}
 
@@ -33,24 +32,7 @@ def split_petsc_options(argv: list[str]) -> tuple[list[str], list[str]]:
     return argv, []
 
 
-def mpiexec_command(ranks: int, arguments: list[str]) -> list[str]:
-    """``mpiexec -n N python -m ddsolve ARGS`` (quiet Open MPI: our errors are one line).
-
-    :func:`main` gives the semantics of ``python -m mpi4py``: an error on one rank, an unexpected
-    exception or an interrupt aborts every rank.  Errors that every rank raises together end every
-    rank normally with the same status, so no abort (and no Open MPI banner) is needed for them.
-    """
-    mpiexec = os.environ.get("MPIEXEC", "mpiexec")
-    if shutil.which(mpiexec) is None:
-        raise DDSolveError(f"{mpiexec} not found: install Open MPI or MPICH, or set MPIEXEC")
-    command = [mpiexec]
-    version = subprocess.run([mpiexec, "--version"], capture_output=True, text=True).stdout
-    if "Open MPI" in version or "OpenRTE" in version:
-        command.append("--quiet")
-    return command + ["-n", str(ranks), sys.executable, "-m", "ddsolve", *arguments]
-
-
-def _init_petsc(options: list[str]) -> None:
+def init_petsc(options: list[str]) -> None:
     import petsc4py
 
     petsc4py.init([sys.argv[0], *options])
@@ -81,7 +63,7 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
         del forwarded[i:i + (2 if forwarded[i] == "-n" else 1)]
         command = mpiexec_command(args.ranks, forwarded)
         os.execvpe(command[0], command, dict(os.environ))
-    _init_petsc(petsc_options)
+    init_petsc(petsc_options)
     from mpi4py import MPI
 
     from . import driver
@@ -99,7 +81,7 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
 
 
 def cmd_reference(args, petsc_options: list[str]) -> int:
-    _init_petsc(petsc_options)
+    init_petsc(petsc_options)
     from . import io, mesh, reference
 
     scene = _load_scene(args)
@@ -159,7 +141,7 @@ def cmd_mesh(args, _petsc_options) -> int:
 
 
 def _meshes(text: str | None):
-    from .bench import BENCH_MESHES
+    from .experiments.bench import BENCH_MESHES
 
     if not text:
         return BENCH_MESHES
@@ -170,10 +152,10 @@ def _meshes(text: str | None):
 
 
 def cmd_bench(args, petsc_options) -> int:
-    from . import bench
+    from .experiments import bench
 
     if args.what == "factor":
-        _init_petsc(petsc_options)
+        init_petsc(petsc_options)
         for P, M in _meshes(args.meshes or "200:256"):
             bench.factor(P, M)
     else:
@@ -191,35 +173,12 @@ EXPERIMENTS = {
     "scaling": ("scaling", "scaling", "docs/scaling.md, docs/scaling-*.png, results/scaling.h5"),
     "robustness": ("robustness", "robustness", "docs/robustness.md"),
 }
-#: One MPI launch of an experiment: command -> (module, function, typed arguments before OUTPUT).
-#: The function is called with those arguments, the output path and MPI.COMM_WORLD.
-PARTS = {
-    "bench-mesh": ("bench", "bench_mesh", (("plan", str), ("P", int), ("M", int))),
-    "theta-mesh": ("paper", "theta_mesh", (("P", int), ("M", int), ("scene", str))),
-    "accuracy-mesh": ("paper", "accuracy_mesh", (("P", int), ("M", int), ("fine", Path))),
-    "scaling-network": ("scaling", "network", ()),
-    "scaling-calibrate": ("scaling", "calibrate", ()),
-}
-
-
 def cmd_experiment(args, _petsc_options) -> int:
     import importlib
 
     module, function, written = EXPERIMENTS[args.command]
-    getattr(importlib.import_module(f".{module}", __package__), function)()
+    getattr(importlib.import_module(f".experiments.{module}", __package__), function)()
     print(f"wrote {written}")
-    return 0
-
-
-def cmd_part(args, petsc_options) -> int:
-    import importlib
-
-    _init_petsc(petsc_options)
-    from mpi4py import MPI
-
-    module, function, arguments = PARTS[args.command]
-    values = [getattr(args, name) for name, _ in arguments]
-    getattr(importlib.import_module(f".{module}", __package__), function)(*values, Path(args.output), MPI.COMM_WORLD)
     return 0
 
 
@@ -232,7 +191,7 @@ def cmd_scenes(_args, _petsc_options) -> int:
 
 
 def cmd_version(_args, petsc_options) -> int:
-    _init_petsc(petsc_options)
+    init_petsc(petsc_options)
     from mpi4py import MPI
     from petsc4py import PETSc
 
@@ -283,12 +242,6 @@ def parser() -> argparse.ArgumentParser:
     p.set_defaults(run=cmd_bench)
     for name, (_, _, written) in EXPERIMENTS.items():
         sub.add_parser(name, help=f"experiment: writes {written}").set_defaults(run=cmd_experiment)
-    for name, (_, _, arguments) in PARTS.items():  # internal: one MPI launch of an experiment
-        p = sub.add_parser(name)
-        for argument, kind in arguments:
-            p.add_argument(argument, type=kind)
-        p.add_argument("output")
-        p.set_defaults(run=cmd_part)
     sub.add_parser("scenes", help="list the built-in scenes").set_defaults(run=cmd_scenes)
     sub.add_parser("version", help="versions of ddsolve, PETSc and MPI").set_defaults(run=cmd_version)
     return top
@@ -307,9 +260,15 @@ def main(argv: list[str] | None = None) -> int:
     own, petsc_options = split_petsc_options(argv)
     args = parser().parse_args(own)
     args.argv = argv
+    return guarded(lambda: args.run(args, petsc_options))
+
+
+def guarded(call) -> int:
+    """Run a command: a DDSolveError becomes one line and its exit status, an interrupt or SIGTERM
+    stops every rank, anything else is a bug (traceback, abort)."""
     signal.signal(signal.SIGTERM, _terminate)
     try:
-        return args.run(args, petsc_options)
+        return call()
     except DDSolveError as exc:
         _report(f"ddsolve: error: {exc}", everywhere=not exc.collective)
         if not exc.collective:  # raised on this rank only: the others cannot know, so stop them

@@ -19,6 +19,7 @@ from .blocks import Block
 from .errors import DDSolveError, DivergedError, NotConvergedError, SolverError
 from .exchange import Exchange, collective
 from .interface import BLOCKS, Interface
+from .result import Result
 from .scene import Scene
 
 STOP, SOLVE_LOAD, SOLVE_FULL, SCHUR, REPORT_ERROR = range(5)
@@ -279,7 +280,7 @@ def bound(scene: Scene, comm: MPI.Comm, meshes=None, iterations: int = 300) -> f
         setup.destroy()
 
 
-def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, meshes=None) -> io.Result | None:
+def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, meshes=None) -> Result | None:
     """Run the domain decomposition for ``scene`` on ``comm``; write ``output`` on rank 0.
 
     Returns the result on rank 0 (None elsewhere).  A run that reaches max_iterations writes its
@@ -310,7 +311,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
         result = None
         if exchange.is_root:
             timings["update"] = timings["iterations"] - rounds.elapsed
-            result = io.Result(
+            result = Result(
                 scene=scene.text, method=method, converged=outcome.converged, iterations=outcome.iterations,
                 solves=rounds.count, wall_time=timings["factorization"] + timings["iterations"], ranks=comm.size,
                 lower=lower, upper=upper, solution={spec.name: x.reshape(-1, 2) for spec, x in zip(BLOCKS, solutions)},

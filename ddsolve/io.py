@@ -6,7 +6,6 @@ import os
 import subprocess
 import tempfile
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import h5py
@@ -15,34 +14,9 @@ import numpy as np
 from .errors import DDSolveError
 from .interface import BLOCKS
 from .mesh import HalfMesh
+from .result import Result
 
 MULTIPLIERS = ("mu_c", "mu_g", "mu_minus", "mu_plus")
-
-
-@dataclass
-class Result:
-    """Everything a run produces; the same schema for the DD solve and the reference."""
-
-    scene: str
-    method: str
-    converged: bool
-    iterations: int
-    solves: int
-    wall_time: float
-    ranks: int
-    lower: HalfMesh
-    upper: HalfMesh
-    solution: dict[str, np.ndarray]  # block name -> (n, 2) nodal displacements
-    interface_x: np.ndarray
-    crack: np.ndarray
-    multipliers: dict[str, np.ndarray]
-    history: np.ndarray
-    timings: dict[str, float] = field(default_factory=dict)
-    message: str = ""
-    attrs: dict = field(default_factory=dict)
-
-    def half(self, block: str) -> HalfMesh:
-        return self.lower if block.endswith("minus") else self.upper
 
 
 def atomic(path: Path, write) -> None:
@@ -107,7 +81,7 @@ def write(path: Path, result: Result) -> None:
 
 
 def _write_hdf5(name: str, result: Result) -> None:
-    from .plots import layer_stresses  # von Mises per cell for the ParaView fields
+    from .analysis import layer_stresses  # von Mises per cell for the ParaView fields
 
     started = time.perf_counter()
     with h5py.File(name, "w") as f:

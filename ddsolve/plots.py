@@ -7,11 +7,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from . import assembly, scene as scenes
+from . import scene as scenes
+from .analysis import layer_stresses, normal_jump
 from .interface import BLOCKS
 
 if TYPE_CHECKING:
-    from .io import Result
+    from .result import Result
 
 
 def _pyplot():
@@ -21,20 +22,6 @@ def _pyplot():
     import matplotlib.pyplot as plt
 
     return plt
-
-
-def layer_stresses(result: Result) -> dict[str, np.ndarray]:
-    """Per-cell von Mises stress of each block."""
-    materials = scenes.loads(result.scene).materials
-    return {spec.name: assembly.von_mises(result.half(spec.name).points, result.half(spec.name).cells,
-                                          materials[spec.layer], result.solution[spec.name])
-            for spec in BLOCKS}
-
-
-def normal_jump(result: Result) -> np.ndarray:
-    """[u]·ν = u⁺_y − u⁻_y of layer 1 at the inner Σ vertices (negative: overlap)."""
-    lower, upper = result.lower.sigma()[1:-1], result.upper.sigma()[1:-1]
-    return result.solution["u_plus"][upper, 1] - result.solution["u_minus"][lower, 1]
 
 
 def deformed_layers(result: Result, path: Path, scale: float) -> None:

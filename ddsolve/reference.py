@@ -17,7 +17,8 @@ from .assembly import BlockSystem, coo_to_csr
 from .blocks import Block
 from .errors import SolverError
 from .interface import BLOCKS, Interface
-from .io import Result, provenance
+from .io import provenance
+from .result import Result
 from .mesh import HalfMesh
 from .scene import Scene
 

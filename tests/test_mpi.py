@@ -53,7 +53,7 @@ def test_dd_equals_the_reference(tmp_path, references, name, method):
 
 
 def test_contact_where_the_linear_problem_overlaps(references):
-    from ddsolve.plots import normal_jump
+    from ddsolve.analysis import normal_jump
 
     contact, linear = io.read(references["partial-closure"]), io.read(references["linear"])
     crack = contact.crack

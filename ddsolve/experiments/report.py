@@ -8,25 +8,25 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import DDSolveError
+from ..errors import DDSolveError
 
 
-def run(ranks: int, arguments: list[str]) -> None:
-    """Run ``ddsolve ARGUMENTS`` on ``ranks`` MPI ranks, raising if it fails.
+def run(ranks: int, arguments: list[str], module: str = "ddsolve") -> None:
+    """Run ``python -m MODULE ARGUMENTS`` on ``ranks`` MPI ranks, raising if it fails.
 
     The calling process must not have started MPI (mpiexec cannot be nested in an MPI process);
     the child gets Python's view of the environment, without what an MPI library added in C.
     """
-    from .cli import mpiexec_command
+    from ..launch import mpiexec_command
 
-    completed = subprocess.run(mpiexec_command(ranks, arguments), env=dict(os.environ))
+    completed = subprocess.run(mpiexec_command(ranks, arguments, module), env=dict(os.environ))
     if completed.returncode != 0:
         raise DDSolveError(f"{' '.join(arguments)}: the launch failed (exit {completed.returncode})")
 
 
 def launch(ranks: int, arguments: list[str], part: Path) -> dict:
-    """Run ``ddsolve ARGUMENTS PART`` on ``ranks`` ranks; return the JSON record it wrote to PART."""
-    run(ranks, [*arguments, str(part)])
+    """Run the experiment part ``ARGUMENTS PART`` on ``ranks`` ranks; return the JSON record it wrote to PART."""
+    run(ranks, [*arguments, str(part)], module="ddsolve.experiments")
     record = json.loads(part.read_text())
     part.unlink()
     return record
@@ -36,7 +36,7 @@ def write_records(path: Path, records: list[dict], attrs: dict) -> None:
     """One HDF5 group per record: scalars as attributes, lists of numbers and of dicts as datasets."""
     import h5py
 
-    from .io import atomic
+    from ..io import atomic
 
     def store(group, record: dict) -> None:
         for key, value in record.items():

@@ -15,8 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import report, scene as scenes
-from .errors import DDSolveError
+from . import report
+from .. import scene as scenes
+from ..errors import DDSolveError
 
 #: The paper's Table 1 meshes (P, M) and one finer mesh.
 TABLE1_MESHES = ((12, 32), (24, 48), (48, 80), (96, 144), (200, 256))
@@ -57,8 +58,8 @@ def paper_scene(P: int, M: int, overrides: list[str] = ()) -> scenes.Scene:
 # --- inside the MPI launch ------------------------------------------------------------------
 def floor_time(scene: scenes.Scene, lower, upper, comm, package: str) -> float:
     """Wall time for one factorization and one solve of every block, all ranks together."""
-    from .driver import make_blocks
-    from .exchange import Exchange
+    from ..driver import make_blocks
+    from ..exchange import Exchange
 
     exchange = Exchange(comm, 4)
     blocks = make_blocks(scene, lower, upper, exchange, package)
@@ -90,8 +91,8 @@ def bench_mesh(plan: str, P: int, M: int, output: Path, comm) -> None:
 
     Every rank takes part; rank 0 writes the record as JSON to ``output``.
     """
-    from . import analysis, driver, mesh, reference
-    from .io import provenance
+    from .. import analysis, driver, mesh, reference
+    from ..io import provenance
 
     runs, with_floor = PLANS[plan]
     base = paper_scene(P, M)
@@ -203,7 +204,7 @@ def methods_table(records: list[dict]) -> str:
 
 def speed_error_plot(records: list[dict], path: Path) -> None:
     """Wall time against energy error, one curve per method, one panel per mesh (the largest three)."""
-    from .plots import _pyplot
+    from ..plots import _pyplot
 
     plt = _pyplot()
     shown = records[-3:]
@@ -232,8 +233,8 @@ def speed_error_plot(records: list[dict], path: Path) -> None:
 def block_timings(P: int, M: int, solves: int = 20, repeats: int = 3) -> dict:
     """One block of the (P, M) mesh, best of ``repeats``: factorization, one solve and the interface
     matrix, for each factorization package (with MUMPS also with the Schur complement requested)."""
-    from . import assembly, mesh
-    from .blocks import Block, default_factor_package
+    from .. import assembly, mesh
+    from ..blocks import Block, default_factor_package
 
     scene = paper_scene(P, M)
     lower = mesh.generate(P, M, scene.crack, -1)

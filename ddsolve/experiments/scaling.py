@@ -38,7 +38,7 @@ def cores() -> int:
 # --- calibration (inside MPI launches) ---------------------------------------------------------
 def network(output: Path, comm) -> None:
     """Latency and bandwidth of the collectives a round uses, between two ranks."""
-    from .io import provenance
+    from ..io import provenance
 
     sizes = [8, 800, 8_000, 80_000, 800_000, 8_000_000]
     samples = []
@@ -143,7 +143,7 @@ class CostModel:
 # --- the experiment ---------------------------------------------------------------------------
 def _solve(ranks: int, P: int, M: int, method: str, name: str) -> dict:
     """One ``ddsolve solve`` launch; its result file stays in results/scaling."""
-    from . import io
+    from .. import io
 
     path = RESULTS / f"{name}.h5"
     report.run(ranks, ["solve", "partial-closure", "--set", f"mesh.sigma_vertices={P}",
@@ -224,7 +224,7 @@ def predictions(model: CostModel) -> tuple[list[dict], list[dict]]:
 
 
 def plots(runs: list[dict], model: CostModel) -> None:
-    from .plots import _pyplot
+    from ..plots import _pyplot
 
     plt = _pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.6), constrained_layout=True)

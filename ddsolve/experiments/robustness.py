@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import scene as scenes
+from .. import scene as scenes
 
 MESH = ["--set", "mesh.sigma_vertices=48", "--set", "mesh.boundary_vertices=80"]
 DOCS = Path("docs")
@@ -34,12 +34,12 @@ def _name(path: Path) -> str:
 def _run(arguments: list[str], ranks: int | None = 4, timeout: float = 600,
          folder: Path | None = None) -> tuple[subprocess.CompletedProcess, float]:
     """Run ddsolve (under mpiexec with ``ranks``) in ``folder``, so messages name files relatively."""
-    from .cli import mpiexec_command
+    from ..launch import mpiexec_command
 
     command = mpiexec_command(ranks, arguments) if ranks else [sys.executable, "-m", "ddsolve", *arguments]
     started = time.perf_counter()
     completed = subprocess.run(command, capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL,
-                               env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])},
+                               env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])},
                                cwd=folder)
     return completed, time.perf_counter() - started
 
@@ -53,7 +53,7 @@ class Cases:
         self.references: dict[tuple, object] = {}
 
     def _reference(self, name: str, overrides: tuple[str, ...]):
-        from . import io
+        from .. import io
 
         key = (name, overrides)
         if key not in self.references:
@@ -69,7 +69,7 @@ class Cases:
     def against_reference(self, case: str, why: str, name: str, *settings: str, method: str = "schur",
                           test: str = "") -> None:
         """Solve with ``method`` on 4 ranks (``settings``: KEY=VALUE); the row shows rounds, error, penetration."""
-        from . import analysis, io
+        from .. import analysis, io
 
         path = self.folder / "dd.h5"
         overrides = [item for setting in (*settings, f"solver.method={method}") for item in ("--set", setting)]
@@ -111,7 +111,7 @@ def interrupt(folder: Path, signum: int, wait: float = 6.0) -> dict:
     Returns the exit status, the seconds from the signal to the exit, the first line of standard
     error, whether the previous file survived and which temporary files are left in ``folder``.
     """
-    from .cli import mpiexec_command
+    from ..launch import mpiexec_command
 
     kept = folder / "kept.h5"
     kept.write_bytes(b"previous result")

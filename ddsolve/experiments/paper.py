@@ -14,7 +14,7 @@ import numpy as np
 
 from . import report
 from .bench import TABLE1_MESHES, paper_scene
-from .errors import DDSolveError
+from ..errors import DDSolveError
 
 #: The paper's Table 1: P, M, h⁻min, h⁻max, h⁺min, h⁺max, Nod⁻, Tri⁻, Nod⁺, Tri⁺, iterations.
 PAPER_TABLE1 = {
@@ -92,8 +92,8 @@ def table1_text(records: list[dict]) -> str:
 # --- θ sweep (Fig. 2) -------------------------------------------------------------------------
 def converges(scene, comm, meshes) -> tuple[bool, int]:
     """Run uzawa; (converged, iterations).  A run that neither converges nor blows up counts as failed."""
-    from . import driver
-    from .errors import NotConvergedError
+    from .. import driver
+    from ..errors import NotConvergedError
 
     try:
         result = driver.solve(scene, comm, None, progress=_quiet, meshes=meshes)
@@ -106,8 +106,8 @@ def converges(scene, comm, meshes) -> tuple[bool, int]:
 
 def theta_mesh(P: int, M: int, scene_name: str, output: Path, comm) -> None:
     """One mesh and scene: 2/λmax by power iteration, iterations over the θ grid, bisected threshold."""
-    from . import driver, mesh, scene as scenes
-    from .io import provenance
+    from .. import driver, mesh, scene as scenes
+    from ..io import provenance
 
     def scene(theta: float):
         return scenes.load(scene_name, [f"mesh.sigma_vertices={P}", f"mesh.boundary_vertices={M}",
@@ -151,7 +151,7 @@ def theta_sweep() -> list[dict]:
 
 
 def theta_plot(records: list[dict], path: Path) -> None:
-    from .plots import _pyplot
+    from ..plots import _pyplot
 
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(8, 4.8), constrained_layout=True)
@@ -214,7 +214,7 @@ FIGURES = (("fig1", "partial-closure", 500.0), ("fig3", "linear", 500.0), ("fig4
 
 def figures() -> None:
     """Deformed layers coloured by von Mises stress, and the normal jump along Σ (contact vs overlap)."""
-    from . import io, plots
+    from .. import io, plots
 
     RESULTS.mkdir(exist_ok=True)
     results = {}
@@ -231,7 +231,7 @@ def figures() -> None:
 
 
 def figures_text(results: dict) -> str:
-    from .plots import normal_jump
+    from ..analysis import normal_jump
 
     contact, linear = results["partial-closure"], results["linear"]
     crack = contact.crack
@@ -283,8 +283,8 @@ def unknowns(lower, upper) -> int:
 
 def accuracy_mesh(P: int, M: int, fine_path: Path, output: Path, comm) -> None:
     """Every accuracy run on one mesh; total error = energy distance to the fine solution."""
-    from . import analysis, driver, io, mesh
-    from .io import provenance
+    from .. import analysis, driver, io, mesh
+    from ..io import provenance
 
     meshes = comm.bcast(mesh.build(paper_scene(P, M)) if comm.rank == 0 else None, root=0)
     fine = io.read(fine_path) if comm.rank == 0 else None
@@ -316,7 +316,7 @@ def accuracy() -> list[dict]:
     report.run(4, ["solve", "partial-closure", "--set", f"mesh.sigma_vertices={P}",
                       "--set", f"mesh.boundary_vertices={M}", "-o", str(fine)])
     fine_time = time.perf_counter() - started
-    from . import analysis, io
+    from .. import analysis, io
 
     reference = io.read(fine)
     fine_facts = {"time": fine_time, "unknowns": unknowns(reference.lower, reference.upper),
@@ -345,7 +345,7 @@ def accuracy_fit(records: list[dict]) -> tuple[list[dict], float, float, float]:
 
 
 def accuracy_plot(records: list[dict], path: Path) -> None:
-    from .plots import _pyplot
+    from ..plots import _pyplot
 
     plt = _pyplot()
     fitted, rate_h, intercept, _ = accuracy_fit(records)

@@ -1,0 +1,26 @@
+"""Starting ddsolve under mpiexec (used by ``ddsolve solve -n N`` and by the experiments)."""
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+
+from .errors import DDSolveError
+
+
+def mpiexec_command(ranks: int, arguments: list[str], module: str = "ddsolve") -> list[str]:
+    """``mpiexec -n N python -m MODULE ARGS`` (quiet Open MPI: our errors are one line).
+
+    ddsolve's ``main`` gives the semantics of ``python -m mpi4py``: an error on one rank, an unexpected
+    exception or an interrupt aborts every rank.  Errors that every rank raises together end every
+    rank normally with the same status, so no abort (and no Open MPI banner) is needed for them.
+    """
+    mpiexec = os.environ.get("MPIEXEC", "mpiexec")
+    if shutil.which(mpiexec) is None:
+        raise DDSolveError(f"{mpiexec} not found: install Open MPI or MPICH, or set MPIEXEC")
+    command = [mpiexec]
+    version = subprocess.run([mpiexec, "--version"], capture_output=True, text=True).stdout
+    if "Open MPI" in version or "OpenRTE" in version:
+        command.append("--quiet")
+    return command + ["-n", str(ranks), sys.executable, "-m", module, *arguments]
