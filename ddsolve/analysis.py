@@ -11,16 +11,22 @@ from .interface import BLOCKS
 from .result import Result
 
 
+def elasticities(result: Result) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Layer -> (D, c) of the result's scene (see :func:`ddsolve.materials.elasticity`)."""
+    scene = scenes.loads(result.scene)
+    return {layer: assembly.elasticity(scene, layer) for layer in scenes.LAYERS}
+
+
 def block_energies(result: Result, difference: Result | None = None) -> np.ndarray:
     """‖x_b‖²_K per block (of ``result − difference`` when given), with the result's materials."""
-    materials = scenes.loads(result.scene).materials
+    laws = elasticities(result)
     out = []
     for spec in BLOCKS:
         half = result.half(spec.name)
         field = result.solution[spec.name]
         if difference is not None:
             field = field - difference.solution[spec.name]
-        out.append(assembly.energy(half.points, half.cells, materials[spec.layer], field))
+        out.append(assembly.energy(half.points, half.cells, laws[spec.layer][0], field))
     return np.array(out)
 
 
@@ -50,7 +56,7 @@ def compare(a: Result, b: Result) -> Comparison:
 
 @dataclass(frozen=True)
 class Constraints:
-    penetration: float  # max (u⁻ − u⁺)·ν over crack vertices, / max|u|
+    penetration: float  # max (u⁻ − u⁺)·ν over crack nodes, / max|u|
     gluing_gap: float  # max |gluing constraint| over Σ, / max|u|
     complementarity: float  # max |μᶜ [u]·ν| / (max|μᶜ| max|u|)
     min_mu_c: float  # smallest contact multiplier (≥ 0 when dual feasible)
@@ -60,13 +66,12 @@ class Constraints:
 def constraints(result: Result) -> Constraints:
     """Residuals of the interface conditions of a result."""
     s = result.solution
-    lower, upper = result.lower.sigma()[1:-1], result.upper.sigma()[1:-1]
-    u_minus, u_plus = s["u_minus"][lower], s["u_plus"][upper]
-    v_minus, v_plus = s["v_minus"][lower], s["v_plus"][upper]
+    u_minus, u_plus, v_minus, v_plus = (s[name][result.interface_nodes(name)]
+                                        for name in ("u_minus", "u_plus", "v_minus", "v_plus"))
     crack = result.crack
     largest = max(np.abs(s[spec.name]).max() for spec in BLOCKS)
     scale = largest if largest > 0 else 1.0
-    jump = u_plus[:, 1] - u_minus[:, 1]
+    jump = normal_jump(result)
     gaps = [np.abs(u_minus - v_minus).ravel(), np.abs(u_plus - v_plus).ravel(),
             np.abs(u_minus - u_plus)[~crack].ravel()]
     mu_c = result.multipliers["mu_c"][crack]
@@ -81,44 +86,47 @@ def constraints(result: Result) -> Constraints:
 
 
 def interpolate(half, values: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Evaluate the P1 field ``values`` (n, c) of ``half`` at ``points`` (q, 2) inside that half."""
+    """Evaluate the field ``values`` (n, c) of ``half`` at ``points`` (q, 2) inside that half, linearly
+    on each triangle's corners (exact for P1 fields)."""
     from matplotlib.tri import Triangulation
 
-    triangulation = Triangulation(half.points[:, 0], half.points[:, 1], half.cells)
+    corners = half.corners
+    triangulation = Triangulation(half.points[:, 0], half.points[:, 1], corners)
     cell = triangulation.get_trifinder()(points[:, 0], points[:, 1])
     if np.any(cell < 0):
         raise DDSolveError(f"{int(np.sum(cell < 0))} points lie outside the {half.name} mesh")
-    corners = half.points[half.cells[cell]]  # (q, 3, 2)
-    d1, d2, d = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0], points - corners[:, 0]
+    p = half.points[corners[cell]]  # (q, 3, 2)
+    d1, d2, d = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0], points - p[:, 0]
     det = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
     l1 = (d[:, 0] * d2[:, 1] - d[:, 1] * d2[:, 0]) / det
     l2 = (d1[:, 0] * d[:, 1] - d1[:, 1] * d[:, 0]) / det
     weights = np.column_stack([1.0 - l1 - l2, l1, l2])
-    return np.einsum("qk,qkc->qc", weights, values[half.cells[cell]])
+    return np.einsum("qk,qkc->qc", weights, values[corners[cell]])
 
 
 def discretization_error(coarse: Result, fine: Result) -> float:
     """Relative energy-norm distance between a coarse solution and a fine one, on the fine mesh."""
-    materials = scenes.loads(fine.scene).materials
+    laws = elasticities(fine)
     error = reference = 0.0
     for spec in BLOCKS:
         half = fine.half(spec.name)
         field = fine.solution[spec.name]
         coarse_field = interpolate(coarse.half(spec.name), coarse.solution[spec.name], half.points)
-        error += assembly.energy(half.points, half.cells, materials[spec.layer], field - coarse_field)
-        reference += assembly.energy(half.points, half.cells, materials[spec.layer], field)
+        error += assembly.energy(half.points, half.cells, laws[spec.layer][0], field - coarse_field)
+        reference += assembly.energy(half.points, half.cells, laws[spec.layer][0], field)
     return float(np.sqrt(error / reference))
 
 
 def layer_stresses(result: Result) -> dict[str, np.ndarray]:
     """Per-cell von Mises stress of each block."""
-    materials = scenes.loads(result.scene).materials
+    laws = elasticities(result)
     return {spec.name: assembly.von_mises(result.half(spec.name).points, result.half(spec.name).cells,
-                                          materials[spec.layer], result.solution[spec.name])
+                                          *laws[spec.layer], result.solution[spec.name])
             for spec in BLOCKS}
 
 
 def normal_jump(result: Result) -> np.ndarray:
-    """[u]·ν = u⁺_y − u⁻_y of layer 1 at the inner Σ vertices (negative: overlap)."""
-    lower, upper = result.lower.sigma()[1:-1], result.upper.sigma()[1:-1]
-    return result.solution["u_plus"][upper, 1] - result.solution["u_minus"][lower, 1]
+    """[u]·ν = (u⁺ − u⁻)·ν of layer 1 at the k multiplier nodes (negative: overlap)."""
+    jump = result.solution["u_plus"][result.interface_nodes("u_plus")] - \
+        result.solution["u_minus"][result.interface_nodes("u_minus")]
+    return np.einsum("kd,kd->k", jump, result.normals)

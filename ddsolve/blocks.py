@@ -46,12 +46,8 @@ class Block:
         self.matrix = PETSc.Mat().createAIJ(size=((local, n), (local, n)), bsize=system.block_size, csr=csr,
                                             comm=comm)
         self.matrix.setOption(PETSc.Mat.Option.SPD, True)
-        if system.coordinates is not None:
-            coordinates = PETSc.Vec().createWithArray(system.coordinates.ravel().copy(), bsize=2, comm=comm)
-            modes = PETSc.NullSpace().createRigidBody(coordinates)
-            self.matrix.setNearNullSpace(modes)  # the matrix keeps its own reference
-            modes.destroy()
-            coordinates.destroy()
+        if system.modes is not None:
+            self._set_near_null_space(system.modes, comm)
         self.ksp = PETSc.KSP().create(comm=comm)
         self.ksp.setOptionsPrefix(f"{self.name}_")
         self.ksp.setOperators(self.matrix)
@@ -70,6 +66,22 @@ class Block:
         gathered = self.mpi.gather(self.trace_positions, root=0)
         self._trace_order = np.concatenate(gathered) if self.is_leader else None
         self._trace_counts = [len(p) for p in gathered] if self.is_leader else None
+
+    def _set_near_null_space(self, modes: np.ndarray, comm: PETSc.Comm) -> None:
+        """The rigid-body modes (orthonormalized, as PETSc requires) as the matrix's near-null space."""
+        vectors = []
+        for mode in modes:
+            v = self.matrix.createVecRight()
+            v.getArray()[:] = mode
+            for u in vectors:
+                v.axpy(-v.dot(u), u)
+            v.normalize()
+            vectors.append(v)
+        space = PETSc.NullSpace().create(vectors=vectors, comm=comm)
+        self.matrix.setNearNullSpace(space)  # the matrix keeps its own reference
+        space.destroy()
+        for v in vectors:
+            v.destroy()
 
     @property
     def trace_dofs(self) -> np.ndarray:
@@ -129,9 +141,12 @@ class Block:
         """The trace of the solution whose local rows are ``x``, on the leader."""
         return self._gather_trace(x[self.trace_rows])
 
-    def energy(self) -> float | None:
-        """xᵀ(K x) = xᵀ b of the last solve, on the leader."""
-        return self.mpi.reduce(float(np.dot(self.x.getArray(readonly=True), self.rhs.getArray(readonly=True))), root=0)
+    def energies(self) -> np.ndarray | None:
+        """(xᵀ b, xᵀ f) of the last solve, on the leader: the energy xᵀ K x and the work of the body
+        loads f (the traction loads, whatever the interface loads were)."""
+        x = self.x.getArray(readonly=True)
+        local = np.array([np.dot(x, self.rhs.getArray(readonly=True)), np.dot(x, self.system.rhs)])
+        return self.mpi.reduce(local, root=0) if self.mpi.size > 1 else local
 
     def gather(self, x: np.ndarray) -> np.ndarray | None:
         """The whole solution (rows in order) on the leader."""

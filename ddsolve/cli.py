@@ -82,11 +82,12 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
 
 def cmd_reference(args, petsc_options: list[str]) -> int:
     init_petsc(petsc_options)
-    from . import io, mesh, reference
+    from . import geometry, io, reference
 
     scene = _load_scene(args)
-    lower, upper = mesh.build(scene)
-    result = reference.solve(scene, lower, upper)
+    mesh = geometry.build(scene)
+    geometry.check_loads(scene, mesh)
+    result = reference.solve(scene, mesh)
     output = _default_output(args)
     io.write(output, result)
     print(f"reference: {result.iterations} active-set steps, {result.wall_time:.3f} s -> {output}")
@@ -128,15 +129,20 @@ def cmd_plot(args, _petsc_options) -> int:
 
 
 def cmd_mesh(args, _petsc_options) -> int:
-    from . import mesh
+    from . import geometry, mesh as meshes
 
     scene = _load_scene(args)
-    lower, upper = mesh.build(scene)
-    print(f"{'half':6s} {'h_min':>8s} {'h_max':>8s} {'vertices':>9s} {'triangles':>10s}")
-    for half in (lower, upper):
-        s = mesh.statistics(half)
-        print(f"{half.name:6s} {s.h_min:8.4f} {s.h_max:8.4f} {s.vertices:9d} {s.triangles:10d}")
-    print(f"Σ vertices {len(lower.sigma())}, boundary vertices {mesh.boundary_vertex_count(lower, upper)}")
+    mesh = geometry.build(scene)
+    print(f"{'half':6s} {'h_min':>8s} {'h_max':>8s} {'vertices':>9s} {'nodes':>9s} {'triangles':>10s} {'min angle':>9s}")
+    for half in mesh.halves:
+        s = meshes.statistics(half)
+        print(f"{half.name:6s} {s.h_min:8.4f} {s.h_max:8.4f} {s.vertices:9d} {len(half.points):9d} {s.triangles:10d} "
+              f"{s.min_angle:9.1f}")
+    print(f"Σ vertices {int(mesh.sigma.corner.sum())}, boundary vertices {meshes.boundary_vertex_count(mesh)}, "
+          f"degree {mesh.degree}, boundaries: {', '.join(mesh.boundary_names())}")
+    if args.output:
+        geometry.write_msh(mesh, Path(args.output))
+        print(f"wrote {args.output} (gmsh, physical groups lower, upper, {', '.join(sorted(mesh.lower.boundaries.keys() | mesh.upper.boundaries.keys()))})")
     return 0
 
 
@@ -221,7 +227,8 @@ def parser() -> argparse.ArgumentParser:
     p = scene_command("reference", "monolithic reference solve (one process)")
     p.add_argument("-o", dest="output", help="result file (default: SCENE.h5)")
     p.set_defaults(run=cmd_reference)
-    p = scene_command("mesh", "mesh statistics per half (as the paper's Table 1)")
+    p = scene_command("mesh", "mesh statistics per half (as the paper's Table 1); -o writes it as .msh")
+    p.add_argument("-o", dest="output", help="write the mesh as a gmsh .msh file with physical groups")
     p.set_defaults(run=cmd_mesh)
     p = sub.add_parser("compare", help="error of a result against a reference result")
     p.add_argument("result")

@@ -14,11 +14,12 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import assembly, io, mesh, methods
+from . import assembly, geometry, io, methods
 from .blocks import Block
 from .errors import DDSolveError, DivergedError, NotConvergedError, SolverError
 from .exchange import Exchange, collective
-from .interface import BLOCKS, Interface
+from .interface import BLOCKS, Interface, for_mesh
+from .mesh import Mesh
 from .result import Result
 from .scene import Scene
 
@@ -26,8 +27,9 @@ STOP, SOLVE_LOAD, SOLVE_FULL, SCHUR, REPORT_ERROR = range(5)
 
 
 def result_width(command: int, trace_size: int) -> int:
-    """Values per block a round returns (before the status flag): a Schur complement, or trace + energy."""
-    return trace_size ** 2 if command == SCHUR else trace_size + 1
+    """Values per block a round returns (before the status flag): a Schur complement, or the trace,
+    the energy xᵀ K x and the work of the body loads."""
+    return trace_size ** 2 if command == SCHUR else trace_size + 2
 
 
 class BlockServer:
@@ -64,12 +66,12 @@ class BlockServer:
 
     def _solve(self, index: int, block: Block, load: np.ndarray, full: bool) -> np.ndarray | None:
         x = block.solve(load, body=full)
-        trace, energy = block.trace(x), block.energy()
+        trace, energies = block.trace(x), block.energies()
         if full:
             whole = block.gather(x)
             if block.is_leader:
                 self.solutions[index] = whole
-        return np.append(trace, energy) if block.is_leader else None
+        return np.concatenate([trace, energies]) if block.is_leader else None
 
 
 class ParallelRounds:
@@ -83,6 +85,7 @@ class ParallelRounds:
         self.exchange, self.server, self.trace_size, self.stages = exchange, server, trace_size, stages
         self.count = 0
         self.elapsed = 0.0  # seconds inside rounds
+        self.work = np.zeros(len(BLOCKS))  # work of the body loads in the last solve
 
     def _round(self, command: int, loads: np.ndarray | None) -> np.ndarray:
         self.stages["Update"].pop()
@@ -106,7 +109,12 @@ class ParallelRounds:
 
     def solve(self, loads: np.ndarray, full: bool) -> tuple[np.ndarray, np.ndarray]:
         results = self._round(SOLVE_FULL if full else SOLVE_LOAD, loads)
-        return results[:, :-1], results[:, -1]
+        self.work = results[:, -1]
+        return results[:, :-2], results[:, -2]
+
+    def potential_energy(self, energies: np.ndarray) -> float:
+        """Π = Σ_b ½ x_bᵀ K_b x_b − f_bᵀ x_b of the last full solve, whose energies are given."""
+        return float(0.5 * energies.sum() - self.work.sum())
 
     def schur_complements(self) -> np.ndarray:
         return self._round(SCHUR, None).reshape(-1, self.trace_size, self.trace_size)
@@ -167,7 +175,8 @@ def run_method(scene: Scene, setup: "Setup", server: BlockServer, progress):
         method = scene.solver.method
         outcome = methods.METHODS[method](rounds, interface, scene.solver, methods.Progress(method, out=progress))
         if not outcome.diverged:
-            rounds.solve(interface.loads(outcome.lam), full=True)  # the displacements for λ
+            _, energies = rounds.solve(interface.loads(outcome.lam), full=True)  # the displacements for λ
+            outcome.details["energy"] = rounds.potential_energy(energies)
         return outcome
 
     outcome, rounds, failure = drive(setup, server, work)
@@ -190,8 +199,7 @@ def peak_memory_mb() -> float:
 class Setup:
     """What every rank holds after assembly and factorization."""
 
-    lower: mesh.HalfMesh
-    upper: mesh.HalfMesh
+    mesh: Mesh
     exchange: Exchange
     blocks: list[Block]
     interface: Interface
@@ -209,33 +217,34 @@ def supported(size: int) -> bool:
     return size in (1, 2) or size % len(BLOCKS) == 0
 
 
-def build_meshes(scene: Scene, comm: MPI.Comm) -> tuple[mesh.HalfMesh, mesh.HalfMesh]:
-    """The scene's meshes on every rank; with 2 ranks or more the two halves are meshed at once."""
-    if scene.mesh_file is not None or comm.size == 1:
-        return comm.bcast(collective(comm, lambda: mesh.build(scene), root_only=True), root=0)
-    side = {0: -1, 1: 1}.get(comm.rank)
-    mine = collective(comm, lambda: mesh.generate(scene.sigma_vertices, scene.boundary_vertices, scene.crack, side)
-                      if side else None)
-    lower = comm.bcast(mine, root=0)
-    upper = comm.bcast(mine, root=1)
-    collective(comm, lambda: mesh.check(lower, upper, scene.crack, mesh.origin(scene)), root_only=True)
-    return lower, upper
+def build_mesh(scene: Scene, comm: MPI.Comm) -> Mesh:
+    """The scene's mesh on every rank; with 2 ranks or more the two halves of a box are meshed at once."""
+    if scene.mesh.kind != "box" or comm.size == 1:
+        built = comm.bcast(collective(comm, lambda: geometry.build(scene), root_only=True), root=0)
+    else:
+        side = {0: -1, 1: 1}.get(comm.rank)
+        mine = collective(comm, lambda: geometry.generate_half(scene, side) if side else None)
+        lower, upper = comm.bcast(mine, root=0), comm.bcast(mine, root=1)
+        paired = collective(comm, lambda: geometry.pair(scene, lower, upper), root_only=True)
+        sigma = comm.bcast(paired.sigma if comm.rank == 0 else None, root=0)
+        built = Mesh(lower, upper, sigma, geometry.origin(scene))
+    collective(comm, lambda: geometry.check_loads(scene, built), root_only=True)
+    return built
 
 
-def make_blocks(scene: Scene, lower: mesh.HalfMesh, upper: mesh.HalfMesh, exchange: Exchange,
-                package: str) -> list[Block]:
+def make_blocks(scene: Scene, mesh: Mesh, exchange: Exchange, package: str) -> list[Block]:
     """Assemble this rank's blocks (or its rows of them) and wrap them in PETSc objects."""
     blocks = []
     for index, group in zip(exchange.local_blocks, exchange.groups):
-        half = lower if BLOCKS[index].side < 0 else upper
+        half = mesh.half(BLOCKS[index].side)
         rows = assembly.row_ranges(len(half.points), group.size)[group.rank] if group.size > 1 else None
-        system = assembly.block_systems(scene, lower, upper, [index], rows)[0]
+        system = assembly.block_systems(scene, mesh, [index], rows)[0]
         blocks.append(Block(system, comm=PETSc.Comm(group), factor_package=package))
     return blocks
 
 
-def prepare(scene: Scene, comm: MPI.Comm, meshes: tuple[mesh.HalfMesh, mesh.HalfMesh] | None = None) -> Setup:
-    """Build (or take) the meshes, assemble and factor every rank's blocks."""
+def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None) -> Setup:
+    """Build (or take) the mesh, assemble and factor every rank's blocks."""
     if not supported(comm.size):
         error = DDSolveError(f"unsupported number of ranks {comm.size}: use 1, 2 or a multiple of 4")
         error.collective = True  # every rank sees the same size
@@ -246,10 +255,10 @@ def prepare(scene: Scene, comm: MPI.Comm, meshes: tuple[mesh.HalfMesh, mesh.Half
 
     mark = time.perf_counter()
     stages["Setup"].push()
-    lower, upper = meshes if meshes is not None else build_meshes(scene, comm)
+    mesh = mesh if mesh is not None else build_mesh(scene, comm)
     exchange = Exchange(comm, len(BLOCKS))
-    blocks = collective(comm, lambda: make_blocks(scene, lower, upper, exchange, FACTOR_PACKAGE[method]))
-    interface = Interface(lower.points[lower.sigma(), 0], scene.crack, scene.contact)
+    blocks = collective(comm, lambda: make_blocks(scene, mesh, exchange, FACTOR_PACKAGE[method]))
+    interface = for_mesh(mesh.sigma, scene.nonpenetration)
     stages["Setup"].pop()
     timings["setup"] = time.perf_counter() - mark
 
@@ -259,12 +268,12 @@ def prepare(scene: Scene, comm: MPI.Comm, meshes: tuple[mesh.HalfMesh, mesh.Half
     comm.Barrier()
     stages["Factorization"].pop()
     timings["factorization"] = time.perf_counter() - mark
-    return Setup(lower, upper, exchange, blocks, interface, stages, timings)
+    return Setup(mesh, exchange, blocks, interface, stages, timings)
 
 
-def bound(scene: Scene, comm: MPI.Comm, meshes=None, iterations: int = 300) -> float:
+def bound(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, iterations: int = 300) -> float:
     """λmax of the dual operator C K⁻¹ Cᵀ W by power iteration (one round each); 2/λmax bounds Uzawa's θ."""
-    setup = prepare(scene, comm, meshes)
+    setup = prepare(scene, comm, mesh)
     try:
         def work(rounds):
             problem = methods.DualProblem(rounds, setup.interface, scene.solver)
@@ -280,21 +289,22 @@ def bound(scene: Scene, comm: MPI.Comm, meshes=None, iterations: int = 300) -> f
         setup.destroy()
 
 
-def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, meshes=None) -> Result | None:
+def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mesh: Mesh | None = None
+          ) -> Result | None:
     """Run the domain decomposition for ``scene`` on ``comm``; write ``output`` on rank 0.
 
     Returns the result on rank 0 (None elsewhere).  A run that reaches max_iterations writes its
-    result with converged = false and then raises NotConvergedError on every rank.  ``meshes``
-    (on every rank) skips building them.
+    result with converged = false and then raises NotConvergedError on every rank.  ``mesh``
+    (on every rank) skips building it.
     """
-    setup = prepare(scene, comm, meshes)
-    lower, upper, exchange, blocks, interface, stages, timings = (
-        setup.lower, setup.upper, setup.exchange, setup.blocks, setup.interface, setup.stages, setup.timings)
+    setup = prepare(scene, comm, mesh)
+    mesh, exchange, interface, stages, timings = (setup.mesh, setup.exchange, setup.interface, setup.stages,
+                                                  setup.timings)
     method = scene.solver.method
 
     try:
         mark = time.perf_counter()
-        server = BlockServer(blocks, exchange)
+        server = BlockServer(setup.blocks, exchange)
         outcome, rounds, failure = run_method(scene, setup, server, progress)
         failure = comm.bcast(failure, root=0)
         if failure is not None:
@@ -305,17 +315,19 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
 
         mark = time.perf_counter()
         stages["Output"].push()
-        sizes = [2 * len((lower if spec.side < 0 else upper).points) for spec in BLOCKS]
+        sizes = [2 * len(mesh.half(spec.side).points) for spec in BLOCKS]
         solutions = exchange.gather_varying([server.solutions[b] for b in exchange.led_blocks], sizes)
         memory = comm.gather(peak_memory_mb(), root=0)
         result = None
         if exchange.is_root:
             timings["update"] = timings["iterations"] - rounds.elapsed
+            frames = mesh.sigma.frames[mesh.sigma.multiplier_nodes]
+            solution = {spec.name: assembly.to_global(x, assembly.trace_nodes(mesh.half(spec.side), mesh.sigma),
+                                                      frames) for spec, x in zip(BLOCKS, solutions)}
             result = Result(
                 scene=scene.text, method=method, converged=outcome.converged, iterations=outcome.iterations,
                 solves=rounds.count, wall_time=timings["factorization"] + timings["iterations"], ranks=comm.size,
-                lower=lower, upper=upper, solution={spec.name: x.reshape(-1, 2) for spec, x in zip(BLOCKS, solutions)},
-                interface_x=interface.x, crack=interface.crack, multipliers=interface.split(outcome.lam),
+                mesh=mesh, solution=solution, multipliers=interface.split(outcome.lam, frames),
                 history=np.array(outcome.history), timings=timings, message=outcome.message,
                 attrs={**io.provenance(), "stop": scene.solver.stop, "tol": scene.solver.tol,
                        "peak_memory_mb": memory, **outcome.details},

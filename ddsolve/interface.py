@@ -1,19 +1,20 @@
 """The interface Σ: the four blocks, the Lagrange multipliers that couple them, and their signs.
 
-Every block has the same *trace*: the displacements of the Σ vertices strictly inside (−1, 1),
-ordered by x, interleaved (x, y) — a vector of length 2k.  The multipliers are nodal values
-(densities, as in the paper) stacked into one vector λ = [μᶜ | μᵍ | μ⁻ | μ⁺]:
+Every block has the same *trace*: the displacements of the k Σ nodes that are not clamped, in order
+along Σ, each in its local frame (tangential, normal) — a vector of length 2k (for a straight Σ
+along x the frame is (x, y)).  The multipliers are nodal values (densities, as in the paper) stacked
+into one vector λ = [μᶜ | μᵍ | μ⁻ | μ⁺], vectors in the same local frames:
 
 ==========  ======================  ===================  ========================
 multiplier  vertices                gap it enforces      admissible set
 ==========  ======================  ===================  ========================
-μᶜ          crack (inside (a, b))   (u⁻ − u⁺)·ν ≤ 0      0 ≤ μᶜ ≤ p
+μᶜ          crack                   (u⁻ − u⁺)·ν ≤ 0      0 ≤ μᶜ ≤ p
 μᵍ (x, y)   glued (not crack)       u⁻ − u⁺ = 0          −p ≤ μᵍ ≤ p
 μ⁻ (x, y)   all                     u⁻ − v⁻ = 0          −p ≤ μ⁻ ≤ p
 μ⁺ (x, y)   all                     u⁺ − v⁺ = 0          −p ≤ μ⁺ ≤ p
 ==========  ======================  ===================  ========================
 
-With the lumped weights w (half the length of the Σ edges at a vertex) the discrete coupling is
+With the lumped weights w (∫Σ φ_k ds: half the length of the Σ edges at a P1 vertex) the discrete coupling is
 gap = Σ_b C_b t_b and block b receives the nodal force −C_bᵀ W λ on its trace.  μᶜ exists only
 when the scene has a crack and non-penetration; without it the crack faces are simply free.
 """
@@ -23,7 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .mesh import TOL
+from .mesh import SigmaLine
+
 
 
 @dataclass(frozen=True)
@@ -54,16 +56,11 @@ class Coupling:
 class Interface:
     """Multiplier layout and the maps between traces, gaps, multipliers and interface loads."""
 
-    def __init__(self, sigma_x: np.ndarray, crack: tuple[float, float] | None, contact: bool):
-        """``sigma_x``: x of all Σ vertices in increasing order, endpoints ±1 included."""
-        sigma_x = np.asarray(sigma_x, dtype=np.float64)
-        self.x = sigma_x[1:-1]
-        self.weights = 0.5 * (sigma_x[2:] - sigma_x[:-2])
-        k = len(self.x)
-        if crack is None:
-            self.crack = np.zeros(k, dtype=bool)
-        else:
-            self.crack = (self.x > crack[0] + TOL) & (self.x < crack[1] - TOL)
+    def __init__(self, weights: np.ndarray, crack: np.ndarray, contact: bool):
+        """``weights`` and ``crack`` (bool) of the k multiplier nodes; ``contact``: non-penetration holds."""
+        self.weights = np.asarray(weights, dtype=np.float64)
+        self.crack = np.asarray(crack, dtype=bool)
+        k = len(self.weights)
         self.contact = bool(contact and self.crack.any())
         contact_vertices = np.flatnonzero(self.crack) if self.contact else np.zeros(0, dtype=np.int64)
         glued_vertices = np.flatnonzero(~self.crack)
@@ -103,7 +100,7 @@ class Interface:
 
     @property
     def trace_size(self) -> int:
-        return 2 * len(self.x)
+        return 2 * len(self.weights)
 
     def bounds(self, p: float | None) -> tuple[np.ndarray, np.ndarray]:
         """Lower and upper bounds of λ: μᶜ in [0, p], the others in [−p, p] (p = None: unbounded)."""
@@ -157,7 +154,7 @@ class Interface:
         Glued vertices tie all four blocks; a crack vertex ties u⁻ with v⁻ (lower face) and u⁺ with
         v⁺ (upper face), and also the faces' normal components where ``closed`` (per μᶜ row).
         """
-        k = len(self.x)
+        k = len(self.weights)
         lower = np.arange(2 * k)
         upper = lower + 2 * k
         glued = np.repeat(~self.crack, 2)
@@ -169,17 +166,26 @@ class Interface:
         lower, upper = numbers[:2 * k], numbers[2 * k:]
         return np.array([lower, upper, lower, upper])
 
-    def split(self, lam: np.ndarray) -> dict[str, np.ndarray]:
-        """Per-vertex arrays for output: mu_c ``(k,)``, mu_g, mu_minus, mu_plus ``(k, 2)``; 0 where absent."""
-        k = len(self.x)
+    def split(self, lam: np.ndarray, frames: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """Per-node arrays: mu_c ``(k,)``, mu_g, mu_minus, mu_plus ``(k, 2)``; 0 where absent.
+
+        The vectors are in the nodes' local frames, or in (x, y) when their ``frames`` ``(k, 2, 2)`` are given.
+        """
+        k = len(self.weights)
         out = {"mu_c": np.zeros(k)}
         out["mu_c"][self.vertex[self.slices["mu_c"]]] = lam[self.slices["mu_c"]]
         for name in ("mu_g", "mu_minus", "mu_plus"):
             values = np.zeros((k, 2))
             rows = self.slices[name]
             values[self.vertex[rows], self.component[rows]] = lam[rows]
-            out[name] = values
+            out[name] = values if frames is None else np.einsum("nab,na->nb", frames, values)
         return out
+
+
+def for_mesh(sigma: SigmaLine, contact: bool) -> Interface:
+    """The interface of a mesh's Σ (``contact``: the scene's non-penetration condition)."""
+    nodes = sigma.multiplier_nodes
+    return Interface(sigma.weights[nodes], sigma.crack[nodes], contact)
 
 
 def _both_components(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

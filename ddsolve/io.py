@@ -13,10 +13,11 @@ import numpy as np
 
 from .errors import DDSolveError
 from .interface import BLOCKS
-from .mesh import HalfMesh
+from .mesh import HalfMesh, Mesh, SigmaLine
 from .result import Result
 
 MULTIPLIERS = ("mu_c", "mu_g", "mu_minus", "mu_plus")
+SIGMA_FIELDS = ("points", "normals", "weights", "crack", "tip", "clamped", "corner")
 
 
 def atomic(path: Path, write) -> None:
@@ -93,11 +94,21 @@ def _write_hdf5(name: str, result: Result) -> None:
         for key, value in result.timings.items():
             timings.attrs[key] = value
         for half in (result.lower, result.upper):
-            f[f"mesh/{half.name}/points"] = half.points
-            f[f"mesh/{half.name}/cells"] = half.cells
+            group = f.create_group(f"mesh/{half.name}")
+            group["points"] = half.points
+            group["cells"] = half.cells
+            group["sigma"] = half.sigma
+            group["interface"] = half.sigma[result.multiplier_nodes]
+            for boundary, edges in half.boundaries.items():
+                group[f"boundaries/{boundary}"] = edges
+        sigma = result.mesh.sigma
+        for key in SIGMA_FIELDS:
+            f[f"sigma/{key}"] = getattr(sigma, key)
         for name, values in result.solution.items():
             f[f"solution/{name}"] = values
         f["interface/x"] = result.interface_x
+        f["interface/points"] = result.interface_points
+        f["interface/normal"] = result.normals
         f["interface/crack"] = result.crack
         for name in MULTIPLIERS:
             f[f"interface/{name}"] = result.multipliers[name]
@@ -116,11 +127,11 @@ def xdmf(h5_name: str, result: Result) -> str:
     grids = []
     for spec in BLOCKS:
         half = result.half(spec.name)
-        n, m = len(half.points), len(half.cells)
+        n, (m, k) = len(half.points), half.cells.shape
         item = 'Format="HDF" Precision="8" NumberType="Float"'
         grids.append(f"""    <Grid Name="{spec.name}" GridType="Uniform">
-      <Topology TopologyType="Triangle" NumberOfElements="{m}">
-        <DataItem Dimensions="{m} 3" NumberType="Int" Precision="8" Format="HDF">{h5_name}:/mesh/{half.name}/cells</DataItem>
+      <Topology TopologyType="{'Triangle' if k == 3 else 'Triangle_6'}" NumberOfElements="{m}">
+        <DataItem Dimensions="{m} {k}" NumberType="Int" Precision="8" Format="HDF">{h5_name}:/mesh/{half.name}/cells</DataItem>
       </Topology>
       <Geometry GeometryType="XY">
         <DataItem Dimensions="{n} 2" {item}>{h5_name}:/mesh/{half.name}/points</DataItem>
@@ -151,21 +162,24 @@ def read(path: Path) -> Result:
         raise DDSolveError(f"{path}: result file not found")
     try:
         with h5py.File(path, "r") as f:
-            halves = {side: HalfMesh(f[f"mesh/{name}/points"][()], f[f"mesh/{name}/cells"][()], side)
-                      for side, name in ((-1, "lower"), (1, "upper"))}
+            halves = []
+            for side, name in ((-1, "lower"), (1, "upper")):
+                group = f[f"mesh/{name}"]
+                boundaries = {key: edges[()] for key, edges in group.get("boundaries", {}).items()}
+                halves.append(HalfMesh(group["points"][()], group["cells"][()], side, group["sigma"][()], boundaries))
+            sigma = SigmaLine(**{key: f[f"sigma/{key}"][()] for key in SIGMA_FIELDS})
             known = {"converged", "iterations", "solves", "method", "wall_time", "ranks", "scene", "message"}
             return Result(
                 scene=str(f.attrs["scene"]), method=str(f.attrs["method"]),
                 converged=bool(f.attrs["converged"]), iterations=int(f.attrs["iterations"]),
                 solves=int(f.attrs["solves"]), wall_time=float(f.attrs["wall_time"]),
-                ranks=int(f.attrs["ranks"]), lower=halves[-1], upper=halves[1],
+                ranks=int(f.attrs["ranks"]), mesh=Mesh(*halves, sigma, str(path)),
                 solution={spec.name: f[f"solution/{spec.name}"][()] for spec in BLOCKS},
-                interface_x=f["interface/x"][()], crack=f["interface/crack"][()].astype(bool),
                 multipliers={name: f[f"interface/{name}"][()] for name in MULTIPLIERS},
                 history=f["history/criterion"][()],
                 timings={k: float(v) for k, v in f["timings"].attrs.items()} if "timings" in f else {},
                 message=str(f.attrs.get("message", "")),
                 attrs={k: v for k, v in f.attrs.items() if k not in known},
             )
-    except (OSError, KeyError) as exc:
+    except (OSError, KeyError, TypeError, ValueError) as exc:
         raise DDSolveError(f"{path}: not a ddsolve result file ({exc})") from None

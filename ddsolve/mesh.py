@@ -1,71 +1,425 @@
-"""Triangle meshes of the two halves Ω₋ = (−1,1)×(−1,0) and Ω₊ = (−1,1)×(0,1).
+"""The meshes of the two halves and the interface Σ between them: the one thing geometry produces.
 
-Both halves share their vertices on Σ = (−1,1)×{0}; crack tips are vertices.  Arrays follow meshio:
-``points`` is row-major ``(n, 2)`` float64, ``cells`` is ``(m, 3)`` int64, counter-clockwise.
-No PETSc or MPI here.
+A :class:`Mesh` holds the lower half Ω₋ and the upper half Ω₊ (:class:`HalfMesh`: nodes, P1 or P2
+triangles, named boundary edges) and :class:`SigmaLine`, the Σ nodes in order along Σ with their
+normals, lumped weights and roles (crack, crack tip, clamped).  Whether the halves came from the
+built-in box, a gmsh script or a mesh file, nothing downstream can tell.
+
+Conventions: arrays follow meshio (row-major ``points (n, 2)`` float64, ``cells (m, 3)`` or
+``(m, 6)`` int64 counter-clockwise, P2 nodes in meshio's order v0 v1 v2 m01 m12 m20).  Boundary edges
+are ``(e, 2)`` or, for P2, ``(e, 3)`` = (a, b, midpoint), oriented counter-clockwise around their
+half.  Σ runs so that ν, the outward normal of the lower half, is its tangent turned left.
+No PETSc, MPI or gmsh here.
 """
 from __future__ import annotations
 
-import contextlib
-import io
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
-from pathlib import Path
 
 import numpy as np
 
 from .errors import MeshError
 
-#: Coordinates closer than this to x = ±1, y = 0, ±1 are snapped onto the line.
+#: Boundary names with a meaning: Σ (cracks included), the cracks, and Γ_D (both layers clamped).
+SIGMA, CRACK, CLAMPED = "sigma", "crack", "clamped"
+#: Relative tolerance for coordinates that must coincide (Σ nodes of the two halves).
 TOL = 1e-10
 
 
-@dataclass(frozen=True)
+def gauss_interval(points: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss–Legendre rule on [0, 1]: (abscissae, weights)."""
+    s, w = np.polynomial.legendre.leggauss(points)
+    return 0.5 * (s + 1.0), 0.5 * w
+
+
+#: The rule for lengths and lumped weights along edges (exact for straight P2 edges).
+_EDGE_RULE = gauss_interval(4)
+
+
+@dataclass(frozen=True, eq=False)
 class HalfMesh:
-    """One half of the square; ``side`` is -1 (lower, y ≤ 0) or +1 (upper, y ≥ 0)."""
+    """One half: ``side`` −1 (lower, Ω₋) or +1 (upper, Ω₊); ``sigma`` its Σ nodes in Σ order."""
 
     points: np.ndarray
     cells: np.ndarray
     side: int
+    sigma: np.ndarray
+    boundaries: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def name(self) -> str:
         return "lower" if self.side < 0 else "upper"
 
-    def sigma(self) -> np.ndarray:
-        """Indices of the vertices on Σ (y = 0), sorted by x; endpoints included."""
-        on = np.flatnonzero(self.points[:, 1] == 0.0)
-        return on[np.argsort(self.points[on, 0], kind="stable")]
+    @property
+    def degree(self) -> int:
+        return 1 if self.cells.shape[1] == 3 else 2
 
-    def clamped(self) -> np.ndarray:
-        """Indices of the vertices on Γ_D (x = ±1)."""
-        return np.flatnonzero(np.abs(self.points[:, 0]) == 1.0)
-
-    def _edge_keys(self) -> tuple[np.ndarray, np.ndarray]:
-        """Every cell edge as (vertex pair, integer key smaller·n + larger), 3 per cell."""
-        pairs = self.cells[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-        return pairs, pairs.min(axis=1) * len(self.points) + pairs.max(axis=1)
+    @property
+    def corners(self) -> np.ndarray:
+        """The triangles' vertices ``(m, 3)`` (the cells themselves for P1)."""
+        return self.cells[:, :3]
 
     @cached_property
-    def _boundary_edges(self) -> np.ndarray:
-        pairs, keys = self._edge_keys()
-        _, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
-        return pairs[counts[inverse] == 1]
+    def vertex_count(self) -> int:
+        """Triangle vertices (P2 midpoints not counted)."""
+        return len(np.unique(self.corners))
 
-    def boundary_edges(self) -> np.ndarray:
-        """Edges used by exactly one triangle, oriented counter-clockwise around the half."""
-        return self._boundary_edges
+    def edges(self, name: str) -> np.ndarray:
+        """The boundary edges named ``name`` (empty if this half has none)."""
+        return self.boundaries.get(name, np.zeros((0, self.degree + 1), dtype=np.int64))
 
-    def edges_on_line(self, y: float) -> np.ndarray:
-        """Boundary edges lying on the horizontal line at height ``y``."""
-        edges = self.boundary_edges()
-        return edges[np.all(self.points[edges, 1] == y, axis=1)]
+    def nodes(self, name: str) -> np.ndarray:
+        """Sorted indices of the nodes on the boundary edges named ``name``."""
+        return np.unique(self.edges(name))
+
+    def clamped(self) -> np.ndarray:
+        """Indices of the nodes on Γ_D."""
+        return self.nodes(CLAMPED)
 
     def areas(self) -> np.ndarray:
-        """Signed triangle areas (positive for counter-clockwise cells)."""
-        p = self.points[self.cells]
-        d1, d2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
-        return 0.5 * (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+        """Signed areas of the triangles' corners (positive for counter-clockwise cells)."""
+        return signed_areas(self.points, self.corners)
+
+    @cached_property
+    def boundary_edges(self) -> np.ndarray:
+        """Every edge used by exactly one cell, oriented counter-clockwise (with its midpoint for P2)."""
+        edges, counts = _cell_edges(self.cells)
+        return edges[counts == 1]
+
+
+@dataclass(frozen=True, eq=False)
+class SigmaLine:
+    """The Σ nodes in order (endpoints included) and what each one is.
+
+    ``weights`` are the lumped integrals ∫Σ φ_k ds; ``normals`` point out of the lower half;
+    ``crack`` marks nodes whose faces are not glued (inside a crack, or a crack's end on a free
+    boundary); ``tip`` marks crack tips (glued, between a crack and a glued part); ``clamped`` marks
+    nodes on Γ_D, which carry no multiplier; ``corner`` is False for P2 midpoints.
+    """
+
+    points: np.ndarray
+    normals: np.ndarray
+    weights: np.ndarray
+    crack: np.ndarray
+    tip: np.ndarray
+    clamped: np.ndarray
+    corner: np.ndarray
+
+    @property
+    def multiplier_nodes(self) -> np.ndarray:
+        """Positions (along Σ) of the nodes that carry multipliers: those not clamped."""
+        return np.flatnonzero(~self.clamped)
+
+    @property
+    def frames(self) -> np.ndarray:
+        """``(s, 2, 2)``: rows τ (tangent) and ν (normal) at each node; trace components in this frame."""
+        nu = self.normals
+        tangent = np.column_stack([nu[:, 1], -nu[:, 0]])
+        return np.stack([tangent, nu], axis=1)
+
+    @cached_property
+    def arclength(self) -> np.ndarray:
+        """Distance along Σ from its first node (chords between consecutive nodes)."""
+        return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(self.points, axis=0), axis=1))])
+
+    def pieces(self, mask: np.ndarray) -> list[tuple[int, int]]:
+        """Maximal runs ``[first, last]`` (inclusive) of consecutive nodes where ``mask`` holds."""
+        padded = np.concatenate([[False], mask, [False]]).astype(np.int8)
+        starts = np.flatnonzero(np.diff(padded) == 1)
+        stops = np.flatnonzero(np.diff(padded) == -1) - 1
+        return list(zip(starts.tolist(), stops.tolist()))
+
+
+@dataclass(frozen=True, eq=False)
+class Mesh:
+    """Both halves and Σ; ``origin`` names the source in messages."""
+
+    lower: HalfMesh
+    upper: HalfMesh
+    sigma: SigmaLine
+    origin: str = "mesh"
+
+    @property
+    def halves(self) -> tuple[HalfMesh, HalfMesh]:
+        return self.lower, self.upper
+
+    def half(self, side: int) -> HalfMesh:
+        return self.lower if side < 0 else self.upper
+
+    @property
+    def degree(self) -> int:
+        return self.lower.degree
+
+    def boundary_names(self) -> list[str]:
+        """Names of the boundary parts loads may refer to (Σ and the cracks excluded)."""
+        names = set(self.lower.boundaries) | set(self.upper.boundaries)
+        return sorted(names - {SIGMA, CRACK})
+
+
+# --- geometry helpers -------------------------------------------------------------------------
+def signed_areas(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    p = points[triangles]
+    d1, d2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    return 0.5 * (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+
+
+#: Local (a, b, midpoint) node positions of the three edges of a P1 or P2 triangle.
+_CELL_EDGES = {3: np.array([[0, 1], [1, 2], [2, 0]]), 6: np.array([[0, 1, 3], [1, 2, 4], [2, 0, 5]])}
+
+
+def _cell_edges(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every cell edge once per cell, ``(3m, 2|3)`` oriented with the cell, and how many cells use it."""
+    edges = cells[:, _CELL_EDGES[cells.shape[1]]].reshape(-1, 2 if cells.shape[1] == 3 else 3)
+    keys = _edge_keys(edges, int(cells.max(initial=0)) + 1)
+    _, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
+    return edges, counts[inverse]
+
+
+def _edge_keys(edges: np.ndarray, n: int) -> np.ndarray:
+    """An integer per undirected edge (its end nodes), for matching."""
+    return np.minimum(edges[:, 0], edges[:, 1]).astype(np.int64) * n + np.maximum(edges[:, 0], edges[:, 1])
+
+
+def edge_points(points: np.ndarray, edges: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Positions ``(e, q, 2)`` and tangents dx/ds ``(e, q, 2)`` at parameters ``s`` ``(q,)`` in [0, 1]."""
+    shapes, derivatives = edge_shapes(edges.shape[1], s)
+    nodes = points[edges]  # (e, k, 2)
+    return np.einsum("qk,ekd->eqd", shapes, nodes), np.einsum("qk,ekd->eqd", derivatives, nodes)
+
+
+def edge_shapes(nodes: int, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Lagrange shape functions on an edge (a, b[, midpoint]) and their s-derivatives, ``(q, k)``."""
+    s = np.asarray(s, dtype=float)
+    if nodes == 2:
+        return np.column_stack([1.0 - s, s]), np.column_stack([-np.ones_like(s), np.ones_like(s)])
+    shapes = np.column_stack([(1.0 - s) * (1.0 - 2.0 * s), s * (2.0 * s - 1.0), 4.0 * s * (1.0 - s)])
+    derivatives = np.column_stack([4.0 * s - 3.0, 4.0 * s - 1.0, 4.0 - 8.0 * s])
+    return shapes, derivatives
+
+
+def edge_lengths(points: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    s, w = _EDGE_RULE
+    _, tangents = edge_points(points, edges, s)
+    return np.linalg.norm(tangents, axis=2) @ w
+
+
+# --- building a half ----------------------------------------------------------------------------
+def make_half(points: np.ndarray, cells: np.ndarray, side: int, boundaries: dict[str, np.ndarray],
+              origin: str) -> tuple[HalfMesh, np.ndarray]:
+    """A checked half from raw nodes, cells and named boundary edges (any orientation).
+
+    Cells are made counter-clockwise (a file that is clockwise throughout is flipped; mixed
+    orientation is an error); nodes the cells do not use are dropped and the rest numbered along the
+    longer side of the bounding box, so that contiguous row ranges of a distributed block are compact
+    slabs.  Returns the half and the new number of every old node (−1: dropped).
+    """
+    where = f"{origin}: {'lower' if side < 0 else 'upper'} half"
+    points = np.asarray(points, dtype=np.float64)
+    cells = oriented(points, cells, where)
+    used = np.unique(cells)
+    extent = points[used].max(axis=0) - points[used].min(axis=0)
+    major = 0 if extent[0] >= extent[1] else 1
+    used = used[np.lexsort((points[used, 1 - major], points[used, major]))]
+    renumber = np.full(len(points), -1, dtype=np.int64)
+    renumber[used] = np.arange(len(used))
+    cells = renumber[cells]
+    points = points[used]
+    edges, counts = _cell_edges(cells)
+    outer = edges[counts == 1]
+    keys = _edge_keys(outer, len(points))
+    order = np.argsort(keys)
+    named = {}
+    for name, raw in boundaries.items():
+        raw = renumber[np.asarray(raw, dtype=np.int64).reshape(len(raw), -1)] if len(raw) else np.zeros((0, 2), np.int64)
+        if len(raw) == 0:
+            continue
+        if np.any(raw < 0):
+            raise MeshError(f"{where}: boundary {name!r} has nodes that no triangle uses")
+        wanted = _edge_keys(raw, len(points))
+        position = np.searchsorted(keys[order], wanted)
+        found = (position < len(keys)) & (keys[order][np.minimum(position, len(keys) - 1)] == wanted)
+        if not found.all():
+            raise MeshError(f"{where}: boundary {name!r} has {int((~found).sum())} edges that are not on "
+                            "the boundary of the half")
+        named[name] = outer[order[position]]
+    sigma = _chain(named.get(SIGMA, np.zeros((0, cells.shape[1] // 3 + 1), np.int64)), side, where)
+    return HalfMesh(points, cells, side, sigma, named), renumber
+
+
+def oriented(points: np.ndarray, cells: np.ndarray, where: str) -> np.ndarray:
+    """The cells, counter-clockwise; raise MeshError for bad nodes, inverted, degenerate, repeated or
+    overlapping cells.  A file that is clockwise throughout is flipped; mixed orientation is an error."""
+    cells = np.asarray(cells, dtype=np.int64)
+    if len(cells) == 0:
+        raise MeshError(f"{where}: no triangles")
+    if not np.all(np.isfinite(points)):
+        raise MeshError(f"{where}: non-finite node coordinates")
+    area = signed_areas(points, cells[:, :3])
+    scale = np.abs(area).max()
+    if np.all(area < 0):
+        cells = cells[:, [1, 0, 2, 3, 5, 4] if cells.shape[1] == 6 else [1, 0, 2]]
+        area = -area
+    if np.any(area <= 1e-12 * scale):
+        raise MeshError(f"{where}: {int(np.sum(area <= 1e-12 * scale))} inverted or degenerate triangles "
+                        "(non-positive area)")
+    _check_cover(points, cells, where)
+    return cells
+
+
+def _check_cover(points: np.ndarray, cells: np.ndarray, where: str) -> None:
+    """Reject repeated cells and cells that overlap (an edge in three cells, or more area than the
+    boundary encloses)."""
+    corners = np.sort(cells[:, :3], axis=1)
+    if len(np.unique(corners, axis=0)) < len(corners):
+        repeated = len(corners) - len(np.unique(corners, axis=0))
+        raise MeshError(f"{where}: {repeated} triangles are listed more than once")
+    edges, counts = _cell_edges(cells[:, :3])
+    if counts.max() > 2:
+        raise MeshError(f"{where}: {int(np.sum(counts > 2) // 3 or 1)} edges are shared by more than two "
+                        "triangles (overlapping cells)")
+    outer = edges[counts == 1]
+    a, b = points[outer[:, 0]], points[outer[:, 1]]
+    enclosed = 0.5 * np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+    total = signed_areas(points, cells[:, :3]).sum()
+    if abs(total - enclosed) > 1e-9 * abs(total):
+        raise MeshError(f"{where}: the triangles cover {total:.6g} but their boundary encloses {enclosed:.6g} "
+                        "(overlapping cells)")
+
+
+def _chain(edges: np.ndarray, side: int, where: str) -> np.ndarray:
+    """Σ nodes in Σ order from a half's Σ edges (oriented counter-clockwise around that half)."""
+    if len(edges) == 0:
+        return np.zeros(0, dtype=np.int64)
+    following = dict(zip(edges[:, 0].tolist(), range(len(edges))))
+    starts = set(edges[:, 0].tolist()) - set(edges[:, 1].tolist())
+    if len(following) != len(edges) or len(starts) != 1:
+        kind = "a closed curve" if not starts else "not one simple curve"
+        raise MeshError(f"{where}: Σ is {kind}; it must run from the outer boundary to the outer boundary")
+    node, path = starts.pop(), []
+    for _ in range(len(edges)):
+        edge = edges[following[node]]
+        path.append(edge[0])
+        if len(edge) == 3:
+            path.append(edge[2])
+        node = edge[1]
+        if node not in following:
+            break
+    path.append(node)
+    if len(path) != len(edges) * (len(edges[0]) - 1) + 1:
+        raise MeshError(f"{where}: Σ is not one connected curve")
+    path = np.array(path, dtype=np.int64)
+    return path[::-1].copy() if side < 0 else path  # the lower half runs against Σ
+
+
+# --- Σ --------------------------------------------------------------------------------------------
+def make_mesh(lower: HalfMesh, upper: HalfMesh, origin: str, exact_normals: np.ndarray | None = None) -> Mesh:
+    """Pair the halves along Σ and describe Σ; raise MeshError unless they form a valid decomposition.
+
+    ``exact_normals`` ``(s, 2)`` (NaN where unknown), in Σ order, replace the averaged edge normals.
+    """
+    for half in (lower, upper):
+        where = f"{origin}: {half.name} half"
+        if len(half.sigma) == 0:
+            raise MeshError(f"{where}: no Σ edges (a boundary part named {SIGMA!r} shared with the other half)")
+        if len(half.edges(CLAMPED)) == 0:
+            blocks = "u_minus and v_minus" if half.side < 0 else "u_plus and v_plus"
+            raise MeshError(f"{where} touches no clamped boundary: the stiffness of blocks {blocks} would be "
+                            "singular (rigid motions); clamp part of its outer boundary")
+        crack_edges = half.edges(CRACK)
+        if len(crack_edges) and not np.isin(_edge_keys(crack_edges, len(half.points)),
+                                            _edge_keys(half.edges(SIGMA), len(half.points))).all():
+            raise MeshError(f"{where}: a crack is not on Σ (every {CRACK!r} edge must be a {SIGMA!r} edge)")
+        if half.degree != lower.degree:
+            raise MeshError(f"{origin}: the halves have different element degrees")
+    scale = max(np.ptp(half.points, axis=0).max() for half in (lower, upper))
+    a, b = lower.points[lower.sigma], upper.points[upper.sigma]
+    if len(a) != len(b) or np.abs(a - b).max() > TOL * scale:
+        raise MeshError(f"{origin}: the Σ nodes of the two halves do not match ({len(a)} and {len(b)} nodes)")
+    _check_only_sigma_is_shared(lower, upper, scale, origin)
+    sigma = _sigma_line(lower, upper, exact_normals)
+    if np.any(sigma.crack & sigma.clamped):
+        first = sigma.points[np.flatnonzero(sigma.crack & sigma.clamped)[0]]
+        raise MeshError(f"{origin}: a crack reaches the clamped boundary at ({first[0]:.6g}, {first[1]:.6g}); "
+                        "the crack must stay off Γ_D")
+    return Mesh(lower, upper, sigma, origin)
+
+
+def _check_only_sigma_is_shared(lower: HalfMesh, upper: HalfMesh, scale: float, origin: str) -> None:
+    """The halves may touch along Σ only (else Σ does not split Ω)."""
+    def midpoints(half: HalfMesh) -> set[tuple[int, int]]:
+        edges = half.boundary_edges
+        sigma_keys = set(_edge_keys(half.edges(SIGMA), len(half.points)).tolist())
+        keep = ~np.isin(_edge_keys(edges, len(half.points)), list(sigma_keys))
+        mid = 0.5 * (half.points[edges[keep, 0]] + half.points[edges[keep, 1]])
+        return set(map(tuple, np.round(mid / (1e-8 * scale)).astype(np.int64).tolist()))
+
+    shared = midpoints(lower) & midpoints(upper)
+    if shared:
+        raise MeshError(f"{origin}: the halves touch along {len(shared)} edges that are not Σ: Σ must split Ω "
+                        f"into the lower and the upper half (is part of Σ missing from {SIGMA!r}?)")
+
+
+def _sigma_line(lower: HalfMesh, upper: HalfMesh, exact_normals: np.ndarray | None) -> SigmaLine:
+    degree = lower.degree
+    step = degree  # nodes per Σ edge, beyond its first
+    order = lower.sigma
+    points = lower.points[order]
+    edges = np.column_stack([order[:-1:step], order[step::step]] + ([order[1::step]] if degree == 2 else []))
+    s, w = _EDGE_RULE
+    shapes, _ = edge_shapes(edges.shape[1], s)
+    _, tangents = edge_points(lower.points, edges, s)
+    speed = np.linalg.norm(tangents, axis=2)  # (e, q)
+    local = np.einsum("eq,q,qk->ek", speed, w, shapes)  # ∫ φ_k ds per edge and edge node
+    positions = np.column_stack([np.arange(0, len(order) - 1, step), np.arange(step, len(order), step)]
+                                + ([np.arange(1, len(order), step)] if degree == 2 else []))
+    weights = np.bincount(positions.ravel(), local.ravel(), minlength=len(order))
+    # Normals: the unit tangents at each node's edge ends (and P2 middles), averaged with the edge
+    # lengths as weights, turned left (Σ runs so that ν, out of the lower half, is on its left).
+    _, end_tangents = edge_points(lower.points, edges, np.array([0.0, 1.0, 0.5][:edges.shape[1]]))
+    direction = end_tangents / np.linalg.norm(end_tangents, axis=2, keepdims=True)
+    summed = np.zeros((len(order), 2))
+    np.add.at(summed, positions.ravel(), (direction * (speed @ w)[:, None, None]).reshape(-1, 2))
+    normals = np.column_stack([-summed[:, 1], summed[:, 0]])
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    if exact_normals is not None:
+        known = np.all(np.isfinite(exact_normals), axis=1)
+        aligned = exact_normals * np.sign(np.sum(exact_normals * normals, axis=1))[:, None]
+        normals[known] = aligned[known] / np.linalg.norm(aligned[known], axis=1, keepdims=True)
+    crack_keys = set(_edge_keys(lower.edges(CRACK), len(lower.points)).tolist())
+    on_crack = np.isin(_edge_keys(edges, len(lower.points)), list(crack_keys))
+    crack_count = np.bincount(positions[:, :2].ravel(), np.repeat(on_crack, 2), minlength=len(order))
+    edge_count = np.bincount(positions[:, :2].ravel(), minlength=len(order))
+    if degree == 2:  # a midpoint belongs to its edge only
+        crack_count[1::2] = on_crack
+        edge_count[1::2] = 1
+    crack = (crack_count == edge_count) & (crack_count > 0)
+    tip = (crack_count > 0) & ~crack
+    clamped = np.isin(order, lower.clamped()) | np.isin(upper.sigma, upper.clamped())
+    corner = np.ones(len(order), dtype=bool)
+    if degree == 2:
+        corner[1::2] = False
+    return SigmaLine(points, normals, weights, crack, tip, clamped, corner)
+
+
+# --- P2 from P1, statistics ---------------------------------------------------------------------
+def elevate(points: np.ndarray, cells: np.ndarray, boundaries: dict[str, np.ndarray]
+            ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """P1 → P2 with straight edges: a new node at the middle of every edge (raw, unchecked arrays)."""
+    edges = cells[:, _CELL_EDGES[3]].reshape(-1, 2)
+    keys = _edge_keys(edges, len(points))
+    unique, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+    middles = 0.5 * (points[edges[first, 0]] + points[edges[first, 1]])
+    numbers = len(points) + np.arange(len(unique))
+    cells6 = np.column_stack([cells, numbers[inverse].reshape(-1, 3)])
+    named = {}
+    for name, raw in boundaries.items():
+        raw = np.asarray(raw, dtype=np.int64).reshape(-1, 2)
+        position = np.searchsorted(unique, _edge_keys(raw, len(points)))
+        if len(raw) and (np.any(position >= len(unique)) or np.any(unique[np.minimum(position, len(unique) - 1)]
+                                                                     != _edge_keys(raw, len(points)))):
+            raise MeshError(f"boundary {name!r} has edges that are not triangle edges")
+        named[name] = np.column_stack([raw, numbers[position]])
+    return np.vstack([points, middles]), cells6, named
 
 
 @dataclass(frozen=True)
@@ -74,224 +428,32 @@ class MeshStats:
 
     The paper does not define its h; ``h_min``, ``h_max`` are the smallest and largest circumdiameter
     (2R) of a triangle, which matches all twenty of its values within 18 % on our meshes of its
-    five (P, M) (the longest edge: within 23 %).
+    five (P, M) (the longest edge: within 23 %).  ``min_angle`` is the smallest angle in degrees.
     """
 
     h_min: float
     h_max: float
     vertices: int
     triangles: int
+    min_angle: float
 
 
 def statistics(half: HalfMesh) -> MeshStats:
-    p = half.points[half.cells]
-    edges = np.linalg.norm(p - p[:, [1, 2, 0]], axis=2)
+    p = half.points[half.corners]
+    sides = p[:, [1, 2, 0]] - p
+    edges = np.linalg.norm(sides, axis=2)
     circumdiameters = edges.prod(axis=1) / (2.0 * np.abs(half.areas()))
-    return MeshStats(float(circumdiameters.min()), float(circumdiameters.max()), len(half.points), len(half.cells))
+    cosines = -np.einsum("mkd,mkd->mk", sides, sides[:, [2, 0, 1]]) / (edges * edges[:, [2, 0, 1]])
+    angle = np.degrees(np.arccos(np.clip(cosines, -1.0, 1.0))).min()
+    return MeshStats(float(circumdiameters.min()), float(circumdiameters.max()), half.vertex_count,
+                     len(half.cells), float(angle))
 
 
-def snap(points: np.ndarray) -> np.ndarray:
-    """Put coordinates within TOL of the square's lines and of Σ exactly on them."""
-    points = np.array(points, dtype=np.float64)
-    for value in (-1.0, 0.0, 1.0):
-        points[np.abs(points - value) <= TOL] = value
-    return points
-
-
-def _compact(points: np.ndarray, cells: np.ndarray, side: int) -> HalfMesh:
-    """Keep only the vertices the cells use, numbered by x (then y).
-
-    Consecutive vertices then form vertical slabs, so a block distributed by contiguous row
-    ranges gives each rank a compact piece of the half with a short boundary.
-    """
-    used = np.unique(cells)
-    used = used[np.lexsort((points[used, 1], points[used, 0]))]
-    renumber = np.full(len(points), -1, dtype=np.int64)
-    renumber[used] = np.arange(len(used))
-    return HalfMesh(points[used], renumber[cells], side)
-
-
-def split(points: np.ndarray, cells: np.ndarray, origin: str) -> tuple[HalfMesh, HalfMesh]:
-    """Split a triangulation of the square into its halves by the side of Σ each cell lies on."""
-    y = points[cells, 1]
-    crossing = np.any(y < 0, axis=1) & np.any(y > 0, axis=1)
-    if crossing.any():
-        raise MeshError(f"{origin}: {crossing.sum()} triangles cross Σ (y = 0); Σ must be made of mesh edges")
-    lower = np.any(y < 0, axis=1)
-    flat = ~lower & ~np.any(y > 0, axis=1)
-    if flat.any():
-        raise MeshError(f"{origin}: {flat.sum()} degenerate triangles lie on Σ")
-    return _compact(points, cells[lower], -1), _compact(points, cells[~lower], +1)
-
-
-def read(path: Path) -> tuple[HalfMesh, HalfMesh]:
-    """Read a triangle mesh of the square with meshio (any format it reads; see docs/usage.md)."""
-    import meshio
-
-    path = Path(path)
-    if not path.is_file():
-        raise MeshError(f"{path}: mesh file not found")
-    chatter = io.StringIO()
-    try:
-        with contextlib.redirect_stdout(chatter), contextlib.redirect_stderr(chatter):
-            mesh = meshio.read(path)
-    except (Exception, SystemExit) as exc:  # meshio raises many kinds (even SystemExit): all mean unreadable
-        reason = str(exc) if not isinstance(exc, SystemExit) else chatter.getvalue()
-        reason = " ".join(reason.split()) or exc.__class__.__name__
-        raise MeshError(f"{path}: cannot read mesh ({reason})") from None
-    triangles = [block.data for block in mesh.cells if block.type == "triangle"]
-    if not triangles:
-        raise MeshError(f"{path}: no triangle cells")
-    cells = np.concatenate(triangles).astype(np.int64)
-    points = np.asarray(mesh.points, dtype=np.float64)
-    if points.ndim != 2 or points.shape[1] not in (2, 3):
-        raise MeshError(f"{path}: points must have 2 or 3 coordinates")
-    if points.shape[1] == 3:
-        if np.abs(points[:, 2]).max(initial=0.0) > TOL:
-            raise MeshError(f"{path}: the mesh is not planar (z != 0)")
-        points = points[:, :2]
-    if cells.min() < 0 or cells.max() >= len(points):
-        raise MeshError(f"{path}: cells refer to missing points")
-    points = snap(points)
-    p = points[cells]
-    area = (p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0])
-    if np.all(area < 0):  # a consistently clockwise file: adopt our orientation
-        cells = cells[:, ::-1].copy()
-    return split(points, cells, str(path))
-
-
-def check(lower: HalfMesh, upper: HalfMesh, crack: tuple[float, float] | None, origin: str = "mesh") -> None:
-    """Raise MeshError unless the halves form a valid decomposition for this crack."""
-    for half in (lower, upper):
-        where = f"{origin}: {half.name} half"
-        x, y = half.points[:, 0], half.points[:, 1] * half.side
-        if np.any(np.abs(x) > 1.0) or np.any(y < 0.0) or np.any(y > 1.0):
-            raise MeshError(f"{where}: vertices outside its half of the square")
-        area = half.areas()
-        scale = np.abs(area).max(initial=0.0)
-        if np.any(area <= 1e-12 * scale):
-            bad = int(np.sum(area <= 1e-12 * scale))
-            raise MeshError(f"{where}: {bad} inverted or degenerate triangles (non-positive area)")
-        if len(half.clamped()) < 2:
-            raise MeshError(f"{where}: no clamped boundary (x = ±1): the block would be singular")
-        edges = half.boundary_edges()
-        ends = half.points[edges]
-        on_sides = np.all(np.abs(ends[:, :, 0]) == 1.0, axis=1) & (ends[:, 0, 0] == ends[:, 1, 0])
-        on_lines = np.all(ends[:, :, 1] == ends[:, :1, 1], axis=1) & np.isin(ends[:, 0, 1], (0.0, half.side))
-        if not np.all(on_sides | on_lines):
-            raise MeshError(f"{where}: boundary edges inside the square (holes or non-conforming cells)")
-        sigma = half.sigma()
-        if len(sigma) < 3 or half.points[sigma[0], 0] != -1.0 or half.points[sigma[-1], 0] != 1.0:
-            raise MeshError(f"{where}: Σ must run from (-1, 0) to (1, 0) through at least one inner vertex")
-        if len(half.edges_on_line(0.0)) != len(sigma) - 1:
-            raise MeshError(f"{where}: Σ is not covered by a chain of boundary edges")
-    x_lower = lower.points[lower.sigma(), 0]
-    x_upper = upper.points[upper.sigma(), 0]
-    if len(x_lower) != len(x_upper) or np.abs(x_lower - x_upper).max() > TOL:
-        raise MeshError(f"{origin}: Σ vertices of the two halves do not match")
-    if crack is not None:
-        for tip in crack:
-            if np.abs(x_lower - tip).min() > TOL:
-                raise MeshError(f"{origin}: crack tip x = {tip} is not a Σ vertex")
-
-
-#: Grading of generated meshes: h(y) = h_Σ + (h_far − h_Σ)|y|^GRADING_EXPONENT, h_far = FAR_FACTOR·8/M.
-#: Fitted so that the five meshes of the paper's Table 1 have its vertex and triangle counts (±5 %).
-GRADING_EXPONENT = 0.8
-FAR_FACTOR = 1.2
-
-
-def apportion(total: int, lengths) -> np.ndarray:
-    """Split ``total`` segments among pieces in proportion to their lengths (≥ 1 each, exact sum)."""
-    lengths = np.asarray(lengths, dtype=float)
-    ideal = total * lengths / lengths.sum()
-    count = np.maximum(np.floor(ideal).astype(np.int64), 1)
-    while count.sum() > total:
-        count[int(np.argmax(np.where(count > 1, count - ideal, -np.inf)))] -= 1
-    while count.sum() < total:
-        count[int(np.argmax(ideal - count))] += 1
-    return count
-
-
-def generate(sigma_vertices: int, boundary_vertices: int, crack: tuple[float, float] | None,
-             side: int) -> HalfMesh:
-    """Unstructured graded triangulation of one half (side −1: lower, +1: upper) with gmsh.
-
-    Σ gets P vertices (endpoints and crack tips included), spaced uniformly on each Σ piece; the
-    square's boundary gets M vertices (bottom, top and the four half-sides in proportion to length).
-    Inside, the size grows from the Σ spacing 2/(P − 1) to 1.2 × the boundary spacing 8/M at y = ±1.
-    Each half is meshed on its own (one thread, deterministic): the Σ vertices come from the same
-    transfinite curves, so the halves match, and a half is the same whether it is meshed alone in a
-    process or after the other one.
-    """
-    import gmsh  # imported here: importing gmsh changes the SIGINT handler until finalize
-
-    sigma_x = [-1.0, *crack, 1.0] if crack is not None else [-1.0, 1.0]
-    h_sigma = 2.0 / (sigma_vertices - 1)
-    slope = FAR_FACTOR * 8.0 / boundary_vertices - h_sigma
-    gmsh.initialize([], readConfigFiles=False)
-    try:
-        for name, value in {"General.Terminal": 0, "General.Verbosity": 0, "General.NumThreads": 1,
-                            "Mesh.MaxNumThreads2D": 1, "Mesh.Algorithm": 5, "Mesh.MeshSizeFromPoints": 0,
-                            "Mesh.MeshSizeExtendFromBoundary": 0, "Mesh.MeshSizeFromCurvature": 0}.items():
-            gmsh.option.setNumber(name, value)
-        geo = gmsh.model.geo
-        on_sigma = [geo.addPoint(x, 0.0, 0.0) for x in sigma_x]
-        sigma = [geo.addLine(a, b) for a, b in zip(on_sigma[:-1], on_sigma[1:])]
-        corners = [geo.addPoint(x, y, 0.0) for x, y in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
-        bottom, top = geo.addLine(corners[0], corners[1]), geo.addLine(corners[2], corners[3])
-        edges = [geo.addLine(corners[1], on_sigma[-1]), geo.addLine(on_sigma[0], corners[0]),
-                 geo.addLine(on_sigma[-1], corners[2]), geo.addLine(corners[3], on_sigma[0])]
-        if side < 0:
-            surface = geo.addPlaneSurface([geo.addCurveLoop([bottom, edges[0], *[-c for c in sigma[::-1]], edges[1]])])
-        else:
-            surface = geo.addPlaneSurface([geo.addCurveLoop([*sigma, edges[2], top, edges[3]])])
-        geo.synchronize()
-        curves = [*sigma, bottom, top, *edges]
-        counts = [*apportion(sigma_vertices - 1, np.diff(sigma_x)),
-                  *apportion(boundary_vertices, [2.0, 2.0, 1.0, 1.0, 1.0, 1.0])]
-        for curve, count in zip(curves, counts):
-            gmsh.model.mesh.setTransfiniteCurve(curve, int(count) + 1)
-        field = gmsh.model.mesh.field.add("MathEval")
-        # gmsh's expression parser rejects "+ -c" (and aborts the process): write the sign out.
-        gmsh.model.mesh.field.setString(field, "F", f"{h_sigma:.17f} {'+' if slope >= 0 else '-'} "
-                                                    f"{abs(slope):.17f} * Fabs(y)^{GRADING_EXPONENT:.17f}")
-        gmsh.model.mesh.field.setAsBackgroundMesh(field)
-        gmsh.model.mesh.generate(2)
-        tags, coordinates, _ = gmsh.model.mesh.getNodes()
-        tags = np.asarray(tags, dtype=np.int64)
-        points = snap(np.asarray(coordinates, dtype=np.float64).reshape(-1, 3)[:, :2])
-        position = np.full(int(tags.max()) + 1, -1, dtype=np.int64)
-        position[tags] = np.arange(len(tags))
-        _, nodes = gmsh.model.mesh.getElementsByType(2, surface)
-        half = _compact(points, position[np.asarray(nodes, dtype=np.int64).reshape(-1, 3)], side)
-        clockwise = half.areas() < 0
-        half.cells[clockwise] = half.cells[clockwise][:, ::-1]
-    finally:
-        gmsh.finalize()
-    return half
-
-
-def boundary_vertex_count(lower: HalfMesh, upper: HalfMesh) -> int:
-    """M: vertices on ∂Ω (the square's sides), the points (±1, 0) counted once."""
+def boundary_vertex_count(mesh: Mesh) -> int:
+    """M: triangle vertices on ∂Ω (the boundary of the halves without Σ), shared ones counted once."""
     coordinates = set()
-    for half in (lower, upper):
-        p = half.points
-        outer = (np.abs(p[:, 0]) == 1.0) | (np.abs(p[:, 1]) == 1.0)
-        coordinates.update(map(tuple, p[outer]))
+    for half in mesh.halves:
+        edges = half.boundary_edges[:, :2]
+        sigma = np.isin(_edge_keys(edges, len(half.points)), _edge_keys(half.edges(SIGMA)[:, :2], len(half.points)))
+        coordinates.update(map(tuple, half.points[np.unique(edges[~sigma])].round(12).tolist()))
     return len(coordinates)
-
-
-def build(scene) -> tuple[HalfMesh, HalfMesh]:
-    """The scene's meshes: read from ``mesh.file`` or generated from P and M; always checked."""
-    if scene.mesh_file is not None:
-        lower, upper = read(scene.mesh_file)
-    else:
-        lower, upper = (generate(scene.sigma_vertices, scene.boundary_vertices, scene.crack, side) for side in (-1, 1))
-    check(lower, upper, scene.crack, origin(scene))
-    return lower, upper
-
-
-def origin(scene) -> str:
-    """How to name the scene's mesh in messages."""
-    return str(scene.mesh_file) if scene.mesh_file is not None else "generated mesh"

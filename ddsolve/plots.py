@@ -24,6 +24,15 @@ def _pyplot():
     return plt
 
 
+def linear_triangles(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Triangles to draw: the cells (P1), or each P2 cell cut into four at its midpoints; and the cell
+    each triangle comes from."""
+    if cells.shape[1] == 3:
+        return cells, np.arange(len(cells))
+    pieces = cells[:, [[0, 3, 5], [3, 1, 4], [5, 4, 2], [3, 4, 5]]]  # (m, 4, 3)
+    return pieces.reshape(-1, 3), np.repeat(np.arange(len(cells)), 4)
+
+
 def deformed_layers(result: Result, path: Path, scale: float) -> None:
     """Both layers side by side, displacements magnified by ``scale``, cells coloured by von Mises."""
     plt = _pyplot()
@@ -35,7 +44,8 @@ def deformed_layers(result: Result, path: Path, scale: float) -> None:
         for name in names:
             half = result.half(name)
             moved = half.points + scale * result.solution[name]
-            image = ax.tripcolor(moved[:, 0], moved[:, 1], half.cells, facecolors=stresses[name],
+            triangles, parent = linear_triangles(half.cells)
+            image = ax.tripcolor(moved[:, 0], moved[:, 1], triangles, facecolors=stresses[name][parent],
                                  cmap="viridis", vmin=0.0, vmax=top, edgecolors="none")
         fig.colorbar(image, ax=ax, shrink=0.8, label="von Mises stress")
         ax.set_title(f"{title}, displacements x{scale:g}")

@@ -16,10 +16,10 @@ from . import assembly
 from .assembly import BlockSystem, coo_to_csr
 from .blocks import Block
 from .errors import SolverError
-from .interface import BLOCKS, Interface
+from .interface import BLOCKS, Interface, for_mesh
 from .io import provenance
+from .mesh import Mesh
 from .result import Result
-from .mesh import HalfMesh
 from .scene import Scene
 
 MAX_ACTIVE_SET_STEPS = 100
@@ -54,11 +54,11 @@ def merged_system(systems: list[BlockSystem], numbers: list[np.ndarray]) -> Bloc
     return BlockSystem("reference", indptr, indices, data, rhs, np.zeros(0, dtype=np.int64), size, block_size=1)
 
 
-def solve(scene: Scene, lower: HalfMesh, upper: HalfMesh) -> Result:
+def solve(scene: Scene, mesh: Mesh) -> Result:
     """Solve the scene's discrete problem exactly; return it in the result schema."""
-    systems = assembly.block_systems(scene, lower, upper)
+    systems = assembly.block_systems(scene, mesh)
     started = time.perf_counter()  # the solve phase: merging, factorizations, active-set steps
-    interface = Interface(lower.points[lower.sigma(), 0], scene.crack, scene.contact)
+    interface = for_mesh(mesh.sigma, scene.nonpenetration)
     contact_rows = interface.slices["mu_c"]
     closed = np.zeros(contact_rows.stop - contact_rows.start, dtype=bool)
     history = []
@@ -90,11 +90,13 @@ def solve(scene: Scene, lower: HalfMesh, upper: HalfMesh) -> Result:
     else:
         raise SolverError(f"reference: the active set did not settle in {MAX_ACTIVE_SET_STEPS} steps")
     elapsed = time.perf_counter() - started
+    energy = sum(0.5 * u @ assembly.csr_matvec(s, u) - s.rhs @ u for s, u in zip(systems, fields))
+    frames = mesh.sigma.frames[mesh.sigma.multiplier_nodes]
+    solution = {spec.name: assembly.to_global(u, assembly.trace_nodes(mesh.half(spec.side), mesh.sigma), frames)
+                for spec, u in zip(BLOCKS, fields)}
     return Result(
         scene=scene.text, method="reference", converged=True, iterations=step, solves=step,
-        wall_time=elapsed, ranks=1, lower=lower, upper=upper,
-        solution={spec.name: u.reshape(-1, 2) for spec, u in zip(BLOCKS, fields)},
-        interface_x=interface.x, crack=interface.crack, multipliers=interface.split(lam),
+        wall_time=elapsed, ranks=1, mesh=mesh, solution=solution, multipliers=interface.split(lam, frames),
         history=np.array(history), timings={"factorization": factorization, "total": elapsed},
-        attrs={**provenance(), "closed_vertices": int(closed.sum())},
+        attrs={**provenance(), "closed_vertices": int(closed.sum()), "energy": float(energy)},
     )

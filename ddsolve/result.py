@@ -5,12 +5,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .mesh import HalfMesh
+from .mesh import HalfMesh, Mesh
 
 
 @dataclass
 class Result:
-    """Everything a run produces; the same schema for the DD solve and the reference."""
+    """Displacements of the four blocks (x, y components) on the mesh, multipliers per Σ node, history.
+
+    ``multipliers``: ``mu_c`` ``(k,)`` (the contact pressure), ``mu_g``, ``mu_minus``, ``mu_plus``
+    ``(k, 2)`` in (x, y), over the k multiplier nodes (0 where a multiplier does not exist).
+    """
 
     scene: str
     method: str
@@ -19,16 +23,47 @@ class Result:
     solves: int
     wall_time: float
     ranks: int
-    lower: HalfMesh
-    upper: HalfMesh
+    mesh: Mesh
     solution: dict[str, np.ndarray]  # block name -> (n, 2) nodal displacements
-    interface_x: np.ndarray
-    crack: np.ndarray
     multipliers: dict[str, np.ndarray]
     history: np.ndarray
     timings: dict[str, float] = field(default_factory=dict)
     message: str = ""
     attrs: dict = field(default_factory=dict)
 
+    @property
+    def lower(self) -> HalfMesh:
+        return self.mesh.lower
+
+    @property
+    def upper(self) -> HalfMesh:
+        return self.mesh.upper
+
     def half(self, block: str) -> HalfMesh:
         return self.lower if block.endswith("minus") else self.upper
+
+    @property
+    def multiplier_nodes(self) -> np.ndarray:
+        """Positions along Σ of the k nodes that carry multipliers."""
+        return self.mesh.sigma.multiplier_nodes
+
+    def interface_nodes(self, block: str) -> np.ndarray:
+        """The block's mesh nodes at the k multiplier nodes."""
+        return self.half(block).sigma[self.multiplier_nodes]
+
+    @property
+    def crack(self) -> np.ndarray:
+        """``(k,)``: which multiplier nodes are crack nodes."""
+        return self.mesh.sigma.crack[self.multiplier_nodes]
+
+    @property
+    def interface_points(self) -> np.ndarray:
+        return self.mesh.sigma.points[self.multiplier_nodes]
+
+    @property
+    def normals(self) -> np.ndarray:
+        return self.mesh.sigma.normals[self.multiplier_nodes]
+
+    @property
+    def interface_x(self) -> np.ndarray:
+        return self.interface_points[:, 0]

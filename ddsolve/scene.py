@@ -19,7 +19,9 @@ try:
 except ModuleNotFoundError:  # Python < 3.11
     import tomli as tomllib
 
+from . import expressions, materials
 from .errors import SceneError
+from .expressions import Expression
 
 METHODS = ("schur", "mprgp", "fista", "uzawa")
 DEFAULT_METHOD = "schur"
@@ -28,22 +30,62 @@ STOP_RULES = ("paper", "relative", "kkt")
 DEFAULT_STOP = {"uzawa": "paper", "schur": "kkt", "mprgp": "kkt", "fista": "kkt"}
 DEFAULT_TOL = {"paper": 1e-6, "relative": 1e-6, "kkt": 1e-8}
 LAYERS = ("layer1", "layer2")
+#: The sides of a box geometry, as boundary names.
+SIDES = ("bottom", "top", "left", "right")
+#: The paper's geometry: the square, Σ at y = 0, the crack (−1/2, 1/2), clamped at x = ±1.
+PAPER_BOX = (-1.0, 1.0, -1.0, 1.0)
+PAPER_CRACK = (-0.5, 0.5)
 MAX_SPACING_RATIO = 10.0
-SIDES = ("bottom", "top")
 
 
 @dataclass(frozen=True)
-class Material:
-    E: float
-    nu: float
+class Geometry:
+    """A box (x0, x1, y0, y1) cut by Σ at height ``sigma``, cracks as x intervals on Σ, clamped sides.
+
+    A ``.geo`` or ``.msh`` file with physical groups replaces all of it; ``given`` lists the keys the
+    scene wrote, so that such a file can refuse them.
+    """
+
+    box: tuple[float, float, float, float] = PAPER_BOX
+    sigma: float = 0.0
+    cracks: tuple[tuple[float, float], ...] = (PAPER_CRACK,)
+    clamped: tuple[str, ...] = ("left", "right")
+    given: frozenset[str] = field(default=frozenset(), compare=False)
 
 
 @dataclass(frozen=True)
-class Traction:
-    """t(x) = (sum x[j] s^j, sum y[j] s^j) on one boundary edge set, coefficients lowest degree first."""
+class MeshOptions:
+    """How the halves are meshed: the paper's family (P, M), a size, or a file; element degree."""
 
-    x: tuple[float, ...] = ()
-    y: tuple[float, ...] = ()
+    file: Path | None = None
+    sigma_vertices: int | None = None
+    boundary_vertices: int | None = None
+    size: float | None = None
+    degree: int = 1
+
+    @property
+    def kind(self) -> str:
+        """``box`` (generated), ``geo`` (a gmsh script, meshed here) or ``file`` (a mesh to read)."""
+        if self.file is None:
+            return "box"
+        return "geo" if self.file.suffix.lower() == ".geo" else "file"
+
+
+@dataclass(frozen=True)
+class Load:
+    """A traction (x and y components) or a normal pressure on the boundary ``key`` names.
+
+    Each part is an expression in x and y, or None (zero).  ``key`` is ``loads.LAYER.NAME``.
+    """
+
+    key: str
+    x: Expression | None = None
+    y: Expression | None = None
+    pressure: Expression | None = None
+
+    @property
+    def boundary(self) -> str:
+        return self.key.rsplit(".", 1)[1]
 
 
 @dataclass(frozen=True)
@@ -59,25 +101,29 @@ class Solver:
 @dataclass(frozen=True)
 class Scene:
     title: str
-    crack: tuple[float, float] | None
-    sigma_vertices: int | None
-    boundary_vertices: int | None
-    mesh_file: Path | None
-    materials: dict[str, Material]
-    loads: dict[tuple[str, str], Traction]
+    geometry: Geometry
+    mesh: MeshOptions
+    materials: dict[str, materials.Material]
+    model: str  # plane_strain | plane_stress
+    loads: dict[tuple[str, str], Load]  # (layer, boundary name) -> load
     nonpenetration: bool
     solver: Solver
     text: str = field(repr=False, default="")
 
-    @property
-    def contact(self) -> bool:
-        """True when the crack faces carry the non-penetration multiplier."""
-        return self.nonpenetration and self.crack is not None
-
 
 # ---------------------------------------------------------------------------------------------
-# Schema: a leaf is (checker, default); REQUIRED marks keys without a default.
+# Schema: a leaf is (checker, default); REQUIRED marks keys without a default.  A table is a dict,
+# a Tables (free names, each a table of one schema) or a function choosing the schema from the raw table.
 REQUIRED = object()
+
+
+class Invalid(ValueError):
+    """A value that is wrong in a way a ``must be ...`` phrase does not describe."""
+
+
+@dataclass(frozen=True)
+class Tables:
+    schema: dict
 
 
 def _number(value: Any) -> float:
@@ -112,6 +158,24 @@ def _numbers(value: Any) -> tuple[float, ...]:
     return tuple(_number(v) for v in value)
 
 
+def _fixed_numbers(count: int) -> Callable[[Any], tuple[float, ...]]:
+    def checked(value: Any) -> tuple[float, ...]:
+        values = _numbers(value)
+        if len(values) != count:
+            raise ValueError(f"a list of {count} numbers")
+        return values
+    return checked
+
+
+def _matrix3(value: Any) -> tuple[tuple[float, ...], ...]:
+    if not isinstance(value, list) or len(value) != 3:
+        raise TypeError("a 3x3 matrix [[..], [..], [..]]")
+    try:
+        return tuple(_fixed_numbers(3)(row) for row in value)
+    except (TypeError, ValueError):
+        raise TypeError("a 3x3 matrix [[..], [..], [..]] of finite numbers") from None
+
+
 def _positive(check: Callable[[Any], Any]) -> Callable[[Any], Any]:
     def checked(value: Any) -> Any:
         value = check(value)
@@ -137,19 +201,46 @@ def _choice(options: tuple[str, ...]) -> Callable[[Any], str]:
     return checked
 
 
-def _crack(value: Any) -> tuple[float, ...]:
+def _interval(value: Any) -> tuple[float, ...]:
     values = _numbers(value)
-    if not values:
-        return values
-    if len(values) != 2:
-        raise ValueError("[a, b] or []")
-    a, b = values
-    if not -1.0 < a < b < 1.0:
-        raise ValueError("[a, b] with -1 < a < b < 1 (the crack must stay off the clamped ends)")
+    if values and (len(values) != 2 or not values[0] < values[1]):
+        raise ValueError("[a, b] with a < b, or []")
     return values
 
 
-def _vertex_count(minimum: int) -> Callable[[Any], int]:
+def _intervals(value: Any) -> tuple[tuple[float, float], ...]:
+    if not isinstance(value, list):
+        raise TypeError("a list of [a, b] intervals")
+    pieces = []
+    for item in value:
+        piece = _numbers(item) if isinstance(item, list) else None
+        if piece is None or len(piece) != 2 or not piece[0] < piece[1]:
+            raise ValueError("a list of [a, b] intervals with a < b")
+        pieces.append(piece)
+    pieces.sort()
+    for (_, b), (a, _) in zip(pieces[:-1], pieces[1:]):
+        if a <= b:
+            raise ValueError("a list of disjoint [a, b] intervals (they overlap or touch)")
+    return tuple(pieces)
+
+
+def _sides(value: Any) -> tuple[str, ...]:
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise TypeError("a list of side names (" + ", ".join(SIDES) + ")")
+    unknown = [v for v in value if v not in SIDES]
+    if unknown:
+        raise ValueError("a list of side names among " + ", ".join(SIDES) + f" ({unknown[0]!r} is not one)")
+    return tuple(dict.fromkeys(value))
+
+
+def _box(value: Any) -> tuple[float, ...]:
+    values = _fixed_numbers(4)(value)
+    if not (values[0] < values[1] and values[2] < values[3]):
+        raise ValueError("[x0, x1, y0, y1] with x0 < x1 and y0 < y1")
+    return values
+
+
+def _count(minimum: int) -> Callable[[Any], int]:
     def checked(value: Any) -> int:
         value = _integer(value)
         if value < minimum:
@@ -158,19 +249,67 @@ def _vertex_count(minimum: int) -> Callable[[Any], int]:
     return checked
 
 
-_MATERIAL = {"E": (_positive(_number), REQUIRED), "nu": (_poisson, REQUIRED)}
-_TRACTION = {"x": (_numbers, []), "y": (_numbers, [])}
+def _degree(value: Any) -> int:
+    value = _integer(value)
+    if value not in (1, 2):
+        raise ValueError("1 (P1 triangles) or 2 (P2 triangles)")
+    return value
+
+
+def _load_value(value: Any) -> Expression:
+    """A number, a list of polynomial coefficients in x (lowest degree first), or an expression string."""
+    if isinstance(value, str):
+        try:
+            return expressions.parse(value)
+        except expressions.ExpressionError as exc:
+            raise Invalid(f"bad expression {printable(value)!r}: {exc}") from None
+    if isinstance(value, list):
+        return expressions.polynomial_in_x(_numbers(value))
+    try:
+        return expressions.constant(_number(value))
+    except (TypeError, ValueError):
+        raise TypeError("a number, a list of coefficients in x or an expression string") from None
+
+
+_ISOTROPIC = {"E": (_positive(_number), REQUIRED), "nu": (_poisson, REQUIRED)}
+_ORTHOTROPIC = {"E1": (_positive(_number), REQUIRED), "E2": (_positive(_number), REQUIRED),
+                "G12": (_positive(_number), REQUIRED), "nu12": (_number, REQUIRED), "angle": (_number, 0.0),
+                "E3": (_positive(_number), None), "nu13": (_number, None), "nu23": (_number, None)}
+_ANISOTROPIC = {"D": (_matrix3, REQUIRED), "Dzz": (_fixed_numbers(3), [0.0, 0.0, 0.0])}
+
+
+def _material_schema(raw: dict) -> dict:
+    """The material's kind follows from its keys: D (a matrix), E1, E2, ... (orthotropic) or E, nu."""
+    if "D" in raw:
+        return _ANISOTROPIC
+    if any(key in _ORTHOTROPIC and key not in _ISOTROPIC for key in raw):
+        return _ORTHOTROPIC
+    return _ISOTROPIC
+
+
+_LOAD = {"x": (_load_value, None), "y": (_load_value, None), "pressure": (_load_value, None)}
 
 SCHEMA: dict[str, Any] = {
     "title": (_string, ""),
-    "geometry": {"crack": (_crack, [-0.5, 0.5])},
-    "mesh": {
-        "sigma_vertices": (_vertex_count(5), None),
-        "boundary_vertices": (_vertex_count(8), None),
-        "file": (_string, None),
+    "geometry": {
+        "box": (_box, list(PAPER_BOX)),
+        "sigma": (_number, None),
+        "crack": (_interval, None),
+        "cracks": (_intervals, None),
+        "clamped": (_sides, ["left", "right"]),
     },
-    "materials": {layer: dict(_MATERIAL) for layer in LAYERS},
-    "loads": {layer: {side: dict(_TRACTION) for side in SIDES} for layer in LAYERS},
+    "mesh": {
+        "file": (_string, None),
+        "sigma_vertices": (_count(5), None),
+        "boundary_vertices": (_count(8), None),
+        "size": (_positive(_number), None),
+        "degree": (_degree, 1),
+    },
+    "materials": {
+        "model": (_choice(materials.MODELS), "plane_strain"),
+        **{layer: _material_schema for layer in LAYERS},
+    },
+    "loads": {layer: Tables(_LOAD) for layer in LAYERS},
     "contact": {"nonpenetration": (_boolean, True)},
     "solver": {
         "method": (_choice(METHODS), DEFAULT_METHOD),
@@ -178,12 +317,11 @@ SCHEMA: dict[str, Any] = {
         "p": (_positive(_number), None),
         "tol": (_positive(_number), None),
         "stop": (_choice(STOP_RULES), None),
-        "max_iterations": (_vertex_count(1), 20000),
+        "max_iterations": (_count(1), 20000),
     },
 }
 # Tables that exist only when the scene writes them (a boundary without a load is not integrated).
-OPTIONAL_TABLES = {("loads",), *(("loads", layer) for layer in LAYERS),
-                   *(("loads", layer, side) for layer in LAYERS for side in SIDES)}
+OPTIONAL_TABLES = {("loads",), *(("loads", layer) for layer in LAYERS)}
 
 
 def printable(text: str) -> str:
@@ -202,8 +340,8 @@ def _check_table(raw: dict, schema: dict, path: tuple[str, ...], origin: str) ->
             raise SceneError(f"{origin}: unknown key {dotted}{hint}; valid here: {valid}")
     out = {}
     for key, spec in schema.items():
-        dotted = ".".join((*path, key))
-        if isinstance(spec, dict):
+        dotted = printable(".".join((*path, key)))
+        if not isinstance(spec, tuple):  # a table
             if key not in raw:
                 if (*path, key) in OPTIONAL_TABLES:
                     continue
@@ -212,7 +350,14 @@ def _check_table(raw: dict, schema: dict, path: tuple[str, ...], origin: str) ->
                 sub = raw[key]
                 if not isinstance(sub, dict):
                     raise SceneError(f"{origin}: {dotted} must be a table")
-            out[key] = _check_table(sub, spec, (*path, key), origin)
+            if isinstance(spec, Tables):
+                out[key] = {}
+                for name, table in sub.items():
+                    if not isinstance(table, dict):
+                        raise SceneError(f"{origin}: {printable('.'.join((*path, key, name)))} must be a table")
+                    out[key][name] = _check_table(table, spec.schema, (*path, key, name), origin)
+            else:
+                out[key] = _check_table(sub, spec if isinstance(spec, dict) else spec(sub), (*path, key), origin)
             continue
         check, default = spec
         if key not in raw:
@@ -222,26 +367,70 @@ def _check_table(raw: dict, schema: dict, path: tuple[str, ...], origin: str) ->
             continue
         try:
             out[key] = check(raw[key])
+        except Invalid as exc:
+            raise SceneError(f"{origin}: {dotted}: {exc}") from None
         except (TypeError, ValueError) as exc:
-            raise SceneError(f"{origin}: {dotted} must be {exc} (got {raw[key]!r})") from None
+            raise SceneError(f"{origin}: {dotted} must be {exc} (got {printable(repr(raw[key]))})") from None
     return out
 
 
-def _cross_checks(data: dict, origin: str) -> None:
-    mesh = data["mesh"]
+def _cross_checks(data: dict, raw: dict, origin: str) -> None:
+    """Rules between keys; fills in the defaults that depend on other keys."""
+    geometry, mesh = data["geometry"], data["mesh"]
+    given = set(raw.get("geometry", {})) if isinstance(raw.get("geometry"), dict) else set()
+    if "crack" in given and "cracks" in given:
+        raise SceneError(f"{origin}: geometry.crack and geometry.cracks exclude each other (cracks = [[a, b], ...])")
+    x0, x1, y0, y1 = geometry["box"]
+    if geometry["sigma"] is None:
+        geometry["sigma"] = 0.5 * (y0 + y1)
+    elif not y0 < geometry["sigma"] < y1:
+        raise SceneError(f"{origin}: geometry.sigma = {geometry['sigma']:g} must lie strictly between the box's "
+                         f"y0 = {y0:g} and y1 = {y1:g}")
+    if "crack" in given:
+        geometry["cracks"] = [list(geometry["crack"])] if geometry["crack"] else []
+    elif "cracks" not in given:  # the paper's crack comes with the paper's square only
+        geometry["cracks"] = [] if "box" in given else [list(PAPER_CRACK)]
+    del geometry["crack"]
+    for a, b in geometry["cracks"]:
+        if a < x0 or b > x1:
+            raise SceneError(f"{origin}: geometry.cracks: the crack [{a:g}, {b:g}] leaves the box's "
+                             f"x range [{x0:g}, {x1:g}]")
     counts = (mesh["sigma_vertices"], mesh["boundary_vertices"])
     if mesh["file"] is not None:
+        extra = [name for name in ("sigma_vertices", "boundary_vertices") if mesh[name] is not None]
+        if mesh["size"] is not None and not mesh["file"].lower().endswith(".geo"):
+            extra.append("size")
+        if extra:
+            raise SceneError(f"{origin}: mesh.file excludes mesh.{extra[0]} (a .geo file takes mesh.size)")
+        if mesh["file"].lower().endswith(".geo") and given:
+            raise SceneError(f"{origin}: geometry.{sorted(given)[0]} does not apply to a .geo geometry "
+                             "(its physical groups define it)")
+    elif mesh["size"] is not None:
         if counts != (None, None):
-            raise SceneError(f"{origin}: mesh.file excludes mesh.sigma_vertices and mesh.boundary_vertices")
+            raise SceneError(f"{origin}: mesh.size excludes mesh.sigma_vertices and mesh.boundary_vertices")
     elif None in counts:
         missing = "mesh.sigma_vertices" if counts[0] is None else "mesh.boundary_vertices"
-        raise SceneError(f"{origin}: missing key {missing} (or give mesh.file)")
+        raise SceneError(f"{origin}: missing key {missing} (or give mesh.size or mesh.file)")
     else:
-        ratio = (8.0 / counts[1]) / (2.0 / (counts[0] - 1))
+        sigma_spacing = (x1 - x0) / (counts[0] - 1)
+        boundary_spacing = 2.0 * ((x1 - x0) + (y1 - y0)) / counts[1]
+        ratio = boundary_spacing / sigma_spacing
         if not 1.0 / MAX_SPACING_RATIO <= ratio <= MAX_SPACING_RATIO:
             raise SceneError(f"{origin}: mesh.boundary_vertices = {counts[1]} is inconsistent with "
-                             f"mesh.sigma_vertices = {counts[0]}: the boundary spacing 8/M must be within a "
-                             f"factor {MAX_SPACING_RATIO:g} of the Σ spacing 2/(P-1), or the corner triangles degenerate")
+                             f"mesh.sigma_vertices = {counts[0]}: the boundary spacing (perimeter/M) must be "
+                             f"within a factor {MAX_SPACING_RATIO:g} of the Σ spacing (width/(P-1)), or the "
+                             "corner triangles degenerate")
+    model = data["materials"]["model"]
+    for layer in LAYERS:
+        try:
+            materials.elasticity(_material(data["materials"][layer]), model)
+        except materials.MaterialError as exc:
+            raise SceneError(f"{origin}: materials.{layer}: {exc}") from None
+    for layer, tables in data.get("loads", {}).items():
+        for name, table in tables.items():
+            if table["pressure"] is not None and (table["x"] is not None or table["y"] is not None):
+                raise SceneError(f"{origin}: loads.{layer}.{printable(name)}: pressure excludes x and y "
+                                 "(a pressure acts along the normal)")
     solver = data["solver"]
     if solver["method"] == "uzawa" and solver["theta"] is None:
         raise SceneError(f"{origin}: solver.theta is required by method uzawa")
@@ -254,25 +443,35 @@ def _cross_checks(data: dict, origin: str) -> None:
         solver["tol"] = DEFAULT_TOL[solver["stop"]]
 
 
-def _to_scene(data: dict, text: str, base: Path | None) -> Scene:
-    mesh = data["mesh"]
-    mesh_file = None
+def _material(table: dict) -> materials.Material:
+    if "D" in table:
+        return materials.Anisotropic(D=table["D"], Dzz=table["Dzz"])
+    if "E1" in table:
+        return materials.Orthotropic(**table)
+    return materials.Isotropic(**table)
+
+
+def _to_scene(data: dict, raw: dict, text: str, base: Path | None) -> Scene:
+    mesh = dict(data["mesh"])
     if mesh["file"] is not None:
-        mesh_file = Path(mesh["file"])
-        if not mesh_file.is_absolute() and base is not None:
-            mesh_file = base / mesh_file
+        mesh["file"] = Path(mesh["file"])
+        if not mesh["file"].is_absolute() and base is not None:
+            mesh["file"] = base / mesh["file"]
+    geometry = data["geometry"]
+    given = frozenset(raw.get("geometry", {})) if isinstance(raw.get("geometry"), dict) else frozenset()
     loads = {
-        (layer, side): Traction(**table)
-        for layer, sides in data.get("loads", {}).items()
-        for side, table in sides.items()
+        (layer, name): Load(key=f"loads.{layer}.{name}", **table)
+        for layer, tables in data.get("loads", {}).items()
+        for name, table in tables.items()
     }
     return Scene(
         title=data["title"],
-        crack=data["geometry"]["crack"] or None,
-        sigma_vertices=mesh["sigma_vertices"],
-        boundary_vertices=mesh["boundary_vertices"],
-        mesh_file=mesh_file,
-        materials={layer: Material(**data["materials"][layer]) for layer in LAYERS},
+        geometry=Geometry(box=tuple(geometry["box"]), sigma=geometry["sigma"],
+                          cracks=tuple(tuple(piece) for piece in geometry["cracks"]),
+                          clamped=tuple(geometry["clamped"]), given=given),
+        mesh=MeshOptions(**mesh),
+        materials={layer: _material(data["materials"][layer]) for layer in LAYERS},
+        model=data["materials"]["model"],
         loads=loads,
         nonpenetration=data["contact"]["nonpenetration"],
         solver=Solver(**data["solver"]),
@@ -340,12 +539,18 @@ def loads(text: str, overrides: list[str] = (), origin: str = "scene", base: Pat
         raise SceneError(f"{origin}: malformed TOML: {' '.join(str(exc).split())}") from None
     apply_overrides(raw, list(overrides))
     data = _check_table(raw, SCHEMA, (), origin)
-    _cross_checks(data, origin)
-    return _to_scene(data, dumps(data), base)
+    _cross_checks(data, raw, origin)
+    if data["mesh"]["file"] is not None and data["mesh"]["file"].lower().endswith(".geo"):
+        written = {key: value for key, value in data.items() if key != "geometry"}
+    else:
+        written = data
+    return _to_scene(data, raw, dumps(written), base)
 
 
 # ---------------------------------------------------------------------------------------------
 def _toml_value(value: Any) -> str:
+    if isinstance(value, Expression):
+        return _toml_value(list(value.coefficients) if value.coefficients is not None else value.text)
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, (int, float)):

@@ -10,7 +10,9 @@ import meshio
 import numpy as np
 import pytest
 
-from ddsolve.mesh import HalfMesh, split
+from ddsolve.geometry import split_box
+from ddsolve.mesh import Mesh
+from ddsolve.scene import Geometry
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -32,9 +34,15 @@ def structured_square(nx: int, ny: int, shear: float = 0.0) -> tuple[np.ndarray,
     return points, cells
 
 
-def structured_halves(nx: int = 8, ny: int = 4, shear: float = 0.0) -> tuple[HalfMesh, HalfMesh]:
+#: The paper's square without its crack.
+UNCRACKED = Geometry(cracks=())
+
+
+def structured_mesh(nx: int = 8, ny: int = 4, shear: float = 0.0, degree: int = 1,
+                    geometry: Geometry = UNCRACKED) -> Mesh:
+    """The paper's square (uncracked unless ``geometry`` says otherwise) on a structured mesh, P1 or P2."""
     points, cells = structured_square(nx, ny, shear)
-    return split(points, cells, "test mesh")
+    return split_box(points, cells, geometry, degree, "test mesh")
 
 
 @pytest.fixture

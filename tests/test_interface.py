@@ -5,18 +5,20 @@ import pytest
 from ddsolve.interface import Interface
 
 X = np.array([-1.0, -0.8, -0.5, -0.3, 0.0, 0.2, 0.5, 0.75, 1.0])
+WEIGHTS = 0.5 * (X[2:] - X[:-2])  # inner vertices; the ends are clamped
+CRACK = (X[1:-1] > -0.5) & (X[1:-1] < 0.5)  # the tips ±0.5 are glued
 
 
 @pytest.fixture
 def interface():
-    return Interface(X, crack=(-0.5, 0.5), contact=True)
+    return Interface(WEIGHTS, CRACK, contact=True)
 
 
 def test_layout(interface):
     k = len(X) - 2
     assert np.array_equal(interface.crack, [False, False, True, True, True, False, False])  # tips are glued
     assert interface.size == 3 + 2 * 4 + 2 * k + 2 * k
-    assert np.allclose(interface.weights, 0.5 * (X[2:] - X[:-2]))
+    assert np.allclose(interface.row_weights, WEIGHTS[interface.vertex])
     lower, upper = interface.bounds(10.0)
     assert np.all(lower[interface.slices["mu_c"]] == 0) and np.all(lower[interface.slices["mu_g"]] == -10)
     assert np.all(upper == 10)
@@ -24,8 +26,8 @@ def test_layout(interface):
 
 
 def test_no_contact_means_no_mu_c():
-    linear = Interface(X, crack=(-0.5, 0.5), contact=False)
-    uncracked = Interface(X, crack=None, contact=True)
+    linear = Interface(WEIGHTS, CRACK, contact=False)
+    uncracked = Interface(WEIGHTS, np.zeros(len(WEIGHTS), dtype=bool), contact=True)
     assert linear.slices["mu_c"].stop == 0 and not linear.contact
     assert linear.size == 2 * 4 + 4 * 7  # the crack faces are free
     assert uncracked.size == 2 * 7 * 3 and not uncracked.crack.any()

@@ -24,21 +24,23 @@ def test_builtin_scenes_are_the_papers_examples():
     shipped = scene.builtin_scenes()
     assert {"partial-closure", "full-opening", "linear"} <= set(shipped)
     ex1 = scene.load("partial-closure")
-    assert ex1.crack == (-0.5, 0.5) and ex1.contact
-    assert ex1.loads[("layer1", "bottom")].y == (0.0, 0.078125)
-    assert ex1.loads[("layer1", "top")].y == (0.0, -0.078125)
+    assert ex1.geometry.cracks == ((-0.5, 0.5),) and ex1.nonpenetration
+    assert ex1.geometry.box == (-1.0, 1.0, -1.0, 1.0) and ex1.geometry.sigma == 0.0
+    assert ex1.geometry.clamped == ("left", "right") and ex1.model == "plane_strain"
+    assert ex1.loads[("layer1", "bottom")].y.coefficients == (0.0, 0.078125)
+    assert ex1.loads[("layer1", "top")].y.coefficients == (0.0, -0.078125)
     assert ("layer2", "bottom") not in ex1.loads  # no table: the boundary is not integrated
     assert (ex1.solver.method, ex1.solver.stop, ex1.solver.tol) == ("schur", "kkt", 1e-8)
     paper = scene.load("partial-closure", ["solver.method=uzawa"]).solver
     assert (paper.theta, paper.p, paper.tol, paper.stop) == (65.0, 1e7, 1e-6, "paper")
     assert ex1.materials["layer1"].E == 200.0 and ex1.materials["layer2"].nu == 0.32
-    assert not scene.load("linear").contact
-    assert scene.load("full-opening").loads[("layer1", "top")].y == (0.078125,)
+    assert not scene.load("linear").nonpenetration
+    assert scene.load("full-opening").loads[("layer1", "top")].y.coefficients == (0.078125,)
 
 
 def test_defaults_and_round_trip():
     s = scene.loads(MINIMAL)
-    assert s.crack == (-0.5, 0.5) and s.nonpenetration and s.loads == {}
+    assert s.geometry.cracks == ((-0.5, 0.5),) and s.nonpenetration and s.loads == {}
     assert s.solver.max_iterations == 20000 and s.solver.stop == "paper" and s.solver.p is None
     again = scene.loads(s.text)
     assert again == s
@@ -47,10 +49,10 @@ def test_defaults_and_round_trip():
 def test_overrides_are_typed_and_validated():
     s = scene.loads(MINIMAL, ["solver.stop=relative", "solver.tol=1e-11", "mesh.sigma_vertices=48",
                               "loads.layer2.top.x=[1, 2]", "geometry.crack=[]"])
-    assert s.solver.stop == "relative" and s.solver.tol == 1e-11 and s.sigma_vertices == 48
-    assert s.loads[("layer2", "top")].x == (1.0, 2.0)
-    assert s.crack is None and not s.contact
-    assert "stop = \"relative\"" in s.text and "crack = []" in s.text
+    assert s.solver.stop == "relative" and s.solver.tol == 1e-11 and s.mesh.sigma_vertices == 48
+    assert s.loads[("layer2", "top")].x.coefficients == (1.0, 2.0)
+    assert s.geometry.cracks == ()
+    assert "stop = \"relative\"" in s.text and "cracks = []" in s.text
 
 
 @pytest.mark.parametrize("override, message", [
@@ -63,16 +65,30 @@ def test_overrides_are_typed_and_validated():
     ("materials.layer2.nu=0.5", "materials.layer2.nu must be in (-1, 0.5)"),
     ("materials.layer2.nu=-1", "materials.layer2.nu must be in (-1, 0.5)"),
     ("materials.layer1.E=\"hard\"", "materials.layer1.E must be a number"),
-    ("geometry.crack=[0.5, -0.5]", "geometry.crack must be [a, b] with -1 < a < b < 1"),
-    ("geometry.crack=[-1.0, 0.5]", "the crack must stay off the clamped ends"),
-    ("geometry.crack=[0.1]", "geometry.crack must be [a, b] or []"),
+    ("geometry.crack=[0.5, -0.5]", "geometry.crack must be [a, b] with a < b, or []"),
+    ("geometry.crack=[-2.0, 0.5]", "the crack [-2, 0.5] leaves the box's x range [-1, 1]"),
+    ("geometry.crack=[0.1]", "geometry.crack must be [a, b] with a < b, or []"),
+    ("geometry.cracks=[[0, 0.5], [0.4, 0.8]]", "disjoint [a, b] intervals (they overlap or touch)"),
+    ("geometry.box=[0, 1, 2, 1]", "geometry.box must be [x0, x1, y0, y1] with x0 < x1 and y0 < y1"),
+    ("geometry.sigma=3", "geometry.sigma = 3 must lie strictly between the box's y0 = -1 and y1 = 1"),
+    ("geometry.clamped=[\"west\"]", "geometry.clamped must be a list of side names among bottom, top, left, right"),
+    ("mesh.degree=3", "mesh.degree must be 1 (P1 triangles) or 2 (P2 triangles)"),
+    ("mesh.size=0.1", "mesh.size excludes mesh.sigma_vertices and mesh.boundary_vertices"),
+    ("materials.model=\"plane\"", "materials.model must be one of plane_strain, plane_stress"),
+    ("materials.layer1={D = [[1, 2, 0], [2, 1, 0], [0, 0, 1]]}", "materials.layer1: D is not positive definite"),
+    ("materials.layer1.D=[[1, 0, 0], [0, 1, 0], [0, 0, 1]]", "unknown key materials.layer1.E; valid here: D, Dzz"),
+    ("materials.layer1={E1 = -3, E2 = 1, G12 = 1, nu12 = 0.3}", "materials.layer1.E1 must be > 0"),
+    ("materials.layer1={E1 = 3, E2 = 1, G12 = 1, nu12 = 3}", "materials.layer1: the orthotropic compliance"),
+    ("loads.layer1.top.y=\"x + z\"", "loads.layer1.top.y: bad expression 'x + z': unknown name 'z'"),
+    ("loads.layer1.top.y=\"(x\"", "loads.layer1.top.y: bad expression '(x': missing ')' for the '(' at position 1 at position 3"),
+    ("loads.layer1.top={y = 1, pressure = 2}", "loads.layer1.top: pressure excludes x and y"),
     ("mesh.sigma_vertices=2", "mesh.sigma_vertices must be at least 5"),
     ("mesh.boundary_vertices=4", "mesh.boundary_vertices must be at least 8"),
     ("mesh.boundary_vertices=1000", "mesh.boundary_vertices = 1000 is inconsistent with mesh.sigma_vertices = 12"),
     ("mesh.sigma_vertices=12.5", "mesh.sigma_vertices must be an integer"),
     ("mesh.file=x.msh", "mesh.file excludes"),
     ("contact.nonpenetration=1", "contact.nonpenetration must be true or false"),
-    ("loads.layer1.left.y=[1]", "unknown key loads.layer1.left"),
+    ("loads.layer1.left.z=[1]", "unknown key loads.layer1.left.z"),
     ("materials=3", "materials must be a table"),
     ("solver.max_iterations=0", "solver.max_iterations must be at least 1"),
     ("nokey", "expected KEY=VALUE"),
@@ -105,4 +121,4 @@ def test_bare_words_are_strings_and_mesh_files_resolve_against_the_scene(tmp_pat
     assert scene.parse_override("solver.tol=1e-8") == (["solver", "tol"], 1e-8)
     path = tmp_path / "s.toml"
     path.write_text(MINIMAL.replace("sigma_vertices = 12\nboundary_vertices = 32", 'file = "m.vtu"'))
-    assert scene.load(path).mesh_file == tmp_path / "m.vtu"
+    assert scene.load(path).mesh.file == tmp_path / "m.vtu"

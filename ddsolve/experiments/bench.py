@@ -56,13 +56,13 @@ def paper_scene(P: int, M: int, overrides: list[str] = ()) -> scenes.Scene:
 
 
 # --- inside the MPI launch ------------------------------------------------------------------
-def floor_time(scene: scenes.Scene, lower, upper, comm, package: str) -> float:
+def floor_time(scene: scenes.Scene, mesh, comm, package: str) -> float:
     """Wall time for one factorization and one solve of every block, all ranks together."""
     from ..driver import make_blocks
     from ..exchange import Exchange
 
     exchange = Exchange(comm, 4)
-    blocks = make_blocks(scene, lower, upper, exchange, package)
+    blocks = make_blocks(scene, mesh, exchange, package)
     comm.Barrier()
     started = time.perf_counter()
     for block in blocks:
@@ -91,28 +91,28 @@ def bench_mesh(plan: str, P: int, M: int, output: Path, comm) -> None:
 
     Every rank takes part; rank 0 writes the record as JSON to ``output``.
     """
-    from .. import analysis, driver, mesh, reference
+    from .. import analysis, driver, geometry, mesh as meshes, reference
     from ..io import provenance
 
     runs, with_floor = PLANS[plan]
     base = paper_scene(P, M)
-    meshes = comm.bcast(mesh.build(base) if comm.rank == 0 else None, root=0)
-    record: dict = {"P": P, "M": M, "vertices": [len(half.points) for half in meshes],
-                    "mesh": {half.name: asdict(mesh.statistics(half)) for half in meshes}, "runs": []}
+    mesh = comm.bcast(geometry.build(base) if comm.rank == 0 else None, root=0)
+    record: dict = {"P": P, "M": M, "vertices": [len(half.points) for half in mesh.halves],
+                    "mesh": {half.name: asdict(meshes.statistics(half)) for half in mesh.halves}, "runs": []}
     ref = None
     if comm.rank == 0:
-        ref = reference.solve(base, *meshes)
+        ref = reference.solve(base, mesh)
         record["reference_time"] = ref.wall_time
         record["reference_steps"] = ref.iterations
     comm.Barrier()
     if with_floor:
-        record["floor"] = {package: floor_time(base, *meshes, comm, package) for package in ("mumps", "petsc")}
+        record["floor"] = {package: floor_time(base, mesh, comm, package) for package in ("mumps", "petsc")}
     for method, stop, tol in runs():
         if method == "uzawa" and P > UZAWA_SWEEP_MAX_P and stop != "paper":
             continue
         scene = paper_scene(P, M, [f"solver.method={method}", f"solver.stop={stop}", f"solver.tol={tol}"])
         try:
-            result = driver.solve(scene, comm, None, progress=lambda line: None, meshes=meshes)
+            result = driver.solve(scene, comm, None, progress=lambda line: None, mesh=mesh)
         except DDSolveError as exc:
             if comm.rank == 0:
                 print(f"  P={P} {method} {stop} {tol:g}: {exc}", flush=True)
@@ -233,12 +233,12 @@ def speed_error_plot(records: list[dict], path: Path) -> None:
 def block_timings(P: int, M: int, solves: int = 20, repeats: int = 3) -> dict:
     """One block of the (P, M) mesh, best of ``repeats``: factorization, one solve and the interface
     matrix, for each factorization package (with MUMPS also with the Schur complement requested)."""
-    from .. import assembly, mesh
+    from .. import assembly, geometry
     from ..blocks import Block, default_factor_package
 
     scene = paper_scene(P, M)
-    lower = mesh.generate(P, M, scene.crack, -1)
-    system = assembly.block_systems(scene, lower, lower, [0])[0]
+    lower = geometry.generate_half(scene, -1)
+    system = assembly.block_systems(scene, geometry.pair(scene, lower, lower), [0])[0]
     out = {"P": P, "M": M, "unknowns": system.size, "trace": len(system.trace_dofs)}
     for package, schur in (("petsc", False), ("mumps", False), ("mumps", True)):
         if default_factor_package(package) != package:

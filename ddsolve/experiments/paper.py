@@ -90,13 +90,13 @@ def table1_text(records: list[dict]) -> str:
 
 
 # --- θ sweep (Fig. 2) -------------------------------------------------------------------------
-def converges(scene, comm, meshes) -> tuple[bool, int]:
+def converges(scene, comm, mesh) -> tuple[bool, int]:
     """Run uzawa; (converged, iterations).  A run that neither converges nor blows up counts as failed."""
     from .. import driver
     from ..errors import NotConvergedError
 
     try:
-        result = driver.solve(scene, comm, None, progress=_quiet, meshes=meshes)
+        result = driver.solve(scene, comm, None, progress=_quiet, mesh=mesh)
         return True, result.iterations
     except NotConvergedError:
         return False, SWEEP_MAX_ITERATIONS
@@ -106,7 +106,7 @@ def converges(scene, comm, meshes) -> tuple[bool, int]:
 
 def theta_mesh(P: int, M: int, scene_name: str, output: Path, comm) -> None:
     """One mesh and scene: 2/λmax by power iteration, iterations over the θ grid, bisected threshold."""
-    from .. import driver, mesh, scene as scenes
+    from .. import driver, geometry, scene as scenes
     from ..io import provenance
 
     def scene(theta: float):
@@ -114,18 +114,18 @@ def theta_mesh(P: int, M: int, scene_name: str, output: Path, comm) -> None:
                                         "solver.method=uzawa", f"solver.theta={theta}",
                                         f"solver.max_iterations={SWEEP_MAX_ITERATIONS}"])
 
-    meshes = comm.bcast(mesh.build(scene(65.0)) if comm.rank == 0 else None, root=0)
-    lam_max = driver.bound(scene(65.0), comm, meshes)
+    mesh = comm.bcast(geometry.build(scene(65.0)) if comm.rank == 0 else None, root=0)
+    lam_max = driver.bound(scene(65.0), comm, mesh)
     runs = []
     for theta in THETA_GRID:
-        ok, iterations = converges(scene(theta), comm, meshes)
+        ok, iterations = converges(scene(theta), comm, mesh)
         runs.append({"theta": theta, "converged": ok, "iterations": iterations})
     good = [r["theta"] for r in runs if r["converged"]]
     bad = [r["theta"] for r in runs if not r["converged"] and good and r["theta"] > max(good)]
     low, high = (max(good), min(bad)) if good and bad else (np.nan, np.nan)
     for _ in range(BISECTION_STEPS if bad else 0):
         middle = 0.5 * (low + high)
-        ok, iterations = converges(scene(middle), comm, meshes)
+        ok, iterations = converges(scene(middle), comm, mesh)
         runs.append({"theta": middle, "converged": ok, "iterations": iterations})
         low, high = (middle, high) if ok else (low, middle)
     if comm.rank == 0:
@@ -276,17 +276,17 @@ TARGETS = (0.2, 0.1, 1e-2, 1e-3)
 RATE_COARSENESS = 8
 
 
-def unknowns(lower, upper) -> int:
-    """Unknowns of all four blocks: two on each half, two per vertex."""
-    return 2 * 2 * (len(lower.points) + len(upper.points))
+def unknowns(mesh) -> int:
+    """Unknowns of all four blocks: two on each half, two per node."""
+    return 2 * 2 * (len(mesh.lower.points) + len(mesh.upper.points))
 
 
 def accuracy_mesh(P: int, M: int, fine_path: Path, output: Path, comm) -> None:
     """Every accuracy run on one mesh; total error = energy distance to the fine solution."""
-    from .. import analysis, driver, io, mesh
+    from .. import analysis, driver, geometry, io
     from ..io import provenance
 
-    meshes = comm.bcast(mesh.build(paper_scene(P, M)) if comm.rank == 0 else None, root=0)
+    mesh = comm.bcast(geometry.build(paper_scene(P, M)) if comm.rank == 0 else None, root=0)
     fine = io.read(fine_path) if comm.rank == 0 else None
     runs = []
     for method, stop, tol in ACCURACY_RUNS:
@@ -294,7 +294,7 @@ def accuracy_mesh(P: int, M: int, fine_path: Path, output: Path, comm) -> None:
             continue
         scene = paper_scene(P, M, [f"solver.method={method}", f"solver.stop={stop}", f"solver.tol={tol}"])
         try:
-            result = driver.solve(scene, comm, None, progress=_quiet, meshes=meshes)
+            result = driver.solve(scene, comm, None, progress=_quiet, mesh=mesh)
         except DDSolveError:
             continue
         if comm.rank == 0:
@@ -302,7 +302,7 @@ def accuracy_mesh(P: int, M: int, fine_path: Path, output: Path, comm) -> None:
                          "wall_time": result.wall_time, "error": analysis.discretization_error(result, fine),
                          "energy": float(analysis.block_energies(result).sum())})
     if comm.rank == 0:
-        output.write_text(json.dumps({"P": P, "M": M, "unknowns": unknowns(*meshes),
+        output.write_text(json.dumps({"P": P, "M": M, "unknowns": unknowns(mesh),
                                       "h": 2.0 / (P - 1), "runs": runs, "provenance": provenance()}))
 
 
@@ -319,7 +319,7 @@ def accuracy() -> list[dict]:
     from .. import analysis, io
 
     reference = io.read(fine)
-    fine_facts = {"time": fine_time, "unknowns": unknowns(reference.lower, reference.upper),
+    fine_facts = {"time": fine_time, "unknowns": unknowns(reference.mesh),
                   "energy": float(analysis.block_energies(reference).sum())}
     records = []
     for P, M in ACCURACY_MESHES:

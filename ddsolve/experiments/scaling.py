@@ -152,7 +152,7 @@ def _solve(ranks: int, P: int, M: int, method: str, name: str) -> dict:
     result = io.read(path)
     lower = result.lower
     return {"name": name, "ranks": ranks, "P": P, "M": M, "method": method, "rounds": result.solves,
-            "unknowns": 2 * len(lower.points), "trace": 2 * (len(lower.sigma()) - 2),
+            "unknowns": 2 * len(lower.points), "trace": 2 * len(result.multiplier_nodes),
             "multipliers": int(sum(v.size for v in result.multipliers.values())),
             "interface_unknowns": int(result.attrs.get("interface_unknowns", 0)),
             "rank0_time": float(result.attrs.get("rank0_solve_time", 0.0)),

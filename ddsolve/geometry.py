@@ -1,0 +1,464 @@
+"""Geometry: from a scene to a :class:`~ddsolve.mesh.Mesh`, by gmsh or from a file.
+
+Three sources give the same thing:
+
+- the built-in **box** ``geometry.box`` cut by Σ at ``geometry.sigma``, with cracks as x intervals
+  on Σ and clamped sides; each half is meshed by gmsh on its own (so two ranks can mesh at once),
+  with matching Σ nodes from the same transfinite curves.  Boundary names: ``bottom``, ``top``,
+  ``left``, ``right``, ``sigma``, ``crack``, ``clamped``;
+- a gmsh **.geo** script or **.msh** file with physical groups ``lower`` and ``upper`` (surfaces) and
+  ``sigma``, ``clamped``, optionally ``crack`` and any other names (curves), see docs/geometry.md;
+- any other **mesh file** meshio reads (or a .msh without those groups): triangles of the box, split
+  into halves at Σ, boundaries named by the box's sides.
+
+gmsh is imported only here, and only when a mesh is made.
+"""
+from __future__ import annotations
+
+import contextlib
+import io
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .errors import MeshError, SceneError
+from .mesh import CLAMPED, CRACK, SIGMA, TOL, HalfMesh, Mesh, elevate, make_half, make_mesh, oriented
+from .scene import SIDES, Geometry, MeshOptions, Scene
+
+#: Grading of the paper's mesh family: h(d) = h_Σ + (h_far − h_Σ)(d/H)^GRADING_EXPONENT at distance d
+#: from Σ (H: the larger half height), h_far = FAR_FACTOR·perimeter/M.  Fitted so that the five meshes
+#: of the paper's Table 1 have its vertex and triangle counts (±5 %).
+GRADING_EXPONENT = 0.8
+FAR_FACTOR = 1.2
+#: Physical groups a gmsh geometry must have.
+REQUIRED_GROUPS = {2: ("lower", "upper"), 1: (SIGMA, CLAMPED)}
+#: gmsh element types: triangle, 6-node triangle, line, 3-node line.
+_TRIANGLE, _TRIANGLE6, _LINE, _LINE3 = 2, 9, 1, 8
+
+
+def build(scene: Scene) -> Mesh:
+    """The scene's mesh, from whichever source it names; always checked."""
+    options = scene.mesh
+    if options.kind == "box":
+        return pair(scene, *(generate_half(scene, side) for side in (-1, 1)))
+    if options.kind == "geo" or (options.file.suffix.lower() == ".msh" and _has_halves(options.file)):
+        return from_gmsh(scene)
+    return read_box_file(scene)
+
+
+def origin(scene: Scene) -> str:
+    """How to name the scene's mesh in messages."""
+    return str(scene.mesh.file) if scene.mesh.file is not None else "generated mesh"
+
+
+def check_loads(scene: Scene, mesh: Mesh) -> None:
+    """Every load names a boundary of the mesh that is not clamped (else a one-line SceneError)."""
+    names = mesh.boundary_names()
+    for (_, name), load in scene.loads.items():
+        if name not in names:
+            raise SceneError(f"{load.key}: no boundary named {name!r} in {mesh.origin} "
+                             f"(boundaries: {', '.join(n for n in names if n != CLAMPED)})")
+        if name == CLAMPED or all(_edge_set(half, name) <= _edge_set(half, CLAMPED) for half in mesh.halves):
+            raise SceneError(f"{load.key}: boundary {name!r} is clamped (Γ_D), where no load can act")
+
+
+def _edge_set(half: HalfMesh, name: str) -> set[tuple[int, int]]:
+    return set(map(tuple, np.sort(half.edges(name)[:, :2], axis=1).tolist()))
+
+
+def pair(scene: Scene, lower: HalfMesh, upper: HalfMesh) -> Mesh:
+    """The mesh of two halves made separately (box geometry)."""
+    return make_mesh(lower, upper, origin(scene))
+
+
+# --- the built-in box -----------------------------------------------------------------------------
+def apportion(total: int, lengths) -> np.ndarray:
+    """Split ``total`` segments among pieces in proportion to their lengths (≥ 1 each, exact sum)."""
+    lengths = np.asarray(lengths, dtype=float)
+    ideal = total * lengths / lengths.sum()
+    count = np.maximum(np.floor(ideal).astype(np.int64), 1)
+    while count.sum() > total:
+        count[int(np.argmax(np.where(count > 1, count - ideal, -np.inf)))] -= 1
+    while count.sum() < total:
+        count[int(np.argmax(ideal - count))] += 1
+    return count
+
+
+def generate_half(scene: Scene, side: int) -> HalfMesh:
+    """Unstructured triangulation of one half of the box (side −1: lower, +1: upper) with gmsh.
+
+    With (P, M): Σ gets P vertices (ends and crack tips included), uniform on each Σ piece; the outer
+    boundary gets M vertices in proportion to length; inside, the size grows from the Σ spacing to
+    ``FAR_FACTOR`` × the boundary spacing (the paper's family).  With ``mesh.size`` h: every curve is
+    divided into pieces of about h and the size is h throughout.  One thread, deterministic: a half
+    is the same whether it is meshed alone in a process or after the other one, and the Σ vertices of
+    both halves come from the same transfinite curves.
+    """
+    import gmsh  # imported here: importing gmsh changes the SIGINT handler until finalize
+
+    geometry, options = scene.geometry, scene.mesh
+    x0, x1, y0, y1 = geometry.box
+    ys = geometry.sigma
+    cracks = [tip for piece in geometry.cracks for tip in piece if x0 < tip < x1]
+    sigma_x = sorted({x0, *cracks, x1})
+    width, below, above = x1 - x0, ys - y0, y1 - ys
+    lengths = [width, width, below, below, above, above]  # bottom, top, the four half-sides
+    if options.size is None:
+        P, M = options.sigma_vertices, options.boundary_vertices
+        h_sigma = width / (P - 1)
+        slope = FAR_FACTOR * 2.0 * (width + below + above) / M - h_sigma
+        counts = [*apportion(P - 1, np.diff(sigma_x)), *apportion(M, lengths)]
+        size_field = (f"{h_sigma:.17f} {'+' if slope >= 0 else '-'} {abs(slope):.17f} * "
+                      f"({_distance_to_sigma(ys, max(below, above))})^{GRADING_EXPONENT:.17f}")
+    else:
+        h = options.size
+        counts = [max(1, math.ceil(length / h - 1e-9)) for length in [*np.diff(sigma_x), *lengths]]
+        size_field = f"{h:.17f}"
+    gmsh.initialize([], readConfigFiles=False)
+    try:
+        _quiet_deterministic(gmsh)
+        geo = gmsh.model.geo
+        on_sigma = [geo.addPoint(x, ys, 0.0) for x in sigma_x]
+        sigma = [geo.addLine(a, b) for a, b in zip(on_sigma[:-1], on_sigma[1:])]
+        corners = [geo.addPoint(x, y, 0.0) for x, y in ((x0, y0), (x1, y0), (x1, y1), (x0, y1))]
+        bottom, top = geo.addLine(corners[0], corners[1]), geo.addLine(corners[2], corners[3])
+        edges = [geo.addLine(corners[1], on_sigma[-1]), geo.addLine(on_sigma[0], corners[0]),
+                 geo.addLine(on_sigma[-1], corners[2]), geo.addLine(corners[3], on_sigma[0])]
+        if side < 0:
+            surface = geo.addPlaneSurface([geo.addCurveLoop([bottom, edges[0], *[-c for c in sigma[::-1]], edges[1]])])
+        else:
+            surface = geo.addPlaneSurface([geo.addCurveLoop([*sigma, edges[2], top, edges[3]])])
+        geo.synchronize()
+        for curve, count in zip([*sigma, bottom, top, *edges], counts):
+            gmsh.model.mesh.setTransfiniteCurve(curve, int(count) + 1)
+        field = gmsh.model.mesh.field.add("MathEval")
+        gmsh.model.mesh.field.setString(field, "F", size_field)
+        gmsh.model.mesh.field.setAsBackgroundMesh(field)
+        gmsh.model.mesh.generate(2)
+        tags, coordinates, _ = gmsh.model.mesh.getNodes()
+        points = np.asarray(coordinates, dtype=np.float64).reshape(-1, 3)[:, :2]
+        position = _positions(tags)
+        _, nodes = gmsh.model.mesh.getElementsByType(_TRIANGLE, surface)
+        cells = position[np.asarray(nodes, dtype=np.int64).reshape(-1, 3)]
+    finally:
+        gmsh.finalize()
+    return _box_half(points, cells, side, geometry, options.degree, origin(scene))
+
+
+def _distance_to_sigma(ys: float, height: float) -> str:
+    """gmsh MathEval text for |y − ys| / height (written out so the paper's square gives Fabs(y))."""
+    shifted = "y" if ys == 0.0 else f"(y {'-' if ys > 0 else '+'} {abs(ys):.17f})"
+    return f"Fabs({shifted})" if height == 1.0 else f"Fabs({shifted}) / {height:.17f}"
+
+
+def _quiet_deterministic(gmsh) -> None:
+    for name, value in {"General.Terminal": 0, "General.Verbosity": 0, "General.NumThreads": 1,
+                        "Mesh.MaxNumThreads2D": 1, "Mesh.Algorithm": 5, "Mesh.MeshSizeFromPoints": 0,
+                        "Mesh.MeshSizeExtendFromBoundary": 0, "Mesh.MeshSizeFromCurvature": 0}.items():
+        gmsh.option.setNumber(name, value)
+
+
+def _positions(tags) -> np.ndarray:
+    """Index of each gmsh node tag in the order ``getNodes`` returned them."""
+    tags = np.asarray(tags, dtype=np.int64)
+    position = np.full(int(tags.max(initial=0)) + 1, -1, dtype=np.int64)
+    position[tags] = np.arange(len(tags))
+    return position
+
+
+def snap(points: np.ndarray, geometry: Geometry) -> np.ndarray:
+    """Coordinates within TOL (relative) of the box's lines or of Σ put exactly on them."""
+    x0, x1, y0, y1 = geometry.box
+    scale = max(x1 - x0, y1 - y0)
+    points = np.array(points, dtype=np.float64)
+    for column, values in ((0, (x0, x1)), (1, (y0, geometry.sigma, y1))):
+        for value in values:
+            near = np.abs(points[:, column] - value) <= TOL * scale
+            points[near, column] = value
+    return points
+
+
+def _box_half(points: np.ndarray, cells: np.ndarray, side: int, geometry: Geometry, degree: int,
+              where: str) -> HalfMesh:
+    """A half of the box from P1 triangles: boundaries named by the sides they lie on."""
+    points = snap(points, geometry)
+    cells = oriented(points, cells, f"{where}: {'lower' if side < 0 else 'upper'} half")
+    boundaries = box_boundaries(points, cells, geometry, where)
+    if degree == 2:
+        points, cells, boundaries = elevate(points, cells, boundaries)
+    half, _ = make_half(points, cells, side, boundaries, where)
+    return half
+
+
+def box_boundaries(points: np.ndarray, cells: np.ndarray, geometry: Geometry, where: str) -> dict[str, np.ndarray]:
+    """Boundary edges of one half of the box by name: the sides, Σ, the cracks on Σ, Γ_D."""
+    x0, x1, y0, y1 = geometry.box
+    pairs = cells[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    keys = np.minimum(pairs[:, 0], pairs[:, 1]) * len(points) + np.maximum(pairs[:, 0], pairs[:, 1])
+    _, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
+    outer = pairs[counts[inverse] == 1]
+    ends = points[outer]
+    lines = {"bottom": (1, y0), "top": (1, y1), "left": (0, x0), "right": (0, x1), SIGMA: (1, geometry.sigma)}
+    named = {name: outer[np.all(ends[:, :, column] == value, axis=1)] for name, (column, value) in lines.items()}
+    covered = sum(len(edges) for edges in named.values())
+    if covered != len(outer):
+        raise MeshError(f"{where}: {len(outer) - covered} boundary edges lie inside the box (holes or "
+                        "non-conforming cells)")
+    sigma_x = points[named[SIGMA], 0]
+    scale = x1 - x0
+    on_crack = np.zeros(len(sigma_x), dtype=bool)
+    for a, b in geometry.cracks:
+        for tip in (a, b):
+            if x0 < tip < x1 and np.abs(sigma_x - tip).min(initial=np.inf) > TOL * scale:
+                raise MeshError(f"{where}: crack tip x = {tip:g} is not a Σ vertex")
+        on_crack |= np.all((sigma_x >= a - TOL * scale) & (sigma_x <= b + TOL * scale), axis=1)
+    named[CRACK] = named[SIGMA][on_crack]
+    named[CLAMPED] = np.concatenate([named[name] for name in geometry.clamped]) if geometry.clamped \
+        else np.zeros((0, 2), dtype=np.int64)
+    return {name: edges for name, edges in named.items() if len(edges)}
+
+
+# --- files of the box (any format meshio reads) ---------------------------------------------------
+def read_box_file(scene: Scene) -> Mesh:
+    """A triangle mesh of the box from a file (any format meshio reads)."""
+    points, cells = _read_triangles(scene.mesh.file)
+    return split_box(points, cells, scene.geometry, scene.mesh.degree, origin(scene))
+
+
+def split_box(points: np.ndarray, cells: np.ndarray, geometry: Geometry, degree: int = 1,
+              where: str = "mesh") -> Mesh:
+    """The mesh of P1 triangles of the box: split at Σ by the side each cell lies on."""
+    points = snap(points, geometry)
+    y = points[cells, 1] - geometry.sigma
+    crossing = np.any(y < 0, axis=1) & np.any(y > 0, axis=1)
+    if crossing.any():
+        raise MeshError(f"{where}: {crossing.sum()} triangles cross Σ (y = {geometry.sigma:g}); Σ must be made "
+                        "of mesh edges")
+    lower = np.any(y < 0, axis=1)
+    flat = ~lower & ~np.any(y > 0, axis=1)
+    if flat.any():
+        raise MeshError(f"{where}: {flat.sum()} degenerate triangles lie on Σ")
+    halves = [_box_half(points, cells[lower if side < 0 else ~lower], side, geometry, degree, where)
+              for side in (-1, 1)]
+    return make_mesh(*halves, where)
+
+
+def _read_triangles(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Points ``(n, 2)`` and triangles of a mesh file meshio reads; every failure is a MeshError."""
+    import meshio
+
+    if not path.is_file():
+        raise MeshError(f"{path}: mesh file not found")
+    chatter = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(chatter), contextlib.redirect_stderr(chatter):
+            mesh = meshio.read(path)
+    except (Exception, SystemExit) as exc:  # meshio raises many kinds (even SystemExit): all mean unreadable
+        reason = str(exc) if not isinstance(exc, SystemExit) else chatter.getvalue()
+        reason = " ".join(reason.split()) or exc.__class__.__name__
+        raise MeshError(f"{path}: cannot read mesh ({reason})") from None
+    triangles = [block.data for block in mesh.cells if block.type == "triangle"]
+    if not triangles:
+        raise MeshError(f"{path}: no triangle cells")
+    cells = np.concatenate(triangles).astype(np.int64)
+    points = np.asarray(mesh.points, dtype=np.float64)
+    if points.ndim != 2 or points.shape[1] not in (2, 3):
+        raise MeshError(f"{path}: points must have 2 or 3 coordinates")
+    if not np.all(np.isfinite(points)):
+        raise MeshError(f"{path}: non-finite point coordinates")
+    if points.shape[1] == 3:
+        if np.abs(points[:, 2]).max(initial=0.0) > TOL * max(np.ptp(points[:, :2], axis=0).max(), 1e-300):
+            raise MeshError(f"{path}: the mesh is not planar (z != 0)")
+        points = points[:, :2]
+    if cells.min() < 0 or cells.max() >= len(points):
+        raise MeshError(f"{path}: cells refer to missing points")
+    return points, cells
+
+
+# --- gmsh geometries with physical groups --------------------------------------------------------
+def _has_halves(path: Path) -> bool:
+    """Whether a .msh file has the physical surfaces ``lower`` and ``upper`` (else it is a box file)."""
+    import gmsh
+
+    if not path.is_file():
+        raise MeshError(f"{path}: mesh file not found")
+    gmsh.initialize([], readConfigFiles=False)
+    try:
+        _quiet(gmsh)
+        _open(gmsh, path)
+        names = {gmsh.model.getPhysicalName(dim, tag) for dim, tag in gmsh.model.getPhysicalGroups(2)}
+    finally:
+        gmsh.finalize()
+    return {"lower", "upper"} <= names
+
+
+def _quiet(gmsh) -> None:
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.option.setNumber("General.Verbosity", 0)
+
+
+def _open(gmsh, path: Path) -> None:
+    try:
+        gmsh.open(str(path))
+    except Exception as exc:  # gmsh raises a bare Exception with its last error
+        raise MeshError(f"{path}: gmsh cannot read it ({' '.join(str(exc).split())})") from None
+
+
+def from_gmsh(scene: Scene) -> Mesh:
+    """Mesh a .geo (honouring ``mesh.size``) or read a .msh, both with physical groups."""
+    import gmsh
+
+    path, options = scene.mesh.file, scene.mesh
+    where = str(path)
+    if scene.geometry.given:
+        raise MeshError(f"{where}: geometry.{sorted(scene.geometry.given)[0]} does not apply to a geometry "
+                        "with physical groups (they define it)")
+    if not path.is_file():
+        raise MeshError(f"{path}: mesh file not found")
+    gmsh.initialize([], readConfigFiles=False)
+    try:
+        _quiet(gmsh)
+        if options.kind == "geo":
+            gmsh.option.setNumber("General.NumThreads", 1)
+            gmsh.option.setNumber("Mesh.MaxNumThreads2D", 1)
+        _open(gmsh, path)
+        groups = _physical_groups(gmsh, where)
+        if options.kind == "geo":
+            if options.size is not None:
+                gmsh.option.setNumber("Mesh.MeshSizeMax", options.size)
+            try:
+                gmsh.model.mesh.generate(2)
+                if options.degree == 2:
+                    gmsh.model.mesh.setOrder(2)
+            except Exception as exc:
+                raise MeshError(f"{where}: gmsh cannot mesh it ({' '.join(str(exc).split())})") from None
+        tags, coordinates, _ = gmsh.model.mesh.getNodes()
+        points = np.asarray(coordinates, dtype=np.float64).reshape(-1, 3)
+        if np.abs(points[:, 2]).max(initial=0.0) > TOL * max(np.ptp(points[:, :2], axis=0).max(), 1e-300):
+            raise MeshError(f"{where}: the geometry is not planar (z != 0)")
+        points = points[:, :2]
+        position = _positions(tags)
+        surfaces = {name: _elements(gmsh, groups[(2, name)], (_TRIANGLE, _TRIANGLE6), position, where)
+                    for name in ("lower", "upper")}
+        curves = {name: _elements(gmsh, entities, (_LINE, _LINE3), position, where)
+                  for (dim, name), entities in groups.items() if dim == 1}
+        normals = _curve_normals(gmsh, groups[(1, SIGMA)], position, len(points)) if options.kind == "geo" else None
+    finally:
+        gmsh.finalize()
+    cells = surfaces["lower"]
+    if cells.shape[1] == 6 and options.degree == 1:
+        raise MeshError(f"{where}: the file has 6-node (P2) triangles: set mesh.degree = 2")
+    halves, renumbered = [], []
+    for side, name in ((-1, "lower"), (1, "upper")):
+        cells = surfaces[name]
+        used = np.zeros(len(points), dtype=bool)
+        used[cells] = True
+        mine = {curve: edges[used[edges].all(axis=1)] for curve, edges in curves.items()}
+        half_points = points
+        if cells.shape[1] == 3 and options.degree == 2:
+            half_points, cells, mine = elevate(points, cells, {k: v[:, :2] for k, v in mine.items()})
+        half, renumber = make_half(half_points, cells, side, mine, where)
+        halves.append(half)
+        renumbered.append(renumber)
+    exact = None
+    if normals is not None:
+        lower = halves[0]
+        old = np.full(len(lower.points), -1, dtype=np.int64)
+        old[renumbered[0][renumbered[0] >= 0]] = np.flatnonzero(renumbered[0] >= 0)
+        exact = normals[old[lower.sigma]]
+    return make_mesh(*halves, where, exact_normals=exact)
+
+
+def _physical_groups(gmsh, where: str) -> dict[tuple[int, str], list[int]]:
+    """(dim, name) -> entity tags; the required groups must exist."""
+    groups: dict[tuple[int, str], list[int]] = {}
+    for dim, tag in gmsh.model.getPhysicalGroups():
+        name = gmsh.model.getPhysicalName(dim, tag)
+        if dim in (1, 2) and name:
+            groups.setdefault((dim, name), []).extend(int(e) for e in gmsh.model.getEntitiesForPhysicalGroup(dim, tag))
+    for dim, names in REQUIRED_GROUPS.items():
+        for name in names:
+            if (dim, name) not in groups:
+                kind = "surface" if dim == 2 else "curve"
+                raise MeshError(f"{where}: missing physical {kind} {name!r} (required: surfaces lower, upper; "
+                                "curves sigma, clamped; optional: crack and names for loads)")
+    return groups
+
+
+def _elements(gmsh, entities: list[int], types: tuple[int, int], position: np.ndarray, where: str) -> np.ndarray:
+    """Node indices of the elements of ``entities`` (of the linear or the quadratic type)."""
+    dim = 2 if types[0] == _TRIANGLE else 1
+    found = {t: [] for t in types}
+    for entity in entities:
+        element_types, _, node_tags = gmsh.model.mesh.getElements(dim, entity)
+        for kind, nodes in zip(element_types, node_tags):
+            if kind in found:
+                found[kind].append(np.asarray(nodes, dtype=np.int64))
+            elif dim == 2:
+                raise MeshError(f"{where}: the surfaces must hold triangles only (found gmsh element type {kind})")
+    kind = types[1] if found[types[1]] else types[0]
+    width = {_TRIANGLE: 3, _TRIANGLE6: 6, _LINE: 2, _LINE3: 3}[kind]
+    nodes = np.concatenate(found[kind]) if found[kind] else np.zeros(0, dtype=np.int64)
+    return position[nodes.reshape(-1, width)]
+
+
+def _curve_normals(gmsh, entities: list[int], position: np.ndarray, count: int) -> np.ndarray:
+    """Unit normals of Σ's curves at the nodes inside them (NaN elsewhere), from gmsh's parametrization."""
+    normals = np.full((count, 2), np.nan)
+    for entity in entities:
+        tags, _, parameters = gmsh.model.mesh.getNodes(1, entity, includeBoundary=False, returnParametricCoord=True)
+        if len(tags) == 0 or len(parameters) != len(tags):
+            continue
+        derivative = np.asarray(gmsh.model.getDerivative(1, entity, parameters), dtype=float).reshape(-1, 3)[:, :2]
+        length = np.linalg.norm(derivative, axis=1)
+        good = length > 0
+        normals[position[np.asarray(tags, dtype=np.int64)[good]]] = \
+            np.column_stack([-derivative[good, 1], derivative[good, 0]]) / length[good, None]
+    return normals
+
+
+def write_msh(mesh: Mesh, path: Path) -> None:
+    """Write ``mesh`` as a gmsh .msh file with the physical groups :func:`from_gmsh` reads.
+
+    The Σ nodes of the two halves become one node each, so the file describes one domain.
+    """
+    import gmsh
+
+    lower, upper = mesh.lower, mesh.upper
+    offset = len(lower.points)
+    upper_numbers = offset + np.arange(len(upper.points))
+    upper_numbers[upper.sigma] = lower.sigma  # shared Σ nodes
+    keep = np.ones(len(upper.points), dtype=bool)
+    keep[upper.sigma] = False
+    points = np.vstack([lower.points, upper.points[keep]])
+    compact = np.cumsum(np.concatenate([np.ones(offset, dtype=bool), keep])) - 1
+    numbers = {-1: np.arange(offset), 1: compact[upper_numbers]}
+    element = {3: (_TRIANGLE, _LINE), 6: (_TRIANGLE6, _LINE3)}[lower.cells.shape[1]]
+    gmsh.initialize([], readConfigFiles=False)
+    try:
+        _quiet(gmsh)
+        gmsh.model.add("ddsolve")
+        entity = gmsh.model.addDiscreteEntity(0)
+        gmsh.model.mesh.addNodes(0, entity, np.arange(1, len(points) + 1),
+                                 np.column_stack([points, np.zeros(len(points))]).ravel())
+        next_element = 1
+        for half in (lower, upper):
+            surface = gmsh.model.addDiscreteEntity(2)
+            cells = numbers[half.side][half.cells] + 1
+            gmsh.model.mesh.addElementsByType(surface, element[0], np.arange(next_element, next_element + len(cells)),
+                                              cells.ravel())
+            next_element += len(cells)
+            gmsh.model.setPhysicalName(2, gmsh.model.addPhysicalGroup(2, [surface]), half.name)
+        for name in sorted(set(lower.boundaries) | set(upper.boundaries)):
+            halves = (lower,) if name in (SIGMA, CRACK) else (lower, upper)  # Σ edges are shared
+            edges = np.concatenate([numbers[half.side][half.edges(name)] for half in halves]) + 1
+            curve = gmsh.model.addDiscreteEntity(1)
+            gmsh.model.mesh.addElementsByType(curve, element[1], np.arange(next_element, next_element + len(edges)),
+                                              edges.ravel())
+            next_element += len(edges)
+            gmsh.model.setPhysicalName(1, gmsh.model.addPhysicalGroup(1, [curve]), name)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+        gmsh.write(str(path))
+    finally:
+        gmsh.finalize()

@@ -1,0 +1,130 @@
+"""Hooke's law of a layer in the plane: isotropic, orthotropic with a fibre angle, or a full matrix.
+
+Stresses and strains are in Voigt order (xx, yy, xy) with the engineering shear γxy = 2εxy, so that
+σ = D ε.  The plane model decides what the third direction does: ``plane_strain`` (εzz = 0, the
+default, σzz = c·ε) or ``plane_stress`` (σzz = 0).  Orthotropic layers are built from the 3-D
+orthotropic law in the fibre frame, rotated about z by the fibre angle, then reduced to the plane;
+isotropic constants give exactly the isotropic law.  No PETSc, MPI or meshes here.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Union
+
+import numpy as np
+
+MODELS = ("plane_strain", "plane_stress")
+#: Voigt positions of xx, yy, zz and xy among (xx, yy, zz, yz, xz, xy).
+_PLANE, _ZZ = [0, 1, 5], 2
+
+
+@dataclass(frozen=True)
+class Isotropic:
+    E: float
+    nu: float
+
+
+@dataclass(frozen=True)
+class Orthotropic:
+    """Fibre direction 1 at ``angle`` degrees from x, direction 2 in the plane, 3 out of it.
+
+    The out-of-plane constants matter for plane strain only; they default to E3 = E2, ν13 = ν12 and
+    ν23 = ν12 (so that isotropic constants give the isotropic law).
+    """
+
+    E1: float
+    E2: float
+    G12: float
+    nu12: float
+    angle: float = 0.0
+    E3: float | None = None
+    nu13: float | None = None
+    nu23: float | None = None
+
+
+@dataclass(frozen=True)
+class Anisotropic:
+    """A full in-plane stiffness D (σ = D ε), used as given; σzz = Dzz·ε for plane strain."""
+
+    D: tuple[tuple[float, float, float], ...]
+    Dzz: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+Material = Union[Isotropic, Orthotropic, Anisotropic]
+
+
+class MaterialError(ValueError):
+    """The constants do not define a positive definite law."""
+
+
+def elasticity(material, model: str = "plane_strain") -> tuple[np.ndarray, np.ndarray]:
+    """(D, c): the in-plane stiffness ``(3, 3)`` and the row giving σzz = c·ε ``(3,)``."""
+    if isinstance(material, Anisotropic):
+        D = np.array(material.D, dtype=float)
+        check_positive_definite(D, "D")
+        return D, (np.array(material.Dzz, dtype=float) if model == "plane_strain" else np.zeros(3))
+    C = _stiffness_3d(material)
+    if model == "plane_strain":
+        return C[np.ix_(_PLANE, _PLANE)], C[_ZZ, _PLANE]
+    S = np.linalg.inv(C)
+    return np.linalg.inv(S[np.ix_(_PLANE, _PLANE)]), np.zeros(3)
+
+
+def check_positive_definite(D: np.ndarray, name: str) -> None:
+    """Raise MaterialError unless ``D`` is symmetric positive definite (to round-off)."""
+    scale = np.abs(D).max(initial=0.0)
+    if not np.all(np.isfinite(D)) or scale == 0.0:
+        raise MaterialError(f"{name} must be a finite non-zero matrix")
+    if np.abs(D - D.T).max() > 1e-12 * scale:
+        raise MaterialError(f"{name} is not symmetric")
+    smallest = np.linalg.eigvalsh(0.5 * (D + D.T)).min()
+    if smallest <= 1e-12 * scale:
+        raise MaterialError(f"{name} is not positive definite (smallest eigenvalue {smallest:.3g})")
+
+
+def _stiffness_3d(material) -> np.ndarray:
+    """6×6 Voigt stiffness (engineering shears) in the x, y, z frame."""
+    if isinstance(material, Isotropic):
+        E, nu = material.E, material.nu
+        mu, lam = E / (2.0 * (1.0 + nu)), E * nu / ((1.0 + nu) * (1.0 - 2.0 * nu))
+        C = np.zeros((6, 6))
+        C[:3, :3] = lam
+        C[[0, 1, 2], [0, 1, 2]] += 2.0 * mu
+        C[[3, 4, 5], [3, 4, 5]] = mu
+        return C
+    m = material
+    E3 = m.E2 if m.E3 is None else m.E3
+    nu13 = m.nu12 if m.nu13 is None else m.nu13
+    nu23 = m.nu12 if m.nu23 is None else m.nu23
+    S = np.zeros((6, 6))
+    S[:3, :3] = [[1.0 / m.E1, -m.nu12 / m.E1, -nu13 / m.E1],
+                 [-m.nu12 / m.E1, 1.0 / m.E2, -nu23 / m.E2],
+                 [-nu13 / m.E1, -nu23 / m.E2, 1.0 / E3]]
+    # G23 and G13 decouple from the plane under rotations about z: any positive value will do.
+    S[[3, 4, 5], [3, 4, 5]] = [1.0 / m.G12, 1.0 / m.G12, 1.0 / m.G12]
+    check_positive_definite(S[:3, :3], "the orthotropic compliance (E1, E2, E3, nu12, nu13, nu23)")
+    return _rotate_about_z(np.linalg.inv(S), math.radians(m.angle))
+
+
+def _rotate_about_z(C: np.ndarray, angle: float) -> np.ndarray:
+    """Rotate a 6×6 Voigt stiffness by ``angle`` (radians) about z, as a fourth-order tensor."""
+    if angle == 0.0:
+        return C
+    pairs = [(0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1)]
+    tensor = np.zeros((3, 3, 3, 3))
+    for I, (i, j) in enumerate(pairs):
+        for J, (k, l) in enumerate(pairs):
+            for a, b in {(i, j), (j, i)}:
+                for c, d in {(k, l), (l, k)}:
+                    tensor[a, b, c, d] = C[I, J]
+    cos, sin = math.cos(angle), math.sin(angle)
+    R = np.array([[cos, -sin, 0.0], [sin, cos, 0.0], [0.0, 0.0, 1.0]])
+    rotated = np.einsum("ia,jb,kc,ld,abcd->ijkl", R, R, R, R, tensor)
+    return np.array([[rotated[i, j, k, l] for k, l in pairs] for i, j in pairs])
+
+
+def von_mises(stress: np.ndarray, szz: np.ndarray) -> np.ndarray:
+    """Von Mises stress of (σxx, σyy, σxy) rows ``(m, 3)`` with σzz ``(m,)``."""
+    sxx, syy, sxy = stress.T
+    return np.sqrt(0.5 * ((sxx - syy) ** 2 + (syy - szz) ** 2 + (szz - sxx) ** 2) + 3.0 * sxy ** 2)
