@@ -6,6 +6,7 @@ PETSc options go last (from the first single-dash option that is not ddsolve's o
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import signal
 import sys
@@ -13,6 +14,7 @@ import traceback
 from pathlib import Path
 
 from . import __version__
+from .environment import import_errors_explained
 from .errors import DDSolveError
 from .launch import mpiexec_command
 
@@ -58,6 +60,8 @@ def _default_output(args) -> Path:
 # --- commands -------------------------------------------------------------------------------
 def cmd_solve(args, petsc_options: list[str]) -> int:
     if args.ranks is not None:  # launcher mode: start the ranks under mpiexec
+        for module in ("petsc4py", "mpi4py", "h5py"):  # if one is missing, one line here, not one per rank
+            importlib.import_module(module)
         forwarded = list(args.argv)
         i = next(j for j, a in enumerate(forwarded) if a.startswith("-n"))
         del forwarded[i:i + (2 if forwarded[i] == "-n" else 1)]
@@ -174,8 +178,6 @@ EXPERIMENTS = {
     "robustness": ("robustness", "robustness", "docs/robustness.md"),
 }
 def cmd_experiment(args, _petsc_options) -> int:
-    import importlib
-
     module, function, written = EXPERIMENTS[args.command]
     getattr(importlib.import_module(f".experiments.{module}", __package__), function)()
     print(f"wrote {written}")
@@ -264,11 +266,13 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def guarded(call) -> int:
-    """Run a command: a DDSolveError becomes one line and its exit status, an interrupt or SIGTERM
-    stops every rank, anything else is a bug (traceback, abort)."""
+    """Run a command: a DDSolveError (or a missing petsc4py, mpi4py, h5py, gmsh...) becomes one line
+    and its exit status, an interrupt or SIGTERM stops every rank, anything else is a bug (traceback,
+    abort)."""
     signal.signal(signal.SIGTERM, _terminate)
     try:
-        return call()
+        with import_errors_explained():
+            return call()
     except DDSolveError as exc:
         _report(f"ddsolve: error: {exc}", everywhere=not exc.collective)
         if not exc.collective:  # raised on this rank only: the others cannot know, so stop them
