@@ -6,6 +6,7 @@ PETSc options go last (from the first single-dash option that is not ddsolve's o
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import signal
 import sys
@@ -13,6 +14,7 @@ import traceback
 from pathlib import Path
 
 from . import __version__
+from .environment import import_errors_explained
 from .errors import DDSolveError
 from .launch import mpiexec_command
 
@@ -58,6 +60,8 @@ def _default_output(args) -> Path:
 # --- commands -------------------------------------------------------------------------------
 def cmd_solve(args, petsc_options: list[str]) -> int:
     if args.ranks is not None:  # launcher mode: start the ranks under mpiexec
+        for module in ("petsc4py", "mpi4py", "h5py"):  # if one is missing, one line here, not one per rank
+            importlib.import_module(module)
         forwarded = list(args.argv)
         i = next(j for j, a in enumerate(forwarded) if a.startswith("-n"))
         del forwarded[i:i + (2 if forwarded[i] == "-n" else 1)]
@@ -170,19 +174,24 @@ def cmd_bench(args, petsc_options) -> int:
     return 0
 
 
-#: Experiments: command -> (module, function, what it writes).
+#: Experiments: command -> (module, function, one-line summary, what it writes).
 EXPERIMENTS = {
-    "table1": ("paper", "table1", "docs/results.md (table1)"),
-    "theta-sweep": ("paper", "theta_sweep", "docs/results.md (theta-sweep), docs/theta-sweep.png"),
-    "figures": ("paper", "figures", "docs/results.md (figures), docs/fig*.png"),
-    "accuracy": ("paper", "accuracy", "docs/results.md (accuracy), docs/accuracy.png"),
-    "scaling": ("scaling", "scaling", "docs/scaling.md, docs/scaling-*.png, results/scaling.h5"),
-    "robustness": ("robustness", "robustness", "docs/robustness.md"),
+    "table1": ("paper", "table1", "the paper's Table 1: meshes, the paper's algorithm and the default method",
+               "docs/results.md (table1)"),
+    "theta-sweep": ("paper", "theta_sweep", "Uzawa's iterations against its step θ",
+                    "docs/results.md (theta-sweep), docs/theta-sweep.png"),
+    "figures": ("paper", "figures", "the paper's figures: deformed layers, normal jump along Σ",
+                "docs/results.md (figures), docs/fig*.png"),
+    "accuracy": ("paper", "accuracy", "discretization error under refinement, error against wall time",
+                 "docs/results.md (accuracy), docs/accuracy.png"),
+    "scaling": ("scaling", "scaling", "strong and weak scaling, P = 800 and 1600, a fitted cost model",
+                "docs/scaling.md, docs/scaling-*.png, results/scaling.h5"),
+    "robustness": ("robustness", "robustness", "every hard case and bad input, measured", "docs/robustness.md"),
 }
-def cmd_experiment(args, _petsc_options) -> int:
-    import importlib
 
-    module, function, written = EXPERIMENTS[args.command]
+
+def cmd_experiment(args, _petsc_options) -> int:
+    module, function, _, written = EXPERIMENTS[args.command]
     getattr(importlib.import_module(f".experiments.{module}", __package__), function)()
     print(f"wrote {written}")
     return 0
@@ -210,47 +219,60 @@ def cmd_version(_args, petsc_options) -> int:
 
 
 def parser() -> argparse.ArgumentParser:
-    top = argparse.ArgumentParser(prog="ddsolve", description=__doc__.splitlines()[0])
-    sub = top.add_subparsers(dest="command", required=True)
+    """The command line; ``ddsolve --help`` lists the commands (the epilog), experiments apart."""
+    top = argparse.ArgumentParser(prog="ddsolve", description="Domain decomposition (PETSc/MPI) for a two-layer "
+                                  "elastic structure with a non-penetrating crack.",
+                                  formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = top.add_subparsers(dest="command", required=True, metavar="COMMAND",
+                             help="one of the commands below (`ddsolve COMMAND --help` for its options)")
+    listing: dict[str, list[tuple[str, str]]] = {}
 
-    def scene_command(name: str, help_text: str) -> argparse.ArgumentParser:
-        p = sub.add_parser(name, help=help_text)
+    def command(name: str, summary: str, run, group: str = "commands", details: str = "") -> argparse.ArgumentParser:
+        listing.setdefault(group, []).append((name, summary))
+        p = sub.add_parser(name, description=summary + details)
+        p.set_defaults(run=run)
+        return p
+
+    def scene_command(name: str, summary: str, run) -> argparse.ArgumentParser:
+        p = command(name, summary, run)
         p.add_argument("scene", help="scene file or built-in scene name (see `ddsolve scenes`)")
         p.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a scene entry")
         return p
 
-    p = scene_command("solve", "domain-decomposition solve (under mpiexec, or -n N to launch it)")
+    p = scene_command("solve", "domain-decomposition solve (under mpiexec, or -n N to launch it)", cmd_solve)
     p.add_argument("-n", dest="ranks", type=int, metavar="N",
                    help="launch N ranks with mpiexec: 1, 2, 4 (a block per rank) or 4k (a block on k ranks)")
     p.add_argument("-o", dest="output", help="result file (default: SCENE.h5)")
-    p.set_defaults(run=cmd_solve)
-    p = scene_command("reference", "monolithic reference solve (one process)")
+    p = scene_command("reference", "monolithic reference solve (one process)", cmd_reference)
     p.add_argument("-o", dest="output", help="result file (default: SCENE.h5)")
-    p.set_defaults(run=cmd_reference)
-    p = scene_command("mesh", "mesh statistics per half (as the paper's Table 1); -o writes it as .msh")
+    p = scene_command("mesh", "mesh statistics per half (as the paper's Table 1); -o writes the mesh as gmsh .msh",
+                      cmd_mesh)
     p.add_argument("-o", dest="output", help="write the mesh as a gmsh .msh file with physical groups")
-    p.set_defaults(run=cmd_mesh)
-    p = sub.add_parser("compare", help="error of a result against a reference result")
+    p = command("compare", "energy-norm error of a result against a reference result", cmd_compare)
     p.add_argument("result")
     p.add_argument("reference")
-    p.set_defaults(run=cmd_compare)
-    p = sub.add_parser("check", help="constraint residuals of a result")
+    p = command("check", "constraint residuals of a result (penetration, gluing gap, complementarity)", cmd_check)
     p.add_argument("result")
-    p.set_defaults(run=cmd_check)
-    p = sub.add_parser("plot", help="PNG pictures of a result")
+    p = command("plot", "PNG pictures of a result (deformed layers, crack opening, convergence)", cmd_plot)
     p.add_argument("result")
     p.add_argument("--scale", type=float, default=500.0, help="displacement magnification (default 500)")
-    p.set_defaults(run=cmd_plot)
-    p = sub.add_parser("bench", help="benchmarks: `methods` (all methods, Table 1 meshes and P = 400) or "
-                                     "`factor` (block factorization packages)")
+    command("scenes", "list the built-in scenes", cmd_scenes)
+    command("version", "versions of ddsolve, PETSc and MPI", cmd_version)
+
+    experiments = "experiments (each reruns its measurements and rewrites its part of docs/ and results/)"
+    for name, (_, _, summary, written) in EXPERIMENTS.items():
+        command(name, summary, cmd_experiment, experiments, f"; writes {written}")
+    p = command("bench", "`bench methods`: every method and tolerance; `bench factor`: block factorizations",
+                cmd_bench, experiments)
     p.add_argument("what", choices=("methods", "factor"))
     p.add_argument("--meshes", help="comma-separated P:M pairs (default: Table 1 and 400:512)")
     p.add_argument("-o", dest="output", default="results/bench-methods.h5", help="HDF5 file for `methods`")
-    p.set_defaults(run=cmd_bench)
-    for name, (_, _, written) in EXPERIMENTS.items():
-        sub.add_parser(name, help=f"experiment: writes {written}").set_defaults(run=cmd_experiment)
-    sub.add_parser("scenes", help="list the built-in scenes").set_defaults(run=cmd_scenes)
-    sub.add_parser("version", help="versions of ddsolve, PETSc and MPI").set_defaults(run=cmd_version)
+
+    width = max(len(name) for commands in listing.values() for name, _ in commands) + 2
+    top.epilog = "\n\n".join(group + ":\n" + "\n".join(f"  {name:{width}s}{summary}" for name, summary in commands)
+                              for group, commands in listing.items())
+    top.epilog += ("\n\nPETSc options go last: ddsolve solve SCENE -u_minus_ksp_type cg -u_minus_pc_type gamg "
+                   "-log_view")
     return top
 
 
@@ -271,11 +293,13 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def guarded(call) -> int:
-    """Run a command: a DDSolveError becomes one line and its exit status, an interrupt or SIGTERM
-    stops every rank, anything else is a bug (traceback, abort)."""
+    """Run a command: a DDSolveError (or a missing petsc4py, mpi4py, h5py, gmsh...) becomes one line
+    and its exit status, an interrupt or SIGTERM stops every rank, anything else is a bug (traceback,
+    abort)."""
     signal.signal(signal.SIGTERM, _terminate)
     try:
-        return call()
+        with import_errors_explained():
+            return call()
     except DDSolveError as exc:
         _report(f"ddsolve: error: {exc}", everywhere=not exc.collective)
         if not exc.collective:  # raised on this rank only: the others cannot know, so stop them

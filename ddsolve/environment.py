@@ -1,0 +1,87 @@
+"""Where the PETSc stack comes from, and one-line errors when a part of it is missing.
+
+petsc4py, mpi4py, h5py and gmsh come from the system (Debian packages) or from conda-forge, not as
+pip dependencies (see pyproject.toml).  Debian's petsc4py is importable only with
+``PETSC_DIR`` set when Python starts (its ``petsc4py.pth`` reads it), so without ``PETSC_DIR``
+ddsolve finds Debian's PETSc itself when the package is imported (:func:`find_petsc`).
+"""
+from __future__ import annotations
+
+import contextlib
+import importlib.util
+import os
+import re
+import sys
+import sysconfig
+from pathlib import Path
+from typing import Iterator
+
+from .errors import DDSolveError
+
+DEBIAN_PETSC_ROOT = Path("/usr/lib/petscdir")
+#: Where a Debian PETSc directory keeps its petsc4py (the rule of Debian's petsc4py.pth).
+PETSC4PY_SUBDIR = Path("lib/python3/dist-packages")
+
+#: Third-party modules ddsolve imports -> (Debian package, conda-forge package).
+PACKAGES = {
+    "petsc4py": ("python3-petsc4py", "petsc4py"),
+    "mpi4py": ("python3-mpi4py", "mpi4py"),
+    "h5py": ("python3-h5py", "h5py"),
+    "gmsh": ("python3-gmsh", "python-gmsh"),
+    "numpy": ("python3-numpy", "numpy"),
+    "meshio": ("python3-meshio", "meshio"),
+    "matplotlib": ("python3-matplotlib", "matplotlib"),
+    "tomli": ("python3-tomli", "tomli"),
+}
+
+
+class MissingDependencyError(DDSolveError):
+    """A module ddsolve needs cannot be imported."""
+
+
+def debian_petsc_dirs() -> list[Path]:
+    """Debian's real-scalar PETSc directories that hold petsc4py: this machine's first, newest first."""
+    native = f"{sysconfig.get_config_var('MULTIARCH')}-real"
+    found = [d for d in DEBIAN_PETSC_ROOT.glob("petsc*/*-real") if (d / PETSC4PY_SUBDIR / "petsc4py").is_dir()]
+    return sorted(found, key=lambda d: (d.name != native, [-int(n) for n in re.findall(r"\d+", d.parent.name)]))
+
+
+def find_petsc() -> None:
+    """In a Python that sees Debian's packages (its petsc4py.pth) but started without ``PETSC_DIR``,
+    use Debian's PETSc: set ``PETSC_DIR`` (for this process and the ranks it starts) and put its
+    petsc4py on ``sys.path``, as petsc4py.pth does when ``PETSC_DIR`` is set."""
+    if os.environ.get("PETSC_DIR") or importlib.util.find_spec("petsc4py") is not None:
+        return
+    if not any(entry and Path(entry, "petsc4py.pth").is_file() for entry in sys.path):
+        return  # another Python (pyenv, conda...): Debian's petsc4py is not built for it
+    candidates = debian_petsc_dirs()
+    if candidates:
+        os.environ["PETSC_DIR"] = str(candidates[0])
+        sys.path.append(str(candidates[0] / PETSC4PY_SUBDIR))
+
+
+def _explain(module: str, error: ImportError) -> str:
+    """One line: ``module`` (one of :data:`PACKAGES`) cannot be imported, and where to get it."""
+    debian, conda = PACKAGES[module]
+    missing = isinstance(error, ModuleNotFoundError) and error.name == module
+    context = [] if missing else [str(error).partition("\n")[0]]
+    if module == "petsc4py":
+        petsc_dir = os.environ.get("PETSC_DIR")
+        context.append(f"PETSC_DIR={petsc_dir}" if petsc_dir else "PETSC_DIR is unset")
+    line = (f"{module} {'not found' if missing else 'cannot be imported'} by {sys.executable}"
+            + (f" ({'; '.join(context)})" if context else "")
+            + f": install {debian} (for Debian's python3, or a venv made from it with --system-site-packages)"
+              f" or conda-forge's {conda}")
+    return line + (", or set PETSC_DIR to a PETSc whose petsc4py is installed" if module == "petsc4py" else "")
+
+
+@contextlib.contextmanager
+def import_errors_explained() -> Iterator[None]:
+    """Turn an ImportError of a module in :data:`PACKAGES` into a :class:`MissingDependencyError`."""
+    try:
+        yield
+    except ImportError as error:
+        module = (error.name or "").partition(".")[0]
+        if module not in PACKAGES:
+            raise
+        raise MissingDependencyError(_explain(module, error)) from None
