@@ -123,7 +123,7 @@ def cmd_plot(args, _petsc_options) -> int:
     result = io.read(args.result)
     stem = Path(args.result).with_suffix("")
     plots.deformed_layers(result, Path(f"{stem}-deformed.png"), args.scale)
-    plots.interface_jumps([(result.method, result)], Path(f"{stem}-jump.png"))
+    plots.crack_faces(result, Path(f"{stem}-jump.png"))
     written = [f"{stem}-deformed.png", f"{stem}-jump.png"]
     if len(result.history):
         plots.convergence([(result.method, result)], Path(f"{stem}-convergence.png"))
@@ -255,7 +255,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("result")
     p = command("plot", "PNG pictures of a result (deformed layers, crack opening, convergence)", cmd_plot)
     p.add_argument("result")
-    p.add_argument("--scale", type=float, default=500.0, help="displacement magnification (default 500)")
+    p.add_argument("--scale", type=float, help="displacement magnification (default: from the data)")
     command("scenes", "list the built-in scenes", cmd_scenes)
     command("version", "versions of ddsolve, PETSc and MPI", cmd_version)
 

@@ -404,17 +404,28 @@ def _elements(gmsh, entities: list[int], types: tuple[int, int], position: np.nd
 
 
 def _curve_normals(gmsh, entities: list[int], position: np.ndarray, count: int) -> np.ndarray:
-    """Unit normals of Σ's curves at the nodes inside them (NaN elsewhere), from gmsh's parametrization."""
-    normals = np.full((count, 2), np.nan)
+    """Unit normals of Σ's curves at their nodes from gmsh's parametrization (NaN where unknown).
+
+    Inside a curve the normal is exact; at a point where curves meet it is exact when the curves
+    meeting there have the same tangent, and unknown at a kink (the caller averages the edges).
+    """
+    found: dict[int, list[np.ndarray]] = {}
     for entity in entities:
-        tags, _, parameters = gmsh.model.mesh.getNodes(1, entity, includeBoundary=False, returnParametricCoord=True)
-        if len(tags) == 0 or len(parameters) != len(tags):
+        tags, coordinates, _ = gmsh.model.mesh.getNodes(1, entity, includeBoundary=True, returnParametricCoord=False)
+        if len(tags) == 0:
             continue
+        # Parameters recomputed from the coordinates: those stored with the nodes are less accurate.
+        parameters = gmsh.model.getParametrization(1, entity, coordinates)
         derivative = np.asarray(gmsh.model.getDerivative(1, entity, parameters), dtype=float).reshape(-1, 3)[:, :2]
         length = np.linalg.norm(derivative, axis=1)
-        good = length > 0
-        normals[position[np.asarray(tags, dtype=np.int64)[good]]] = \
-            np.column_stack([-derivative[good, 1], derivative[good, 0]]) / length[good, None]
+        for tag, d, size in zip(np.asarray(tags, dtype=np.int64), derivative, length):
+            if size > 0:
+                found.setdefault(int(tag), []).append(np.array([-d[1], d[0]]) / size)
+    normals = np.full((count, 2), np.nan)
+    for tag, candidates in found.items():
+        first = candidates[0]
+        if all(abs(abs(first @ other) - 1.0) < 1e-10 for other in candidates):  # one tangent line: no kink
+            normals[position[tag]] = first
     return normals
 
 

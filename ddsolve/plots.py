@@ -33,26 +33,60 @@ def linear_triangles(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return pieces.reshape(-1, 3), np.repeat(np.arange(len(cells)), 4)
 
 
-def deformed_layers(result: Result, path: Path, scale: float) -> None:
-    """Both layers side by side, displacements magnified by ``scale``, cells coloured by von Mises."""
+def magnification(result: Result, fraction: float = 0.08) -> float:
+    """A displacement magnification from the data: the largest displacement drawn as ``fraction`` of
+    the domain's size, rounded to one significant digit (1 when nothing moves)."""
+    points = np.vstack([result.lower.points, result.upper.points])
+    size = np.ptp(points, axis=0).max()
+    largest = max(np.abs(u).max(initial=0.0) for u in result.solution.values())
+    if largest == 0.0 or not np.isfinite(largest):
+        return 1.0
+    raw = fraction * size / largest
+    return float(f"{raw:.0e}")
+
+
+def deformed_layers(result: Result, path: Path, scale: float | None = None) -> float:
+    """Both layers, displacements magnified by ``scale`` (from the data by default), cells coloured by
+    von Mises stress on a range that ignores the stress singularities (99th percentile); returns the scale."""
     plt = _pyplot()
+    scale = magnification(result) if scale is None else scale
     stresses = layer_stresses(result)
-    fig, axes = plt.subplots(1, 2, figsize=(11, 5), constrained_layout=True)
+    moved = np.vstack([half.points + scale * result.solution[name] for name in result.solution
+                       for half in [result.half(name)]])
+    width, height = np.ptp(moved, axis=0)
+    wide = width > 2.0 * height  # one layer above the other, else side by side
+    panel = (8.5, 8.5 * height / width) if wide else (4.6 * min(width / height, 1.6), 4.6)
+    fig, axes = plt.subplots(2 if wide else 1, 1 if wide else 2, constrained_layout=True,
+                             figsize=(panel[0] + 2.5, 2 * (panel[1] + 1.0) + 0.4) if wide
+                             else (2 * (panel[0] + 2.2), panel[1] + 1.2))
     for ax, layer, title in zip(axes, ("layer1", "layer2"), ("layer 1 (u)", "layer 2 (v)")):
         names = [spec.name for spec in BLOCKS if spec.layer == layer]
-        top = max(stresses[name].max() for name in names) or 1.0
+        values = np.concatenate([stresses[name] for name in names])
+        top = np.percentile(values, 99.0) if len(values) else 1.0
         for name in names:
             half = result.half(name)
             moved = half.points + scale * result.solution[name]
             triangles, parent = linear_triangles(half.cells)
             image = ax.tripcolor(moved[:, 0], moved[:, 1], triangles, facecolors=stresses[name][parent],
-                                 cmap="viridis", vmin=0.0, vmax=top, edgecolors="none")
-        fig.colorbar(image, ax=ax, shrink=0.8, label="von Mises stress")
-        ax.set_title(f"{title}, displacements x{scale:g}")
+                                 cmap="viridis", vmin=0.0, vmax=top or 1.0, edgecolors="none")
+        fig.colorbar(image, ax=ax, shrink=0.9, label="von Mises stress" if wide else
+                     "von Mises stress (top: 99th percentile)")
+        ax.set_title(f"{title}, displacements ×{scale:g}")
+        ax.set_xlabel("x")
+        ax.set_ylabel("y")
         ax.set_aspect("equal")
     fig.suptitle(scenes.loads(result.scene).title)
     fig.savefig(path, dpi=130)
     plt.close(fig)
+    return scale
+
+
+def along_sigma(result: Result) -> tuple[np.ndarray, str]:
+    """The coordinate to plot Σ quantities against: x if Σ is a graph over x, else the arc length."""
+    points = result.interface_points
+    if len(points) < 2 or np.all(np.diff(points[:, 0]) > 0):
+        return points[:, 0], "x on Σ"
+    return result.mesh.sigma.arclength[result.multiplier_nodes], "arc length along Σ"
 
 
 def interface_jumps(results: list[tuple[str, Result]], path: Path) -> None:
@@ -60,12 +94,34 @@ def interface_jumps(results: list[tuple[str, Result]], path: Path) -> None:
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(7, 4), constrained_layout=True)
     for label, result in results:
-        ax.plot(result.interface_x, normal_jump(result), marker=".", markersize=3, label=label)
+        position, axis_label = along_sigma(result)
+        ax.plot(position, normal_jump(result), marker=".", markersize=3, label=label)
     ax.axhline(0.0, color="black", linewidth=0.6)
-    ax.set_xlabel("x on Σ")
-    ax.set_ylabel("normal jump [u]·ν (negative: overlap)")
+    ax.set_xlabel(axis_label)
+    ax.set_ylabel("normal jump [u]·ν of layer 1 (negative: overlap)")
     ax.legend()
     ax.grid(alpha=0.3)
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
+def crack_faces(result: Result, path: Path) -> None:
+    """Along Σ: the opening [u]·ν of layer 1 and the contact pressure μᶜ, cracks shaded."""
+    plt = _pyplot()
+    position, axis_label = along_sigma(result)
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 5.5), sharex=True, constrained_layout=True)
+    top.plot(position, normal_jump(result), marker=".", markersize=3, color="tab:blue")
+    bottom.plot(position, result.multipliers["mu_c"], marker=".", markersize=3, color="tab:red")
+    for first, last in result.mesh.sigma.pieces(result.crack):
+        for ax in (top, bottom):
+            ax.axvspan(position[max(first - 1, 0)], position[min(last + 1, len(position) - 1)], color="0.9")
+    top.axhline(0.0, color="black", linewidth=0.6)
+    top.set_ylabel("opening [u]·ν")
+    bottom.set_ylabel("contact pressure μᶜ")
+    bottom.set_xlabel(axis_label + " (shaded: cracks)")
+    for ax in (top, bottom):
+        ax.grid(alpha=0.3)
+    top.set_title(scenes.loads(result.scene).title, fontsize=9)
     fig.savefig(path, dpi=130)
     plt.close(fig)
 

@@ -506,10 +506,14 @@ def apply_overrides(raw: dict, overrides: list[str]) -> dict:
     return raw
 
 
+def builtin_folder() -> Path:
+    """Where the scenes shipped with ddsolve (and their .geo files) are."""
+    return Path(str(resources.files("ddsolve") / "scenes"))
+
+
 def builtin_scenes() -> dict[str, str]:
     """Names of the scenes shipped with ddsolve -> their TOML text."""
-    folder = resources.files("ddsolve") / "scenes"
-    return {entry.name[:-5]: entry.read_text() for entry in folder.iterdir() if entry.name.endswith(".toml")}
+    return {entry.stem: entry.read_text() for entry in builtin_folder().iterdir() if entry.suffix == ".toml"}
 
 
 def load(source: str | Path, overrides: list[str] = ()) -> Scene:
@@ -527,7 +531,7 @@ def load(source: str | Path, overrides: list[str] = ()) -> Scene:
         if str(source) not in shipped:
             names = ", ".join(sorted(shipped))
             raise SceneError(f"{printable(str(source))}: no such scene file or built-in scene (built-in: {names})")
-        text = shipped[str(source)]
+        text, base = shipped[str(source)], builtin_folder()
     return loads(text, overrides, origin=str(source), base=base)
 
 
