@@ -84,6 +84,9 @@ def block_criterion(rule: str, step_energy: np.ndarray, energy: np.ndarray) -> f
     return float(np.max(ratio))
 
 
+#: θ = AUTO_STEP / λmax for ``theta = "auto"``: below the stable bound 2/λmax with room for the
+#: power iteration's underestimate of λmax.
+AUTO_STEP = 1.7
 #: Divergence: the multiplier step grew this much above its smallest size so far.  (The paper's rule
 #: cannot see divergence: ‖x‖² grows faster than ‖Δx‖, so ‖Δx‖/‖x‖² falls while the iteration explodes.)
 DIVERGENCE_GROWTH = 1e6
@@ -97,15 +100,21 @@ def uzawa(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
     With ``stop = "kkt"`` the criterion is the dual one of the fast methods.
     """
     lower, upper = interface.bounds(solver.p)
+    theta = solver.theta
+    details = {}
+    if theta == "auto":  # 2/λmax of C K⁻¹ Cᵀ W bounds the stable steps; power iteration underestimates λmax
+        details["lambda_max"] = largest_eigenvalue(DualProblem(rounds, interface, solver).apply, interface.size)
+        theta = AUTO_STEP / details["lambda_max"]
+        details["theta"] = theta
     lam = np.zeros(interface.size)
     traces, energy = rounds.solve(interface.loads(lam), full=True)
     sqrt_w = np.sqrt(interface.row_weights)
     scale = np.linalg.norm(sqrt_w * interface.gap(traces))
-    outcome = Outcome(lam, converged=False, iterations=0)
+    outcome = Outcome(lam, converged=False, iterations=0, details=details)
     steps: list[float] = []
     smallest_step = np.inf
     for iteration in range(1, solver.max_iterations + 1):
-        new = np.clip(lam + solver.theta * interface.gap(traces), lower, upper)
+        new = np.clip(lam + theta * interface.gap(traces), lower, upper)
         increment = interface.loads(new - lam)
         steps.append(float(np.linalg.norm(sqrt_w * (new - lam))))
         lam = new
@@ -122,7 +131,7 @@ def uzawa(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
         progress(iteration, criterion)
         smallest_step = min(smallest_step, steps[-1])
         if not np.isfinite(criterion) or steps[-1] > DIVERGENCE_GROWTH * smallest_step:
-            outcome.message = _divergence_message(iteration, solver.theta, steps)
+            outcome.message = _divergence_message(iteration, theta, steps)
             outcome.diverged = True
             break
         if criterion < solver.tol:

@@ -91,7 +91,7 @@ class Load:
 @dataclass(frozen=True)
 class Solver:
     method: str
-    theta: float | None  # Uzawa's step; the other methods need none
+    theta: float | str | None  # Uzawa's step, or "auto"; the other methods need none
     p: float | None  # multiplier bound; None: μᶜ ≥ 0 only
     tol: float
     stop: str
@@ -190,6 +190,15 @@ def _poisson(value: Any) -> float:
     if not -1.0 < value < 0.5:
         raise ValueError("in (-1, 0.5)")
     return value
+
+
+def _step(value: Any) -> float | str:
+    if value == "auto":
+        return value
+    try:
+        return _positive(_number)(value)
+    except (TypeError, ValueError):
+        raise ValueError('a number > 0 or "auto" (2/λmax estimated by power iteration, with a margin)') from None
 
 
 def _choice(options: tuple[str, ...]) -> Callable[[Any], str]:
@@ -313,7 +322,7 @@ SCHEMA: dict[str, Any] = {
     "contact": {"nonpenetration": (_boolean, True)},
     "solver": {
         "method": (_choice(METHODS), DEFAULT_METHOD),
-        "theta": (_positive(_number), None),
+        "theta": (_step, None),
         "p": (_positive(_number), None),
         "tol": (_positive(_number), None),
         "stop": (_choice(STOP_RULES), None),
@@ -493,6 +502,16 @@ def parse_override(item: str) -> tuple[list[str], Any]:
     return [p.strip() for p in path], parsed
 
 
+#: An override replaces the keys that exclude the one it sets (``--set mesh.size=0.1`` on a scene
+#: with P and M means: use a size instead).
+REPLACES = {
+    ("geometry", "crack"): ("cracks",), ("geometry", "cracks"): ("crack",),
+    ("mesh", "size"): ("sigma_vertices", "boundary_vertices"),
+    ("mesh", "file"): ("sigma_vertices", "boundary_vertices"),
+    ("mesh", "sigma_vertices"): ("size", "file"), ("mesh", "boundary_vertices"): ("size", "file"),
+}
+
+
 def apply_overrides(raw: dict, overrides: list[str]) -> dict:
     """Apply ``--set`` items to a raw (unvalidated) scene table, in order."""
     for item in overrides:
@@ -502,6 +521,8 @@ def apply_overrides(raw: dict, overrides: list[str]) -> dict:
             table = table.setdefault(part, {})
             if not isinstance(table, dict):
                 raise SceneError(f"--set {printable(item)}: {printable('.'.join(path[:depth + 1]))} is not a table")
+        for replaced in REPLACES.get(tuple(path), ()):
+            table.pop(replaced, None)
         table[path[-1]] = value
     return raw
 

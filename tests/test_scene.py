@@ -57,7 +57,7 @@ def test_overrides_are_typed_and_validated():
 
 @pytest.mark.parametrize("override, message", [
     ("solver.thta=1", "unknown key solver.thta (did you mean solver.theta?)"),
-    ("solver.theta=-1", "solver.theta must be > 0"),
+    ("solver.theta=-1", "solver.theta must be a number > 0 or \"auto\""),
     ("solver.tol=0", "solver.tol must be > 0"),
     ("solver.method=newton", "solver.method must be one of"),
     ("solver.stop=sometimes", "solver.stop must be one of"),
@@ -73,7 +73,6 @@ def test_overrides_are_typed_and_validated():
     ("geometry.sigma=3", "geometry.sigma = 3 must lie strictly between the box's y0 = -1 and y1 = 1"),
     ("geometry.clamped=[\"west\"]", "geometry.clamped must be a list of side names among bottom, top, left, right"),
     ("mesh.degree=3", "mesh.degree must be 1 (P1 triangles) or 2 (P2 triangles)"),
-    ("mesh.size=0.1", "mesh.size excludes mesh.sigma_vertices and mesh.boundary_vertices"),
     ("materials.model=\"plane\"", "materials.model must be one of plane_strain, plane_stress"),
     ("materials.layer1={D = [[1, 2, 0], [2, 1, 0], [0, 0, 1]]}", "materials.layer1: D is not positive definite"),
     ("materials.layer1.D=[[1, 0, 0], [0, 1, 0], [0, 0, 1]]", "unknown key materials.layer1.E; valid here: D, Dzz"),
@@ -86,7 +85,7 @@ def test_overrides_are_typed_and_validated():
     ("mesh.boundary_vertices=4", "mesh.boundary_vertices must be at least 8"),
     ("mesh.boundary_vertices=1000", "mesh.boundary_vertices = 1000 is inconsistent with mesh.sigma_vertices = 12"),
     ("mesh.sigma_vertices=12.5", "mesh.sigma_vertices must be an integer"),
-    ("mesh.file=x.msh", "mesh.file excludes"),
+    ("solver.theta=\"big\"", "solver.theta must be a number > 0 or \"auto\""),
     ("contact.nonpenetration=1", "contact.nonpenetration must be true or false"),
     ("loads.layer1.left.z=[1]", "unknown key loads.layer1.left.z"),
     ("materials=3", "materials must be a table"),
@@ -108,12 +107,25 @@ def test_missing_and_malformed():
         scene.loads(MINIMAL.replace("theta = 65.0", ""))
     with pytest.raises(SceneError, match="missing key mesh.boundary_vertices"):
         scene.loads(MINIMAL.replace("boundary_vertices = 32", ""))
+    with pytest.raises(SceneError, match="mesh.file excludes mesh.sigma_vertices"):
+        scene.loads(MINIMAL.replace("boundary_vertices = 32", 'boundary_vertices = 32\nfile = "x.msh"'))
+    with pytest.raises(SceneError, match="geometry.crack and geometry.cracks exclude each other"):
+        scene.loads(MINIMAL + "[geometry]\ncrack = [0, 0.5]\ncracks = [[0, 0.5]]\n")
     with pytest.raises(SceneError, match="solver.stop = paper is available for method uzawa only"):
         scene.loads(MINIMAL, ["solver.stop=paper", "solver.method=mprgp"])
     with pytest.raises(SceneError, match="malformed TOML"):
         scene.loads("[mesh\nsigma_vertices = 3")
     with pytest.raises(SceneError, match="no such scene file or built-in scene"):
         scene.load("no-such-scene")
+
+
+def test_an_override_replaces_the_keys_it_excludes():
+    s = scene.loads(MINIMAL, ["mesh.size=0.1", "geometry.cracks=[[0.1, 0.2], [0.4, 0.6]]"])
+    assert (s.mesh.size, s.mesh.sigma_vertices, s.mesh.boundary_vertices) == (0.1, None, None)
+    assert s.geometry.cracks == ((0.1, 0.2), (0.4, 0.6))
+    s = scene.loads(s.text, ["mesh.sigma_vertices=24", "mesh.boundary_vertices=48", "geometry.crack=[]"])
+    assert (s.mesh.size, s.mesh.sigma_vertices) == (None, 24) and s.geometry.cracks == ()
+    assert scene.loads(MINIMAL, ["mesh.file=m.vtu"]).mesh.file.name == "m.vtu"
 
 
 def test_bare_words_are_strings_and_mesh_files_resolve_against_the_scene(tmp_path):

@@ -1,6 +1,6 @@
 // A curved bond line: Sigma is a circular arc from (-1, 0) through (0, 0.2) to (1, 0) in the
 // square (-1, 1)^2, with a crack on its middle part between x = -0.5 and x = 0.5.
-lc = 0.1;
+lc = 1.0;  // the element size comes from the scene's mesh.size (gmsh Mesh.MeshSizeMax)
 r = 2.6; yc = -2.4;  // centre (0, yc), radius r: the arc rises 0.2 over its chord of length 2
 ya = yc + Sqrt(r^2 - 0.25);  // height of the arc at x = +-0.5
 Point(1) = {-1, -1, 0, lc}; Point(2) = {1, -1, 0, lc}; Point(3) = {1, 1, 0, lc}; Point(4) = {-1, 1, 0, lc};

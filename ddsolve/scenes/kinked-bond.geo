@@ -1,6 +1,6 @@
 // A bond line with a kink: Sigma runs straight from (-1, 0) up to (0, 0.3) and down to (1, 0);
 // the crack runs from x = -0.4 to x = 0.4 through the kink.
-lc = 0.1;
+lc = 1.0;  // the element size comes from the scene's mesh.size (gmsh Mesh.MeshSizeMax)
 Point(1) = {-1, -1, 0, lc}; Point(2) = {1, -1, 0, lc}; Point(3) = {1, 1, 0, lc}; Point(4) = {-1, 1, 0, lc};
 Point(5) = {-1, 0, 0, lc}; Point(6) = {-0.4, 0.18, 0, lc}; Point(7) = {0, 0.3, 0, lc};
 Point(8) = {0.4, 0.18, 0, lc}; Point(9) = {1, 0, 0, lc};
