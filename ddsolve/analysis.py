@@ -130,3 +130,19 @@ def normal_jump(result: Result) -> np.ndarray:
     jump = result.solution["u_plus"][result.interface_nodes("u_plus")] - \
         result.solution["u_minus"][result.interface_nodes("u_minus")]
     return np.einsum("kd,kd->k", jump, result.normals)
+
+
+def along_sigma(result: Result) -> tuple[np.ndarray, str]:
+    """The coordinate to plot Σ quantities against: x if Σ is a graph over x, else the arc length."""
+    points = result.interface_points
+    if len(points) < 2 or np.all(np.diff(points[:, 0]) > 0):
+        return points[:, 0], "x on Σ"
+    return result.mesh.sigma.arclength[result.multiplier_nodes], "arc length along Σ"
+
+
+def contact_zones(result: Result, tolerance: float = 1e-9) -> list[tuple[int, int]]:
+    """Runs ``[first, last]`` of multiplier nodes where the crack faces touch: crack nodes whose opening
+    [u]·ν is at most ``tolerance`` × max |u| (in contact) or that carry a contact pressure."""
+    largest = max(np.abs(u).max(initial=0.0) for u in result.solution.values())
+    touching = result.crack & ((normal_jump(result) <= tolerance * largest) | (result.multipliers["mu_c"] > 0))
+    return result.mesh.sigma.pieces(touching)

@@ -187,6 +187,8 @@ EXPERIMENTS = {
     "scaling": ("scaling", "scaling", "strong and weak scaling, P = 800 and 1600, a fitted cost model",
                 "docs/scaling.md, docs/scaling-*.png, results/scaling.h5"),
     "robustness": ("robustness", "robustness", "every hard case and bad input, measured", "docs/robustness.md"),
+    "gallery": ("gallery", "gallery", "structures beyond the paper's square, solved and drawn",
+                "docs/gallery.md, docs/gallery-*.png, results/gallery/"),
 }
 
 

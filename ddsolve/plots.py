@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from . import scene as scenes
-from .analysis import layer_stresses, normal_jump
+from .analysis import along_sigma, layer_stresses, normal_jump
 from .interface import BLOCKS
 
 if TYPE_CHECKING:
@@ -79,14 +79,6 @@ def deformed_layers(result: Result, path: Path, scale: float | None = None) -> f
     fig.savefig(path, dpi=130)
     plt.close(fig)
     return scale
-
-
-def along_sigma(result: Result) -> tuple[np.ndarray, str]:
-    """The coordinate to plot Σ quantities against: x if Σ is a graph over x, else the arc length."""
-    points = result.interface_points
-    if len(points) < 2 or np.all(np.diff(points[:, 0]) > 0):
-        return points[:, 0], "x on Σ"
-    return result.mesh.sigma.arclength[result.multiplier_nodes], "arc length along Σ"
 
 
 def interface_jumps(results: list[tuple[str, Result]], path: Path) -> None:
