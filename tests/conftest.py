@@ -15,6 +15,15 @@ from ddsolve.mesh import Mesh
 from ddsolve.scene import Geometry
 
 ROOT = Path(__file__).resolve().parents[1]
+#: The paper's two layers, as scene text.
+MATERIALS = """
+[materials.layer1]
+E = 200.0
+nu = 0.28
+[materials.layer2]
+E = 112.0
+nu = 0.32
+"""
 
 
 def structured_square(nx: int, ny: int, shear: float = 0.0) -> tuple[np.ndarray, np.ndarray]:

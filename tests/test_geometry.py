@@ -9,18 +9,10 @@ import pytest
 
 from ddsolve import analysis, geometry, io, scene
 
-from conftest import ROOT, ddsolve
+from conftest import MATERIALS, ROOT, ddsolve
 
 SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
 C = 0.078125  # the paper's load scale 1e-3 μ1
-MATERIALS = """
-[materials.layer1]
-E = 200.0
-nu = 0.28
-[materials.layer2]
-E = 112.0
-nu = 0.32
-"""
 EXAMPLE1_GEO = (ROOT / "docs" / "example1.geo").read_text()
 
 

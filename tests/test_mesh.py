@@ -6,19 +6,13 @@ import pytest
 from ddsolve import geometry, mesh, scene
 from ddsolve.errors import MeshError
 
-from conftest import structured_square
+from conftest import MATERIALS, structured_square
 
 SCENE = """
 [mesh]
 file = "{file}"
 degree = {degree}
-[materials.layer1]
-E = 200.0
-nu = 0.28
-[materials.layer2]
-E = 112.0
-nu = 0.32
-"""
+""" + MATERIALS
 
 
 def write(tmp_path, points, cells, name="m.vtu"):

@@ -4,16 +4,13 @@ import pytest
 from ddsolve import scene
 from ddsolve.errors import SceneError
 
+from conftest import MATERIALS
+
 MINIMAL = """
 [mesh]
 sigma_vertices = 12
 boundary_vertices = 32
-[materials.layer1]
-E = 200.0
-nu = 0.28
-[materials.layer2]
-E = 112.0
-nu = 0.32
+""" + MATERIALS + """
 [solver]
 method = "uzawa"
 theta = 65.0
