@@ -36,6 +36,10 @@ SIDES = ("bottom", "top", "left", "right")
 PAPER_BOX = (-1.0, 1.0, -1.0, 1.0)
 PAPER_CRACK = (-0.5, 0.5)
 MAX_SPACING_RATIO = 10.0
+#: The grading exponent μ that ``mesh.grading = true`` chooses for each element degree p: mesh size
+#: h ∝ r^(1−μ) at distance r from a singular point, with μ below ½/p so that an r^½ singularity costs
+#: no convergence rate (see docs/accuracy.md).
+GRADING = {1: 0.4, 2: 0.2}
 
 
 @dataclass(frozen=True)
@@ -55,13 +59,20 @@ class Geometry:
 
 @dataclass(frozen=True)
 class MeshOptions:
-    """How the halves are meshed: the paper's family (P, M), a size, or a file; element degree."""
+    """How the halves are meshed: the paper's family (P, M), a size, or a file; element degree.
+
+    ``grading`` is the exponent μ of the grading towards the singular points (None: no grading);
+    ``target_error`` the relative energy-norm error at which adaptive refinement stops (None: no
+    adaptivity).
+    """
 
     file: Path | None = None
     sigma_vertices: int | None = None
     boundary_vertices: int | None = None
     size: float | None = None
     degree: int = 1
+    grading: float | None = None
+    target_error: float | None = None
 
     @property
     def kind(self) -> str:
@@ -265,6 +276,23 @@ def _degree(value: Any) -> int:
     return value
 
 
+def _grading(value: Any) -> bool | float:
+    """true (μ for the element degree, resolved later), false, or μ itself in (0, 1)."""
+    if isinstance(value, bool):
+        return value
+    value = _number(value)
+    if not 0.0 < value < 1.0:
+        raise ValueError("true, false or a grading exponent μ with 0 < μ < 1")
+    return value
+
+
+def _fraction(value: Any) -> float:
+    value = _number(value)
+    if not 0.0 < value < 1.0:
+        raise ValueError("a relative error between 0 and 1 (0.01 is 1 %)")
+    return value
+
+
 def _load_value(value: Any) -> Expression:
     """A number, a list of polynomial coefficients in x (lowest degree first), or an expression string."""
     if isinstance(value, str):
@@ -313,6 +341,8 @@ SCHEMA: dict[str, Any] = {
         "boundary_vertices": (_count(8), None),
         "size": (_positive(_number), None),
         "degree": (_degree, 1),
+        "grading": (_grading, None),
+        "target_error": (_fraction, None),
     },
     "materials": {
         "model": (_choice(materials.MODELS), "plane_strain"),
@@ -405,6 +435,7 @@ def _cross_checks(data: dict, raw: dict, origin: str) -> None:
             raise SceneError(f"{origin}: geometry.cracks: the crack [{a:g}, {b:g}] leaves the box's "
                              f"x range [{x0:g}, {x1:g}]")
     counts = (mesh["sigma_vertices"], mesh["boundary_vertices"])
+    _mesh_refinement_checks(mesh, origin)
     if mesh["file"] is not None:
         extra = [name for name in ("sigma_vertices", "boundary_vertices") if mesh[name] is not None]
         if mesh["size"] is not None and not mesh["file"].lower().endswith(".geo"):
@@ -450,6 +481,22 @@ def _cross_checks(data: dict, raw: dict, origin: str) -> None:
                          f"(method {solver['method']} stops on kkt)")
     if solver["tol"] is None:
         solver["tol"] = DEFAULT_TOL[solver["stop"]]
+
+
+def _mesh_refinement_checks(mesh: dict, origin: str) -> None:
+    """mesh.grading and mesh.target_error need a geometry gmsh can mesh again; grading needs mesh.size."""
+    fixed = mesh["file"] is not None and not mesh["file"].lower().endswith(".geo")
+    if mesh["grading"] is True:
+        mesh["grading"] = GRADING[mesh["degree"]]
+    elif mesh["grading"] is False:
+        mesh["grading"] = None
+    for key in ("grading", "target_error"):
+        if mesh[key] is not None and fixed:
+            raise SceneError(f"{origin}: mesh.{key} needs a geometry to mesh (the built-in box or a .geo file); "
+                             f"mesh.file = {printable(mesh['file'])} is a fixed mesh")
+    if mesh["grading"] is not None and mesh["size"] is None:
+        raise SceneError(f"{origin}: mesh.grading needs mesh.size, the mesh size away from the singular points "
+                         "(the paper's family (P, M) has a grading of its own)")
 
 
 def _material(table: dict) -> materials.Material:
