@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import assembly, scene as scenes
+from . import assembly, materials, scene as scenes
 from .errors import DDSolveError
 from .interface import BLOCKS
 from .result import Result
@@ -117,12 +117,39 @@ def discretization_error(coarse: Result, fine: Result) -> float:
     return float(np.sqrt(error / reference))
 
 
+@dataclass(frozen=True)
+class CellFields:
+    """Per-cell fields of one block from each cell's mean strain; Voigt order (xx, yy, xy)."""
+
+    strain: np.ndarray  # (m, 3) εxx, εyy, γxy = 2 εxy
+    strain_zz: np.ndarray  # (m,) 0 in plane strain; from σzz = 0 in plane stress (NaN if the law is not known)
+    stress: np.ndarray  # (m, 3) σxx, σyy, σxy
+    stress_zz: np.ndarray  # (m,) from the plane model (0 in plane stress)
+    von_mises: np.ndarray  # (m,)
+    energy_density: np.ndarray  # (m,) strain energy per unit area: ½ ∫ ε·σ over the cell / its area
+
+
+def cell_fields(result: Result) -> dict[str, CellFields]:
+    """Block name -> its per-cell strains, stresses, von Mises stress and energy density."""
+    scene = scenes.loads(result.scene)
+    out = {}
+    for spec in BLOCKS:
+        half, u = result.half(spec.name), result.solution[spec.name]
+        D, c = assembly.elasticity(scene, spec.layer)
+        out_of_plane = materials.out_of_plane_strain(scene.materials[spec.layer], scene.model)
+        area, strain = assembly.cell_strains(half.points, half.cells, u)
+        stress, stress_zz = assembly.cell_stresses(D, c, strain)
+        strain_zz = strain @ out_of_plane if out_of_plane is not None else np.full(len(strain), np.nan)
+        out[spec.name] = CellFields(
+            strain=strain, strain_zz=strain_zz, stress=stress, stress_zz=stress_zz,
+            von_mises=materials.von_mises(stress, stress_zz),
+            energy_density=0.5 * assembly.cell_energies(half.points, half.cells, D, u) / area)
+    return out
+
+
 def layer_stresses(result: Result) -> dict[str, np.ndarray]:
     """Per-cell von Mises stress of each block."""
-    laws = elasticities(result)
-    return {spec.name: assembly.von_mises(result.half(spec.name).points, result.half(spec.name).cells,
-                                          *laws[spec.layer], result.solution[spec.name])
-            for spec in BLOCKS}
+    return {name: fields.von_mises for name, fields in cell_fields(result).items()}
 
 
 def normal_jump(result: Result) -> np.ndarray:
@@ -132,11 +159,16 @@ def normal_jump(result: Result) -> np.ndarray:
     return np.einsum("kd,kd->k", jump, result.normals)
 
 
+def sigma_is_graph(result: Result) -> bool:
+    """Whether Σ is a graph over x (x increases along it): Σ quantities are then plotted against x."""
+    points = result.interface_points
+    return len(points) < 2 or bool(np.all(np.diff(points[:, 0]) > 0))
+
+
 def along_sigma(result: Result) -> tuple[np.ndarray, str]:
     """The coordinate to plot Σ quantities against: x if Σ is a graph over x, else the arc length."""
-    points = result.interface_points
-    if len(points) < 2 or np.all(np.diff(points[:, 0]) > 0):
-        return points[:, 0], "x on Σ"
+    if sigma_is_graph(result):
+        return result.interface_points[:, 0], "x on Σ"
     return result.mesh.sigma.arclength[result.multiplier_nodes], "arc length along Σ"
 
 

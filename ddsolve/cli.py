@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import math
 import os
 import signal
 import sys
@@ -117,18 +118,42 @@ def cmd_check(args, _petsc_options) -> int:
     return 0
 
 
+def _scale(text: str | None) -> float | None:
+    """The --scale option: None (from the data) or a finite positive number."""
+    if text is None:
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not (math.isfinite(value) and value > 0.0):
+        raise DDSolveError(f"--scale {text}: must be a finite positive number")
+    return value
+
+
 def cmd_plot(args, _petsc_options) -> int:
     from . import io, plots
 
+    scale = _scale(args.scale)
     result = io.read(args.result)
     stem = Path(args.result).with_suffix("")
-    plots.deformed_layers(result, Path(f"{stem}-deformed.png"), args.scale)
-    plots.crack_faces(result, Path(f"{stem}-jump.png"))
-    written = [f"{stem}-deformed.png", f"{stem}-jump.png"]
-    if len(result.history):
-        plots.convergence([(result.method, result)], Path(f"{stem}-convergence.png"))
-        written.append(f"{stem}-convergence.png")
-    print("wrote " + ", ".join(written))
+    written = [Path(f"{stem}-{name}.png") for name in ("deformed", "crack-faces", "convergence")]
+    scale = plots.deformed_layers(result, written[0], scale)
+    plots.crack_faces(result, written[1])
+    plots.convergence([(result.method, result)], written[2])
+    print(f"wrote {', '.join(map(str, written))} (displacements ×{scale:g})")
+    return 0
+
+
+def cmd_export(args, _petsc_options) -> int:
+    from . import io
+
+    result = io.read(args.result)
+    folder = Path(args.output) if args.output else Path(args.result).parent
+    if not folder.is_dir():
+        raise DDSolveError(f"-o {folder}: no such directory")
+    written = io.write_viewer(result, folder, Path(args.result).stem, args.format)
+    print("wrote " + ", ".join(map(str, written)))
     return 0
 
 
@@ -255,9 +280,14 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("reference")
     p = command("check", "constraint residuals of a result (penetration, gluing gap, complementarity)", cmd_check)
     p.add_argument("result")
-    p = command("plot", "PNG pictures of a result (deformed layers, crack opening, convergence)", cmd_plot)
+    p = command("plot", "PNG pictures of a result (deformed layers, crack faces, convergence)", cmd_plot)
     p.add_argument("result")
-    p.add_argument("--scale", type=float, help="displacement magnification (default: from the data)")
+    p.add_argument("--scale", help="displacement magnification, a positive number (default: from the data)")
+    p = command("export", "viewer files of a result for ParaView and meshio (layers, Σ, a ParaView script)",
+                cmd_export)
+    p.add_argument("result")
+    p.add_argument("--format", choices=("vtu", "xdmf"), default="vtu", help="file format (default: vtu)")
+    p.add_argument("-o", dest="output", metavar="DIR", help="folder for the files (default: the result's)")
     command("scenes", "list the built-in scenes", cmd_scenes)
     command("version", "versions of ddsolve, PETSc and MPI", cmd_version)
 

@@ -329,6 +329,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
                 solves=rounds.count, wall_time=timings["factorization"] + timings["iterations"], ranks=comm.size,
                 mesh=mesh, solution=solution, multipliers=interface.split(outcome.lam, frames),
                 history=np.array(outcome.history), timings=timings, message=outcome.message,
+                active_set_changes=np.array(outcome.active_set_changes, dtype=np.int64),
                 attrs={**io.provenance(), "stop": scene.solver.stop, "tol": scene.solver.tol,
                        "peak_memory_mb": memory, **outcome.details},
             )

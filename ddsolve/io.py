@@ -1,4 +1,5 @@
-"""Result files: HDF5 (the layout of docs/usage.md) written atomically, and XDMF for ParaView."""
+"""Result files: HDF5 (the layout of docs/usage.md) and the viewer files derived from it, written as
+one set that replaces the previous one together or not at all."""
 from __future__ import annotations
 
 import functools
@@ -7,10 +8,12 @@ import subprocess
 import tempfile
 import time
 from pathlib import Path
+from typing import Callable
 
 import h5py
 import numpy as np
 
+from . import analysis, export
 from .errors import DDSolveError
 from .interface import BLOCKS
 from .mesh import HalfMesh, Mesh, SigmaLine
@@ -20,26 +23,44 @@ MULTIPLIERS = ("mu_c", "mu_g", "mu_minus", "mu_plus")
 SIGMA_FIELDS = ("points", "normals", "weights", "crack", "tip", "clamped", "corner")
 
 
-def atomic(path: Path, write) -> None:
-    """Call ``write(temporary_path)`` then rename over ``path``: never a truncated file."""
-    path = Path(path)
-    folder = path.parent if str(path.parent) else Path(".")
-    if not folder.is_dir():
-        raise DDSolveError(f"{path}: output directory {folder} does not exist")
+def replace_together(writers: dict[Path, Callable[[str], None]]) -> None:
+    """Write a set of files so that they replace the previous ones together or not at all.
+
+    Each ``write(temporary)`` writes its file under a temporary name in the target's folder; only
+    when every one has succeeded are they renamed over their targets.  On any failure or interrupt
+    the temporary files are removed and the previous files are left as they were.
+    """
+    temporaries: dict[Path, str] = {}
     try:
-        handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
-        os.close(handle)
-    except OSError as exc:
-        raise DDSolveError(f"{path}: cannot write in {folder} ({exc.strerror})") from None
-    try:
-        write(temporary)
-        os.chmod(temporary, 0o644)
-        os.replace(temporary, path)
-    except OSError as exc:
-        raise DDSolveError(f"{path}: cannot write ({exc.strerror or exc})") from None
+        for path, write in writers.items():
+            path = Path(path)
+            folder = path.parent
+            if not folder.is_dir():
+                raise DDSolveError(f"{path}: output directory {folder} does not exist")
+            try:
+                handle, temporaries[path] = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
+                os.close(handle)
+            except OSError as exc:
+                raise DDSolveError(f"{path}: cannot write in {folder} ({exc.strerror})") from None
+            try:
+                write(temporaries[path])
+                os.chmod(temporaries[path], 0o644)
+            except OSError as exc:
+                raise DDSolveError(f"{path}: cannot write ({exc.strerror or exc})") from None
+        for path, temporary in temporaries.items():
+            try:
+                os.replace(temporary, path)
+            except OSError as exc:
+                raise DDSolveError(f"{path}: cannot replace ({exc.strerror or exc})") from None
     finally:
-        if os.path.exists(temporary):
-            os.unlink(temporary)
+        for temporary in temporaries.values():
+            if os.path.exists(temporary):
+                os.unlink(temporary)
+
+
+def atomic(path: Path, write: Callable[[str], None]) -> None:
+    """Call ``write(temporary_path)`` then rename over ``path``: never a truncated file."""
+    replace_together({Path(path): write})
 
 
 @functools.lru_cache(maxsize=None)
@@ -74,16 +95,25 @@ def provenance() -> dict[str, str]:
     }
 
 
-def write(path: Path, result: Result) -> None:
-    """Write ``path`` (HDF5) and the XDMF file beside it, each atomically."""
+def write(path: Path, result: Result, viewer: str = "vtu") -> list[Path]:
+    """Write ``path`` (HDF5) and its viewer files (format ``viewer``, see :mod:`ddsolve.export`) beside
+    it, as one set; returns the paths written."""
     path = Path(path)
-    atomic(path, lambda name: _write_hdf5(name, result))
-    atomic(path.with_suffix(".xdmf"), lambda name: Path(name).write_text(xdmf(path.name, result)))
+    fields = analysis.cell_fields(result)
+    writers = {path: lambda name: _write_hdf5(name, result, fields),
+               **export.viewer_files(result, path.parent, path.stem, viewer, fields)}
+    replace_together(writers)
+    return list(writers)
 
 
-def _write_hdf5(name: str, result: Result) -> None:
-    from .analysis import layer_stresses  # von Mises per cell for the ParaView fields
+def write_viewer(result: Result, folder: Path, stem: str, viewer: str = "vtu") -> list[Path]:
+    """(Re)write the viewer files of ``result`` as ``folder/stem-*``; returns the paths written."""
+    writers = export.viewer_files(result, Path(folder), stem, viewer)
+    replace_together(writers)
+    return list(writers)
 
+
+def _write_hdf5(name: str, result: Result, fields: dict[str, analysis.CellFields]) -> None:
     started = time.perf_counter()
     with h5py.File(name, "w") as f:
         for key in ("converged", "iterations", "solves", "method", "wall_time", "ranks", "scene", "message"):
@@ -113,46 +143,14 @@ def _write_hdf5(name: str, result: Result) -> None:
         for name in MULTIPLIERS:
             f[f"interface/{name}"] = result.multipliers[name]
         f["history/criterion"] = np.asarray(result.history, dtype=np.float64)
-        stresses = layer_stresses(result)
+        f["history/active_set_changes"] = np.asarray(result.active_set_changes, dtype=np.int64)
+        for name, per_block in result.cell_data.items():
+            for block, values in per_block.items():
+                f[f"cell_data/{name}/{block}"] = values
         for spec in BLOCKS:
-            padded = np.zeros((len(result.solution[spec.name]), 3))
-            padded[:, :2] = result.solution[spec.name]
-            f[f"paraview/{spec.name}/displacement"] = padded
-            f[f"paraview/{spec.name}/von_mises"] = stresses[spec.name]
+            f[f"paraview/{spec.name}/displacement"] = export.padded(result.solution[spec.name])
+            f[f"paraview/{spec.name}/von_mises"] = fields[spec.name].von_mises
         timings.attrs["write"] = time.perf_counter() - started
-
-
-def xdmf(h5_name: str, result: Result) -> str:
-    """XDMF 3 text: one grid per block (mesh of its half), displacement and von Mises stress."""
-    grids = []
-    for spec in BLOCKS:
-        half = result.half(spec.name)
-        n, (m, k) = len(half.points), half.cells.shape
-        item = 'Format="HDF" Precision="8" NumberType="Float"'
-        grids.append(f"""    <Grid Name="{spec.name}" GridType="Uniform">
-      <Topology TopologyType="{'Triangle' if k == 3 else 'Triangle_6'}" NumberOfElements="{m}">
-        <DataItem Dimensions="{m} {k}" NumberType="Int" Precision="8" Format="HDF">{h5_name}:/mesh/{half.name}/cells</DataItem>
-      </Topology>
-      <Geometry GeometryType="XY">
-        <DataItem Dimensions="{n} 2" {item}>{h5_name}:/mesh/{half.name}/points</DataItem>
-      </Geometry>
-      <Attribute Name="displacement" AttributeType="Vector" Center="Node">
-        <DataItem Dimensions="{n} 3" {item}>{h5_name}:/paraview/{spec.name}/displacement</DataItem>
-      </Attribute>
-      <Attribute Name="von_mises" AttributeType="Scalar" Center="Cell">
-        <DataItem Dimensions="{m}" {item}>{h5_name}:/paraview/{spec.name}/von_mises</DataItem>
-      </Attribute>
-    </Grid>""")
-    body = "\n".join(grids)
-    return f"""<?xml version="1.0" ?>
-<Xdmf Version="3.0">
-  <Domain>
-  <Grid Name="ddsolve" GridType="Collection" CollectionType="Spatial">
-{body}
-  </Grid>
-  </Domain>
-</Xdmf>
-"""
 
 
 def read(path: Path) -> Result:
@@ -177,6 +175,10 @@ def read(path: Path) -> Result:
                 solution={spec.name: f[f"solution/{spec.name}"][()] for spec in BLOCKS},
                 multipliers={name: f[f"interface/{name}"][()] for name in MULTIPLIERS},
                 history=f["history/criterion"][()],
+                active_set_changes=f["history/active_set_changes"][()] if "history/active_set_changes" in f
+                else np.zeros(0, dtype=np.int64),
+                cell_data={name: {block: values[()] for block, values in group.items()}
+                           for name, group in f.get("cell_data", {}).items()},
                 timings={k: float(v) for k, v in f["timings"].attrs.items()} if "timings" in f else {},
                 message=str(f.attrs.get("message", "")),
                 attrs={k: v for k, v in f.attrs.items() if k not in known},

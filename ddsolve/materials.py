@@ -71,6 +71,17 @@ def elasticity(material, model: str = "plane_strain") -> tuple[np.ndarray, np.nd
     return np.linalg.inv(S[np.ix_(_PLANE, _PLANE)]), np.zeros(3)
 
 
+def out_of_plane_strain(material, model: str = "plane_strain") -> np.ndarray | None:
+    """The row ``e`` ``(3,)`` giving εzz = e·ε: zero for plane strain; for plane stress, from σzz = 0
+    with the 3-D law; None for a full matrix in plane stress (its 3-D law is not known)."""
+    if model == "plane_strain":
+        return np.zeros(3)
+    if isinstance(material, Anisotropic):
+        return None
+    C = _stiffness_3d(material)
+    return -C[_ZZ, _PLANE] / C[_ZZ, _ZZ]
+
+
 def check_positive_definite(D: np.ndarray, name: str) -> None:
     """Raise MaterialError unless ``D`` is symmetric positive definite (to round-off)."""
     scale = np.abs(D).max(initial=0.0)

@@ -49,7 +49,8 @@ class Outcome:
     lam: np.ndarray
     converged: bool
     iterations: int
-    history: list[float] = field(default_factory=list)
+    history: list[float] = field(default_factory=list)  # the stopping criterion, one per iteration
+    active_set_changes: list[int] = field(default_factory=list)  # per iteration, for active-set methods
     message: str = ""
     diverged: bool = False  # stopped because the iteration blew up (nothing is written)
     details: dict = field(default_factory=dict)  # method-specific numbers for the result file
@@ -352,12 +353,13 @@ def mprgp(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
 
 # --- exact dual solve from the interface flexibilities ----------------------------------------
 def box_qp(A: np.ndarray, b: np.ndarray, lower: np.ndarray, upper: np.ndarray,
-           max_steps: int = 200) -> tuple[np.ndarray, int]:
+           max_steps: int = 200, observe: Callable[[np.ndarray, int], None] | None = None) -> tuple[np.ndarray, int]:
     """Minimize ½ yᵀAy − bᵀy over lower ≤ y ≤ upper (A dense SPD) by a primal-dual active set method.
 
     Returns the solution and the number of active-set steps.  Each step solves the free rows
     with the active ones at their bounds; the sets are updated from the signs of the gradient on
     active rows and the bound violations on free rows, until they no longer change.
+    ``observe(y, changes)`` is called after each step with its solution and how many rows change set.
     """
     at_lower = np.zeros(len(b), dtype=bool)
     at_upper = np.zeros(len(b), dtype=bool)
@@ -371,6 +373,8 @@ def box_qp(A: np.ndarray, b: np.ndarray, lower: np.ndarray, upper: np.ndarray,
         gradient = A @ y - b
         new_lower = (at_lower & (gradient >= 0)) | (free & (y < lower))
         new_upper = (at_upper & (gradient <= 0)) | (free & (y > upper))
+        if observe is not None:
+            observe(y, int(np.sum(new_lower != at_lower) + np.sum(new_upper != at_upper)))
         if np.array_equal(new_lower, at_lower) and np.array_equal(new_upper, at_upper):
             return y, step
         at_lower, at_upper = new_lower, new_upper
@@ -408,25 +412,46 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
     jump[unknowns[0][normal], np.arange(len(normal))] += sqrt_w
     jump[unknowns[1][normal], np.arange(len(normal))] -= sqrt_w
     solved = np.linalg.solve(stiffness, np.column_stack([body, jump]))
-    y_c, steps = box_qp(jump.T @ solved[:, 1:], jump.T @ solved[:, 0], problem.lower[contact], problem.upper[contact])
-    traces = (solved[:, 0] - solved[:, 1:] @ y_c)[unknowns]
-    loads = np.einsum("bij,bj->bi", schur_complements, traces - initial)
-    y = problem.sqrt_w * interface.multipliers(loads)
-    y[contact] = y_c
+    history: list[float] = []
+    changes: list[int] = []
+
+    def contact_step(y_c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Every scaled multiplier and the traces for the contact multipliers ``y_c``."""
+        traces = (solved[:, 0] - solved[:, 1:] @ y_c)[unknowns]
+        loads = np.einsum("bij,bj->bi", schur_complements, traces - initial)
+        y = problem.sqrt_w * interface.multipliers(loads)
+        y[contact] = y_c
+        return y, traces
+
+    def record(y: np.ndarray, traces: np.ndarray, changed: int) -> None:
+        """History of one active-set step: the criterion of its solution projected onto the bounds
+        (the last step's is feasible already) and how many constraints changed state."""
+        history.append(problem.criterion(y, -problem.sqrt_w * interface.gap(traces)))
+        changes.append(changed)
+
+    lower_c, upper_c = problem.lower[contact], problem.upper[contact]
+    y_c, steps = box_qp(jump.T @ solved[:, 1:], jump.T @ solved[:, 0], lower_c, upper_c,
+                        observe=lambda y_c, changed: record(*contact_step(np.clip(y_c, lower_c, upper_c)), changed))
+    y, traces = contact_step(y_c)
     if np.any(y < problem.lower) or np.any(y > problem.upper):  # a bound ±p is active: all bounds
         flexibilities = np.linalg.inv(schur_complements)
         A = interface.dual_matrix(flexibilities) / np.outer(problem.sqrt_w, problem.sqrt_w)
-        y, more = box_qp(A, problem.b, problem.lower, problem.upper)
+
+        def full_step(y: np.ndarray) -> np.ndarray:
+            return initial + np.einsum("bij,bj->bi", flexibilities, interface.loads(y / problem.sqrt_w))
+
+        y, more = box_qp(A, problem.b, problem.lower, problem.upper,
+                         observe=lambda y, changed: record(problem.project(y), full_step(problem.project(y)), changed))
         steps += more
-        traces = initial + np.einsum("bij,bj->bi", flexibilities, interface.loads(y / problem.sqrt_w))
-    criterion = problem.criterion(y, -problem.sqrt_w * interface.gap(traces))
+        traces = full_step(y)
+    criterion = problem.criterion(y, -problem.sqrt_w * interface.gap(traces))  # = history[-1]
     progress(steps, criterion, final=True)
     converged = criterion < solver.tol
     message = "" if converged else (f"schur: the exact solution has criterion {criterion:.3e}, above tol "
                                     f"{solver.tol:g} (the round-off level of this problem)")
-    return Outcome(problem.multipliers(y), converged=converged, iterations=steps, history=[criterion],
-                   message=message, details={"rank0_solve_time": time.perf_counter() - started,
-                                             "interface_unknowns": size})
+    return Outcome(problem.multipliers(y), converged=converged, iterations=steps, history=history,
+                   active_set_changes=changes, message=message,
+                   details={"rank0_solve_time": time.perf_counter() - started, "interface_unknowns": size})
 
 
 METHODS: dict[str, Callable[..., Outcome]] = {"schur": schur, "mprgp": mprgp, "fista": fista, "uzawa": uzawa}

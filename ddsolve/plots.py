@@ -1,7 +1,12 @@
 """Pictures of a result (matplotlib, Agg): deformed layers coloured by von Mises stress,
-the normal jump of layer 1 across Σ, and convergence histories."""
+the normal jump of layer 1 across Σ, and convergence histories.
+
+Units are those of the scene: lengths in its geometry's unit, stresses (and the contact pressure,
+a traction) in the unit of its elastic moduli.
+"""
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -13,6 +18,19 @@ from .interface import BLOCKS
 
 if TYPE_CHECKING:
     from .result import Result
+
+
+#: Axis-label units.
+LENGTH, STRESS = "length unit", "unit of E"
+#: Stress colours run up to this percentile of the cells' values: the singularities at clamped
+#: corners and crack tips would otherwise take the whole colour range.
+STRESS_PERCENTILE = 99.0
+
+
+def stress_ceiling(values: np.ndarray) -> float:
+    """Top of the stress colour range: the STRESS_PERCENTILE-th percentile (1 when all is zero)."""
+    top = float(np.percentile(values, STRESS_PERCENTILE)) if len(values) else 0.0
+    return top if top > 0.0 and np.isfinite(top) else 1.0
 
 
 def _pyplot():
@@ -45,35 +63,42 @@ def magnification(result: Result, fraction: float = 0.08) -> float:
     return float(f"{raw:.0e}")
 
 
+def one_above_the_other(points: np.ndarray) -> bool:
+    """Whether to draw the two layers one above the other (a domain more than twice as wide as tall)
+    rather than side by side."""
+    width, height = np.ptp(points, axis=0)
+    return bool(width > 2.0 * height)
+
+
 def deformed_layers(result: Result, path: Path, scale: float | None = None) -> float:
     """Both layers, displacements magnified by ``scale`` (from the data by default), cells coloured by
-    von Mises stress on a range that ignores the stress singularities (99th percentile); returns the scale."""
+    von Mises stress on a range that ignores the stress singularities (:func:`stress_ceiling`);
+    returns the scale."""
     plt = _pyplot()
     scale = magnification(result) if scale is None else scale
     stresses = layer_stresses(result)
     moved = np.vstack([half.points + scale * result.solution[name] for name in result.solution
                        for half in [result.half(name)]])
     width, height = np.ptp(moved, axis=0)
-    wide = width > 2.0 * height  # one layer above the other, else side by side
+    wide = one_above_the_other(moved)
     panel = (8.5, 8.5 * height / width) if wide else (4.6 * min(width / height, 1.6), 4.6)
     fig, axes = plt.subplots(2 if wide else 1, 1 if wide else 2, constrained_layout=True,
                              figsize=(panel[0] + 2.5, 2 * (panel[1] + 1.0) + 0.4) if wide
                              else (2 * (panel[0] + 2.2), panel[1] + 1.2))
     for ax, layer, title in zip(axes, ("layer1", "layer2"), ("layer 1 (u)", "layer 2 (v)")):
         names = [spec.name for spec in BLOCKS if spec.layer == layer]
-        values = np.concatenate([stresses[name] for name in names])
-        top = np.percentile(values, 99.0) if len(values) else 1.0
+        top = stress_ceiling(np.concatenate([stresses[name] for name in names]))
         for name in names:
             half = result.half(name)
             moved = half.points + scale * result.solution[name]
             triangles, parent = linear_triangles(half.cells)
             image = ax.tripcolor(moved[:, 0], moved[:, 1], triangles, facecolors=stresses[name][parent],
-                                 cmap="viridis", vmin=0.0, vmax=top or 1.0, edgecolors="none")
-        fig.colorbar(image, ax=ax, shrink=0.9, label="von Mises stress" if wide else
-                     "von Mises stress (top: 99th percentile)")
+                                 cmap="viridis", vmin=0.0, vmax=top, edgecolors="none")
+        fig.colorbar(image, ax=ax, shrink=0.9, label=f"von Mises stress ({STRESS})" if wide else
+                     f"von Mises stress ({STRESS}; top: {STRESS_PERCENTILE:g}th percentile)")
         ax.set_title(f"{title}, displacements ×{scale:g}")
-        ax.set_xlabel("x")
-        ax.set_ylabel("y")
+        ax.set_xlabel(f"x ({LENGTH})")
+        ax.set_ylabel(f"y ({LENGTH})")
         ax.set_aspect("equal")
     fig.suptitle(scenes.loads(result.scene).title)
     fig.savefig(path, dpi=130)
@@ -89,8 +114,8 @@ def interface_jumps(results: list[tuple[str, Result]], path: Path) -> None:
         position, axis_label = along_sigma(result)
         ax.plot(position, normal_jump(result), marker=".", markersize=3, label=label)
     ax.axhline(0.0, color="black", linewidth=0.6)
-    ax.set_xlabel(axis_label)
-    ax.set_ylabel("normal jump [u]·ν of layer 1 (negative: overlap)")
+    ax.set_xlabel(f"{axis_label} ({LENGTH})")
+    ax.set_ylabel(f"normal jump [u]·ν of layer 1 ({LENGTH}; negative: overlap)")
     ax.legend()
     ax.grid(alpha=0.3)
     fig.savefig(path, dpi=130)
@@ -108,9 +133,9 @@ def crack_faces(result: Result, path: Path) -> None:
         for ax in (top, bottom):
             ax.axvspan(position[max(first - 1, 0)], position[min(last + 1, len(position) - 1)], color="0.9")
     top.axhline(0.0, color="black", linewidth=0.6)
-    top.set_ylabel("opening [u]·ν")
-    bottom.set_ylabel("contact pressure μᶜ")
-    bottom.set_xlabel(axis_label + " (shaded: cracks)")
+    top.set_ylabel(f"opening [u]·ν ({LENGTH})")
+    bottom.set_ylabel(f"contact pressure μᶜ ({STRESS})")
+    bottom.set_xlabel(f"{axis_label} ({LENGTH}; shaded: cracks)")
     for ax in (top, bottom):
         ax.grid(alpha=0.3)
     top.set_title(scenes.loads(result.scene).title, fontsize=9)
@@ -118,15 +143,60 @@ def crack_faces(result: Result, path: Path) -> None:
     plt.close(fig)
 
 
-def convergence(results: list[tuple[str, Result]], path: Path) -> None:
-    """Stopping-rule value against iteration."""
+@dataclass(frozen=True)
+class Curve:
+    """What one line of a plot shows."""
+
+    axis: str  # the y-axis label of its panel
+    label: str
+    x: np.ndarray
+    y: np.ndarray
+
+
+CRITERION_AXIS = "stopping criterion (dimensionless)"
+CHANGES_AXIS = "active-set changes (constraints)"
+
+
+def convergence(results: list[tuple[str, Result]], path: Path) -> list[Curve]:
+    """The stopping criterion per iteration (log scale; symmetric-log when a value is 0) and, for
+    active-set methods (``schur``, the reference), the constraints that changed state per step.
+    Returns the curves drawn."""
     plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(7, 4), constrained_layout=True)
-    for label, result in results:
-        ax.semilogy(np.arange(1, len(result.history) + 1), result.history, label=label)
-    ax.set_xlabel("iteration")
-    ax.set_ylabel("stopping criterion")
-    ax.legend()
-    ax.grid(alpha=0.3, which="both")
+    from matplotlib.ticker import MaxNLocator
+
+    curves = [Curve(CRITERION_AXIS, label, np.arange(1, len(r.history) + 1), np.asarray(r.history, dtype=float))
+              for label, r in results if len(r.history)]
+    curves += [Curve(CHANGES_AXIS, label, np.arange(1, len(r.active_set_changes) + 1),
+                     np.asarray(r.active_set_changes, dtype=float))
+               for label, r in results if len(r.active_set_changes)]
+    panels = [axis for axis in (CRITERION_AXIS, CHANGES_AXIS) if any(c.axis == axis for c in curves)]
+    fig, axes = plt.subplots(max(len(panels), 1), 1, figsize=(7, 3.2 + 2.3 * len(panels)), sharex=True,
+                             constrained_layout=True, squeeze=False)
+    axes = axes[:, 0]
+    for ax, axis in zip(axes, panels):
+        mine = [c for c in curves if c.axis == axis]
+        for curve in mine:
+            ax.plot(curve.x, curve.y, marker="o", markersize=3, label=curve.label,
+                    drawstyle="steps-mid" if axis == CHANGES_AXIS else "default")
+        values = np.concatenate([c.y for c in mine])
+        if axis == CRITERION_AXIS:
+            positive = values[values > 0]
+            if len(positive) == len(values):
+                ax.set_yscale("log")
+            elif len(positive):  # zeros (exact solutions) stay visible on a symmetric log scale
+                ax.set_yscale("symlog", linthresh=positive.min())
+        ax.set_ylabel(axis)
+        if axis == CHANGES_AXIS:
+            ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.legend()
+        ax.grid(alpha=0.3, which="both")
+    if not panels:
+        axes[0].text(0.5, 0.5, "no iterations: the starting point satisfied the stopping rule",
+                     ha="center", va="center", transform=axes[0].transAxes)
+        axes[0].set_ylabel(CRITERION_AXIS)
+    steps = " (active-set step for schur and the reference)" if any(c.axis == CHANGES_AXIS for c in curves) else ""
+    axes[-1].set_xlabel("iteration" + steps)
+    axes[-1].xaxis.set_major_locator(MaxNLocator(integer=True))
     fig.savefig(path, dpi=130)
     plt.close(fig)
+    return curves

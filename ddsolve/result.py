@@ -14,6 +14,10 @@ class Result:
 
     ``multipliers``: ``mu_c`` ``(k,)`` (the contact pressure), ``mu_g``, ``mu_minus``, ``mu_plus``
     ``(k, 2)`` in (x, y), over the k multiplier nodes (0 where a multiplier does not exist).
+    ``history``: the stopping criterion per iteration; ``active_set_changes``: per iteration of an
+    active-set method (``schur``, the reference), how many constraints changed state (else empty).
+    ``cell_data``: name -> block -> per-cell values ``(m,)`` or ``(m, c)`` of the block's half; the
+    viewer files show every entry as a cell array of its layer.
     """
 
     scene: str
@@ -27,6 +31,8 @@ class Result:
     solution: dict[str, np.ndarray]  # block name -> (n, 2) nodal displacements
     multipliers: dict[str, np.ndarray]
     history: np.ndarray
+    active_set_changes: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    cell_data: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
     timings: dict[str, float] = field(default_factory=dict)
     message: str = ""
     attrs: dict = field(default_factory=dict)

@@ -1,0 +1,263 @@
+"""Viewer files (VTU and XDMF, P1 and P2) read back by meshio and ParaView, and the set-of-files writer."""
+from __future__ import annotations
+
+import os
+import random
+import shutil
+import subprocess
+
+import meshio
+import numpy as np
+import pytest
+
+from ddsolve import analysis, assembly, io, materials
+from ddsolve.errors import DDSolveError
+from ddsolve.export import merged_upper_nodes
+
+from conftest import ddsolve
+
+SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
+P2 = ["--set", "mesh.degree=2"]
+LAYER_ARRAYS = {"stress": 9, "strain": 9, "von_mises": 1, "energy_density": 1, "half": 1}
+SIGMA_ARRAYS = {"jump": 3, "opening": 1, "contact_pressure": 1, "mu_g": 3, "mu_minus": 3, "mu_plus": 3,
+                "normal": 3, "crack": 1, "x": 1, "arc_length": 1}
+
+
+@pytest.fixture(scope="module")
+def results(tmp_path_factory):
+    """Reference results of Example 1 on a small mesh, P1 and P2, with their viewer files in both formats."""
+    folder = tmp_path_factory.mktemp("export")
+    out = {}
+    for degree, extra in ((1, []), (2, P2)):
+        path = folder / f"p{degree}.h5"
+        ddsolve("reference", "partial-closure", *SMALL, *extra, "-o", str(path))
+        ddsolve("export", str(path), "--format", "xdmf")
+        out[degree] = path
+    return out
+
+
+def components(values: np.ndarray) -> int:
+    return 1 if values.ndim == 1 else values.shape[1]
+
+
+@pytest.mark.parametrize("fmt", ["vtu", "xdmf"])
+@pytest.mark.parametrize("degree", [1, 2])
+def test_meshio_reads_every_viewer_file_with_its_named_arrays(results, degree, fmt):
+    path = results[degree]
+    result = io.read(path)
+    fields = analysis.cell_fields(result)
+    for layer, (minus, plus) in (("layer1", ("u_minus", "u_plus")), ("layer2", ("v_minus", "v_plus"))):
+        mesh = meshio.read(path.with_name(f"p{degree}-{layer}.{fmt}"))
+        (block,) = mesh.cells
+        assert block.type == ("triangle" if degree == 1 else "triangle6")
+        assert len(block.data) == len(result.lower.cells) + len(result.upper.cells)
+        assert set(mesh.cell_data) == set(LAYER_ARRAYS)
+        for name, count in LAYER_ARRAYS.items():
+            (values,) = mesh.cell_data[name]
+            assert len(values) == len(block.data) and components(values) == count, name
+        displacement = mesh.point_data["displacement"]
+        assert displacement.shape == (len(mesh.points), 3) and np.all(displacement[:, 2] == 0.0)
+        # lower nodes first, as in the result; the upper half's own nodes after them
+        n = len(result.lower.points)
+        assert np.allclose(displacement[:n, :2], result.solution[minus], rtol=0, atol=1e-14)
+        index, _ = merged_upper_nodes(result)
+        assert np.allclose(displacement[index, :2], result.solution[plus], rtol=0, atol=1e-12)
+        (stress,), (strain,) = mesh.cell_data["stress"], mesh.cell_data["strain"]
+        expected = np.concatenate([fields[minus].stress, fields[plus].stress])
+        assert np.allclose(stress[:, [0, 4, 1]], expected) and np.array_equal(stress[:, 1], stress[:, 3])
+        assert np.allclose(stress[:, 8], np.concatenate([fields[minus].stress_zz, fields[plus].stress_zz]))
+        assert np.all(strain[:, 8] == 0.0)  # plane strain
+        assert np.allclose(mesh.cell_data["von_mises"][0],
+                           np.concatenate([fields[minus].von_mises, fields[plus].von_mises]))
+    sigma = meshio.read(path.with_name(f"p{degree}-sigma.{fmt}"))
+    (block,) = sigma.cells
+    assert block.type == ("line" if degree == 1 else "line3")
+    assert len(sigma.points) == len(result.mesh.sigma.points)
+    assert {name: components(values) for name, values in sigma.point_data.items()} == SIGMA_ARRAYS
+    nodes = result.multiplier_nodes
+    assert np.allclose(sigma.point_data["opening"][nodes], analysis.normal_jump(result))
+    assert np.array_equal(sigma.point_data["contact_pressure"][nodes], result.multipliers["mu_c"])
+    assert np.array_equal(sigma.point_data["mu_g"][nodes, :2], result.multipliers["mu_g"])
+
+
+def test_layer_mesh_is_one_mesh_with_separate_crack_faces(results):
+    result = io.read(results[1])
+    mesh = meshio.read(results[1].with_name("p1-layer1.vtu"))
+    sigma = result.mesh.sigma
+    crack, glued = int(sigma.crack.sum()), int((~sigma.crack).sum())
+    assert crack > 0
+    assert len(mesh.points) == len(result.lower.points) + len(result.upper.points) - glued
+    # every position occurs once, except the crack nodes: once per face
+    _, counts = np.unique(np.round(mesh.points, 12), axis=0, return_counts=True)
+    assert np.sum(counts == 2) == crack and counts.max() == 2
+    # the two halves share the glued Σ nodes: cells of both use them
+    cells = mesh.cells[0].data
+    lower_cells = cells[mesh.cell_data["half"][0] == -1]
+    upper_cells = cells[mesh.cell_data["half"][0] == 1]
+    shared = np.intersect1d(lower_cells, upper_cells)
+    assert len(shared) == glued
+
+
+def test_energy_density_integrates_to_the_strain_energy(results):
+    result = io.read(results[2])
+    fields = analysis.cell_fields(result)
+    laws = analysis.elasticities(result)
+    for name, half in (("u_minus", result.lower), ("v_plus", result.upper)):
+        area, _ = assembly.cell_strains(half.points, half.cells, result.solution[name])
+        layer = "layer1" if name.startswith("u") else "layer2"
+        energy = assembly.energy(half.points, half.cells, laws[layer][0], result.solution[name])
+        assert np.sum(fields[name].energy_density * area) == pytest.approx(0.5 * energy, rel=1e-12)
+
+
+def test_plane_stress_strain_zz_makes_sigma_zz_vanish():
+    strain = np.array([[1.0e-3, -2.0e-4, 5.0e-4], [0.0, 3.0e-4, 0.0]])
+    isotropic = materials.Isotropic(E=200.0, nu=0.28)
+    e = materials.out_of_plane_strain(isotropic, "plane_stress")
+    assert np.allclose(strain @ e, -0.28 / 0.72 * (strain[:, 0] + strain[:, 1]))
+    assert np.array_equal(materials.out_of_plane_strain(isotropic, "plane_strain"), np.zeros(3))
+    orthotropic = materials.Orthotropic(E1=140.0, E2=10.0, G12=5.0, nu12=0.3, angle=30.0)
+    e = materials.out_of_plane_strain(orthotropic, "plane_stress")
+    C = materials._stiffness_3d(orthotropic)
+    full = np.zeros((2, 6))
+    full[:, [0, 1, 5]] = strain
+    full[:, 2] = strain @ e
+    assert np.allclose((full @ C.T)[:, 2], 0.0, atol=1e-12)  # σzz = 0
+    assert materials.out_of_plane_strain(materials.Anisotropic(D=((1, 0, 0), (0, 1, 0), (0, 0, 1))),
+                                         "plane_stress") is None
+
+
+def test_plane_stress_result_has_its_strain_zz(tmp_path):
+    path = tmp_path / "ps.h5"
+    ddsolve("reference", "orthotropic-plate", "--set", "mesh.size=0.25", "-o", str(path))
+    (strain,) = meshio.read(tmp_path / "ps-layer1.vtu").cell_data["strain"]
+    (stress,) = meshio.read(tmp_path / "ps-layer1.vtu").cell_data["stress"]
+    assert np.all(stress[:, 8] == 0.0) and np.abs(strain[:, 8]).max() > 0.0
+
+
+def test_per_cell_arrays_of_the_result_become_cell_arrays(results, tmp_path):
+    result = io.read(results[1])
+    indicator = {block: np.arange(len(result.half(block).cells), dtype=float) + (100 if block.endswith("plus") else 0)
+                 for block in ("u_minus", "u_plus", "v_minus", "v_plus")}
+    result.cell_data["error_indicator"] = indicator
+    path = tmp_path / "with-cells.h5"
+    io.write(path, result)
+    again = io.read(path)
+    assert np.array_equal(again.cell_data["error_indicator"]["v_plus"], indicator["v_plus"])
+    io.write_viewer(again, tmp_path, "with-cells", "xdmf")
+    for fmt in ("vtu", "xdmf"):
+        (values,) = meshio.read(tmp_path / f"with-cells-layer2.{fmt}").cell_data["error_indicator"]
+        assert np.array_equal(values, np.concatenate([indicator["v_minus"], indicator["v_plus"]]))
+    result.cell_data["error_indicator"] = {**indicator, "u_plus": indicator["u_plus"][:-1]}
+    with pytest.raises(DDSolveError, match="cell data error_indicator: .* upper half"):
+        io.write_viewer(result, tmp_path, "bad", "vtu")
+
+
+def test_a_failing_writer_keeps_the_previous_set_and_leaves_no_temporaries(tmp_path):
+    first, second = tmp_path / "a.txt", tmp_path / "b.txt"
+    io.replace_together({first: lambda name: open(name, "w").write("old a"),
+                         second: lambda name: open(name, "w").write("old b")})
+
+    def fails(name):
+        raise OSError(28, "No space left on device")
+
+    with pytest.raises(DDSolveError, match="b.txt: cannot write .No space left on device"):
+        io.replace_together({first: lambda name: open(name, "w").write("new a"), second: fails})
+    assert first.read_text() == "old a" and second.read_text() == "old b"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt", "b.txt"]
+    with pytest.raises(KeyboardInterrupt):
+        io.replace_together({first: lambda name: (_ for _ in ()).throw(KeyboardInterrupt())})
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt", "b.txt"]
+
+
+def test_export_command(results, tmp_path):
+    out = ddsolve("export", str(results[2]), "--format", "vtu", "-o", str(tmp_path)).stdout
+    names = ["p2-layer1.vtu", "p2-layer2.vtu", "p2-sigma.vtu", "p2-paraview.py"]
+    assert out.strip() == "wrote " + ", ".join(str(tmp_path / name) for name in names)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(names)
+    completed = ddsolve("export", str(results[2]), "-o", str(tmp_path / "missing"), check=False)
+    assert completed.returncode == 1
+    assert completed.stderr.strip() == f"ddsolve: error: -o {tmp_path / 'missing'}: no such directory"
+    completed = ddsolve("export", str(tmp_path / "p2-layer1.vtu"), check=False)
+    assert completed.returncode == 1 and completed.stderr.count("\n") == 1
+    assert "not a ddsolve result file" in completed.stderr
+
+
+# --- ParaView (skipped where it is not installed) ----------------------------------------------------
+PARAVIEW = shutil.which("pvpython") and shutil.which("xvfb-run")
+needs_paraview = pytest.mark.skipif(not PARAVIEW, reason="ParaView (pvpython) or xvfb-run not installed")
+
+
+def pvpython(*args: str, cwd=None) -> subprocess.CompletedProcess:
+    """``xvfb-run -a pvpython ARGS``; the X display search starts at a random number, and a display
+    another run took at the same moment (xvfb-run's race) is retried once."""
+    for attempt in range(2):
+        command = ["xvfb-run", "-a", "-n", str(random.randint(100, 4000)), "pvpython", *args]
+        completed = subprocess.run(command, capture_output=True, text=True, timeout=300, cwd=cwd,
+                                   stdin=subprocess.DEVNULL)
+        if "bad X server connection" not in completed.stderr:
+            break
+    return completed
+
+
+READ_IN_PARAVIEW = """
+import sys
+from paraview.simple import OpenDataFile, servermanager
+for name in sys.argv[1:]:
+    reader = OpenDataFile(name)
+    reader.UpdatePipeline()
+    data = servermanager.Fetch(reader)
+    arrays = [data.GetPointData().GetArray(i) for i in range(data.GetPointData().GetNumberOfArrays())]
+    arrays += [data.GetCellData().GetArray(i) for i in range(data.GetCellData().GetNumberOfArrays())]
+    print(name, reader.GetXMLName(), data.GetNumberOfPoints(), data.GetNumberOfCells(), data.GetCellType(0),
+          " ".join("%s:%d" % (a.GetName(), a.GetNumberOfComponents()) for a in arrays))
+"""
+
+
+@needs_paraview
+def test_paraview_reads_every_viewer_file(results, tmp_path):
+    script = tmp_path / "read.py"
+    script.write_text(READ_IN_PARAVIEW)
+    files = [str(results[degree].with_name(f"p{degree}-{part}.{fmt}")) for degree in (1, 2)
+             for part in ("layer1", "layer2", "sigma") for fmt in ("vtu", "xdmf")]
+    completed = pvpython(str(script), *files)
+    assert completed.returncode == 0, completed.stderr
+    lines = {line.split()[0]: line.split()[1:] for line in completed.stdout.splitlines() if line.startswith("/")}
+    assert sorted(lines) == sorted(files)
+    vtk_cell_types = {("layer", 1): 5, ("layer", 2): 22, ("sigma", 1): (3, 4), ("sigma", 2): 21}
+    for name, (reader, points, cells, cell_type, *arrays) in lines.items():
+        mesh = meshio.read(name)
+        assert reader == ("XMLUnstructuredGridReader" if name.endswith(".vtu") else "Xdmf3ReaderS")
+        assert (int(points), int(cells)) == (len(mesh.points), len(mesh.cells[0].data))
+        degree = 1 if "/p1-" in name else 2
+        expected = vtk_cell_types["sigma" if "sigma" in name else "layer", degree]
+        assert int(cell_type) in np.atleast_1d(expected)
+        found = dict(array.split(":") for array in arrays)
+        wanted = SIGMA_ARRAYS if "sigma" in name else {"displacement": 3, **LAYER_ARRAYS}
+        assert {key: int(value) for key, value in found.items()} == wanted
+
+
+@needs_paraview
+@pytest.mark.parametrize("fmt", ["vtu", "xdmf"])
+def test_the_paraview_script_renders_both_layers_and_sigma(tmp_path, fmt):
+    path = tmp_path / "example1.h5"
+    ddsolve("reference", "partial-closure", "-o", str(path))
+    if fmt == "xdmf":
+        ddsolve("export", str(path), "--format", "xdmf")
+    picture = tmp_path / "picture.png"
+    completed = pvpython(str(tmp_path / "example1-paraview.py"), "--png", str(picture), cwd=tmp_path)
+    assert completed.returncode == 0, completed.stderr
+    assert f"wrote {picture}" in completed.stdout
+    assert "ERR|" not in completed.stderr, completed.stderr
+    from matplotlib.image import imread
+
+    image = imread(picture)[:, :, :3]
+    assert image.shape[:2] == (1000, 1600)
+    height = int(1000 * 0.62)
+    left, right = image[:height, :800], image[:height, 800:]
+    for panel in (left, right):  # a coloured (viridis) layer in each half of the top row
+        coloured = np.ptp(panel, axis=2) > 0.25
+        assert coloured.mean() > 0.15
+    chart = image[height:]
+    blue = (chart[:, :, 2] > 0.6) & (chart[:, :, 0] < 0.3)  # the opening's line
+    red = (chart[:, :, 0] > 0.7) & (chart[:, :, 1] < 0.3)  # the contact pressure's line
+    assert blue.sum() > 300 and red.sum() > 300
