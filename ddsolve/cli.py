@@ -81,7 +81,14 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
     if result is not None:
         print(f"{result.method}: converged after {result.iterations} iterations, {result.solves} rounds of "
               f"block solves, {result.wall_time:.3f} s on {result.ranks} ranks -> {output}", flush=True)
+        _print_fracture(result)
     return 0
+
+
+def _print_fracture(result) -> None:
+    """G at every crack tip and the contact zones, after a solve."""
+    if result.fracture is not None:
+        print("\n".join(result.fracture.lines()), flush=True)
 
 
 def cmd_reference(args, petsc_options: list[str]) -> int:
@@ -95,6 +102,7 @@ def cmd_reference(args, petsc_options: list[str]) -> int:
     output = _default_output(args)
     io.write(output, result)
     print(f"reference: {result.iterations} active-set steps, {result.wall_time:.3f} s -> {output}")
+    _print_fracture(result)
     return 0
 
 
