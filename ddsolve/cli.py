@@ -224,6 +224,8 @@ EXPERIMENTS = {
     "robustness": ("robustness", "robustness", "every hard case and bad input, measured", "docs/robustness.md"),
     "gallery": ("gallery", "gallery", "structures beyond the paper's square, solved and drawn",
                 "docs/gallery.md, docs/gallery-*.png, results/gallery/"),
+    "fracture": ("fracture", "fracture", "G at the crack tips: finite differences, radii, a plate; G against "
+                 "crack length and E2/E1", "docs/fracture.md, docs/fracture-*.png, results/fracture-*"),
 }
 
 
@@ -280,7 +282,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("-n", dest="ranks", type=int, metavar="N",
                    help="launch N ranks with mpiexec: 1, 2, 4 (a block per rank) or 4k (a block on k ranks)")
     p.add_argument("-o", dest="output", help="result file (default: SCENE.h5)")
-    p = scene_command("sweep", "solves over ranges of scene values on one launch (--set KEY=START:STOP:COUNT), "
+    p = scene_command("sweep", "solves over ranges of scene values (--set KEY=START:STOP:COUNT), one launch, "
                       "one HDF5 file", cmd_sweep)
     p.add_argument("-n", dest="ranks", type=int, metavar="N", help="launch N ranks with mpiexec (as for solve)")
     p.add_argument("-o", dest="output", help="HDF5 file of every run (default: SCENE-sweep.h5)")

@@ -122,7 +122,8 @@ def find_tips(mesh: Mesh, inner: float | None = None, outer: float | None = None
         point = points[i]
         obstacles = [(float(_segment_distance(point, segments).min(initial=np.inf)), "the outer boundary")]
         for other in np.delete(points, i, axis=0):
-            obstacles.append((float(np.linalg.norm(other - point)), f"the crack tip at ({other[0]:.6g}, {other[1]:.6g})"))
+            obstacles.append((float(np.linalg.norm(other - point)),
+                              f"the crack tip at ({other[0]:.6g}, {other[1]:.6g})"))
         for kink in kinks:
             obstacles.append((float(np.linalg.norm(kink - point)), f"the kink of Σ at ({kink[0]:.6g}, {kink[1]:.6g})"))
         clearance, obstacle = min(obstacles)

@@ -47,11 +47,6 @@ class Range:
     key: str
     values: tuple
 
-    @property
-    def item(self) -> str:
-        first, last = self.values[0], self.values[-1]
-        return f"{self.key}={first!r}:{last!r}:{len(self.values)}"
-
 
 def parse(items: list[str]) -> tuple[list[str], list[Range]]:
     """Split ``--set`` items into fixed overrides and ranges; raise SceneError for a bad range."""
@@ -134,9 +129,19 @@ def sweep(source: str, items: list[str], paired: bool, output: Path, comm, progr
     from . import driver, geometry
     from .exchange import collective
 
-    fixed, ranges = parse(items)
-    runs = plan(ranges, paired)
-    scenes = comm.bcast(collective(comm, lambda: load_scenes(source, fixed, runs), root_only=True), root=0)
+    def arrange():
+        fixed, ranges = parse(items)
+        return fixed, ranges, plan(ranges, paired)
+
+    fixed, ranges, runs = collective(comm, arrange)  # the same on every rank, errors included
+
+    def check():
+        folder = output.parent if str(output.parent) else Path(".")
+        if not folder.is_dir():
+            raise DDSolveError(f"{output}: output directory {folder} does not exist")
+        return load_scenes(source, fixed, runs)
+
+    scenes = comm.bcast(collective(comm, check, root_only=True), root=0)
     header = {"scene": str(source), "fixed": " ".join(fixed), "keys": [r.key for r in ranges],
               "mode": "zip" if paired else "product"}
     records: list[dict] = []
