@@ -42,6 +42,8 @@ OUTER_FRACTION = 0.5
 INNER_FRACTION = 0.5
 #: Σ is straight when its normals agree to this.
 STRAIGHT = 1e-10
+#: Fewer Σ edges than this within the inner radius: G is printed with a note to refine near the tip.
+FEW_ELEMENTS = 2.0
 
 
 @dataclass(frozen=True)
@@ -76,7 +78,8 @@ class Fracture:
     """G at every tip and where the crack faces touch.
 
     Tips: ``points``, ``directions`` (unit, away from the crack), ``crack`` (index), ``inner`` and
-    ``outer`` radii, ``G`` and its part ``contact`` from the turning normals (zero on a straight Σ).
+    ``outer`` radii, ``spacing`` (the mean length of the Σ edges at the tip), ``G`` and its part
+    ``contact`` from the turning normals (zero on a straight Σ).
     Contact zones: ``zones`` ``(z, 2)`` as arc length along Σ from its first node (first and last
     touching node), ``zone_crack`` the crack of each.
     """
@@ -86,6 +89,7 @@ class Fracture:
     crack: np.ndarray
     inner: np.ndarray
     outer: np.ndarray
+    spacing: np.ndarray
     G: np.ndarray
     contact: np.ndarray
     zones: np.ndarray
@@ -93,8 +97,11 @@ class Fracture:
 
     def lines(self) -> list[str]:
         """One line per tip and one for the contact zones, as printed after a solve."""
-        lines = [f"G at tip ({x:.6g}, {y:.6g}) of crack {c}: {g:.6e}   (θ radii {a:.4g}, {b:.4g})"
-                 for (x, y), c, g, a, b in zip(self.points, self.crack, self.G, self.inner, self.outer)]
+        lines = []
+        for (x, y), c, g, a, b, h in zip(self.points, self.crack, self.G, self.inner, self.outer, self.spacing):
+            note = f"; only {a / h:.1f} elements within the inner radius: refine near this tip" \
+                if a < FEW_ELEMENTS * h else ""
+            lines.append(f"G at tip ({x:.6g}, {y:.6g}) of crack {c}: {g:.6e}   (θ radii {a:.4g}, {b:.4g}{note})")
         if np.size(self.zone_crack):
             lines.append("crack faces in contact (arc length along Σ): " + ", ".join(
                 f"[{a:.4g}, {b:.4g}] on crack {c}" for (a, b), c in zip(self.zones, self.zone_crack)))
@@ -286,7 +293,7 @@ def finish(tips: list[Tip], volume: np.ndarray, result) -> Fracture:
         directions=np.array([tip.direction for tip in tips]).reshape(-1, 2),
         crack=np.array([tip.crack for tip in tips], dtype=np.int64),
         inner=np.array([tip.inner for tip in tips]), outer=np.array([tip.outer for tip in tips]),
-        G=np.asarray(volume, dtype=np.float64) - contact, contact=contact,
+        spacing=np.array([tip.spacing for tip in tips]), G=np.asarray(volume, dtype=np.float64) - contact, contact=contact,
         zones=arc[runs].reshape(-1, 2), zone_crack=crack_of[nodes[runs[:, 0]]] if len(runs) else np.zeros(0, np.int64),
     )
 

@@ -189,7 +189,8 @@ def read(path: Path) -> Result:
 
 # --- /fracture: G at the crack tips, crack faces and contact zones ------------------------------
 #: Per-tip datasets of /fracture (the fields of ddsolve.fracture.Fracture), then the contact zones.
-FRACTURE_FIELDS = ("points", "directions", "crack", "inner", "outer", "G", "contact", "zones", "zone_crack")
+FRACTURE_FIELDS = ("points", "directions", "crack", "inner", "outer", "spacing", "G", "contact", "zones",
+                   "zone_crack")
 
 
 def _write_fracture(f, result: Result) -> None:

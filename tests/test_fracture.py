@@ -140,6 +140,16 @@ def test_tips_directions_and_radii():
     assert all(t.outer <= 0.5 * 0.5 + 1e-12 for t in tips)  # half the distance to the top and bottom sides
 
 
+def test_coarse_tips_are_flagged():
+    """Fewer than two Σ edges within the inner radius: the printed line says so; a finer mesh does not."""
+    coarse = solved(scene.load("partial-closure", ["mesh.sigma_vertices=13", "mesh.boundary_vertices=32"]))
+    assert coarse.fracture.spacing == pytest.approx([1 / 6, 1 / 6])
+    assert all("elements within the inner radius: refine near this tip" in line
+               for line in coarse.fracture.lines()[:2])
+    fine = solved(scene.load("partial-closure", ["mesh.sigma_vertices=49", "mesh.boundary_vertices=80"]))
+    assert not any("refine" in line for line in fine.fracture.lines())
+
+
 def test_given_radii_are_checked():
     """[fracture] radii are used as given; a disc reaching the boundary or inner ≥ outer is a one-line error."""
     mesh = geometry.build(scene.load("partial-closure", SMALL))

@@ -395,8 +395,8 @@ def validation_text(record: dict) -> str:
               "differences are the re-meshing noise of the energy.", "",
               "### Independence of the cut-off", "",
               "G with three (inner, outer) radii of θ: " + ", ".join(f"({a:g}, {b:g})" for a, b in RADII) +
-              ". Spread: (max − min) / max over the three, per tip (a closed tip's G is zero to round-off and has "
-              "no relative spread).", "",
+              ". Spread: (max − min) / max over the three, per tip (a closed tip's G is zero up to the "
+              "discretization error and has no relative spread).", "",
               "| mesh | tip | " + " | ".join(f"G, radii ({a:g}, {b:g})" for a, b in RADII) + " | spread |",
               "|---|---|" + "---|" * len(RADII) + "---|"]
     for r in record["radii"]:
