@@ -93,8 +93,8 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
 
 def _print_fracture(result) -> None:
     """G at every crack tip and the contact zones, after a solve."""
-    if result.fracture is not None:
-        print("\n".join(result.fracture.lines()), flush=True)
+    for line in result.fracture.lines() if result.fracture is not None else []:
+        print(line, flush=True)
 
 
 def cmd_sweep(args, petsc_options: list[str]) -> int:
