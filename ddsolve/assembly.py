@@ -32,6 +32,11 @@ _RULES = {
 }
 
 
+def quadrature(nodes: int) -> tuple[np.ndarray, np.ndarray]:
+    """The element rule of P1 (``nodes`` = 3) or P2 (6) cells: reference points ``(q, 2)``, weights ``(q,)``."""
+    return _RULES[nodes]
+
+
 def shape_functions(nodes: int, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Values ``(q, k)`` and reference gradients ``(q, k, 2)`` of the P1 (k = 3) or P2 (k = 6) basis."""
     s, t = xi[:, 0], xi[:, 1]

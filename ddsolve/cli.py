@@ -59,15 +59,21 @@ def _default_output(args) -> Path:
 
 
 # --- commands -------------------------------------------------------------------------------
+def _launch(args) -> None:
+    """With ``-n N``: replace this process by mpiexec running the same command on N ranks."""
+    if args.ranks is None:
+        return
+    for module in ("petsc4py", "mpi4py", "h5py"):  # if one is missing, one line here, not one per rank
+        importlib.import_module(module)
+    forwarded = list(args.argv)
+    i = next(j for j, a in enumerate(forwarded) if a.startswith("-n"))
+    del forwarded[i:i + (2 if forwarded[i] == "-n" else 1)]
+    command = mpiexec_command(args.ranks, forwarded)
+    os.execvpe(command[0], command, dict(os.environ))
+
+
 def cmd_solve(args, petsc_options: list[str]) -> int:
-    if args.ranks is not None:  # launcher mode: start the ranks under mpiexec
-        for module in ("petsc4py", "mpi4py", "h5py"):  # if one is missing, one line here, not one per rank
-            importlib.import_module(module)
-        forwarded = list(args.argv)
-        i = next(j for j, a in enumerate(forwarded) if a.startswith("-n"))
-        del forwarded[i:i + (2 if forwarded[i] == "-n" else 1)]
-        command = mpiexec_command(args.ranks, forwarded)
-        os.execvpe(command[0], command, dict(os.environ))
+    _launch(args)
     init_petsc(petsc_options)
     from mpi4py import MPI
 
@@ -82,6 +88,34 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
     if result is not None:
         print(f"{result.method}: converged after {result.iterations} iterations, {result.solves} rounds of "
               f"block solves, {result.wall_time:.3f} s on {result.ranks} ranks -> {output}", flush=True)
+        _print_fracture(result)
+    return 0
+
+
+def _print_fracture(result) -> None:
+    """G at every crack tip and the contact zones, after a solve."""
+    for line in result.fracture.lines() if result.fracture is not None else []:
+        print(line, flush=True)
+
+
+def cmd_sweep(args, petsc_options: list[str]) -> int:
+    _launch(args)
+    init_petsc(petsc_options)
+    import time
+
+    from mpi4py import MPI
+
+    from . import sweep
+
+    started = time.perf_counter()
+    output = Path(args.output) if args.output else Path(Path(args.scene).stem + "-sweep.h5")
+    records = sweep.sweep(args.scene, args.set or [], args.zip, output, MPI.COMM_WORLD, progress=_root_print)
+    if records is not None:
+        converged = sum(bool(r["converged"]) for r in records)
+        meshes = sum(not r["mesh_reused"] for r in records)
+        factored = sum(not r["factors_reused"] for r in records)
+        print(f"sweep: {len(records)} runs ({converged} converged), {meshes} meshes, {factored} factorizations, "
+              f"{time.perf_counter() - started:.1f} s on {MPI.COMM_WORLD.size} ranks -> {output}", flush=True)
     return 0
 
 
@@ -96,6 +130,7 @@ def cmd_reference(args, petsc_options: list[str]) -> int:
     output = _default_output(args)
     io.write(output, result)
     print(f"reference: {result.iterations} active-set steps, {result.wall_time:.3f} s -> {output}")
+    _print_fracture(result)
     return 0
 
 
@@ -214,6 +249,8 @@ EXPERIMENTS = {
     "robustness": ("robustness", "robustness", "every hard case and bad input, measured", "docs/robustness.md"),
     "gallery": ("gallery", "gallery", "structures beyond the paper's square, solved and drawn",
                 "docs/gallery.md, docs/gallery-*.png, results/gallery/"),
+    "fracture": ("fracture", "fracture", "G at the crack tips: finite differences, radii, a plate; G against "
+                 "crack length and E2/E1", "docs/fracture.md, docs/fracture-*.png, results/fracture-*"),
 }
 
 
@@ -270,6 +307,12 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("-n", dest="ranks", type=int, metavar="N",
                    help="launch N ranks with mpiexec: 1, 2, 4 (a block per rank) or 4k (a block on k ranks)")
     p.add_argument("-o", dest="output", help="result file (default: SCENE.h5)")
+    p = scene_command("sweep", "solves over ranges of scene values (--set KEY=START:STOP:COUNT), one launch, "
+                      "one HDF5 file", cmd_sweep)
+    p.add_argument("-n", dest="ranks", type=int, metavar="N", help="launch N ranks with mpiexec (as for solve)")
+    p.add_argument("-o", dest="output", help="HDF5 file of every run (default: SCENE-sweep.h5)")
+    p.add_argument("--zip", action="store_true",
+                   help="take the ranges side by side (same COUNT) instead of every combination")
     p = scene_command("reference", "monolithic reference solve (one process)", cmd_reference)
     p.add_argument("-o", dest="output", help="result file (default: SCENE.h5)")
     p = scene_command("mesh", "mesh statistics per half (as the paper's Table 1); -o writes the mesh as gmsh .msh",

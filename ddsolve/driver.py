@@ -7,14 +7,14 @@ block solves (:func:`serve`); rank 0 gathers the block solutions and writes the 
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import assembly, geometry, io, methods
+from . import assembly, fracture, geometry, io, methods
 from .blocks import Block
 from .errors import DDSolveError, DivergedError, NotConvergedError, SolverError
 from .exchange import Exchange, collective
@@ -232,15 +232,29 @@ def build_mesh(scene: Scene, comm: MPI.Comm) -> Mesh:
     return built
 
 
-def make_blocks(scene: Scene, mesh: Mesh, exchange: Exchange, package: str) -> list[Block]:
-    """Assemble this rank's blocks (or its rows of them) and wrap them in PETSc objects."""
-    blocks = []
+def local_systems(scene: Scene, mesh: Mesh, exchange: Exchange) -> list[assembly.BlockSystem]:
+    """Assemble this rank's blocks (or its rows of them)."""
+    systems = []
     for index, group in zip(exchange.local_blocks, exchange.groups):
         half = mesh.half(BLOCKS[index].side)
         rows = assembly.row_ranges(len(half.points), group.size)[group.rank] if group.size > 1 else None
-        system = assembly.block_systems(scene, mesh, [index], rows)[0]
-        blocks.append(Block(system, comm=PETSc.Comm(group), factor_package=package))
-    return blocks
+        systems.append(assembly.block_systems(scene, mesh, [index], rows)[0])
+    return systems
+
+
+def make_blocks(scene: Scene, mesh: Mesh, exchange: Exchange, package: str) -> list[Block]:
+    """Assemble this rank's blocks (or its rows of them) and wrap them in PETSc objects."""
+    return [Block(system, comm=PETSc.Comm(group), factor_package=package)
+            for system, group in zip(local_systems(scene, mesh, exchange), exchange.groups)]
+
+
+def reload(setup: "Setup", scene: Scene) -> None:
+    """Give the factored blocks of ``setup`` the loads of ``scene`` (same mesh, materials, method)."""
+    mark = time.perf_counter()
+    systems = collective(setup.exchange.comm, lambda: local_systems(scene, setup.mesh, setup.exchange))
+    for block, system in zip(setup.blocks, systems):
+        block.system = replace(block.system, rhs=system.rhs)
+    setup.timings = {"setup": time.perf_counter() - mark, "factorization": 0.0}
 
 
 def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None) -> Setup:
@@ -289,20 +303,24 @@ def bound(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, iterations: in
         setup.destroy()
 
 
-def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mesh: Mesh | None = None
-          ) -> Result | None:
+def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mesh: Mesh | None = None,
+          setup: Setup | None = None) -> Result | None:
     """Run the domain decomposition for ``scene`` on ``comm``; write ``output`` on rank 0.
 
     Returns the result on rank 0 (None elsewhere).  A run that reaches max_iterations writes its
-    result with converged = false and then raises NotConvergedError on every rank.  ``mesh``
-    (on every rank) skips building it.
+    result with converged = false and then raises NotConvergedError on every rank (the error holds
+    the result as ``result``).  ``mesh`` (on every rank) skips building it; ``setup`` (from
+    :func:`prepare`, loads from :func:`reload`) skips assembly and factorization and is kept.
     """
-    setup = prepare(scene, comm, mesh)
+    own = setup is None
+    setup = prepare(scene, comm, mesh) if own else setup
     mesh, exchange, interface, stages, timings = (setup.mesh, setup.exchange, setup.interface, setup.stages,
                                                   setup.timings)
     method = scene.solver.method
 
     try:
+        tips = comm.bcast(collective(comm, lambda: fracture.find_tips(mesh, scene.fracture.inner,
+                                                                      scene.fracture.outer), root_only=True))
         mark = time.perf_counter()
         server = BlockServer(setup.blocks, exchange)
         outcome, rounds, failure = run_method(scene, setup, server, progress)
@@ -315,6 +333,8 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
 
         mark = time.perf_counter()
         stages["Output"].push()
+        volume = comm.reduce(fracture.block_terms(scene, mesh, tips, {b: server.solutions[b]
+                                                                    for b in exchange.led_blocks}), root=0)
         sizes = [2 * len(mesh.half(spec.side).points) for spec in BLOCKS]
         solutions = exchange.gather_varying([server.solutions[b] for b in exchange.led_blocks], sizes)
         memory = comm.gather(peak_memory_mb(), root=0)
@@ -333,12 +353,15 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
                 attrs={**io.provenance(), "stop": scene.solver.stop, "tol": scene.solver.tol,
                        "peak_memory_mb": memory, **outcome.details},
             )
+            result.fracture = fracture.finish(tips, volume, result)
             timings["output"] = time.perf_counter() - mark  # gathering; io.write adds its own "write" time
         if output is not None:
             collective(comm, lambda: io.write(output, result), root_only=True)
         stages["Output"].pop()
         if failure is not None:  # not converged: the result is written with converged = false
+            failure.result = result
             raise failure
         return result
     finally:
-        setup.destroy()
+        if own:
+            setup.destroy()

@@ -147,6 +147,7 @@ def _write_hdf5(name: str, result: Result, fields: dict[str, analysis.CellFields
         for name, per_block in result.cell_data.items():
             for block, values in per_block.items():
                 f[f"cell_data/{name}/{block}"] = values
+        _write_fracture(f, result)
         for spec in BLOCKS:
             f[f"paraview/{spec.name}/displacement"] = export.padded(result.solution[spec.name])
             f[f"paraview/{spec.name}/von_mises"] = fields[spec.name].von_mises
@@ -182,6 +183,36 @@ def read(path: Path) -> Result:
                 timings={k: float(v) for k, v in f["timings"].attrs.items()} if "timings" in f else {},
                 message=str(f.attrs.get("message", "")),
                 attrs={k: v for k, v in f.attrs.items() if k not in known},
+                fracture=_read_fracture(f),
             )
     except (OSError, KeyError, TypeError, ValueError) as exc:
         raise DDSolveError(f"{path}: not a ddsolve result file ({exc})") from None
+
+
+# --- /fracture: G at the crack tips, crack faces and contact zones ------------------------------
+#: Per-tip datasets of /fracture (the fields of ddsolve.fracture.Fracture), then the contact zones.
+FRACTURE_FIELDS = ("points", "directions", "crack", "inner", "outer", "spacing", "G", "contact", "zones",
+                   "zone_crack")
+
+
+def _write_fracture(f, result: Result) -> None:
+    """/fracture/{G, points, ...} (tips), /fracture/{zones, zone_crack} (contact zones as arc length along
+    Σ) and, over the multiplier nodes, /fracture/arclength, opening ([u]·ν) and pressure (μᶜ)."""
+    from .analysis import normal_jump
+
+    if result.fracture is None:
+        return
+    group = f.create_group("fracture")
+    for key in FRACTURE_FIELDS:
+        group[key] = getattr(result.fracture, key)
+    group["arclength"] = result.mesh.sigma.arclength[result.multiplier_nodes]
+    group["opening"] = normal_jump(result)
+    group["pressure"] = result.multipliers["mu_c"]
+
+
+def _read_fracture(f):
+    from .fracture import Fracture
+
+    if "fracture" not in f:
+        return None
+    return Fracture(**{key: f[f"fracture/{key}"][()] for key in FRACTURE_FIELDS})

@@ -123,7 +123,8 @@ def interface_jumps(results: list[tuple[str, Result]], path: Path) -> None:
 
 
 def crack_faces(result: Result, path: Path) -> None:
-    """Along Σ: the opening [u]·ν of layer 1 and the contact pressure μᶜ, cracks shaded."""
+    """Along Σ: the opening [u]·ν of layer 1 and the contact pressure μᶜ, cracks shaded; with the result's
+    fracture data, the contact zones shaded red and G written at each crack tip."""
     plt = _pyplot()
     position, axis_label = along_sigma(result)
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 5.5), sharex=True, constrained_layout=True)
@@ -132,10 +133,24 @@ def crack_faces(result: Result, path: Path) -> None:
     for first, last in result.mesh.sigma.pieces(result.crack):
         for ax in (top, bottom):
             ax.axvspan(position[max(first - 1, 0)], position[min(last + 1, len(position) - 1)], color="0.9")
+    shading = "shaded: cracks"
+    fracture = result.fracture
+    if fracture is not None:  # contact zones and G at the tips
+        arc = result.mesh.sigma.arclength[result.multiplier_nodes]
+        for start, end in fracture.zones:
+            for ax in (top, bottom):
+                ax.axvspan(*np.interp([start, end], arc, position), color="tab:red", alpha=0.15, linewidth=0)
+        if len(fracture.zones):
+            shading += "; red: faces in contact"
+        for point, rate in zip(fracture.points, fracture.G):
+            nearest = int(np.argmin(np.linalg.norm(result.interface_points - point, axis=1)))
+            top.axvline(position[nearest], color="0.4", linestyle=":", linewidth=0.8)
+            top.annotate(f"G = {rate:.3e}", (position[nearest], 0.0), xytext=(3, 6), textcoords="offset points",
+                         fontsize=8, rotation=90, va="bottom")
     top.axhline(0.0, color="black", linewidth=0.6)
     top.set_ylabel(f"opening [u]·ν ({LENGTH})")
     bottom.set_ylabel(f"contact pressure μᶜ ({STRESS})")
-    bottom.set_xlabel(f"{axis_label} ({LENGTH}; shaded: cracks)")
+    bottom.set_xlabel(f"{axis_label} ({LENGTH}; {shading})")
     for ax in (top, bottom):
         ax.grid(alpha=0.3)
     top.set_title(scenes.loads(result.scene).title, fontsize=9)

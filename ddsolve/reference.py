@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from . import assembly
+from . import assembly, fracture
 from .assembly import BlockSystem, coo_to_csr
 from .blocks import Block
 from .errors import SolverError
@@ -68,6 +68,7 @@ def merged_system(systems: list[BlockSystem], numbers: list[np.ndarray]) -> Bloc
 
 def solve(scene: Scene, mesh: Mesh) -> Result:
     """Solve the scene's discrete problem exactly; return it in the result schema."""
+    tips = fracture.find_tips(mesh, scene.fracture.inner, scene.fracture.outer)
     systems = assembly.block_systems(scene, mesh)
     started = time.perf_counter()  # the solve phase: merging, factorizations, active-set steps
     interface = for_mesh(mesh.sigma, scene.nonpenetration)
@@ -107,10 +108,12 @@ def solve(scene: Scene, mesh: Mesh) -> Result:
     frames = mesh.sigma.frames[mesh.sigma.multiplier_nodes]
     solution = {spec.name: assembly.to_global(u, assembly.trace_nodes(mesh.half(spec.side), mesh.sigma), frames)
                 for spec, u in zip(BLOCKS, fields)}
-    return Result(
+    result = Result(
         scene=scene.text, method="reference", converged=True, iterations=step, solves=step,
         wall_time=elapsed, ranks=1, mesh=mesh, solution=solution, multipliers=interface.split(lam, frames),
         history=np.array(history), active_set_changes=np.array(changes, dtype=np.int64),
         timings={"factorization": factorization, "total": elapsed},
         attrs={**provenance(), "closed_vertices": int(closed.sum()), "energy": float(energy)},
     )
+    result.fracture = fracture.of_result(result, tips)
+    return result

@@ -2,10 +2,14 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .mesh import HalfMesh, Mesh
+
+if TYPE_CHECKING:
+    from .fracture import Fracture
 
 
 @dataclass
@@ -36,6 +40,7 @@ class Result:
     timings: dict[str, float] = field(default_factory=dict)
     message: str = ""
     attrs: dict = field(default_factory=dict)
+    fracture: Fracture | None = None  # G at the crack tips and the contact zones
 
     @property
     def lower(self) -> HalfMesh:

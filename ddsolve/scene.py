@@ -110,6 +110,14 @@ class Solver:
 
 
 @dataclass(frozen=True)
+class FractureOptions:
+    """Radii of the θ field of the energy release rate (None: from the geometry, see ddsolve.fracture)."""
+
+    inner: float | None = None
+    outer: float | None = None
+
+
+@dataclass(frozen=True)
 class Scene:
     title: str
     geometry: Geometry
@@ -119,6 +127,7 @@ class Scene:
     loads: dict[tuple[str, str], Load]  # (layer, boundary name) -> load
     nonpenetration: bool
     solver: Solver
+    fracture: FractureOptions = FractureOptions()
     text: str = field(repr=False, default="")
 
 
@@ -358,6 +367,7 @@ SCHEMA: dict[str, Any] = {
         "stop": (_choice(STOP_RULES), None),
         "max_iterations": (_count(1), 20000),
     },
+    "fracture": {"inner": (_positive(_number), None), "outer": (_positive(_number), None)},
 }
 # Tables that exist only when the scene writes them (a boundary without a load is not integrated).
 OPTIONAL_TABLES = {("loads",), *(("loads", layer) for layer in LAYERS)}
@@ -481,6 +491,10 @@ def _cross_checks(data: dict, raw: dict, origin: str) -> None:
                          f"(method {solver['method']} stops on kkt)")
     if solver["tol"] is None:
         solver["tol"] = DEFAULT_TOL[solver["stop"]]
+    radii = data["fracture"]
+    if None not in radii.values() and radii["inner"] >= radii["outer"]:
+        raise SceneError(f"{origin}: fracture.inner = {radii['inner']:g} must be below fracture.outer = "
+                         f"{radii['outer']:g}")
 
 
 def _mesh_refinement_checks(mesh: dict, origin: str) -> None:
@@ -531,6 +545,7 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None) -> Scene:
         loads=loads,
         nonpenetration=data["contact"]["nonpenetration"],
         solver=Solver(**data["solver"]),
+        fracture=FractureOptions(**data["fracture"]),
         text=text,
     )
 
@@ -560,18 +575,39 @@ REPLACES = {
 
 
 def apply_overrides(raw: dict, overrides: list[str]) -> dict:
-    """Apply ``--set`` items to a raw (unvalidated) scene table, in order."""
+    """Apply ``--set`` items to a raw (unvalidated) scene table, in order.
+
+    A number in the key indexes a list the scene has: ``geometry.crack.1=0.6`` moves the crack's end.
+    """
     for item in overrides:
         path, value = parse_override(item)
         table = raw
         for depth, part in enumerate(path[:-1]):
-            table = table.setdefault(part, {})
-            if not isinstance(table, dict):
+            if isinstance(table, list):
+                table = table[_list_index(table, path, depth, item)]
+            elif part not in table and path[depth + 1].isdigit():
+                raise SceneError(f"--set {printable(item)}: the scene has no {printable('.'.join(path[:depth + 1]))} "
+                                 "to index; set the whole list")
+            else:
+                table = table.setdefault(part, {})
+            if not isinstance(table, (dict, list)):
                 raise SceneError(f"--set {printable(item)}: {printable('.'.join(path[:depth + 1]))} is not a table")
+        if isinstance(table, list):
+            table[_list_index(table, path, len(path) - 1, item)] = value
+            continue
         for replaced in REPLACES.get(tuple(path), ()):
             table.pop(replaced, None)
         table[path[-1]] = value
     return raw
+
+
+def _list_index(values: list, path: list[str], depth: int, item: str) -> int:
+    """``path[depth]`` as an index into ``values`` (the list at ``path[:depth]``)."""
+    part = path[depth]
+    if not part.isdigit() or int(part) >= len(values):
+        raise SceneError(f"--set {printable(item)}: {printable('.'.join(path[:depth]))} is a list of "
+                         f"{len(values)}; {printable(part)} is not an index into it (0 to {len(values) - 1})")
+    return int(part)
 
 
 def builtin_folder() -> Path:

@@ -16,6 +16,7 @@ PARTS = {
     "accuracy-mesh": ("paper", "accuracy_mesh", (("P", int), ("M", int), ("fine", Path))),
     "scaling-network": ("scaling", "network", ()),
     "scaling-calibrate": ("scaling", "calibrate", ()),
+    "fracture-checks": ("fracture", "checks", ()),
 }
 
 

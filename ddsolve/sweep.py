@@ -1,0 +1,287 @@
+"""Parameter sweeps: many solves on one launch, one HDF5 file with every run.
+
+``ddsolve sweep SCENE --set KEY=START:STOP:COUNT [--set KEY=START:STOP:COUNT:log ...] [--set KEY=VALUE ...]``
+solves the scene for every combination of the ranges (``--zip``: for the ranges taken side by side;
+they must then have the same COUNT); a ``--set`` whose value is not a range is a fixed override.  A
+number in a key indexes a list: ``--set geometry.crack.0=-0.2:-0.8:7 --set geometry.crack.1=0.2:0.8:7
+--zip`` lengthens the crack symmetrically.
+
+Every rank loops over the runs; what does not change is reused: the mesh while the geometry and mesh
+keys stay the same, the assembled and factored blocks while only loads change (new right-hand sides
+only).  After each run rank 0 prints a progress line and rewrites the output file atomically (an
+interrupted sweep keeps the runs it finished; ``complete`` says whether all ran).  File layout (R runs,
+T the most tips of a run, padded with NaN or −1):
+
+- attributes: ``scene`` (as given), ``fixed`` (the fixed overrides), ``keys`` (the swept keys),
+  ``mode`` (product or zip), ``runs``, ``complete``, provenance;
+- ``parameters/KEY`` (R,) the value of each swept key;
+- ``energy``, ``converged``, ``iterations``, ``rounds``, ``unknowns``, ``mesh_reused``,
+  ``factors_reused``, ``time`` (the whole run), ``setup_time``, ``factorization_time``,
+  ``solve_time`` (R,), ``message`` (R,) strings (empty when the run succeeded);
+- ``tips/G``, ``tips/contact``, ``tips/inner``, ``tips/outer``, ``tips/spacing``, ``tips/crack`` (R, T),
+  ``tips/points``, ``tips/directions`` (R, T, 2): G at every crack tip (see ddsolve.fracture);
+- ``contact_zones/run``, ``start``, ``end``, ``crack`` (Z,): every contact zone of every run, as arc
+  length along Σ.
+"""
+from __future__ import annotations
+
+import itertools
+import math
+import re
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import DDSolveError, NotConvergedError, SceneError
+
+#: ``START:STOP:COUNT`` or ``START:STOP:COUNT:log`` (geometric spacing).
+_RANGE = re.compile(r"^\s*([^:\s]+)\s*:\s*([^:\s]+)\s*:\s*([0-9]+)\s*(?::\s*(lin|log)\s*)?$")
+
+
+@dataclass(frozen=True)
+class Range:
+    """A swept key and its values."""
+
+    key: str
+    values: tuple
+
+
+def parse(items: list[str]) -> tuple[list[str], list[Range]]:
+    """Split ``--set`` items into fixed overrides and ranges; raise SceneError for a bad range."""
+    fixed, ranges = [], []
+    for item in items:
+        key, sep, value = item.partition("=")
+        match = _RANGE.match(value) if sep else None
+        if match is None:
+            fixed.append(item)
+            continue
+        texts, count, spacing = match.group(1, 2), int(match.group(3)), match.group(4) or "lin"
+        try:
+            start, stop = (float(text) for text in texts)
+        except ValueError:
+            fixed.append(item)  # not numbers: a plain value that happens to contain colons
+            continue
+        key = key.strip()
+        if count < 1:
+            raise SceneError(f"--set {item}: COUNT must be at least 1")
+        if spacing == "log":
+            if start <= 0 or stop <= 0:
+                raise SceneError(f"--set {item}: a log range needs START > 0 and STOP > 0")
+            values = np.geomspace(start, stop, count)
+        else:
+            values = np.linspace(start, stop, count)
+        integral = all(re.fullmatch(r"[+-]?[0-9]+", text) for text in texts) and spacing == "lin"
+        if integral and np.allclose(values, np.round(values)):
+            values = tuple(int(v) for v in np.round(values))
+        else:
+            values = tuple(float(v) for v in values)
+        if any(r.key == key for r in ranges):
+            raise SceneError(f"--set {item}: {key} is swept twice")
+        ranges.append(Range(key, values))
+    return fixed, ranges
+
+
+def plan(ranges: list[Range], paired: bool) -> list[dict]:
+    """The runs: key -> value for every combination of the ranges (the last varying fastest), or for
+    the ranges side by side when ``paired``."""
+    if not ranges:
+        raise SceneError("sweep: no range to sweep; give --set KEY=START:STOP:COUNT")
+    if paired:
+        counts = {len(r.values) for r in ranges}
+        if len(counts) > 1:
+            raise SceneError("--zip: the ranges must have the same COUNT (" +
+                             ", ".join(f"{r.key}: {len(r.values)}" for r in ranges) + ")")
+        combinations = zip(*(r.values for r in ranges))
+    else:
+        combinations = itertools.product(*(r.values for r in ranges))
+    return [dict(zip((r.key for r in ranges), combination)) for combination in combinations]
+
+
+def overrides(run: dict) -> list[str]:
+    return [f"{key}={value!r}" for key, value in run.items()]
+
+
+def describe(run: dict) -> str:
+    return " ".join(f"{key}={value:.6g}" if isinstance(value, float) else f"{key}={value}"
+                    for key, value in run.items())
+
+
+def load_scenes(source: str, fixed: list[str], runs: list[dict]) -> list:
+    """Every run's scene, checked before anything is solved (errors name the run)."""
+    from . import scene
+
+    out = []
+    for number, run in enumerate(runs, 1):
+        try:
+            out.append(scene.load(source, fixed + overrides(run)))
+        except SceneError as exc:
+            raise SceneError(f"sweep run {number} ({describe(run)}): {exc}") from None
+    return out
+
+
+def sweep(source: str, items: list[str], paired: bool, output: Path, comm, progress=print) -> list[dict] | None:
+    """Run the sweep on ``comm`` (every rank), writing ``output`` on rank 0 after each run.
+
+    Returns the records on rank 0 (None elsewhere).
+    """
+    from . import driver, geometry
+    from .exchange import collective
+
+    def arrange():
+        fixed, ranges = parse(items)
+        return fixed, ranges, plan(ranges, paired)
+
+    fixed, ranges, runs = collective(comm, arrange)  # the same on every rank, errors included
+
+    def check():
+        folder = output.parent if str(output.parent) else Path(".")
+        if not folder.is_dir():
+            raise DDSolveError(f"{output}: output directory {folder} does not exist")
+        return load_scenes(source, fixed, runs)
+
+    scenes = comm.bcast(collective(comm, check, root_only=True), root=0)
+    header = {"scene": str(source), "fixed": " ".join(fixed), "keys": [r.key for r in ranges],
+              "mode": "zip" if paired else "product"}
+    records: list[dict] = []
+    mesh = setup = previous = None
+    try:
+        for number, (run, scene) in enumerate(zip(runs, scenes), 1):
+            started = time.perf_counter()
+            same_mesh = previous is not None and mesh is not None and \
+                (scene.geometry, scene.mesh) == (previous.geometry, previous.mesh)
+            same_blocks = same_mesh and setup is not None and _blocks_key(scene) == _blocks_key(previous)
+            if setup is not None and not same_blocks:
+                setup.destroy()
+                setup = None
+            previous = scene
+            record = {"parameters": run, "mesh_reused": same_mesh, "factors_reused": same_blocks}
+            try:
+                if same_mesh:
+                    collective(comm, lambda: geometry.check_loads(scene, mesh), root_only=True)
+                else:
+                    mesh = None
+                    mesh = driver.build_mesh(scene, comm)
+                if same_blocks:
+                    driver.reload(setup, scene)
+                else:
+                    setup = driver.prepare(scene, comm, mesh)
+                try:
+                    result = driver.solve(scene, comm, None, progress=lambda line: None, setup=setup)
+                except NotConvergedError as exc:
+                    result = getattr(exc, "result", None)
+                    record["message"] = str(exc)
+            except DDSolveError as exc:
+                if not exc.collective:
+                    raise
+                result = None
+                record["message"] = str(exc)
+            record["time"] = time.perf_counter() - started
+            if comm.rank == 0:
+                record.update(_numbers(result))
+                records.append(record)
+                progress(_line(number, len(runs), record))
+                _write(output, header, records, complete=number == len(runs))
+    finally:
+        if setup is not None:
+            setup.destroy()
+    return records if comm.rank == 0 else None
+
+
+def _blocks_key(scene) -> tuple:
+    """What the assembled and factored blocks depend on besides the mesh (loads excluded)."""
+    return scene.materials, scene.model, scene.nonpenetration, scene.solver.method
+
+
+def _numbers(result) -> dict:
+    """What a run's record keeps of its result (NaN when the run failed)."""
+    if result is None:
+        return {"converged": False, "energy": math.nan, "iterations": 0, "rounds": 0, "unknowns": 0,
+                "setup_time": math.nan, "factorization_time": math.nan, "solve_time": math.nan, "fracture": None}
+    timings = result.timings
+    return {
+        "converged": bool(result.converged), "energy": float(result.attrs.get("energy", math.nan)),
+        "iterations": int(result.iterations), "rounds": int(result.solves),
+        "unknowns": 4 * (len(result.lower.points) + len(result.upper.points)),
+        "setup_time": float(timings.get("setup", math.nan)),
+        "factorization_time": float(timings.get("factorization", math.nan)),
+        "solve_time": float(timings.get("iterations", math.nan)), "fracture": result.fracture,
+    }
+
+
+def _line(number: int, total: int, record: dict) -> str:
+    fracture = record["fracture"]
+    if fracture is None:
+        outcome = "failed: " + record.get("message", "")
+    else:
+        rates = ", ".join(f"{g:.4e} at ({x:.4g}, {y:.4g})" for g, (x, y) in zip(fracture.G, fracture.points))
+        outcome = (f"energy {record['energy']:.6e}" + (f"; G = {rates}" if rates else "; no crack tip") +
+                   ("" if record["converged"] else "; NOT converged"))
+    reused = [name for name, key in (("mesh", "mesh_reused"), ("factorization", "factors_reused")) if record[key]]
+    return (f"sweep {number}/{total} {describe(record['parameters'])}: {outcome}; {record['rounds']} rounds, "
+            f"{record['time']:.2f} s" + (f" ({' and '.join(reused)} reused)" if reused else ""))
+
+
+SCALARS = ("energy", "converged", "iterations", "rounds", "unknowns", "mesh_reused", "factors_reused", "time",
+           "setup_time", "factorization_time", "solve_time")
+TIP_FIELDS = {"G": np.nan, "contact": np.nan, "inner": np.nan, "outer": np.nan, "spacing": np.nan, "crack": -1}
+
+
+def _write(path: Path, header: dict, records: list[dict], complete: bool) -> None:
+    import h5py
+
+    from .io import atomic, provenance
+
+    count = max((len(r["fracture"].G) for r in records if r["fracture"] is not None), default=0)
+
+    def tips(field: str, width: tuple = ()) -> np.ndarray:
+        fill = TIP_FIELDS.get(field, np.nan)
+        out = np.full((len(records), count, *width), fill, dtype=np.int64 if field == "crack" else np.float64)
+        for i, record in enumerate(records):
+            if record["fracture"] is not None:
+                values = getattr(record["fracture"], field)
+                out[i, :len(values)] = values
+        return out
+
+    def write(name: str) -> None:
+        with h5py.File(name, "w") as f:
+            for key, value in {**provenance(), **header, "runs": len(records), "complete": complete}.items():
+                f.attrs[key] = value
+            for key in header["keys"]:
+                f[f"parameters/{key}"] = np.array([r["parameters"][key] for r in records])
+            for key in SCALARS:
+                f[key] = np.array([r[key] for r in records])
+            f["message"] = np.array([r.get("message", "") for r in records], dtype=h5py.string_dtype())
+            for field in TIP_FIELDS:
+                f[f"tips/{field}"] = tips(field)
+            f["tips/points"] = tips("points", (2,))
+            f["tips/directions"] = tips("directions", (2,))
+            zones = [(i, start, end, crack) for i, r in enumerate(records) if r["fracture"] is not None
+                     for (start, end), crack in zip(r["fracture"].zones, r["fracture"].zone_crack)]
+            columns = np.array(zones, dtype=np.float64).reshape(-1, 4)
+            f["contact_zones/run"] = columns[:, 0].astype(np.int64)
+            f["contact_zones/start"] = columns[:, 1]
+            f["contact_zones/end"] = columns[:, 2]
+            f["contact_zones/crack"] = columns[:, 3].astype(np.int64)
+
+    atomic(path, write)
+
+
+def read(path: Path) -> dict:
+    """A sweep file as a dict: attributes under ``attrs``, datasets by their path (``tips/G``, ...)."""
+    import h5py
+
+    path = Path(path)
+    if not path.is_file():
+        raise DDSolveError(f"{path}: sweep file not found")
+    out: dict = {}
+    try:
+        with h5py.File(path, "r") as f:
+            out["attrs"] = dict(f.attrs)
+            f.visititems(lambda name, item: out.__setitem__(name, item[()]) if isinstance(item, h5py.Dataset)
+                         else None)
+    except OSError as exc:
+        raise DDSolveError(f"{path}: not a sweep file ({exc})") from None
+    out["message"] = np.array([m.decode() if isinstance(m, bytes) else m for m in out.get("message", [])])
+    return out
