@@ -1,4 +1,10 @@
-"""Benchmarks: every method against the monolithic reference, and the block factorization packages.
+"""Benchmarks: every method against the monolithic reference, the default method against one MUMPS
+factorization of the whole glued system, and the block factorization packages.
+
+``ddsolve bench baseline`` launches one MPI job per scene and mesh (``bench-baseline``): rank 0 solves
+the glued problem in one process with one MUMPS factorization (:func:`monolithic`) while the other
+ranks sleep, then all ranks run the default method; the two alternate ``repeats`` times, so the ratio
+is measured side by side.  With ``busy`` a second process keeps one core busy during the launch.
 
 ``ddsolve bench methods`` launches one MPI job per mesh (``ddsolve bench-mesh`` on 4 ranks). In that
 job rank 0 computes the reference, all ranks measure the floor of any method with this DD structure
@@ -9,6 +15,7 @@ HDF5 file, a table in docs/results.md and a speed-against-error plot.
 from __future__ import annotations
 
 import json
+import os
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -18,6 +25,7 @@ import numpy as np
 from . import report
 from .. import scene as scenes
 from ..errors import DDSolveError
+from ..interface import BLOCKS as BLOCK_SPECS
 
 #: The paper's Table 1 meshes (P, M) and one finer mesh.
 TABLE1_MESHES = ((12, 32), (24, 48), (48, 80), (96, 144), (200, 256))
@@ -50,9 +58,134 @@ class Run:
     penetration: float
 
 
-def paper_scene(P: int, M: int, overrides: list[str] = ()) -> scenes.Scene:
-    """Example 1 of the paper on the (P, M) mesh."""
-    return scenes.load("partial-closure", [f"mesh.sigma_vertices={P}", f"mesh.boundary_vertices={M}", *overrides])
+def paper_scene(P: int, M: int, overrides: list[str] = (), name: str = "partial-closure") -> scenes.Scene:
+    """Example 1 of the paper (or another built-in scene) on the (P, M) mesh."""
+    return scenes.load(name, [f"mesh.sigma_vertices={P}", f"mesh.boundary_vertices={M}", *overrides])
+
+
+# --- the strongest baseline: one MUMPS factorization of the glued system ---------------------
+def monolithic(scene: scenes.Scene, mesh, systems) -> tuple["Result", dict]:
+    """The glued problem in one process: tied unknowns share one number (``reference.merged_system``),
+    the crack faces' normal unknowns stay apart; one MUMPS factorization, which also gives their
+    Schur complement S; contact by the active set on the small dense dual problem of the crack
+    (A = W^½ B S⁻¹ Bᵀ W^½, B the normal jump), then one solve with the contact forces.
+
+    Returns the result and its timings: ``merge`` (the glued matrix), ``factorization`` and
+    ``solve`` (solves and the dense contact problem); ``factorization + solve`` is the solve phase.
+    """
+    import dataclasses
+
+    from .. import assembly, reference
+    from ..blocks import Block
+    from ..interface import U_MINUS, U_PLUS, for_mesh
+    from ..io import provenance
+    from ..methods import box_qp
+    from ..result import Result
+
+    interface = for_mesh(mesh.sigma, scene.nonpenetration)
+    contact = interface.slices["mu_c"]
+    started = time.perf_counter()
+    numbers = reference.numbering(systems, interface, np.zeros(contact.stop - contact.start, dtype=bool))
+    unknowns = interface.trace_unknowns()
+    normal = 2 * interface.vertex[contact] + 1
+    faces = np.concatenate([unknowns[U_MINUS][normal], unknowns[U_PLUS][normal]])  # crack normal unknowns
+    system = dataclasses.replace(reference.merged_system(systems, numbers), trace_dofs=faces)
+    block = Block(system, factor_package="mumps")
+    timings = {"merge": time.perf_counter() - started}
+    started = time.perf_counter()
+    block.factor(schur=len(faces) > 0)
+    timings["factorization"] = time.perf_counter() - started
+    started = time.perf_counter()
+    x = block.solve(np.zeros(len(faces)), body=True).copy()
+    y = np.zeros(len(normal))
+    if len(normal):
+        count = len(normal)
+        jump = np.hstack([np.eye(count), -np.eye(count)])  # B: u⁻·ν − u⁺·ν
+        sqrt_w = np.sqrt(interface.row_weights[contact])
+        flexibility = np.linalg.inv(block.schur_complement())
+        scaled = sqrt_w[:, None] * jump
+        lower, upper = interface.bounds(scene.solver.p)
+        y, _ = box_qp(scaled @ flexibility @ scaled.T, scaled @ x[faces], sqrt_w * lower[contact],
+                      sqrt_w * upper[contact])
+        x = block.solve(-scaled.T @ y, body=True)  # the contact forces −Bᵀ W μ on the faces
+    x = x.copy()
+    timings["solve"] = time.perf_counter() - started
+    block.destroy()
+    fields = [x[number] for number in numbers]
+    loads = np.array([assembly.csr_matvec(s, u)[s.trace_dofs] - s.rhs[s.trace_dofs] for s, u in zip(systems, fields)])
+    lam = interface.multipliers(loads)
+    lam[contact] = y / np.sqrt(interface.row_weights[contact]) if len(normal) else lam[contact]
+    frames = mesh.sigma.frames[mesh.sigma.multiplier_nodes]
+    solution = {spec.name: assembly.to_global(u, assembly.trace_nodes(mesh.half(spec.side), mesh.sigma), frames)
+                for spec, u in zip(BLOCK_SPECS, fields)}
+    result = Result(scene=scene.text, method="monolithic", converged=True, iterations=1, solves=2 if len(normal) else 1,
+                    wall_time=timings["factorization"] + timings["solve"], ranks=1, mesh=mesh, solution=solution,
+                    multipliers=interface.split(lam, frames), history=np.zeros(0), timings=timings,
+                    attrs=provenance())
+    return result, timings
+
+
+def bench_baseline(name: str, P: int, M: int, repeats: int, output: Path, comm) -> None:
+    """Inside one launch: the monolithic MUMPS solve on rank 0 (the other ranks sleep) and the default
+    method on all ranks, alternating ``repeats`` times; rank 0 writes the record as JSON."""
+    from .. import analysis, assembly, driver
+    from ..exchange import collective
+    from ..io import provenance
+
+    scene = paper_scene(P, M, name=name)
+    mesh = driver.build_mesh(scene, comm)
+    systems = assembly.block_systems(scene, mesh) if comm.rank == 0 else None
+    record = {"scene": name, "P": P, "M": M, "ranks": comm.size, "unknowns": sum(2 * len(mesh.half(spec.side).points) for spec in BLOCK_SPECS),
+              "load": os.getloadavg()[0], "mono": [], "dd": []}
+    for _ in range(repeats):
+        mono = collective(comm, lambda: monolithic(scene, mesh, systems), root_only=True)
+        dd = driver.solve(scene, comm, None, progress=lambda line: None, mesh=mesh)
+        if comm.rank == 0:
+            reference, timings = mono
+            record["mono"].append(timings)
+            record["dd"].append({"solve": dd.wall_time, "factorization": dd.timings["factorization"],
+                                 "rounds": dd.solves, "error": analysis.compare(dd, reference).energy_error})
+    if comm.rank == 0:
+        record["load_after"] = os.getloadavg()[0]
+        record["provenance"] = provenance()
+        output.write_text(json.dumps(record))
+
+
+def busy_process():
+    """A process that keeps one core busy until it is killed."""
+    import subprocess
+    import sys
+
+    return subprocess.Popen([sys.executable, "-c", "while True: pass"])
+
+
+def baseline(meshes=((400, 512), (800, 1024)), names=("linear", "partial-closure"), ranks: int = 4,
+             repeats: int = 3, busy: bool = False, output: Path = Path("results/bench-baseline.h5")) -> list[dict]:
+    """The default method against the monolithic MUMPS solve, side by side; print the ratios."""
+    output.parent.mkdir(parents=True, exist_ok=True)
+    records = []
+    for P, M in meshes:
+        for name in names:
+            load = open("/proc/loadavg").read().split()[:3] if os.path.exists("/proc/loadavg") else []
+            spinner = busy_process() if busy else None
+            try:
+                record = report.launch(ranks, ["bench-baseline", name, str(P), str(M), str(repeats)],
+                                       output.with_name(f".{output.stem}-{name}-{P}.json"))
+            finally:
+                if spinner is not None:
+                    spinner.kill()
+                    spinner.wait()
+            record["busy"] = busy
+            records.append(record)
+            mono = min(m["factorization"] + m["solve"] for m in record["mono"])
+            dd = min(d["solve"] for d in record["dd"])
+            ratios = [(m["factorization"] + m["solve"]) / d["solve"] for m, d in zip(record["mono"], record["dd"])]
+            print(f"{name:16s} P={P:5d} {record['unknowns']:9,d} unknowns, {ranks} ranks{' + 1 busy process' if busy else ''}"
+                  f": monolithic MUMPS {mono:7.3f} s, DD solve phase {dd:7.3f} s (best of {repeats}); "
+                  f"monolithic / DD {mono / dd:5.2f} (per pair {', '.join(f'{r:.2f}' for r in ratios)}); "
+                  f"DD error {max(d['error'] for d in record['dd']):.1e}; load before {' '.join(load)}", flush=True)
+    report.write_records(output, records, records[0]["provenance"])
+    return records
 
 
 # --- inside the MPI launch ------------------------------------------------------------------
