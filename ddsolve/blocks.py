@@ -8,6 +8,7 @@ command line.
 from __future__ import annotations
 
 import ctypes
+import dataclasses
 import functools
 import os
 
@@ -19,6 +20,7 @@ from .errors import SolverError
 
 _FACTOR_TYPES = ("cholesky", "lu")
 _CHUNK = 64  # right-hand sides per multi-column solve when the flexibility is built by solves
+_NONE = np.zeros(0)
 
 
 def default_factor_package(preferred: str = "mumps") -> str:
@@ -38,16 +40,22 @@ class Block:
     """
 
     def __init__(self, system: BlockSystem, comm: PETSc.Comm = PETSc.COMM_SELF, factor_package: str = "mumps"):
-        self.system = system
         self.name = system.name
         self.mpi = comm.tompi4py()
         local, n = len(system.rhs), system.size
         csr = tuple(a.astype(PETSc.IntType, copy=False) for a in (system.indptr, system.indices)) + (system.data,)
-        self.matrix = PETSc.Mat().createAIJ(size=((local, n), (local, n)), bsize=system.block_size, csr=csr,
-                                            comm=comm)
+        if self.mpi.size == 1:  # PETSc works on these arrays (no copy); blocks of a half share indptr, indices
+            self.matrix = PETSc.Mat().createAIJWithArrays(size=((local, n), (local, n)), csr=csr,
+                                                          bsize=system.block_size, comm=comm)
+        else:
+            self.matrix = PETSc.Mat().createAIJ(size=((local, n), (local, n)), bsize=system.block_size, csr=csr,
+                                                comm=comm)
         self.matrix.setOption(PETSc.Mat.Option.SPD, True)
         if system.modes is not None:
             self._set_near_null_space(system.modes, comm)
+        del csr
+        # What the block needs later; the CSR arrays belong to the matrix now (or were copied into it).
+        self.system = dataclasses.replace(system, indptr=_NONE, indices=_NONE, data=_NONE, modes=None)
         self.ksp = PETSc.KSP().create(comm=comm)
         self.ksp.setOptionsPrefix(f"{self.name}_")
         self.ksp.setOperators(self.matrix)
@@ -119,6 +127,16 @@ class Block:
         except PETSc.Error as exc:
             raise SolverError(f"block {self.name}: solver setup failed (PETSc error {exc.ierr}); "
                               "is the block clamped?") from None
+
+    def factor_megabytes(self) -> float:
+        """Memory MUMPS reports for this rank's part of the factorization (INFO(16), MB); 0 for other solvers."""
+        pc = self.ksp.getPC()
+        if not self.is_direct() or pc.getFactorSolverType() != "mumps" or _petsc_c() is None:
+            return 0.0
+        integer = ctypes.c_int64 if np.dtype(PETSc.IntType).itemsize == 8 else ctypes.c_int32
+        value = integer()
+        _call("MatMumpsGetInfo", pc.getFactorMatrix().handle, integer(16), ctypes.byref(value))
+        return float(value.value)
 
     def solve(self, load: np.ndarray, body: bool) -> np.ndarray:
         """This rank's rows of x = K⁻¹(rhs·[body] + E load) (a read-only view valid until the next solve).

@@ -10,6 +10,7 @@ import importlib
 import os
 import signal
 import sys
+import time
 import traceback
 from pathlib import Path
 
@@ -66,7 +67,7 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
         i = next(j for j, a in enumerate(forwarded) if a.startswith("-n"))
         del forwarded[i:i + (2 if forwarded[i] == "-n" else 1)]
         command = mpiexec_command(args.ranks, forwarded)
-        os.execvpe(command[0], command, dict(os.environ))
+        os.execvpe(command[0], command, {**os.environ, "DDSOLVE_LAUNCHED": repr(time.time())})  # start-up timing
     init_petsc(petsc_options)
     from mpi4py import MPI
 

@@ -82,6 +82,11 @@ class Exchange:
         self.order = np.array([block for blocks in led for block in blocks], dtype=np.int64)  # rank order
         self._command = np.zeros(1, dtype=np.int64)
 
+    def leader(self, block: int) -> int:
+        """The rank that leads ``block``."""
+        size = self.comm.size
+        return block % size if size <= self.n_blocks else block * (size // self.n_blocks)
+
     @property
     def is_root(self) -> bool:
         return self.comm.rank == ROOT

@@ -28,6 +28,7 @@ class Result:
     multipliers: dict[str, np.ndarray]
     history: np.ndarray
     timings: dict[str, float] = field(default_factory=dict)
+    memory: dict = field(default_factory=dict)  # peak memory per phase and rank, bytes per unknown
     message: str = ""
     attrs: dict = field(default_factory=dict)
 
