@@ -27,7 +27,9 @@ from .mesh import HalfMesh, Mesh, SigmaLine
 from .result import Result
 from .scene import Scene
 
-STOP, SOLVE_LOAD, SOLVE_FULL, SCHUR, REPORT_ERROR = range(5)
+STOP, SOLVE_LOAD, SOLVE_FULL, SCHUR, REPORT_ERROR, DIRICHLET, DIAGONAL = range(7)
+#: Commands whose round sends a trace vector to every block.
+WITH_LOADS = (SOLVE_LOAD, SOLVE_FULL, DIRICHLET)
 
 
 def result_width(command: int, trace_size: int) -> int:
@@ -51,6 +53,9 @@ class BlockServer:
             for i, (index, block) in enumerate(zip(self.exchange.local_blocks, self.blocks)):
                 if command == SCHUR:
                     value = block.schur_complement()
+                elif command in (DIRICHLET, DIAGONAL):
+                    trace = block.dirichlet(loads[i]) if command == DIRICHLET else block.trace_diagonal()
+                    value = np.concatenate([trace, np.zeros(2)]) if block.is_leader else None
                 else:
                     value = self._solve(index, block, loads[i], full=command == SOLVE_FULL)
                 if block.is_leader:
@@ -123,6 +128,12 @@ class ParallelRounds:
     def schur_complements(self) -> np.ndarray:
         return self._round(SCHUR, None).reshape(-1, self.trace_size, self.trace_size)
 
+    def dirichlet(self, traces: np.ndarray) -> np.ndarray:
+        return self._round(DIRICHLET, traces)[:, :-2]
+
+    def trace_diagonals(self) -> np.ndarray:
+        return self._round(DIAGONAL, None)[:, :-2]
+
     def stop(self) -> None:
         self.exchange.command(STOP)
 
@@ -137,7 +148,7 @@ def serve(exchange: Exchange, server: BlockServer, trace_size: int, stages: dict
         if command == REPORT_ERROR:
             exchange.comm.gather(server.error, root=0)
             continue
-        local = exchange.scatter(None, trace_size) if command in (SOLVE_LOAD, SOLVE_FULL) else None
+        local = exchange.scatter(None, trace_size) if command in WITH_LOADS else None
         width = result_width(command, trace_size)
         exchange.gather(server.run(command, local, width), width + 1)
     stages["Rounds"].pop()
@@ -146,7 +157,7 @@ def serve(exchange: Exchange, server: BlockServer, trace_size: int, stages: dict
 #: Default block factorization per method.  The iterative methods make one solve per round with one
 #: factorization, where PETSc's own Cholesky is about 3x faster than MUMPS; ``schur`` needs MUMPS for
 #: the Schur complements (``./run bench factor`` measures both).
-FACTOR_PACKAGE = {"uzawa": "petsc", "fista": "petsc", "mprgp": "petsc", "schur": "mumps"}
+FACTOR_PACKAGE = {"uzawa": "petsc", "fista": "petsc", "mprgp": "petsc", "schur": "mumps", "feti": "mumps"}
 STAGES = ("Setup", "Factorization", "Rounds", "Update", "Output")
 
 
@@ -392,7 +403,13 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
     phases.end("assembly")
 
     stages["Factorization"].push()
-    collective(comm, lambda: [block.factor(schur=method == "schur") for block in blocks])
+    def factor():
+        for block in blocks:
+            block.factor(schur=method == "schur")
+            if method == "feti":
+                block.factor_dirichlet()
+
+    collective(comm, factor)
     stages["Factorization"].pop()
     phases.end("factorization")
     return Setup(local, exchange, blocks, interface, stages, phases)

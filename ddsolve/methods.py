@@ -43,6 +43,12 @@ class Rounds(Protocol):
     def schur_complements(self) -> np.ndarray:
         """The blocks' Schur complements on their traces, S_b = (E K_b⁻¹ Eᵀ)⁻¹, ``(4, 2k, 2k)``."""
 
+    def dirichlet(self, traces: np.ndarray) -> np.ndarray:
+        """S_b t_b for trace displacements ``(4, 2k)``: one Dirichlet solve per block (``feti``)."""
+
+    def trace_diagonals(self) -> np.ndarray:
+        """The diagonals of the blocks' stiffness matrices at their traces, ``(4, 2k)``."""
+
 
 @dataclass
 class Outcome:
@@ -420,4 +426,113 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
                                              "interface_unknowns": size})
 
 
-METHODS: dict[str, Callable[..., Outcome]] = {"schur": schur, "mprgp": mprgp, "fista": fista, "uzawa": uzawa}
+# --- FETI: Dirichlet-preconditioned dual iterations on an active set ---------------------------
+class DirichletPreconditioner:
+    """M⁻¹ = B_D S B_Dᵀ ≈ A⁻¹, FETI's Dirichlet preconditioner for A = B K⁻¹ Bᵀ (B = W^½ C).
+
+    S = diag(S_b) is applied by one Dirichlet solve per block (a round, never a Schur complement
+    matrix); B_D = (B Δ Bᵀ)⁻¹ B Δ with Δ_b = 1/diag(K_b) on the traces (stiffness scaling: the stiffer
+    block takes the larger share of a jump), so that B B_Dᵀ = I.  B Δ Bᵀ couples only the multipliers
+    of one trace entry (at most three), so its inverse is a batch of 3×3 inverses.
+    """
+
+    def __init__(self, rounds: Rounds, interface: Interface, sqrt_w: np.ndarray):
+        self.rounds = rounds
+        self.delta = 1.0 / rounds.trace_diagonals().T  # (2k, 4)
+        self.index = interface.trace_index
+        order = np.argsort(self.index, kind="stable")
+        first = np.searchsorted(self.index[order], self.index[order])
+        self.slot = np.empty(interface.size, dtype=np.int64)
+        self.slot[order] = np.arange(interface.size) - first
+        width = int(self.slot.max(initial=0)) + 1
+        signs = np.zeros((interface.size, len(interface.couplings)))
+        for block, coupling in enumerate(interface.couplings):
+            signs[coupling.rows, block] = coupling.sign
+        self.B = np.zeros((interface.trace_size, width, len(interface.couplings)))  # per trace entry: rows × blocks
+        self.B[self.index, self.slot] = signs * sqrt_w[:, None]
+        G = np.einsum("tib,tb,tjb->tij", self.B, self.delta, self.B)
+        unused = np.all(self.B == 0.0, axis=2)  # padding rows: identity
+        G[unused, :] = 0.0
+        G[np.nonzero(unused) + (np.nonzero(unused)[1],)] = 1.0
+        self.G_inverse = np.linalg.inv(G)
+
+    def __call__(self, r: np.ndarray) -> np.ndarray:
+        R = np.zeros(self.B.shape[:2])
+        R[self.index, self.slot] = r
+        Z = np.einsum("tij,tj->ti", self.G_inverse, R)
+        traces = self.delta * np.einsum("tib,ti->tb", self.B, Z)  # B_Dᵀ r, per block's trace
+        forces = self.rounds.dirichlet(traces.T).T
+        Y = np.einsum("tij,tjb,tb->ti", self.G_inverse, self.B, self.delta * forces)  # B_D S B_Dᵀ r
+        return Y[self.index, self.slot]
+
+
+def feti(rounds: Rounds, interface: Interface, solver: Solver, progress: Progress) -> Outcome:
+    """The dual problem by a primal-dual active set method whose steps are solved by conjugate
+    gradients on the free multipliers, preconditioned by FETI's Dirichlet preconditioner.
+
+    Only block solves and products: a CG iteration takes two rounds (the Dirichlet solves of the
+    preconditioner, then the solves of A p), so its cost per round is that of ``mprgp``, and the
+    preconditioner keeps the iterations nearly independent of the mesh.  Each active-set step fixes
+    the multipliers at their bounds where the sets say so and solves for the others; the sets
+    change by the signs of the gradient (active rows) and the bound violations (free rows), as in
+    ``box_qp``.  Converged: the sets did not change, the multipliers are feasible and the KKT
+    criterion (on the free rows: the CG residual) is below ``tol``; the CG of a step stops at
+    ``tol`` then, or at 1e-1 of its start while the sets still move (an inexact step; the sets settle as fast).
+    """
+    problem = DualProblem(rounds, interface, solver)
+    precondition = DirichletPreconditioner(rounds, interface, problem.sqrt_w)
+    lower, upper, scale = problem.lower, problem.upper, max(problem.scale, np.finfo(float).tiny)
+    y = np.zeros(interface.size)
+    g = -problem.b  # A y − b
+    at_lower, at_upper = (y <= lower) & (g >= 0), (y >= upper) & (g <= 0)
+    outcome = Outcome(y, converged=False, iterations=0)
+    settled, steps = False, 0
+    while outcome.iterations < solver.max_iterations:
+        steps += 1
+        free = ~(at_lower | at_upper)
+        target = np.where(at_lower, lower, np.where(at_upper, upper, y))
+        if np.any(target != y):  # the fixed multipliers go to their bounds
+            g = g + problem.apply(target - y)
+            y = target
+        r = -np.where(free, g, 0.0)
+        goal = solver.tol * scale if settled else max(solver.tol * scale, 1e-1 * np.linalg.norm(r))
+        z = np.where(free, precondition(r), 0.0) if np.linalg.norm(r) > goal else r
+        p, rz = z, r @ z
+        while np.linalg.norm(r) > goal and outcome.iterations < solver.max_iterations:
+            q = problem.apply(p)
+            alpha = rz / (p @ q)
+            y, g = y + alpha * p, g + alpha * q
+            r = -np.where(free, g, 0.0)
+            outcome.iterations += 1
+            outcome.history.append(problem.criterion(np.clip(y, lower, upper), g))
+            progress(outcome.iterations, outcome.history[-1])
+            if not np.isfinite(outcome.history[-1]):
+                outcome.message, outcome.diverged = f"feti broke down at iteration {outcome.iterations}", True
+                outcome.lam = problem.multipliers(y)
+                return outcome
+            if np.linalg.norm(r) <= goal:
+                break
+            z = np.where(free, precondition(r), 0.0)
+            rz, previous = r @ z, rz
+            p = z + (rz / previous) * p
+        new_lower = (at_lower & (g >= 0)) | (free & (y < lower))
+        new_upper = (at_upper & (g <= 0)) | (free & (y > upper))
+        if np.array_equal(new_lower, at_lower) and np.array_equal(new_upper, at_upper):
+            criterion = problem.criterion(y, g)
+            if settled and criterion < solver.tol:
+                outcome.converged = True
+                break
+            settled = True
+        else:
+            settled = False
+        at_lower, at_upper = new_lower, new_upper
+    if not outcome.converged:
+        outcome.message = _no_convergence("feti", solver, outcome.history)
+    progress(outcome.iterations, outcome.history[-1] if outcome.history else 0.0, final=True)
+    outcome.lam = problem.multipliers(y)
+    outcome.details["active_set_steps"] = steps
+    return outcome
+
+
+METHODS: dict[str, Callable[..., Outcome]] = {"schur": schur, "mprgp": mprgp, "fista": fista, "uzawa": uzawa,
+                                              "feti": feti}

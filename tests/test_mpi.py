@@ -16,6 +16,7 @@ TIGHT = {
     "schur": [],
     "mprgp": ["--set", "solver.method=mprgp", "--set", "solver.tol=1e-11"],
     "fista": ["--set", "solver.method=fista", "--set", "solver.tol=1e-11"],
+    "feti": ["--set", "solver.method=feti", "--set", "solver.tol=1e-11"],
 }
 
 
@@ -109,6 +110,7 @@ def test_divergence_stops_early_and_keeps_the_previous_file(tmp_path):
 
 @pytest.mark.parametrize("method, options", [
     ("schur", []),  # block interface matrices by parallel multi-column MUMPS solves
+    ("feti", []),  # Neumann and Dirichlet solves by parallel MUMPS
     ("mprgp", ["-u_minus_ksp_type", "cg", "-u_minus_pc_type", "gamg", "-u_minus_ksp_rtol", "1e-13"]),
 ])
 def test_eight_ranks_split_every_block_over_two(tmp_path, method, options):
