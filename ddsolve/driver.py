@@ -9,6 +9,7 @@ memory (:class:`Phases`); the result file has them in ``/timings`` and ``/memory
 """
 from __future__ import annotations
 
+import dataclasses
 import os
 import time
 from dataclasses import dataclass
@@ -287,6 +288,7 @@ class Setup:
     interface: Interface
     stages: dict
     phases: Phases
+    scene: Scene  # with the method resolved
 
     @property
     def timings(self) -> dict:
@@ -392,11 +394,12 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
         raise error
     phases = phases if phases is not None else Phases()
     stages = {name: PETSc.Log.Stage(name) for name in STAGES}
-    method = scene.solver.method
 
     stages["Setup"].push()
     exchange = Exchange(comm, len(BLOCKS))
     local = whole(mesh) if mesh is not None else local_mesh(scene, comm, exchange, phases)
+    scene = resolve(scene, comm.size, local)
+    method = scene.solver.method
     blocks = collective(comm, lambda: make_blocks(scene, local, exchange, FACTOR_PACKAGE[method]))
     interface = for_mesh(local.sigma, scene.nonpenetration)
     stages["Setup"].pop()
@@ -412,7 +415,16 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
     collective(comm, factor)
     stages["Factorization"].pop()
     phases.end("factorization")
-    return Setup(local, exchange, blocks, interface, stages, phases)
+    return Setup(local, exchange, blocks, interface, stages, phases, scene)
+
+
+def resolve(scene: Scene, ranks: int, mesh: LocalMesh) -> Scene:
+    """The scene with ``auto`` replaced by the method :func:`ddsolve.methods.choose` picks."""
+    if scene.solver.method != "auto":
+        return scene
+    per_block = max(1, ranks // len(BLOCKS))
+    method = methods.choose(per_block, 2 * max(mesh.nodes.values()), int(mesh.sigma.corner.sum()))
+    return dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, method=method))
 
 
 def bound(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, iterations: int = 300) -> float:
@@ -443,7 +455,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
     """
     phases = Phases(launch_age() if mesh is None else 0.0)
     setup = prepare(scene, comm, mesh, phases)
-    local, exchange, interface, stages = setup.mesh, setup.exchange, setup.interface, setup.stages
+    local, exchange, interface, stages, scene = setup.mesh, setup.exchange, setup.interface, setup.stages, setup.scene
     method = scene.solver.method
 
     try:

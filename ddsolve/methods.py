@@ -534,5 +534,37 @@ def feti(rounds: Rounds, interface: Interface, solver: Solver, progress: Progres
     return outcome
 
 
+# --- the default: schur or feti ------------------------------------------------------------------
+#: Per-block costs (seconds, n = block unknowns, c = columns, m = multiplier rounds) fitted by
+#: ``./run scaling`` on one rank (docs/scaling.md): the interface matrix of a distributed block by
+#: multi-column solves c·(n·2kΣ)^p; one block solve; a plain factorization; rank 0's dense solve of
+#: ``schur`` on nΣ ≈ 3P interface unknowns; the CG iterations of ``feti`` (about constant in P).
+COST_LAWS = {"columns": (1.16e-08, 1.09), "solve": (1.18e-07, 1.10), "factor": (3.46e-08, 1.49),
+             "rank0": (4.14e-09, 2.40)}
+FETI_ROUNDS = 60
+
+
+def predicted_costs(ranks_per_block: int, unknowns: int, sigma_vertices: int) -> dict[str, float]:
+    """Seconds of what ``schur`` and ``feti`` do beyond the factorization both need, with each block
+    on ``ranks_per_block`` ranks (block work shared ideally among them, as in the cost model)."""
+    law = {key: (lambda x, a=a, p=p: a * x ** p) for key, (a, p) in COST_LAWS.items()}
+    trace = 2 * sigma_vertices
+    share = 1.0 / ranks_per_block
+    schur = law["rank0"](3 * sigma_vertices)
+    if ranks_per_block > 1:  # no Schur complement from a distributed factorization: 2kΣ columns of solves
+        schur += share * law["columns"](unknowns * trace)
+    feti = share * (law["factor"](unknowns) + FETI_ROUNDS * law["solve"](unknowns))  # + the Dirichlet problem
+    return {"schur": schur, "feti": feti}
+
+
+def choose(ranks_per_block: int, unknowns: int, sigma_vertices: int) -> str:
+    """The default method: ``schur`` for whole blocks (exact in three rounds, its Schur complements come
+    with the factorization), else whichever :func:`predicted_costs` finds cheaper."""
+    if ranks_per_block == 1:
+        return "schur"
+    costs = predicted_costs(ranks_per_block, unknowns, sigma_vertices)
+    return min(costs, key=costs.get)
+
+
 METHODS: dict[str, Callable[..., Outcome]] = {"schur": schur, "mprgp": mprgp, "fista": fista, "uzawa": uzawa,
                                               "feti": feti}
