@@ -170,7 +170,7 @@ def cmd_bench(args, petsc_options) -> int:
         for P, M in _meshes(args.meshes or "200:256"):
             bench.factor(P, M)
     elif args.what == "baseline":
-        bench.baseline(_meshes(args.meshes or "400:512,800:1024"), ranks=args.ranks or 4, repeats=args.repeats,
+        bench.baseline(_meshes(args.meshes or "400:512,800:1024"), ranks=args.ranks, repeats=args.repeats,
                        busy=args.busy)
     else:
         bench.methods(_meshes(args.meshes), Path(args.output), Path("docs"))
@@ -270,7 +270,7 @@ def parser() -> argparse.ArgumentParser:
                 "one MUMPS factorization of the whole problem; `bench factor`: block factorizations", cmd_bench, experiments)
     p.add_argument("what", choices=("methods", "baseline", "factor"))
     p.add_argument("--meshes", help="comma-separated P:M pairs (default: Table 1 and 400:512; baseline: 400:512,800:1024)")
-    p.add_argument("-n", dest="ranks", type=int, metavar="N", help="ranks of the DD in `bench baseline` (default 4)")
+    p.add_argument("-n", dest="ranks", type=int, metavar="N", help="ranks of the DD in `bench baseline` (default: 4, or fewer if there are fewer cores)")
     p.add_argument("--repeats", type=int, default=3, help="side-by-side pairs per case in `bench baseline`")
     p.add_argument("--busy", action="store_true", help="`bench baseline` with a second process keeping a core busy")
     p.add_argument("-o", dest="output", default="results/bench-methods.h5", help="HDF5 file for `methods`")
