@@ -374,6 +374,20 @@ def box_qp(A: np.ndarray, b: np.ndarray, lower: np.ndarray, upper: np.ndarray,
     raise SolverError(f"the active-set QP solver did not settle in {max_steps} steps")
 
 
+def triangular_solve(L: np.ndarray, b: np.ndarray, transpose: bool = False, block: int = 128) -> np.ndarray:
+    """L⁻¹ b (or L⁻ᵀ b) for a lower triangular L, by blocks of rows: O(n²) work for one vector."""
+    n = len(b)
+    x = np.array(b, dtype=np.float64)
+    starts = list(range(0, n, block))
+    for start in (starts[::-1] if transpose else starts):
+        stop = min(start + block, n)
+        if transpose:
+            x[start:stop] = np.linalg.solve(L[start:stop, start:stop].T, x[start:stop] - L[stop:, start:stop].T @ x[stop:])
+        else:
+            x[start:stop] = np.linalg.solve(L[start:stop, start:stop], x[start:stop] - L[start:stop, :start] @ x[:start])
+    return x
+
+
 def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progress) -> Outcome:
     """Exact solve from the blocks' Schur complements S_b on Σ; three rounds in all.
 
@@ -394,19 +408,33 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
     started = time.perf_counter()
     unknowns = interface.trace_unknowns()
     size = int(unknowns.max()) + 1
+    contact = interface.slices["mu_c"]
+    normal = 2 * interface.vertex[contact] + 1
+    # The crack faces' normal unknowns go last: the contact forces act on them only, so with
+    # S = L Lᵀ, L⁻¹ Bᵀ lives in the last block of L and A_c = (L_cc⁻¹ B_cᵀ)ᵀ(L_cc⁻¹ B_cᵀ).
+    faces = np.concatenate([unknowns[0][normal], unknowns[1][normal]])
+    last = np.zeros(size, dtype=bool)
+    last[faces] = True
+    position = np.argsort(last, kind="stable").argsort()
+    unknowns, first = position[unknowns], size - len(faces)
     stiffness, body = np.zeros((size, size)), np.zeros(size)
     for S_b, numbers, t0 in zip(schur_complements, unknowns, initial):
         stiffness[np.ix_(numbers, numbers)] += S_b
         body[numbers] += S_b @ t0
-    contact = interface.slices["mu_c"]
-    normal = 2 * interface.vertex[contact] + 1
     sqrt_w = problem.sqrt_w[contact]
-    jump = np.zeros((size, len(normal)))  # Bᵀ W^½: force pattern of a unit scaled contact multiplier
-    jump[unknowns[0][normal], np.arange(len(normal))] += sqrt_w
-    jump[unknowns[1][normal], np.arange(len(normal))] -= sqrt_w
-    solved = np.linalg.solve(stiffness, np.column_stack([body, jump]))
-    y_c, steps = box_qp(jump.T @ solved[:, 1:], jump.T @ solved[:, 0], problem.lower[contact], problem.upper[contact])
-    traces = (solved[:, 0] - solved[:, 1:] @ y_c)[unknowns]
+    jump = np.zeros((len(faces), len(normal)))  # B_cᵀ W^½: forces of a unit scaled contact multiplier
+    jump[unknowns[0][normal] - first, np.arange(len(normal))] += sqrt_w
+    jump[unknowns[1][normal] - first, np.arange(len(normal))] -= sqrt_w
+    try:
+        L = np.linalg.cholesky(stiffness)
+    except np.linalg.LinAlgError:
+        raise SolverError("schur: the interface stiffness is not positive definite") from None
+    del stiffness
+    forces = np.linalg.solve(L[first:, first:], jump) if len(faces) else np.zeros((0, 0))  # L_cc⁻¹ B_cᵀ
+    loaded = triangular_solve(L, body)  # L⁻¹ body
+    y_c, steps = box_qp(forces.T @ forces, forces.T @ loaded[first:], problem.lower[contact], problem.upper[contact])
+    loaded[first:] -= forces @ y_c
+    traces = triangular_solve(L, loaded, transpose=True)[unknowns]  # S⁻¹(body − Bᵀ W^½ y_c)
     loads = np.einsum("bij,bj->bi", schur_complements, traces - initial)
     y = problem.sqrt_w * interface.multipliers(loads)
     y[contact] = y_c
