@@ -35,6 +35,7 @@ TOLERANCES = {
     "schur": [("kkt", 1e-8)],
     "mprgp": [("kkt", 1e-4), ("kkt", 1e-6), ("kkt", 1e-8), ("kkt", 1e-10)],
     "fista": [("kkt", 1e-4), ("kkt", 1e-6), ("kkt", 1e-8)],
+    "feti": [("kkt", 1e-4), ("kkt", 1e-6), ("kkt", 1e-8)],
     "uzawa": [("paper", 1e-6), ("relative", 1e-4), ("relative", 1e-6), ("relative", 1e-8)],
 }
 #: Above this P, uzawa runs only the paper's setting (each run takes minutes).
@@ -407,8 +408,7 @@ def block_timings(P: int, M: int, solves: int = 20, repeats: int = 3) -> dict:
     from ..blocks import Block, default_factor_package
 
     scene = paper_scene(P, M)
-    lower = geometry.generate_half(scene, -1)
-    system = assembly.block_systems(scene, geometry.pair(scene, lower, lower), [0])[0]
+    system = assembly.block_systems(scene, geometry.build(scene), [0])[0]
     out = {"P": P, "M": M, "unknowns": system.size, "trace": len(system.trace_dofs)}
     for package, schur in (("petsc", False), ("mumps", False), ("mumps", True)):
         if default_factor_package(package) != package:
