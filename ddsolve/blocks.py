@@ -245,13 +245,16 @@ class Block:
         matrix filled on both sides must be symmetric.  Otherwise (distributed blocks, other
         packages, or a stored matrix that fits none of these) it is the inverse of :meth:`flexibility`.
         """
-        if self._schur is not None:
-            stored = self._schur
-            lower, upper = np.abs(np.tril(stored, -1)).max(initial=0.0), np.abs(np.triu(stored, 1)).max(initial=0.0)
+        if self._schur is not None:  # handed over once, filled in place (S is large: (2k)² doubles)
+            stored, self._schur = self._schur, None
+            above = np.triu_indices(len(stored), 1)
+            lower, upper = np.abs(stored.T[above]).max(initial=0.0), np.abs(stored[above]).max(initial=0.0)
             if upper == 0.0:
-                return np.tril(stored) + np.tril(stored, -1).T
+                stored[above] = stored.T[above]
+                return stored
             if lower == 0.0:
-                return np.triu(stored) + np.triu(stored, 1).T
+                stored.T[above] = stored[above]
+                return stored
             if np.abs(stored - stored.T).max() <= 1e-12 * np.abs(stored).max():
                 return 0.5 * (stored + stored.T)
         flexibility = self.flexibility()
