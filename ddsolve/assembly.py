@@ -233,9 +233,14 @@ class Pattern:
     first: int
     last: int
 
-    def sum(self, matrices: np.ndarray) -> np.ndarray:
-        """CSR values: the element matrices ``(m, 2k, 2k)`` of :attr:`cells` summed in place (compiled)."""
-        return np.bincount(self.positions.ravel(), matrices.ravel(), minlength=len(self.indices) + 1)[:-1]
+    def sum(self, matrices: np.ndarray, cells: slice = slice(None)) -> np.ndarray:
+        """CSR values of the element matrices ``(m, 2k, 2k)`` of ``cells`` (a slice of :attr:`cells`),
+        summed in place by one compiled pass."""
+        return np.bincount(self.positions[cells].ravel(), matrices.ravel(), minlength=len(self.indices) + 1)[:-1]
+
+
+#: Element-matrix entries computed at once (32 MB of them): assembly's memory does not grow with the mesh.
+ELEMENT_ENTRIES = 2 ** 22
 
 
 def index_type(largest: int):
@@ -311,10 +316,14 @@ def block_system(name: str, half: HalfMesh, sigma: SigmaLine, D: np.ndarray, loa
     nodes = trace_nodes(half, sigma)
     frames = sigma.frames[sigma.multiplier_nodes]
     rotated = not np.allclose(frames, np.eye(2), rtol=0.0, atol=0.0)
-    matrices = element_stiffness(half.points, structure.cells, D)
-    if rotated:
-        rotate_elements(matrices, structure.cells, nodes, frames, len(half.points))
-    data = structure.sum(matrices)
+    data = np.zeros(len(structure.indices))
+    step = max(1, ELEMENT_ENTRIES // structure.positions[0].size)
+    for start in range(0, len(structure.cells), step):  # element matrices a slice at a time: bounded memory
+        cells = slice(start, start + step)
+        matrices = element_stiffness(half.points, structure.cells[cells], D)
+        if rotated:
+            rotate_elements(matrices, structure.cells[cells], nodes, frames, len(half.points))
+        data += structure.sum(matrices, cells)
     del matrices
     clamped = np.zeros(n, dtype=bool)
     clamped[element_dofs(half.clamped()[:, None]).ravel()] = True
