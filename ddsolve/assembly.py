@@ -2,7 +2,8 @@
 strains, stresses and energies.
 
 All elements are processed at once (no Python loop over cells): element matrices as one
-``(m, 2k, 2k)`` array (k = 3 or 6 nodes), scattered to COO triplets, summed into CSR.  Degrees of
+``(m, 2k, 2k)`` array (k = 3 or 6 nodes), summed into CSR by a precomputed scatter
+(:class:`Pattern`, one per half: the two blocks of a half share it, only their values differ).  Degrees of
 freedom are interleaved, node ``v`` owning ``2v`` (x) and ``2v + 1`` (y), so the matrices have block
 size 2.  At the Σ nodes that carry multipliers the two dofs are instead the components in the node's
 (tangent, normal) frame (:attr:`~ddsolve.mesh.SigmaLine.frames`), so that every interface condition
@@ -84,8 +85,8 @@ def element_stiffness(points: np.ndarray, cells: np.ndarray, D: np.ndarray) -> n
     det, gradients = element_geometry(points, cells, xi)
     out = np.zeros((len(cells), 2 * cells.shape[1], 2 * cells.shape[1]))
     for q, weight in enumerate(weights):
-        B = strain_operator(gradients[:, q])
-        out += (weight * det[:, q])[:, None, None] * np.einsum("mki,kl,mlj->mij", B, D, B)
+        B = strain_operator(gradients[:, q]) * np.sqrt(weight * det[:, q])[:, None, None]
+        out += np.matmul(B.transpose(0, 2, 1), np.matmul(D, B))
     return out
 
 
@@ -113,29 +114,23 @@ def stiffness(points: np.ndarray, cells: np.ndarray, D: np.ndarray):
 
 
 # --- local frames at the Σ nodes -----------------------------------------------------------------
-def rotate_coo(rows: np.ndarray, cols: np.ndarray, values: np.ndarray, nodes: np.ndarray, frames: np.ndarray,
-               n_nodes: int):
-    """Triplets of R K Rᵀ, R rotating the dofs of ``nodes`` into ``frames`` ``(len(nodes), 2, 2)``."""
+def rotate_elements(matrices: np.ndarray, cells: np.ndarray, nodes: np.ndarray, frames: np.ndarray,
+                    n_nodes: int) -> None:
+    """Element matrices ``(m, 2k, 2k)`` of ``cells`` -> R Kₑ Rᵀ in place, R rotating the dofs of
+    ``nodes`` into ``frames`` ``(len(nodes), 2, 2)`` (new component b = Σ_a R[b, a] old a)."""
     frame_of = np.full(n_nodes, -1, dtype=np.int64)
     frame_of[nodes] = np.arange(len(nodes))
-    for axis in (0, 1):
-        index = (rows, cols)[axis]
-        frame = frame_of[index // 2]
-        hit = frame >= 0
-        if not hit.any():
-            continue
-        component = index[hit] % 2
-        base = index[hit] - component
-        R = frames[frame[hit]]  # (h, 2, 2): new component b = Σ_a R[b, a] old a
-        new_index = np.concatenate([base, base + 1])
-        new_values = np.concatenate([R[np.arange(len(R)), 0, component], R[np.arange(len(R)), 1, component]])
-        new_values = new_values * np.concatenate([values[hit], values[hit]])
-        other = np.concatenate([(cols, rows)[axis][hit]] * 2)
-        rows_, cols_ = (new_index, other) if axis == 0 else (other, new_index)
-        rows = np.concatenate([rows[~hit], rows_])
-        cols = np.concatenate([cols[~hit], cols_])
-        values = np.concatenate([values[~hit], new_values])
-    return rows, cols, values
+    touched = np.flatnonzero((frame_of[cells] >= 0).any(axis=1))
+    if len(touched) == 0:
+        return
+    k = cells.shape[1]
+    R = np.zeros((len(touched), k, 2, k, 2))
+    R[:, np.arange(k), :, np.arange(k), :] = np.eye(2)
+    local = frame_of[cells[touched]]  # (t, k)
+    which, corner = np.nonzero(local >= 0)
+    R[which, corner, :, corner, :] = frames[local[which, corner]]
+    R = R.reshape(len(touched), 2 * k, 2 * k)
+    matrices[touched] = np.matmul(np.matmul(R, matrices[touched]), R.transpose(0, 2, 1))
 
 
 def rotate_vector(vector: np.ndarray, nodes: np.ndarray, frames: np.ndarray, transpose: bool = False) -> np.ndarray:
@@ -226,44 +221,134 @@ def trace_nodes(half: HalfMesh, sigma: SigmaLine) -> np.ndarray:
     return half.sigma[sigma.multiplier_nodes]
 
 
+@dataclass(frozen=True, eq=False)
+class Pattern:
+    """The CSR structure shared by the blocks of one half (or by their rows ``first … last − 1``) and
+    where every entry of every element matrix goes in it.
+
+    Clamped dofs are decoupled: the pattern keeps only their node's own 2×2 block (its off-diagonal
+    entries stay zero).  ``positions`` ``(m, 2k, 2k)`` holds the CSR index of each element-matrix
+    entry of ``cells`` (the cells touching the rows), ``len(indices)`` for entries that are dropped.
+    """
+
+    indptr: np.ndarray
+    indices: np.ndarray
+    cells: np.ndarray
+    positions: np.ndarray
+    first: int
+    last: int
+
+    def sum(self, matrices: np.ndarray, cells: slice = slice(None)) -> np.ndarray:
+        """CSR values of the element matrices ``(m, 2k, 2k)`` of ``cells`` (a slice of :attr:`cells`),
+        summed in place by one compiled pass."""
+        return np.bincount(self.positions[cells].ravel(), matrices.ravel(), minlength=len(self.indices) + 1)[:-1]
+
+
+#: Element-matrix entries computed at once (32 MB of them): assembly's memory does not grow with the mesh.
+ELEMENT_ENTRIES = 2 ** 22
+
+
+def index_type(largest: int):
+    """int32 when every index fits (half the memory; what PETSc uses unless built for 64-bit), else int64."""
+    return np.int32 if largest < 2 ** 31 - 1 else np.int64
+
+
+def pattern(half: HalfMesh, rows: tuple[int, int] | None = None) -> Pattern:
+    """The sparsity pattern of the half's blocks (or their ``rows``) from its node graph: one sort of
+    the cells' node pairs, expanded to 2×2 dof blocks without another sort."""
+    n_nodes = len(half.points)
+    first, last = rows if rows is not None else (0, 2 * n_nodes)
+    first_node, last_node = first // 2, last // 2
+    cells = half.cells
+    if rows is not None:
+        owned = np.zeros(n_nodes, dtype=bool)
+        owned[first_node:last_node] = True
+        cells = cells[owned[cells].any(axis=1)]
+    k = cells.shape[1]
+    clamped = np.zeros(n_nodes, dtype=bool)
+    clamped[half.clamped()] = True
+    a = np.repeat(cells, k, axis=1)  # (m, k²): row node of entry (α, β) = cells[α]
+    b = np.tile(cells, (1, k))  # column node = cells[β]
+    keep = (a >= first_node) & (a < last_node) & ((a == b) | ~(clamped[a] | clamped[b]))
+    keys = a[keep].astype(np.int64) * n_nodes + b[keep]
+    del b
+    unique, inverse = np.unique(keys, return_inverse=True)
+    del keys
+    node_position = np.full(a.shape, -1, dtype=np.int64)
+    node_position[keep] = inverse
+    del inverse, a
+    row, column = unique // n_nodes - first_node, unique % n_nodes
+    per_row = np.bincount(row, minlength=last_node - first_node)
+    row_start = np.concatenate([[0], np.cumsum(per_row)])  # node rows
+    indptr = np.concatenate([[0], np.cumsum(np.repeat(2 * per_row, 2))])  # dof rows: 2 entries per node entry
+    offset = 2 * (np.arange(len(unique)) - row_start[row])
+    itype = index_type(max(2 * n_nodes, indptr[-1] + 1))
+    indices = np.empty(indptr[-1], dtype=itype)
+    for i in (0, 1):
+        for j in (0, 1):
+            indices[indptr[2 * row + i] + offset + j] = 2 * column + j
+    del unique, row, column, offset
+    # Element entry (2α + i, 2β + j) -> indptr[2(a − first) + i] + 2·(node entry − row start) + j.
+    m = len(cells)
+    local = cells - first_node  # (m, k); rows outside the range are dropped
+    inside = (local >= 0) & (local < last_node - first_node)
+    local = np.where(inside, local, 0)
+    within = node_position.reshape(m, k, k) - row_start[local][:, :, None]  # (m, α, β)
+    row_first = indptr[2 * local][:, :, None]  # (m, α, 1): dof row 2a
+    row_length = (2 * per_row[local])[:, :, None]  # dof row 2a + 1 starts this much later
+    positions = np.empty((m, k, 2, k, 2), dtype=itype)
+    for i in (0, 1):
+        for j in (0, 1):
+            positions[:, :, i, :, j] = row_first + i * row_length + 2 * within + j
+    dropped = (node_position.reshape(m, k, k) < 0)
+    positions[np.broadcast_to(dropped[:, :, None, :, None], positions.shape)] = len(indices)
+    diagonal = clamped[cells]  # a clamped node's own block keeps its diagonal only
+    off = np.zeros((m, k, 2, k, 2), dtype=bool)
+    off[:, np.arange(k), 0, np.arange(k), 1] = diagonal
+    off[:, np.arange(k), 1, np.arange(k), 0] = diagonal
+    positions[off] = len(indices)
+    return Pattern(indptr.astype(itype), indices, cells, positions.reshape(m, 2 * k, 2 * k), first, last)
+
+
 def block_system(name: str, half: HalfMesh, sigma: SigmaLine, D: np.ndarray, loads: list[Load],
-                 rows: tuple[int, int] | None = None) -> BlockSystem:
+                 rows: tuple[int, int] | None = None, shared: Pattern | None = None) -> BlockSystem:
     """Assemble a block (or its ``rows``): stiffness with clamped dofs decoupled, the loads on the
-    half's named boundaries, Σ dofs in local frames."""
+    half's named boundaries, Σ dofs in local frames.  ``shared``: the half's :func:`pattern` for
+    these rows, when another block of the half has made it."""
     n = 2 * len(half.points)
-    first, last = rows if rows is not None else (0, n)
-    owned = np.zeros(len(half.points), dtype=bool)
-    owned[first // 2:last // 2] = True
-    cells = half.cells[owned[half.cells].any(axis=1)]  # the cells that contribute to these rows
-    rows_, cols, values = stiffness(half.points, cells, D)
+    structure = shared if shared is not None else pattern(half, rows)
+    first, last = structure.first, structure.last
     nodes = trace_nodes(half, sigma)
     frames = sigma.frames[sigma.multiplier_nodes]
     rotated = not np.allclose(frames, np.eye(2), rtol=0.0, atol=0.0)
-    if rotated:
-        rows_, cols, values = rotate_coo(rows_, cols, values, nodes, frames, len(half.points))
+    data = np.zeros(len(structure.indices))
+    step = max(1, ELEMENT_ENTRIES // structure.positions[0].size)
+    for start in range(0, len(structure.cells), step):  # element matrices a slice at a time: bounded memory
+        cells = slice(start, start + step)
+        matrices = element_stiffness(half.points, structure.cells[cells], D)
+        if rotated:
+            rotate_elements(matrices, structure.cells[cells], nodes, frames, len(half.points))
+        data += structure.sum(matrices, cells)
+    del matrices
     clamped = np.zeros(n, dtype=bool)
     clamped[element_dofs(half.clamped()[:, None]).ravel()] = True
-    keep = (rows_ >= first) & (rows_ < last) & ~(clamped[rows_] | clamped[cols])
-    diagonal = (rows_ == cols) & (rows_ >= first) & (rows_ < last) & clamped[rows_]
-    indptr, indices, data = coo_to_csr(last - first, np.concatenate([rows_[keep], rows_[diagonal]]) - first,
-                                       np.concatenate([cols[keep], cols[diagonal]]),
-                                       np.concatenate([values[keep], values[diagonal]]), columns=n)
     rhs = np.zeros(n)
     for load in loads:
         rhs += boundary_load(half.points, half.edges(load.boundary), load)
     if rotated:
         rhs = rotate_vector(rhs, nodes, frames)
     rhs[clamped] = 0.0
-    modes = rigid_body_modes(half.points)
+    modes = rigid_body_modes(half.points[first // 2:last // 2], centre=half.points.mean(axis=0))
     if rotated:
-        modes = np.array([rotate_vector(mode, nodes, frames) for mode in modes])
-    return BlockSystem(name, indptr, indices, data, rhs[first:last], element_dofs(nodes[:, None]).ravel(), n,
-                       first, modes[:, first:last])
+        mine = (nodes >= first // 2) & (nodes < last // 2)
+        modes = np.array([rotate_vector(mode, nodes[mine] - first // 2, frames[mine]) for mode in modes])
+    return BlockSystem(name, structure.indptr, structure.indices, data, rhs[first:last],
+                       element_dofs(nodes[:, None]).ravel(), n, first, modes)
 
 
-def rigid_body_modes(points: np.ndarray) -> np.ndarray:
-    """``(3, 2n)``: the translations in x and y and the rotation about the centroid."""
-    centred = points - points.mean(axis=0)
+def rigid_body_modes(points: np.ndarray, centre: np.ndarray | None = None) -> np.ndarray:
+    """``(3, 2n)``: the translations in x and y and the rotation about ``centre`` (default: the centroid)."""
+    centred = points - (points.mean(axis=0) if centre is None else centre)
     modes = np.zeros((3, len(points), 2))
     modes[0, :, 0] = 1.0
     modes[1, :, 1] = 1.0
@@ -284,12 +369,15 @@ def layer_loads(scene: Scene, layer: str, half: HalfMesh) -> list[Load]:
 def block_systems(scene: Scene, mesh: Mesh, which: list[int] | None = None,
                   rows: tuple[int, int] | None = None) -> list[BlockSystem]:
     """Assemble the scene's blocks with indices in ``which`` (all four by default), or their ``rows``."""
-    systems = []
+    systems, patterns = [], {}
     for index in range(len(BLOCKS)) if which is None else which:
         spec = BLOCKS[index]
         half = mesh.half(spec.side)
         D, _ = elasticity(scene, spec.layer)
-        systems.append(block_system(spec.name, half, mesh.sigma, D, layer_loads(scene, spec.layer, half), rows))
+        if spec.side not in patterns:
+            patterns[spec.side] = pattern(half, rows)
+        systems.append(block_system(spec.name, half, mesh.sigma, D, layer_loads(scene, spec.layer, half), rows,
+                                    patterns[spec.side]))
     return systems
 
 

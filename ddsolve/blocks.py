@@ -8,6 +8,7 @@ command line.
 from __future__ import annotations
 
 import ctypes
+import dataclasses
 import functools
 import os
 
@@ -19,6 +20,7 @@ from .errors import SolverError
 
 _FACTOR_TYPES = ("cholesky", "lu")
 _CHUNK = 64  # right-hand sides per multi-column solve when the flexibility is built by solves
+_NONE = np.zeros(0)
 
 
 def default_factor_package(preferred: str = "mumps") -> str:
@@ -38,16 +40,22 @@ class Block:
     """
 
     def __init__(self, system: BlockSystem, comm: PETSc.Comm = PETSc.COMM_SELF, factor_package: str = "mumps"):
-        self.system = system
         self.name = system.name
         self.mpi = comm.tompi4py()
         local, n = len(system.rhs), system.size
-        csr = tuple(a.astype(PETSc.IntType) for a in (system.indptr, system.indices)) + (system.data,)
-        self.matrix = PETSc.Mat().createAIJ(size=((local, n), (local, n)), bsize=system.block_size, csr=csr,
-                                            comm=comm)
+        csr = tuple(a.astype(PETSc.IntType, copy=False) for a in (system.indptr, system.indices)) + (system.data,)
+        if self.mpi.size == 1:  # PETSc works on these arrays (no copy); blocks of a half share indptr, indices
+            self.matrix = PETSc.Mat().createAIJWithArrays(size=((local, n), (local, n)), csr=csr,
+                                                          bsize=system.block_size, comm=comm)
+        else:
+            self.matrix = PETSc.Mat().createAIJ(size=((local, n), (local, n)), bsize=system.block_size, csr=csr,
+                                                comm=comm)
         self.matrix.setOption(PETSc.Mat.Option.SPD, True)
         if system.modes is not None:
             self._set_near_null_space(system.modes, comm)
+        del csr
+        # What the block needs later; the CSR arrays belong to the matrix now (or were copied into it).
+        self.system = dataclasses.replace(system, indptr=_NONE, indices=_NONE, data=_NONE, modes=None)
         self.ksp = PETSc.KSP().create(comm=comm)
         self.ksp.setOptionsPrefix(f"{self.name}_")
         self.ksp.setOperators(self.matrix)
@@ -58,6 +66,7 @@ class Block:
         self.ksp.setFromOptions()
         self.rhs, self.x = self.matrix.createVecLeft(), self.matrix.createVecRight()
         self._schur: np.ndarray | None = None  # as stored by MUMPS (one triangle valid)
+        self._dirichlet = self._dirichlet_matrix = self._work = None  # see factor_dirichlet
         # The trace entries this rank owns: their positions in the trace and their local rows.
         trace = system.trace_dofs
         mine = (trace >= system.first) & (trace < system.first + local)
@@ -109,6 +118,8 @@ class Block:
                 trace = PETSc.IS().createGeneral(self.trace_dofs.astype(PETSc.IntType), comm=PETSc.COMM_SELF)
                 _call("MatFactorSetSchurIS", pc.getFactorMatrix().handle, trace.handle)
                 trace.destroy()
+            else:
+                _default_ordering(self.ksp)
             self.ksp.setUp()
             if schur:
                 # Copy S now: solves factor the stored Schur complement in place.  Factor it once here,
@@ -119,6 +130,60 @@ class Block:
         except PETSc.Error as exc:
             raise SolverError(f"block {self.name}: solver setup failed (PETSc error {exc.ierr}); "
                               "is the block clamped?") from None
+
+    def factor_dirichlet(self) -> None:
+        """Set up the Dirichlet problem: K with the trace dofs held (their rows and columns replaced by
+        the identity), KSP prefix ``<name>_dirichlet_``, for :meth:`dirichlet` (the FETI preconditioner)."""
+        self._dirichlet_matrix = self.matrix.duplicate(copy=True)
+        rows = (self.trace_rows + self.system.first).astype(PETSc.IntType)
+        self._dirichlet_matrix.zeroRowsColumns(rows, diag=1.0)
+        self._dirichlet_matrix.setOption(PETSc.Mat.Option.SPD, True)
+        ksp = PETSc.KSP().create(comm=self.matrix.getComm())
+        ksp.setOptionsPrefix(f"{self.name}_dirichlet_")
+        ksp.setOperators(self._dirichlet_matrix)
+        ksp.setType(PETSc.KSP.Type.PREONLY)
+        ksp.getPC().setType(PETSc.PC.Type.CHOLESKY)
+        ksp.getPC().setFactorSolverType(self.ksp.getPC().getFactorSolverType())
+        ksp.setFromOptions()
+        self._dirichlet = ksp
+        try:
+            _default_ordering(ksp)
+            ksp.setUp()
+        except PETSc.Error as exc:
+            raise SolverError(f"block {self.name}: Dirichlet problem setup failed (PETSc error {exc.ierr})") from None
+        self._work = self.matrix.createVecLeft()
+
+    def dirichlet(self, trace: np.ndarray) -> np.ndarray | None:
+        """S t on the leader: the trace forces that hold the trace displacements ``t`` (given on every
+        rank of the block) with no load inside, by one Dirichlet solve and two products with K."""
+        held = self._work
+        values = held.getArray()
+        values[:] = 0.0
+        values[self.trace_rows] = trace[self.trace_positions]
+        self.matrix.mult(held, self.rhs)  # K t (t extended by zero)
+        b = self.rhs.getArray()
+        b *= -1.0
+        b[self.trace_rows] = trace[self.trace_positions]
+        try:
+            self._dirichlet.solve(self.rhs, self.x)  # x = (−K_II⁻¹ K_IΣ t, t)
+        except PETSc.Error as exc:
+            raise SolverError(f"block {self.name}: Dirichlet solve failed (PETSc error {exc.ierr})") from None
+        self.matrix.mult(self.x, held)
+        return self._gather_trace(held.getArray(readonly=True)[self.trace_rows])
+
+    def trace_diagonal(self) -> np.ndarray | None:
+        """The diagonal of K at the trace dofs, on the leader (the stiffness scaling of the preconditioner)."""
+        return self._gather_trace(self.matrix.getDiagonal().getArray(readonly=True)[self.trace_rows])
+
+    def factor_megabytes(self) -> float:
+        """Memory MUMPS reports for this rank's part of the factorization (INFO(16), MB); 0 for other solvers."""
+        pc = self.ksp.getPC()
+        if not self.is_direct() or pc.getFactorSolverType() != "mumps" or _petsc_c() is None:
+            return 0.0
+        integer = ctypes.c_int64 if np.dtype(PETSc.IntType).itemsize == 8 else ctypes.c_int32
+        value = integer()
+        _call("MatMumpsGetInfo", pc.getFactorMatrix().handle, integer(16), ctypes.byref(value))
+        return float(value.value)
 
     def solve(self, load: np.ndarray, body: bool) -> np.ndarray:
         """This rank's rows of x = K⁻¹(rhs·[body] + E load) (a read-only view valid until the next solve).
@@ -174,21 +239,24 @@ class Block:
     def schur_complement(self) -> np.ndarray | None:
         """Dense (2k, 2k) Schur complement of K on the trace dofs, S = (E K⁻¹ Eᵀ)⁻¹, on the leader.
 
-        With MUMPS on one rank it comes from the factorization.  MUMPS fills only one triangle of a
-        symmetric Schur complement; which one may depend on the version, so one solve with a random
-        trace load decides (S t must give back the load) and also validates the matrix.  Otherwise
-        (distributed blocks, other packages) it is the inverse of :meth:`flexibility`.
+        With MUMPS on one rank it comes from the factorization, no solve needed.  MUMPS fills one
+        triangle of a symmetric Schur complement (which one may depend on the version) and PETSc's
+        dense matrix starts zeroed, so the triangle is the one with nonzeros off the diagonal; a
+        matrix filled on both sides must be symmetric.  Otherwise (distributed blocks, other
+        packages, or a stored matrix that fits none of these) it is the inverse of :meth:`flexibility`.
         """
-        k = len(self.trace_dofs)
-        if self._schur is not None:
-            stored = self._schur
-            load = np.random.default_rng(7).standard_normal(k)
-            trace = self.solve(load, body=False)[self.trace_dofs]
-            candidates = [np.tril(stored) + np.tril(stored, -1).T, np.triu(stored) + np.triu(stored, 1).T]
-            residuals = [np.linalg.norm(S @ trace - load) for S in candidates]
-            best = int(np.argmin(residuals))
-            if residuals[best] <= 1e-8 * np.linalg.norm(load):
-                return candidates[best]
+        if self._schur is not None:  # handed over once, filled in place (S is large: (2k)² doubles)
+            stored, self._schur = self._schur, None
+            above = np.triu_indices(len(stored), 1)
+            lower, upper = np.abs(stored.T[above]).max(initial=0.0), np.abs(stored[above]).max(initial=0.0)
+            if upper == 0.0:
+                stored[above] = stored.T[above]
+                return stored
+            if lower == 0.0:
+                stored.T[above] = stored[above]
+                return stored
+            if np.abs(stored - stored.T).max() <= 1e-12 * np.abs(stored).max():
+                return 0.5 * (stored + stored.T)
         flexibility = self.flexibility()
         return np.linalg.inv(flexibility) if self.is_leader else None
 
@@ -227,8 +295,9 @@ class Block:
         return 0.5 * (out + out.T) if self.is_leader else None
 
     def destroy(self) -> None:
-        for obj in (self.ksp, self.matrix, self.rhs, self.x):
-            obj.destroy()
+        for obj in (self.ksp, self.matrix, self.rhs, self.x, self._dirichlet, self._dirichlet_matrix, self._work):
+            if obj is not None:
+                obj.destroy()
 
 
 # --- PETSc C calls that petsc4py does not wrap (MatFactorSetSchurIS and friends) --------------
@@ -255,6 +324,25 @@ def _petsc_c():
         except (OSError, AttributeError):
             continue
     return None
+
+
+#: MUMPS's ordering for plain factorizations: AMF.  On these 2D elasticity blocks its analysis is
+#: several times faster than METIS's or PORD's (what MUMPS picks by itself) for the same fill: the
+#: whole factorization takes half the time (``./run bench factor``).  With a Schur complement
+#: MUMPS orders by AMD whatever is asked.  ``-<block>_mat_mumps_icntl_7`` overrides it.
+MUMPS_ORDERING = 2
+
+
+def _default_ordering(ksp: PETSc.KSP) -> None:
+    """Ask MUMPS (if it factors this KSP's matrix) for :data:`MUMPS_ORDERING` unless the options say
+    otherwise (MUMPS reads its controls from the options when it starts, at the factorization)."""
+    pc = ksp.getPC()
+    if ksp.getType() != PETSc.KSP.Type.PREONLY or pc.getType() not in _FACTOR_TYPES or \
+            pc.getFactorSolverType() != "mumps":
+        return
+    options, key = PETSc.Options(), f"{ksp.getOptionsPrefix() or ''}mat_mumps_icntl_7"
+    if not options.hasName(key):
+        options[key] = MUMPS_ORDERING
 
 
 def _call(function: str, *args) -> None:

@@ -11,6 +11,7 @@ import math
 import os
 import signal
 import sys
+import time
 import traceback
 from pathlib import Path
 
@@ -69,7 +70,7 @@ def _launch(args) -> None:
     i = next(j for j, a in enumerate(forwarded) if a.startswith("-n"))
     del forwarded[i:i + (2 if forwarded[i] == "-n" else 1)]
     command = mpiexec_command(args.ranks, forwarded)
-    os.execvpe(command[0], command, dict(os.environ))
+    os.execvpe(command[0], command, {**os.environ, "DDSOLVE_LAUNCHED": repr(time.time())})  # start-up timing
 
 
 def cmd_solve(args, petsc_options: list[str]) -> int:
@@ -228,6 +229,9 @@ def cmd_bench(args, petsc_options) -> int:
         init_petsc(petsc_options)
         for P, M in _meshes(args.meshes or "200:256"):
             bench.factor(P, M)
+    elif args.what == "baseline":
+        bench.baseline(_meshes(args.meshes or "400:512,800:1024"), ranks=args.ranks, repeats=args.repeats,
+                       busy=args.busy)
     else:
         bench.methods(_meshes(args.meshes), Path(args.output), Path("docs"))
         print(f"wrote {args.output}, docs/results.md (bench-methods section), docs/bench-methods.png")
@@ -337,10 +341,13 @@ def parser() -> argparse.ArgumentParser:
     experiments = "experiments (each reruns its measurements and rewrites its part of docs/ and results/)"
     for name, (_, _, summary, written) in EXPERIMENTS.items():
         command(name, summary, cmd_experiment, experiments, f"; writes {written}")
-    p = command("bench", "`bench methods`: every method and tolerance; `bench factor`: block factorizations",
-                cmd_bench, experiments)
-    p.add_argument("what", choices=("methods", "factor"))
-    p.add_argument("--meshes", help="comma-separated P:M pairs (default: Table 1 and 400:512)")
+    p = command("bench", "`bench methods`: every method and tolerance; `bench baseline`: the default method against "
+                "one MUMPS factorization of the whole problem; `bench factor`: block factorizations", cmd_bench, experiments)
+    p.add_argument("what", choices=("methods", "baseline", "factor"))
+    p.add_argument("--meshes", help="comma-separated P:M pairs (default: Table 1 and 400:512; baseline: 400:512,800:1024)")
+    p.add_argument("-n", dest="ranks", type=int, metavar="N", help="ranks of the DD in `bench baseline` (default: 4, or fewer if there are fewer cores)")
+    p.add_argument("--repeats", type=int, default=3, help="side-by-side pairs per case in `bench baseline`")
+    p.add_argument("--busy", action="store_true", help="`bench baseline` with a second process keeping a core busy")
     p.add_argument("-o", dest="output", default="results/bench-methods.h5", help="HDF5 file for `methods`")
 
     width = max(len(name) for commands in listing.values() for name, _ in commands) + 2

@@ -1,11 +1,16 @@
 """The domain-decomposition solve: scene -> meshes -> blocks on ranks -> multiplier method -> result.
 
-Rank 0 reads the scene; two ranks mesh a half each; every rank assembles and factors the blocks (or
-the rows of a block) it owns; rank 0 runs the multiplier method while the other ranks serve rounds of
-block solves (:func:`serve`); rank 0 gathers the block solutions and writes the result.
+Rank 0 reads the scene; the leaders of u⁻ and u⁺ mesh a half each (or rank 0 reads the whole mesh);
+each rank receives only the half its blocks live on, and Σ (:func:`local_mesh`); every rank assembles
+and factors the blocks (or the rows of a block) it owns; rank 0 runs the multiplier method while the
+other ranks serve rounds of block solves (:func:`serve`); rank 0 gathers the block solutions (and the
+upper half) and writes the result.  Every phase of the launch is timed, with its CPU time and peak
+memory (:class:`Phases`); the result file has them in ``/timings`` and ``/memory``.
 """
 from __future__ import annotations
 
+import dataclasses
+import os
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -18,12 +23,14 @@ from . import assembly, fracture, geometry, io, methods
 from .blocks import Block
 from .errors import DDSolveError, DivergedError, NotConvergedError, SolverError
 from .exchange import Exchange, collective
-from .interface import BLOCKS, Interface, for_mesh
-from .mesh import Mesh
+from .interface import BLOCKS, U_PLUS, Interface, for_mesh
+from .mesh import HalfMesh, Mesh, SigmaLine
 from .result import Result
 from .scene import Scene
 
-STOP, SOLVE_LOAD, SOLVE_FULL, SCHUR, REPORT_ERROR = range(5)
+STOP, SOLVE_LOAD, SOLVE_FULL, SCHUR, REPORT_ERROR, DIRICHLET, DIAGONAL = range(7)
+#: Commands whose round sends a trace vector to every block.
+WITH_LOADS = (SOLVE_LOAD, SOLVE_FULL, DIRICHLET)
 
 
 def result_width(command: int, trace_size: int) -> int:
@@ -47,6 +54,9 @@ class BlockServer:
             for i, (index, block) in enumerate(zip(self.exchange.local_blocks, self.blocks)):
                 if command == SCHUR:
                     value = block.schur_complement()
+                elif command in (DIRICHLET, DIAGONAL):
+                    trace = block.dirichlet(loads[i]) if command == DIRICHLET else block.trace_diagonal()
+                    value = np.concatenate([trace, np.zeros(2)]) if block.is_leader else None
                 else:
                     value = self._solve(index, block, loads[i], full=command == SOLVE_FULL)
                 if block.is_leader:
@@ -119,6 +129,12 @@ class ParallelRounds:
     def schur_complements(self) -> np.ndarray:
         return self._round(SCHUR, None).reshape(-1, self.trace_size, self.trace_size)
 
+    def dirichlet(self, traces: np.ndarray) -> np.ndarray:
+        return self._round(DIRICHLET, traces)[:, :-2]
+
+    def trace_diagonals(self) -> np.ndarray:
+        return self._round(DIAGONAL, None)[:, :-2]
+
     def stop(self) -> None:
         self.exchange.command(STOP)
 
@@ -133,7 +149,7 @@ def serve(exchange: Exchange, server: BlockServer, trace_size: int, stages: dict
         if command == REPORT_ERROR:
             exchange.comm.gather(server.error, root=0)
             continue
-        local = exchange.scatter(None, trace_size) if command in (SOLVE_LOAD, SOLVE_FULL) else None
+        local = exchange.scatter(None, trace_size) if command in WITH_LOADS else None
         width = result_width(command, trace_size)
         exchange.gather(server.run(command, local, width), width + 1)
     stages["Rounds"].pop()
@@ -142,7 +158,7 @@ def serve(exchange: Exchange, server: BlockServer, trace_size: int, stages: dict
 #: Default block factorization per method.  The iterative methods make one solve per round with one
 #: factorization, where PETSc's own Cholesky is about 3x faster than MUMPS; ``schur`` needs MUMPS for
 #: the Schur complements (``./run bench factor`` measures both).
-FACTOR_PACKAGE = {"uzawa": "petsc", "fista": "petsc", "mprgp": "petsc", "schur": "mumps"}
+FACTOR_PACKAGE = {"uzawa": "petsc", "fista": "petsc", "mprgp": "petsc", "schur": "mumps", "feti": "mumps"}
 STAGES = ("Setup", "Factorization", "Rounds", "Update", "Output")
 
 
@@ -195,16 +211,96 @@ def peak_memory_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # kB on Linux
 
 
+#: Environment variable with the wall-clock time (time.time()) at which ``ddsolve solve -n`` started mpiexec.
+LAUNCHED = "DDSOLVE_LAUNCHED"
+#: The phases of a launch, in order; their sum is the whole launch (``total``).
+PHASES = ("startup", "meshing", "distribution", "assembly", "factorization", "iterations", "output", "write")
+
+
+def launch_age() -> float:
+    """Seconds since the launch began: since ``ddsolve solve -n`` started mpiexec, else since this
+    process started (Linux), else 0."""
+    launched = os.environ.get(LAUNCHED)
+    if launched:
+        try:
+            return max(0.0, time.time() - float(launched))
+        except ValueError:
+            pass
+    try:
+        with open("/proc/self/stat") as stat, open("/proc/uptime") as uptime:
+            started = int(stat.read().rsplit(")", 1)[1].split()[19]) / os.sysconf("SC_CLK_TCK")
+            return max(0.0, float(uptime.read().split()[0]) - started)
+    except (OSError, ValueError, IndexError):
+        return 0.0
+
+
+def cpu_seconds() -> float:
+    """CPU seconds of this process and of its children that ended (gmsh meshes in one)."""
+    times = os.times()
+    return times.user + times.system + times.children_user + times.children_system
+
+
+class Phases:
+    """Wall seconds (this rank's clock), CPU seconds and peak memory at the end of each phase."""
+
+    def __init__(self, startup: float = 0.0):
+        self.wall = {"startup": startup}
+        self.cpu = {"startup": cpu_seconds()}
+        self.peak = {"startup": peak_memory_mb()}
+        self._wall, self._cpu = time.perf_counter(), cpu_seconds()
+
+    def end(self, name: str) -> None:
+        wall, cpu = time.perf_counter(), cpu_seconds()
+        self.wall[name] = self.wall.get(name, 0.0) + wall - self._wall
+        self.cpu[name] = self.cpu.get(name, 0.0) + cpu - self._cpu
+        self.peak[name] = peak_memory_mb()
+        self._wall, self._cpu = wall, cpu
+
+
+@dataclass(frozen=True, eq=False)
+class LocalMesh:
+    """What a rank holds of the mesh: the halves its blocks live on, Σ, and the size of both halves."""
+
+    halves: dict[int, HalfMesh]
+    sigma: SigmaLine
+    nodes: dict[int, int]  # side -> nodes of that half (both sides)
+    origin: str
+    tips: list = dataclasses.field(default_factory=list)  # the crack tips (fracture.Tip)
+
+    def half(self, side: int) -> HalfMesh:
+        return self.halves[side]
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the mesh arrays held here (halves and Σ)."""
+        arrays = [getattr(self.sigma, name) for name in ("points", "normals", "weights", "crack", "tip", "clamped",
+                                                          "corner")]
+        for half in self.halves.values():
+            arrays += [half.points, half.cells, half.sigma, *half.boundaries.values()]
+        return int(sum(a.nbytes for a in arrays))
+
+
+def whole(mesh: Mesh, tips: list | None = None) -> LocalMesh:
+    return LocalMesh({-1: mesh.lower, 1: mesh.upper}, mesh.sigma, {-1: len(mesh.lower.points),
+                                                                   1: len(mesh.upper.points)}, mesh.origin,
+                     tips or [])
+
+
 @dataclass
 class Setup:
     """What every rank holds after assembly and factorization."""
 
-    mesh: Mesh
+    mesh: LocalMesh
     exchange: Exchange
     blocks: list[Block]
     interface: Interface
     stages: dict
-    timings: dict
+    phases: Phases
+    scene: Scene  # with the method resolved
+
+    @property
+    def timings(self) -> dict:
+        return self.phases.wall
 
     def destroy(self) -> None:
         for block in self.blocks:
@@ -218,71 +314,151 @@ def supported(size: int) -> bool:
 
 
 def build_mesh(scene: Scene, comm: MPI.Comm) -> Mesh:
-    """The scene's mesh on every rank; with 2 ranks or more the two halves of a box are meshed at once."""
-    if scene.mesh.kind != "box" or comm.size == 1:
-        built = comm.bcast(collective(comm, lambda: geometry.build(scene), root_only=True), root=0)
+    """The scene's whole mesh on every rank (for experiments that need it everywhere)."""
+    exchange = Exchange(comm, len(BLOCKS))
+    try:
+        mine = local_mesh(scene, comm, exchange, keep_whole=True)
+    finally:
+        exchange.free()
+    halves = {side: comm.bcast(mine.halves.get(side) if comm.rank == 0 else None, root=0) for side in (-1, 1)}
+    return Mesh(halves[-1], halves[1], mine.sigma, mine.origin)
+
+
+def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases | None = None,
+               keep_whole: bool = False) -> LocalMesh:
+    """Each rank gets the half its blocks live on (both with one rank), Σ, and the crack tips.
+
+    A box is meshed by the leaders of u⁻ (rank 0, lower half) and u⁺ (upper half) at once, else
+    rank 0 makes the whole mesh.  Rank 0 pairs the halves (checks, Σ, the loads' boundaries), then
+    each half goes to the ranks that need it by a broadcast among them.  Rank 0 keeps the upper half
+    only with one rank (or ``keep_whole``); it gets it back for output (:func:`gather_upper`).
+    """
+    rank = comm.rank
+    upper_maker = exchange.leader(U_PLUS)
+    split = scene.mesh.kind == "box" and comm.size > 1
+    if split:
+        side = -1 if rank == 0 else 1 if rank == upper_maker else 0
+        made = collective(comm, lambda: geometry.generate_half(scene, side) if side else None)
+        if rank == upper_maker:
+            comm.send(made, dest=0)
+        halves = {-1: made, 1: comm.recv(source=upper_maker)} if rank == 0 else {side: made} if side else {}
+        paired = collective(comm, lambda: geometry.pair(scene, halves[-1], halves[1]), root_only=True)
     else:
-        side = {0: -1, 1: 1}.get(comm.rank)
-        mine = collective(comm, lambda: geometry.generate_half(scene, side) if side else None)
-        lower, upper = comm.bcast(mine, root=0), comm.bcast(mine, root=1)
-        paired = collective(comm, lambda: geometry.pair(scene, lower, upper), root_only=True)
-        sigma = comm.bcast(paired.sigma if comm.rank == 0 else None, root=0)
-        built = Mesh(lower, upper, sigma, geometry.origin(scene))
-    collective(comm, lambda: geometry.check_loads(scene, built), root_only=True)
-    return built
+        paired = collective(comm, lambda: geometry.build(scene), root_only=True)
+        halves = {-1: paired.lower, 1: paired.upper} if rank == 0 else {}
+    tips = collective(comm, lambda: whole_mesh_checks(scene, paired), root_only=True)
+    if phases is not None:
+        phases.end("meshing")
+    sigma, nodes, tips = comm.bcast((paired.sigma, {s: len(h.points) for s, h in halves.items()}, tips)
+                                    if rank == 0 else None, root=0)
+    needed = sorted({BLOCKS[b].side for b in exchange.local_blocks})
+    if comm.size > 1:
+        if not split and upper_maker != 0:  # rank 0 made both halves: the upper one goes to u⁺'s leader
+            if rank == 0:
+                comm.send(halves[1], dest=upper_maker)
+            elif rank == upper_maker:
+                halves[1] = comm.recv(source=0)
+        group = comm.Split(color=int(needed[0] > 0), key=rank)  # the ranks of one half; its maker is the first
+        halves = {needed[0]: group.bcast(halves.get(needed[0]), root=0),
+                  **({1: halves[1]} if keep_whole and rank == 0 else {})}
+        group.Free()
+    if phases is not None:
+        phases.end("distribution")
+    return LocalMesh(halves, sigma, nodes, geometry.origin(scene), tips)
 
 
-def local_systems(scene: Scene, mesh: Mesh, exchange: Exchange) -> list[assembly.BlockSystem]:
-    """Assemble this rank's blocks (or its rows of them)."""
-    systems = []
-    for index, group in zip(exchange.local_blocks, exchange.groups):
-        half = mesh.half(BLOCKS[index].side)
-        rows = assembly.row_ranges(len(half.points), group.size)[group.rank] if group.size > 1 else None
-        systems.append(assembly.block_systems(scene, mesh, [index], rows)[0])
-    return systems
+def whole_mesh_checks(scene: Scene, mesh: Mesh) -> list[fracture.Tip]:
+    """What needs the whole mesh (rank 0, before it is distributed): the loads' boundaries, and the crack
+    tips with their θ radii (which keep clear of the outer boundary)."""
+    geometry.check_loads(scene, mesh)
+    return fracture.find_tips(mesh, scene.fracture.inner, scene.fracture.outer)
 
 
-def make_blocks(scene: Scene, mesh: Mesh, exchange: Exchange, package: str) -> list[Block]:
-    """Assemble this rank's blocks (or its rows of them) and wrap them in PETSc objects."""
-    return [Block(system, comm=PETSc.Comm(group), factor_package=package)
-            for system, group in zip(local_systems(scene, mesh, exchange), exchange.groups)]
+def gather_upper(mesh: LocalMesh, exchange: Exchange) -> Mesh | None:
+    """The whole mesh on rank 0 for output: the upper half comes from u⁺'s leader (None elsewhere)."""
+    source = exchange.leader(U_PLUS)
+    upper = mesh.halves.get(1)
+    if source != 0:
+        if exchange.comm.rank == source:
+            exchange.comm.send(upper, dest=0)
+        elif exchange.is_root:
+            upper = exchange.comm.recv(source=source)
+    return Mesh(mesh.half(-1), upper, mesh.sigma, mesh.origin) if exchange.is_root else None
+
+
+def local_systems(scene: Scene, mesh: LocalMesh | Mesh, exchange: Exchange) -> list[assembly.BlockSystem]:
+    """Assemble this rank's blocks (or its rows of the one it shares); blocks of one half share its
+    sparsity pattern."""
+    group = exchange.groups[0]
+    rows = None
+    if group.size > 1:
+        half = mesh.half(BLOCKS[exchange.local_blocks[0]].side)
+        rows = assembly.row_ranges(len(half.points), group.size)[group.rank]
+    return assembly.block_systems(scene, mesh, exchange.local_blocks, rows)
+
+
+def make_blocks(scene: Scene, mesh: LocalMesh | Mesh, exchange: Exchange, package: str) -> list[Block]:
+    """This rank's blocks as PETSc objects; no assembled array outlives its PETSc matrix."""
+    systems = local_systems(scene, mesh, exchange)
+    blocks = []
+    while systems:
+        blocks.append(Block(systems.pop(0), comm=PETSc.Comm(exchange.groups[len(blocks)]), factor_package=package))
+    return blocks
 
 
 def reload(setup: "Setup", scene: Scene) -> None:
     """Give the factored blocks of ``setup`` the loads of ``scene`` (same mesh, materials, method)."""
-    mark = time.perf_counter()
     systems = collective(setup.exchange.comm, lambda: local_systems(scene, setup.mesh, setup.exchange))
     for block, system in zip(setup.blocks, systems):
         block.system = replace(block.system, rhs=system.rhs)
-    setup.timings = {"setup": time.perf_counter() - mark, "factorization": 0.0}
+    setup.phases = Phases()
+    setup.phases.end("assembly")
+    setup.phases.end("factorization")
 
 
-def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None) -> Setup:
+def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phases | None = None) -> Setup:
     """Build (or take) the mesh, assemble and factor every rank's blocks."""
     if not supported(comm.size):
         error = DDSolveError(f"unsupported number of ranks {comm.size}: use 1, 2 or a multiple of 4")
         error.collective = True  # every rank sees the same size
         raise error
-    timings: dict[str, float] = {}
+    phases = phases if phases is not None else Phases()
     stages = {name: PETSc.Log.Stage(name) for name in STAGES}
-    method = scene.solver.method
 
-    mark = time.perf_counter()
     stages["Setup"].push()
-    mesh = mesh if mesh is not None else build_mesh(scene, comm)
     exchange = Exchange(comm, len(BLOCKS))
-    blocks = collective(comm, lambda: make_blocks(scene, mesh, exchange, FACTOR_PACKAGE[method]))
-    interface = for_mesh(mesh.sigma, scene.nonpenetration)
+    if mesh is not None:
+        tips = comm.bcast(collective(comm, lambda: whole_mesh_checks(scene, mesh), root_only=True), root=0)
+        local = whole(mesh, tips)
+    else:
+        local = local_mesh(scene, comm, exchange, phases)
+    scene = resolve(scene, comm.size, local)
+    method = scene.solver.method
+    blocks = collective(comm, lambda: make_blocks(scene, local, exchange, FACTOR_PACKAGE[method]))
+    interface = for_mesh(local.sigma, scene.nonpenetration)
     stages["Setup"].pop()
-    timings["setup"] = time.perf_counter() - mark
+    phases.end("assembly")
 
-    mark = time.perf_counter()
     stages["Factorization"].push()
-    collective(comm, lambda: [block.factor(schur=method == "schur") for block in blocks])
-    comm.Barrier()
+    def factor():
+        for block in blocks:
+            block.factor(schur=method == "schur")
+            if method == "feti":
+                block.factor_dirichlet()
+
+    collective(comm, factor)
     stages["Factorization"].pop()
-    timings["factorization"] = time.perf_counter() - mark
-    return Setup(mesh, exchange, blocks, interface, stages, timings)
+    phases.end("factorization")
+    return Setup(local, exchange, blocks, interface, stages, phases, scene)
+
+
+def resolve(scene: Scene, ranks: int, mesh: LocalMesh) -> Scene:
+    """The scene with ``auto`` replaced by the method :func:`ddsolve.methods.choose` picks."""
+    if scene.solver.method != "auto":
+        return scene
+    per_block = max(1, ranks // len(BLOCKS))
+    method = methods.choose(per_block, 2 * max(mesh.nodes.values()), int(mesh.sigma.corner.sum()))
+    return dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, method=method))
 
 
 def bound(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, iterations: int = 300) -> float:
@@ -313,34 +489,43 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
     :func:`prepare`, loads from :func:`reload`) skips assembly and factorization and is kept.
     """
     own = setup is None
-    setup = prepare(scene, comm, mesh) if own else setup
-    mesh, exchange, interface, stages, timings = (setup.mesh, setup.exchange, setup.interface, setup.stages,
-                                                  setup.timings)
+    if own:
+        setup = prepare(scene, comm, mesh, Phases(launch_age() if mesh is None else 0.0))
+    else:
+        # the method the setup was made for (``auto`` resolved), the scene's other solver settings
+        scene = dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, method=setup.scene.solver.method))
+        setup.scene = scene
+    phases = setup.phases
+    local, exchange, interface, stages, scene = setup.mesh, setup.exchange, setup.interface, setup.stages, setup.scene
     method = scene.solver.method
 
     try:
-        tips = comm.bcast(collective(comm, lambda: fracture.find_tips(mesh, scene.fracture.inner,
-                                                                      scene.fracture.outer), root_only=True))
-        mark = time.perf_counter()
         server = BlockServer(setup.blocks, exchange)
         outcome, rounds, failure = run_method(scene, setup, server, progress)
         failure = comm.bcast(failure, root=0)
         if failure is not None:
             failure.collective = True
-        timings["iterations"] = time.perf_counter() - mark
+        phases.end("iterations")
         if failure is not None and not isinstance(failure, NotConvergedError):
             raise failure
 
-        mark = time.perf_counter()
         stages["Output"].push()
-        volume = comm.reduce(fracture.block_terms(scene, mesh, tips, {b: server.solutions[b]
-                                                                    for b in exchange.led_blocks}), root=0)
-        sizes = [2 * len(mesh.half(spec.side).points) for spec in BLOCKS]
+        volume = comm.reduce(fracture.block_terms(scene, local, local.tips, {b: server.solutions[b]
+                                                                            for b in exchange.led_blocks}), root=0)
+        sizes = [2 * local.nodes[spec.side] for spec in BLOCKS]
         solutions = exchange.gather_varying([server.solutions[b] for b in exchange.led_blocks], sizes)
-        memory = comm.gather(peak_memory_mb(), root=0)
+        mine = {"mesh_bytes": local.nbytes, "unknowns": sum(len(b.system.rhs) for b in setup.blocks),
+                "factor_mb": sum(b.factor_megabytes() for b in setup.blocks)}
+        mesh = gather_upper(local, exchange)
+        phases.end("output")
+        memory = comm.gather((mine, phases.peak, phases.cpu), root=0)
         result = None
         if exchange.is_root:
+            timings = dict(phases.wall)
             timings["update"] = timings["iterations"] - rounds.elapsed
+            timings["setup"] = sum(timings.get(name, 0.0) for name in ("meshing", "distribution", "assembly"))
+            for name in phases.cpu:  # CPU seconds of every rank together
+                timings[f"{name}_cpu"] = sum(cpu[name] for _, _, cpu in memory)
             frames = mesh.sigma.frames[mesh.sigma.multiplier_nodes]
             solution = {spec.name: assembly.to_global(x, assembly.trace_nodes(mesh.half(spec.side), mesh.sigma),
                                                       frames) for spec, x in zip(BLOCKS, solutions)}
@@ -350,11 +535,11 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
                 mesh=mesh, solution=solution, multipliers=interface.split(outcome.lam, frames),
                 history=np.array(outcome.history), timings=timings, message=outcome.message,
                 active_set_changes=np.array(outcome.active_set_changes, dtype=np.int64),
+                memory=memory_record(memory, sum(sizes), whole(mesh).nbytes),
                 attrs={**io.provenance(), "stop": scene.solver.stop, "tol": scene.solver.tol,
-                       "peak_memory_mb": memory, **outcome.details},
+                       "peak_memory_mb": [max(peak.values()) for _, peak, _ in memory], **outcome.details},
             )
-            result.fracture = fracture.finish(tips, volume, result)
-            timings["output"] = time.perf_counter() - mark  # gathering; io.write adds its own "write" time
+            result.fracture = fracture.finish(local.tips, volume, result)
         if output is not None:
             collective(comm, lambda: io.write(output, result), root_only=True)
         stages["Output"].pop()
@@ -365,3 +550,17 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
     finally:
         if own:
             setup.destroy()
+
+
+def memory_record(ranks: list[tuple[dict, dict, dict]], unknowns: int, whole_mesh_bytes: int) -> dict:
+    """The result file's ``/memory``: per rank, the peak resident memory (MB) at the end of every phase,
+    the unknowns it works on, its mesh arrays and its factors (MUMPS's own count, MB); and per phase the
+    largest peak per unknown of a rank (bytes)."""
+    record = {"unknowns": unknowns, "whole_mesh_bytes": whole_mesh_bytes}
+    for key in ("unknowns", "mesh_bytes", "factor_mb"):
+        record[f"rank_{key}"] = np.array([mine[key] for mine, _, _ in ranks])
+    for phase in ranks[0][1]:
+        peaks = np.array([peak[phase] for _, peak, _ in ranks])
+        record[f"peak_mb_{phase}"] = peaks
+        record[f"bytes_per_unknown_{phase}"] = float(np.max(peaks * 2 ** 20 / record["rank_unknowns"]))
+    return record

@@ -54,10 +54,13 @@ def collective(comm: MPI.Comm, work: Callable[[], T], root_only: bool = False) -
 class Exchange:
     """Which blocks this rank works on, and scatter/gather of per-block arrays with rank 0.
 
-    With 1, 2 or 4 ranks, rank r owns blocks r·m … (r+1)·m − 1 (m = 4/size), each on COMM_SELF.
-    With 4k ranks, block b is distributed over ranks b·k … (b+1)·k − 1 (its *block communicator*);
-    the first of them is the block's *leader*.  Rank 0 exchanges per-block arrays with the leaders
-    (Scatterv/Gatherv); each leader shares them with its block communicator.
+    With 1, 2 or 4 ranks, rank r owns the blocks b with b mod size = r, each on COMM_SELF: with two
+    ranks, u⁻ and v⁻ (the lower half) on rank 0 and u⁺ and v⁺ on rank 1, so that a rank needs one
+    half's mesh and its two blocks share a sparsity pattern.  With 4k ranks, block b is distributed
+    over ranks b·k … (b+1)·k − 1 (its *block communicator*); the first of them is the block's
+    *leader*.  Rank 0 exchanges per-block arrays with the leaders (Scatterv/Gatherv, rows in block
+    order on rank 0); each leader shares them with its block communicator.  Ranks wait for rank 0
+    without spinning (:func:`wait`), so the cores stay free for the ranks that work.
     """
 
     def __init__(self, comm: MPI.Comm, n_blocks: int):
@@ -65,9 +68,8 @@ class Exchange:
         self.n_blocks = n_blocks
         size, rank = comm.size, comm.rank
         if size <= n_blocks:
-            per = n_blocks // size
-            self.local_blocks = list(range(rank * per, (rank + 1) * per))
-            self.groups = [MPI.COMM_SELF] * per
+            self.local_blocks = list(range(rank, n_blocks, size))
+            self.groups = [MPI.COMM_SELF] * len(self.local_blocks)
             self.led_blocks = self.local_blocks
         else:
             per = size // n_blocks  # ranks per block
@@ -75,18 +77,26 @@ class Exchange:
             self.local_blocks = [block]
             self.groups = [comm.Split(color=block, key=rank)]
             self.led_blocks = [block] if rank % per == 0 else []
-        self.led_counts = comm.allgather(len(self.led_blocks))
+        led = comm.allgather(self.led_blocks)
+        self.led_counts = [len(blocks) for blocks in led]
+        self.order = np.array([block for blocks in led for block in blocks], dtype=np.int64)  # rank order
         self._command = np.zeros(1, dtype=np.int64)
+
+    def leader(self, block: int) -> int:
+        """The rank that leads ``block``."""
+        size = self.comm.size
+        return block % size if size <= self.n_blocks else block * (size // self.n_blocks)
 
     @property
     def is_root(self) -> bool:
         return self.comm.rank == ROOT
 
     def command(self, code: int | None = None) -> int:
-        """Broadcast a command code from rank 0 (a blocking call: between rounds, latency matters most)."""
+        """Broadcast a command code from rank 0; the others wait for it without spinning (rank 0 may
+        be busy between rounds, and a spinning rank would take a core from it)."""
         if self.is_root:
             self._command[0] = code
-        self.comm.Bcast(self._command, root=ROOT)
+        wait(self.comm.Ibcast(self._command, root=ROOT))
         return int(self._command[0])
 
     def scatter(self, per_block: np.ndarray | None, width: int) -> list[np.ndarray]:
@@ -94,7 +104,8 @@ class Exchange:
         led = np.empty((len(self.led_blocks), width))
         send = None
         if self.is_root:
-            send = (np.ascontiguousarray(per_block, dtype=np.float64), [c * width for c in self.led_counts])
+            rows = np.asarray(per_block, dtype=np.float64)[self.order]
+            send = (np.ascontiguousarray(rows), [c * width for c in self.led_counts])
         self.comm.Scatterv(send, led, root=ROOT)
         rows = []
         for block, group in zip(self.local_blocks, self.groups):
@@ -106,23 +117,29 @@ class Exchange:
 
     def gather(self, led: np.ndarray, width: int) -> np.ndarray | None:
         """The leaders' ``(led blocks, width)`` rows -> ``(n_blocks, width)`` on rank 0 (None elsewhere)."""
-        out = np.empty((self.n_blocks, width)) if self.is_root else None
-        receive = (out, [c * width for c in self.led_counts]) if self.is_root else None
-        self.comm.Gatherv(np.ascontiguousarray(led, dtype=np.float64).reshape(-1), receive, root=ROOT)
+        received = np.empty((self.n_blocks, width)) if self.is_root else None
+        receive = (received, [c * width for c in self.led_counts]) if self.is_root else None
+        wait(self.comm.Igatherv(np.ascontiguousarray(led, dtype=np.float64).reshape(-1), receive, root=ROOT))
+        if not self.is_root or np.array_equal(self.order, np.arange(self.n_blocks)):
+            return received
+        out = np.empty_like(received)
+        out[self.order] = received
         return out
 
     def gather_varying(self, led: list[np.ndarray], sizes: list[int]) -> list[np.ndarray] | None:
         """One 1-D array per led block, lengths ``sizes`` per block (known everywhere) -> rank 0."""
         send = np.concatenate(led) if led else np.zeros(0)
+        ordered = [sizes[block] for block in self.order]
         counts, start = [], 0
         for count in self.led_counts:
-            counts.append(sum(sizes[start:start + count]))
+            counts.append(sum(ordered[start:start + count]))
             start += count
         out = np.empty(sum(sizes)) if self.is_root else None
-        self.comm.Gatherv(send, (out, counts) if self.is_root else None, root=ROOT)
+        wait(self.comm.Igatherv(send, (out, counts) if self.is_root else None, root=ROOT))
         if not self.is_root:
             return None
-        return np.split(out, np.cumsum(sizes)[:-1])
+        pieces = np.split(out, np.cumsum(ordered)[:-1])
+        return [pieces[int(np.flatnonzero(self.order == block)[0])] for block in range(self.n_blocks)]
 
     def free(self) -> None:
         for group in self.groups:

@@ -18,8 +18,10 @@ from __future__ import annotations
 import contextlib
 import io
 import math
+import multiprocessing
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable, TypeVar
 
 import numpy as np
 
@@ -32,6 +34,7 @@ from .scene import SIDES, Geometry, MeshOptions, Scene
 #: of the paper's Table 1 have its vertex and triangle counts (±5 %).
 GRADING_EXPONENT = 0.8
 FAR_FACTOR = 1.2
+T = TypeVar("T")
 #: Physical groups a gmsh geometry must have.
 REQUIRED_GROUPS = {2: ("lower", "upper"), 1: (SIGMA, CLAMPED)}
 #: gmsh element types: triangle, 6-node triangle, line, 3-node line.
@@ -87,6 +90,11 @@ def apportion(total: int, lengths) -> np.ndarray:
 
 
 def generate_half(scene: Scene, side: int, background: SizeMap | None = None) -> HalfMesh:
+    """One half of the box meshed by gmsh (:func:`_mesh_half`) in a child process (:func:`apart`)."""
+    return apart(_mesh_half, scene, side, background)
+
+
+def _mesh_half(scene: Scene, side: int, background: SizeMap | None = None) -> HalfMesh:
     """Unstructured triangulation of one half of the box (side −1: lower, +1: upper) with gmsh.
 
     With (P, M): Σ gets P vertices (ends and crack tips included), uniform on each Σ piece; the outer
@@ -398,6 +406,43 @@ def box_boundaries(points: np.ndarray, cells: np.ndarray, geometry: Geometry, wh
     return {name: edges for name, edges in named.items() if len(edges)}
 
 
+# --- gmsh in a child process -------------------------------------------------------------------
+def apart(work: Callable[..., T], *args) -> T:
+    """``work(*args)`` in a forked child process; its value or exception comes back through a pipe.
+
+    gmsh does not return to Python while it meshes (a minute for a large mesh), so in this process a
+    signal handler would run only after it; here the parent waits in short steps, and on SIGTERM or
+    Ctrl-C it kills the child and goes on with its own clean exit.  (The child touches no MPI.)
+    """
+    context = multiprocessing.get_context("fork")
+    receiver, sender = context.Pipe(duplex=False)
+    child = context.Process(target=_child, args=(sender, work, args), daemon=True)
+    child.start()
+    sender.close()
+    try:
+        while not receiver.poll(0.05):
+            if not child.is_alive() and not receiver.poll(0.05):
+                raise MeshError(f"gmsh stopped without a mesh (exit status {child.exitcode})")
+        ok, value = receiver.recv()
+    finally:
+        receiver.close()
+        if child.is_alive():
+            child.kill()
+        child.join()
+    if not ok:
+        raise value
+    return value
+
+
+def _child(sender, work, args) -> None:
+    try:
+        outcome = (True, work(*args))
+    except BaseException as exc:  # every error goes back to the parent, which raises it
+        outcome = (False, exc)
+    sender.send(outcome)
+    sender.close()
+
+
 # --- files of the box (any format meshio reads) ---------------------------------------------------
 def read_box_file(scene: Scene) -> Mesh:
     """A triangle mesh of the box from a file (any format meshio reads)."""
@@ -485,6 +530,11 @@ def _open(gmsh, path: Path) -> None:
 
 
 def from_gmsh(scene: Scene, background: SizeMap | None = None) -> Mesh:
+    """A .geo meshed or a .msh read by gmsh (:func:`_from_gmsh`) in a child process (:func:`apart`)."""
+    return apart(_from_gmsh, scene, background)
+
+
+def _from_gmsh(scene: Scene, background: SizeMap | None = None) -> Mesh:
     """Mesh a .geo (honouring ``mesh.size``, ``mesh.grading`` and a ``background`` size map) or read a
     .msh, both with physical groups."""
     import gmsh

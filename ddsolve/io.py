@@ -123,6 +123,10 @@ def _write_hdf5(name: str, result: Result, fields: dict[str, analysis.CellFields
         timings = f.create_group("timings")
         for key, value in result.timings.items():
             timings.attrs[key] = value
+        if result.memory:
+            memory = f.create_group("memory")
+            for key, value in result.memory.items():
+                memory.attrs[key] = value
         for half in (result.lower, result.upper):
             group = f.create_group(f"mesh/{half.name}")
             group["points"] = half.points
@@ -181,6 +185,7 @@ def read(path: Path) -> Result:
                 cell_data={name: {block: values[()] for block, values in group.items()}
                            for name, group in f.get("cell_data", {}).items()},
                 timings={k: float(v) for k, v in f["timings"].attrs.items()} if "timings" in f else {},
+                memory=dict(f["memory"].attrs.items()) if "memory" in f else {},
                 message=str(f.attrs.get("message", "")),
                 attrs={k: v for k, v in f.attrs.items() if k not in known},
                 fracture=_read_fracture(f),

@@ -43,6 +43,12 @@ class Rounds(Protocol):
     def schur_complements(self) -> np.ndarray:
         """The blocks' Schur complements on their traces, S_b = (E K_b⁻¹ Eᵀ)⁻¹, ``(4, 2k, 2k)``."""
 
+    def dirichlet(self, traces: np.ndarray) -> np.ndarray:
+        """S_b t_b for trace displacements ``(4, 2k)``: one Dirichlet solve per block (``feti``)."""
+
+    def trace_diagonals(self) -> np.ndarray:
+        """The diagonals of the blocks' stiffness matrices at their traces, ``(4, 2k)``."""
+
 
 @dataclass
 class Outcome:
@@ -381,6 +387,20 @@ def box_qp(A: np.ndarray, b: np.ndarray, lower: np.ndarray, upper: np.ndarray,
     raise SolverError(f"the active-set QP solver did not settle in {max_steps} steps")
 
 
+def triangular_solve(L: np.ndarray, b: np.ndarray, transpose: bool = False, block: int = 128) -> np.ndarray:
+    """L⁻¹ b (or L⁻ᵀ b) for a lower triangular L, by blocks of rows: O(n²) work for one vector."""
+    n = len(b)
+    x = np.array(b, dtype=np.float64)
+    starts = list(range(0, n, block))
+    for start in (starts[::-1] if transpose else starts):
+        stop = min(start + block, n)
+        if transpose:
+            x[start:stop] = np.linalg.solve(L[start:stop, start:stop].T, x[start:stop] - L[stop:, start:stop].T @ x[stop:])
+        else:
+            x[start:stop] = np.linalg.solve(L[start:stop, start:stop], x[start:stop] - L[start:stop, :start] @ x[:start])
+    return x
+
+
 def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progress) -> Outcome:
     """Exact solve from the blocks' Schur complements S_b on Σ; three rounds in all.
 
@@ -401,23 +421,38 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
     started = time.perf_counter()
     unknowns = interface.trace_unknowns()
     size = int(unknowns.max()) + 1
+    contact = interface.slices["mu_c"]
+    normal = 2 * interface.vertex[contact] + 1
+    # The crack faces' normal unknowns go last: the contact forces act on them only, so with
+    # S = L Lᵀ, L⁻¹ Bᵀ lives in the last block of L and A_c = (L_cc⁻¹ B_cᵀ)ᵀ(L_cc⁻¹ B_cᵀ).
+    faces = np.concatenate([unknowns[0][normal], unknowns[1][normal]])
+    last = np.zeros(size, dtype=bool)
+    last[faces] = True
+    position = np.argsort(last, kind="stable").argsort()
+    unknowns, first = position[unknowns], size - len(faces)
     stiffness, body = np.zeros((size, size)), np.zeros(size)
     for S_b, numbers, t0 in zip(schur_complements, unknowns, initial):
         stiffness[np.ix_(numbers, numbers)] += S_b
         body[numbers] += S_b @ t0
-    contact = interface.slices["mu_c"]
-    normal = 2 * interface.vertex[contact] + 1
     sqrt_w = problem.sqrt_w[contact]
-    jump = np.zeros((size, len(normal)))  # Bᵀ W^½: force pattern of a unit scaled contact multiplier
-    jump[unknowns[0][normal], np.arange(len(normal))] += sqrt_w
-    jump[unknowns[1][normal], np.arange(len(normal))] -= sqrt_w
-    solved = np.linalg.solve(stiffness, np.column_stack([body, jump]))
+    jump = np.zeros((len(faces), len(normal)))  # B_cᵀ W^½: forces of a unit scaled contact multiplier
+    jump[unknowns[0][normal] - first, np.arange(len(normal))] += sqrt_w
+    jump[unknowns[1][normal] - first, np.arange(len(normal))] -= sqrt_w
+    try:
+        L = np.linalg.cholesky(stiffness)
+    except np.linalg.LinAlgError:
+        raise SolverError("schur: the interface stiffness is not positive definite") from None
+    del stiffness
+    forces = np.linalg.solve(L[first:, first:], jump) if len(faces) else np.zeros((0, 0))  # L_cc⁻¹ B_cᵀ
+    loaded = triangular_solve(L, body)  # L⁻¹ body
     history: list[float] = []
     changes: list[int] = []
 
     def contact_step(y_c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Every scaled multiplier and the traces for the contact multipliers ``y_c``."""
-        traces = (solved[:, 0] - solved[:, 1:] @ y_c)[unknowns]
+        """Every scaled multiplier and the traces S⁻¹(body − Bᵀ W^½ y_c) for the contact multipliers ``y_c``."""
+        rhs = loaded.copy()
+        rhs[first:] -= forces @ y_c
+        traces = triangular_solve(L, rhs, transpose=True)[unknowns]
         loads = np.einsum("bij,bj->bi", schur_complements, traces - initial)
         y = problem.sqrt_w * interface.multipliers(loads)
         y[contact] = y_c
@@ -430,7 +465,7 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
         changes.append(changed)
 
     lower_c, upper_c = problem.lower[contact], problem.upper[contact]
-    y_c, steps = box_qp(jump.T @ solved[:, 1:], jump.T @ solved[:, 0], lower_c, upper_c,
+    y_c, steps = box_qp(forces.T @ forces, forces.T @ loaded[first:], lower_c, upper_c,
                         observe=lambda y_c, changed: record(*contact_step(np.clip(y_c, lower_c, upper_c)), changed))
     y, traces = contact_step(y_c)
     if np.any(y < problem.lower) or np.any(y > problem.upper):  # a bound ±p is active: all bounds
@@ -454,4 +489,145 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
                    details={"rank0_solve_time": time.perf_counter() - started, "interface_unknowns": size})
 
 
-METHODS: dict[str, Callable[..., Outcome]] = {"schur": schur, "mprgp": mprgp, "fista": fista, "uzawa": uzawa}
+# --- FETI: Dirichlet-preconditioned dual iterations on an active set ---------------------------
+class DirichletPreconditioner:
+    """M⁻¹ = B_D S B_Dᵀ ≈ A⁻¹, FETI's Dirichlet preconditioner for A = B K⁻¹ Bᵀ (B = W^½ C).
+
+    S = diag(S_b) is applied by one Dirichlet solve per block (a round, never a Schur complement
+    matrix); B_D = (B Δ Bᵀ)⁻¹ B Δ with Δ_b = 1/diag(K_b) on the traces (stiffness scaling: the stiffer
+    block takes the larger share of a jump), so that B B_Dᵀ = I.  B Δ Bᵀ couples only the multipliers
+    of one trace entry (at most three), so its inverse is a batch of 3×3 inverses.
+    """
+
+    def __init__(self, rounds: Rounds, interface: Interface, sqrt_w: np.ndarray):
+        self.rounds = rounds
+        self.delta = 1.0 / rounds.trace_diagonals().T  # (2k, 4)
+        self.index = interface.trace_index
+        order = np.argsort(self.index, kind="stable")
+        first = np.searchsorted(self.index[order], self.index[order])
+        self.slot = np.empty(interface.size, dtype=np.int64)
+        self.slot[order] = np.arange(interface.size) - first
+        width = int(self.slot.max(initial=0)) + 1
+        signs = np.zeros((interface.size, len(interface.couplings)))
+        for block, coupling in enumerate(interface.couplings):
+            signs[coupling.rows, block] = coupling.sign
+        self.B = np.zeros((interface.trace_size, width, len(interface.couplings)))  # per trace entry: rows × blocks
+        self.B[self.index, self.slot] = signs * sqrt_w[:, None]
+        G = np.einsum("tib,tb,tjb->tij", self.B, self.delta, self.B)
+        unused = np.all(self.B == 0.0, axis=2)  # padding rows: identity
+        G[unused, :] = 0.0
+        G[np.nonzero(unused) + (np.nonzero(unused)[1],)] = 1.0
+        self.G_inverse = np.linalg.inv(G)
+
+    def __call__(self, r: np.ndarray) -> np.ndarray:
+        R = np.zeros(self.B.shape[:2])
+        R[self.index, self.slot] = r
+        Z = np.einsum("tij,tj->ti", self.G_inverse, R)
+        traces = self.delta * np.einsum("tib,ti->tb", self.B, Z)  # B_Dᵀ r, per block's trace
+        forces = self.rounds.dirichlet(traces.T).T
+        Y = np.einsum("tij,tjb,tb->ti", self.G_inverse, self.B, self.delta * forces)  # B_D S B_Dᵀ r
+        return Y[self.index, self.slot]
+
+
+def feti(rounds: Rounds, interface: Interface, solver: Solver, progress: Progress) -> Outcome:
+    """The dual problem by a primal-dual active set method whose steps are solved by conjugate
+    gradients on the free multipliers, preconditioned by FETI's Dirichlet preconditioner.
+
+    Only block solves and products: a CG iteration takes two rounds (the Dirichlet solves of the
+    preconditioner, then the solves of A p), so its cost per round is that of ``mprgp``, and the
+    preconditioner keeps the iterations nearly independent of the mesh.  Each active-set step fixes
+    the multipliers at their bounds where the sets say so and solves for the others; the sets
+    change by the signs of the gradient (active rows) and the bound violations (free rows), as in
+    ``box_qp``.  Converged: the sets did not change, the multipliers are feasible and the KKT
+    criterion (on the free rows: the CG residual) is below ``tol``; the CG of a step stops at
+    ``tol`` then, or at 1e-1 of its start while the sets still move (an inexact step; the sets settle as fast).
+    """
+    problem = DualProblem(rounds, interface, solver)
+    precondition = DirichletPreconditioner(rounds, interface, problem.sqrt_w)
+    lower, upper, scale = problem.lower, problem.upper, max(problem.scale, np.finfo(float).tiny)
+    y = np.zeros(interface.size)
+    g = -problem.b  # A y − b
+    at_lower, at_upper = (y <= lower) & (g >= 0), (y >= upper) & (g <= 0)
+    outcome = Outcome(y, converged=False, iterations=0)
+    settled, steps = False, 0
+    while outcome.iterations < solver.max_iterations:
+        steps += 1
+        free = ~(at_lower | at_upper)
+        target = np.where(at_lower, lower, np.where(at_upper, upper, y))
+        if np.any(target != y):  # the fixed multipliers go to their bounds
+            g = g + problem.apply(target - y)
+            y = target
+        r = -np.where(free, g, 0.0)
+        goal = solver.tol * scale if settled else max(solver.tol * scale, 1e-1 * np.linalg.norm(r))
+        z = np.where(free, precondition(r), 0.0) if np.linalg.norm(r) > goal else r
+        p, rz = z, r @ z
+        while np.linalg.norm(r) > goal and outcome.iterations < solver.max_iterations:
+            q = problem.apply(p)
+            alpha = rz / (p @ q)
+            y, g = y + alpha * p, g + alpha * q
+            r = -np.where(free, g, 0.0)
+            outcome.iterations += 1
+            outcome.history.append(problem.criterion(np.clip(y, lower, upper), g))
+            progress(outcome.iterations, outcome.history[-1])
+            if not np.isfinite(outcome.history[-1]):
+                outcome.message, outcome.diverged = f"feti broke down at iteration {outcome.iterations}", True
+                outcome.lam = problem.multipliers(y)
+                return outcome
+            if np.linalg.norm(r) <= goal:
+                break
+            z = np.where(free, precondition(r), 0.0)
+            rz, previous = r @ z, rz
+            p = z + (rz / previous) * p
+        new_lower = (at_lower & (g >= 0)) | (free & (y < lower))
+        new_upper = (at_upper & (g <= 0)) | (free & (y > upper))
+        if np.array_equal(new_lower, at_lower) and np.array_equal(new_upper, at_upper):
+            criterion = problem.criterion(y, g)
+            if settled and criterion < solver.tol:
+                outcome.converged = True
+                break
+            settled = True
+        else:
+            settled = False
+        at_lower, at_upper = new_lower, new_upper
+    if not outcome.converged:
+        outcome.message = _no_convergence("feti", solver, outcome.history)
+    progress(outcome.iterations, outcome.history[-1] if outcome.history else 0.0, final=True)
+    outcome.lam = problem.multipliers(y)
+    outcome.details["active_set_steps"] = steps
+    return outcome
+
+
+# --- the default: schur or feti ------------------------------------------------------------------
+#: Per-block costs (seconds, n = block unknowns, c = columns, m = multiplier rounds) fitted by
+#: ``./run scaling`` on one rank (docs/scaling.md): the interface matrix of a distributed block by
+#: multi-column solves c·(n·2kΣ)^p; one block solve; a plain factorization; rank 0's dense solve of
+#: ``schur`` on nΣ ≈ 3P interface unknowns; the CG iterations of ``feti`` (about constant in P).
+COST_LAWS = {"columns": (1.16e-08, 1.09), "solve": (1.18e-07, 1.10), "factor": (3.46e-08, 1.49),
+             "rank0": (4.14e-09, 2.40)}
+FETI_ROUNDS = 60
+
+
+def predicted_costs(ranks_per_block: int, unknowns: int, sigma_vertices: int) -> dict[str, float]:
+    """Seconds of what ``schur`` and ``feti`` do beyond the factorization both need, with each block
+    on ``ranks_per_block`` ranks (block work shared ideally among them, as in the cost model)."""
+    law = {key: (lambda x, a=a, p=p: a * x ** p) for key, (a, p) in COST_LAWS.items()}
+    trace = 2 * sigma_vertices
+    share = 1.0 / ranks_per_block
+    schur = law["rank0"](3 * sigma_vertices)
+    if ranks_per_block > 1:  # no Schur complement from a distributed factorization: 2kΣ columns of solves
+        schur += share * law["columns"](unknowns * trace)
+    feti = share * (law["factor"](unknowns) + FETI_ROUNDS * law["solve"](unknowns))  # + the Dirichlet problem
+    return {"schur": schur, "feti": feti}
+
+
+def choose(ranks_per_block: int, unknowns: int, sigma_vertices: int) -> str:
+    """The default method: ``schur`` for whole blocks (exact in three rounds, its Schur complements come
+    with the factorization), else whichever :func:`predicted_costs` finds cheaper."""
+    if ranks_per_block == 1:
+        return "schur"
+    costs = predicted_costs(ranks_per_block, unknowns, sigma_vertices)
+    return min(costs, key=costs.get)
+
+
+METHODS: dict[str, Callable[..., Outcome]] = {"schur": schur, "mprgp": mprgp, "fista": fista, "uzawa": uzawa,
+                                              "feti": feti}

@@ -38,6 +38,7 @@ class Result:
     active_set_changes: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     cell_data: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
     timings: dict[str, float] = field(default_factory=dict)
+    memory: dict = field(default_factory=dict)  # peak memory per phase and rank, bytes per unknown
     message: str = ""
     attrs: dict = field(default_factory=dict)
     fracture: Fracture | None = None  # G at the crack tips and the contact zones

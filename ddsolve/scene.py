@@ -23,11 +23,12 @@ from . import expressions, materials
 from .errors import SceneError
 from .expressions import Expression
 
-METHODS = ("schur", "mprgp", "fista", "uzawa")
-DEFAULT_METHOD = "schur"
+METHODS = ("auto", "schur", "mprgp", "fista", "uzawa", "feti")
+#: ``auto``: ``schur`` or ``feti`` by problem size and ranks per block (:func:`ddsolve.methods.choose`).
+DEFAULT_METHOD = "auto"
 STOP_RULES = ("paper", "relative", "kkt")
 #: Default stopping rule of each method and default tolerance of each rule.
-DEFAULT_STOP = {"uzawa": "paper", "schur": "kkt", "mprgp": "kkt", "fista": "kkt"}
+DEFAULT_STOP = {"uzawa": "paper", "schur": "kkt", "mprgp": "kkt", "fista": "kkt", "feti": "kkt", "auto": "kkt"}
 DEFAULT_TOL = {"paper": 1e-6, "relative": 1e-6, "kkt": 1e-8}
 LAYERS = ("layer1", "layer2")
 #: The sides of a box geometry, as boundary names.

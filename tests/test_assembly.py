@@ -202,18 +202,58 @@ def test_local_frames_rotate_the_matrix_and_the_load():
     nodes = half.sigma[1:-1]
     angles = np.linspace(0.1, 1.3, len(nodes))
     frames = np.array([[[math.cos(a), math.sin(a)], [-math.sin(a), math.cos(a)]] for a in angles])
-    rows, cols, values = assembly.stiffness(half.points, half.cells, D_STEEL)
+    matrices = assembly.element_stiffness(half.points, half.cells, D_STEEL)
+    assembly.rotate_elements(matrices, half.cells, nodes, frames, len(half.points))
     n = 2 * len(half.points)
-    turned = assembly.rotate_coo(rows, cols, values, nodes, frames, len(half.points))
+    dofs = assembly.element_dofs(half.cells)
     R = np.eye(n)
     for node, frame in zip(nodes, frames):
         R[2 * node:2 * node + 2, 2 * node:2 * node + 2] = frame
     K, K_local = dense(half.points, half.cells), np.zeros((n, n))
-    np.add.at(K_local, (turned[0], turned[1]), turned[2])
+    np.add.at(K_local, (dofs[:, :, None], dofs[:, None, :]), matrices)
     assert np.abs(K_local - R @ K @ R.T).max() < 1e-12 * np.abs(K).max()
     u = np.random.default_rng(3).standard_normal(n)
     assert np.allclose(assembly.rotate_vector(u, nodes, frames), R @ u)
     assert np.allclose(assembly.to_global(R @ u, nodes, frames).ravel(), u)
+
+
+def csr_dense(system) -> np.ndarray:
+    local = len(system.indptr) - 1
+    K = np.zeros((local, system.size))
+    K[np.repeat(np.arange(local), np.diff(system.indptr)), system.indices] = system.data
+    return K
+
+
+@pytest.mark.parametrize("degree", [1, 2])
+def test_the_pattern_scatter_sums_rotated_element_matrices_and_splits_into_row_ranges(degree, monkeypatch):
+    """block_system against a dense sum of R Kₑ Rᵀ with clamped dofs decoupled, whole and in row ranges."""
+    import dataclasses
+
+    mesh = structured_mesh(8, 3, shear=0.3, degree=degree, geometry=Geometry())
+    half = mesh.lower
+    angles = np.linspace(-0.4, 0.9, len(mesh.sigma.points))
+    sigma = dataclasses.replace(mesh.sigma, normals=np.column_stack([-np.sin(angles), np.cos(angles)]))
+    nodes, frames = assembly.trace_nodes(half, sigma), sigma.frames[sigma.multiplier_nodes]
+    n = 2 * len(half.points)
+    R = np.eye(n)
+    for node, frame in zip(nodes, frames):
+        R[2 * node:2 * node + 2, 2 * node:2 * node + 2] = frame
+    expected = R @ dense(half.points, half.cells) @ R.T
+    clamped = assembly.element_dofs(half.clamped()[:, None]).ravel()
+    diagonal = expected[clamped, clamped].copy()
+    expected[clamped, :] = 0.0
+    expected[:, clamped] = 0.0
+    expected[clamped, clamped] = diagonal
+    whole = assembly.block_system("u_minus", half, sigma, D_STEEL, [])
+    assert np.abs(csr_dense(whole) - expected).max() < 1e-12 * np.abs(expected).max()
+    assert np.all(np.diff(whole.indptr) > 0) and whole.indices.dtype == np.int32
+    parts = [assembly.block_system("u_minus", half, sigma, D_STEEL, [], rows)
+             for rows in assembly.row_ranges(len(half.points), 3)]
+    assert np.array_equal(np.vstack([csr_dense(part) for part in parts]), csr_dense(whole))
+    assert np.allclose(np.hstack([part.modes for part in parts]), whole.modes)
+    monkeypatch.setattr(assembly, "ELEMENT_ENTRIES", 500)  # element matrices a few cells at a time
+    assert np.allclose(assembly.block_system("u_minus", half, sigma, D_STEEL, []).data, whole.data, rtol=1e-14,
+                       atol=1e-14 * np.abs(whole.data).max())
 
 
 def test_sigma_weights_and_normals():

@@ -16,6 +16,7 @@ TIGHT = {
     "schur": [],
     "mprgp": ["--set", "solver.method=mprgp", "--set", "solver.tol=1e-11"],
     "fista": ["--set", "solver.method=fista", "--set", "solver.tol=1e-11"],
+    "feti": ["--set", "solver.method=feti", "--set", "solver.tol=1e-11"],
 }
 
 
@@ -109,6 +110,7 @@ def test_divergence_stops_early_and_keeps_the_previous_file(tmp_path):
 
 @pytest.mark.parametrize("method, options", [
     ("schur", []),  # block interface matrices by parallel multi-column MUMPS solves
+    ("feti", []),  # Neumann and Dirichlet solves by parallel MUMPS
     ("mprgp", ["-u_minus_ksp_type", "cg", "-u_minus_pc_type", "gamg", "-u_minus_ksp_rtol", "1e-13"]),
 ])
 def test_eight_ranks_split_every_block_over_two(tmp_path, method, options):
@@ -121,6 +123,10 @@ def test_eight_ranks_split_every_block_over_two(tmp_path, method, options):
     assert results[8].ranks == 8 and results[8].converged
     assert analysis.compare(results[8], results[4]).energy_error < 1e-8
     assert len(results[8].attrs["peak_memory_mb"]) == 8
+    memory = results[8].memory  # each rank holds one half (and Σ): about half of the mesh, never all of it
+    assert len(memory["rank_mesh_bytes"]) == 8
+    assert np.all(memory["rank_mesh_bytes"] <= 0.55 * memory["whole_mesh_bytes"])
+    assert np.all(memory["rank_mesh_bytes"] > 0.45 * memory["whole_mesh_bytes"])
 
 
 def test_an_active_multiplier_bound_p_is_honoured_by_schur_and_mprgp(tmp_path):

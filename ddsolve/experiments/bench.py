@@ -1,4 +1,10 @@
-"""Benchmarks: every method against the monolithic reference, and the block factorization packages.
+"""Benchmarks: every method against the monolithic reference, the default method against one MUMPS
+factorization of the whole glued system, and the block factorization packages.
+
+``ddsolve bench baseline`` launches one MPI job per scene and mesh (``bench-baseline``): rank 0 solves
+the glued problem in one process with one MUMPS factorization (:func:`monolithic`) while the other
+ranks sleep, then all ranks run the default method; the two alternate ``repeats`` times, so the ratio
+is measured side by side.  With ``busy`` a second process keeps one core busy during the launch.
 
 ``ddsolve bench methods`` launches one MPI job per mesh (``ddsolve bench-mesh`` on 4 ranks). In that
 job rank 0 computes the reference, all ranks measure the floor of any method with this DD structure
@@ -9,6 +15,7 @@ HDF5 file, a table in docs/results.md and a speed-against-error plot.
 from __future__ import annotations
 
 import json
+import os
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -18,6 +25,7 @@ import numpy as np
 from . import report
 from .. import scene as scenes
 from ..errors import DDSolveError
+from ..interface import BLOCKS as BLOCK_SPECS
 
 #: The paper's Table 1 meshes (P, M) and one finer mesh.
 TABLE1_MESHES = ((12, 32), (24, 48), (48, 80), (96, 144), (200, 256))
@@ -27,6 +35,7 @@ TOLERANCES = {
     "schur": [("kkt", 1e-8)],
     "mprgp": [("kkt", 1e-4), ("kkt", 1e-6), ("kkt", 1e-8), ("kkt", 1e-10)],
     "fista": [("kkt", 1e-4), ("kkt", 1e-6), ("kkt", 1e-8)],
+    "feti": [("kkt", 1e-4), ("kkt", 1e-6), ("kkt", 1e-8)],
     "uzawa": [("paper", 1e-6), ("relative", 1e-4), ("relative", 1e-6), ("relative", 1e-8)],
 }
 #: Above this P, uzawa runs only the paper's setting (each run takes minutes).
@@ -50,9 +59,170 @@ class Run:
     penetration: float
 
 
-def paper_scene(P: int, M: int, overrides: list[str] = ()) -> scenes.Scene:
-    """Example 1 of the paper on the (P, M) mesh."""
-    return scenes.load("partial-closure", [f"mesh.sigma_vertices={P}", f"mesh.boundary_vertices={M}", *overrides])
+def paper_scene(P: int, M: int, overrides: list[str] = (), name: str = "partial-closure") -> scenes.Scene:
+    """Example 1 of the paper (or another built-in scene) on the (P, M) mesh."""
+    return scenes.load(name, [f"mesh.sigma_vertices={P}", f"mesh.boundary_vertices={M}", *overrides])
+
+
+# --- the strongest baseline: one MUMPS factorization of the glued system ---------------------
+def monolithic(scene: scenes.Scene, mesh, systems) -> tuple["Result", dict]:
+    """The glued problem in one process: tied unknowns share one number (``reference.merged_system``),
+    the crack faces' normal unknowns stay apart; one MUMPS factorization, which also gives their
+    Schur complement S; contact by the active set on the small dense dual problem of the crack
+    (A = W^½ B S⁻¹ Bᵀ W^½, B the normal jump), then one solve with the contact forces.
+
+    Returns the result and its timings: ``merge`` (the glued matrix), ``factorization`` and
+    ``solve`` (solves and the dense contact problem); ``factorization + solve`` is the solve phase.
+    """
+    import dataclasses
+
+    from .. import assembly, reference
+    from ..blocks import Block
+    from ..interface import U_MINUS, U_PLUS, for_mesh
+    from ..io import provenance
+    from ..methods import box_qp
+    from ..result import Result
+
+    interface = for_mesh(mesh.sigma, scene.nonpenetration)
+    contact = interface.slices["mu_c"]
+    started = time.perf_counter()
+    numbers = reference.numbering(systems, interface, np.zeros(contact.stop - contact.start, dtype=bool))
+    unknowns = interface.trace_unknowns()
+    normal = 2 * interface.vertex[contact] + 1
+    faces = np.concatenate([unknowns[U_MINUS][normal], unknowns[U_PLUS][normal]])  # crack normal unknowns
+    system = dataclasses.replace(reference.merged_system(systems, numbers), trace_dofs=faces)
+    block = Block(system, factor_package="mumps")
+    timings = {"merge": time.perf_counter() - started}
+    started = time.perf_counter()
+    block.factor(schur=len(faces) > 0)
+    timings["factorization"] = time.perf_counter() - started
+    started = time.perf_counter()
+    x = block.solve(np.zeros(len(faces)), body=True).copy()
+    y = np.zeros(len(normal))
+    if len(normal):
+        count = len(normal)
+        jump = np.hstack([np.eye(count), -np.eye(count)])  # B: u⁻·ν − u⁺·ν
+        sqrt_w = np.sqrt(interface.row_weights[contact])
+        flexibility = np.linalg.inv(block.schur_complement())
+        scaled = sqrt_w[:, None] * jump
+        lower, upper = interface.bounds(scene.solver.p)
+        y, _ = box_qp(scaled @ flexibility @ scaled.T, scaled @ x[faces], sqrt_w * lower[contact],
+                      sqrt_w * upper[contact])
+        x = block.solve(-scaled.T @ y, body=True)  # the contact forces −Bᵀ W μ on the faces
+    x = x.copy()
+    timings["solve"] = time.perf_counter() - started
+    block.destroy()
+    fields = [x[number] for number in numbers]
+    loads = np.array([assembly.csr_matvec(s, u)[s.trace_dofs] - s.rhs[s.trace_dofs] for s, u in zip(systems, fields)])
+    lam = interface.multipliers(loads)
+    lam[contact] = y / np.sqrt(interface.row_weights[contact]) if len(normal) else lam[contact]
+    frames = mesh.sigma.frames[mesh.sigma.multiplier_nodes]
+    solution = {spec.name: assembly.to_global(u, assembly.trace_nodes(mesh.half(spec.side), mesh.sigma), frames)
+                for spec, u in zip(BLOCK_SPECS, fields)}
+    result = Result(scene=scene.text, method="monolithic", converged=True, iterations=1, solves=2 if len(normal) else 1,
+                    wall_time=timings["factorization"] + timings["solve"], ranks=1, mesh=mesh, solution=solution,
+                    multipliers=interface.split(lam, frames), history=np.zeros(0), timings=timings,
+                    attrs=provenance())
+    return result, timings
+
+
+#: Orderings of the monolithic baseline: MUMPS's own choice (its defaults: what a user gets) and AMF
+#: (what ddsolve asks for its blocks, faster here): the ratio is reported against both.
+MONOLITHIC_ORDERINGS = {"mumps default": 7, "AMF": 2}
+
+
+def bench_baseline(name: str, P: int, M: int, repeats: int, output: Path, comm) -> None:
+    """Inside one launch: the monolithic MUMPS solve on rank 0 (the other ranks sleep), once with each
+    of :data:`MONOLITHIC_ORDERINGS`, and the default method on all ranks, in turn ``repeats`` times;
+    rank 0 writes the record as JSON (wall and CPU seconds: the CPU time of the DD sums its ranks)."""
+    from petsc4py import PETSc
+
+    from .. import analysis, assembly, driver
+    from ..exchange import collective
+    from ..io import provenance
+
+    scene = paper_scene(P, M, name=name)
+    mesh = driver.build_mesh(scene, comm)
+    systems = assembly.block_systems(scene, mesh) if comm.rank == 0 else None
+    record = {"scene": name, "P": P, "M": M, "ranks": comm.size, "load": os.getloadavg()[0],
+              "unknowns": sum(2 * len(mesh.half(spec.side).points) for spec in BLOCK_SPECS), "dd": [],
+              **{f"mono {label}": [] for label in MONOLITHIC_ORDERINGS}}
+
+    def timed(label, ordering):
+        PETSc.Options()["reference_mat_mumps_icntl_7"] = ordering
+        started = time.process_time()
+        result, timings = monolithic(scene, mesh, systems)
+        return result, {**timings, "solve_phase": timings["factorization"] + timings["solve"],
+                        "cpu": time.process_time() - started}
+
+    for _ in range(repeats):
+        monos = {label: collective(comm, lambda: timed(label, ordering), root_only=True)
+                 for label, ordering in MONOLITHIC_ORDERINGS.items()}
+        dd = driver.solve(scene, comm, None, progress=lambda line: None, mesh=mesh)
+        if comm.rank == 0:
+            for label, (reference, timings) in monos.items():
+                record[f"mono {label}"].append(timings)
+            record["dd"].append({"solve_phase": dd.wall_time, "method": dd.method, "rounds": dd.solves,
+                                 "factorization": dd.timings["factorization"],
+                                 "cpu": dd.timings["factorization_cpu"] + dd.timings["iterations_cpu"],
+                                 "error": analysis.compare(dd, reference).energy_error})
+    if comm.rank == 0:
+        record["load_after"] = os.getloadavg()[0]
+        record["provenance"] = provenance()
+        output.write_text(json.dumps(record))
+
+
+def busy_process():
+    """A process that keeps one core busy until it is killed."""
+    import subprocess
+    import sys
+
+    return subprocess.Popen([sys.executable, "-c", "while True: pass"])
+
+
+def default_ranks() -> int:
+    """Ranks of the DD in ``bench baseline``: a block per rank, but no more ranks than cores."""
+    return max(1, min(4, len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()))
+
+
+def baseline(meshes=((400, 512), (800, 1024)), names=("linear", "partial-closure"), ranks: int | None = None,
+             repeats: int = 3, busy: bool = False, output: Path = Path("results/bench-baseline.h5")) -> list[dict]:
+    """The default method against the monolithic MUMPS solve, side by side; print the ratios."""
+    ranks = ranks or default_ranks()
+    output.parent.mkdir(parents=True, exist_ok=True)
+    records = []
+    for P, M in meshes:
+        for name in names:
+            spinner = busy_process() if busy else None
+            try:
+                record = report.launch(ranks, ["bench-baseline", name, str(P), str(M), str(repeats)],
+                                       output.with_name(f".{output.stem}-{name}-{P}.json"))
+            finally:
+                if spinner is not None:
+                    spinner.kill()
+                    spinner.wait()
+            record["busy"] = busy
+            records.append(record)
+            print(baseline_line(record), flush=True)
+    report.write_records(output, records, records[0]["provenance"])
+    return records
+
+
+def baseline_line(record: dict) -> str:
+    """One case: best times of each side, the ratio per side-by-side pair, the DD's error and the load."""
+    dd = record["dd"]
+    parts = [f"{record['scene']:15s} P={record['P']:5d} ({record['unknowns']:,} unknowns), DD {dd[0]['method']} on "
+             f"{record['ranks']} ranks{' + 1 busy process' if record['busy'] else ''}: DD solve phase "
+             f"{min(d['solve_phase'] for d in dd):.3f} s (CPU {min(d['cpu'] for d in dd):.2f} s)"]
+    for label in MONOLITHIC_ORDERINGS:
+        mono = record[f"mono {label}"]
+        ratios = sorted(m["solve_phase"] / d["solve_phase"] for m, d in zip(mono, dd))
+        cpu = min(m["cpu"] for m in mono) / min(d["cpu"] for d in dd)
+        parts.append(f"monolithic MUMPS ({label}) {min(m['solve_phase'] for m in mono):.3f} s (CPU "
+                     f"{min(m['cpu'] for m in mono):.2f} s): ratio {np.median(ratios):.2f} median, "
+                     f"{ratios[0]:.2f}-{ratios[-1]:.2f}; CPU ratio {cpu:.2f}")
+    parts.append(f"DD error {max(d['error'] for d in dd):.1e}; load {record['load']:.1f} -> {record['load_after']:.1f}")
+    return "; ".join(parts)
 
 
 # --- inside the MPI launch ------------------------------------------------------------------
@@ -82,7 +252,9 @@ def method_runs() -> list[tuple[str, str, float]]:
 
 
 #: Runs of ``table1``: the paper's algorithm and the default method.
-TABLE1_RUNS = [("uzawa", "paper", 1e-6), (scenes.DEFAULT_METHOD, "kkt", 1e-8)]
+#: The default method for whole blocks (4 ranks), which ``auto`` resolves to.
+DEFAULT = "schur"
+TABLE1_RUNS = [("uzawa", "paper", 1e-6), (DEFAULT, "kkt", 1e-8)]
 PLANS = {"methods": (method_runs, True), "table1": (lambda: TABLE1_RUNS, False)}
 
 
@@ -146,7 +318,7 @@ def methods(meshes=BENCH_MESHES, output: Path = Path("results/bench-methods.h5")
 
 
 def _default_run(record: dict) -> dict:
-    return next(r for r in record["runs"] if r["method"] == scenes.DEFAULT_METHOD)
+    return next(r for r in record["runs"] if r["method"] == DEFAULT)
 
 
 def _paper_run(record: dict) -> dict | None:
@@ -237,8 +409,7 @@ def block_timings(P: int, M: int, solves: int = 20, repeats: int = 3) -> dict:
     from ..blocks import Block, default_factor_package
 
     scene = paper_scene(P, M)
-    lower = geometry.generate_half(scene, -1)
-    system = assembly.block_systems(scene, geometry.pair(scene, lower, lower), [0])[0]
+    system = assembly.block_systems(scene, geometry.build(scene), [0])[0]
     out = {"P": P, "M": M, "unknowns": system.size, "trace": len(system.trace_dofs)}
     for package, schur in (("petsc", False), ("mumps", False), ("mumps", True)):
         if default_factor_package(package) != package:

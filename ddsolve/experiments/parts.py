@@ -12,6 +12,7 @@ from ..cli import guarded, init_petsc, split_petsc_options
 #: with those arguments, the output path and MPI.COMM_WORLD.
 PARTS = {
     "bench-mesh": ("bench", "bench_mesh", (("plan", str), ("P", int), ("M", int))),
+    "bench-baseline": ("bench", "bench_baseline", (("name", str), ("P", int), ("M", int), ("repeats", int))),
     "theta-mesh": ("paper", "theta_mesh", (("P", int), ("M", int), ("scene", str))),
     "accuracy-mesh": ("paper", "accuracy_mesh", (("P", int), ("M", int), ("fine", Path))),
     "scaling-network": ("scaling", "network", ()),

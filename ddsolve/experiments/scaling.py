@@ -1,10 +1,12 @@
 """Scaling experiments and a per-phase cost model (``ddsolve scaling``).
 
-Strong scaling (one mesh, N = 1, 2, 4, 8 ranks) and weak scaling (unknowns per rank fixed) of the
-default method and of MPRGP (many rounds: it exposes the per-round exchange), the two large meshes,
-and calibration runs: one block's factorization, solve and interface-matrix times at several sizes
-(one rank), and MPI latency and bandwidth (two ranks).  A cost model fitted to the calibration data
-predicts every measured run (validation) and the solve phase on 64 to 1024 cores.
+Strong scaling (one mesh, N = 1, 2, 4, 8 ranks) and weak scaling (unknowns per rank fixed) of
+``schur``, MPRGP (many rounds: it exposes the per-round exchange) and ``feti``; rounds against P for
+the iterative methods; the two large meshes with every phase of the launch and the memory per
+unknown; the monolithic MUMPS baseline; calibration runs: one block's factorization, solve and
+interface-matrix times at several sizes (one rank), and MPI latency and bandwidth (two ranks).  A
+cost model fitted to the calibration data predicts every measured run (validation) and the solve
+phase on 64 to 1024 cores.
 """
 from __future__ import annotations
 
@@ -25,7 +27,12 @@ RANKS = (1, 2, 4, 8)
 WEAK_MESHES = {1: (100, 128), 2: (141, 181), 4: (200, 256), 8: (283, 362)}
 LARGE_MESHES = ((800, 1024), (1600, 2048))
 CALIBRATION_MESHES = ((100, 128), (141, 181), (200, 256), (283, 362), (400, 512))
-METHODS = ("schur", "mprgp")
+METHODS = ("schur", "mprgp", "feti")
+#: Rounds against P (kkt 1e-6, 4 ranks): the iterative methods up to their largest affordable mesh.
+ROUNDS_MESHES = ((100, 128), (200, 256), (400, 512), (800, 1024), (1600, 2048))
+ROUNDS_LARGEST = {"mprgp": 800, "feti": 1600}
+#: The monolithic baseline (bench baseline, one pair each).
+BASELINE_MESHES = ((400, 512), (800, 1024))
 PREDICTED_CORES = (64, 128, 256, 512, 1024)
 #: Unknowns per core in the predicted weak scaling (the block has this many times its ranks).
 WEAK_UNKNOWNS_PER_CORE = 50_000
@@ -105,6 +112,9 @@ class CostModel:
         mprgp = [r for r in runs if r["method"] == "mprgp"]
         self.update = float(np.median([r["update"] / (r["rounds"] * r["multipliers"]) for r in mprgp]))
         self.mprgp_rounds = power_law([r["P"] for r in mprgp], [r["rounds"] for r in mprgp])
+        feti = [r for r in runs if r["method"] == "feti" and r["ranks"] == 4]
+        self.feti_rounds = power_law([r["P"] for r in feti], [r["rounds"] for r in feti])
+        self.factor["feti"], self.solve["feti"] = self.factor["mumps"], self.solve["mumps"]
 
     @staticmethod
     def _law(law: tuple[float, float], x: float) -> float:
@@ -125,7 +135,9 @@ class CostModel:
         """
         share = 4.0 / min(ranks, cores or ranks)
         path = "mumps" if method == "schur" and ranks > 4 else method
-        out = {"factorization": share * self._law(self.factor[path], unknowns), "interface": 0.0, "gather": 0.0}
+        factorizations = 2 if method == "feti" else 1  # feti: the Neumann and the Dirichlet problem
+        out = {"factorization": factorizations * share * self._law(self.factor[path], unknowns), "interface": 0.0,
+               "gather": 0.0}
         out["rounds"] = rounds * (share * self._law(self.solve[path], unknowns) + self.exchange(ranks, trace))
         if method == "schur":
             if ranks > 4:  # no parallel Schur complement: the interface matrix comes from multi-column solves
@@ -146,22 +158,28 @@ def _solve(ranks: int, P: int, M: int, method: str, name: str) -> dict:
     from .. import io
 
     path = RESULTS / f"{name}.h5"
+    started = time.perf_counter()
     report.run(ranks, ["solve", "partial-closure", "--set", f"mesh.sigma_vertices={P}",
                        "--set", f"mesh.boundary_vertices={M}", "--set", f"solver.method={method}",
-                       "--set", "solver.tol=1e-6" if method == "mprgp" else "solver.tol=1e-8", "-o", str(path)])
+                       "--set", "solver.tol=1e-8" if method == "schur" else "solver.tol=1e-6", "-o", str(path)])
+    launch = time.perf_counter() - started
     result = io.read(path)
     lower = result.lower
-    return {"name": name, "ranks": ranks, "P": P, "M": M, "method": method, "rounds": result.solves,
+    memory = {key: (value.tolist() if hasattr(value, "tolist") else value) for key, value in result.memory.items()}
+    return {"name": name, "ranks": ranks, "P": P, "M": M, "method": result.method, "rounds": result.solves,
             "unknowns": 2 * len(lower.points), "trace": 2 * len(result.multiplier_nodes),
             "multipliers": int(sum(v.size for v in result.multipliers.values())),
             "interface_unknowns": int(result.attrs.get("interface_unknowns", 0)),
             "rank0_time": float(result.attrs.get("rank0_solve_time", 0.0)),
             "peak_memory_mb": [float(m) for m in result.attrs["peak_memory_mb"]], "wall_time": result.wall_time,
-            **{key: float(value) for key, value in result.timings.items()}}
+            "launch": launch, "memory": memory, **{key: float(value) for key, value in result.timings.items()}}
 
 
 def scaling() -> dict:
-    """Calibrate, run strong, weak and large cases, fit the model; write HDF5, docs/scaling.md, plots."""
+    """Calibrate, run strong, weak, rounds and large cases and the baseline, fit the model; write HDF5,
+    docs/scaling.md, plots."""
+    from .bench import default_ranks
+
     RESULTS.mkdir(parents=True, exist_ok=True)
     print("scaling: calibration (one block at 5 sizes; MPI latency and bandwidth)", flush=True)
     calibration = report.launch(1, ["scaling-calibrate"], RESULTS / ".calibration.json")
@@ -173,11 +191,20 @@ def scaling() -> dict:
             runs.append({"kind": "strong", **_solve(ranks, *STRONG_MESH, method, f"strong-{method}-{ranks}")})
             print(f"scaling: weak, {method}, N = {ranks}", flush=True)
             runs.append({"kind": "weak", **_solve(ranks, *WEAK_MESHES[ranks], method, f"weak-{method}-{ranks}")})
+    for method, largest in ROUNDS_LARGEST.items():
+        for P, M in (mesh for mesh in ROUNDS_MESHES if mesh[0] <= largest):
+            print(f"scaling: rounds, {method}, P = {P}", flush=True)
+            runs.append({"kind": "rounds", **_solve(4, P, M, method, f"rounds-{method}-{P}")})
     for P, M in LARGE_MESHES:
         print(f"scaling: large, P = {P}", flush=True)
-        started = time.perf_counter()
-        runs.append({"kind": "large", **_solve(4, P, M, "schur", f"large-{P}"), "launch": time.perf_counter() - started})
-    record = {"cores": cores(), "calibration": calibration, "network": net, "runs": runs}
+        runs.append({"kind": "large", **_solve(4, P, M, "auto", f"large-{P}")})
+    baseline = []
+    for P, M in BASELINE_MESHES:
+        for name in ("linear", "partial-closure"):
+            print(f"scaling: monolithic baseline, {name}, P = {P}", flush=True)
+            baseline.append(report.launch(default_ranks(), ["bench-baseline", name, str(P), str(M), "1"],
+                                          RESULTS / f".baseline-{name}-{P}.json"))
+    record = {"cores": cores(), "calibration": calibration, "network": net, "runs": runs, "baseline": baseline}
     (RESULTS / "record.json").write_text(json.dumps(record))
     render(record)
     return record
@@ -193,8 +220,9 @@ def render(record: dict) -> None:
                                         record["cores"])["total"]
     parameters = {"factor": model.factor, "solve": model.solve, "interface": model.interface, "column": model.column,
                   "latency": model.latency, "bandwidth": model.bandwidth, "rank0": model.rank0,
-                  "update": model.update, "mprgp_rounds": model.mprgp_rounds}
-    report.write_records(RESULTS.parent / "scaling.h5", runs, {**record["network"]["provenance"],
+                  "update": model.update, "mprgp_rounds": model.mprgp_rounds, "feti_rounds": model.feti_rounds}
+    flat = [{key: value for key, value in run.items() if key != "memory"} for run in runs]
+    report.write_records(RESULTS.parent / "scaling.h5", flat, {**record["network"]["provenance"],
                                                               "cores": record["cores"], "model": json.dumps(parameters)})
     plots(runs, model)
     (DOCS / "scaling.md").write_text(text(record, model))
@@ -206,14 +234,19 @@ def _at(model: CostModel, ranks: int, P: int) -> dict:
     trace = 2 * (P - 2)
     unknowns = 0.295 * P * P
     schur = model.phases("schur", ranks, unknowns, trace, 3 * P, 3, 3 * trace)
-    mprgp = model.phases("mprgp", ranks, unknowns, trace, 0, round(model._law(model.mprgp_rounds, P)), 3 * trace)
-    # PETSc's Cholesky is sequential: distributed blocks use MUMPS for mprgp too
-    if ranks > 4:
-        mprgp = {**mprgp, "factorization": model._law(model.factor["mumps"], unknowns) * 4 / ranks}
-        mprgp["rounds"] = round(model._law(model.mprgp_rounds, P)) * (
-            model._law(model.solve["mumps"], unknowns) * 4 / ranks + model.exchange(ranks, trace))
-        mprgp["total"] = mprgp["factorization"] + mprgp["rounds"] + mprgp["rank0"]
-    return {"ranks": ranks, "P": P, **schur, "mprgp": mprgp["total"]}
+    iterative = {}
+    for method in ("mprgp", "feti"):
+        rounds = round(model._law(getattr(model, f"{method}_rounds"), P))
+        phases = model.phases(method, ranks, unknowns, trace, 0, rounds, 3 * trace)
+        if method == "mprgp" and ranks > 4:  # PETSc's Cholesky is sequential: distributed blocks use MUMPS
+            phases["factorization"] = model._law(model.factor["mumps"], unknowns) * 4 / ranks
+            phases["rounds"] = rounds * (model._law(model.solve["mumps"], unknowns) * 4 / ranks
+                                         + model.exchange(ranks, trace))
+            phases["total"] = phases["factorization"] + phases["rounds"] + phases["rank0"]
+        iterative[method] = phases["total"]
+    chosen = "schur" if ranks <= 4 else min(("schur", "feti"), key=lambda m: schur["total"] if m == "schur"
+                                             else iterative["feti"])
+    return {"ranks": ranks, "P": P, **schur, **iterative, "auto": chosen}
 
 
 def predictions(model: CostModel) -> tuple[list[dict], list[dict]]:
@@ -229,7 +262,7 @@ def plots(runs: list[dict], model: CostModel) -> None:
     plt = _pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.6), constrained_layout=True)
     for ax, kind in zip(axes, ("strong", "weak")):
-        for method, color in zip(METHODS, ("tab:blue", "tab:orange")):
+        for method, color in zip(METHODS, ("tab:blue", "tab:orange", "tab:green")):
             chosen = sorted((r for r in runs if r["kind"] == kind and r["method"] == method), key=lambda r: r["ranks"])
             ranks = [r["ranks"] for r in chosen]
             ax.plot(ranks, [r["factorization"] for r in chosen], marker="s", linestyle=":", color=color,
@@ -261,6 +294,7 @@ def plots(runs: list[dict], model: CostModel) -> None:
             ax.plot(ranks, [max(r[phase], 1e-4) for r in rows], marker="o", label=f"schur: {phase}",
                     linewidth=2.5 if phase == "total" else 1.2)
         ax.plot(ranks, [r["mprgp"] for r in rows], marker="s", color="black", linestyle="--", label="mprgp: total")
+        ax.plot(ranks, [r["feti"] for r in rows], marker="D", color="tab:green", linestyle="--", label="feti: total")
         ax.set_xscale("log", base=2)
         ax.set_yscale("log")
         ax.set_xlabel("cores (one rank each)")
@@ -272,51 +306,150 @@ def plots(runs: list[dict], model: CostModel) -> None:
     plt.close(fig)
 
 
+def _launch_rows(runs: list[dict]) -> list[str]:
+    rows = []
+    for r in (r for r in runs if r["kind"] == "large"):
+        phases = [r.get(name, 0.0) for name in ("startup", "meshing", "distribution", "assembly", "factorization",
+                                                "iterations", "output", "write")]
+        total = sum(phases)
+        rows.append(f"| {r['P']} | {4 * r['unknowns']:,} | {r['method']} | "
+                    + " | ".join(f"{t:.2f}" for t in phases) + f" | {total:.1f} | {r['launch']:.1f} "
+                    f"| {r['wall_time']:.2f} | {total / r['wall_time']:.2f} |")
+    return rows
+
+
+def _memory_rows(runs: list[dict]) -> list[str]:
+    rows = []
+    for r in (r for r in runs if r["kind"] in ("large", "rounds") and r.get("memory") and r["P"] >= 800):
+        m = r["memory"]
+        per_phase = [m.get(f"bytes_per_unknown_{name}", float("nan")) for name in
+                     ("meshing", "assembly", "factorization", "iterations", "output")]
+        factor = max(m.get("rank_factor_mb", [0.0]))
+        mesh = max(m.get("rank_mesh_bytes", [0])) / 2 ** 20
+        rows.append(f"| {r['P']} | {r['method']} | {max(r['peak_memory_mb']):.0f} | {factor:.0f} | {mesh:.0f} | "
+                    + " | ".join(f"{b:.0f}" for b in per_phase) + " |")
+    return rows
+
+
+def _rounds_rows(runs: list[dict]) -> list[str]:
+    table = {}
+    for r in runs:
+        if r["ranks"] == 4 or r["kind"] == "rounds":
+            table.setdefault(r["method"], {})[r["P"]] = r["rounds"]
+    sizes = sorted({P for rounds in table.values() for P in rounds})
+    rows = ["| method | " + " | ".join(f"P = {P}" for P in sizes) + " |", "|---|" + "---|" * len(sizes)]
+    for method, rounds in table.items():
+        rows.append(f"| `{method}` | " + " | ".join(str(rounds.get(P, "—")) for P in sizes) + " |")
+    return rows
+
+
+def _baseline_rows(baseline: list[dict]) -> list[str]:
+    from .bench import MONOLITHIC_ORDERINGS
+
+    rows = []
+    for b in baseline:
+        dd = b["dd"][0]
+        monos = [b[f"mono {label}"][0] for label in MONOLITHIC_ORDERINGS]
+        rows.append(f"| {b['scene']} | {b['P']} | {b['unknowns']:,} | {b['ranks']} | {dd['method']} "
+                    f"| {dd['solve_phase']:.2f} | " + " | ".join(f"{m['solve_phase']:.2f} ({m['solve_phase'] / dd['solve_phase']:.2f}×)"
+                                                     for m in monos) + f" | {dd['error']:.0e} | {b['load']:.1f} |")
+    return rows
+
+
 def text(record: dict, model: CostModel) -> str:
+    from .bench import MONOLITHIC_ORDERINGS
+
     runs = record["runs"]
     c = record["cores"]
     lines = [
         "# Scaling",
         "",
-        "`./run scaling` (about 6 minutes) regenerates this page: calibration, strong and weak scaling on "
-        "N = 1, 2, 4, 8 ranks, the two largest meshes, the fitted cost model and its predictions. Result files "
+        "`./run scaling` regenerates this page: calibration, strong and weak scaling on N = 1, 2, 4, 8 ranks, "
+        "rounds against P for the iterative methods, the two largest meshes with every phase of the launch and the "
+        "memory per unknown, the monolithic MUMPS baseline, the fitted cost model and its predictions. Result files "
         "of every run are in `results/scaling/`, the aggregate in `results/scaling.h5`.",
         "",
         f"**This machine has {c} cores.** With more ranks than cores the ranks share cores (Open MPI "
-        "oversubscription), so every run with N > 2 here measures overhead, not speed-up. The measured "
-        "points are used to fit and to validate a cost model; its predictions for 64 to 1024 cores assume one "
-        "rank per core.",
+        "oversubscription; waiting ranks yield their core), so every run with N > 2 here measures overhead, not "
+        "speed-up. The measured points are used to fit and to validate a cost model; its predictions for 64 to 1024 "
+        "cores assume one rank per core. Other jobs may have shared the machine: each baseline row gives the load.",
         "",
         "## How the work is distributed",
         "",
-        "With 4k ranks the world communicator splits into four block communicators of k ranks (block b on "
-        "ranks b·k … (b+1)·k − 1). Each rank assembles only its rows of its block (vertices are numbered in "
-        "x-slabs, so a contiguous row range is a compact piece of the half) into an MPIAIJ matrix with block "
-        "size 2 and the rigid-body near-null space; the block is factored by parallel MUMPS (or, with "
-        "`-<block>_ksp_type cg -<block>_pc_type gamg`, solved by CG with smoothed aggregation). A round "
-        "scatters the interface loads from rank 0 to the four block leaders (Scatterv), which broadcast them "
-        "in their block; the traces come back the same way (Gatherv). The multiplier update stays on rank 0. "
-        "The meshes are generated by two ranks, one half each, and broadcast; peak memory per rank is in every "
-        "result file (`peak_memory_mb`).",
+        "The leaders of u⁻ (rank 0) and u⁺ mesh the two halves at once (gmsh in a child process, so a signal ends "
+        "the job at once); rank 0 pairs them (checks, Σ), and each half goes only to the ranks whose blocks live on "
+        "it, Σ to all: every rank holds one half (both with one rank), rank 0 gets the upper half back for output. "
+        "With 1, 2 or 4 ranks, rank r owns the blocks b ≡ r (mod N): with two ranks u⁻, v⁻ on rank 0 and u⁺, v⁺ on "
+        "rank 1, so both blocks of a rank share one half and its sparsity pattern. With 4k ranks the world "
+        "communicator splits into four block communicators of k ranks (block b on ranks b·k … (b+1)·k − 1); each "
+        "rank assembles only its rows (vertices are numbered in x-slabs, so a contiguous row range is a compact "
+        "piece of the half) into an MPIAIJ matrix with block size 2 and the rigid-body near-null space, factored by "
+        "parallel MUMPS. Assembly builds the CSR pattern once per half (one sort of the cells' node pairs) and sums "
+        "the element matrices by a precomputed scatter. A round scatters the interface loads from rank 0 to the "
+        "block leaders, which broadcast them in their block; the traces come back the same way. Waiting ranks "
+        "sleep instead of spinning.",
         "",
-        "## Measured (default method `schur`, and `mprgp`)",
+        "## Measured (`schur`, `mprgp`, `feti`)",
         "",
         "| run | N | P | block unknowns | rounds | factorization (s) | rounds (s) | rank-0 update (s) | solve phase (s) "
         "| model (s) | setup (s) | peak memory per rank (MB) |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for r in runs:
+    for r in (r for r in runs if r["kind"] in ("strong", "weak")):
         memory = f"{max(r['peak_memory_mb']):.0f}" + (f" (max of {len(r['peak_memory_mb'])})" if r["ranks"] > 1 else "")
         lines.append(f"| {r['kind']} {r['method']} | {r['ranks']} | {r['P']} | {r['unknowns']:,} | {r['rounds']} "
                      f"| {r['factorization']:.3f} | {r['iterations'] - r['update']:.3f} | {r['update']:.3f} "
                      f"| {r['wall_time']:.3f} | {r['predicted']:.3f} | {r['setup']:.1f} | {memory} |")
-    fitted = [r for r in runs if r["ranks"] <= c]
+    fitted = [r for r in runs if r["ranks"] <= c and r["kind"] in ("strong", "weak")]
     errors = [abs(r["predicted"] / r["wall_time"] - 1.0) for r in fitted]
-    overhead = [r["wall_time"] / r["predicted"] for r in runs if r["ranks"] > c]
+    overhead = [r["wall_time"] / r["predicted"] for r in runs if r["ranks"] > c and r["kind"] in ("strong", "weak")]
     m = model
     lines += [
         "",
         "![measured phases](scaling-measured.png)",
+        "",
+        "## Rounds against P (kkt 1e-6 for the iterative methods, 4 ranks)",
+        "",
+        *_rounds_rows(runs),
+        "",
+        f"Fitted: `mprgp` {m.mprgp_rounds[0]:.1f}·P^{m.mprgp_rounds[1]:.2f}, `feti` {m.feti_rounds[0]:.1f}·P^"
+        f"{m.feti_rounds[1]:.2f}. `schur` is exact in 3 rounds on every mesh. `feti`'s CG iterations on the linear "
+        "problem are nearly constant in P (the Dirichlet preconditioner); what grows is the number of active-set "
+        "steps of the contact problem, each a few warm-started iterations.",
+        "",
+        "## Whole launch (default method, 4 ranks)",
+        "",
+        "Phases from the result file's `/timings` (rank 0's clock; *startup*: from `ddsolve solve -n` starting "
+        "mpiexec to the solver's start; *iterations*: the rounds and rank 0's updates); *sum*: the phases added up, "
+        "*launch*: the command's wall time measured outside it; *solve phase* = factorization + iterations.",
+        "",
+        "| P | unknowns | method | startup | meshing | distribution | assembly | factorization | iterations | output "
+        "| write | sum (s) | launch (s) | solve phase (s) | sum / solve |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        *_launch_rows(runs),
+        "",
+        "## Memory",
+        "",
+        "Peak resident memory per rank (largest rank), MUMPS's own count of its factors (INFO(16), largest rank), "
+        "the mesh arrays a rank holds, and the largest peak per unknown of a rank at the end of each phase (bytes "
+        "per unknown it works on; the result file's `/memory`):",
+        "",
+        "| P | method | peak per rank (MB) | factors (MB) | mesh (MB) | meshing | assembly | factorization "
+        "| iterations | output |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+        *_memory_rows(runs),
+        "",
+        "## The monolithic baseline",
+        "",
+        "`bench baseline`: one MUMPS factorization of the whole glued problem in one process (contact by the active "
+        "set on the crack faces' Schur complement from that factorization), alternating with the default method in "
+        f"one launch; the monolithic solve with MUMPS's own ordering choice and with AMF ({', '.join(MONOLITHIC_ORDERINGS)}), "
+        "ratio = monolithic / DD:",
+        "",
+        "| scene | P | unknowns | DD ranks | DD method | DD solve phase (s) | "
+        + " | ".join(f"monolithic, {label} (s)" for label in MONOLITHIC_ORDERINGS) + " | DD error | load |",
+        "|---|---|---|---|---|---|" + "---|" * len(MONOLITHIC_ORDERINGS) + "---|---|",
+        *_baseline_rows(record.get("baseline", [])),
         "",
         "## Cost model",
         "",
@@ -326,22 +459,23 @@ def text(record: dict, model: CostModel) -> str:
         "",
         "| phase | path | law (seconds) |",
         "|---|---|---|",
-        f"| factorization per block | MUMPS with the Schur complement (`schur`, whole blocks) | "
+        f"| factorization per block | MUMPS with the Schur complement (`schur`, whole blocks; AMD ordering) | "
         f"{m.factor['schur'][0]:.2e}·n^{m.factor['schur'][1]:.2f} |",
-        f"| | plain MUMPS (distributed blocks) | {m.factor['mumps'][0]:.2e}·n^{m.factor['mumps'][1]:.2f} |",
+        f"| | plain MUMPS, AMF ordering (distributed blocks; `feti` twice: Neumann and Dirichlet) | "
+        f"{m.factor['mumps'][0]:.2e}·n^{m.factor['mumps'][1]:.2f} |",
         f"| | PETSc's Cholesky (`mprgp`) | {m.factor['mprgp'][0]:.2e}·n^{m.factor['mprgp'][1]:.2f} |",
         f"| one solve per block | MUMPS with / without the Schur complement | {m.solve['schur'][0]:.2e}·n^"
         f"{m.solve['schur'][1]:.2f} / {m.solve['mumps'][0]:.2e}·n^{m.solve['mumps'][1]:.2f} |",
         f"| | PETSc's Cholesky | {m.solve['mprgp'][0]:.2e}·n^{m.solve['mprgp'][1]:.2f} |",
-        f"| interface matrix per block | from the factorization (+ one checking solve) | "
-        f"{m.interface[0]:.2e}·n^{m.interface[1]:.2f} |",
+        f"| interface matrix per block | from the factorization | {m.interface[0]:.2e}·n^{m.interface[1]:.2f} |",
         f"| | by multi-column solves (distributed blocks) | {m.column[0]:.2e}·(n·2kΣ)^{m.column[1]:.2f} |",
         f"| a round's messages | 3 world collectives (+2 per block if k > 1), 2·4 traces | "
         f"{1e6 * m.latency:.1f} µs per log₂N step + bytes / {m.bandwidth / 1e9:.1f} GB/s |",
         f"| `schur`: interface matrices to rank 0 | 4·(2kΣ)² doubles | bytes / {m.bandwidth / 1e9:.1f} GB/s |",
-        f"| `schur`: rank-0 dense interface solve | nΣ ≈ 3P interface unknowns | {m.rank0[0]:.2e}·nΣ^{m.rank0[1]:.2f} |",
-        f"| `mprgp`: rank-0 update per round | m multipliers | {m.update:.1e}·m |",
+        f"| `schur`: rank-0 dense interface solve (Cholesky) | nΣ ≈ 3P interface unknowns | {m.rank0[0]:.2e}·nΣ^{m.rank0[1]:.2f} |",
+        f"| `mprgp`, `feti`: rank-0 update per round | m multipliers | {m.update:.1e}·m |",
         f"| `mprgp`: rounds (kkt 1e-6) | P vertices on Σ | {m.mprgp_rounds[0]:.1f}·P^{m.mprgp_rounds[1]:.2f} |",
+        f"| `feti`: rounds (kkt 1e-6) | P vertices on Σ | {m.feti_rounds[0]:.1f}·P^{m.feti_rounds[1]:.2f} |",
         "",
         f"Four blocks of work W each take 4W/min(N, C) on N ranks and C cores (C = {c} here): whole blocks "
         "per rank for N ≤ 4, a block over k = N/4 ranks otherwise. Parallel MUMPS is assumed to scale "
@@ -351,9 +485,7 @@ def text(record: dict, model: CostModel) -> str:
         f"**Validation.** On the {len(fitted)} measured runs with at most one rank per core the model's "
         f"solve-phase time is within {100 * np.median(errors):.0f} % in the median and {100 * max(errors):.0f} % "
         "at worst (column *model* above). The oversubscribed runs are overhead measurements: they take "
-        f"{min(overhead):.1f}–{max(overhead):.1f}× the model, most of all with 8 ranks, where the two ranks of "
-        "a block exchange many small MUMPS messages while six other ranks poll for theirs on the same two "
-        "cores.",
+        f"{min(overhead):.1f}–{max(overhead):.1f}× the model.",
         "",
         "## Predictions for 64 to 1024 cores",
         "",
@@ -363,43 +495,26 @@ def text(record: dict, model: CostModel) -> str:
     strong, weak = predictions(model)
     for title, rows in (("Strong scaling, P = 1600 (about 3M unknowns)", strong),
                         (f"Weak scaling, {WEAK_UNKNOWNS_PER_CORE:,} unknowns per core", weak)):
-        lines += [f"**{title}** (seconds; the phases are those of the default method `schur`):", "",
+        lines += [f"**{title}** (seconds; the phases are those of `schur`; *auto*: what the default picks):", "",
                   "| cores | P | factorization | interface matrices | rounds | gather | rank-0 solve | `schur` total "
-                  "| `mprgp` total |",
-                  "|---|---|---|---|---|---|---|---|---|"]
+                  "| `mprgp` total | `feti` total | auto |",
+                  "|---|---|---|---|---|---|---|---|---|---|---|"]
         for r in rows:
             lines.append(f"| {r['ranks']} | {r['P']} | {r['factorization']:.3f} | {r['interface']:.3f} "
                          f"| {r['rounds']:.3f} | {r['gather']:.3f} | {r['rank0']:.3f} | {r['total']:.2f} "
-                         f"| {r['mprgp']:.2f} |")
+                         f"| {r['mprgp']:.2f} | {r['feti']:.2f} | `{r['auto']}` |")
         lines.append("")
     crossover = next((r["ranks"] for r in weak if r["rank0"] > r["factorization"] + r["interface"]), None)
-    switch = next((r["ranks"] for r in strong if r["mprgp"] < r["total"]), None)
     lines += [
-        "**Where the rank-0 update becomes the bottleneck.** Rank 0's dense interface solve does not shrink "
-        f"with the number of ranks: {strong[0]['rank0']:.1f} s at P = 1600. In strong scaling it is the largest "
-        f"phase from {next((r['ranks'] for r in strong if r['rank0'] >= max(r['factorization'], r['interface'])), '—')} "
-        f"cores on, and no number of cores brings the total below it. In weak scaling nΣ ≈ 3P grows like √N, so "
-        "rank 0's work grows "
-        f"like N^{1.5 * m.rank0[1] / 3:.1f} while the block work per rank grows slowly"
-        + (f"; rank 0 overtakes the block work at about {crossover} cores." if crossover else ".") +
-        " The interface matrices of distributed blocks are the other phase that scales badly: PETSc's MUMPS "
-        "interface has no parallel Schur complement, so they take 2kΣ right-hand sides of multi-column solves"
-        + (f", and from {switch} cores on the model prefers `mprgp` (its rounds only need solves)." if switch else ".") +
-        " Remedies, in order of effort: distributed blocks running `mprgp` (possible today with "
-        "`--set solver.method=mprgp`); the Schur complement of a distributed block from MUMPS itself "
-        "(ICNTL(19) returns it distributed, which PETSc does not expose); the interface problem solved by a "
-        "parallel dense solver (ScaLAPACK or Elemental through PETSc) or iteratively on a few ranks instead of "
-        "rank 0 alone.",
-        "",
-        "## Large meshes",
-        "",
-        "| P | M | unknowns in all | solve phase (s) | setup (s) | launch (s) | peak memory per rank (MB) |",
-        "|---|---|---|---|---|---|---|",
+        "**Where the design stops scaling, and what the default does.** With distributed blocks `schur` needs "
+        "the interface matrices by 2kΣ right-hand sides of multi-column solves (PETSc's MUMPS interface has no "
+        "parallel Schur complement), and rank 0's dense interface solve does not shrink with the number of ranks "
+        f"({strong[0]['rank0']:.1f} s at P = 1600"
+        + (f"; in weak scaling it overtakes the block work at about {crossover} cores" if crossover else "") +
+        "). `feti` needs neither: only block solves and products, rank 0's work per round is linear in the "
+        "multipliers, and its rounds grow slowly with P. The default (`auto`) takes `schur` for whole blocks and, "
+        "for distributed blocks, whichever the model predicts cheaper (`methods.choose`, with the per-block laws "
+        "above): `feti` on every predicted configuration here. What remains: `feti`'s active-set steps grow "
+        "slowly with P, and its Dirichlet factorization doubles the factorization work and memory.",
     ]
-    for r in (r for r in runs if r["kind"] == "large"):
-        lines.append(f"| {r['P']} | {r['M']} | {4 * r['unknowns']:,} | {r['wall_time']:.1f} | {r['setup']:.1f} "
-                     f"| {r['launch']:.0f} | {', '.join(f'{m:.0f}' for m in r['peak_memory_mb'])} |")
-    lines += ["", "Both solved by the default method on 4 ranks (one block each); *setup* is meshing (two "
-              "ranks, one half each, gmsh single-threaded) and assembly, *launch* the whole command including "
-              "writing the result."]
     return "\n".join(lines) + "\n"
