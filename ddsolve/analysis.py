@@ -81,7 +81,7 @@ class Constraints:
 
     penetration: float  # max (u⁻ − u⁺)·ν > 0 over crack nodes under non-penetration, / max|u|
     gluing_gap: float  # max |gluing gap| over Σ (but the gap a multiplier at its bound ±p allows), / max|u|
-    complementarity: float  # max |μᶜ [u]·ν| / (max|μᶜ| max|u|)
+    complementarity: float  # max |μᶜ [u]·ν| (but where μᶜ = p) / (max|λ| max|u|)
     multiplier_bounds: float  # max violation of 0 ≤ μᶜ ≤ p, |μ| ≤ p (a pull on closed crack faces), / max|λ|
     equilibrium: float  # max over blocks of ‖K x − f − ℓ(λ)‖∞ / (‖K‖∞‖x‖∞ + ‖f + ℓ(λ)‖∞)
     min_mu_c: float  # smallest contact multiplier (≥ 0 when dual feasible)
@@ -169,8 +169,8 @@ def kkt(interface: Interface, traces: np.ndarray, lam: np.ndarray, p: float | No
         penetration=_ratio(float(np.where(at_upper, 0.0, np.maximum(gap, 0.0))[contact].max(initial=0.0)), largest)
         if finite else nan,
         gluing_gap=_ratio(float(violated[~contact].max(initial=0.0)), largest) if finite else nan,
-        complementarity=_ratio(float(np.abs(mu_c * gap[contact]).max(initial=0.0)),
-                               float(np.abs(mu_c).max(initial=0.0)) * largest) if finite else nan,
+        complementarity=_ratio(float(np.abs(np.where(at_upper, 0.0, lam * gap)[contact]).max(initial=0.0)),
+                               float(np.abs(lam).max(initial=0.0)) * largest) if finite else nan,
         multiplier_bounds=_ratio(max(bounds, 0.0), float(np.abs(lam).max(initial=0.0))) if finite else nan,
         equilibrium=float(np.max(equilibrium, initial=0.0)),
         min_mu_c=float(mu_c.min(initial=0.0)),

@@ -26,6 +26,9 @@ from .mesh import HalfMesh, Mesh, SigmaLine
 from .result import Result
 
 MULTIPLIERS = ("mu_c", "mu_g", "mu_minus", "mu_plus")
+#: A dataset of a result file holds at most this many times the file's size (ddsolve does not
+#: compress them): a larger claim is a damaged header, not read.
+READ_LIMIT = 16
 SIGMA_FIELDS = ("points", "normals", "weights", "crack", "tip", "clamped", "corner")
 
 
@@ -326,7 +329,7 @@ def read(path: Path) -> Result:
     try:
         with h5py.File(path, "r") as f:
             result = _read(f, path)
-    except (OSError, KeyError, TypeError, ValueError, IndexError, AttributeError, RuntimeError) as exc:
+    except (OSError, KeyError, TypeError, ValueError, IndexError, AttributeError, RuntimeError, MemoryError) as exc:
         raise DDSolveError(f"{path}: not a ddsolve result file ({' '.join(str(exc).split())})") from None
     except DDSolveError as exc:
         raise DDSolveError(f"{path}: not a ddsolve result file ({exc})") from None
@@ -335,17 +338,28 @@ def read(path: Path) -> Result:
 
 def _array(f: h5py.File, name: str, kind: str, shape: tuple) -> np.ndarray:
     """Dataset ``name`` as an array of ``kind`` (numpy kinds: "f" numbers, "i" integers, "b" flags)
-    and ``shape`` (None: any length)."""
-    values = f[name][()]
-    if not isinstance(values, np.ndarray) or values.dtype.kind not in {"f": "fiu", "i": "iu", "b": "biu"}[kind]:
-        raise DDSolveError(f"{name} holds {getattr(values, 'dtype', type(values).__name__)}, not "
-                           f"{ {'f': 'numbers', 'i': 'integers', 'b': 'flags'}[kind]}")
-    if len(values.shape) != len(shape) or any(want is not None and got != want for got, want in zip(values.shape, shape)):
+    and ``shape`` (None: any length), checked before it is read (a damaged header may claim any size)."""
+    dataset = _dataset(f, name)
+    if dataset.dtype.kind not in {"f": "fiu", "i": "iu", "b": "biu"}[kind]:
+        raise DDSolveError(f"{name} holds {dataset.dtype}, not {({'f': 'numbers', 'i': 'integers', 'b': 'flags'})[kind]}")
+    got = dataset.shape or ()
+    if len(got) != len(shape) or any(want is not None and size != want for size, want in zip(got, shape)):
         expected = tuple("n" if want is None else want for want in shape)
-        raise DDSolveError(f"{name} has shape {values.shape}, expected {expected}".replace("'", ""))
+        raise DDSolveError(f"{name} has shape {got}, expected {expected}".replace("'", ""))
+    values = dataset[()]
     if kind == "f" and not np.all(np.isfinite(values)) and name.startswith(("mesh/", "sigma/")):
         raise DDSolveError(f"{name} holds values that are not finite")
     return values.astype(bool) if kind == "b" else values
+
+
+def _dataset(f: h5py.File, name: str) -> h5py.Dataset:
+    """Dataset ``name``, if its size is one the file can hold."""
+    dataset = f[name]
+    if not isinstance(dataset, h5py.Dataset):
+        raise DDSolveError(f"{name} is not a dataset")
+    if dataset.size * dataset.dtype.itemsize > READ_LIMIT * os.path.getsize(f.filename) + 2 ** 20:
+        raise DDSolveError(f"{name} claims {dataset.shape} values, more than the file can hold")
+    return dataset
 
 
 def _indices(values: np.ndarray, count: int, name: str) -> np.ndarray:
@@ -381,10 +395,10 @@ def _read(f: h5py.File, path: Path) -> Result:
     cell_data = {}
     for name, group in f.get("cell_data", {}).items():
         cell_data[name] = {}
-        for block, values in group.items():
+        for block in group:
             half = mesh.half(-1 if block.endswith("minus") else 1)
-            values = values[()]
-            if block not in {spec.name for spec in BLOCKS} or len(values) != len(half.cells):
+            values = _dataset(f, f"cell_data/{name}/{block}")[()]
+            if block not in {spec.name for spec in BLOCKS} or np.ndim(values) == 0 or len(values) != len(half.cells):
                 raise DDSolveError(f"cell_data/{name}/{block} does not match the cells of its half")
             cell_data[name][block] = values
     scene_text = f.attrs["scene"]

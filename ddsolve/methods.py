@@ -518,7 +518,7 @@ def _remedy(solver: Solver, violations: list[str]) -> str:
         return ("the block solves are inaccurate: check the blocks' PETSc options "
                 "(-u_minus_ksp_rtol, -u_minus_pc_type, ...)")
     if solver.method == "uzawa" and solver.stop == "paper":
-        return (f"the paper's stopping rule |dx|/|x|^2 < solver.tol is dimensional and stopped after too few "
+        return (f"the paper's stopping rule ‖Δx‖/‖x‖² < solver.tol is dimensional and was met after too few "
                 f"steps: set solver.stop = \"kkt\" (or a smaller solver.theta than {solver.theta:g})"
                 if isinstance(solver.theta, float) else "set solver.stop = \"kkt\"")
     if solver.method == "uzawa":
