@@ -10,7 +10,9 @@ from __future__ import annotations
 import ctypes
 import dataclasses
 import functools
+import math
 import os
+import re
 
 import numpy as np
 from petsc4py import PETSc
@@ -37,13 +39,20 @@ class Block:
     blocks use MUMPS); the options ``-<name>_pc_factor_mat_solver_type`` and friends override it.
     The matrix carries the rigid-body modes as near-null space, for ``-<name>_pc_type gamg``.
     Traces, energies and solutions are collected on the block's first rank (its *leader*).
+
+    The block is nondimensionalized: PETSc holds K/s and right-hand sides b/s, with s the power of two
+    nearest the block's largest diagonal entry (:func:`diagonal_scale`), so every factorization sees
+    numbers of order one whatever the moduli, and solutions come out unscaled.  Division by a power
+    of two is exact, so for ordinary moduli the results are bit-identical to unscaled ones.
     """
 
     def __init__(self, system: BlockSystem, comm: PETSc.Comm = PETSc.COMM_SELF, factor_package: str = "mumps"):
         self.name = system.name
         self.mpi = comm.tompi4py()
         local, n = len(system.rhs), system.size
-        csr = tuple(a.astype(PETSc.IntType, copy=False) for a in (system.indptr, system.indices)) + (system.data,)
+        self.scale = diagonal_scale(system, self.mpi)
+        data = system.data if self.scale == 1.0 else system.data / self.scale
+        csr = tuple(a.astype(PETSc.IntType, copy=False) for a in (system.indptr, system.indices)) + (data,)
         if self.mpi.size == 1:  # PETSc works on these arrays (no copy); blocks of a half share indptr, indices
             self.matrix = PETSc.Mat().createAIJWithArrays(size=((local, n), (local, n)), csr=csr,
                                                           bsize=system.block_size, comm=comm)
@@ -63,7 +72,10 @@ class Block:
         pc = self.ksp.getPC()
         pc.setType(PETSc.PC.Type.CHOLESKY)
         pc.setFactorSolverType(default_factor_package("mumps" if self.mpi.size > 1 else factor_package))
-        self.ksp.setFromOptions()
+        try:
+            self.ksp.setFromOptions()
+        except PETSc.Error as exc:
+            raise SolverError(f"block {self.name}: {petsc_failure(exc, self.ksp.getOptionsPrefix())}") from None
         self.rhs, self.x = self.matrix.createVecLeft(), self.matrix.createVecRight()
         self._schur: np.ndarray | None = None  # as stored by MUMPS (one triangle valid)
         self._dirichlet = self._dirichlet_matrix = self._work = None  # see factor_dirichlet
@@ -128,8 +140,8 @@ class Block:
                 self._schur = _schur_complement(factor, len(self.trace_dofs))
                 _call("MatFactorFactorizeSchurComplement", factor)
         except PETSc.Error as exc:
-            raise SolverError(f"block {self.name}: solver setup failed (PETSc error {exc.ierr}); "
-                              "is the block clamped?") from None
+            raise SolverError(f"block {self.name}: solver setup failed: "
+                              f"{petsc_failure(exc, self.ksp.getOptionsPrefix())}") from None
 
     def factor_dirichlet(self) -> None:
         """Set up the Dirichlet problem: K with the trace dofs held (their rows and columns replaced by
@@ -169,11 +181,11 @@ class Block:
         except PETSc.Error as exc:
             raise SolverError(f"block {self.name}: Dirichlet solve failed (PETSc error {exc.ierr})") from None
         self.matrix.mult(self.x, held)
-        return self._gather_trace(held.getArray(readonly=True)[self.trace_rows])
+        return self._gather_trace(held.getArray(readonly=True)[self.trace_rows] * self.scale)
 
     def trace_diagonal(self) -> np.ndarray | None:
         """The diagonal of K at the trace dofs, on the leader (the stiffness scaling of the preconditioner)."""
-        return self._gather_trace(self.matrix.getDiagonal().getArray(readonly=True)[self.trace_rows])
+        return self._gather_trace(self.matrix.getDiagonal().getArray(readonly=True)[self.trace_rows] * self.scale)
 
     def factor_megabytes(self) -> float:
         """Memory MUMPS reports for this rank's part of the factorization (INFO(16), MB); 0 for other solvers."""
@@ -193,14 +205,39 @@ class Block:
         b = self.rhs.getArray()
         b[:] = self.system.rhs if body else 0.0
         b[self.trace_rows] += load[self.trace_positions]
+        b /= self.scale
         try:
             self.ksp.solve(self.rhs, self.x)
         except PETSc.Error as exc:
-            raise SolverError(f"block {self.name}: solve failed (PETSc error {exc.ierr})") from None
+            raise SolverError(f"block {self.name}: solve failed: "
+                              f"{petsc_failure(exc, self.ksp.getOptionsPrefix())}") from None
         reason = self.ksp.getConvergedReason()
         if reason < 0:
-            raise SolverError(f"block {self.name}: KSP did not converge (reason {reason})")
+            raise SolverError(f"block {self.name}: {self.ksp.getType()} solve did not converge "
+                              f"({_reason_name(reason)}); see the -{self.ksp.getOptionsPrefix()}ksp_* and "
+                              f"-{self.ksp.getOptionsPrefix()}pc_* options")
         return self.x.getArray(readonly=True)
+
+    def residual(self) -> float:
+        """The last solve's relative residual ‖K x − b‖∞ / (‖K‖∞ ‖x‖∞ + ‖b‖∞) (a backward error:
+        round-off for a direct solve; collective over the block)."""
+        r = self.matrix.createVecLeft()
+        self.matrix.mult(self.x, r)
+        r.axpy(-1.0, self.rhs)
+        norm = PETSc.NormType.INFINITY
+        size = self.matrix.norm(norm) * self.x.norm(norm) + self.rhs.norm(norm)
+        value = r.norm(norm)
+        r.destroy()
+        return value / size if value > 0.0 else 0.0
+
+    def largest_displacement(self, x: np.ndarray) -> float:
+        """max nodal |x| over the block (``x``: this rank's rows, whole nodes; collective)."""
+        local = float(np.hypot(x[0::2], x[1::2]).max(initial=0.0))
+        if self.mpi.size == 1:
+            return local
+        from mpi4py import MPI
+
+        return self.mpi.allreduce(local, op=MPI.MAX)
 
     def trace(self, x: np.ndarray) -> np.ndarray | None:
         """The trace of the solution whose local rows are ``x``, on the leader."""
@@ -210,7 +247,7 @@ class Block:
         """(xᵀ b, xᵀ f) of the last solve, on the leader: the energy xᵀ K x and the work of the body
         loads f (the traction loads, whatever the interface loads were)."""
         x = self.x.getArray(readonly=True)
-        local = np.array([np.dot(x, self.rhs.getArray(readonly=True)), np.dot(x, self.system.rhs)])
+        local = np.array([np.dot(x, self.rhs.getArray(readonly=True)) * self.scale, np.dot(x, self.system.rhs)])
         return self.mpi.reduce(local, root=0) if self.mpi.size > 1 else local
 
     def gather(self, x: np.ndarray) -> np.ndarray | None:
@@ -247,6 +284,7 @@ class Block:
         """
         if self._schur is not None:  # handed over once, filled in place (S is large: (2k)² doubles)
             stored, self._schur = self._schur, None
+            stored *= self.scale  # MUMPS's is that of K/s
             above = np.triu_indices(len(stored), 1)
             lower, upper = np.abs(stored.T[above]).max(initial=0.0), np.abs(stored[above]).max(initial=0.0)
             if upper == 0.0:
@@ -279,7 +317,7 @@ class Block:
                 X.setUp()
                 X.assemble()
                 self.ksp.getPC().getFactorMatrix().matSolve(B, X)
-                block = X.getDenseArray()[self.trace_rows, :]
+                block = X.getDenseArray()[self.trace_rows, :] / self.scale
                 B.destroy()
                 X.destroy()
             else:
@@ -298,6 +336,42 @@ class Block:
         for obj in (self.ksp, self.matrix, self.rhs, self.x, self._dirichlet, self._dirichlet_matrix, self._work):
             if obj is not None:
                 obj.destroy()
+
+
+def diagonal_scale(system: BlockSystem, comm) -> float:
+    """The power of two nearest the largest |diagonal entry| of the block (over all its ranks; 1 if
+    there is none)."""
+    rows = np.repeat(np.arange(len(system.rhs)), np.diff(system.indptr)) + system.first
+    diagonal = np.abs(system.data[system.indices == rows])
+    largest = float(diagonal.max(initial=0.0))
+    if comm.size > 1:
+        from mpi4py import MPI
+
+        largest = comm.allreduce(largest, op=MPI.MAX)
+    if not (math.isfinite(largest) and largest > 0.0):
+        return 1.0
+    return math.ldexp(1.0, math.frexp(largest)[1] - 1)
+
+
+def petsc_failure(exc: PETSc.Error, prefix: str | None) -> str:
+    """One line for a PETSc error: PETSc's most specific message and the options (under ``prefix``)
+    whose values it names, e.g. «Unable to find requested PC type nonsense (from -u_minus_pc_type
+    nonsense)»."""
+    messages = [line.split("] ", 1)[1].strip() for line in str(exc).splitlines()
+                if line.startswith("[") and "] " in line]
+    messages = [m for m in messages if m and not re.match(r"[\w:]+\(\) at |See |Petsc |Configure ", m)]
+    detail = messages[-1] if messages else f"error code {exc.ierr}"
+    options = PETSc.Options().getAll()
+    named = [f"-{key} {value}" for key, value in sorted(options.items())
+             if (not prefix or key.startswith(prefix)) and value and re.search(rf"\b{re.escape(str(value))}\b", detail)]
+    return detail + (f" (from {', '.join(named)})" if named else "")
+
+
+def _reason_name(reason: int) -> str:
+    """A KSP converged reason as PETSc names it (e.g. DIVERGED_PC_FAILED), with its number."""
+    names = {value: name for name, value in vars(PETSc.KSP.ConvergedReason).items()
+             if isinstance(value, int) and not name.startswith("_")}
+    return f"{names.get(reason, 'reason')} {reason}"
 
 
 # --- PETSc C calls that petsc4py does not wrap (MatFactorSetSchurIS and friends) --------------
@@ -343,6 +417,30 @@ def _default_ordering(ksp: PETSc.KSP) -> None:
     options, key = PETSc.Options(), f"{ksp.getOptionsPrefix() or ''}mat_mumps_icntl_7"
     if not options.hasName(key):
         options[key] = MUMPS_ORDERING
+
+
+#: Options PETSc itself reads only when it finalizes.
+_READ_AT_FINALIZE = ("options_left",)
+
+
+def unused_options() -> list[str] | None:
+    """``-name value`` of every PETSc option set (command line, PETSC_OPTIONS, files) that nothing in
+    this process has read so far; None when this PETSc cannot tell."""
+    lib = _petsc_c()
+    if lib is None or not hasattr(lib, "PetscOptionsLeftGet"):
+        return None
+    integer = ctypes.c_int64 if np.dtype(PETSc.IntType).itemsize == 8 else ctypes.c_int32
+    count, names, values = integer(), ctypes.POINTER(ctypes.c_char_p)(), ctypes.POINTER(ctypes.c_char_p)()
+    if lib.PetscOptionsLeftGet(None, ctypes.byref(count), ctypes.byref(names), ctypes.byref(values)) != 0:
+        return None
+    left = []
+    for i in range(count.value):
+        name = names[i].decode(errors="replace")
+        value = values[i].decode(errors="replace") if values[i] else ""
+        if name not in _READ_AT_FINALIZE:
+            left.append(f"-{name} {value}".strip())
+    lib.PetscOptionsLeftRestore(None, ctypes.byref(count), ctypes.byref(names), ctypes.byref(values))
+    return left
 
 
 def _call(function: str, *args) -> None:

@@ -1,39 +1,107 @@
 """Command line: ``python -m ddsolve COMMAND ...`` (``./run COMMAND ...`` prepares the environment).
 
-PETSc options go last (from the first single-dash option that is not ddsolve's own), e.g.
-``ddsolve solve partial-closure -u_minus_ksp_type cg -u_minus_pc_type gamg -log_view``.
+ddsolve's own options may come anywhere; every other single-dash option of ``solve``, ``reference``,
+``version`` and ``bench`` is PETSc's (with the next word as its value unless that is an option),
+e.g. ``ddsolve solve partial-closure -u_minus_ksp_type cg -u_minus_pc_type gamg -log_view -o r.h5``;
+everything after ``--`` is PETSc's.  Commands without PETSc refuse unknown options.  PETSc options
+that nothing read are reported when the run ends, as PETSc's ``-options_left`` does.
 """
 from __future__ import annotations
 
 import argparse
+import difflib
 import importlib
 import math
 import os
 import signal
+import socket
 import sys
+import threading
 import time
 import traceback
 from pathlib import Path
 
 from . import __version__
 from .environment import import_errors_explained
-from .errors import DDSolveError
+from .errors import DDSolveError, NotConvergedError, UsageError
 from .launch import mpiexec_command
 
-OWN_SHORT_OPTIONS = {"-n", "-o", "-h"}
+#: Commands that hand options to PETSc.
+PETSC_COMMANDS = ("solve", "sweep", "reference", "version", "bench")
+#: Options-prefixes of the KSPs (what a misspelt option is compared with).
+PREFIXES = {"solve": ("u_minus_", "u_plus_", "v_minus_", "v_plus_"), "reference": ("reference_",)}
+PREFIXES["sweep"] = PREFIXES["solve"]
+#: Memory a rank needs before it holds any mesh (Python, numpy, PETSc, MPI), and per mesh vertex for
+#: a solve (assembly, factorizations, Schur complements; measured with 4 ranks at P = 400, M = 512).
+RANK_MEMORY = 100e6
+VERTEX_MEMORY = 15e3
+#: Suffixes of a result file.
+RESULT_SUFFIXES = (".h5", ".hdf5")
 
 
-def split_petsc_options(argv: list[str]) -> tuple[list[str], list[str]]:
-    """Split argv at the first PETSc-looking option (``-name``, not ours, not a negative number)."""
-    for i, arg in enumerate(argv):
+class Parser(argparse.ArgumentParser):
+    """argparse with one-line errors (exit status 2) instead of a usage block."""
+
+    def error(self, message: str):
+        command = self.prog.removeprefix("ddsolve").strip()
+        raise UsageError(f"{command + ': ' if command else ''}{message} (see {self.prog} --help)")
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+        return True
+    except ValueError:
+        return False
+
+
+def _subcommands(top: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    return next(action.choices for action in top._actions if isinstance(action, argparse._SubParsersAction))
+
+
+def split_arguments(top: argparse.ArgumentParser, argv: list[str], petsc_commands: tuple[str, ...] = PETSC_COMMANDS
+                    ) -> tuple[list[str], list[str]]:
+    """(ddsolve's arguments, PETSc's options), wherever the user typed them.
+
+    An option of the command (and its value) is ddsolve's; any other single-dash word that is not a
+    number starts a PETSc option, whose value is the next word unless that is an option; ``--``
+    hands everything after it to PETSc.  A command without PETSc options refuses them.
+    """
+    command = next((arg for arg in argv if not arg.startswith("-")), None)
+    sub = _subcommands(top).get(command)
+    if sub is None:
+        return list(argv), []
+    options = sub._option_string_actions
+    own: list[str] = []
+    petsc: list[str] = []
+    i = 0
+    while i < len(argv):
+        arg = argv[i]
         if arg == "--":
-            return argv[:i], argv[i + 1:]
-        if arg.startswith("-") and not arg.startswith("--") and arg not in OWN_SHORT_OPTIONS:
-            try:
-                float(arg)
-            except ValueError:
-                return argv[:i], argv[i:]
-    return argv, []
+            petsc += argv[i + 1:]
+            break
+        name = arg.split("=", 1)[0] if arg.startswith("--") else arg
+        glued = len(arg) > 2 and arg[:2] in options and _is_number(arg[2:])  # -n4
+        if name in options or glued:
+            own.append(arg)
+            takes_value = not glued and "=" not in arg and options[name].nargs != 0
+            if takes_value and i + 1 < len(argv):
+                own.append(argv[i + 1])
+                i += 1
+        elif arg.startswith("-") and not arg.startswith("--") and len(arg) > 1 and not _is_number(arg):
+            petsc.append(arg)
+            if i + 1 < len(argv) and argv[i + 1] != "--" and (not argv[i + 1].startswith("-")
+                                                             or _is_number(argv[i + 1])):
+                petsc.append(argv[i + 1])
+                i += 1
+        else:
+            own.append(arg)
+        i += 1
+    if petsc and command not in petsc_commands:
+        close = difflib.get_close_matches(petsc[0], list(options), n=1)
+        hint = f" (did you mean {close[0]}?)" if close else ""
+        raise UsageError(f"{command}: unknown option {petsc[0]}{hint}; {command} takes no PETSc options")
+    return own, petsc
 
 
 def init_petsc(options: list[str]) -> None:
@@ -56,25 +124,100 @@ def _load_scene(args):
 
 
 def _default_output(args) -> Path:
-    return Path(args.output) if args.output else Path(Path(args.scene).stem + ".h5")
+    return Path(args.output) if args.output is not None else Path(Path(args.scene).stem + ".h5")
+
+
+def _physical_memory() -> float:
+    try:
+        return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):
+        return math.inf
+
+
+def check_ranks(ranks: int) -> None:
+    """Refuse a rank count ddsolve cannot use, or that this machine cannot start, before mpiexec."""
+    from .launch import supported
+
+    if not supported(ranks):
+        raise UsageError(f"-n {ranks}: unsupported number of ranks: use 1, 2 or a multiple of 4")
+    memory = ranks * RANK_MEMORY
+    if memory > _physical_memory():
+        raise UsageError(f"-n {ranks}: {ranks} ranks need about {memory / 1e9:.3g} GB before any mesh "
+                         f"(about {RANK_MEMORY / 1e6:g} MB each), more than this machine's "
+                         f"{_physical_memory() / 1e9:.3g} GB; for ranks on several machines start mpiexec yourself")
+
+
+def check_size(scene, ranks: int = 1) -> None:
+    """Refuse a mesh that cannot fit in this machine's memory, before it is made."""
+    from . import geometry
+
+    vertices = geometry.estimated_vertices(scene)
+    if vertices is None:
+        return
+    memory = ranks * RANK_MEMORY + vertices * VERTEX_MEMORY
+    if memory > _physical_memory():
+        options = scene.mesh
+        keys = (f"mesh.size = {options.size:g}" if options.size is not None else
+                f"mesh.sigma_vertices = {options.sigma_vertices}, mesh.boundary_vertices = {options.boundary_vertices}")
+        raise DDSolveError(f"{keys}: a mesh of about {vertices:.2g} vertices needs about {memory / 1e9:.2g} GB "
+                           f"to solve (about {VERTEX_MEMORY / 1e3:g} kB per vertex), more than this machine's "
+                           f"{_physical_memory() / 1e9:.3g} GB")
+
+
+def _inputs(args, scene) -> list[Path]:
+    """The files a run reads: the scene file and its mesh or geometry file."""
+    return [path for path in (Path(args.scene), scene.mesh.file) if path is not None and path.is_file()]
+
+
+def check_outputs(args, scene) -> Path:
+    """The result file of ``solve``/``reference`` and its viewer files, checked before any work."""
+    from . import export, io
+
+    output = _default_output(args)
+    if not output.name:
+        raise DDSolveError(f"-o {str(args.output)!r}: not a file name")
+    if output.suffix.lower() not in RESULT_SUFFIXES:
+        raise DDSolveError(f"-o {output}: a result is an HDF5 file: give it the suffix .h5 (its viewer files "
+                           "are written beside it)")
+    io.check_targets([output, *export.viewer_paths(output.parent, output.stem)], _inputs(args, scene))
+    return output
+
+
+def report_unused_options(comm, command: str) -> None:
+    """A PETSc ``-options_left``-style warning on rank 0: the options no rank read (misspelt ones)."""
+    from .blocks import unused_options
+
+    left = unused_options()
+    every = comm.gather(left, root=0) if comm is not None else [left]
+    if every is None or any(options is None for options in every):
+        return
+    common = [option for option in every[0] if all(option in other for other in every[1:])]
+    if common:
+        print(f"ddsolve: warning: PETSc options not used (misspelt? the prefixes here are "
+              f"{', '.join(PREFIXES[command])}): {', '.join(common)}", file=sys.stderr, flush=True)
 
 
 # --- commands -------------------------------------------------------------------------------
-def _launch(args) -> None:
-    """With ``-n N``: replace this process by mpiexec running the same command on N ranks."""
+def _launch(args, petsc_options: list[str], scene_checks: bool) -> None:
+    """With ``-n N``: check what can be checked here (the rank count, the modules, and with
+    ``scene_checks`` the scene, the mesh size and the output files), then replace this process by
+    mpiexec running the same command on N ranks."""
     if args.ranks is None:
         return
+    check_ranks(args.ranks)
     for module in ("petsc4py", "mpi4py", "h5py"):  # if one is missing, one line here, not one per rank
         importlib.import_module(module)
-    forwarded = list(args.argv)
-    i = next(j for j, a in enumerate(forwarded) if a.startswith("-n"))
-    del forwarded[i:i + (2 if forwarded[i] == "-n" else 1)]
-    command = mpiexec_command(args.ranks, forwarded)
+    if scene_checks:
+        scene = _load_scene(args)
+        check_size(scene, args.ranks)
+        check_outputs(args, scene)
+    forwarded = [arg for i, arg in enumerate(args.own) if i not in args.ranks_at]
+    command = mpiexec_command(args.ranks, forwarded + (["--", *petsc_options] if petsc_options else []))
     os.execvpe(command[0], command, {**os.environ, "DDSOLVE_LAUNCHED": repr(time.time())})  # start-up timing
 
 
 def cmd_solve(args, petsc_options: list[str]) -> int:
-    _launch(args)
+    _launch(args, petsc_options, scene_checks=True)
     init_petsc(petsc_options)
     from mpi4py import MPI
 
@@ -84,8 +227,15 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
     comm = MPI.COMM_WORLD
     scene = collective(comm, lambda: _load_scene(args), root_only=True)
     scene = comm.bcast(scene, root=0)
-    output = _default_output(args)
-    result = driver.solve(scene, comm, output, progress=_root_print)
+    output = collective(comm, lambda: (check_size(scene, comm.size), check_outputs(args, scene))[1], root_only=True)
+    output = comm.bcast(output, root=0)
+    try:
+        result = driver.solve(scene, comm, output, progress=_root_print)
+    except DDSolveError as exc:
+        if exc.collective:  # every rank is here: the others are not waiting in a solve
+            report_unused_options(comm, "solve")
+        raise
+    report_unused_options(comm, "solve")
     if result is not None:
         print(f"{result.method}: converged after {result.iterations} iterations, {result.solves} rounds of "
               f"block solves, {result.wall_time:.3f} s on {result.ranks} ranks -> {output}", flush=True)
@@ -100,7 +250,7 @@ def _print_fracture(result) -> None:
 
 
 def cmd_sweep(args, petsc_options: list[str]) -> int:
-    _launch(args)
+    _launch(args, petsc_options, scene_checks=False)
     init_petsc(petsc_options)
     import time
 
@@ -123,13 +273,19 @@ def cmd_sweep(args, petsc_options: list[str]) -> int:
 def cmd_reference(args, petsc_options: list[str]) -> int:
     init_petsc(petsc_options)
     from . import geometry, io, reference
+    from .scene import check_range
 
     scene = _load_scene(args)
+    check_size(scene)
+    output = check_outputs(args, scene)
     mesh = geometry.build(scene)
     geometry.check_loads(scene, mesh)
+    check_range(scene, mesh)
     result = reference.solve(scene, mesh)
-    output = _default_output(args)
     io.write(output, result)
+    report_unused_options(None, "reference")
+    if not result.converged:
+        raise NotConvergedError(result.message)
     print(f"reference: {result.iterations} active-set steps, {result.wall_time:.3f} s -> {output}")
     _print_fracture(result)
     return 0
@@ -147,10 +303,17 @@ def cmd_compare(args, _petsc_options) -> int:
 def cmd_check(args, _petsc_options) -> int:
     from . import analysis, io
 
-    c = analysis.constraints(io.read(args.result))
-    print(f"max penetration {c.penetration:.3e}   max gluing gap {c.gluing_gap:.3e}   "
-          f"complementarity {c.complementarity:.3e}   (relative to max |u| = {c.max_displacement:.3e}); "
+    result = io.read(args.result)
+    c = analysis.constraints(result)
+    tolerance = analysis.tolerance_of(result)
+    violations = c.violations(tolerance)
+    print(f"{c.summary()}   (scale-free: relative to max |u| = {c.max_displacement:.3e}, max |mu|, ||K|| ||x||); "
           f"min mu_c {c.min_mu_c:.3e}")
+    claim = f"the file says converged = {str(result.converged).lower()}"
+    if violations:
+        raise NotConvergedError(f"{args.result}: KKT check failed: {', '.join(violations)} above the tolerance "
+                                f"{tolerance:g} ({claim})")
+    print(f"KKT check passed: every residual within {tolerance:g} ({claim})")
     return 0
 
 
@@ -167,36 +330,59 @@ def _scale(text: str | None) -> float | None:
     return value
 
 
+#: The largest displacement ``plot --scale`` may draw, in domain sizes.
+MAX_DRAWN = 100.0
+
+
 def cmd_plot(args, _petsc_options) -> int:
-    from . import io, plots
+    import io as memory
+
+    import numpy as np
+
+    from . import analysis, io, plots
 
     scale = _scale(args.scale)
     result = io.read(args.result)
     stem = Path(args.result).with_suffix("")
-    written = [Path(f"{stem}-{name}.png") for name in ("deformed", "crack-faces", "convergence")]
-    scale = plots.deformed_layers(result, written[0], scale)
-    plots.crack_faces(result, written[1])
-    plots.convergence([(result.method, result)], written[2])
-    print(f"wrote {', '.join(map(str, written))} (displacements ×{scale:g})")
+    if scale is not None:
+        points = np.vstack([result.lower.points, result.upper.points])
+        drawn = scale * analysis.largest_displacement(result.solution.values()) / np.ptp(points, axis=0).max()
+        if not drawn <= MAX_DRAWN:
+            raise DDSolveError(f"--scale {args.scale}: draws the largest displacement at {drawn:.3g} times the "
+                               f"domain's size (at most {MAX_DRAWN:g}); leave --scale out to choose it from the data")
+    names = [Path(f"{stem}-{name}.png") for name in ("deformed", "crack-faces", "convergence")]
+    images = [memory.BytesIO() for _ in names]
+    scale = plots.deformed_layers(result, images[0], scale)
+    plots.crack_faces(result, images[1])
+    plots.convergence([(result.method, result)], images[2])
+    io.check_targets(names, [Path(args.result)])
+    io.replace_together({path: (lambda name, data=image.getvalue(): Path(name).write_bytes(data))
+                         for path, image in zip(names, images)})
+    print(f"wrote {', '.join(map(str, names))} (displacements ×{scale:g})")
     return 0
 
 
 def cmd_export(args, _petsc_options) -> int:
-    from . import io
+    from . import export, io
 
     result = io.read(args.result)
-    folder = Path(args.output) if args.output else Path(args.result).parent
+    folder = Path(args.output) if args.output is not None else Path(args.result).parent
     if not folder.is_dir():
         raise DDSolveError(f"-o {folder}: no such directory")
-    written = io.write_viewer(result, folder, Path(args.result).stem, args.format)
+    stem = Path(args.result).stem
+    io.check_targets(export.viewer_paths(folder, stem, args.format), [Path(args.result)])
+    written = io.write_viewer(result, folder, stem, args.format)
     print("wrote " + ", ".join(map(str, written)))
     return 0
 
 
 def cmd_mesh(args, _petsc_options) -> int:
-    from . import geometry, mesh as meshes
+    from . import geometry, io, mesh as meshes
 
     scene = _load_scene(args)
+    check_size(scene)
+    if args.output is not None:
+        io.check_targets([Path(args.output)], _inputs(args, scene))
     mesh = geometry.build(scene)
     print(f"{'half':6s} {'h_min':>8s} {'h_max':>8s} {'vertices':>9s} {'nodes':>9s} {'triangles':>10s} {'min angle':>9s}")
     for half in mesh.halves:
@@ -205,8 +391,8 @@ def cmd_mesh(args, _petsc_options) -> int:
               f"{s.min_angle:9.1f}")
     print(f"Σ vertices {int(mesh.sigma.corner.sum())}, boundary vertices {meshes.boundary_vertex_count(mesh)}, "
           f"degree {mesh.degree}, boundaries: {', '.join(mesh.boundary_names())}")
-    if args.output:
-        geometry.write_msh(mesh, Path(args.output))
+    if args.output is not None:
+        io.atomic(Path(args.output), lambda name: geometry.write_msh(mesh, Path(name)))
         print(f"wrote {args.output} (gmsh, physical groups lower, upper, {', '.join(sorted(mesh.lower.boundaries.keys() | mesh.upper.boundaries.keys()))})")
     return 0
 
@@ -288,7 +474,7 @@ def cmd_version(_args, petsc_options) -> int:
 
 def parser() -> argparse.ArgumentParser:
     """The command line; ``ddsolve --help`` lists the commands (the epilog), experiments apart."""
-    top = argparse.ArgumentParser(prog="ddsolve", description="Domain decomposition (PETSc/MPI) for a two-layer "
+    top = Parser(prog="ddsolve", description="Domain decomposition (PETSc/MPI) for a two-layer "
                                   "elastic structure with a non-penetrating crack.",
                                   formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = top.add_subparsers(dest="command", required=True, metavar="COMMAND",
@@ -353,8 +539,8 @@ def parser() -> argparse.ArgumentParser:
     width = max(len(name) for commands in listing.values() for name, _ in commands) + 2
     top.epilog = "\n\n".join(group + ":\n" + "\n".join(f"  {name:{width}s}{summary}" for name, summary in commands)
                               for group, commands in listing.items())
-    top.epilog += ("\n\nPETSc options go last: ddsolve solve SCENE -u_minus_ksp_type cg -u_minus_pc_type gamg "
-                   "-log_view")
+    top.epilog += ("\n\nPETSc options (solve, reference) may come anywhere after the scene: ddsolve solve SCENE "
+                   "-u_minus_ksp_type cg -u_minus_pc_type gamg -log_view")
     return top
 
 
@@ -366,19 +552,79 @@ def _terminate(signum, _frame) -> None:
     raise Terminated(signal.Signals(signum).name)
 
 
+#: Seconds an interrupt may wait for the main thread (busy in a library call: gmsh, a factorization,
+#: a blocking MPI call) before the watchdog stops the process itself.
+INTERRUPT_GRACE = 3.0
+
+
+def _watch_interrupts() -> None:
+    """Make every phase interruptible: Python runs signal handlers only between bytecodes, so a signal
+    that arrives during a long library call waits for it.  The signal's byte on the wakeup fd wakes
+    this thread at once; if the process is still alive INTERRUPT_GRACE seconds later, it reports,
+    removes the temporary files being written and ends the job itself."""
+    try:
+        reader, writer = socket.socketpair()
+        writer.setblocking(False)
+        signal.set_wakeup_fd(writer.fileno(), warn_on_full_buffer=False)
+    except (ValueError, OSError):  # not the main thread: nothing to watch
+        return
+
+    def watch() -> None:
+        signum = 0
+        while signum not in (signal.SIGINT, signal.SIGTERM):
+            signum = reader.recv(1)[0]
+        time.sleep(INTERRUPT_GRACE)
+        status = 143 if signum == signal.SIGTERM else 130
+        _report("ddsolve: terminated" if status == 143 else "ddsolve: interrupted")
+        if "ddsolve.io" in sys.modules:
+            sys.modules["ddsolve.io"].remove_scratch()
+        sys.stdout.flush()
+        sys.stderr.flush()
+        world = _world()
+        if world is not None:
+            world.Abort(status)
+        os._exit(status)
+
+    threading.Thread(target=watch, name="ddsolve-interrupts", daemon=True).start()
+    _watch_interrupts.sockets = (reader, writer)  # keep them open
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    own, petsc_options = split_petsc_options(argv)
-    args = parser().parse_args(own)
-    args.argv = argv
-    return guarded(lambda: args.run(args, petsc_options))
+    return guarded(lambda: _dispatch(argv))
+
+
+def _dispatch(argv: list[str]) -> int:
+    top = parser()
+    own, petsc_options = split_arguments(top, argv)
+    try:
+        args = top.parse_args(own)
+    except UsageError as exc:
+        if petsc_options and "required" in str(exc):
+            raise UsageError(f"{exc}; a PETSc option takes the next word as its value ({' '.join(petsc_options[:2])}): "
+                             "give the scene first") from None
+        raise
+    args.own = own
+    args.ranks_at = _ranks_positions(own)
+    return args.run(args, petsc_options)
+
+
+def _ranks_positions(own: list[str]) -> set[int]:
+    """Where ``-n N`` (or ``-n4``) is in ddsolve's arguments (removed when the ranks are started)."""
+    for i, arg in enumerate(own):
+        if arg == "-n":
+            return {i, i + 1}
+        if arg.startswith("-n") and _is_number(arg[2:]):
+            return {i}
+    return set()
 
 
 def guarded(call) -> int:
     """Run a command: a DDSolveError (or a missing petsc4py, mpi4py, h5py, gmsh...) becomes one line
-    and its exit status, an interrupt or SIGTERM stops every rank, anything else is a bug (traceback,
-    abort)."""
+    and its exit status, an interrupt or SIGTERM stops every rank, anything else is a bug (one
+    traceback, abort)."""
     signal.signal(signal.SIGTERM, _terminate)
+    _watch_interrupts()
     try:
         with import_errors_explained():
             return call()
@@ -395,7 +641,7 @@ def guarded(call) -> int:
     except Exception:
         traceback.print_exc()
         _abort(1)
-        raise
+        return 1
 
 
 def _world():

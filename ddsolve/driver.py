@@ -24,9 +24,10 @@ from .blocks import Block
 from .errors import DDSolveError, DivergedError, NotConvergedError, SolverError
 from .exchange import Exchange, collective
 from .interface import BLOCKS, U_PLUS, Interface, for_mesh
+from .launch import supported
 from .mesh import HalfMesh, Mesh, SigmaLine
 from .result import Result
-from .scene import Scene
+from .scene import Scene, check_range
 
 STOP, SOLVE_LOAD, SOLVE_FULL, SCHUR, REPORT_ERROR, DIRICHLET, DIAGONAL = range(7)
 #: Commands whose round sends a trace vector to every block.
@@ -35,8 +36,9 @@ WITH_LOADS = (SOLVE_LOAD, SOLVE_FULL, DIRICHLET)
 
 def result_width(command: int, trace_size: int) -> int:
     """Values per block a round returns (before the status flag): a Schur complement, or the trace,
-    the energy xᵀ K x and the work of the body loads."""
-    return trace_size ** 2 if command == SCHUR else trace_size + 2
+    the energy xᵀ K x, the work of the body loads, and (full solves) the relative residual and the
+    largest nodal |x|."""
+    return trace_size ** 2 if command == SCHUR else trace_size + 4
 
 
 class BlockServer:
@@ -77,11 +79,13 @@ class BlockServer:
     def _solve(self, index: int, block: Block, load: np.ndarray, full: bool) -> np.ndarray | None:
         x = block.solve(load, body=full)
         trace, energies = block.trace(x), block.energies()
+        checks = np.zeros(2)
         if full:
+            checks = np.array([block.residual(), block.largest_displacement(x)])
             whole = block.gather(x)
             if block.is_leader:
                 self.solutions[index] = whole
-        return np.concatenate([trace, energies]) if block.is_leader else None
+        return np.concatenate([trace, energies, checks]) if block.is_leader else None
 
 
 class ParallelRounds:
@@ -96,6 +100,8 @@ class ParallelRounds:
         self.count = 0
         self.elapsed = 0.0  # seconds inside rounds
         self.work = np.zeros(len(BLOCKS))  # work of the body loads in the last solve
+        self.residuals = np.zeros(len(BLOCKS))  # relative residuals of the last full solve
+        self.largest = 0.0  # largest nodal displacement in the last full solve
 
     def _round(self, command: int, loads: np.ndarray | None) -> np.ndarray:
         self.stages["Update"].pop()
@@ -119,8 +125,11 @@ class ParallelRounds:
 
     def solve(self, loads: np.ndarray, full: bool) -> tuple[np.ndarray, np.ndarray]:
         results = self._round(SOLVE_FULL if full else SOLVE_LOAD, loads)
-        self.work = results[:, -1]
-        return results[:, :-2], results[:, -2]
+        trace = self.trace_size
+        self.work = results[:, trace + 1]
+        if full:
+            self.residuals, self.largest = results[:, trace + 2], float(results[:, trace + 3].max())
+        return results[:, :trace], results[:, trace]
 
     def potential_energy(self, energies: np.ndarray) -> float:
         """Π = Σ_b ½ x_bᵀ K_b x_b − f_bᵀ x_b of the last full solve, whose energies are given."""
@@ -191,8 +200,7 @@ def run_method(scene: Scene, setup: "Setup", server: BlockServer, progress):
         method = scene.solver.method
         outcome = methods.METHODS[method](rounds, interface, scene.solver, methods.Progress(method, out=progress))
         if not outcome.diverged:
-            _, energies = rounds.solve(interface.loads(outcome.lam), full=True)  # the displacements for λ
-            outcome.details["energy"] = rounds.potential_energy(energies)
+            methods.final_solve(rounds, interface, scene.solver, outcome)  # the displacements for λ, checked
         return outcome
 
     outcome, rounds, failure = drive(setup, server, work)
@@ -256,6 +264,12 @@ class Phases:
         self.peak[name] = peak_memory_mb()
         self._wall, self._cpu = wall, cpu
 
+    def skip(self, name: str) -> None:
+        """Record phase ``name`` as not done (zero seconds), e.g. a factorization reused."""
+        self.wall.setdefault(name, 0.0)
+        self.cpu.setdefault(name, 0.0)
+        self.peak[name] = peak_memory_mb()
+
 
 @dataclass(frozen=True, eq=False)
 class LocalMesh:
@@ -306,11 +320,6 @@ class Setup:
         for block in self.blocks:
             block.destroy()
         self.exchange.free()
-
-
-def supported(size: int) -> bool:
-    """1, 2 or 4 ranks (whole blocks per rank), or a multiple of 4 (each block on size/4 ranks)."""
-    return size in (1, 2) or size % len(BLOCKS) == 0
 
 
 def build_mesh(scene: Scene, comm: MPI.Comm) -> Mesh:
@@ -368,9 +377,10 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
 
 
 def whole_mesh_checks(scene: Scene, mesh: Mesh) -> list[fracture.Tip]:
-    """What needs the whole mesh (rank 0, before it is distributed): the loads' boundaries, and the crack
-    tips with their θ radii (which keep clear of the outer boundary)."""
+    """What needs the whole mesh (rank 0, before it is distributed): the loads' boundaries, the range of
+    the moduli and loads, and the crack tips with their θ radii (which keep clear of the outer boundary)."""
     geometry.check_loads(scene, mesh)
+    check_range(scene, mesh)
     return fracture.find_tips(mesh, scene.fracture.inner, scene.fracture.outer)
 
 
@@ -413,7 +423,7 @@ def reload(setup: "Setup", scene: Scene) -> None:
         block.system = replace(block.system, rhs=system.rhs)
     setup.phases = Phases()
     setup.phases.end("assembly")
-    setup.phases.end("factorization")
+    setup.phases.skip("factorization")
 
 
 def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phases | None = None) -> Setup:

@@ -12,6 +12,12 @@ class DDSolveError(Exception):
     collective = False
 
 
+class UsageError(DDSolveError):
+    """The command line is wrong (an unknown option, a missing argument)."""
+
+    exit_status = 2
+
+
 class SceneError(DDSolveError):
     """A scene file or an override is invalid."""
 
@@ -31,6 +37,7 @@ class DivergedError(DDSolveError):
 
 
 class NotConvergedError(DDSolveError):
-    """max_iterations was reached; the result is written with converged = false."""
+    """max_iterations was reached, or the final solution failed its KKT check; the result is written
+    with converged = false."""
 
     exit_status = 3

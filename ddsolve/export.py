@@ -187,9 +187,9 @@ def xdmf_text(mesh: ViewerMesh, heavy: str) -> str:
 def write_heavy_data(meshes: list[ViewerMesh], name: str) -> None:
     """The arrays of every XDMF file, one group per mesh, compressed (gzip level 1 after shuffling
     bytes: about half the size, several times faster than VTU's zlib)."""
-    import h5py
+    from .io import hdf5_image
 
-    with h5py.File(name, "w") as f:
+    with hdf5_image(name) as f:
         for mesh in meshes:
             group = f.create_group(mesh.name)
             for key, values in {"points": mesh.points, "cells": mesh.cells, **mesh.point_data,
@@ -346,6 +346,15 @@ main(getattr(sys, "argv", [""])[1:])  # ParaView's GUI may run scripts without s
 
 
 # --- the set of files ---------------------------------------------------------------------------
+VIEWER_MESHES = (*LAYER_TITLES, "sigma")
+
+
+def viewer_paths(folder: Path, stem: str, fmt: str = "vtu") -> list[Path]:
+    """Every file :func:`viewer_files` writes for ``folder/stem`` in format ``fmt``."""
+    names = [f"{stem}-{mesh}.{fmt}" for mesh in VIEWER_MESHES] + ([f"{stem}-xdmf.h5"] if fmt == "xdmf" else [])
+    return [Path(folder) / name for name in names + [f"{stem}-paraview.py"]]
+
+
 def viewer_files(result: Result, folder: Path, stem: str, fmt: str = "vtu",
                  fields: dict[str, analysis.CellFields] | None = None) -> dict[Path, Callable[[str], None]]:
     """Path -> writer (called with a temporary name) for every viewer file of ``result``; ``fields``:

@@ -160,6 +160,29 @@ def _mesh_half(scene: Scene, side: int, background: SizeMap | None = None) -> Ha
     return _box_half(points, cells, side, geometry, options.degree, origin(scene))
 
 
+def estimated_vertices(scene: Scene) -> float | None:
+    """About how many vertices :func:`generate_half` makes for both halves of the box (the paper's
+    family integrated over its size field, or a uniform ``mesh.size``; P2 nodes counted as vertices of
+    the halved size); None for geometries from files."""
+    options = scene.mesh
+    if options.kind != "box":
+        return None
+    x0, x1, y0, y1 = scene.geometry.box
+    width, below, above = x1 - x0, scene.geometry.sigma - y0, y1 - scene.geometry.sigma
+    if options.size is not None:
+        count = 2.0 / math.sqrt(3.0) * width * (below + above) / options.size ** 2
+    else:
+        h_sigma = width / (options.sigma_vertices - 1)
+        slope = FAR_FACTOR * 2.0 * (width + below + above) / options.boundary_vertices - h_sigma
+        count = 0.0
+        for height in (below, above):
+            distance = np.linspace(0.0, height, 401)
+            size = h_sigma + slope * (distance / max(below, above)) ** GRADING_EXPONENT
+            density = 2.0 / (math.sqrt(3.0) * size ** 2)
+            count += width * float(np.sum(0.5 * (density[1:] + density[:-1]) * np.diff(distance)))
+    return count * options.degree ** 2
+
+
 def _distance_to_sigma(ys: float, height: float) -> str:
     """gmsh MathEval text for |y − ys| / height (written out so the paper's square gives Fabs(y))."""
     shifted = "y" if ys == 0.0 else f"(y {'-' if ys > 0 else '+'} {abs(ys):.17f})"

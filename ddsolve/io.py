@@ -2,8 +2,14 @@
 one set that replaces the previous one together or not at all."""
 from __future__ import annotations
 
+import contextlib
 import functools
+import glob
 import os
+import re
+import secrets
+import signal
+import socket
 import subprocess
 import tempfile
 import time
@@ -13,49 +19,210 @@ from typing import Callable
 import h5py
 import numpy as np
 
-from . import analysis, export
-from .errors import DDSolveError
+from . import analysis, export, scene as scenes
+from .errors import DDSolveError, SceneError
 from .interface import BLOCKS
 from .mesh import HalfMesh, Mesh, SigmaLine
 from .result import Result
 
 MULTIPLIERS = ("mu_c", "mu_g", "mu_minus", "mu_plus")
+#: A dataset of a result file holds at most this many times the file's size (ddsolve does not
+#: compress them): a larger claim is a damaged header, not read.
+READ_LIMIT = 16
 SIGMA_FIELDS = ("points", "normals", "weights", "crack", "tip", "clamped", "corner")
+
+
+#: Temporary and backup files of a write: ``.NAME.ddsolve~HOST~PID~RANDOM.tmp[.suffix]`` (the
+#: suffix keeps writers that look at it happy) and ``.NAME.ddsolve~HOST~PID~RANDOM.bak``.
+_SCRATCH = re.compile(r"^\.(?P<name>.+)\.ddsolve~(?P<host>[^~]*)~(?P<pid>\d+)~[0-9a-f]+\.(tmp|bak)")
+
+
+#: Temporary and backup files being written now (removed by :func:`remove_scratch` on a forced exit).
+_LIVE: set[Path] = set()
+
+
+def remove_scratch() -> None:
+    """Remove the temporary files of writes in progress (the previous files are untouched)."""
+    for path in list(_LIVE):
+        with contextlib.suppress(OSError):
+            path.unlink()
+
+
+def _host() -> str:
+    return re.sub(r"[^A-Za-z0-9_-]", "_", socket.gethostname()) or "host"
+
+
+def _scratch(path: Path, tag: str, kind: str) -> Path:
+    return path.parent / (f".{path.name}.{tag}.{kind}" + (path.suffix if kind == "tmp" else ""))
+
+
+def remove_stale(path: Path) -> list[Path]:
+    """Remove the temporary and backup files that runs killed while writing ``path`` left behind
+    (those of a process on this machine that no longer exists); returns them."""
+    removed = []
+    for candidate in Path(path).parent.glob(f".{glob.escape(Path(path).name)}.ddsolve~*"):
+        match = _SCRATCH.match(candidate.name)
+        if not match or match["name"] != Path(path).name or match["host"] != _host():
+            continue
+        pid = int(match["pid"])
+        try:
+            if pid != os.getpid():
+                os.kill(pid, 0)
+            continue  # its writer is alive
+        except ProcessLookupError:
+            pass
+        except (PermissionError, OverflowError):
+            continue
+        try:
+            candidate.unlink()
+            removed.append(candidate)
+        except OSError:
+            pass
+    return removed
+
+
+def check_targets(paths: list[Path], inputs: list[Path] = ()) -> None:
+    """Refuse a set of output files that could not be written as a whole: an empty name, a name given
+    twice, an existing file that is not a regular file (a directory, a device, a FIFO), one of the
+    ``inputs``, or a folder that does not exist or where no file can be created."""
+    seen: dict[str, Path] = {}
+    for path in map(Path, paths):
+        if not path.name or str(path).endswith(os.sep):
+            raise DDSolveError(f"-o {str(path)!r}: not a file name")
+        key = os.path.abspath(path)
+        if key in seen:
+            raise DDSolveError(f"{path}: written twice in one set of result files")
+        seen[key] = path
+        if path.is_symlink():
+            continue  # the link itself is replaced, never its target
+        if path.exists() and not path.is_file():
+            kind = "a directory" if path.is_dir() else "not a regular file"
+            raise DDSolveError(f"{path}: is {kind}; ddsolve replaces regular files only: choose another -o")
+        for source in inputs:
+            if path.exists() and Path(source).exists() and os.path.samefile(path, source):
+                raise DDSolveError(f"{path}: is an input of this run ({source}); choose another -o")
+    for folder, path in {Path(path).parent: Path(path) for path in reversed(paths)}.items():
+        if not folder.is_dir():
+            raise DDSolveError(f"{path}: output directory {folder} does not exist")
+        try:
+            handle, probe = tempfile.mkstemp(prefix=".ddsolve-probe.", dir=folder)
+            os.close(handle)
+            os.unlink(probe)
+        except OSError as exc:
+            raise DDSolveError(f"{path}: cannot write in {folder} ({exc.strerror or exc})") from None
+
+
+@contextlib.contextmanager
+def _signals_deferred():
+    """SIGINT and SIGTERM wait until the block is done (so renames are never half done): their
+    handlers only note them, and the notes are raised again afterwards."""
+    received: list[int] = []
+    previous = {}
+    try:
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            previous[signum] = signal.signal(signum, lambda number, _frame: received.append(number))
+    except ValueError:  # not the main thread: signals reach the main thread anyway
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        yield
+        return
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        for signum in dict.fromkeys(received):
+            signal.raise_signal(signum)
 
 
 def replace_together(writers: dict[Path, Callable[[str], None]]) -> None:
     """Write a set of files so that they replace the previous ones together or not at all.
 
     Each ``write(temporary)`` writes its file under a temporary name in the target's folder; only
-    when every one has succeeded are they renamed over their targets.  On any failure or interrupt
-    the temporary files are removed and the previous files are left as they were.
+    when every one has succeeded are they renamed over their targets, the previous versions kept
+    (as hard links, or renamed away) until all renames have succeeded, and put back if one fails.
+    Interrupts wait for the renames.  On any failure or interrupt the temporary files are removed
+    and the previous files are left as they were.  Temporaries that killed runs left behind for
+    these targets are removed first.
     """
-    temporaries: dict[Path, str] = {}
+    paths = [Path(path) for path in writers]
+    check_targets(paths)
+    for path in paths:
+        remove_stale(path)
+    tag = f"ddsolve~{_host()}~{os.getpid()}~{secrets.token_hex(4)}"
+    temporaries: dict[Path, Path] = {}
+    backups: dict[Path, Path] = {}
     try:
-        for path, write in writers.items():
-            path = Path(path)
-            folder = path.parent
-            if not folder.is_dir():
-                raise DDSolveError(f"{path}: output directory {folder} does not exist")
+        for path, write in zip(paths, writers.values()):
+            temporaries[path] = _scratch(path, tag, "tmp")
+            _LIVE.add(temporaries[path])
             try:
-                handle, temporaries[path] = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=folder)
-                os.close(handle)
+                temporaries[path].open("xb").close()
             except OSError as exc:
-                raise DDSolveError(f"{path}: cannot write in {folder} ({exc.strerror})") from None
+                raise DDSolveError(f"{path}: cannot write in {path.parent} ({exc.strerror or exc})") from None
             try:
-                write(temporaries[path])
+                write(str(temporaries[path]))
                 os.chmod(temporaries[path], 0o644)
             except OSError as exc:
-                raise DDSolveError(f"{path}: cannot write ({exc.strerror or exc})") from None
-        for path, temporary in temporaries.items():
-            try:
-                os.replace(temporary, path)
-            except OSError as exc:
-                raise DDSolveError(f"{path}: cannot replace ({exc.strerror or exc})") from None
+                raise DDSolveError(f"{path}: cannot write ({_reason(exc)})") from None
+        moved: set[Path] = set()  # previous versions renamed away (no hard links here)
+        done: list[Path] = []
+        try:
+            with _signals_deferred():
+                for path in paths:
+                    if os.path.lexists(path):
+                        backups[path] = _scratch(path, tag, "bak")
+                        if _keep(path, backups[path]):
+                            moved.add(path)
+                for path in paths:
+                    os.replace(temporaries[path], path)
+                    done.append(path)
+        except OSError as exc:
+            for path in paths:  # undo: the previous set comes back
+                if path in done and path not in backups:
+                    os.unlink(path)
+                elif path in done or path in moved:
+                    os.replace(backups[path], path)
+            failed = next(path for path in paths if path not in done)
+            raise DDSolveError(f"{failed}: cannot replace ({exc.strerror or exc}); the previous files are kept") \
+                from None
     finally:
-        for temporary in temporaries.values():
-            if os.path.exists(temporary):
-                os.unlink(temporary)
+        for scratch in (*temporaries.values(), *backups.values()):
+            if os.path.lexists(scratch):
+                os.unlink(scratch)
+        _LIVE.difference_update(temporaries.values())
+
+
+def _keep(path: Path, backup: Path) -> bool:
+    """Keep the current ``path`` as ``backup``: a hard link, else (file systems without them) a
+    rename; returns whether it was renamed away."""
+    try:
+        os.link(path, backup, follow_symlinks=False)
+        return False
+    except OSError:
+        os.replace(path, backup)
+        return True
+
+
+def _reason(exc: OSError) -> str:
+    """The one-line reason of a failed write."""
+    return exc.strerror or " ".join(str(exc).split())
+
+
+@contextlib.contextmanager
+def hdf5_image(name: str):
+    """An HDF5 file built in memory and written to ``name`` in one piece when the block ends: the
+    HDF5 library never writes to the disk itself (a full disk would leave it broken), and a failed
+    write is a plain OSError."""
+    f = h5py.File(f"{name}.image", "w", driver="core", backing_store=False)
+    try:
+        yield f
+        f.flush()
+        image = f.id.get_file_image()
+    finally:
+        f.close()
+    with open(name, "wb") as out:
+        out.write(image)
 
 
 def atomic(path: Path, write: Callable[[str], None]) -> None:
@@ -115,7 +282,7 @@ def write_viewer(result: Result, folder: Path, stem: str, viewer: str = "vtu") -
 
 def _write_hdf5(name: str, result: Result, fields: dict[str, analysis.CellFields]) -> None:
     started = time.perf_counter()
-    with h5py.File(name, "w") as f:
+    with hdf5_image(name) as f:
         for key in ("converged", "iterations", "solves", "method", "wall_time", "ranks", "scene", "message"):
             f.attrs[key] = getattr(result, key)
         for key, value in result.attrs.items():
@@ -159,39 +326,108 @@ def _write_hdf5(name: str, result: Result, fields: dict[str, analysis.CellFields
 
 
 def read(path: Path) -> Result:
-    """Read a result file written by :func:`write`."""
+    """Read a result file written by :func:`write`, checking that its parts fit together (one line
+    naming the file and the part otherwise)."""
     path = Path(path)
     if not path.is_file():
         raise DDSolveError(f"{path}: result file not found")
     try:
         with h5py.File(path, "r") as f:
-            halves = []
-            for side, name in ((-1, "lower"), (1, "upper")):
-                group = f[f"mesh/{name}"]
-                boundaries = {key: edges[()] for key, edges in group.get("boundaries", {}).items()}
-                halves.append(HalfMesh(group["points"][()], group["cells"][()], side, group["sigma"][()], boundaries))
-            sigma = SigmaLine(**{key: f[f"sigma/{key}"][()] for key in SIGMA_FIELDS})
-            known = {"converged", "iterations", "solves", "method", "wall_time", "ranks", "scene", "message"}
-            return Result(
-                scene=str(f.attrs["scene"]), method=str(f.attrs["method"]),
-                converged=bool(f.attrs["converged"]), iterations=int(f.attrs["iterations"]),
-                solves=int(f.attrs["solves"]), wall_time=float(f.attrs["wall_time"]),
-                ranks=int(f.attrs["ranks"]), mesh=Mesh(*halves, sigma, str(path)),
-                solution={spec.name: f[f"solution/{spec.name}"][()] for spec in BLOCKS},
-                multipliers={name: f[f"interface/{name}"][()] for name in MULTIPLIERS},
-                history=f["history/criterion"][()],
-                active_set_changes=f["history/active_set_changes"][()] if "history/active_set_changes" in f
-                else np.zeros(0, dtype=np.int64),
-                cell_data={name: {block: values[()] for block, values in group.items()}
-                           for name, group in f.get("cell_data", {}).items()},
-                timings={k: float(v) for k, v in f["timings"].attrs.items()} if "timings" in f else {},
-                memory=dict(f["memory"].attrs.items()) if "memory" in f else {},
-                message=str(f.attrs.get("message", "")),
-                attrs={k: v for k, v in f.attrs.items() if k not in known},
-                fracture=_read_fracture(f),
-            )
-    except (OSError, KeyError, TypeError, ValueError) as exc:
+            result = _read(f, path)
+    except (OSError, KeyError, TypeError, ValueError, IndexError, AttributeError, RuntimeError, MemoryError) as exc:
+        raise DDSolveError(f"{path}: not a ddsolve result file ({' '.join(str(exc).split())})") from None
+    except DDSolveError as exc:
         raise DDSolveError(f"{path}: not a ddsolve result file ({exc})") from None
+    return result
+
+
+def _array(f: h5py.File, name: str, kind: str, shape: tuple) -> np.ndarray:
+    """Dataset ``name`` as an array of ``kind`` (numpy kinds: "f" numbers, "i" integers, "b" flags)
+    and ``shape`` (None: any length), checked before it is read (a damaged header may claim any size)."""
+    dataset = _dataset(f, name)
+    if dataset.dtype.kind not in {"f": "fiu", "i": "iu", "b": "biu"}[kind]:
+        raise DDSolveError(f"{name} holds {dataset.dtype}, not {({'f': 'numbers', 'i': 'integers', 'b': 'flags'})[kind]}")
+    got = dataset.shape or ()
+    if len(got) != len(shape) or any(want is not None and size != want for size, want in zip(got, shape)):
+        expected = tuple("n" if want is None else want for want in shape)
+        raise DDSolveError(f"{name} has shape {got}, expected {expected}".replace("'", ""))
+    values = dataset[()]
+    if kind == "f" and not np.all(np.isfinite(values)) and name.startswith(("mesh/", "sigma/")):
+        raise DDSolveError(f"{name} holds values that are not finite")
+    return values.astype(bool) if kind == "b" else values
+
+
+def _dataset(f: h5py.File, name: str) -> h5py.Dataset:
+    """Dataset ``name``, if its size is one the file can hold."""
+    dataset = f[name]
+    if not isinstance(dataset, h5py.Dataset):
+        raise DDSolveError(f"{name} is not a dataset")
+    if dataset.size * dataset.dtype.itemsize > READ_LIMIT * os.path.getsize(f.filename) + 2 ** 20:
+        raise DDSolveError(f"{name} claims {dataset.shape} values, more than the file can hold")
+    return dataset
+
+
+def _indices(values: np.ndarray, count: int, name: str) -> np.ndarray:
+    if values.size and (values.min() < 0 or values.max() >= count):
+        raise DDSolveError(f"{name} refers to node {int(values.max() if values.max() >= count else values.min())} "
+                           f"of {count}")
+    return values.astype(np.int64)
+
+
+def _read(f: h5py.File, path: Path) -> Result:
+    sigma_count = len(_array(f, "sigma/points", "f", (None, 2)))
+    sigma = SigmaLine(**{key: _array(f, f"sigma/{key}", "f" if key in ("points", "normals", "weights") else "b",
+                                     (sigma_count, 2) if key in ("points", "normals") else (sigma_count,))
+                         for key in SIGMA_FIELDS})
+    halves = []
+    for side, name in ((-1, "lower"), (1, "upper")):
+        group = f"mesh/{name}"
+        points = _array(f, f"{group}/points", "f", (None, 2))
+        cells = _indices(_array(f, f"{group}/cells", "i", (None, None)), len(points), f"{group}/cells")
+        if cells.shape[1] not in (3, 6):
+            raise DDSolveError(f"{group}/cells has {cells.shape[1]} nodes per cell, expected 3 or 6")
+        on_sigma = _indices(_array(f, f"{group}/sigma", "i", (sigma_count,)), len(points), f"{group}/sigma")
+        boundaries = {key: _indices(_array(f, f"{group}/boundaries/{key}", "i", (None, None)), len(points),
+                                    f"{group}/boundaries/{key}") for key in f[group].get("boundaries", {})}
+        halves.append(HalfMesh(points, cells, side, on_sigma, boundaries))
+    mesh = Mesh(*halves, sigma, str(path))
+    k = len(sigma.multiplier_nodes)
+    solution = {spec.name: _array(f, f"solution/{spec.name}", "f", (len(mesh.half(spec.side).points), 2))
+                for spec in BLOCKS}
+    multipliers = {name: _array(f, f"interface/{name}", "f", (k,) if name == "mu_c" else (k, 2)) for name in MULTIPLIERS}
+    for name, kind, shape in (("x", "f", (k,)), ("points", "f", (k, 2)), ("normal", "f", (k, 2)), ("crack", "b", (k,))):
+        _array(f, f"interface/{name}", kind, shape)  # derived from the above: only their form is checked
+    cell_data = {}
+    for name, group in f.get("cell_data", {}).items():
+        cell_data[name] = {}
+        for block in group:
+            half = mesh.half(-1 if block.endswith("minus") else 1)
+            values = _dataset(f, f"cell_data/{name}/{block}")[()]
+            if block not in {spec.name for spec in BLOCKS} or np.ndim(values) == 0 or len(values) != len(half.cells):
+                raise DDSolveError(f"cell_data/{name}/{block} does not match the cells of its half")
+            cell_data[name][block] = values
+    scene_text = f.attrs["scene"]
+    scene_text = scene_text.decode() if isinstance(scene_text, bytes) else str(scene_text)
+    try:
+        scenes.loads(scene_text, origin="its scene")
+    except SceneError as exc:
+        raise DDSolveError(str(exc)) from None
+    known = {"converged", "iterations", "solves", "method", "wall_time", "ranks", "scene", "message"}
+    return Result(
+        scene=scene_text, method=str(f.attrs["method"]),
+        converged=bool(f.attrs["converged"]), iterations=int(f.attrs["iterations"]),
+        solves=int(f.attrs["solves"]), wall_time=float(f.attrs["wall_time"]),
+        ranks=int(f.attrs["ranks"]), mesh=mesh, solution=solution, multipliers=multipliers,
+        history=_array(f, "history/criterion", "f", (None,)),
+        active_set_changes=_array(f, "history/active_set_changes", "i", (None,))
+        if "history/active_set_changes" in f else np.zeros(0, dtype=np.int64),
+        cell_data=cell_data,
+        timings={k: float(v) for k, v in f["timings"].attrs.items()} if "timings" in f else {},
+        memory=dict(f["memory"].attrs.items()) if "memory" in f else {},
+        message=str(f.attrs.get("message", "")),
+        attrs={k: v for k, v in f.attrs.items() if k not in known},
+        fracture=_read_fracture(f),
+    )
 
 
 # --- /fracture: G at the crack tips, crack faces and contact zones ------------------------------
@@ -220,4 +456,4 @@ def _read_fracture(f):
 
     if "fracture" not in f:
         return None
-    return Fracture(**{key: f[f"fracture/{key}"][()] for key in FRACTURE_FIELDS})
+    return Fracture(**{key: _dataset(f, f"fracture/{key}")[()] for key in FRACTURE_FIELDS})

@@ -8,6 +8,14 @@ import sys
 
 from .errors import DDSolveError
 
+#: Blocks of the decomposition: a rank count must divide them or be a multiple of them.
+BLOCK_COUNT = 4
+
+
+def supported(size: int) -> bool:
+    """1, 2 or 4 ranks (whole blocks per rank), or a multiple of 4 (each block on size/4 ranks)."""
+    return size in (1, 2) or (size > 0 and size % BLOCK_COUNT == 0)
+
 
 def mpiexec_command(ranks: int, arguments: list[str], module: str = "ddsolve") -> list[str]:
     """``mpiexec -n N python -m MODULE ARGS`` (quiet Open MPI: our errors are one line).

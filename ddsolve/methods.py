@@ -23,6 +23,7 @@ from typing import Callable, Protocol
 
 import numpy as np
 
+from .analysis import Constraints, kkt, kkt_tolerance
 from .errors import SolverError
 from .interface import Interface
 from .scene import Solver
@@ -32,6 +33,8 @@ class Rounds(Protocol):
     """Rank 0's handle on the blocks."""
 
     count: int  # rounds of block solves so far
+    residuals: np.ndarray  # (4,) the blocks' relative residuals ‖K x − b‖ in the last full solve
+    largest: float  # the largest nodal displacement |x| in the last full solve
 
     def solve(self, loads: np.ndarray, full: bool) -> tuple[np.ndarray, np.ndarray]:
         """Solve every block with trace loads ``(4, 2k)`` (plus the body load if ``full``).
@@ -60,6 +63,7 @@ class Outcome:
     message: str = ""
     diverged: bool = False  # stopped because the iteration blew up (nothing is written)
     details: dict = field(default_factory=dict)  # method-specific numbers for the result file
+    refine: Callable[[np.ndarray], np.ndarray] | None = None  # traces of a full solve -> better λ
 
 
 class Progress:
@@ -402,10 +406,11 @@ def triangular_solve(L: np.ndarray, b: np.ndarray, transpose: bool = False, bloc
 
 
 def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progress) -> Outcome:
-    """Exact solve from the blocks' Schur complements S_b on Σ; three rounds in all.
+    """Exact solve from the blocks' Schur complements S_b on Σ; three rounds in all (four when the
+    final check asks for a refinement).
 
     Rounds: one to collect S_b (from MUMPS with the factorization), one for the uncoupled traces
-    t⁰_b; the driver adds the final one.  Rank 0 assembles the interface stiffness
+    t⁰_b; :func:`final_solve` adds the final one.  Rank 0 assembles the interface stiffness
     S = Σ_b P_bᵀ S_b P_b on the tied interface unknowns (every gluing constraint holds exactly),
     with body loads Σ P_bᵀ S_b t⁰_b.  Eliminating it leaves the dual problem on the crack rows only,
 
@@ -413,11 +418,12 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
 
     solved exactly by the active-set method; every multiplier then follows from the block residuals
     ℓ_b = S_b (t_b − t⁰_b).  Should that violate a bound ±p, the full dual problem (A from
-    G_b = S_b⁻¹) is solved with all bounds.
+    G_b = S_b⁻¹) is solved with all bounds.  Whether the result is exact is decided by the final
+    solve; its ``refine`` repeats the rank-0 solve with t⁰ shifted by the difference between the
+    solved and the predicted traces (iterative refinement: the error of S_b enters squared).
     """
     schur_complements = rounds.schur_complements()
     problem = DualProblem(rounds, interface, solver)
-    initial = problem.initial_traces
     started = time.perf_counter()
     unknowns = interface.trace_unknowns()
     size = int(unknowns.max()) + 1
@@ -430,10 +436,9 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
     last[faces] = True
     position = np.argsort(last, kind="stable").argsort()
     unknowns, first = position[unknowns], size - len(faces)
-    stiffness, body = np.zeros((size, size)), np.zeros(size)
-    for S_b, numbers, t0 in zip(schur_complements, unknowns, initial):
+    stiffness = np.zeros((size, size))
+    for S_b, numbers in zip(schur_complements, unknowns):
         stiffness[np.ix_(numbers, numbers)] += S_b
-        body[numbers] += S_b @ t0
     sqrt_w = problem.sqrt_w[contact]
     jump = np.zeros((len(faces), len(normal)))  # B_cᵀ W^½: forces of a unit scaled contact multiplier
     jump[unknowns[0][normal] - first, np.arange(len(normal))] += sqrt_w
@@ -441,52 +446,119 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
     try:
         L = np.linalg.cholesky(stiffness)
     except np.linalg.LinAlgError:
-        raise SolverError("schur: the interface stiffness is not positive definite") from None
+        raise SolverError("schur: the interface stiffness is not positive definite (a block without clamped "
+                          "boundary?)") from None
     del stiffness
     forces = np.linalg.solve(L[first:, first:], jump) if len(faces) else np.zeros((0, 0))  # L_cc⁻¹ B_cᵀ
-    loaded = triangular_solve(L, body)  # L⁻¹ body
+    dual = forces.T @ forces
     history: list[float] = []
     changes: list[int] = []
-
-    def contact_step(y_c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Every scaled multiplier and the traces S⁻¹(body − Bᵀ W^½ y_c) for the contact multipliers ``y_c``."""
-        rhs = loaded.copy()
-        rhs[first:] -= forces @ y_c
-        traces = triangular_solve(L, rhs, transpose=True)[unknowns]
-        loads = np.einsum("bij,bj->bi", schur_complements, traces - initial)
-        y = problem.sqrt_w * interface.multipliers(loads)
-        y[contact] = y_c
-        return y, traces
-
-    def record(y: np.ndarray, traces: np.ndarray, changed: int) -> None:
-        """History of one active-set step: the criterion of its solution projected onto the bounds
-        (the last step's is feasible already) and how many constraints changed state."""
-        history.append(problem.criterion(y, -problem.sqrt_w * interface.gap(traces)))
-        changes.append(changed)
-
     lower_c, upper_c = problem.lower[contact], problem.upper[contact]
-    y_c, steps = box_qp(forces.T @ forces, forces.T @ loaded[first:], lower_c, upper_c,
-                        observe=lambda y_c, changed: record(*contact_step(np.clip(y_c, lower_c, upper_c)), changed))
-    y, traces = contact_step(y_c)
-    if np.any(y < problem.lower) or np.any(y > problem.upper):  # a bound ±p is active: all bounds
-        flexibilities = np.linalg.inv(schur_complements)
-        A = interface.dual_matrix(flexibilities) / np.outer(problem.sqrt_w, problem.sqrt_w)
 
-        def full_step(y: np.ndarray) -> np.ndarray:
-            return initial + np.einsum("bij,bj->bi", flexibilities, interface.loads(y / problem.sqrt_w))
+    def exact(initial: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+        """The scaled multipliers, their predicted traces and the active-set steps for uncoupled
+        traces ``initial``."""
+        body = np.zeros(size)
+        for S_b, numbers, t0 in zip(schur_complements, unknowns, initial):
+            body[numbers] += S_b @ t0
+        loaded = triangular_solve(L, body)  # L⁻¹ body
 
-        y, more = box_qp(A, problem.b, problem.lower, problem.upper,
-                         observe=lambda y, changed: record(problem.project(y), full_step(problem.project(y)), changed))
-        steps += more
-        traces = full_step(y)
-    criterion = problem.criterion(y, -problem.sqrt_w * interface.gap(traces))  # = history[-1]
-    progress(steps, criterion, final=True)
-    converged = criterion < solver.tol
-    message = "" if converged else (f"schur: the exact solution has criterion {criterion:.3e}, above tol "
-                                    f"{solver.tol:g} (the round-off level of this problem)")
-    return Outcome(problem.multipliers(y), converged=converged, iterations=steps, history=history,
-                   active_set_changes=changes, message=message,
-                   details={"rank0_solve_time": time.perf_counter() - started, "interface_unknowns": size})
+        def contact_step(y_c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            """Every scaled multiplier and the traces S⁻¹(body − Bᵀ W^½ y_c) for the contact multipliers ``y_c``."""
+            rhs = loaded.copy()
+            rhs[first:] -= forces @ y_c
+            traces = triangular_solve(L, rhs, transpose=True)[unknowns]
+            loads = np.einsum("bij,bj->bi", schur_complements, traces - initial)
+            y = problem.sqrt_w * interface.multipliers(loads)
+            y[contact] = y_c
+            return y, traces
+
+        def record(y: np.ndarray, traces: np.ndarray, changed: int) -> None:
+            """History of one active-set step: the criterion of its solution projected onto the bounds
+            (the last step's is feasible already) and how many constraints changed state."""
+            history.append(problem.criterion(y, -problem.sqrt_w * interface.gap(traces)))
+            changes.append(changed)
+
+        y_c, steps = box_qp(dual, forces.T @ loaded[first:], lower_c, upper_c,
+                            observe=lambda y_c, changed: record(*contact_step(np.clip(y_c, lower_c, upper_c)),
+                                                                changed))
+        y, traces = contact_step(y_c)
+        if np.any(y < problem.lower) or np.any(y > problem.upper):  # a bound ±p is active: all bounds
+            flexibilities = np.linalg.inv(schur_complements)
+            A = interface.dual_matrix(flexibilities) / np.outer(problem.sqrt_w, problem.sqrt_w)
+            b = problem.sqrt_w * interface.gap(initial)
+
+            def full_step(y: np.ndarray) -> np.ndarray:
+                return initial + np.einsum("bij,bj->bi", flexibilities, interface.loads(y / problem.sqrt_w))
+
+            y, more = box_qp(A, b, problem.lower, problem.upper,
+                             observe=lambda y, changed: record(problem.project(y), full_step(problem.project(y)),
+                                                               changed))
+            steps += more
+            traces = full_step(y)
+        return y, traces, steps
+
+    y, predicted, steps = exact(problem.initial_traces)
+    progress(steps, history[-1] if history else 0.0, final=True)
+    outcome = Outcome(problem.multipliers(y), converged=True, iterations=steps, history=history,
+                      active_set_changes=changes,
+                      details={"rank0_solve_time": time.perf_counter() - started, "interface_unknowns": size})
+
+    def refine(solved_traces: np.ndarray) -> np.ndarray:
+        nonlocal predicted
+        mark = time.perf_counter()
+        shifted = problem.initial_traces + (solved_traces - predicted)
+        y, predicted, more = exact(shifted)
+        outcome.iterations += more
+        outcome.details["rank0_solve_time"] += time.perf_counter() - mark
+        return problem.multipliers(y)
+
+    outcome.refine = refine
+    return outcome
+
+
+# --- the final solve and the convergence claim ---------------------------------------------------
+def final_solve(rounds: Rounds, interface: Interface, solver: Solver, outcome: Outcome) -> Constraints:
+    """One full round for the method's multipliers (the displacements that are written), then the
+    check of their KKT residuals against :func:`~ddsolve.analysis.kkt_tolerance`: a method that
+    stopped on its own rule is converged only if they pass.  A method that can refine its
+    multipliers (``outcome.refine``) gets one more round when they do not."""
+    tolerance = kkt_tolerance(solver)
+
+    def solve() -> tuple[Constraints, np.ndarray, np.ndarray]:
+        traces, energies = rounds.solve(interface.loads(outcome.lam), full=True)
+        return kkt(interface, traces, outcome.lam, solver.p, rounds.residuals, rounds.largest), traces, energies
+
+    residuals, traces, energies = solve()
+    if residuals.violations(tolerance) and outcome.refine is not None:
+        outcome.lam = outcome.refine(traces)
+        residuals, traces, energies = solve()
+        outcome.details["refined"] = 1
+    outcome.details["energy"] = rounds.potential_energy(energies)
+    outcome.details["kkt_tolerance"] = tolerance
+    outcome.details.update({f"kkt_{name}": getattr(residuals, name) for name in Constraints.NAMES})
+    violations = residuals.violations(tolerance)
+    if violations and outcome.converged:
+        outcome.converged = False
+        outcome.message = (f"{solver.method}: not converged: the final solution violates {', '.join(violations)} "
+                           f"(scale-free tolerance {tolerance:g}); {_remedy(solver, violations)}")
+    return residuals
+
+
+def _remedy(solver: Solver, violations: list[str]) -> str:
+    """What to change when the final check fails."""
+    if any(v.startswith("equilibrium") for v in violations):
+        return ("the block solves are inaccurate: check the blocks' PETSc options "
+                "(-u_minus_ksp_rtol, -u_minus_pc_type, ...)")
+    if solver.method == "uzawa" and solver.stop == "paper":
+        return (f"the paper's stopping rule ‖Δx‖/‖x‖² < solver.tol is dimensional and was met after too few "
+                f"steps: set solver.stop = \"kkt\" (or a smaller solver.theta than {solver.theta:g})"
+                if isinstance(solver.theta, float) else "set solver.stop = \"kkt\"")
+    if solver.method == "uzawa":
+        return "lower solver.tol or solver.theta"
+    if solver.method == "schur":
+        return "the interface problem is too ill-conditioned for an exact solve: try solver.method = \"mprgp\""
+    return "lower solver.tol"
 
 
 # --- FETI: Dirichlet-preconditioned dual iterations on an active set ---------------------------

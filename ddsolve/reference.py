@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from . import assembly, fracture
+from . import analysis, assembly, fracture
 from .assembly import BlockSystem, coo_to_csr
 from .blocks import Block
 from .errors import SolverError
@@ -105,15 +105,26 @@ def solve(scene: Scene, mesh: Mesh) -> Result:
         raise SolverError(f"reference: the active set did not settle in {MAX_ACTIVE_SET_STEPS} steps")
     elapsed = time.perf_counter() - started
     energy = sum(0.5 * u @ assembly.csr_matvec(s, u) - s.rhs @ u for s, u in zip(systems, fields))
+    checked = analysis.kkt(interface, traces, lam, None,
+                           np.array([analysis.block_residual(s, u, load)
+                                     for s, u, load in zip(systems, fields, interface.loads(lam))]),
+                           analysis.largest_displacement(u.reshape(-1, 2) for u in fields))
+    violations = checked.violations(analysis.kkt_tolerance(None))
+    message = (f"reference: the solution violates {', '.join(violations)} (scale-free tolerance "
+               f"{analysis.kkt_tolerance(None):g}): the problem is too ill-conditioned for double precision"
+               if violations else "")
     frames = mesh.sigma.frames[mesh.sigma.multiplier_nodes]
     solution = {spec.name: assembly.to_global(u, assembly.trace_nodes(mesh.half(spec.side), mesh.sigma), frames)
                 for spec, u in zip(BLOCKS, fields)}
     result = Result(
-        scene=scene.text, method="reference", converged=True, iterations=step, solves=step,
+        scene=scene.text, method="reference", converged=not violations, iterations=step, solves=step,
         wall_time=elapsed, ranks=1, mesh=mesh, solution=solution, multipliers=interface.split(lam, frames),
         history=np.array(history), active_set_changes=np.array(changes, dtype=np.int64),
         timings={"factorization": factorization, "total": elapsed},
-        attrs={**provenance(), "closed_vertices": int(closed.sum()), "energy": float(energy)},
+        message=message,
+        attrs={**provenance(), "closed_vertices": int(closed.sum()), "energy": float(energy),
+               "kkt_tolerance": analysis.kkt_tolerance(None),
+               **{f"kkt_{name}": getattr(checked, name) for name in analysis.Constraints.NAMES}},
     )
     result.fracture = fracture.of_result(result, tips)
     return result

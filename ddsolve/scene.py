@@ -37,6 +37,9 @@ SIDES = ("bottom", "top", "left", "right")
 PAPER_BOX = (-1.0, 1.0, -1.0, 1.0)
 PAPER_CRACK = (-0.5, 0.5)
 MAX_SPACING_RATIO = 10.0
+#: Points of a generated geometry closer than this fraction of the box's size cannot be meshed
+#: (gmsh's geometric tolerance).
+GEOMETRIC_TOLERANCE = 1e-8
 #: The grading exponent μ that ``mesh.grading = true`` chooses for each element degree p: mesh size
 #: h ∝ r^(1−μ) at distance r from a singular point, with μ below ½/p so that an r^½ singularity costs
 #: no convergence rate (see docs/accuracy.md).
@@ -170,7 +173,18 @@ def _boolean(value: Any) -> bool:
 def _string(value: Any) -> str:
     if not isinstance(value, str):
         raise TypeError("a string")
-    return value
+    return _storable(value)
+
+
+def _storable(text: str) -> str:
+    """``text`` if every file format ddsolve writes can hold it: UTF-8 without NUL characters."""
+    if "\x00" in text:
+        raise ValueError("text without NUL characters (\\u0000)")
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        raise ValueError("valid Unicode text (it holds a lone surrogate or bytes that are not UTF-8)") from None
+    return text
 
 
 def _numbers(value: Any) -> tuple[float, ...]:
@@ -441,10 +455,18 @@ def _cross_checks(data: dict, raw: dict, origin: str) -> None:
     elif "cracks" not in given:  # the paper's crack comes with the paper's square only
         geometry["cracks"] = [] if "box" in given else [list(PAPER_CRACK)]
     del geometry["crack"]
+    crack_key = "geometry.crack" if "crack" in given else "geometry.cracks"
     for a, b in geometry["cracks"]:
         if a < x0 or b > x1:
-            raise SceneError(f"{origin}: geometry.cracks: the crack [{a:g}, {b:g}] leaves the box's "
+            raise SceneError(f"{origin}: {crack_key}: the crack [{a:g}, {b:g}] leaves the box's "
                              f"x range [{x0:g}, {x1:g}]")
+    breaks = sorted({x0, x1, *(tip for piece in geometry["cracks"] for tip in piece)})
+    shortest = min(b - a for a, b in zip(breaks[:-1], breaks[1:]))
+    feature = GEOMETRIC_TOLERANCE * max(x1 - x0, y1 - y0)
+    if shortest <= feature:
+        raise SceneError(f"{origin}: {crack_key}: two points of Σ (crack tips, box ends) are only {shortest:.2g} "
+                         f"apart, within the meshing tolerance {feature:.2g} ({GEOMETRIC_TOLERANCE:g} × the box "
+                         "size): lengthen, move or remove the crack")
     counts = (mesh["sigma_vertices"], mesh["boundary_vertices"])
     _mesh_refinement_checks(mesh, origin)
     if mesh["file"] is not None:
@@ -552,6 +574,57 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None) -> Scene:
 
 
 # ---------------------------------------------------------------------------------------------
+#: Stiffnesses (the largest entry of a layer's elastic matrix) whose element matrices stay normal
+#: double-precision numbers on any sensible mesh.
+STIFFNESS_RANGE = (1e-280, 1e280)
+#: Displacements whose squares (norms, energies) stay far inside double precision.
+DISPLACEMENT_RANGE = (1e-100, 1e100)
+
+
+def check_range(scene: Scene, mesh) -> None:
+    """Refuse moduli and loads a double-precision solve cannot represent, naming their keys.
+
+    Each layer's stiffness is the largest entry of its elastic matrix; its displacements are of
+    order (largest traction on the layer) × (size of the mesh) / stiffness.  Blocks are scaled to
+    order one (:class:`ddsolve.blocks.Block`), so only the ranges matter: stiffnesses within
+    STIFFNESS_RANGE, displacements within DISPLACEMENT_RANGE (their squares must not overflow).
+    """
+    import numpy as np
+
+    points = np.vstack([half.points for half in mesh.halves])
+    size = float(np.ptp(points, axis=0).max())
+    for layer in LAYERS:
+        key = f"materials.{layer}" + (".E" if isinstance(scene.materials[layer], materials.Isotropic) else "")
+        with np.errstate(all="ignore"):
+            D, _ = materials.elasticity(scene.materials[layer], scene.model)
+        stiffness = float(np.abs(D).max())
+        low, high = STIFFNESS_RANGE
+        if not low <= stiffness <= high:
+            raise SceneError(f"{key}: the elastic matrix has entries of {stiffness:.3g}, outside the range a "
+                             f"double-precision solve represents ({low:g} to {high:g}): change the unit of stress")
+        traction, worst = 0.0, None
+        for (name, boundary), load in scene.loads.items():
+            if name != layer:
+                continue
+            for half in mesh.halves:
+                if boundary not in half.boundaries:
+                    continue
+                at = half.points[half.nodes(boundary)]
+                for part in (load.x, load.y, load.pressure):
+                    if part is not None and len(at):
+                        with np.errstate(all="ignore"):
+                            value = float(np.abs(part(at[:, 0], at[:, 1])).max())
+                        if not value <= traction:
+                            traction, worst = value, load.key
+        displacement = traction * size / stiffness
+        low, high = DISPLACEMENT_RANGE
+        if worst is not None and not (traction == 0.0 or low <= displacement <= high):
+            raise SceneError(f"{key}: the elastic matrix (largest entry {stiffness:.3g}) with {worst} up to "
+                             f"{traction:.3g} on a domain of size {size:.3g} gives displacements of order "
+                             f"{displacement:.1g}, outside the range a double-precision solve represents ({low:g} to "
+                             f"{high:g}): change the units of the moduli and the loads")
+
+
 def parse_override(item: str) -> tuple[list[str], Any]:
     """``section.key=value`` -> (["section", "key"], value); value read as TOML, else a string."""
     key, sep, value = item.partition("=")
@@ -664,8 +737,8 @@ def _toml_value(value: Any) -> str:
         return "true" if value else "false"
     if isinstance(value, (int, float)):
         return repr(value)
-    if isinstance(value, str):
-        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, str):  # a TOML basic string: control characters escaped
+        return '"' + "".join(f"\\u{ord(c):04x}" if ord(c) < 0x20 or c in '"\\\x7f' else c for c in value) + '"'
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(_toml_value(v) for v in value) + "]"
     raise TypeError(f"cannot write {value!r} as TOML")

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from ddsolve import cli, io
+from ddsolve.errors import UsageError
 
 from conftest import ddsolve
 
@@ -49,12 +50,19 @@ def test_output_directory_must_exist_and_nothing_partial_is_left(tmp_path, refer
                                                           "out-sigma.vtu", "out.h5"]
 
 
-def test_petsc_options_are_split_off():
-    assert cli.split_petsc_options(["solve", "s.toml", "-o", "x.h5", "--set", "a.b=-1", "-log_view"]) == (
+def test_ddsolve_options_are_taken_wherever_they_are_typed():
+    top = cli.parser()
+    assert cli.split_arguments(top, ["solve", "s.toml", "-o", "x.h5", "--set", "a.b=-1", "-log_view"]) == (
         ["solve", "s.toml", "-o", "x.h5", "--set", "a.b=-1"], ["-log_view"])
-    assert cli.split_petsc_options(["solve", "s", "-u_minus_ksp_type", "cg", "-v_plus_pc_type", "gamg"])[1] == [
-        "-u_minus_ksp_type", "cg", "-v_plus_pc_type", "gamg"]
-    assert cli.split_petsc_options(["solve", "s", "--", "-x"]) == (["solve", "s"], ["-x"])
+    assert cli.split_arguments(top, ["solve", "s", "-u_minus_ksp_type", "cg", "--set", "solver.tol=1e-9",
+                                     "-v_plus_pc_type", "gamg", "-o", "x.h5", "-n", "4"]) == (
+        ["solve", "s", "--set", "solver.tol=1e-9", "-o", "x.h5", "-n", "4"],
+        ["-u_minus_ksp_type", "cg", "-v_plus_pc_type", "gamg"])
+    assert cli.split_arguments(top, ["solve", "s", "--", "-x", "-o", "y"]) == (["solve", "s"], ["-x", "-o", "y"])
+    assert cli.split_arguments(top, ["solve", "s", "-mat_mumps_icntl_14", "-5", "-n4"]) == (
+        ["solve", "s", "-n4"], ["-mat_mumps_icntl_14", "-5"])
+    with pytest.raises(UsageError, match="unknown option -scale .did you mean --scale"):
+        cli.split_arguments(top, ["plot", "r.h5", "-scale", "5"])
 
 
 @pytest.mark.parametrize("arguments, message", [

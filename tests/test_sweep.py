@@ -109,7 +109,7 @@ def test_a_failed_run_is_recorded_and_the_sweep_goes_on(tmp_path):
 
 @pytest.mark.parametrize("arguments, message", [
     (["--set", "geometry.crack.1=0.5:1.5:3"], "sweep run 3 (geometry.crack.1=1.5): partial-closure: "
-                                              "geometry.cracks: the crack [-0.5, 1.5] leaves the box"),
+                                              "geometry.crack: the crack [-0.5, 1.5] leaves the box"),
     (["--set", "solver.tol=1e-9"], "sweep: no range to sweep; give --set KEY=START:STOP:COUNT"),
     (["--set", "a.b=1:2:2", "--set", "c.d=1:2:3", "--zip"], "--zip: the ranges must have the same COUNT"),
     (["--set", "materials.layer2.E=1:2:2", "-o", "missing/x.h5"], "missing/x.h5: output directory missing does not"),

@@ -6,7 +6,7 @@ import importlib
 import sys
 from pathlib import Path
 
-from ..cli import guarded, init_petsc, split_petsc_options
+from ..cli import guarded, init_petsc, split_arguments
 
 #: part -> (module in this package, function, typed arguments before OUTPUT).  The function is called
 #: with those arguments, the output path and MPI.COMM_WORLD.
@@ -43,6 +43,7 @@ def run(args, petsc_options: list[str]) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    own, petsc_options = split_petsc_options(sys.argv[1:] if argv is None else argv)
-    args = parser().parse_args(own)
+    top = parser()
+    own, petsc_options = split_arguments(top, sys.argv[1:] if argv is None else argv, tuple(PARTS))
+    args = top.parse_args(own)
     return guarded(lambda: run(args, petsc_options))
