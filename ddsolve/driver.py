@@ -14,7 +14,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import assembly, geometry, io, methods
+from . import assembly, estimate, geometry, io, methods
 from .blocks import Block
 from .errors import DDSolveError, DivergedError, NotConvergedError, SolverError
 from .exchange import Exchange, collective
@@ -188,6 +188,16 @@ def run_method(scene: Scene, setup: "Setup", server: BlockServer, progress):
     return outcome, rounds, failure
 
 
+def gather_estimate(scene: Scene, mesh: Mesh, exchange: Exchange, server: BlockServer
+                    ) -> dict[str, np.ndarray] | None:
+    """Each block's leader computes its error indicators from the last full solve; rank 0 gets them
+    (block name -> ``(2, cells)``, see :func:`ddsolve.estimate.block_indicators`), None elsewhere."""
+    local = [estimate.block_part(scene, mesh, index, server.solutions[index]).ravel()
+             for index in exchange.led_blocks]
+    parts = exchange.gather_varying(local, [2 * len(mesh.half(spec.side).cells) for spec in BLOCKS])
+    return None if parts is None else {spec.name: part.reshape(2, -1) for spec, part in zip(BLOCKS, parts)}
+
+
 def peak_memory_mb() -> float:
     """This process's peak resident memory so far, in MB."""
     import resource
@@ -217,13 +227,14 @@ def supported(size: int) -> bool:
     return size in (1, 2) or size % len(BLOCKS) == 0
 
 
-def build_mesh(scene: Scene, comm: MPI.Comm) -> Mesh:
-    """The scene's mesh on every rank; with 2 ranks or more the two halves of a box are meshed at once."""
+def build_mesh(scene: Scene, comm: MPI.Comm, background: geometry.SizeMap | None = None) -> Mesh:
+    """The scene's mesh on every rank (sized by ``background``, the same on every rank, if given); with 2
+    ranks or more the two halves of a box are meshed at once."""
     if scene.mesh.kind != "box" or comm.size == 1:
-        built = comm.bcast(collective(comm, lambda: geometry.build(scene), root_only=True), root=0)
+        built = comm.bcast(collective(comm, lambda: geometry.build(scene, background), root_only=True), root=0)
     else:
         side = {0: -1, 1: 1}.get(comm.rank)
-        mine = collective(comm, lambda: geometry.generate_half(scene, side) if side else None)
+        mine = collective(comm, lambda: geometry.generate_half(scene, side, background) if side else None)
         lower, upper = comm.bcast(mine, root=0), comm.bcast(mine, root=1)
         paired = collective(comm, lambda: geometry.pair(scene, lower, upper), root_only=True)
         sigma = comm.bcast(paired.sigma if comm.rank == 0 else None, root=0)
@@ -314,6 +325,10 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
             raise failure
 
         mark = time.perf_counter()
+        parts = gather_estimate(scene, mesh, exchange, server)
+        timings["estimate"] = time.perf_counter() - mark
+
+        mark = time.perf_counter()
         stages["Output"].push()
         sizes = [2 * len(mesh.half(spec.side).points) for spec in BLOCKS]
         solutions = exchange.gather_varying([server.solutions[b] for b in exchange.led_blocks], sizes)
@@ -324,13 +339,16 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
             frames = mesh.sigma.frames[mesh.sigma.multiplier_nodes]
             solution = {spec.name: assembly.to_global(x, assembly.trace_nodes(mesh.half(spec.side), mesh.sigma),
                                                       frames) for spec, x in zip(BLOCKS, solutions)}
+            multipliers = interface.split(outcome.lam, frames)
+            estimated = estimate.combine(mesh, parts, solution, multipliers["mu_c"])
             result = Result(
                 scene=scene.text, method=method, converged=outcome.converged, iterations=outcome.iterations,
                 solves=rounds.count, wall_time=timings["factorization"] + timings["iterations"], ranks=comm.size,
-                mesh=mesh, solution=solution, multipliers=interface.split(outcome.lam, frames),
+                mesh=mesh, solution=solution, multipliers=multipliers,
                 history=np.array(outcome.history), timings=timings, message=outcome.message,
                 attrs={**io.provenance(), "stop": scene.solver.stop, "tol": scene.solver.tol,
-                       "peak_memory_mb": memory, **outcome.details},
+                       "peak_memory_mb": memory, **outcome.details, "error_estimate": estimated.relative},
+                indicators=estimated.indicators,
             )
             timings["output"] = time.perf_counter() - mark  # gathering; io.write adds its own "write" time
         if output is not None:

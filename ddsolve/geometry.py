@@ -38,13 +38,13 @@ REQUIRED_GROUPS = {2: ("lower", "upper"), 1: (SIGMA, CLAMPED)}
 _TRIANGLE, _TRIANGLE6, _LINE, _LINE3 = 2, 9, 1, 8
 
 
-def build(scene: Scene) -> Mesh:
-    """The scene's mesh, from whichever source it names; always checked."""
+def build(scene: Scene, background: SizeMap | None = None) -> Mesh:
+    """The scene's mesh, from whichever source it names (sized by ``background`` if given); always checked."""
     options = scene.mesh
     if options.kind == "box":
-        return pair(scene, *(generate_half(scene, side) for side in (-1, 1)))
+        return pair(scene, *(generate_half(scene, side, background) for side in (-1, 1)))
     if options.kind == "geo" or (options.file.suffix.lower() == ".msh" and _has_halves(options.file)):
-        return from_gmsh(scene)
+        return from_gmsh(scene, background)
     return read_box_file(scene)
 
 

@@ -113,6 +113,10 @@ def _write_hdf5(name: str, result: Result) -> None:
         for name in MULTIPLIERS:
             f[f"interface/{name}"] = result.multipliers[name]
         f["history/criterion"] = np.asarray(result.history, dtype=np.float64)
+        for name, values in result.indicators.items():
+            f[f"error/indicator/{name}"] = values
+        for name, values in result.levels.items():
+            f[f"levels/{name}"] = values
         stresses = layer_stresses(result)
         for spec in BLOCKS:
             padded = np.zeros((len(result.solution[spec.name]), 3))
@@ -180,6 +184,8 @@ def read(path: Path) -> Result:
                 timings={k: float(v) for k, v in f["timings"].attrs.items()} if "timings" in f else {},
                 message=str(f.attrs.get("message", "")),
                 attrs={k: v for k, v in f.attrs.items() if k not in known},
+                indicators={name: values[()] for name, values in f.get("error/indicator", {}).items()},
+                levels={name: values[()] for name, values in f.get("levels", {}).items()},
             )
     except (OSError, KeyError, TypeError, ValueError) as exc:
         raise DDSolveError(f"{path}: not a ddsolve result file ({exc})") from None

@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from . import assembly
+from . import assembly, estimate
 from .assembly import BlockSystem, coo_to_csr
 from .blocks import Block
 from .errors import SolverError
@@ -94,9 +94,13 @@ def solve(scene: Scene, mesh: Mesh) -> Result:
     frames = mesh.sigma.frames[mesh.sigma.multiplier_nodes]
     solution = {spec.name: assembly.to_global(u, assembly.trace_nodes(mesh.half(spec.side), mesh.sigma), frames)
                 for spec, u in zip(BLOCKS, fields)}
+    multipliers = interface.split(lam, frames)
+    estimated = estimate.of_scene(scene, mesh, solution, multipliers["mu_c"])
     return Result(
         scene=scene.text, method="reference", converged=True, iterations=step, solves=step,
-        wall_time=elapsed, ranks=1, mesh=mesh, solution=solution, multipliers=interface.split(lam, frames),
+        wall_time=elapsed, ranks=1, mesh=mesh, solution=solution, multipliers=multipliers,
         history=np.array(history), timings={"factorization": factorization, "total": elapsed},
-        attrs={**provenance(), "closed_vertices": int(closed.sum()), "energy": float(energy)},
+        attrs={**provenance(), "closed_vertices": int(closed.sum()), "energy": float(energy),
+               "error_estimate": estimated.relative},
+        indicators=estimated.indicators,
     )

@@ -14,6 +14,8 @@ class Result:
 
     ``multipliers``: ``mu_c`` ``(k,)`` (the contact pressure), ``mu_g``, ``mu_minus``, ``mu_plus``
     ``(k, 2)`` in (x, y), over the k multiplier nodes (0 where a multiplier does not exist).
+    ``indicators``: block name -> ``(m,)`` error indicator η_K per cell (see :mod:`ddsolve.estimate`);
+    ``levels``: column -> ``(levels,)`` values of an adaptive run, one entry per mesh.
     """
 
     scene: str
@@ -30,6 +32,8 @@ class Result:
     timings: dict[str, float] = field(default_factory=dict)
     message: str = ""
     attrs: dict = field(default_factory=dict)
+    indicators: dict[str, np.ndarray] = field(default_factory=dict)
+    levels: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def lower(self) -> HalfMesh:

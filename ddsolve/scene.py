@@ -540,8 +540,17 @@ def parse_override(item: str) -> tuple[list[str], Any]:
     return [p.strip() for p in path], parsed
 
 
+#: Mesh keys that choose how a box is meshed: an override of one family drops the other from the file.
+_MESH_FAMILIES = ({"size"}, {"sigma_vertices", "boundary_vertices"})
+
+
 def apply_overrides(raw: dict, overrides: list[str]) -> dict:
-    """Apply ``--set`` items to a raw (unvalidated) scene table, in order."""
+    """Apply ``--set`` items to a raw (unvalidated) scene table, in order.
+
+    ``--set mesh.size=H`` on a scene of the paper's family (P, M) meshes it with size H instead (and
+    ``mesh.sigma_vertices``/``boundary_vertices`` replace a ``mesh.size`` of the file).
+    """
+    overridden = set()
     for item in overrides:
         path, value = parse_override(item)
         table = raw
@@ -550,6 +559,14 @@ def apply_overrides(raw: dict, overrides: list[str]) -> dict:
             if not isinstance(table, dict):
                 raise SceneError(f"--set {printable(item)}: {printable('.'.join(path[:depth + 1]))} is not a table")
         table[path[-1]] = value
+        overridden.add(tuple(path))
+    mesh = raw.get("mesh")
+    if isinstance(mesh, dict):
+        keys = {path[1] for path in overridden if len(path) == 2 and path[0] == "mesh"}
+        for family, other in (_MESH_FAMILIES, _MESH_FAMILIES[::-1]):
+            if keys & family and not keys & other:
+                for key in other:
+                    mesh.pop(key, None)
     return raw
 
 

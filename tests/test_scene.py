@@ -73,7 +73,6 @@ def test_overrides_are_typed_and_validated():
     ("geometry.sigma=3", "geometry.sigma = 3 must lie strictly between the box's y0 = -1 and y1 = 1"),
     ("geometry.clamped=[\"west\"]", "geometry.clamped must be a list of side names among bottom, top, left, right"),
     ("mesh.degree=3", "mesh.degree must be 1 (P1 triangles) or 2 (P2 triangles)"),
-    ("mesh.size=0.1", "mesh.size excludes mesh.sigma_vertices and mesh.boundary_vertices"),
     ("materials.model=\"plane\"", "materials.model must be one of plane_strain, plane_stress"),
     ("materials.layer1={D = [[1, 2, 0], [2, 1, 0], [0, 0, 1]]}", "materials.layer1: D is not positive definite"),
     ("materials.layer1.D=[[1, 0, 0], [0, 1, 0], [0, 0, 1]]", "unknown key materials.layer1.E; valid here: D, Dzz"),
@@ -99,6 +98,17 @@ def test_bad_values_name_the_key(override, message):
     assert message in str(error.value)
     assert str(error.value).startswith("s.toml: ") or "--set" in str(error.value)
     assert "\n" not in str(error.value)
+
+
+def test_an_override_of_the_mesh_size_replaces_the_papers_family_and_back():
+    sized = scene.loads(MINIMAL, ["mesh.size=0.1"])
+    assert (sized.mesh.size, sized.mesh.sigma_vertices, sized.mesh.boundary_vertices) == (0.1, None, None)
+    again = scene.loads(sized.text, ["mesh.sigma_vertices=24", "mesh.boundary_vertices=48"])
+    assert (again.mesh.size, again.mesh.sigma_vertices, again.mesh.boundary_vertices) == (None, 24, 48)
+    with pytest.raises(SceneError, match="mesh.size excludes mesh.sigma_vertices and mesh.boundary_vertices"):
+        scene.loads(MINIMAL.replace("[mesh]", "[mesh]\nsize = 0.1"))  # both in one file
+    with pytest.raises(SceneError, match="mesh.size excludes mesh.sigma_vertices and mesh.boundary_vertices"):
+        scene.loads(MINIMAL, ["mesh.size=0.1", "mesh.sigma_vertices=24"])  # both overridden
 
 
 def test_missing_and_malformed():
