@@ -25,8 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .assembly import (element_dofs, element_geometry, elasticity, shape_functions, strain_operator, to_global,
-                       trace_nodes)
+from .assembly import elasticity, shape_functions, to_global, trace_nodes
 from .interface import BLOCKS
 from .mesh import CRACK, Mesh, _CELL_EDGES, _cell_edges, _edge_keys, edge_points, edge_shapes, gauss_interval
 from .scene import Scene
@@ -44,8 +43,7 @@ _RULES = {
 }
 #: Local nodes of a cell that take their value from the patch of each corner: the corner itself and,
 #: for P2, the midpoints of the two edges at it.
-_OWN = {3: np.eye(3, dtype=bool),
-        6: np.array([[1, 0, 0, 1, 0, 1], [0, 1, 0, 1, 1, 0], [0, 0, 1, 0, 1, 1]], dtype=bool)}
+_OWN = {3: np.array([[0], [1], [2]]), 6: np.array([[0, 3, 5], [1, 3, 4], [2, 4, 5]])}
 #: A patch fit is used when every Cholesky pivot of its normal matrix exceeds this fraction of its
 #: largest diagonal entry (coordinates are scaled to the patch, so the entries are of order one).
 _CONDITION = 1e-8
@@ -62,12 +60,21 @@ def _monomials(local: np.ndarray, degree: int) -> np.ndarray:
 
 def _strains_at(points: np.ndarray, cells: np.ndarray, u: np.ndarray, xi: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """At reference points ``xi``: positions ``(m, q, 2)``, det J ``(m, q)``, strains ``(m, q, 3)``."""
-    values, _ = shape_functions(cells.shape[1], xi)
-    det, gradients = element_geometry(points, cells, xi)
-    local = u.reshape(-1)[element_dofs(cells)]
-    strain = (strain_operator(gradients) @ local[:, None, :, None])[..., 0]
-    return np.tensordot(points[cells], values, axes=([1], [1])).transpose(0, 2, 1), det, strain
+    """At reference points ``xi``: positions ``(m, q, 2)``, det J ``(m, q)``, strains ``(m, q, 3)``.
+
+    The same isoparametric map as :func:`ddsolve.assembly.element_geometry`, written with matrix
+    products (this runs on every cell of every block after every solve)."""
+    values, reference = shape_functions(cells.shape[1], xi)  # (q, k), (q, k, 2)
+    nodes = points[cells]  # (m, k, 2)
+    jacobian = np.tensordot(nodes, reference, axes=([1], [1]))  # (m, d, q, e) = ∂x_d/∂ξ_e
+    derivative = np.tensordot(u[cells], reference, axes=([1], [1]))  # (m, i, q, e) = ∂u_i/∂ξ_e
+    a, b, c, d = jacobian[:, 0, :, 0], jacobian[:, 0, :, 1], jacobian[:, 1, :, 0], jacobian[:, 1, :, 1]
+    det = a * d - b * c  # (m, q)
+    # ∂u_i/∂x = (∂u_i/∂ξ d − ∂u_i/∂η c) / det, ∂u_i/∂y = (−∂u_i/∂ξ b + ∂u_i/∂η a) / det
+    dx = (derivative[..., 0] * d[:, None] - derivative[..., 1] * c[:, None]) / det[:, None]  # (m, i, q)
+    dy = (derivative[..., 1] * a[:, None] - derivative[..., 0] * b[:, None]) / det[:, None]
+    strain = np.stack([dx[:, 0], dy[:, 1], dy[:, 0] + dx[:, 1]], axis=-1)  # (m, q, 3)
+    return np.tensordot(nodes, values, axes=([1], [1])).transpose(0, 2, 1), det, strain
 
 
 def _solve_spd(A: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -116,16 +123,19 @@ def _recover(points: np.ndarray, cells: np.ndarray, where: np.ndarray, strain: n
     np.maximum.at(scale, vertex, np.abs(offsets).max(axis=(1, 2)))
     basis = _monomials(offsets / scale[vertex][:, None, None], degree)  # (3m, s, b)
     b = basis.shape[-1]
-    transposed = basis.transpose(0, 2, 1)
-    normal = (transposed @ basis).reshape(len(vertex), -1)
-    moments = (transposed @ strain[cell]).reshape(len(vertex), -1)
-    order = np.argsort(vertex, kind="stable")
-    starts = np.flatnonzero(np.r_[True, np.diff(vertex[order]) != 0])
-    patches = vertex[order][starts]
-    A = np.add.reduceat(normal[order], starts).reshape(-1, b, b)
-    rhs = np.add.reduceat(moments[order], starts).reshape(-1, b, 3)
+    # The patch normal equations Σ PPᵀ a = Σ P ε, summed per vertex (upper triangle of the symmetric part).
+    upper = np.triu_indices(b)
+    normal = np.einsum("psj,psj->pj", basis[:, :, upper[0]], basis[:, :, upper[1]])  # (3m, b(b+1)/2)
+    moments = np.einsum("psa,psc->pac", basis, strain[cell]).reshape(len(vertex), -1)  # (3m, 3b)
+    cells_at = np.bincount(vertex, minlength=len(points))
+    patches = np.flatnonzero(cells_at)
+    A = np.zeros((len(patches), b, b))
+    for j, (row, column) in enumerate(zip(*upper)):
+        A[:, row, column] = A[:, column, row] = np.bincount(vertex, normal[:, j], minlength=len(points))[patches]
+    rhs = np.stack([np.bincount(vertex, moments[:, j], minlength=len(points))[patches]
+                    for j in range(3 * b)], axis=1).reshape(-1, b, 3)
     solved, good = _solve_spd(A, rhs)
-    good &= np.diff(np.r_[starts, len(vertex)]) >= 3
+    good &= cells_at[patches] >= 3
     coefficients = np.zeros((len(points), b, 3))
     coefficients[patches[good]] = solved[good]
     usable = np.zeros(len(points), dtype=bool)
@@ -133,23 +143,37 @@ def _recover(points: np.ndarray, cells: np.ndarray, where: np.ndarray, strain: n
     edges, counts = _cell_edges(corners)
     interior = usable.copy()
     interior[edges[counts == 1].ravel()] = False
-    # Every (cell, corner) patch evaluated at every node of the cell.  A node takes the mean of the
-    # interior patches it is "own" to (its vertex, or a P2 midpoint's two ends), else of the interior
-    # patches of its cells, else of the usable patches at the boundary.
-    nodes = points[cells[cell]] - points[vertex][:, None, :]  # (3m, k, 2)
-    values = _monomials(nodes / scale[vertex][:, None, None], degree) @ coefficients[vertex]
-    own = np.tile(_OWN[k], (len(cells), 1))
-    target = cells[cell]  # (3m, k)
-    tiers = (np.broadcast_to(usable[vertex][:, None], own.shape), ~own & interior[vertex][:, None],
-             own & interior[vertex][:, None])
-    out = np.zeros((len(points), 3))
-    for mask in tiers:  # later tiers overwrite earlier ones where they exist
-        nodes, selected = target[mask], values[mask]
-        count = np.bincount(nodes, minlength=len(points))
-        sums = np.stack([np.bincount(nodes, selected[:, c], minlength=len(points)) for c in range(3)], 1)
-        found = count > 0
-        out[found] = sums[found] / count[found, None]
+    # A node takes the mean of the interior patches it is "own" to (its vertex, or a P2 midpoint's two
+    # ends); a node without one (at the boundary) the mean of the interior patches of its cells, else
+    # of the usable patches of its cells.
+    own = cells[cell[:, None], _OWN[k][np.tile(np.arange(3), len(cells))]]  # (3m, r) node per own slot
+    out, found = _patch_means(points, own, vertex, scale, coefficients, interior[vertex], degree)
+    missing = ~found
+    if missing.any():
+        near = np.flatnonzero(missing[cells].any(axis=1))  # the cells with a node still missing
+        pairs = (near[:, None] * 3 + np.arange(3)).ravel()
+        nodes = np.repeat(cells[near], 3, axis=0)  # (pairs, k): every node of the cell
+        for level in (usable, interior):  # interior patches override boundary ones
+            values, count = _patch_means(points, nodes, vertex[pairs], scale, coefficients, level[vertex[pairs]],
+                                         degree)
+            take = missing & count
+            out[take] = values[take]
     return out
+
+
+def _patch_means(points: np.ndarray, nodes: np.ndarray, vertex: np.ndarray, scale: np.ndarray,
+                 coefficients: np.ndarray, use: np.ndarray, degree: int) -> tuple[np.ndarray, np.ndarray]:
+    """The mean over the pairs with ``use`` of patch ``vertex``'s polynomial at ``nodes`` ``(p, r)``;
+    ``(n, 3)`` values and ``(n,)`` whether a node got any."""
+    nodes, vertex = nodes[use], vertex[use]
+    local = (points[nodes] - points[vertex][:, None, :]) / scale[vertex][:, None, None]
+    values = _monomials(local, degree) @ coefficients[vertex]  # (p, r, 3)
+    flat = nodes.ravel()
+    count = np.bincount(flat, minlength=len(points))
+    sums = np.stack([np.bincount(flat, values[..., c].ravel(), minlength=len(points)) for c in range(3)], axis=1)
+    found = count > 0
+    sums[found] /= count[found, None]
+    return sums, found
 
 
 def block_indicators(points: np.ndarray, cells: np.ndarray, D: np.ndarray, u: np.ndarray) -> np.ndarray:
