@@ -13,7 +13,7 @@ from ..cli import guarded, init_petsc, split_petsc_options
 PARTS = {
     "bench-mesh": ("bench", "bench_mesh", (("plan", str), ("P", int), ("M", int))),
     "theta-mesh": ("paper", "theta_mesh", (("P", int), ("M", int), ("scene", str))),
-    "accuracy-mesh": ("paper", "accuracy_mesh", (("P", int), ("M", int), ("fine", Path))),
+    "accuracy-family": ("accuracy", "family_run", (("scene", str), ("family", str), ("degree", int))),
     "scaling-network": ("scaling", "network", ()),
     "scaling-calibrate": ("scaling", "calibrate", ()),
 }
