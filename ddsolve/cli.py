@@ -111,9 +111,11 @@ def estimate_line(result) -> str:
 def cmd_compare(args, _petsc_options) -> int:
     from . import analysis, io
 
-    comparison = analysis.compare(io.read(args.result), io.read(args.reference))
+    result, reference = io.read(args.result), io.read(args.reference)
+    comparison = analysis.compare(result, reference)
     print(f"relative energy-norm error {comparison.energy_error:.3e}   "
-          f"max nodal difference {comparison.max_difference:.3e} (max |u| {comparison.max_displacement:.3e})")
+          f"max nodal difference {comparison.max_difference:.3e} (max |u| {comparison.max_displacement:.3e})"
+          + ("" if analysis.same_meshes(result, reference) else "   (on the reference's mesh)"))
     return 0
 
 
