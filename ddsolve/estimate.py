@@ -125,8 +125,9 @@ def _recover(points: np.ndarray, cells: np.ndarray, where: np.ndarray, strain: n
     b = basis.shape[-1]
     # The patch normal equations Σ PPᵀ a = Σ P ε, summed per vertex (upper triangle of the symmetric part).
     upper = np.triu_indices(b)
-    normal = np.einsum("psj,psj->pj", basis[:, :, upper[0]], basis[:, :, upper[1]])  # (3m, b(b+1)/2)
-    moments = np.einsum("psa,psc->pac", basis, strain[cell]).reshape(len(vertex), -1)  # (3m, 3b)
+    transposed = basis.transpose(0, 2, 1)
+    normal = (transposed @ basis)[:, upper[0], upper[1]]  # (3m, b(b+1)/2)
+    moments = (transposed @ strain[cell]).reshape(len(vertex), -1)  # (3m, 3b)
     cells_at = np.bincount(vertex, minlength=len(points))
     patches = np.flatnonzero(cells_at)
     A = np.zeros((len(patches), b, b))
