@@ -20,4 +20,5 @@ def test_energy_errors_and_rates():
     assert energy_error(-1.01, -1.0) == 0.0  # below the extrapolated limit: no error to measure
     rows = [{"unknowns": n, "error": 2.0 * n ** -0.5} for n in (1e3, 1e4, 1e5, 1e6)]
     assert accuracy.rate(rows, floor=0.0) == pytest.approx(0.5)
-    assert accuracy.rate(rows[:2], floor=0.0) is None  # too few asymptotic levels
+    assert accuracy.rate(rows[2:], floor=0.0) == pytest.approx(0.5)  # two levels: their slope
+    assert accuracy.rate(rows, floor=0.0, start=10 ** 6) is None  # one level: no slope
