@@ -17,15 +17,16 @@ def elasticities(result: Result) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     return {layer: assembly.elasticity(scene, layer) for layer in scenes.LAYERS}
 
 
-def block_energies(result: Result, difference: Result | None = None) -> np.ndarray:
-    """‖x_b‖²_K per block (of ``result − difference`` when given), with the result's materials."""
+def block_energies(result: Result, difference: dict[str, np.ndarray] | None = None) -> np.ndarray:
+    """‖x_b‖²_K per block (of ``result − difference`` when given: fields on the result's nodes, per
+    block), with the result's materials."""
     laws = elasticities(result)
     out = []
     for spec in BLOCKS:
         half = result.half(spec.name)
         field = result.solution[spec.name]
         if difference is not None:
-            field = field - difference.solution[spec.name]
+            field = field - difference[spec.name]
         out.append(assembly.energy(half.points, half.cells, laws[spec.layer][0], field))
     return np.array(out)
 
@@ -37,16 +38,23 @@ class Comparison:
     max_displacement: float  # max nodal |b|
 
 
+def same_meshes(a: Result, b: Result) -> bool:
+    """Whether two results are on the same meshes (nodes and cells of both halves)."""
+    return all(half_a.points.shape == half_b.points.shape and np.array_equal(half_a.cells, half_b.cells)
+               and np.abs(half_a.points - half_b.points).max() <= 1e-12
+               for half_a, half_b in ((a.lower, b.lower), (a.upper, b.upper)))
+
+
 def compare(a: Result, b: Result) -> Comparison:
-    """Error of ``a`` against ``b`` (the reference); both must be on the same meshes."""
-    for half_a, half_b in ((a.lower, b.lower), (a.upper, b.upper)):
-        if half_a.points.shape != half_b.points.shape or not np.array_equal(half_a.cells, half_b.cells) \
-                or np.abs(half_a.points - half_b.points).max() > 1e-12:
-            raise DDSolveError(f"the results are on different meshes ({half_a.name} halves differ)")
+    """Error of ``a`` against ``b`` (the reference).  On different meshes (a coarse solution against a
+    fine one), ``a`` is first evaluated at ``b``'s nodes with its own shape functions."""
+    fields = {s.name: a.solution[s.name] for s in BLOCKS}
+    if not same_meshes(a, b):
+        fields = {s.name: interpolate(a.half(s.name), a.solution[s.name], b.half(s.name).points) for s in BLOCKS}
     reference = block_energies(b).sum()
-    error = block_energies(b, difference=a).sum()
+    error = block_energies(b, difference=fields).sum()
     largest = max(np.abs(b.solution[s.name]).max() for s in BLOCKS)
-    difference = max(np.abs(a.solution[s.name] - b.solution[s.name]).max() for s in BLOCKS)
+    difference = max(np.abs(fields[s.name] - b.solution[s.name]).max() for s in BLOCKS)
     if reference > 0:
         relative = np.sqrt(error / reference)
     else:  # a zero reference (no load): exact agreement or an infinite relative error
@@ -202,8 +210,9 @@ def tolerance_of(result: Result) -> float:
 
 
 def interpolate(half, values: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Evaluate the field ``values`` (n, c) of ``half`` at ``points`` (q, 2) inside that half, linearly
-    on each triangle's corners (exact for P1 fields)."""
+    """Evaluate the field ``values`` (n, c) of ``half`` at ``points`` (q, 2) inside that half with the
+    element's own shape functions (P1, or isoparametric P2: the reference coordinates of a point are
+    found by Newton's method from those in the straight triangle of its corners)."""
     from matplotlib.tri import Triangulation
 
     corners = half.corners
@@ -214,23 +223,24 @@ def interpolate(half, values: np.ndarray, points: np.ndarray) -> np.ndarray:
     p = half.points[corners[cell]]  # (q, 3, 2)
     d1, d2, d = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0], points - p[:, 0]
     det = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
-    l1 = (d[:, 0] * d2[:, 1] - d[:, 1] * d2[:, 0]) / det
-    l2 = (d1[:, 0] * d[:, 1] - d1[:, 1] * d[:, 0]) / det
-    weights = np.column_stack([1.0 - l1 - l2, l1, l2])
-    return np.einsum("qk,qkc->qc", weights, values[corners[cell]])
+    xi = np.column_stack([(d[:, 0] * d2[:, 1] - d[:, 1] * d2[:, 0]) / det,
+                          (d1[:, 0] * d[:, 1] - d1[:, 1] * d[:, 0]) / det])
+    nodes = half.points[half.cells[cell]]  # (q, k, 2)
+    k = half.cells.shape[1]
+    for _ in range(8 if k == 6 else 0):  # Newton on x(ξ) = points
+        shapes, gradients = assembly.shape_functions(k, xi)
+        residual = np.einsum("qk,qkd->qd", shapes, nodes) - points
+        jacobian = np.einsum("qkd,qke->qde", nodes, gradients)
+        xi = xi - np.linalg.solve(jacobian, residual[..., None])[..., 0]
+    shapes, _ = assembly.shape_functions(k, xi)
+    return np.einsum("qk,qkc->qc", shapes, values[half.cells[cell]])
 
 
-def discretization_error(coarse: Result, fine: Result) -> float:
-    """Relative energy-norm distance between a coarse solution and a fine one, on the fine mesh."""
-    laws = elasticities(fine)
-    error = reference = 0.0
-    for spec in BLOCKS:
-        half = fine.half(spec.name)
-        field = fine.solution[spec.name]
-        coarse_field = interpolate(coarse.half(spec.name), coarse.solution[spec.name], half.points)
-        error += assembly.energy(half.points, half.cells, laws[spec.layer][0], field - coarse_field)
-        reference += assembly.energy(half.points, half.cells, laws[spec.layer][0], field)
-    return float(np.sqrt(error / reference))
+def energy_error(energy: float, exact: float) -> float:
+    """Relative energy-norm error sqrt((Π(u_h) − Π(u)) / (−Π(u))) of a conforming solution with total
+    potential energy Π(u_h) = ``energy`` against the exact Π(u) = ``exact`` (‖u − u_h‖²_E = 2(Π(u_h) − Π(u))
+    for the linear problem, ‖u‖²_E = −2Π(u)); 0 if ``energy`` is below ``exact``."""
+    return float(np.sqrt(max(energy - exact, 0.0) / -exact))
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import assembly, fracture, geometry, io, methods
+from . import assembly, estimate, fracture, geometry, io, methods
 from .blocks import Block
 from .errors import DDSolveError, DivergedError, NotConvergedError, SolverError
 from .exchange import Exchange, collective
@@ -212,6 +212,16 @@ def run_method(scene: Scene, setup: "Setup", server: BlockServer, progress):
     return outcome, rounds, failure
 
 
+def gather_estimate(scene: Scene, mesh: LocalMesh, exchange: Exchange, server: BlockServer
+                    ) -> dict[str, np.ndarray] | None:
+    """Each block's leader computes its error indicators from the last full solve; rank 0 gets them
+    (block name -> ``(2, cells)``, see :func:`ddsolve.estimate.block_indicators`), None elsewhere."""
+    local = [estimate.block_part(scene, mesh, index, server.solutions[index]).ravel()
+             for index in exchange.led_blocks]
+    parts = exchange.gather_varying(local, [2 * mesh.cells[spec.side] for spec in BLOCKS])
+    return None if parts is None else {spec.name: part.reshape(2, -1) for spec, part in zip(BLOCKS, parts)}
+
+
 def peak_memory_mb() -> float:
     """This process's peak resident memory so far, in MB."""
     import resource
@@ -222,7 +232,8 @@ def peak_memory_mb() -> float:
 #: Environment variable with the wall-clock time (time.time()) at which ``ddsolve solve -n`` started mpiexec.
 LAUNCHED = "DDSOLVE_LAUNCHED"
 #: The phases of a launch, in order; their sum is the whole launch (``total``).
-PHASES = ("startup", "meshing", "distribution", "assembly", "factorization", "iterations", "output", "write")
+PHASES = ("startup", "meshing", "distribution", "assembly", "factorization", "iterations", "estimate", "output",
+          "write")
 
 
 def launch_age() -> float:
@@ -278,6 +289,7 @@ class LocalMesh:
     halves: dict[int, HalfMesh]
     sigma: SigmaLine
     nodes: dict[int, int]  # side -> nodes of that half (both sides)
+    cells: dict[int, int]  # side -> cells of that half (both sides)
     origin: str
     tips: list = dataclasses.field(default_factory=list)  # the crack tips (fracture.Tip)
 
@@ -295,9 +307,10 @@ class LocalMesh:
 
 
 def whole(mesh: Mesh, tips: list | None = None) -> LocalMesh:
-    return LocalMesh({-1: mesh.lower, 1: mesh.upper}, mesh.sigma, {-1: len(mesh.lower.points),
-                                                                   1: len(mesh.upper.points)}, mesh.origin,
-                     tips or [])
+    """The whole mesh as a rank holding both halves sees it."""
+    halves = {-1: mesh.lower, 1: mesh.upper}
+    return LocalMesh(halves, mesh.sigma, {side: len(half.points) for side, half in halves.items()},
+                     {side: len(half.cells) for side, half in halves.items()}, mesh.origin, tips or [])
 
 
 @dataclass
@@ -322,11 +335,12 @@ class Setup:
         self.exchange.free()
 
 
-def build_mesh(scene: Scene, comm: MPI.Comm) -> Mesh:
-    """The scene's whole mesh on every rank (for experiments that need it everywhere)."""
+def build_mesh(scene: Scene, comm: MPI.Comm, background: geometry.SizeMap | None = None) -> Mesh:
+    """The scene's whole mesh on every rank (sized by ``background``, the same on every rank, if given),
+    for experiments and adaptive levels that need it everywhere."""
     exchange = Exchange(comm, len(BLOCKS))
     try:
-        mine = local_mesh(scene, comm, exchange, keep_whole=True)
+        mine = local_mesh(scene, comm, exchange, keep_whole=True, background=background)
     finally:
         exchange.free()
     halves = {side: comm.bcast(mine.halves.get(side) if comm.rank == 0 else None, root=0) for side in (-1, 1)}
@@ -334,8 +348,9 @@ def build_mesh(scene: Scene, comm: MPI.Comm) -> Mesh:
 
 
 def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases | None = None,
-               keep_whole: bool = False) -> LocalMesh:
-    """Each rank gets the half its blocks live on (both with one rank), Σ, and the crack tips.
+               keep_whole: bool = False, background: geometry.SizeMap | None = None) -> LocalMesh:
+    """Each rank gets the half its blocks live on (both with one rank), Σ, and the crack tips
+    (the mesh sized by ``background``, if given).
 
     A box is meshed by the leaders of u⁻ (rank 0, lower half) and u⁺ (upper half) at once, else
     rank 0 makes the whole mesh.  Rank 0 pairs the halves (checks, Σ, the loads' boundaries), then
@@ -347,19 +362,20 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
     split = scene.mesh.kind == "box" and comm.size > 1
     if split:
         side = -1 if rank == 0 else 1 if rank == upper_maker else 0
-        made = collective(comm, lambda: geometry.generate_half(scene, side) if side else None)
+        made = collective(comm, lambda: geometry.generate_half(scene, side, background) if side else None)
         if rank == upper_maker:
             comm.send(made, dest=0)
         halves = {-1: made, 1: comm.recv(source=upper_maker)} if rank == 0 else {side: made} if side else {}
         paired = collective(comm, lambda: geometry.pair(scene, halves[-1], halves[1]), root_only=True)
     else:
-        paired = collective(comm, lambda: geometry.build(scene), root_only=True)
+        paired = collective(comm, lambda: geometry.build(scene, background), root_only=True)
         halves = {-1: paired.lower, 1: paired.upper} if rank == 0 else {}
     tips = collective(comm, lambda: whole_mesh_checks(scene, paired), root_only=True)
     if phases is not None:
         phases.end("meshing")
-    sigma, nodes, tips = comm.bcast((paired.sigma, {s: len(h.points) for s, h in halves.items()}, tips)
-                                    if rank == 0 else None, root=0)
+    sigma, nodes, cells, tips = comm.bcast((paired.sigma, {s: len(h.points) for s, h in halves.items()},
+                                            {s: len(h.cells) for s, h in halves.items()}, tips)
+                                           if rank == 0 else None, root=0)
     needed = sorted({BLOCKS[b].side for b in exchange.local_blocks})
     if comm.size > 1:
         if not split and upper_maker != 0:  # rank 0 made both halves: the upper one goes to u⁺'s leader
@@ -373,7 +389,7 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
         group.Free()
     if phases is not None:
         phases.end("distribution")
-    return LocalMesh(halves, sigma, nodes, geometry.origin(scene), tips)
+    return LocalMesh(halves, sigma, nodes, cells, geometry.origin(scene), tips)
 
 
 def whole_mesh_checks(scene: Scene, mesh: Mesh) -> list[fracture.Tip]:
@@ -519,6 +535,8 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
         if failure is not None and not isinstance(failure, NotConvergedError):
             raise failure
 
+        parts = gather_estimate(scene, local, exchange, server)
+        phases.end("estimate")
         stages["Output"].push()
         volume = comm.reduce(fracture.block_terms(scene, local, local.tips, {b: server.solutions[b]
                                                                             for b in exchange.led_blocks}), root=0)
@@ -539,15 +557,19 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
             frames = mesh.sigma.frames[mesh.sigma.multiplier_nodes]
             solution = {spec.name: assembly.to_global(x, assembly.trace_nodes(mesh.half(spec.side), mesh.sigma),
                                                       frames) for spec, x in zip(BLOCKS, solutions)}
+            multipliers = interface.split(outcome.lam, frames)
+            estimated = estimate.combine(mesh, parts, solution, multipliers["mu_c"])
             result = Result(
                 scene=scene.text, method=method, converged=outcome.converged, iterations=outcome.iterations,
                 solves=rounds.count, wall_time=timings["factorization"] + timings["iterations"], ranks=comm.size,
-                mesh=mesh, solution=solution, multipliers=interface.split(outcome.lam, frames),
+                mesh=mesh, solution=solution, multipliers=multipliers,
                 history=np.array(outcome.history), timings=timings, message=outcome.message,
                 active_set_changes=np.array(outcome.active_set_changes, dtype=np.int64),
                 memory=memory_record(memory, sum(sizes), whole(mesh).nbytes),
                 attrs={**io.provenance(), "stop": scene.solver.stop, "tol": scene.solver.tol,
-                       "peak_memory_mb": [max(peak.values()) for _, peak, _ in memory], **outcome.details},
+                       "peak_memory_mb": [max(peak.values()) for _, peak, _ in memory], **outcome.details,
+                       "error_estimate": estimated.relative},
+                indicators=estimated.indicators,
             )
             result.fracture = fracture.finish(local.tips, volume, result)
         if output is not None:

@@ -104,6 +104,8 @@ def layer_mesh(result: Result, layer: str, fields: dict[str, analysis.CellFields
         "energy_density": np.concatenate([low.energy_density, up.energy_density]),
         "half": np.repeat(np.array([-1, 1], dtype=np.int32), [len(lower.cells), len(upper.cells)]),
     }
+    if result.indicators:
+        cell_data["error_indicator"] = both(result.indicators, "error_indicator")
     for name, per_block in result.cell_data.items():
         if name in cell_data:
             raise DDSolveError(f"cell data {name}: the name of a field the viewer files already have")

@@ -41,13 +41,13 @@ REQUIRED_GROUPS = {2: ("lower", "upper"), 1: (SIGMA, CLAMPED)}
 _TRIANGLE, _TRIANGLE6, _LINE, _LINE3 = 2, 9, 1, 8
 
 
-def build(scene: Scene) -> Mesh:
-    """The scene's mesh, from whichever source it names; always checked."""
+def build(scene: Scene, background: SizeMap | None = None) -> Mesh:
+    """The scene's mesh, from whichever source it names (sized by ``background`` if given); always checked."""
     options = scene.mesh
     if options.kind == "box":
-        return pair(scene, *(generate_half(scene, side) for side in (-1, 1)))
+        return pair(scene, *(generate_half(scene, side, background) for side in (-1, 1)))
     if options.kind == "geo" or (options.file.suffix.lower() == ".msh" and _has_halves(options.file)):
-        return from_gmsh(scene)
+        return from_gmsh(scene, background)
     return read_box_file(scene)
 
 
@@ -200,9 +200,14 @@ def _quiet_deterministic(gmsh) -> None:
 #: Radius R of the graded zone around a singular point, as a fraction of the shorter side of the
 #: geometry's bounding box (the error per unknown changes by a few % between 0.07 and 0.2).
 GRADING_RADIUS = 0.14
-#: The offset r₀ of :func:`graded_size` is at least this fraction of the length of the geometry: far
-#: below any error one can measure, and above the scale where gmsh meshes curves into flat triangles.
-SMALLEST = 1e-5
+#: The smallest mesh size asked of gmsh, as a fraction of the geometry's length, per source.  gmsh 4.8
+#: leaves flat triangles of three Σ nodes, or aborts, when asked for much smaller triangles: measured
+#: robust down to 2e-7 on the box's straight lines and 1e-5 on gmsh geometries with curved Σ (not 3e-6).
+#: The floor costs accuracy only at tips with a large stress intensity and targets near 0.1 % or below.
+SMALLEST = {"box": 2e-7, "geo": 1e-5}
+#: gmsh's Mesh.RandomFactor (points are perturbed by this times the model size): gmsh's default, 1e-9,
+#: folds the smallest graded triangles; 1e-13 makes gmsh abort on the box.
+RANDOM_FACTOR = 1e-11
 #: Interior angles above π(1 + this) are re-entrant corners.
 REENTRANT = 1e-6
 
@@ -216,21 +221,22 @@ class SizeMap:
     sizes: np.ndarray
 
 
-def graded_size(distance: np.ndarray, size: float, mu: float, length: float) -> np.ndarray:
+def graded_size(distance: np.ndarray, size: float, mu: float, length: float, smallest: float = 0.0) -> np.ndarray:
     """h(r) = H ((r + r₀)/R)^(1−μ), at most H: the size at distance r from a singular point of a
-    geometry whose shorter side is ``length`` (R = ``GRADING_RADIUS`` × length)."""
+    geometry whose shorter side is ``length`` (R = ``GRADING_RADIUS`` × length; r₀ from
+    :func:`grading_offset`)."""
     radius = GRADING_RADIUS * length
-    offset = grading_offset(size, mu, length)
+    offset = grading_offset(size, mu, length, smallest)
     return np.minimum(size, size * ((np.asarray(distance) + offset) / radius) ** (1.0 - mu))
 
 
-def grading_offset(size: float, mu: float, length: float) -> float:
+def grading_offset(size: float, mu: float, length: float, smallest: float = 0.0) -> float:
     """r₀ = R (H/R)^(1/μ), which makes h(0) = r₀ (the smallest triangle at the point is as large as the
-    distance at which it is needed), but at least ``SMALLEST`` × length; R when H ≥ R (no grading)."""
+    distance at which it is needed), but at least ``smallest`` × length; R when H ≥ R (no grading)."""
     radius = GRADING_RADIUS * length
     if size >= radius:
         return radius
-    return max(radius * (size / radius) ** (1.0 / mu), SMALLEST * length)
+    return max(radius * (size / radius) ** (1.0 / mu), smallest * length)
 
 
 def box_singular_points(geometry: Geometry) -> np.ndarray:
@@ -337,12 +343,12 @@ def set_size_field(gmsh, options: MeshOptions, singular: np.ndarray, length: flo
     fields = []
     if options.grading is not None and len(singular):
         size, mu, radius = options.size, options.grading, GRADING_RADIUS * length
+        offset = grading_offset(size, mu, length, SMALLEST[options.kind])
         distance = gmsh.model.mesh.field.add("Distance")
         gmsh.model.mesh.field.setNumbers(distance, "PointsList", _point_tags(gmsh, singular))
         field = gmsh.model.mesh.field.add("MathEval")
-        gmsh.model.mesh.field.setString(field, "F", f"{size:.17g} * ((F{distance} + "
-                                                    f"{grading_offset(size, mu, length):.17g}) / {radius:.17g})"
-                                                    f"^{1.0 - mu:.17g}")
+        gmsh.model.mesh.field.setString(field, "F", f"{size:.17g} * ((F{distance} + {offset:.17g}) / "
+                                                    f"{radius:.17g})^{1.0 - mu:.17g}")
         fields.append(field)
     if options.grading is not None:
         field = gmsh.model.mesh.field.add("MathEval")
@@ -350,9 +356,8 @@ def set_size_field(gmsh, options: MeshOptions, singular: np.ndarray, length: flo
         fields.append(field)
     if background is not None:
         view = gmsh.view.add("sizes")
-        corners = background.corners
-        data = np.concatenate([corners[:, :, 0], corners[:, :, 1], np.zeros((len(corners), 3)), background.sizes],
-                              axis=1)
+        corners, sizes = background.corners, np.maximum(background.sizes, SMALLEST[options.kind] * length)
+        data = np.concatenate([corners[:, :, 0], corners[:, :, 1], np.zeros((len(corners), 3)), sizes], axis=1)
         gmsh.view.addListData(view, "ST", len(corners), data.ravel())
         field = gmsh.model.mesh.field.add("PostView")
         gmsh.model.mesh.field.setNumber(field, "ViewTag", view)
@@ -363,10 +368,10 @@ def set_size_field(gmsh, options: MeshOptions, singular: np.ndarray, length: flo
     gmsh.model.mesh.field.setAsBackgroundMesh(field)
     for name in ("Mesh.MeshSizeFromPoints", "Mesh.MeshSizeExtendFromBoundary", "Mesh.MeshSizeFromCurvature"):
         gmsh.option.setNumber(name, 0)
-    # Frontal-Delaunay, and random perturbations (relative to the model size) far below the smallest
-    # triangles: with the defaults (5, 1e-9) gmsh leaves flat or folded triangles at graded tips.
+    # Frontal-Delaunay and small random perturbations: with the defaults (Delaunay, 1e-9) gmsh leaves
+    # flat or folded triangles at graded tips.
     gmsh.option.setNumber("Mesh.Algorithm", 6)
-    gmsh.option.setNumber("Mesh.RandomFactor", 1e-11)
+    gmsh.option.setNumber("Mesh.RandomFactor", RANDOM_FACTOR)
 
 
 def _positions(tags) -> np.ndarray:

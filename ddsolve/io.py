@@ -318,6 +318,10 @@ def _write_hdf5(name: str, result: Result, fields: dict[str, analysis.CellFields
         for name, per_block in result.cell_data.items():
             for block, values in per_block.items():
                 f[f"cell_data/{name}/{block}"] = values
+        for name, values in result.indicators.items():
+            f[f"error/indicator/{name}"] = values
+        for name, values in result.levels.items():
+            f[f"levels/{name}"] = values
         _write_fracture(f, result)
         for spec in BLOCKS:
             f[f"paraview/{spec.name}/displacement"] = export.padded(result.solution[spec.name])
@@ -427,6 +431,9 @@ def _read(f: h5py.File, path: Path) -> Result:
         message=str(f.attrs.get("message", "")),
         attrs={k: v for k, v in f.attrs.items() if k not in known},
         fracture=_read_fracture(f),
+        indicators={spec.name: _array(f, f"error/indicator/{spec.name}", "f", (len(mesh.half(spec.side).cells),))
+                    for spec in BLOCKS if spec.name in f.get("error/indicator", {})},
+        levels={name: _array(f, f"levels/{name}", "f", (None,)) for name in f.get("levels", {})},
     )
 
 

@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from . import analysis, assembly, fracture
+from . import analysis, assembly, estimate, fracture
 from .assembly import BlockSystem, coo_to_csr
 from .blocks import Block
 from .errors import SolverError
@@ -116,15 +116,18 @@ def solve(scene: Scene, mesh: Mesh) -> Result:
     frames = mesh.sigma.frames[mesh.sigma.multiplier_nodes]
     solution = {spec.name: assembly.to_global(u, assembly.trace_nodes(mesh.half(spec.side), mesh.sigma), frames)
                 for spec, u in zip(BLOCKS, fields)}
+    multipliers = interface.split(lam, frames)
+    estimated = estimate.of_scene(scene, mesh, solution, multipliers["mu_c"])
     result = Result(
         scene=scene.text, method="reference", converged=not violations, iterations=step, solves=step,
-        wall_time=elapsed, ranks=1, mesh=mesh, solution=solution, multipliers=interface.split(lam, frames),
+        wall_time=elapsed, ranks=1, mesh=mesh, solution=solution, multipliers=multipliers,
         history=np.array(history), active_set_changes=np.array(changes, dtype=np.int64),
         timings={"factorization": factorization, "total": elapsed},
         message=message,
         attrs={**provenance(), "closed_vertices": int(closed.sum()), "energy": float(energy),
-               "kkt_tolerance": analysis.kkt_tolerance(None),
+               "error_estimate": estimated.relative, "kkt_tolerance": analysis.kkt_tolerance(None),
                **{f"kkt_{name}": getattr(checked, name) for name in analysis.Constraints.NAMES}},
+        indicators=estimated.indicators,
     )
     result.fracture = fracture.of_result(result, tips)
     return result

@@ -22,6 +22,8 @@ class Result:
     active-set method (``schur``, the reference), how many constraints changed state (else empty).
     ``cell_data``: name -> block -> per-cell values ``(m,)`` or ``(m, c)`` of the block's half; the
     viewer files show every entry as a cell array of its layer.
+    ``indicators``: block name -> ``(m,)`` error indicator η_K per cell (see :mod:`ddsolve.estimate`);
+    ``levels``: column -> ``(levels,)`` values of an adaptive run, one entry per mesh.
     """
 
     scene: str
@@ -42,6 +44,8 @@ class Result:
     message: str = ""
     attrs: dict = field(default_factory=dict)
     fracture: Fracture | None = None  # G at the crack tips and the contact zones
+    indicators: dict[str, np.ndarray] = field(default_factory=dict)
+    levels: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def lower(self) -> HalfMesh:

@@ -18,7 +18,7 @@ from conftest import ddsolve
 
 SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
 P2 = ["--set", "mesh.degree=2"]
-LAYER_ARRAYS = {"stress": 9, "strain": 9, "von_mises": 1, "energy_density": 1, "half": 1}
+LAYER_ARRAYS = {"stress": 9, "strain": 9, "von_mises": 1, "energy_density": 1, "half": 1, "error_indicator": 1}
 SIGMA_ARRAYS = {"jump": 3, "opening": 1, "contact_pressure": 1, "mu_g": 3, "mu_minus": 3, "mu_plus": 3,
                 "normal": 3, "crack": 1, "x": 1, "arc_length": 1}
 
@@ -136,19 +136,21 @@ def test_plane_stress_result_has_its_strain_zz(tmp_path):
 
 def test_per_cell_arrays_of_the_result_become_cell_arrays(results, tmp_path):
     result = io.read(results[1])
-    indicator = {block: np.arange(len(result.half(block).cells), dtype=float) + (100 if block.endswith("plus") else 0)
-                 for block in ("u_minus", "u_plus", "v_minus", "v_plus")}
-    result.cell_data["error_indicator"] = indicator
+    damage_values = {block: np.arange(len(result.half(block).cells), dtype=float) + (100 if block.endswith("plus") else 0)
+                     for block in ("u_minus", "u_plus", "v_minus", "v_plus")}
+    result.cell_data["damage"] = damage_values
     path = tmp_path / "with-cells.h5"
     io.write(path, result)
     again = io.read(path)
-    assert np.array_equal(again.cell_data["error_indicator"]["v_plus"], indicator["v_plus"])
+    assert np.array_equal(again.cell_data["damage"]["v_plus"], damage_values["v_plus"])
     io.write_viewer(again, tmp_path, "with-cells", "xdmf")
     for fmt in ("vtu", "xdmf"):
-        (values,) = meshio.read(tmp_path / f"with-cells-layer2.{fmt}").cell_data["error_indicator"]
-        assert np.array_equal(values, np.concatenate([indicator["v_minus"], indicator["v_plus"]]))
-    result.cell_data["error_indicator"] = {**indicator, "u_plus": indicator["u_plus"][:-1]}
-    with pytest.raises(DDSolveError, match="cell data error_indicator: .* upper half"):
+        (estimated,) = meshio.read(tmp_path / f"with-cells-layer1.{fmt}").cell_data["error_indicator"]
+        assert np.array_equal(estimated, np.concatenate([result.indicators["u_minus"], result.indicators["u_plus"]]))
+        (values,) = meshio.read(tmp_path / f"with-cells-layer2.{fmt}").cell_data["damage"]
+        assert np.array_equal(values, np.concatenate([damage_values["v_minus"], damage_values["v_plus"]]))
+    result.cell_data["damage"] = {**damage_values, "u_plus": damage_values["u_plus"][:-1]}
+    with pytest.raises(DDSolveError, match="cell data damage: .* upper half"):
         io.write_viewer(result, tmp_path, "bad", "vtu")
 
 

@@ -97,6 +97,17 @@ def test_bad_values_name_the_key(override, message):
     assert "\n" not in str(error.value)
 
 
+def test_an_override_of_the_mesh_size_replaces_the_papers_family_and_back():
+    sized = scene.loads(MINIMAL, ["mesh.size=0.1"])
+    assert (sized.mesh.size, sized.mesh.sigma_vertices, sized.mesh.boundary_vertices) == (0.1, None, None)
+    again = scene.loads(sized.text, ["mesh.sigma_vertices=24", "mesh.boundary_vertices=48"])
+    assert (again.mesh.size, again.mesh.sigma_vertices, again.mesh.boundary_vertices) == (None, 24, 48)
+    with pytest.raises(SceneError, match="mesh.size excludes mesh.sigma_vertices and mesh.boundary_vertices"):
+        scene.loads(MINIMAL.replace("[mesh]", "[mesh]\nsize = 0.1"))  # both in one file
+    with pytest.raises(SceneError, match="missing key mesh.boundary_vertices"):
+        scene.loads(MINIMAL, ["mesh.size=0.1", "mesh.sigma_vertices=24"])  # the later override wins: half a family
+
+
 def test_missing_and_malformed():
     with pytest.raises(SceneError, match="missing key materials.layer1.E"):
         scene.loads(MINIMAL.replace("E = 200.0", ""))

@@ -1,5 +1,5 @@
-"""The paper's experiments, regenerated: Table 1, the θ sweep of Fig. 2, Figs. 1, 3 and 4, and an
-accuracy study (discretization error under refinement, total error against wall time).
+"""The paper's experiments, regenerated: Table 1, the θ sweep of Fig. 2, Figs. 1, 3 and 4 (the accuracy
+study against the continuous solution is :mod:`ddsolve.experiments.accuracy`).
 
 Each command launches MPI jobs (this process starts no MPI itself), keeps HDF5 files with provenance
 in ``results/`` and rewrites its section of ``docs/results.md`` and its PNG files in ``docs/``.
@@ -7,13 +7,12 @@ in ``results/`` and rewrites its section of ``docs/results.md`` and its PNG file
 from __future__ import annotations
 
 import json
-import time
 from pathlib import Path
 
 import numpy as np
 
 from . import report
-from .bench import TABLE1_MESHES, paper_scene
+from .bench import TABLE1_MESHES
 from ..errors import DDSolveError
 
 #: The paper's Table 1: P, M, h⁻min, h⁻max, h⁺min, h⁺max, Nod⁻, Tri⁻, Nod⁺, Tri⁺, iterations.
@@ -262,185 +261,3 @@ def figures_text(results: dict) -> str:
         "All three at the paper's mesh P = 96, M = 144, solved by the default method; regenerate with "
         "`./run figures` (about a minute).",
     ])
-
-
-# --- accuracy ---------------------------------------------------------------------------------
-FINE_MESH = (1600, 2048)
-ACCURACY_MESHES = (*TABLE1_MESHES, (400, 512))
-ACCURACY_RUNS = [("schur", "kkt", 1e-8), ("mprgp", "kkt", 1e-2), ("mprgp", "kkt", 1e-3), ("mprgp", "kkt", 1e-4),
-                 ("mprgp", "kkt", 1e-6), ("fista", "kkt", 1e-3), ("fista", "kkt", 1e-5),
-                 ("uzawa", "relative", 1e-3), ("uzawa", "relative", 1e-5), ("uzawa", "paper", 1e-6)]
-TARGETS = (0.2, 0.1, 1e-2, 1e-3)
-#: Meshes at least this much coarser than the fine one enter the rate fit (the fine solution's own
-#: error biases the distances of the finest meshes low).
-RATE_COARSENESS = 8
-
-
-def unknowns(mesh) -> int:
-    """Unknowns of all four blocks: two on each half, two per node."""
-    return 2 * 2 * (len(mesh.lower.points) + len(mesh.upper.points))
-
-
-def accuracy_mesh(P: int, M: int, fine_path: Path, output: Path, comm) -> None:
-    """Every accuracy run on one mesh; total error = energy distance to the fine solution."""
-    from .. import analysis, driver, geometry, io
-    from ..io import provenance
-
-    mesh = comm.bcast(geometry.build(paper_scene(P, M)) if comm.rank == 0 else None, root=0)
-    fine = io.read(fine_path) if comm.rank == 0 else None
-    runs = []
-    for method, stop, tol in ACCURACY_RUNS:
-        if method == "uzawa" and P > 200:
-            continue
-        scene = paper_scene(P, M, [f"solver.method={method}", f"solver.stop={stop}", f"solver.tol={tol}"])
-        try:
-            result = driver.solve(scene, comm, None, progress=_quiet, mesh=mesh)
-        except DDSolveError:
-            continue
-        if comm.rank == 0:
-            runs.append({"method": method, "stop": stop, "tol": tol, "rounds": result.solves,
-                         "wall_time": result.wall_time, "error": analysis.discretization_error(result, fine),
-                         "energy": float(analysis.block_energies(result).sum())})
-    if comm.rank == 0:
-        output.write_text(json.dumps({"P": P, "M": M, "unknowns": unknowns(mesh),
-                                      "h": 2.0 / (P - 1), "runs": runs, "provenance": provenance()}))
-
-
-def accuracy() -> list[dict]:
-    """Discretization error under refinement against P = 1600, and total error against wall time."""
-    RESULTS.mkdir(exist_ok=True)
-    fine = RESULTS / "accuracy-fine.h5"
-    P, M = FINE_MESH
-    print(f"accuracy: fine solution P = {P}, M = {M} -> {fine}", flush=True)
-    started = time.perf_counter()
-    report.run(4, ["solve", "partial-closure", "--set", f"mesh.sigma_vertices={P}",
-                      "--set", f"mesh.boundary_vertices={M}", "-o", str(fine)])
-    fine_time = time.perf_counter() - started
-    from .. import analysis, io
-
-    reference = io.read(fine)
-    fine_facts = {"time": fine_time, "unknowns": unknowns(reference.mesh),
-                  "energy": float(analysis.block_energies(reference).sum())}
-    records = []
-    for P, M in ACCURACY_MESHES:
-        print(f"accuracy: P = {P}, M = {M}", flush=True)
-        records.append(report.launch(4, ["accuracy-mesh", str(P), str(M), str(fine)], RESULTS / f".accuracy-{P}.json"))
-    report.write_records(RESULTS / "accuracy.h5", records, {**records[0]["provenance"], **fine_facts})
-    accuracy_plot(records, DOCS / "accuracy.png")
-    report.section(DOCS / "results.md", "accuracy", accuracy_text(records, fine_facts))
-    return records
-
-
-def _exact(record: dict) -> dict:
-    return next(r for r in record["runs"] if r["method"] == "schur")
-
-
-def accuracy_fit(records: list[dict]) -> tuple[list[dict], float, float, float]:
-    """(fitted records, rate in h, log-intercept, rate in unknowns) of the discretization error."""
-    fitted = [r for r in records if r["P"] * RATE_COARSENESS <= FINE_MESH[0]]
-    errors = np.log([_exact(r)["error"] for r in fitted])
-    rate_h, intercept = np.polyfit(np.log([r["h"] for r in fitted]), errors, 1)
-    rate_n = -np.polyfit(np.log([r["unknowns"] for r in fitted]), errors, 1)[0]
-    return fitted, float(rate_h), float(intercept), float(rate_n)
-
-
-def accuracy_plot(records: list[dict], path: Path) -> None:
-    from ..plots import _pyplot
-
-    plt = _pyplot()
-    fitted, rate_h, intercept, _ = accuracy_fit(records)
-    fig, (left, right) = plt.subplots(1, 2, figsize=(12, 4.8), constrained_layout=True)
-    h = np.array([r["h"] for r in records])
-    exact = np.array([_exact(r)["error"] for r in records])
-    left.loglog(h, exact, marker="o", label="discretization error (exact discrete solution)")
-    left.loglog(h, np.exp(intercept) * h ** rate_h, linestyle="--",
-                label=f"fit on P ≤ {fitted[-1]['P']}: h^{rate_h:.2f}")
-    left.set_xlabel("Σ spacing h = 2/(P − 1)")
-    left.set_ylabel("relative energy error against P = 1600")
-    left.invert_xaxis()
-    left.legend()
-    left.grid(alpha=0.3, which="both")
-    markers = dict(zip([P for P, _ in ACCURACY_MESHES], "os^Dvp"))
-    colors = {"schur": "tab:blue", "mprgp": "tab:orange", "fista": "tab:green", "uzawa": "tab:red"}
-    for record in records:
-        for run in record["runs"]:
-            right.loglog(run["wall_time"], run["error"], marker=markers[record["P"]], linestyle="none",
-                         color=colors[run["method"]], alpha=0.8)
-    for target in TARGETS:
-        right.axhline(target, color="gray", linestyle=":")
-    for method, color in colors.items():
-        right.plot([], [], color=color, marker="o", linestyle="none", label=method)
-    for P, marker in markers.items():
-        right.plot([], [], color="black", marker=marker, linestyle="none", label=f"P = {P}")
-    right.set_xlabel("wall time of the solve phase (s), 4 ranks")
-    right.set_ylabel("total error (discretization + algebraic)")
-    right.legend(fontsize=7, ncol=2)
-    right.grid(alpha=0.3, which="both")
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
-
-
-def fastest(records: list[dict], target: float) -> tuple[dict, dict] | None:
-    """The (record, run) with total error ≤ target and the smallest wall time."""
-    candidates = [(run["wall_time"], i, record, run) for record in records for i, run in enumerate(record["runs"])
-                  if run["error"] <= target]
-    if not candidates:
-        return None
-    _, _, record, run = min(candidates, key=lambda c: (c[0], c[1]))
-    return record, run
-
-
-def accuracy_text(records: list[dict], fine: dict) -> str:
-    fitted, rate_h, intercept, rate_n = accuracy_fit(records)
-    deficits = [np.sqrt(max(fine["energy"] - _exact(r)["energy"], 0.0) / fine["energy"]) / _exact(r)["error"]
-                for r in records]
-    lines = ["| P | M | unknowns | discretization error | `schur` (s) | fastest run within 10 % of it | its time (s) |",
-             "|---|---|---|---|---|---|---|"]
-    for record in records:
-        exact = _exact(record)
-        near = [r for r in record["runs"] if r["error"] <= 1.1 * exact["error"]]
-        quick = min(near, key=lambda r: r["wall_time"])
-        lines.append(f"| {record['P']} | {record['M']} | {record['unknowns']} | {exact['error']:.2e} "
-                     f"| {exact['wall_time']:.3f} | `{quick['method']}` {quick['stop']} {quick['tol']:g} "
-                     f"| {quick['wall_time']:.3f} |")
-    lines += ["", "![discretization error and total error against time](accuracy.png)", ""]
-    lines.append(
-        f"Errors are relative energy-norm distances to the default method's solution on P = {FINE_MESH[0]}, "
-        f"M = {FINE_MESH[1]} ({fine['unknowns']:,} unknowns in all; solved in {fine['time']:.0f} s including "
-        "meshing), after P1 interpolation of the coarse solution onto the fine mesh, half by half. The energy "
-        "deficit √((‖u_fine‖² − ‖u_h‖²)/‖u_fine‖²), which equals the error for a Galerkin solution of the linear "
-        f"problem, is {min(deficits):.2f}–{max(deficits):.2f} times these distances. "
-        f"On the meshes at least {RATE_COARSENESS}× coarser than the fine one (P ≤ {fitted[-1]['P']}) the observed "
-        f"rate is h^{rate_h:.2f} in the Σ spacing, N^-{rate_n:.2f} in the number of unknowns: the crack tips, where "
-        "the displacement behaves like r^½ (and the corners where the clamped sides meet Σ and the loaded sides), "
-        "limit P1 elements on meshes that are uniform along Σ to h^½ in the energy norm. (The P = 400 distance "
-        "falls faster because the P = 1600 solution carries an error of the same form.)")
-    for target in TARGETS:
-        best = fastest(records, target)
-        if best is None:
-            needed = np.exp((np.log(target) - intercept) / rate_h)
-            lines.append(f"\n**{100 * target:g} % total error**: no mesh of this family up to P = {records[-1]['P']} "
-                         f"reaches it; at the observed rate it needs a Σ spacing of about {needed:.1e} "
-                         f"(P ≈ {2 / needed:,.0f}). Meshes refined towards the crack tips and corners, not a finer "
-                         "uniform Σ, are the way there.")
-        else:
-            record, run = best
-            lines.append(f"\n**{100 * target:g} % total error**, fastest: P = {record['P']} with `{run['method']}` "
-                         f"({run['stop']} {run['tol']:g}): {run['wall_time']:.3f} s, {run['rounds']} rounds, total "
-                         f"error {run['error']:.2e}.")
-    loose = [(run["method"], run["tol"]) for run in records[0]["runs"] if run["method"] in ("mprgp", "fista")]
-    enough = [(m, t) for m, t in loose
-              if all(r["error"] <= 1.1 * _exact(record)["error"] for record in records for r in record["runs"]
-                     if (r["method"], r["tol"]) == (m, t))]
-    exact_from = next((record["P"] for record in records
-                       if min((r for r in record["runs"] if r["error"] <= 1.1 * _exact(record)["error"]),
-                              key=lambda r: r["wall_time"])["method"] == "schur"), None)
-    loosest = {m: max(t for mm, t in enough if mm == m) for m, _ in enough}
-    lines.append("\nThe algebraic error matters little: "
-                 + (" and ".join(f"`{m}` with kkt {t:g}" for m, t in loosest.items()) + " (or tighter) already stay "
-                    "within 10 % of the discretization error on every mesh. " if loosest else "")
-                 + "On the small meshes a loosely converged MPRGP gets there slightly faster than the exact solve "
-                 "(whose fixed cost is the MUMPS factorization with the Schur complement)"
-                 + (f"; from P = {exact_from} on the exact solve is the fastest way to the discretization error."
-                    if exact_from else "."))
-    return "\n".join(lines)

@@ -14,7 +14,7 @@ PARTS = {
     "bench-mesh": ("bench", "bench_mesh", (("plan", str), ("P", int), ("M", int))),
     "bench-baseline": ("bench", "bench_baseline", (("name", str), ("P", int), ("M", int), ("repeats", int))),
     "theta-mesh": ("paper", "theta_mesh", (("P", int), ("M", int), ("scene", str))),
-    "accuracy-mesh": ("paper", "accuracy_mesh", (("P", int), ("M", int), ("fine", Path))),
+    "accuracy-family": ("accuracy", "family_run", (("scene", str), ("family", str), ("degree", int))),
     "scaling-network": ("scaling", "network", ()),
     "scaling-calibrate": ("scaling", "calibrate", ()),
     "fracture-checks": ("fracture", "checks", ()),

@@ -1,0 +1,279 @@
+"""A posteriori error estimate: Zienkiewicz–Zhu recovery per block, plus the contact term on the crack.
+
+For each block the strain of the solution, discontinuous between cells, is recovered into a continuous
+field ε* of the same element space by superconvergent patch recovery (SPR): around every vertex a
+polynomial of the element degree is fitted by least squares to the strains at the superconvergent
+points of the cells of the vertex's patch (the centroid for P1, the 3-point Gauss points for P2), and
+nodes take the value of the patches they belong to.  The indicator of a cell K is
+
+    η_K² = ∫_K (ε* − ε_h)ᵀ D (ε* − ε_h),
+
+the energy of the difference.  Recovery never crosses Σ: each block is recovered on its own half, so
+the jumps of the stress across Σ that the gluing forces and the crack cause are kept, not smeared.
+The discrete contact conditions hold at the nodes only; between nodes the contact pressure and the
+opening of the crack may both be positive.  That complementarity defect, 2 |∫_E μᶜ_h [u_h]·ν ds| per
+crack edge E, is added to the cells of u⁻ and u⁺ along E (half each).  The total is
+
+    η² = Σ_K η_K²,      relative estimate = η / sqrt(‖u_h‖²_E + η²),
+
+an estimate of ‖u − u_h‖_E / ‖u‖_E (‖u‖² = ‖u_h‖² + ‖u − u_h‖² for the Galerkin solution of the linear
+problem).  Everything is vectorized over cells; no PETSc or MPI here.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .assembly import elasticity, shape_functions, to_global, trace_nodes
+from .interface import BLOCKS
+from .mesh import CRACK, Mesh, _CELL_EDGES, _cell_edges, _edge_keys, edge_points, edge_shapes, gauss_interval
+from .scene import Scene
+
+#: Sampling points of the recovery per element (reference coordinates): where the strain of the
+#: element is most accurate.
+_SAMPLES = {3: np.array([[1.0 / 3.0, 1.0 / 3.0]]),
+            6: np.array([[1.0 / 6.0, 1.0 / 6.0], [2.0 / 3.0, 1.0 / 6.0], [1.0 / 6.0, 2.0 / 3.0]])}
+#: Quadrature for the indicators: degree 2 for P1 (ε* linear), degree 4 for P2 (ε* quadratic).
+_A, _B = 0.445948490915965, 0.091576213509771
+_RULES = {
+    3: (_SAMPLES[6], np.full(3, 1.0 / 6.0)),
+    6: (np.array([[_A, _A], [1 - 2 * _A, _A], [_A, 1 - 2 * _A], [_B, _B], [1 - 2 * _B, _B], [_B, 1 - 2 * _B]]),
+        0.5 * np.array([0.223381589678011] * 3 + [0.109951743655322] * 3)),
+}
+#: Local nodes of a cell that take their value from the patch of each corner: the corner itself and,
+#: for P2, the midpoints of the two edges at it.
+_OWN = {3: np.array([[0], [1], [2]]), 6: np.array([[0, 3, 5], [1, 3, 4], [2, 4, 5]])}
+#: A patch fit is used when every Cholesky pivot of its normal matrix exceeds this fraction of its
+#: largest diagonal entry (coordinates are scaled to the patch, so the entries are of order one).
+_CONDITION = 1e-8
+
+
+def _monomials(local: np.ndarray, degree: int) -> np.ndarray:
+    """``(..., b)``: 1, x, y (and x², xy, y² for degree 2) at local coordinates ``(..., 2)``."""
+    x, y = local[..., 0], local[..., 1]
+    terms = [np.ones_like(x), x, y]
+    if degree == 2:
+        terms += [x * x, x * y, y * y]
+    return np.stack(terms, axis=-1)
+
+
+def _strains_at(points: np.ndarray, cells: np.ndarray, u: np.ndarray, xi: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """At reference points ``xi``: positions ``(m, q, 2)``, det J ``(m, q)``, strains ``(m, q, 3)``.
+
+    The same isoparametric map as :func:`ddsolve.assembly.element_geometry`, written with matrix
+    products (this runs on every cell of every block after every solve)."""
+    values, reference = shape_functions(cells.shape[1], xi)  # (q, k), (q, k, 2)
+    nodes = points[cells]  # (m, k, 2)
+    jacobian = np.tensordot(nodes, reference, axes=([1], [1]))  # (m, d, q, e) = ∂x_d/∂ξ_e
+    derivative = np.tensordot(u[cells], reference, axes=([1], [1]))  # (m, i, q, e) = ∂u_i/∂ξ_e
+    a, b, c, d = jacobian[:, 0, :, 0], jacobian[:, 0, :, 1], jacobian[:, 1, :, 0], jacobian[:, 1, :, 1]
+    det = a * d - b * c  # (m, q)
+    # ∂u_i/∂x = (∂u_i/∂ξ d − ∂u_i/∂η c) / det, ∂u_i/∂y = (−∂u_i/∂ξ b + ∂u_i/∂η a) / det
+    dx = (derivative[..., 0] * d[:, None] - derivative[..., 1] * c[:, None]) / det[:, None]  # (m, i, q)
+    dy = (derivative[..., 1] * a[:, None] - derivative[..., 0] * b[:, None]) / det[:, None]
+    strain = np.stack([dx[:, 0], dy[:, 1], dy[:, 0] + dx[:, 1]], axis=-1)  # (m, q, 3)
+    return np.tensordot(nodes, values, axes=([1], [1])).transpose(0, 2, 1), det, strain
+
+
+def _solve_spd(A: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Solve many small symmetric positive semidefinite systems ``(p, b, b)`` x = ``(p, b, c)`` at once
+    (Cholesky, vectorized over p: numpy's batched solvers pay a LAPACK call per system).  Returns the
+    solutions and which systems are well conditioned (every pivot above ``_CONDITION`` × the largest
+    diagonal entry); the others get garbage."""
+    b = A.shape[1]
+    L = np.zeros_like(A)
+    floor = _CONDITION * A[:, np.arange(b), np.arange(b)].max(axis=1)
+    good = floor > 0
+    for j in range(b):
+        pivot = A[:, j, j] - np.sum(L[:, j, :j] ** 2, axis=1)
+        good &= pivot > floor
+        L[:, j, j] = np.sqrt(np.where(good, pivot, 1.0))
+        L[:, j + 1:, j] = (A[:, j + 1:, j] - (L[:, j + 1:, :j] @ L[:, j, :j, None])[..., 0]) / L[:, j, j, None]
+    y = np.zeros_like(rhs)
+    for j in range(b):
+        y[:, j] = (rhs[:, j] - (L[:, j, None, :j] @ y[:, :j])[:, 0]) / L[:, j, j, None]
+    x = np.zeros_like(rhs)
+    for j in reversed(range(b)):
+        x[:, j] = (y[:, j] - (L[:, j + 1:, j][:, None, :] @ x[:, j + 1:])[:, 0]) / L[:, j, j, None]
+    return x, good
+
+
+def _energy_density(strain: np.ndarray, D: np.ndarray, det: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Per cell ∫ εᵀ D ε from strains ``(m, q, 3)`` at the quadrature points."""
+    return (np.sum((strain @ D) * strain, axis=2) * det) @ weights
+
+
+def recovered_strain(points: np.ndarray, cells: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """``(n, 3)``: the SPR-recovered strain (εxx, εyy, γxy) at every node of the block."""
+    where, _, strain = _strains_at(points, cells, u, _SAMPLES[cells.shape[1]])
+    return _recover(points, cells, where, strain)
+
+
+def _recover(points: np.ndarray, cells: np.ndarray, where: np.ndarray, strain: np.ndarray) -> np.ndarray:
+    """SPR from the positions ``(m, s, 2)`` and strains ``(m, s, 3)`` at the sampling points."""
+    k = cells.shape[1]
+    degree = 1 if k == 3 else 2
+    corners = cells[:, :3]
+    vertex = corners.ravel()  # patch of each (cell, corner) pair
+    cell = np.repeat(np.arange(len(cells)), 3)
+    offsets = where[cell] - points[vertex][:, None, :]  # (3m, s, 2)
+    scale = np.zeros(len(points))
+    np.maximum.at(scale, vertex, np.abs(offsets).max(axis=(1, 2)))
+    basis = _monomials(offsets / scale[vertex][:, None, None], degree)  # (3m, s, b)
+    b = basis.shape[-1]
+    # The patch normal equations Σ PPᵀ a = Σ P ε, summed per vertex (upper triangle of the symmetric part).
+    upper = np.triu_indices(b)
+    transposed = basis.transpose(0, 2, 1)
+    normal = (transposed @ basis)[:, upper[0], upper[1]]  # (3m, b(b+1)/2)
+    moments = (transposed @ strain[cell]).reshape(len(vertex), -1)  # (3m, 3b)
+    cells_at = np.bincount(vertex, minlength=len(points))
+    patches = np.flatnonzero(cells_at)
+    A = np.zeros((len(patches), b, b))
+    for j, (row, column) in enumerate(zip(*upper)):
+        A[:, row, column] = A[:, column, row] = np.bincount(vertex, normal[:, j], minlength=len(points))[patches]
+    rhs = np.stack([np.bincount(vertex, moments[:, j], minlength=len(points))[patches]
+                    for j in range(3 * b)], axis=1).reshape(-1, b, 3)
+    solved, good = _solve_spd(A, rhs)
+    good &= cells_at[patches] >= 3
+    coefficients = np.zeros((len(points), b, 3))
+    coefficients[patches[good]] = solved[good]
+    usable = np.zeros(len(points), dtype=bool)
+    usable[patches[good]] = True
+    edges, counts = _cell_edges(corners)
+    interior = usable.copy()
+    interior[edges[counts == 1].ravel()] = False
+    # A node takes the mean of the interior patches it is "own" to (its vertex, or a P2 midpoint's two
+    # ends); a node without one (at the boundary) the mean of the interior patches of its cells, else
+    # of the usable patches of its cells.
+    own = cells[cell[:, None], _OWN[k][np.tile(np.arange(3), len(cells))]]  # (3m, r) node per own slot
+    out, found = _patch_means(points, own, vertex, scale, coefficients, interior[vertex], degree)
+    missing = ~found
+    if missing.any():
+        near = np.flatnonzero(missing[cells].any(axis=1))  # the cells with a node still missing
+        pairs = (near[:, None] * 3 + np.arange(3)).ravel()
+        nodes = np.repeat(cells[near], 3, axis=0)  # (pairs, k): every node of the cell
+        for level in (usable, interior):  # interior patches override boundary ones
+            values, count = _patch_means(points, nodes, vertex[pairs], scale, coefficients, level[vertex[pairs]],
+                                         degree)
+            take = missing & count
+            out[take] = values[take]
+    return out
+
+
+def _patch_means(points: np.ndarray, nodes: np.ndarray, vertex: np.ndarray, scale: np.ndarray,
+                 coefficients: np.ndarray, use: np.ndarray, degree: int) -> tuple[np.ndarray, np.ndarray]:
+    """The mean over the pairs with ``use`` of patch ``vertex``'s polynomial at ``nodes`` ``(p, r)``;
+    ``(n, 3)`` values and ``(n,)`` whether a node got any."""
+    nodes, vertex = nodes[use], vertex[use]
+    local = (points[nodes] - points[vertex][:, None, :]) / scale[vertex][:, None, None]
+    values = _monomials(local, degree) @ coefficients[vertex]  # (p, r, 3)
+    flat = nodes.ravel()
+    count = np.bincount(flat, minlength=len(points))
+    sums = np.stack([np.bincount(flat, values[..., c].ravel(), minlength=len(points)) for c in range(3)], axis=1)
+    found = count > 0
+    sums[found] /= count[found, None]
+    return sums, found
+
+
+def block_indicators(points: np.ndarray, cells: np.ndarray, D: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """``(2, m)``: per cell η_K² = ∫ (ε* − ε_h)ᵀ D (ε* − ε_h) and ∫ ε_hᵀ D ε_h, for the field u ``(n, 2)``."""
+    k = cells.shape[1]
+    samples = len(_SAMPLES[k])
+    xi, weights = _RULES[k]
+    where, det, strain = _strains_at(points, cells, u, np.vstack([_SAMPLES[k], xi]))  # one geometry pass
+    recovered = _recover(points, cells, where[:, :samples], strain[:, :samples])
+    det, strain = det[:, samples:], strain[:, samples:]
+    values, _ = shape_functions(k, xi)
+    difference = np.tensordot(recovered[cells], values, axes=([1], [1])).transpose(0, 2, 1) - strain
+    return np.stack([_energy_density(difference, D, det, weights), _energy_density(strain, D, det, weights)])
+
+
+def contact_indicators(mesh: Mesh, u_minus: np.ndarray, u_plus: np.ndarray, mu_c: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """Per cell of the lower and the upper half: half of 2 |∫_E μᶜ_h [u_h]·ν ds| for the crack edges E
+    of the cell.  ``mu_c`` ``(k,)`` over the multiplier nodes (0 where there is none)."""
+    sigma = mesh.sigma
+    out = []
+    pressure = np.zeros(len(sigma.points))
+    pressure[sigma.multiplier_nodes] = mu_c
+    jump = np.einsum("sd,sd->s", u_plus[mesh.upper.sigma] - u_minus[mesh.lower.sigma], sigma.normals)
+    for half in mesh.halves:
+        edges = half.edges(CRACK)
+        cells = np.zeros(len(half.cells))
+        if len(edges) and np.any(pressure):
+            position = np.full(len(half.points), -1, dtype=np.int64)
+            position[half.sigma] = np.arange(len(half.sigma))
+            s, w = gauss_interval(4)
+            shapes, _ = edge_shapes(edges.shape[1], s)
+            _, tangents = edge_points(half.points, edges, s)
+            speed = np.linalg.norm(tangents, axis=2)  # (e, q)
+            along = position[edges]
+            product = (shapes @ pressure[along].T).T * (shapes @ jump[along].T).T  # (e, q)
+            defect = np.abs(np.einsum("eq,eq,q->e", product, speed, w))  # |∫ μ [u]·ν| per edge
+            np.add.at(cells, _edge_cells(half.cells, edges), defect)  # ½ of 2|∫ μ [u]·ν|
+        out.append(cells)
+    return out[0], out[1]
+
+
+def _edge_cells(cells: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """The cell that has each boundary edge (by its end nodes)."""
+    pairs = cells[:, _CELL_EDGES[cells.shape[1]][:, :2]].reshape(-1, 2)
+    n = int(max(cells.max(), edges.max())) + 1
+    keys = _edge_keys(pairs, n)
+    order = np.argsort(keys)
+    found = order[np.searchsorted(keys[order], _edge_keys(edges[:, :2], n))]
+    return found // 3
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """Indicators η_K (energy norm, per cell of each block; Σ η_K² = η²) and ‖u_h‖²_E."""
+
+    indicators: dict[str, np.ndarray]
+    energy: float  # ‖u_h‖²_E = Σ_b x_bᵀ K_b x_b
+
+    @property
+    def absolute(self) -> float:
+        """η."""
+        return float(np.sqrt(sum(float(np.sum(v ** 2)) for v in self.indicators.values())))
+
+    @property
+    def relative(self) -> float:
+        """η / sqrt(‖u_h‖² + η²): the estimated relative energy-norm error."""
+        total = self.absolute ** 2 + self.energy
+        return float(self.absolute / np.sqrt(total)) if total > 0 else 0.0
+
+
+def combine(mesh: Mesh, parts: dict[str, np.ndarray], solution: dict[str, np.ndarray], mu_c: np.ndarray
+            ) -> Estimate:
+    """The estimate from each block's :func:`block_indicators` and the contact term (rank 0's part)."""
+    lower, upper = contact_indicators(mesh, solution["u_minus"], solution["u_plus"], mu_c)
+    squared = {name: parts[name][0].copy() for name in parts}
+    squared["u_minus"] += lower
+    squared["u_plus"] += upper
+    return Estimate({name: np.sqrt(np.maximum(values, 0.0)) for name, values in squared.items()},
+                    float(sum(parts[name][1].sum() for name in parts)))
+
+
+def of_solution(mesh: Mesh, laws: dict[str, np.ndarray], solution: dict[str, np.ndarray], mu_c: np.ndarray
+                ) -> Estimate:
+    """The whole estimate in one process; ``laws``: layer -> Hooke matrix D."""
+    parts = {spec.name: block_indicators(mesh.half(spec.side).points, mesh.half(spec.side).cells,
+                                         laws[spec.layer], solution[spec.name]) for spec in BLOCKS}
+    return combine(mesh, parts, solution, mu_c)
+
+
+def block_part(scene: Scene, mesh: Mesh, index: int, x: np.ndarray) -> np.ndarray:
+    """:func:`block_indicators` of block ``index`` from its solution vector ``x`` (Σ dofs in local frames)."""
+    spec = BLOCKS[index]
+    half = mesh.half(spec.side)
+    u = to_global(x, trace_nodes(half, mesh.sigma), mesh.sigma.frames[mesh.sigma.multiplier_nodes])
+    return block_indicators(half.points, half.cells, elasticity(scene, spec.layer)[0], u)
+
+
+def of_scene(scene: Scene, mesh: Mesh, solution: dict[str, np.ndarray], mu_c: np.ndarray) -> Estimate:
+    """The whole estimate in one process, for displacements in (x, y)."""
+    laws = {spec.layer: elasticity(scene, spec.layer)[0] for spec in BLOCKS}
+    return of_solution(mesh, laws, solution, mu_c)

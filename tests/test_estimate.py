@@ -1,0 +1,133 @@
+"""The error estimate (SPR recovery per block, contact term) and P2 interpolation."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ddsolve import analysis, estimate, geometry, reference, scene
+from ddsolve.assembly import element_geometry, strain_operator, element_dofs
+from ddsolve.materials import Isotropic, elasticity
+from ddsolve.scene import Geometry
+
+from conftest import structured_mesh
+
+D, _ = elasticity(Isotropic(E=200.0, nu=0.28), "plane_strain")
+CRACKED = Geometry()
+
+
+def quadratic(p):  # harmonic and divergence-free: an elastic field without body force
+    x, y = p[:, 0], p[:, 1]
+    return np.column_stack([x * x - y * y + 0.3 * y, -2 * x * y + 0.1])
+
+
+def cubic(p):
+    x, y = p[:, 0], p[:, 1]
+    return np.column_stack([x ** 3 - 3 * x * y * y, -(3 * x * x * y - y ** 3)]) + quadratic(p)
+
+
+def cubic_strain(p):
+    x, y = p[..., 0], p[..., 1]
+    exx = 3 * x * x - 3 * y * y + 2 * x
+    eyy = -(3 * x * x - 3 * y * y) - 2 * x
+    gxy = (-6 * x * y - 2 * y + 0.3) + (-6 * x * y - 2 * y)
+    return np.stack([exx, eyy, gxy], axis=-1)
+
+
+def quadratic_strain(p):
+    x, y = p[..., 0], p[..., 1]
+    return np.stack([2 * x, -2 * x, -2 * y + 0.3 - 2 * y], axis=-1)
+
+
+@pytest.mark.parametrize("degree, field", [(1, lambda p: np.column_stack([1 + 2 * p[:, 0] - p[:, 1], 3 * p[:, 1]])),
+                                           (2, quadratic)])
+def test_fields_of_the_element_space_have_zero_estimate(degree, field):
+    """SPR reproduces strains of the fitted degree: P1 with a linear field, P2 with a quadratic one."""
+    for half in structured_mesh(8, 4, shear=0.3, degree=degree).halves:
+        u = field(half.points)
+        error, energy = estimate.block_indicators(half.points, half.cells, D, u)
+        assert error.sum() < 1e-24 * energy.sum()
+        assert np.allclose(estimate.recovered_strain(half.points, half.cells, u)[:, 2],
+                           (quadratic_strain(half.points)[:, 2] if degree == 2 else -1.0), atol=1e-11)
+
+
+def _true_interpolation_error(half, u, exact_strain) -> float:
+    xi, weights = estimate._RULES[6]  # degree 4: exact for the squared difference on straight cells
+    det, gradients = element_geometry(half.points, half.cells, xi)
+    strain = np.einsum("mqij,mj->mqi", strain_operator(gradients), u.reshape(-1)[element_dofs(half.cells)])
+    shapes = estimate.shape_functions(half.cells.shape[1], xi)[0]
+    where = np.einsum("qk,mkd->mqd", shapes, half.points[half.cells])
+    difference = exact_strain(where) - strain
+    return float(np.sum(np.einsum("mqi,ij,mqj->mq", difference, D, difference) * det * weights))
+
+
+@pytest.mark.parametrize("degree, field, strain", [(1, quadratic, quadratic_strain), (2, cubic, cubic_strain)])
+def test_the_estimate_of_a_smooth_field_matches_its_true_error(degree, field, strain):
+    """For the interpolant of a smooth field on an unstructured mesh, η / true error is close to 1."""
+    half = structured_mesh(16, 8, shear=0.4, degree=degree).lower
+    u = field(half.points)
+    eta = np.sqrt(estimate.block_indicators(half.points, half.cells, D, u)[0].sum())
+    true = np.sqrt(_true_interpolation_error(half, u, strain))
+    print(f"effectivity {eta / true:.3f}")
+    assert 0.8 < eta / true < 1.25
+
+
+def test_the_contact_term_measures_complementarity_between_nodes():
+    mesh = structured_mesh(8, 4, degree=1, geometry=CRACKED)
+    sigma = mesh.sigma
+    k = len(sigma.multiplier_nodes)
+    crack = sigma.crack[sigma.multiplier_nodes]
+    u_minus, u_plus = np.zeros((len(mesh.lower.points), 2)), np.zeros((len(mesh.upper.points), 2))
+    mu_c = np.zeros(k)
+    x = sigma.points[sigma.multiplier_nodes, 0]
+    # Pressure on the crack nodes with x < 0, opening on those with x > 0: complementary at every node.
+    mu_c[crack & (x < -0.1)] = 2.0
+    opening = np.zeros(len(sigma.points))
+    opening[sigma.multiplier_nodes[crack & (x > 0.1)]] = 1e-3
+    u_plus[mesh.upper.sigma, 1] = opening
+    lower, upper = estimate.contact_indicators(mesh, u_minus, u_plus, mu_c)
+    assert lower.sum() == upper.sum() == 0.0  # the pressure and the opening never share an edge
+    opening[sigma.multiplier_nodes[crack & (np.abs(x + 0.25) < 1e-9)]] = 1e-3  # now they do, on two edges
+    u_plus[mesh.upper.sigma, 1] = opening
+    lower, upper = estimate.contact_indicators(mesh, u_minus, u_plus, mu_c)
+    # Crack nodes at x = -0.25, 0, 0.25 (the tips carry no μᶜ): μ = 2 and g = 1e-3 at x = -0.25 only, so
+    # on the two edges at it ∫ μ_h g_h ds = (1/4)(2 · 1e-3)/3 each; each half gets ½ of 2|∫|.
+    assert lower.sum() == pytest.approx(2 * 0.25 * 2.0 * 1e-3 / 3) and upper.sum() == pytest.approx(lower.sum())
+    assert np.count_nonzero(lower) == 2
+
+
+@pytest.mark.parametrize("degree", [1, 2])
+def test_interpolation_reproduces_fields_of_the_element_on_curved_cells(degree):
+    """P2 on the arc geometry's curved cells: the isoparametric field is evaluated exactly."""
+    mesh = geometry.build(scene.load("arc-bond", ["mesh.size=0.25", f"mesh.degree={degree}"]))
+    half = mesh.upper
+    rng = np.random.default_rng(1)
+    values = rng.normal(size=(len(half.points), 2))
+    # A point in every cell (its reference centroid) and the exact value there.
+    xi = np.full((len(half.cells), 2), 1.0 / 3.0)
+    shapes = estimate.shape_functions(half.cells.shape[1], xi)[0]
+    points = np.einsum("qk,qkd->qd", shapes, half.points[half.cells])
+    expected = np.einsum("qk,qkc->qc", shapes, values[half.cells])
+    assert np.allclose(analysis.interpolate(half, values, points), expected, atol=1e-9)
+
+
+def test_reference_results_carry_the_estimate():
+    result = reference.solve(scene.load("partial-closure", ["mesh.sigma_vertices=13", "mesh.boundary_vertices=32"]),
+                             geometry.build(scene.load("partial-closure", ["mesh.sigma_vertices=13",
+                                                                           "mesh.boundary_vertices=32"])))
+    assert 0.05 < result.attrs["error_estimate"] < 1.0
+    for name, values in result.indicators.items():
+        assert values.shape == (len(result.half(name).cells),) and np.all(values >= 0)
+
+
+@pytest.mark.parametrize("degree", [1, 2])
+def test_compare_on_different_meshes_interpolates_the_coarse_solution(degree):
+    """A coarse solution against a finer one: the distance is what the estimates say is between them."""
+    def solve(P, M):
+        sc = scene.load("linear", [f"mesh.sigma_vertices={P}", f"mesh.boundary_vertices={M}", f"mesh.degree={degree}"])
+        return reference.solve(sc, geometry.build(sc))
+
+    coarse, fine = solve(13, 32), solve(48, 80)
+    assert analysis.compare(fine, fine).energy_error == 0.0
+    distance = analysis.compare(coarse, fine).energy_error
+    expected = np.sqrt(coarse.attrs["error_estimate"] ** 2 - fine.attrs["error_estimate"] ** 2)
+    assert 0.7 < distance / expected < 1.4
