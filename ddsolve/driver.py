@@ -58,7 +58,7 @@ class BlockServer:
                     value = block.schur_complement()
                 elif command in (DIRICHLET, DIAGONAL):
                     trace = block.dirichlet(loads[i]) if command == DIRICHLET else block.trace_diagonal()
-                    value = np.concatenate([trace, np.zeros(2)]) if block.is_leader else None
+                    value = np.concatenate([trace, np.zeros(width - len(trace))]) if block.is_leader else None
                 else:
                     value = self._solve(index, block, loads[i], full=command == SOLVE_FULL)
                 if block.is_leader:
@@ -139,10 +139,10 @@ class ParallelRounds:
         return self._round(SCHUR, None).reshape(-1, self.trace_size, self.trace_size)
 
     def dirichlet(self, traces: np.ndarray) -> np.ndarray:
-        return self._round(DIRICHLET, traces)[:, :-2]
+        return self._round(DIRICHLET, traces)[:, :self.trace_size]
 
     def trace_diagonals(self) -> np.ndarray:
-        return self._round(DIAGONAL, None)[:, :-2]
+        return self._round(DIAGONAL, None)[:, :self.trace_size]
 
     def stop(self) -> None:
         self.exchange.command(STOP)

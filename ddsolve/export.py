@@ -148,11 +148,12 @@ def sigma_mesh(result: Result) -> ViewerMesh:
 
 # --- writers -----------------------------------------------------------------------------------
 def write_vtu(mesh: ViewerMesh, name: str) -> None:
+    """Binary, uncompressed: zlib would take most of a solve's output time for a third of the size."""
     import meshio
 
     meshio.write(name, meshio.Mesh(mesh.points, [(mesh.cell_type, mesh.cells)], point_data=mesh.point_data,
                                    cell_data={key: [values] for key, values in mesh.cell_data.items()}),
-                 file_format="vtu")
+                 file_format="vtu", compression=None)
 
 
 def _data_item(heavy: str, path: str, values: np.ndarray) -> str:

@@ -30,7 +30,9 @@ def mpiexec_command(ranks: int, arguments: list[str], module: str = "ddsolve") -
     command = [mpiexec]
     version = subprocess.run([mpiexec, "--version"], capture_output=True, text=True).stdout
     if "Open MPI" in version or "OpenRTE" in version:
-        command.append("--quiet")
+        # ddsolve reads no standard input: not forwarding it also spares a libevent warning line
+        # ("Epoll MOD ... Bad file descriptor") when it is closed or a file.
+        command += ["--quiet", "--stdin", "none"]
         if "OMPI_MCA_mpi_yield_when_idle" not in os.environ:
             # A rank waiting in MPI (inside a distributed MUMPS solve, say) yields its core instead of
             # spinning: with more ranks than cores, 5x faster rounds at 8 ranks on 2 cores.

@@ -63,7 +63,8 @@ class Outcome:
     message: str = ""
     diverged: bool = False  # stopped because the iteration blew up (nothing is written)
     details: dict = field(default_factory=dict)  # method-specific numbers for the result file
-    refine: Callable[[np.ndarray], np.ndarray] | None = None  # traces of a full solve -> better λ
+    # (traces of a full solve, whether the check failed) -> a better λ, or None when it cannot be bettered
+    refine: Callable[[np.ndarray, bool], np.ndarray | None] | None = None
 
 
 class Progress:
@@ -391,6 +392,12 @@ def box_qp(A: np.ndarray, b: np.ndarray, lower: np.ndarray, upper: np.ndarray,
     raise SolverError(f"the active-set QP solver did not settle in {max_steps} steps")
 
 
+#: ``schur`` refines when the final solve's traces differ from its prediction by more than this,
+#: relative to the largest trace (MUMPS's own Schur complements: about 1e-11 on the slender strip;
+#: those inverted from the flexibility of blocks on two ranks: about 1e-8).
+PREDICTION_TOLERANCE = 1e-10
+
+
 def triangular_solve(L: np.ndarray, b: np.ndarray, transpose: bool = False, block: int = 128) -> np.ndarray:
     """L⁻¹ b (or L⁻ᵀ b) for a lower triangular L, by blocks of rows: O(n²) work for one vector."""
     n = len(b)
@@ -407,7 +414,7 @@ def triangular_solve(L: np.ndarray, b: np.ndarray, transpose: bool = False, bloc
 
 def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progress) -> Outcome:
     """Exact solve from the blocks' Schur complements S_b on Σ; three rounds in all (four when the
-    final check asks for a refinement).
+    final solve asks for a refinement).
 
     Rounds: one to collect S_b (from MUMPS with the factorization), one for the uncoupled traces
     t⁰_b; :func:`final_solve` adds the final one.  Rank 0 assembles the interface stiffness
@@ -419,7 +426,9 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
     solved exactly by the active-set method; every multiplier then follows from the block residuals
     ℓ_b = S_b (t_b − t⁰_b).  Should that violate a bound ±p, the full dual problem (A from
     G_b = S_b⁻¹) is solved with all bounds.  Whether the result is exact is decided by the final
-    solve; its ``refine`` repeats the rank-0 solve with t⁰ shifted by the difference between the
+    solve: when its traces differ from the predicted ones by more than :data:`PREDICTION_TOLERANCE`
+    (relative; S_b inverted from a distributed block's flexibility, a slender structure) or its KKT
+    check fails, ``refine`` repeats the rank-0 solve with t⁰ shifted by the difference between the
     solved and the predicted traces (iterative refinement: the error of S_b enters squared).
     """
     schur_complements = rounds.schur_complements()
@@ -504,8 +513,11 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
                       active_set_changes=changes,
                       details={"rank0_solve_time": time.perf_counter() - started, "interface_unknowns": size})
 
-    def refine(solved_traces: np.ndarray) -> np.ndarray:
+    def refine(solved_traces: np.ndarray, required: bool) -> np.ndarray | None:
         nonlocal predicted
+        mismatch = np.abs(solved_traces - predicted).max(initial=0.0)
+        if not required and mismatch <= PREDICTION_TOLERANCE * np.abs(solved_traces).max(initial=0.0):
+            return None
         mark = time.perf_counter()
         shifted = problem.initial_traces + (solved_traces - predicted)
         y, predicted, more = exact(shifted)
@@ -522,7 +534,7 @@ def final_solve(rounds: Rounds, interface: Interface, solver: Solver, outcome: O
     """One full round for the method's multipliers (the displacements that are written), then the
     check of their KKT residuals against :func:`~ddsolve.analysis.kkt_tolerance`: a method that
     stopped on its own rule is converged only if they pass.  A method that can refine its
-    multipliers (``outcome.refine``) gets one more round when they do not."""
+    multipliers (``outcome.refine``) gets one more round when they do not, or when it asks for one."""
     tolerance = kkt_tolerance(solver)
 
     def solve() -> tuple[Constraints, np.ndarray, np.ndarray]:
@@ -530,8 +542,9 @@ def final_solve(rounds: Rounds, interface: Interface, solver: Solver, outcome: O
         return kkt(interface, traces, outcome.lam, solver.p, rounds.residuals, rounds.largest), traces, energies
 
     residuals, traces, energies = solve()
-    if residuals.violations(tolerance) and outcome.refine is not None:
-        outcome.lam = outcome.refine(traces)
+    refined = outcome.refine(traces, bool(residuals.violations(tolerance))) if outcome.refine is not None else None
+    if refined is not None:
+        outcome.lam = refined
         residuals, traces, energies = solve()
         outcome.details["refined"] = 1
     outcome.details["energy"] = rounds.potential_energy(energies)
