@@ -22,7 +22,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 
 from ddsolve import analysis, export, io
 
-from conftest import ddsolve
+from conftest import ddsolve, without_open_mpi_noise
 
 EXIT_STATUSES = {0, 1, 2, 3, 4}
 EXAMPLES = int(os.environ.get("DDSOLVE_FUZZ_EXAMPLES", "0"))
@@ -78,9 +78,9 @@ def snapshot(folder: Path) -> dict[str, bytes]:
 
 def run(folder: Path, arguments: list[str], timeout: float = 120) -> subprocess.CompletedProcess:
     try:
-        return subprocess.run([sys.executable, "-m", "ddsolve", *arguments], capture_output=True, text=True,
-                              timeout=timeout, cwd=folder, stdin=subprocess.DEVNULL,
-                              env={**os.environ, "MPLBACKEND": "Agg"})
+        return without_open_mpi_noise(subprocess.run([sys.executable, "-m", "ddsolve", *arguments],
+                                                     capture_output=True, text=True, timeout=timeout, cwd=folder,
+                                                     stdin=subprocess.DEVNULL, env={**os.environ, "MPLBACKEND": "Agg"}))
     except subprocess.TimeoutExpired:
         pytest.fail(f"no answer within {timeout} s (a hang): ddsolve {' '.join(arguments)}")
 

@@ -18,7 +18,7 @@ import pytest
 from ddsolve import analysis, export, io, scene
 from ddsolve.errors import DDSolveError, SceneError
 
-from conftest import ddsolve
+from conftest import ddsolve, without_open_mpi_noise
 
 SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
 
@@ -26,8 +26,9 @@ SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"
 def run(*args: str, env: dict | None = None, timeout: float = 120, cwd: Path | None = None
         ) -> subprocess.CompletedProcess:
     """``python -m ddsolve ARGS`` (``solve -n N`` starts mpiexec itself)."""
-    return subprocess.run([sys.executable, "-m", "ddsolve", *args], capture_output=True, text=True, timeout=timeout,
-                          stdin=subprocess.DEVNULL, cwd=cwd, env={**os.environ, "MPLBACKEND": "Agg", **(env or {})})
+    return without_open_mpi_noise(subprocess.run([sys.executable, "-m", "ddsolve", *args], capture_output=True,
+                                                 text=True, timeout=timeout, stdin=subprocess.DEVNULL, cwd=cwd,
+                                                 env={**os.environ, "MPLBACKEND": "Agg", **(env or {})}))
 
 
 def refused(completed: subprocess.CompletedProcess, status: int, *fragments: str) -> str:
