@@ -54,13 +54,17 @@ def test_rotation_by_37_degrees_rotates_the_solution(tmp_path, example, name):
     ddsolve("reference", name, *SMALL, "-o", str(tmp_path / "plain.h5"))
     ddsolve("reference", str(scene_file), "-o", str(tmp_path / "turned.h5"))
     plain, rotated = io.read(tmp_path / "plain.h5"), io.read(tmp_path / "turned.h5")
-    assert energy(tmp_path / "turned.h5") == pytest.approx(energy(tmp_path / "plain.h5"), rel=1e-10)
+    energy_difference = abs(energy(tmp_path / "turned.h5") / energy(tmp_path / "plain.h5") - 1.0)
     scale = max(np.abs(u).max() for u in plain.solution.values())
+    largest = 0.0
     for block, u in plain.solution.items():
         a, b = plain.half(block).points @ R.T, rotated.half(block).points
         order_a, order_b = np.lexsort(np.round(a, 9).T[::-1]), np.lexsort(np.round(b, 9).T[::-1])
         assert np.abs(a[order_a] - b[order_b]).max() < 1e-12
-        assert np.abs((u @ R.T)[order_a] - rotated.solution[block][order_b]).max() < 1e-10 * scale
+        largest = max(largest, np.abs((u @ R.T)[order_a] - rotated.solution[block][order_b]).max() / scale)
+    print(f"\nExample {example} rotated by 37°: energy differs by {energy_difference:.1e} (relative), "
+          f"displacements by {largest:.1e} of max|u|")
+    assert energy_difference < 1e-10 and largest < 1e-10
 
 
 def test_example1_as_a_geo_file(tmp_path):
@@ -77,9 +81,12 @@ def test_example1_as_a_geo_file(tmp_path):
     ddsolve("reference", "partial-closure", "--set", "mesh.sigma_vertices=96", "--set", "mesh.boundary_vertices=144",
             "-o", str(tmp_path / "fine.h5"))
     builtin, fine = energy(tmp_path / "builtin.h5"), energy(tmp_path / "fine.h5")
-    assert energy(tmp_path / "msh.h5") == pytest.approx(builtin, rel=1e-10)
-    for coarse in (builtin, energy(tmp_path / "geo.h5")):
-        assert 0.0 < (coarse - fine) / abs(fine) < 0.2
+    same_mesh = abs(energy(tmp_path / "msh.h5") / builtin - 1.0)
+    above = [(coarse - fine) / abs(fine) for coarse in (builtin, energy(tmp_path / "geo.h5"))]
+    print(f"\nExample 1 as .msh of the built-in mesh: energy differs by {same_mesh:.1e}; built-in and .geo meshes "
+          f"above the P = 96 energy by {above[0]:.1%} and {above[1]:.1%}")
+    assert same_mesh < 1e-10
+    assert all(0.0 < value < 0.2 for value in above)
 
 
 @pytest.mark.parametrize("name", ["arc-bond", "strip-disbonds"])
@@ -90,9 +97,11 @@ def test_curved_sigma_and_the_strip_converge_from_above_without_penetration(tmp_
         ddsolve("solve", name, "--set", f"mesh.size={size}", "-o", str(output), ranks=4)
         ddsolve("reference", name, "--set", f"mesh.size={size}", "-o", str(tmp_path / "ref.h5"))
         result, reference = io.read(output), io.read(tmp_path / "ref.h5")
-        assert analysis.compare(result, reference).energy_error < 1e-10
-        assert analysis.constraints(result).penetration < 1e-10
+        error, penetration = analysis.compare(result, reference).energy_error, analysis.constraints(result).penetration
         energies.append(energy(output))
+        print(f"\n{name}, mesh.size = {size}: energy {energies[-1]:.10e}, DD against the reference {error:.1e}, "
+              f"penetration {penetration:.1e} max|u|")
+        assert error < 1e-10 and penetration < 1e-10
     assert energies[0] > energies[1] > energies[2]  # the total potential energy decreases under refinement
 
 
@@ -167,7 +176,9 @@ def test_loads_on_a_side_and_plane_stress_equal_plane_strain_with_modified_const
                 "--set", f"materials.layer1={{E = {E1!r}, nu = {nu1!r}}}",
                 "--set", f"materials.layer2={{E = {E2!r}, nu = {nu2!r}}}", "-o", str(output))
         results[model] = io.read(output)
-    assert analysis.compare(results["plane_stress"], results["plane_strain"]).energy_error < 1e-12
+    difference = analysis.compare(results["plane_stress"], results["plane_strain"]).energy_error
+    print(f"\nplane stress against plane strain with modified constants: {difference:.1e}")
+    assert difference < 1e-12
     assert np.abs(results["plane_strain"].solution["u_plus"]).max() > 0
 
 
@@ -177,7 +188,9 @@ def test_orthotropic_with_isotropic_constants_reproduces_the_isotropic_solution(
     ddsolve("reference", "partial-closure", *SMALL, "--set",
             f"materials.layer1={{E1 = {E}, E2 = {E}, G12 = {E / (2 * (1 + nu))!r}, nu12 = {nu}, angle = 30.0}}",
             "-o", str(tmp_path / "ortho.h5"))
-    assert analysis.compare(io.read(tmp_path / "ortho.h5"), io.read(tmp_path / "iso.h5")).energy_error < 1e-12
+    difference = analysis.compare(io.read(tmp_path / "ortho.h5"), io.read(tmp_path / "iso.h5")).energy_error
+    print(f"\northotropic input with isotropic constants against isotropic: {difference:.1e}")
+    assert difference < 1e-12
 
 
 def test_results_store_the_energy_and_the_interface_geometry(tmp_path):
