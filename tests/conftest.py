@@ -88,3 +88,12 @@ def ddsolve(*args: str, ranks: int | None = None, check: bool = True, timeout: f
         raise AssertionError(f"{' '.join(command)} failed ({completed.returncode}):\n"
                              f"{completed.stdout}\n{completed.stderr}")
     return completed
+
+
+def paper_references(folder: Path, *options: str) -> dict[str, Path]:
+    """Reference results of the paper's three scenes with ``options``, in ``folder``."""
+    out = {}
+    for name in ("partial-closure", "full-opening", "linear"):
+        out[name] = folder / f"{name}.h5"
+        ddsolve("reference", name, *options, "-o", str(out[name]))
+    return out

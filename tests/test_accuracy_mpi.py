@@ -6,7 +6,7 @@ import pytest
 
 from ddsolve import analysis, io, scene
 
-from conftest import ddsolve
+from conftest import ddsolve, paper_references
 
 #: A small P2 mesh of the paper's family.
 P2 = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32", "--set", "mesh.degree=2"]
@@ -30,12 +30,7 @@ def graded_scene(folder, name: str = "partial-closure", size: float = 0.25) -> s
 
 @pytest.fixture(scope="module")
 def p2_references(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("p2")
-    out = {}
-    for name in ("partial-closure", "full-opening", "linear"):
-        out[name] = folder / f"{name}.h5"
-        ddsolve("reference", name, *P2, "-o", str(out[name]))
-    return out
+    return paper_references(tmp_path_factory.mktemp("p2"), *P2)
 
 
 @pytest.mark.parametrize("name, method", [("partial-closure", m) for m in METHODS]

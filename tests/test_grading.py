@@ -7,20 +7,14 @@ import pytest
 from ddsolve import geometry, mesh as meshes, scene
 from ddsolve.errors import SceneError
 
-from conftest import ROOT
+from conftest import MATERIALS, ROOT
 
 BOX = """
 [geometry]
 crack = [-0.5, 0.5]
 [mesh]
 size = 0.2
-[materials.layer1]
-E = 200.0
-nu = 0.28
-[materials.layer2]
-E = 112.0
-nu = 0.32
-"""
+""" + MATERIALS
 
 
 def test_grading_true_chooses_the_exponent_of_the_element_degree():

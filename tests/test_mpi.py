@@ -6,7 +6,7 @@ import pytest
 
 from ddsolve import analysis, io
 
-from conftest import ddsolve
+from conftest import ddsolve, paper_references
 
 SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
 UZAWA = ["--set", "solver.method=uzawa"]
@@ -23,12 +23,7 @@ TIGHT = {
 @pytest.fixture(scope="module")
 def references(tmp_path_factory):
     """Reference results of the three paper scenes on a small mesh, computed once."""
-    folder = tmp_path_factory.mktemp("references")
-    out = {}
-    for name in ("partial-closure", "full-opening", "linear"):
-        out[name] = folder / f"{name}.h5"
-        ddsolve("reference", name, *SMALL, "-o", str(out[name]))
-    return out
+    return paper_references(tmp_path_factory.mktemp("references"), *SMALL)
 
 
 @pytest.mark.parametrize("method", TIGHT)
