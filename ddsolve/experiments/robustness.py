@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 import signal
+import socket
 import subprocess
 import sys
 import tempfile
@@ -557,7 +558,7 @@ class Hostile:
             time.sleep(0.002)
         process.kill()
         process.wait()
-        left = sorted(p.name for p in self.folder.glob(".k*"))
+        left = sorted(p.name.replace(socket.gethostname(), "HOST") for p in self.folder.glob(".k*"))
         completed, _ = self.run(["reference", "partial-closure", *SMALL, "-o", "k.h5"])
         after = sorted(p.name for p in self.folder.glob(".k*"))
         return (f"{len(left)} temporary file(s) left by the killed run ({', '.join(left) or 'none'}); the next "
