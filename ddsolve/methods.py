@@ -392,6 +392,8 @@ def box_qp(A: np.ndarray, b: np.ndarray, lower: np.ndarray, upper: np.ndarray,
     raise SolverError(f"the active-set QP solver did not settle in {max_steps} steps")
 
 
+#: At most this many refinement rounds after the final solve (each one a rank-0 solve and a round).
+MAX_REFINEMENTS = 3
 #: ``schur`` refines when the final solve's traces differ from its prediction by more than this,
 #: relative to the largest trace (MUMPS's own Schur complements: about 1e-11 on the slender strip;
 #: those inverted from the flexibility of blocks on two ranks: about 1e-8).
@@ -534,7 +536,8 @@ def final_solve(rounds: Rounds, interface: Interface, solver: Solver, outcome: O
     """One full round for the method's multipliers (the displacements that are written), then the
     check of their KKT residuals against :func:`~ddsolve.analysis.kkt_tolerance`: a method that
     stopped on its own rule is converged only if they pass.  A method that can refine its
-    multipliers (``outcome.refine``) gets one more round when they do not, or when it asks for one."""
+    multipliers (``outcome.refine``) gets another round when they do not, or when it asks for one, up to
+    :data:`MAX_REFINEMENTS` times."""
     tolerance = kkt_tolerance(solver)
 
     def solve() -> tuple[Constraints, np.ndarray, np.ndarray]:
@@ -542,11 +545,13 @@ def final_solve(rounds: Rounds, interface: Interface, solver: Solver, outcome: O
         return kkt(interface, traces, outcome.lam, solver.p, rounds.residuals, rounds.largest), traces, energies
 
     residuals, traces, energies = solve()
-    refined = outcome.refine(traces, bool(residuals.violations(tolerance))) if outcome.refine is not None else None
-    if refined is not None:
+    for refinement in range(1, MAX_REFINEMENTS + 1) if outcome.refine is not None else ():
+        refined = outcome.refine(traces, bool(residuals.violations(tolerance)))
+        if refined is None:
+            break
         outcome.lam = refined
         residuals, traces, energies = solve()
-        outcome.details["refined"] = 1
+        outcome.details["refined"] = refinement
     outcome.details["energy"] = rounds.potential_energy(energies)
     outcome.details["kkt_tolerance"] = tolerance
     outcome.details.update({f"kkt_{name}": getattr(residuals, name) for name in Constraints.NAMES})
