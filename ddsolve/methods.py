@@ -415,8 +415,8 @@ def triangular_solve(L: np.ndarray, b: np.ndarray, transpose: bool = False, bloc
 
 
 def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progress) -> Outcome:
-    """Exact solve from the blocks' Schur complements S_b on Σ; three rounds in all (four when the
-    final solve asks for a refinement).
+    """Exact solve from the blocks' Schur complements S_b on Σ; three rounds in all (one more for each
+    refinement the final solve asks for).
 
     Rounds: one to collect S_b (from MUMPS with the factorization), one for the uncoupled traces
     t⁰_b; :func:`final_solve` adds the final one.  Rank 0 assembles the interface stiffness
@@ -431,7 +431,7 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
     solve: when its traces differ from the predicted ones by more than :data:`PREDICTION_TOLERANCE`
     (relative; S_b inverted from a distributed block's flexibility, a slender structure) or its KKT
     check fails, ``refine`` repeats the rank-0 solve with t⁰ shifted by the difference between the
-    solved and the predicted traces (iterative refinement: the error of S_b enters squared).
+    solved and the predicted traces, cumulatively (iterative refinement: the error of S_b enters squared).
     """
     schur_complements = rounds.schur_complements()
     problem = DualProblem(rounds, interface, solver)
@@ -509,20 +509,21 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
             traces = full_step(y)
         return y, traces, steps
 
-    y, predicted, steps = exact(problem.initial_traces)
+    uncoupled = problem.initial_traces  # t⁰ of rank 0's model, corrected by each refinement
+    y, predicted, steps = exact(uncoupled)
     progress(steps, history[-1] if history else 0.0, final=True)
     outcome = Outcome(problem.multipliers(y), converged=True, iterations=steps, history=history,
                       active_set_changes=changes,
                       details={"rank0_solve_time": time.perf_counter() - started, "interface_unknowns": size})
 
     def refine(solved_traces: np.ndarray, required: bool) -> np.ndarray | None:
-        nonlocal predicted
+        nonlocal predicted, uncoupled
         mismatch = np.abs(solved_traces - predicted).max(initial=0.0)
         if not required and mismatch <= PREDICTION_TOLERANCE * np.abs(solved_traces).max(initial=0.0):
             return None
         mark = time.perf_counter()
-        shifted = problem.initial_traces + (solved_traces - predicted)
-        y, predicted, more = exact(shifted)
+        uncoupled = uncoupled + (solved_traces - predicted)  # the model now agrees with the blocks at this λ
+        y, predicted, more = exact(uncoupled)
         outcome.iterations += more
         outcome.details["rank0_solve_time"] += time.perf_counter() - mark
         return problem.multipliers(y)

@@ -193,7 +193,11 @@ def plate_scene(folder: Path, sides: tuple[str, ...], clamp: float, nu: float, s
     layers = "".join(f"[materials.{layer}]\nE = {plate['E']!r}\nnu = {nu!r}\n" for layer in ("layer1", "layer2"))
     loads = "".join(f"[loads.{layer}.top]\ny = {stress!r}\n[loads.{layer}.bottom]\ny = {-stress!r}\n"
                     for layer in ("layer1", "layer2"))
-    text = f'title = "plate"\n[mesh]\nfile = "{name}.geo"\ndegree = {degree}\n{layers}{loads}'
+    # Clamped on short segments only, the plate is nearly floating and its blocks' Schur complements carry
+    # round-off that refinement does not remove: the gluing holds to a few 1e-6 of max |u|, so the final check
+    # is asked for 1e-5 (solver.tol 1e-7), far below what moves G in the digits the table shows.
+    solver = '[solver]\ntol = 1e-7\n'
+    text = f'title = "plate"\n[mesh]\nfile = "{name}.geo"\ndegree = {degree}\n{layers}{loads}{solver}'
     return scene.loads(text, origin=name, base=folder)
 
 

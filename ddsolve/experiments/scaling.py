@@ -307,10 +307,11 @@ def plots(runs: list[dict], model: CostModel) -> None:
 
 
 def _launch_rows(runs: list[dict]) -> list[str]:
+    from ..driver import PHASES
+
     rows = []
     for r in (r for r in runs if r["kind"] == "large"):
-        phases = [r.get(name, 0.0) for name in ("startup", "meshing", "distribution", "assembly", "factorization",
-                                                "iterations", "output", "write")]
+        phases = [r.get(name, 0.0) for name in PHASES]
         total = sum(phases)
         rows.append(f"| {r['P']} | {4 * r['unknowns']:,} | {r['method']} | "
                     + " | ".join(f"{t:.2f}" for t in phases) + f" | {total:.1f} | {r['launch']:.1f} "
@@ -357,6 +358,7 @@ def _baseline_rows(baseline: list[dict]) -> list[str]:
 
 
 def text(record: dict, model: CostModel) -> str:
+    from ..driver import PHASES
     from .bench import MONOLITHIC_ORDERINGS
 
     runs = record["runs"]
@@ -423,9 +425,8 @@ def text(record: dict, model: CostModel) -> str:
         "mpiexec to the solver's start; *iterations*: the rounds and rank 0's updates); *sum*: the phases added up, "
         "*launch*: the command's wall time measured outside it; *solve phase* = factorization + iterations.",
         "",
-        "| P | unknowns | method | startup | meshing | distribution | assembly | factorization | iterations | output "
-        "| write | sum (s) | launch (s) | solve phase (s) | sum / solve |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| P | unknowns | method | " + " | ".join(PHASES) + " | sum (s) | launch (s) | solve phase (s) | sum / solve |",
+        "|---" * (len(PHASES) + 7) + "|",
         *_launch_rows(runs),
         "",
         "## Memory",
