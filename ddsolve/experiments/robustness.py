@@ -332,6 +332,19 @@ CLASSES = {
     6: ("Options typed after PETSc options", "ddsolve's options are taken anywhere; PETSc options nobody read "
         "are reported"),
 }
+#: The classes of issue 21 (round 3), numbered 101 to 109; each is measured by a module
+#: ``hostile_<topic>`` of this package whose ``measure(hostile)`` adds its rows.
+ROUND3 = {
+    101: ("Load expressions at the parser's limits", ""),
+    102: ("Coarse, thin, slender or far-away geometry", ""),
+    103: ("Text that is not plain UTF-8 on the way out", ""),
+    104: ("Work that is never refused", ""),
+    105: ("Interrupted writes", ""),
+    106: ("Files users have", ""),
+    107: ("Silent wrong answers: keys ignored, inputs without meaning", ""),
+    108: ("Outputs that destroy inputs, and messages that blame the wrong thing", ""),
+    109: ("Processes that outlive their command", ""),
+}
 
 
 class Hostile:
@@ -340,7 +353,7 @@ class Hostile:
 
     def __init__(self, folder: Path):
         self.folder = folder
-        self.rows: dict[int, list[tuple[str, str, str]]] = {number: [] for number in CLASSES}
+        self.rows: dict[int, list[tuple[str, str, str]]] = {number: [] for number in (*CLASSES, *ROUND3)}
 
     def run(self, arguments: list[str], env: dict | None = None, timeout: float = 300
             ) -> tuple[subprocess.CompletedProcess, float]:
