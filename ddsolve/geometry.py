@@ -26,8 +26,8 @@ from typing import Callable, TypeVar
 import numpy as np
 
 from .errors import MeshError, SceneError
-from .mesh import CLAMPED, CRACK, SIGMA, TOL, HalfMesh, Mesh, elevate, make_half, make_mesh, oriented
-from .scene import SIDES, Geometry, MeshOptions, Scene
+from .mesh import CLAMPED, CRACK, SIGMA, TOL, HalfMesh, Mesh, elevate, make_half, make_mesh, merge_repeats, oriented
+from .scene import SIDES, Geometry, MeshOptions, Scene, readable
 
 #: Grading of the paper's mesh family: h(d) = h_Σ + (h_far − h_Σ)(d/H)^GRADING_EXPONENT at distance d
 #: from Σ (H: the larger half height), h_far = FAR_FACTOR·perimeter/M.  Fitted so that the five meshes
@@ -500,8 +500,7 @@ def _read_triangles(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Points ``(n, 2)`` and triangles of a mesh file meshio reads; every failure is a MeshError."""
     import meshio
 
-    if not path.is_file():
-        raise MeshError(f"{path}: mesh file not found")
+    readable(path, "mesh file", MeshError)
     chatter = io.StringIO()
     try:
         with contextlib.redirect_stdout(chatter), contextlib.redirect_stderr(chatter):
@@ -510,10 +509,14 @@ def _read_triangles(path: Path) -> tuple[np.ndarray, np.ndarray]:
         reason = str(exc) if not isinstance(exc, SystemExit) else chatter.getvalue()
         reason = " ".join(reason.split()) or exc.__class__.__name__
         raise MeshError(f"{path}: cannot read mesh ({reason})") from None
-    triangles = [block.data for block in mesh.cells if block.type == "triangle"]
-    if not triangles:
+    physical = mesh.cell_data.get("gmsh:physical", [None] * len(mesh.cells))
+    blocks = [(block.data, tags) for block, tags in zip(mesh.cells, physical) if block.type == "triangle"]
+    if not blocks:
         raise MeshError(f"{path}: no triangle cells")
-    cells = np.concatenate(triangles).astype(np.int64)
+    cells = np.concatenate([data for data, _ in blocks]).astype(np.int64)
+    # A MSH 2.2 file lists a triangle once per physical group: one triangle (a repeat in one group stays).
+    groups = np.concatenate([np.zeros(len(data)) if tags is None else np.ravel(tags) for data, tags in blocks])
+    cells = merge_repeats(cells, groups.astype(np.int64))
     points = np.asarray(mesh.points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] not in (2, 3):
         raise MeshError(f"{path}: points must have 2 or 3 coordinates")
@@ -533,8 +536,7 @@ def _has_halves(path: Path) -> bool:
     """Whether a .msh file has the physical surfaces ``lower`` and ``upper`` (else it is a box file)."""
     import gmsh
 
-    if not path.is_file():
-        raise MeshError(f"{path}: mesh file not found")
+    readable(path, "mesh file", MeshError)
     gmsh.initialize([], readConfigFiles=False)
     try:
         _quiet(gmsh)
@@ -572,8 +574,7 @@ def _from_gmsh(scene: Scene, background: SizeMap | None = None) -> Mesh:
     if scene.geometry.given:
         raise MeshError(f"{where}: geometry.{sorted(scene.geometry.given)[0]} does not apply to a geometry "
                         "with physical groups (they define it)")
-    if not path.is_file():
-        raise MeshError(f"{path}: mesh file not found")
+    readable(path, "mesh file", MeshError)
     gmsh.initialize([], readConfigFiles=False)
     try:
         _quiet(gmsh)
@@ -649,20 +650,22 @@ def _physical_groups(gmsh, where: str) -> dict[tuple[int, str], list[int]]:
 
 
 def _elements(gmsh, entities: list[int], types: tuple[int, int], position: np.ndarray, where: str) -> np.ndarray:
-    """Node indices of the elements of ``entities`` (of the linear or the quadratic type)."""
+    """Node indices of the elements of ``entities`` (of the linear or the quadratic type), each once
+    (:func:`~ddsolve.mesh.merge_repeats`: a MSH 2.2 file lists an element once per physical group)."""
     dim = 2 if types[0] == _TRIANGLE else 1
+    width = {_TRIANGLE: 3, _TRIANGLE6: 6, _LINE: 2, _LINE3: 3}
     found = {t: [] for t in types}
-    for entity in entities:
+    for entity in dict.fromkeys(entities):
         element_types, _, node_tags = gmsh.model.mesh.getElements(dim, entity)
+        in_groups = len(gmsh.model.getPhysicalGroupsForEntity(dim, entity))
         for kind, nodes in zip(element_types, node_tags):
             if kind in found:
-                found[kind].append(np.asarray(nodes, dtype=np.int64))
+                found[kind].append(merge_repeats(np.asarray(nodes, dtype=np.int64).reshape(-1, width[kind]), in_groups))
             elif dim == 2:
                 raise MeshError(f"{where}: the surfaces must hold triangles only (found gmsh element type {kind})")
     kind = types[1] if found[types[1]] else types[0]
-    width = {_TRIANGLE: 3, _TRIANGLE6: 6, _LINE: 2, _LINE3: 3}[kind]
-    nodes = np.concatenate(found[kind]) if found[kind] else np.zeros(0, dtype=np.int64)
-    return position[nodes.reshape(-1, width)]
+    nodes = np.concatenate(found[kind]) if found[kind] else np.zeros((0, width[kind]), dtype=np.int64)
+    return position[nodes]
 
 
 def _curve_normals(gmsh, entities: list[int], position: np.ndarray, count: int) -> np.ndarray:

@@ -333,8 +333,7 @@ def read(path: Path) -> Result:
     """Read a result file written by :func:`write`, checking that its parts fit together (one line
     naming the file and the part otherwise)."""
     path = Path(path)
-    if not path.is_file():
-        raise DDSolveError(f"{path}: result file not found")
+    scenes.readable(path, "result file")
     try:
         with h5py.File(path, "r") as f:
             result = _read(f, path)

@@ -204,6 +204,35 @@ def edge_lengths(points: np.ndarray, edges: np.ndarray) -> np.ndarray:
 
 
 # --- building a half ----------------------------------------------------------------------------
+def merge_repeats(cells: np.ndarray, groups: np.ndarray | int) -> np.ndarray:
+    """The elements of a file that lists an element once per physical group it is in (gmsh's MSH 2.2
+    does), each once: it carries every group.
+
+    ``groups`` is, per row, the physical group that listed it; or an int k when the rows are the
+    elements of one gmsh entity in k groups (gmsh keeps every copy, so the j-th copy of an element is
+    the j-th group's).  A copy of an element in a group that has not listed it yet is dropped; a copy
+    listed again by the same group stays, for :func:`oriented` and :func:`make_half` to refuse.
+    """
+    cells = np.asarray(cells, dtype=np.int64)
+    if len(cells) == 0:
+        return cells
+    _, element = np.unique(np.sort(cells, axis=1), axis=0, return_inverse=True)
+    element = element.reshape(-1)
+    index = np.arange(len(cells))
+    if np.ndim(groups) == 0:
+        order = np.argsort(element, kind="stable")
+        starts = np.flatnonzero(np.diff(element[order], prepend=-1))
+        copy = np.empty(len(cells), dtype=np.int64)
+        copy[order] = index - np.repeat(starts, np.diff(np.append(starts, len(cells))))
+        groups = np.minimum(copy, max(int(groups), 1) - 1)
+    first = np.full(int(element.max()) + 1, len(cells))
+    np.minimum.at(first, element, index)
+    _, pair_first, pair = np.unique(np.column_stack([element, np.asarray(groups, dtype=np.int64)]), axis=0,
+                                    return_index=True, return_inverse=True)
+    keep = (index == first[element]) | (index != pair_first[pair.reshape(-1)])
+    return cells[keep]
+
+
 def make_half(points: np.ndarray, cells: np.ndarray, side: int, boundaries: dict[str, np.ndarray],
               origin: str) -> tuple[HalfMesh, np.ndarray]:
     """A checked half from raw nodes, cells and named boundary edges (any orientation).
@@ -236,6 +265,9 @@ def make_half(points: np.ndarray, cells: np.ndarray, side: int, boundaries: dict
         if np.any(raw < 0):
             raise MeshError(f"{where}: boundary {name!r} has nodes that no triangle uses")
         wanted = _edge_keys(raw, len(points))
+        if len(np.unique(wanted)) < len(wanted):
+            raise MeshError(f"{where}: boundary {name!r} lists {len(wanted) - len(np.unique(wanted))} edges more "
+                            "than once")
         position = np.searchsorted(keys[order], wanted)
         found = (position < len(keys)) & (keys[order][np.minimum(position, len(keys) - 1)] == wanted)
         if not found.all():

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import difflib
 import math
+import os
+import stat
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -20,7 +22,7 @@ except ModuleNotFoundError:  # Python < 3.11
     import tomli as tomllib
 
 from . import expressions, materials
-from .errors import SceneError
+from .errors import DDSolveError, MeshError, SceneError
 from .expressions import Expression
 
 METHODS = ("auto", "schur", "mprgp", "fista", "uzawa", "feti")
@@ -694,23 +696,47 @@ def builtin_scenes() -> dict[str, str]:
     return {entry.stem: entry.read_text() for entry in builtin_folder().iterdir() if entry.suffix == ".toml"}
 
 
+def readable(path: str | Path, what: str, error: type[DDSolveError] = DDSolveError, missing: str = "") -> Path:
+    """``path``, if it opens for reading as a regular file; else ``error`` in one line naming it and
+    the reason: ``missing`` (default: WHAT not found), or cannot read WHAT (permission denied, is a
+    directory, ...).  Every input file (scene, mesh or geometry, result) goes through here before
+    it is read, so that no reader meets an OS error of its own."""
+    try:
+        handle = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)  # no wait on a FIFO
+    except FileNotFoundError:
+        raise error(f"{printable(str(path))}: {missing or what + ' not found'}") from None
+    except OSError as exc:
+        raise error(f"{printable(str(path))}: cannot read {what} ({(exc.strerror or type(exc).__name__).lower()})") \
+            from None
+    try:
+        mode = os.fstat(handle).st_mode
+    finally:
+        os.close(handle)
+    if not stat.S_ISREG(mode):
+        kind = "is a directory" if stat.S_ISDIR(mode) else "not a regular file"
+        raise error(f"{printable(str(path))}: cannot read {what} ({kind})")
+    return Path(path)
+
+
 def load(source: str | Path, overrides: list[str] = ()) -> Scene:
-    """Read a scene from a file path or a built-in name, apply overrides, validate."""
+    """Read a scene from a file path or a built-in name, apply overrides, validate; the scene file
+    and its mesh file must be readable (:func:`readable`)."""
     path = Path(source)
-    base = None
-    if path.is_file():
+    shipped = builtin_scenes()
+    if str(source) in shipped and not os.path.isfile(path):
+        text, base = shipped[str(source)], builtin_folder()
+    else:
+        names = ", ".join(sorted(shipped))
+        readable(path, "scene file", SceneError, f"no such scene file or built-in scene (built-in: {names})")
         try:
             text = path.read_text()
         except (OSError, UnicodeDecodeError) as exc:
             raise SceneError(f"{source}: cannot read scene file ({exc.__class__.__name__})") from None
         base = path.parent
-    else:
-        shipped = builtin_scenes()
-        if str(source) not in shipped:
-            names = ", ".join(sorted(shipped))
-            raise SceneError(f"{printable(str(source))}: no such scene file or built-in scene (built-in: {names})")
-        text, base = shipped[str(source)], builtin_folder()
-    return loads(text, overrides, origin=str(source), base=base)
+    scene = loads(text, overrides, origin=str(source), base=base)
+    if scene.mesh.file is not None:
+        readable(scene.mesh.file, "mesh file", MeshError)
+    return scene
 
 
 def loads(text: str, overrides: list[str] = (), origin: str = "scene", base: Path | None = None) -> Scene:

@@ -272,9 +272,9 @@ def read(path: Path) -> dict:
     """A sweep file as a dict: attributes under ``attrs``, datasets by their path (``tips/G``, ...)."""
     import h5py
 
-    path = Path(path)
-    if not path.is_file():
-        raise DDSolveError(f"{path}: sweep file not found")
+    from .scene import readable
+
+    path = readable(path, "sweep file")
     out: dict = {}
     try:
         with h5py.File(path, "r") as f:

@@ -141,4 +141,5 @@ def test_bare_words_are_strings_and_mesh_files_resolve_against_the_scene(tmp_pat
     assert scene.parse_override("solver.tol=1e-8") == (["solver", "tol"], 1e-8)
     path = tmp_path / "s.toml"
     path.write_text(MINIMAL.replace("sigma_vertices = 12\nboundary_vertices = 32", 'file = "m.vtu"'))
+    (tmp_path / "m.vtu").write_text("")  # load refuses a mesh file it cannot open
     assert scene.load(path).mesh.file == tmp_path / "m.vtu"
