@@ -45,14 +45,17 @@ def _stdout_line(*words: str):
 
 
 def _encodings(hostile) -> None:
-    traceback = "exit 1 after the result was written: 15-line traceback (UnicodeEncodeError: {} codec can't encode 'θ')"
-    for label, env, codec in (("PYTHONIOENCODING=ascii", ASCII, "'ascii'"), ("PYTHONIOENCODING=latin-1", LATIN1, "'latin-1'"),
+    traceback = ("exit 1 after the result was written: 15-line traceback (UnicodeEncodeError: {} codec can't "
+                 "encode 'θ')")
+    for label, env, codec in (("PYTHONIOENCODING=ascii", ASCII, "'ascii'"),
+                              ("PYTHONIOENCODING=latin-1", LATIN1, "'latin-1'"),
                               ("LANG=C LC_ALL=C PYTHONUTF8=0", C_LOCALE, "'ascii'")):
         hostile.case(TEXT, f"`{label}`, solve on 2 ranks", traceback.format(codec),
                      ["solve", "-n", "2", "partial-closure", *SMALL, "-o", "text-enc.h5"], env=env,
                      observe=_stdout_line("theta"))
     hostile.case(TEXT, "`PYTHONIOENCODING=ascii`, reference", traceback.format("'ascii'"),
-                 ["reference", "partial-closure", *SMALL, "-o", "text-enc.h5"], env=ASCII, observe=_stdout_line("theta"))
+                 ["reference", "partial-closure", *SMALL, "-o", "text-enc.h5"], env=ASCII,
+                 observe=_stdout_line("theta"))
     for label, env in (("PYTHONIOENCODING=latin-1", LATIN1), ("LANG=C LC_ALL=C PYTHONUTF8=0", C_LOCALE)):
         hostile.case(TEXT, f"`{label}`, mesh", "exit 1: 13-line traceback (UnicodeEncodeError: can't encode 'Σ')",
                      ["mesh", "partial-closure", *SMALL], env=env, observe=_stdout_line("Sigma"))
@@ -61,7 +64,8 @@ def _encodings(hostile) -> None:
                  observe=_stdout_line("wrote"))
     hostile.case(TEXT, "`PYTHONIOENCODING=ascii`, an error naming Γ_D", "exit 1, «ddsolve: error: generated mesh: a "
                  "crack reaches the clamped boundary at (-1, 0); the crack must stay off \\u0393_D»",
-                 ["solve", "partial-closure", *SMALL, "--set", "geometry.crack=[-1, 0.5]", "-o", "text-enc.h5"], env=ASCII)
+                 ["solve", "partial-closure", *SMALL, "--set", "geometry.crack=[-1, 0.5]", "-o", "text-enc.h5"],
+                 env=ASCII)
 
 
 def _titled(hostile, name: str, title: str) -> str:
@@ -122,7 +126,8 @@ def _redirected(hostile, arguments: list[str], env: dict, closed_pipe: bool) -> 
 
 
 def _standard_output(hostile) -> None:
-    full_buffered = "exit 120, 2 lines: «Exception ignored in: <_io.TextIOWrapper name='<stdout>' ...>», OSError: [Errno 28]"
+    full_buffered = ("exit 120, 2 lines: «Exception ignored in: <_io.TextIOWrapper name='<stdout>' ...>», "
+                     "OSError: [Errno 28]")
     for label, arguments, env, closed, before in (
             ("check > /dev/full", ["check", "text-base.h5"], BUFFERED, False, full_buffered),
             ("check > /dev/full, PYTHONUNBUFFERED=1", ["check", "text-base.h5"], UNBUFFERED, False,
@@ -139,12 +144,12 @@ def _standard_output(hostile) -> None:
 
 
 def _messages(hostile) -> None:
-    hostile.case(MESSAGES, "compare a result with one of a wider box (geometry.box)", "exit 1, «ddsolve: error: 8 points "
-                 "lie outside the lower mesh»", ["compare", "text-base.h5", "text-wide.h5"])
+    hostile.case(MESSAGES, "compare a result with one of a wider box (geometry.box)", "exit 1, «ddsolve: error: "
+                 "8 points lie outside the lower mesh»", ["compare", "text-base.h5", "text-wide.h5"])
     hostile.case(MESSAGES, "compare the wider box's result with the first", "exit 0, «relative energy-norm error "
                  "4.314e-01», measured on part of the domain only", ["compare", "text-wide.h5", "text-base.h5"])
     hostile.case(MESSAGES, "compare arc-bond, mesh.size 0.2 against 0.1 (one domain, curved Σ)", "exit 1, «ddsolve: "
                  "error: 20 points lie outside the lower mesh»", ["compare", "text-arc-coarse.h5", "text-arc-fine.h5"],
                  observe=_stdout_line("relative"))
-    hostile.case(MESSAGES, "solve -n 4 -n 8", "exit 1 after 7.7 s: 47 lines of PMIx and Open MPI errors, a segmentation "
-                 "fault", ["solve", "-n", "4", "-n", "8", "partial-closure", *SMALL])
+    hostile.case(MESSAGES, "solve -n 4 -n 8", "exit 1 after 7.7 s: 47 lines of PMIx and Open MPI errors, a "
+                 "segmentation fault", ["solve", "-n", "4", "-n", "8", "partial-closure", *SMALL])
