@@ -45,11 +45,20 @@ def same_meshes(a: Result, b: Result) -> bool:
                for half_a, half_b in ((a.lower, b.lower), (a.upper, b.upper)))
 
 
-def compare(a: Result, b: Result) -> Comparison:
+def compare(a: Result, b: Result, names: tuple[str, str] = ("the result", "the reference")) -> Comparison:
     """Error of ``a`` against ``b`` (the reference).  On different meshes (a coarse solution against a
-    fine one), ``a`` is first evaluated at ``b``'s nodes with its own shape functions."""
+    fine one), ``a`` is first evaluated at ``b``'s nodes with its own shape functions; meshes of
+    different domains (a node of one outside the other: see :func:`locate`) are refused, naming the
+    results by ``names``."""
     fields = {s.name: a.solution[s.name] for s in BLOCKS}
     if not same_meshes(a, b):
+        for (mine, theirs), (me, them) in (((a, b), names), ((b, a), names[::-1])):
+            for half, other in ((mine.lower, theirs.lower), (mine.upper, theirs.upper)):
+                stray = int(np.count_nonzero(locate(half, other.points)[1]))
+                if stray:
+                    raise DDSolveError(f"{names[0]} and {names[1]} are results on different domains: {stray} nodes "
+                                       f"of {them}'s {other.name} half lie outside {me}'s; compare results of one "
+                                       "geometry (geometry.box, geometry.sigma, mesh.file)")
         fields = {s.name: interpolate(a.half(s.name), a.solution[s.name], b.half(s.name).points) for s in BLOCKS}
     reference = block_energies(b).sum()
     error = block_energies(b, difference=fields).sum()
@@ -209,17 +218,46 @@ def tolerance_of(result: Result) -> float:
     return kkt_tolerance(None if result.method == "reference" else scenes.loads(result.scene).solver)
 
 
+#: A point within this fraction of a boundary edge's length outside a mesh still lies in its domain:
+#: the nodes of a fine mesh on a curved line (an arc of Σ) lie just outside a coarse mesh's chords.
+ON_BOUNDARY = 0.1
+
+
+def locate(half, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The cell of ``half`` (straight triangles of its corners) holding each of ``points`` (q, 2) --
+    for a point just outside it (within ON_BOUNDARY of the nearest boundary edge's length), the cell
+    of that edge -- and whether each point lies outside the half's domain."""
+    from matplotlib.tri import Triangulation
+
+    corners = half.corners
+    cell = Triangulation(half.points[:, 0], half.points[:, 1], corners).get_trifinder()(points[:, 0], points[:, 1])
+    missed = np.flatnonzero(cell < 0)
+    outside = np.zeros(len(points), dtype=bool)
+    if len(missed):
+        edges = np.concatenate([corners[:, [0, 1]], corners[:, [1, 2]], corners[:, [2, 0]]])
+        _, first, count = np.unique(np.sort(edges, axis=1), axis=0, return_index=True, return_counts=True)
+        boundary = first[count == 1]  # edges of one cell only
+        start = half.points[edges[boundary, 0]]
+        along = half.points[edges[boundary, 1]] - start
+        length = np.hypot(along[:, 0], along[:, 1])
+        for chunk in np.array_split(missed, max(1, len(missed) * len(boundary) // 1_000_000)):
+            offset = points[chunk, None, :] - start  # (q, e, 2)
+            t = np.clip(np.einsum("qed,ed->qe", offset, along) / length ** 2, 0.0, 1.0)
+            distance = np.linalg.norm(offset - t[..., None] * along, axis=2)
+            nearest = np.argmin(distance, axis=1)
+            cell[chunk] = boundary[nearest] % len(corners)
+            outside[chunk] = distance[np.arange(len(chunk)), nearest] > ON_BOUNDARY * length[nearest]
+    return cell, outside
+
+
 def interpolate(half, values: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Evaluate the field ``values`` (n, c) of ``half`` at ``points`` (q, 2) inside that half with the
     element's own shape functions (P1, or isoparametric P2: the reference coordinates of a point are
     found by Newton's method from those in the straight triangle of its corners)."""
-    from matplotlib.tri import Triangulation
-
     corners = half.corners
-    triangulation = Triangulation(half.points[:, 0], half.points[:, 1], corners)
-    cell = triangulation.get_trifinder()(points[:, 0], points[:, 1])
-    if np.any(cell < 0):
-        raise DDSolveError(f"{int(np.sum(cell < 0))} points lie outside the {half.name} mesh")
+    cell, outside = locate(half, points)
+    if np.any(outside):
+        raise DDSolveError(f"{int(np.sum(outside))} points lie outside the {half.name} mesh")
     p = half.points[corners[cell]]  # (q, 3, 2)
     d1, d2, d = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0], points - p[:, 0]
     det = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]

@@ -9,6 +9,8 @@ that nothing read are reported when the run ends, as PETSc's ``-options_left`` d
 from __future__ import annotations
 
 import argparse
+import codecs
+import contextlib
 import difflib
 import importlib
 import math
@@ -19,6 +21,7 @@ import sys
 import threading
 import time
 import traceback
+import unicodedata
 from pathlib import Path
 
 from . import __version__
@@ -37,6 +40,8 @@ RANK_MEMORY = 100e6
 VERTEX_MEMORY = 15e3
 #: Suffixes of a result file.
 RESULT_SUFFIXES = (".h5", ".hdf5")
+#: Suffix of the files ``mesh -o`` writes (gmsh chooses the format by the suffix).
+MESH_SUFFIX = ".msh"
 
 
 class Parser(argparse.ArgumentParser):
@@ -108,6 +113,10 @@ def init_petsc(options: list[str]) -> None:
     import petsc4py
 
     petsc4py.init([sys.argv[0], *options])
+    from petsc4py import PETSc  # noqa: F401 -- PETSc starts here, and installs its signal handlers
+
+    # A closed pipe on standard output is an error to report in one line (EPIPE), not a PETSc crash.
+    signal.signal(signal.SIGPIPE, signal.SIG_IGN)
 
 
 def _root_print(*args, **kwargs) -> None:
@@ -305,7 +314,7 @@ def cmd_compare(args, _petsc_options) -> int:
     from . import analysis, io
 
     result, reference = io.read(args.result), io.read(args.reference)
-    comparison = analysis.compare(result, reference)
+    comparison = analysis.compare(result, reference, (args.result, args.reference))
     print(f"relative energy-norm error {comparison.energy_error:.3e}   "
           f"max nodal difference {comparison.max_difference:.3e} (max |u| {comparison.max_displacement:.3e})"
           + ("" if analysis.same_meshes(result, reference) else "   (on the reference's mesh)"))
@@ -391,6 +400,9 @@ def cmd_export(args, _petsc_options) -> int:
 def cmd_mesh(args, _petsc_options) -> int:
     from . import geometry, io, mesh as meshes
 
+    if args.output is not None and Path(args.output).suffix != MESH_SUFFIX:
+        raise DDSolveError(f"-o {args.output}: the mesh command writes one format, gmsh MSH 4.1 with physical "
+                           f"groups: give -o a file name with the suffix {MESH_SUFFIX} (e.g. halves{MESH_SUFFIX})")
     scene = _load_scene(args)
     check_size(scene)
     if args.output is not None:
@@ -616,30 +628,37 @@ def _dispatch(argv: list[str]) -> int:
             raise UsageError(f"{exc}; a PETSc option takes the next word as its value ({' '.join(petsc_options[:2])}): "
                              "give the scene first") from None
         raise
+    except SystemExit as exc:  # --help: its text is printed; the final flush tells whether it was written
+        return int(exc.code or 0)
     args.own = own
     args.ranks_at = _ranks_positions(own)
     return args.run(args, petsc_options)
 
 
 def _ranks_positions(own: list[str]) -> set[int]:
-    """Where ``-n N`` (or ``-n4``) is in ddsolve's arguments (removed when the ranks are started)."""
-    for i, arg in enumerate(own):
-        if arg == "-n":
-            return {i, i + 1}
-        if arg.startswith("-n") and _is_number(arg[2:]):
-            return {i}
-    return set()
+    """Where ``-n N`` (or ``-n4``) is in ddsolve's arguments (removed when the ranks are started).
+    Given twice, a usage error: the one left behind would make every rank launch ranks again."""
+    found = [{i, i + 1} if arg == "-n" else {i} for i, arg in enumerate(own)
+             if arg == "-n" or (arg.startswith("-n") and _is_number(arg[2:]))]
+    if len(found) > 1:
+        given = ", ".join(" ".join(own[j] for j in sorted(at)) for at in found)
+        raise UsageError(f"-n given {len(found)} times ({given}): give the number of ranks once")
+    return found[0] if found else set()
 
 
 def guarded(call) -> int:
     """Run a command: a DDSolveError (or a missing petsc4py, mpi4py, h5py, gmsh...) becomes one line
     and its exit status, an interrupt or SIGTERM stops every rank, anything else is a bug (one
     traceback, abort)."""
+    prepare_output()
     signal.signal(signal.SIGTERM, _terminate)
     _watch_interrupts()
     try:
         with import_errors_explained():
-            return call()
+            status = call()
+            if sys.stdout is not None:
+                sys.stdout.flush()  # a full disk or a closed pipe is this command's error
+            return status
     except DDSolveError as exc:
         _report(f"ddsolve: error: {exc}", everywhere=not exc.collective)
         if not exc.collective:  # raised on this rank only: the others cannot know, so stop them
@@ -656,6 +675,80 @@ def guarded(call) -> int:
         return 1
 
 
+#: ASCII spellings of the symbols in ddsolve's messages that are neither Greek letters (spelt by their
+#: names: Σ -> Sigma, θ -> theta) nor letters with accents or super- and subscripts (their base forms).
+SPELLINGS = {"−": "-", "×": "x", "·": "*", "≤": "<=", "≥": ">=", "≈": "~", "±": "+-", "∞": "inf", "→": "->",
+             "‖": "||", "«": '"', "»": '"', "—": "--", "–": "-", "…": "...", "°": " deg", "⁄": "/"}
+
+
+def _ascii(char: str) -> str:
+    if char in SPELLINGS:
+        return SPELLINGS[char]
+    name = unicodedata.name(char, "")
+    if name.startswith("GREEK ") and " LETTER " in name:
+        letter = name.split(" LETTER ")[1].replace("FINAL ", "").split()[0].lower()
+        return letter.capitalize() if " CAPITAL " in name else letter
+    if char.isascii() and char.isprintable():
+        return char
+    return char.encode("ascii", "backslashreplace").decode("ascii")
+
+
+def spelled_in_ascii(error: UnicodeError) -> tuple[str, int]:
+    """Codec error handler ``ddsolve``: what an output's encoding cannot hold, in ASCII spellings
+    (:data:`SPELLINGS`, Greek letters by name, base forms without accents), else as backslash escapes."""
+    if not isinstance(error, UnicodeEncodeError):
+        raise error
+    text = unicodedata.normalize("NFKD", error.object[error.start:error.end])
+    return "".join(_ascii(char) for char in text if not unicodedata.combining(char)), error.end
+
+
+class CheckedOutput:
+    """Standard output whose write errors (a full disk, a closed pipe) are one-line errors, whatever
+    writes -- a print, argparse's help, the final flush; after one, the rest goes to /dev/null, so
+    that the flush at Python's exit does not fail again."""
+
+    def __init__(self, stream):
+        self.stream = stream
+
+    def __getattr__(self, name: str):
+        return getattr(self.stream, name)
+
+    def write(self, text: str) -> int:
+        return self._checked(self.stream.write, text)
+
+    def flush(self) -> None:
+        self._checked(self.stream.flush)
+
+    def _checked(self, call, *args):
+        try:
+            return call(*args)
+        except OSError as exc:
+            with contextlib.suppress(OSError, ValueError):
+                devnull = os.open(os.devnull, os.O_WRONLY)
+                os.dup2(devnull, self.stream.fileno())
+                os.close(devnull)
+            raise DDSolveError(f"cannot write to standard output: {exc.strerror or exc}") from None
+
+
+def prepare_output() -> None:
+    """Standard output and error in any encoding (ASCII in a C locale, latin-1...): what the encoding
+    cannot hold is spelt in ASCII (:func:`spelled_in_ascii`), never an error; standard output checked
+    (:class:`CheckedOutput`)."""
+    codecs.register_error("ddsolve", spelled_in_ascii)
+    for stream in (sys.stdout, sys.stderr):
+        if hasattr(stream, "reconfigure"):
+            stream.reconfigure(errors="ddsolve")
+    if sys.stdout is not None and not isinstance(sys.stdout, CheckedOutput):
+        sys.stdout = CheckedOutput(sys.stdout)
+
+
+def _flush_output() -> None:
+    """Flush standard output before an error line or an abort (a failure to write it is reported by
+    the command's own flush, or lost with the error being reported)."""
+    with contextlib.suppress(DDSolveError, AttributeError):
+        sys.stdout.flush()
+
+
 def _world():
     """MPI.COMM_WORLD if mpi4py is in use, else None."""
     if "mpi4py.MPI" not in sys.modules:
@@ -669,7 +762,7 @@ def _abort(status: int) -> None:
     """End every rank at once: waiting for the others (PETSc's finalize does) would hang."""
     world = _world()
     if world is not None and world.size > 1:
-        sys.stdout.flush()
+        _flush_output()
         sys.stderr.flush()
         world.Abort(status)
 
@@ -678,4 +771,5 @@ def _report(message: str, everywhere: bool = False) -> None:
     """Print an error once (on rank 0 when MPI is running, unless it happened on one rank only)."""
     world = _world()
     if world is None or world.rank == 0 or everywhere:
+        _flush_output()
         print(message, file=sys.stderr, flush=True)

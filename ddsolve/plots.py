@@ -33,10 +33,27 @@ def stress_ceiling(values: np.ndarray) -> float:
     return top if top > 0.0 and np.isfinite(top) else 1.0
 
 
+#: The longest scene title drawn in a picture (a line across it); a longer one ends in an ellipsis.
+TITLE_LENGTH = 120
+#: matplotlib text arguments for the user's words: plain text, no math between dollar signs, no LaTeX.
+PLAIN_TEXT = {"parse_math": False, "usetex": False}
+
+
+def drawn_title(result: Result) -> str:
+    """The scene's title as a picture shows it (with PLAIN_TEXT): on one line, at most TITLE_LENGTH
+    characters."""
+    words = "".join(char if char.isprintable() else " " for char in scenes.loads(result.scene).title)
+    return words if len(words) <= TITLE_LENGTH else words[:TITLE_LENGTH - 1].rstrip() + "…"
+
+
 def _pyplot():
+    import warnings
+
     import matplotlib
 
     matplotlib.use("Agg")
+    # A character of a title that the font lacks is drawn as a box, without a warning per picture.
+    warnings.filterwarnings("ignore", message=r"Glyph \d+ .*missing from current font")
     import matplotlib.pyplot as plt
 
     return plt
@@ -100,7 +117,7 @@ def deformed_layers(result: Result, path: Path, scale: float | None = None) -> f
         ax.set_xlabel(f"x ({LENGTH})")
         ax.set_ylabel(f"y ({LENGTH})")
         ax.set_aspect("equal")
-    fig.suptitle(scenes.loads(result.scene).title)
+    fig.suptitle(drawn_title(result), **PLAIN_TEXT)
     fig.savefig(path, dpi=130)
     plt.close(fig)
     return scale
@@ -153,7 +170,7 @@ def crack_faces(result: Result, path: Path) -> None:
     bottom.set_xlabel(f"{axis_label} ({LENGTH}; {shading})")
     for ax in (top, bottom):
         ax.grid(alpha=0.3)
-    top.set_title(scenes.loads(result.scene).title, fontsize=9)
+    top.set_title(drawn_title(result), fontsize=9, **PLAIN_TEXT)
     fig.savefig(path, dpi=130)
     plt.close(fig)
 
