@@ -188,10 +188,12 @@ def boundary_load(points: np.ndarray, edges: np.ndarray, load: Load) -> np.ndarr
 
 #: A load is checked at LOAD_SAMPLES points of each edge (endpoints included) and at the quadrature points;
 #: a part that is not a polynomial is then sampled CLOSING_STEPS times ever closer (4 times each step) to
-#: each edge's largest value: still growing by more than GROWTH over the last GROWTH_STEPS steps (a distance
-#: 4^6 times smaller, down to 1e-10 of the edge), it is singular there.
+#: each edge's largest value, to 1e-21 of the edge, below the resolution of doubles at the box's size.
+#: Growing by more than GROWTH over GROWTH_STEPS steps (a distance 4^6 times smaller) once the samples are
+#: closer than 1e-10 of the edge (FINE_STEP), where a bounded load has long stopped growing, it is singular.
 LOAD_SAMPLES = 33
-CLOSING_STEPS = 14
+CLOSING_STEPS = 32
+FINE_STEP = 14
 GROWTH_STEPS = 6
 GROWTH = 2.0
 
@@ -221,7 +223,8 @@ def load_extent(points: np.ndarray, edges: np.ndarray, load: Load) -> float:
                 values, position = _sampled(points, edges, part, at, key)
                 record.append(values.max(axis=1))
                 width /= 4.0
-            growing = np.flatnonzero(record[-1] > GROWTH * record[-1 - GROWTH_STEPS])
+            fine = np.array(record[FINE_STEP - GROWTH_STEPS:])
+            growing = np.flatnonzero((fine[GROWTH_STEPS:] > GROWTH * fine[:-GROWTH_STEPS]).any(axis=0))
             if len(growing):
                 edge = growing[np.argmax(record[-1][growing])]
                 x, y = position[edge, np.argmax(values[edge])]

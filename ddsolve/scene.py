@@ -658,6 +658,8 @@ def parse_override(item: str) -> tuple[list[str], Any]:
         parsed = tomllib.loads(f"value = {value.strip()}")["value"]
     except tomllib.TOMLDecodeError:
         parsed = value.strip()
+    except RecursionError:  # tomllib's parser recurses into arrays and tables
+        raise SceneError(f"--set {printable(_excerpt(item, 1))}: arrays or tables nested too deeply") from None
     return [p.strip() for p in path], parsed
 
 
@@ -742,6 +744,8 @@ def loads(text: str, overrides: list[str] = (), origin: str = "scene", base: Pat
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{origin}: malformed TOML: {' '.join(str(exc).split())}") from None
+    except RecursionError:  # tomllib's parser recurses into arrays and tables
+        raise SceneError(f"{origin}: malformed TOML: arrays or tables nested too deeply") from None
     apply_overrides(raw, list(overrides))
     data = _check_table(raw, SCHEMA, (), origin)
     _cross_checks(data, raw, origin)
