@@ -186,6 +186,70 @@ def boundary_load(points: np.ndarray, edges: np.ndarray, load: Load) -> np.ndarr
     return out
 
 
+#: A load is checked at LOAD_SAMPLES points of each edge (endpoints included) and at the quadrature points;
+#: a part that is not a polynomial is then sampled CLOSING_STEPS times ever closer (4 times each step) to
+#: each edge's largest value, to 1e-21 of the edge, below the resolution of doubles at the box's size.
+#: Growing by more than GROWTH over GROWTH_STEPS steps (a distance 4^6 times smaller) once the samples are
+#: closer than 1e-10 of the edge (FINE_STEP), where a bounded load has long stopped growing, it is singular.
+LOAD_SAMPLES = 33
+CLOSING_STEPS = 32
+FINE_STEP = 14
+GROWTH_STEPS = 6
+GROWTH = 2.0
+
+
+def load_extent(points: np.ndarray, edges: np.ndarray, load: Load) -> float:
+    """The largest |value| of ``load``'s parts along ``edges``, sampled densely; a SceneError naming the part's
+    key if a value is not finite or grows without bound (a singular load, whose integral would depend on the
+    mesh, as would the solution)."""
+    largest = 0.0
+    if len(edges) == 0:
+        return largest
+    start = np.concatenate([np.linspace(0.0, 1.0, LOAD_SAMPLES), gauss_interval(HIGH_ORDER_POINTS)[0]])
+    offsets = np.linspace(-1.0, 1.0, 9)  # 0 among them: each step keeps the best point so far
+    for component in ("x", "y", "pressure"):
+        part = getattr(load, component)
+        if part is None:
+            continue
+        key = f"{load.key}.{component}"
+        at = np.broadcast_to(start, (len(edges), len(start)))
+        values, _ = _sampled(points, edges, part, at, key)
+        record = [values.max(axis=1)]
+        if part.degree is None:
+            width = 1.0 / (LOAD_SAMPLES - 1)
+            for _ in range(CLOSING_STEPS):
+                center = at[np.arange(len(at)), np.argmax(values, axis=1)]
+                at = np.clip(center[:, None] + width * offsets, 0.0, 1.0)
+                values, position = _sampled(points, edges, part, at, key)
+                record.append(values.max(axis=1))
+                width /= 4.0
+            fine = np.array(record[FINE_STEP - GROWTH_STEPS:])
+            growing = np.flatnonzero((fine[GROWTH_STEPS:] > GROWTH * fine[:-GROWTH_STEPS]).any(axis=0))
+            if len(growing):
+                edge = growing[np.argmax(record[-1][growing])]
+                x, y = position[edge, np.argmax(values[edge])]
+                raise SceneError(f"{key}: the load grows without bound towards (x, y) = ({x:.6g}, {y:.6g}) (to "
+                                 f"{record[-1][edge]:.3g} and still growing as the samples close in): it is singular "
+                                 "on its boundary, so its integral and the solution would depend on the mesh; move "
+                                 "the singularity off the boundary")
+        largest = max(largest, float(np.max(record)))
+    return largest
+
+
+def _sampled(points: np.ndarray, edges: np.ndarray, part, at: np.ndarray, key: str
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """|part| at the parameters ``at`` ``(e, q)`` of each edge, and the positions ``(e, q, 2)``; a SceneError
+    naming ``key`` if a value is not finite."""
+    shapes, _ = edge_shapes(edges.shape[1], at.ravel())
+    position = np.einsum("eqk,ekd->eqd", shapes.reshape(*at.shape, -1), points[edges])
+    values = np.abs(part(position[..., 0], position[..., 1]))
+    if not np.all(np.isfinite(values)):
+        x, y = position[tuple(np.argwhere(~np.isfinite(values))[0])]
+        raise SceneError(f"{key}: the load is not finite at (x, y) = ({x:.6g}, {y:.6g}); change the expression "
+                         "or the boundary it acts on")
+    return values, position
+
+
 # --- block systems ------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class BlockSystem:

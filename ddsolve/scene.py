@@ -312,6 +312,18 @@ def _grading(value: Any) -> bool | float:
     return value
 
 
+#: The largest fibre angle in degrees (a double places it within 1e-10 degree; beyond, the angle loses meaning).
+MAX_ANGLE = 1e6
+
+
+def _angle(value: Any) -> float:
+    value = _number(value)
+    if abs(value) > MAX_ANGLE:
+        raise ValueError(f"an angle in degrees of magnitude at most {MAX_ANGLE:g} (a double cannot place a "
+                         "larger one: give it modulo 360)")
+    return value
+
+
 def _fraction(value: Any) -> float:
     value = _number(value)
     if not 0.0 < value < 1.0:
@@ -325,8 +337,11 @@ def _load_value(value: Any) -> Expression:
         try:
             return expressions.parse(value)
         except expressions.ExpressionError as exc:
-            raise Invalid(f"bad expression {printable(value)!r}: {exc}") from None
+            raise Invalid(f"bad expression {printable(_excerpt(value, exc.position))!r}: {exc}") from None
     if isinstance(value, list):
+        if len(value) > expressions.MAX_DEGREE + 1:
+            raise Invalid(f"{len(value)} polynomial coefficients, more than the {expressions.MAX_DEGREE + 1} of "
+                          f"degree {expressions.MAX_DEGREE} (the highest that quadrature integrates exactly)")
         return expressions.polynomial_in_x(_numbers(value))
     try:
         return expressions.constant(_number(value))
@@ -336,7 +351,7 @@ def _load_value(value: Any) -> Expression:
 
 _ISOTROPIC = {"E": (_positive(_number), REQUIRED), "nu": (_poisson, REQUIRED)}
 _ORTHOTROPIC = {"E1": (_positive(_number), REQUIRED), "E2": (_positive(_number), REQUIRED),
-                "G12": (_positive(_number), REQUIRED), "nu12": (_number, REQUIRED), "angle": (_number, 0.0),
+                "G12": (_positive(_number), REQUIRED), "nu12": (_number, REQUIRED), "angle": (_angle, 0.0),
                 "E3": (_positive(_number), None), "nu13": (_number, None), "nu23": (_number, None)}
 _ANISOTROPIC = {"D": (_matrix3, REQUIRED), "Dzz": (_fixed_numbers(3), [0.0, 0.0, 0.0])}
 
@@ -388,6 +403,15 @@ SCHEMA: dict[str, Any] = {
 }
 # Tables that exist only when the scene writes them (a boundary without a load is not integrated).
 OPTIONAL_TABLES = {("loads",), *(("loads", layer) for layer in LAYERS)}
+
+
+def _excerpt(text: str, position: int, width: int = 60) -> str:
+    """``text`` for a message: whole if short, else the ``width`` characters around ``position`` (1-based)."""
+    if len(text) <= width:
+        return text
+    start = max(0, min(position - 1 - width // 2, len(text) - width))
+    return (f"{'...' if start else ''}{text[start:start + width]}{'...' if start + width < len(text) else ''}"
+            f" ({len(text)} characters)")
 
 
 def printable(text: str) -> str:
@@ -590,8 +614,11 @@ def check_range(scene: Scene, mesh) -> None:
     order (largest traction on the layer) × (size of the mesh) / stiffness.  Blocks are scaled to
     order one (:class:`ddsolve.blocks.Block`), so only the ranges matter: stiffnesses within
     STIFFNESS_RANGE, displacements within DISPLACEMENT_RANGE (their squares must not overflow).
+    A load that is not finite or singular on its boundary is refused first (:func:`ddsolve.assembly.load_extent`).
     """
     import numpy as np
+
+    from .assembly import load_extent
 
     points = np.vstack([half.points for half in mesh.halves])
     size = float(np.ptp(points, axis=0).max())
@@ -611,13 +638,9 @@ def check_range(scene: Scene, mesh) -> None:
             for half in mesh.halves:
                 if boundary not in half.boundaries:
                     continue
-                at = half.points[half.nodes(boundary)]
-                for part in (load.x, load.y, load.pressure):
-                    if part is not None and len(at):
-                        with np.errstate(all="ignore"):
-                            value = float(np.abs(part(at[:, 0], at[:, 1])).max())
-                        if not value <= traction:
-                            traction, worst = value, load.key
+                value = load_extent(half.points, half.edges(boundary), load)
+                if value > traction:
+                    traction, worst = value, load.key
         displacement = traction * size / stiffness
         low, high = DISPLACEMENT_RANGE
         if worst is not None and not (traction == 0.0 or low <= displacement <= high):
@@ -637,6 +660,8 @@ def parse_override(item: str) -> tuple[list[str], Any]:
         parsed = tomllib.loads(f"value = {value.strip()}")["value"]
     except tomllib.TOMLDecodeError:
         parsed = value.strip()
+    except RecursionError:  # tomllib's parser recurses into arrays and tables
+        raise SceneError(f"--set {printable(_excerpt(item, 1))}: arrays or tables nested too deeply") from None
     return [p.strip() for p in path], parsed
 
 
@@ -729,7 +754,7 @@ def load(source: str | Path, overrides: list[str] = ()) -> Scene:
         names = ", ".join(sorted(shipped))
         readable(path, "scene file", SceneError, f"no such scene file or built-in scene (built-in: {names})")
         try:
-            text = path.read_text()
+            text = path.read_text(encoding="utf-8-sig")  # a byte-order mark, as some editors write, is dropped
         except (OSError, UnicodeDecodeError) as exc:
             raise SceneError(f"{source}: cannot read scene file ({exc.__class__.__name__})") from None
         base = path.parent
@@ -745,6 +770,8 @@ def loads(text: str, overrides: list[str] = (), origin: str = "scene", base: Pat
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{origin}: malformed TOML: {' '.join(str(exc).split())}") from None
+    except RecursionError:  # tomllib's parser recurses into arrays and tables
+        raise SceneError(f"{origin}: malformed TOML: arrays or tables nested too deeply") from None
     apply_overrides(raw, list(overrides))
     data = _check_table(raw, SCHEMA, (), origin)
     _cross_checks(data, raw, origin)
