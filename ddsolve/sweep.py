@@ -19,7 +19,8 @@ T the most tips of a run, padded with NaN or −1):
 - attributes: ``scene`` (as given), ``fixed`` (the fixed overrides), ``keys`` (the swept keys),
   ``mode`` (product or zip), ``runs``, ``complete``, provenance;
 - ``parameters/KEY`` (R,) the value of each swept key;
-- ``energy``, ``converged``, ``iterations``, ``rounds``, ``unknowns``, ``mesh_reused``,
+- ``energy``, ``converged``, ``iterations``, ``rounds``, ``unknowns``, ``kkt_tolerance`` (of the final
+  check, from solver.tol), ``mesh_reused``,
   ``factors_reused``, ``time`` (the whole run), ``setup_time``, ``factorization_time``,
   ``solve_time`` (R,), ``message`` (R,) strings (empty when the run succeeded);
 - ``tips/G``, ``tips/contact``, ``tips/inner``, ``tips/outer``, ``tips/spacing``, ``tips/crack`` (R, T),
@@ -309,7 +310,8 @@ def _numbers(result) -> dict:
     """What a run's record keeps of its result (NaN when the run failed)."""
     if result is None:
         return {"converged": False, "energy": math.nan, "iterations": 0, "rounds": 0, "unknowns": 0,
-                "setup_time": math.nan, "factorization_time": math.nan, "solve_time": math.nan, "fracture": None}
+                "setup_time": math.nan, "factorization_time": math.nan, "solve_time": math.nan, "fracture": None,
+                "kkt_tolerance": math.nan}
     timings = result.timings
     return {
         "converged": bool(result.converged), "energy": float(result.attrs.get("energy", math.nan)),
@@ -318,6 +320,7 @@ def _numbers(result) -> dict:
         "setup_time": float(timings.get("setup", math.nan)),
         "factorization_time": float(timings.get("factorization", math.nan)),
         "solve_time": float(timings.get("iterations", math.nan)), "fracture": result.fracture,
+        "kkt_tolerance": float(result.attrs.get("kkt_tolerance", math.nan)),
     }
 
 
@@ -335,7 +338,7 @@ def _line(number: int, total: int, record: dict) -> str:
 
 
 SCALARS = ("energy", "converged", "iterations", "rounds", "unknowns", "mesh_reused", "factors_reused", "time",
-           "setup_time", "factorization_time", "solve_time")
+           "setup_time", "factorization_time", "solve_time", "kkt_tolerance")
 TIP_FIELDS = {"G": np.nan, "contact": np.nan, "inner": np.nan, "outer": np.nan, "spacing": np.nan, "crack": -1}
 
 
