@@ -26,7 +26,7 @@ from pathlib import Path
 
 from . import __version__
 from .environment import import_errors_explained
-from .errors import DDSolveError, NotConvergedError, UsageError
+from .errors import DDSolveError, NotConvergedError, SceneError, UsageError
 from .launch import mpiexec_command
 
 #: Commands that hand options to PETSc.
@@ -126,10 +126,13 @@ def _root_print(*args, **kwargs) -> None:
         print(*args, **kwargs, flush=True)
 
 
-def _load_scene(args):
+def _load_scene(args, ranks: int = 1):
+    """The scene of ``args`` (with its ``--set`` items, each of which the command must read)."""
     from . import scene
 
-    return scene.load(args.scene, args.set or [])
+    loaded = scene.load(args.scene, args.set or [])
+    check_read(args.command, args.set or [], loaded, ranks)
+    return loaded
 
 
 def _default_output(args) -> Path:
@@ -171,6 +174,65 @@ def check_size(scene, ranks: int = 1) -> None:
         raise DDSolveError(f"{keys}: a mesh of about {vertices:.2g} vertices needs about {memory / 1e9:.2g} GB "
                            f"to solve (about {VERTEX_MEMORY / 1e3:g} kB per vertex), more than this machine's "
                            f"{_physical_memory() / 1e9:.3g} GB")
+
+
+#: The sections of a scene that ``mesh`` does not read, besides mesh.target_error.
+NOT_MESHING = ("title", "materials", "loads", "contact", "solver", "fracture")
+#: Material keys that give only the out-of-plane stress or strain (``plane_stress``: E3, nu13 and nu23;
+#: ``plane_strain``: Dzz), which a sweep file does not keep.
+OUT_OF_PLANE = {"plane_stress": ("E3", "nu13", "nu23", "Dzz"), "plane_strain": ("Dzz",)}
+
+
+def unread(command: str, path: list[str], scene, ranks: int) -> str | None:
+    """Why ``command`` on ``ranks`` ranks would not read the key ``path`` of ``scene`` (None: it does)."""
+    from .interface import BLOCKS
+
+    section, leaf = path[0], path[2:3]
+    if command == "mesh":
+        if section in NOT_MESHING or path[:2] == ["mesh", "target_error"]:
+            return "mesh makes the starting mesh only (solve, reference and sweep read the key)"
+        return None
+    if section == "solver" and command == "reference":
+        return None if path[1:] == ["p"] else ("it sets how solve and sweep iterate, and reference solves the "
+                                               "discrete problem exactly")
+    if section == "materials" and leaf == ["Dzz"] and scene.model == "plane_stress":
+        return "Dzz gives the out-of-plane stress of plane strain, and materials.model = plane_stress has none"
+    if command == "sweep" and (section == "title" or section == "materials" and leaf
+                               and leaf[0] in OUT_OF_PLANE[scene.model]):
+        return ("a sweep file keeps no title" if section == "title" else "it gives only the out-of-plane stress or "
+                "strain, which a sweep file does not keep (solve and reference write it)")
+    if section == "solver":
+        method = scene.solver.method
+        if method == "auto" and ranks // len(BLOCKS) <= 1:  # whole blocks: auto is schur
+            method = "schur"
+        if path[1:] == ["theta"] and method != "uzawa":
+            return f"it is the step of method uzawa, and method {method} takes none"
+        if path[1:] == ["max_iterations"] and method == "schur":
+            return "method schur is exact in a few rounds and iterates no further (uzawa, mprgp, fista and feti do)"
+    return None
+
+
+def check_read(command: str, items: list[str], scene, ranks: int = 1) -> None:
+    """Refuse a ``--set`` item whose key (or a key of the table it sets) ``command`` would not read
+    (:func:`unread`): every key a command is given is honoured or refused."""
+    from .scene import parse_override, printable
+
+    def leaves(path: list[str], value) -> list[list[str]]:
+        if isinstance(value, dict) and value:
+            return [leaf for key, sub in value.items() for leaf in leaves([*path, key], sub)]
+        return [path]
+
+    for item in items:
+        for path in leaves(*parse_override(item)):
+            why = unread(command, path, scene, ranks)
+            if why is not None:
+                raise SceneError(f"--set {printable(item)}: {printable('.'.join(path))} is not read by {command}: "
+                                 f"{why}; leave it out")
+
+
+def nodes_in_memory(ranks: int) -> float:
+    """The most mesh nodes a solve on ``ranks`` ranks holds in this machine's memory (as in check_size)."""
+    return max(_physical_memory() - ranks * RANK_MEMORY, 0.0) / VERTEX_MEMORY
 
 
 def _inputs(args, scene) -> list[Path]:
@@ -217,7 +279,7 @@ def _launch(args, petsc_options: list[str], scene_checks: bool) -> None:
     for module in ("petsc4py", "mpi4py", "h5py"):  # if one is missing, one line here, not one per rank
         importlib.import_module(module)
     if scene_checks:
-        scene = _load_scene(args)
+        scene = _load_scene(args, args.ranks)
         check_size(scene, args.ranks)
         check_outputs(args, scene)
     forwarded = [arg for i, arg in enumerate(args.own) if i not in args.ranks_at]
@@ -234,7 +296,7 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
     from .exchange import collective
 
     comm = MPI.COMM_WORLD
-    scene = collective(comm, lambda: _load_scene(args), root_only=True)
+    scene = collective(comm, lambda: _load_scene(args, comm.size), root_only=True)
     scene = comm.bcast(scene, root=0)
     output = collective(comm, lambda: (check_size(scene, comm.size), check_outputs(args, scene))[1], root_only=True)
     output = comm.bcast(output, root=0)
@@ -289,11 +351,19 @@ def cmd_reference(args, petsc_options: list[str]) -> int:
     scene = _load_scene(args)
     check_size(scene)
     output = check_outputs(args, scene)
-    mesh = geometry.build(scene)
-    geometry.check_loads(scene, mesh)
-    check_range(scene, mesh)
-    result = reference.solve(scene, mesh)
-    io.write(output, result)
+    if scene.mesh.target_error is not None:  # adaptive, every level solved by the reference
+        from mpi4py import MPI
+
+        from . import adapt
+
+        result = adapt.solve(scene, MPI.COMM_SELF, output, progress=_root_print,
+                             level=lambda mesh: reference.solve(scene, mesh))
+    else:
+        mesh = geometry.build(scene)
+        geometry.check_loads(scene, mesh)
+        check_range(scene, mesh)
+        result = reference.solve(scene, mesh)
+        io.write(output, result)
     report_unused_options(None, "reference")
     if not result.converged:
         raise NotConvergedError(result.message)

@@ -4,7 +4,11 @@
 solves the scene for every combination of the ranges (``--zip``: for the ranges taken side by side;
 they must then have the same COUNT); a ``--set`` whose value is not a range is a fixed override.  A
 number in a key indexes a list: ``--set geometry.crack.0=-0.2:-0.8:7 --set geometry.crack.1=0.2:0.8:7
---zip`` lengthens the crack symmetrically.
+--zip`` lengthens the crack symmetrically.  With ``mesh.target_error`` every run is adaptive
+(:mod:`ddsolve.adapt`; nothing is reused).  What cannot finish is refused before the first solve,
+naming the ranges: more than ``MAX_RUNS`` runs (before their values are made), more than ``MAX_HOURS``
+by an estimate from below of each run's cost from its mesh size (:func:`run_seconds`), or a mesh that
+does not fit in memory.
 
 Every rank loops over the runs; what does not change is reused: the mesh while the geometry and mesh
 keys stay the same, the assembled and factored blocks while only loads change (new right-hand sides
@@ -15,7 +19,8 @@ T the most tips of a run, padded with NaN or −1):
 - attributes: ``scene`` (as given), ``fixed`` (the fixed overrides), ``keys`` (the swept keys),
   ``mode`` (product or zip), ``runs``, ``complete``, provenance;
 - ``parameters/KEY`` (R,) the value of each swept key;
-- ``energy``, ``converged``, ``iterations``, ``rounds``, ``unknowns``, ``mesh_reused``,
+- ``energy``, ``converged``, ``iterations``, ``rounds``, ``unknowns``, ``kkt_tolerance`` (of the final
+  check, from solver.tol), ``mesh_reused``,
   ``factors_reused``, ``time`` (the whole run), ``setup_time``, ``factorization_time``,
   ``solve_time`` (R,), ``message`` (R,) strings (empty when the run succeeded);
 - ``tips/G``, ``tips/contact``, ``tips/inner``, ``tips/outer``, ``tips/spacing``, ``tips/crack`` (R, T),
@@ -38,34 +43,93 @@ from .errors import DDSolveError, NotConvergedError, SceneError
 
 #: ``START:STOP:COUNT`` or ``START:STOP:COUNT:log`` (geometric spacing).
 _RANGE = re.compile(r"^\s*([^:\s]+)\s*:\s*([^:\s]+)\s*:\s*([0-9]+)\s*(?::\s*(lin|log)\s*)?$")
+#: The most runs of a sweep: every run's scene is checked before the first solve, and after every run
+#: the output file is written again with all runs so far (the writing grows as the square of the runs).
+MAX_RUNS = 10_000
+#: The longest a sweep may take by :func:`run_seconds` (an estimate from below), in hours.
+MAX_HOURS = 24.0
+#: What a run costs at least (on two ranks; about a third of what was measured, 0.02-0.04 s for the
+#: P = 13 mesh of 86 nodes and 0.3-0.8 s for P = 200, 10,000 nodes): seconds for a run that reuses the
+#: mesh and the factorization, and seconds more per mesh node (P2 nodes counted); and, for writing the
+#: file again after every run, seconds per run already in it.  A run whose blocks change also factors
+#: them (:data:`ddsolve.methods.COST_LAWS`).
+RUN_SECONDS = 0.02
+NODE_SECONDS = 1e-5
+RECORD_SECONDS = 2e-5
 
 
 @dataclass(frozen=True)
 class Range:
-    """A swept key and its values."""
+    """A swept key and its values (``item``: the ``--set`` item it comes from)."""
 
     key: str
     values: tuple
+    item: str = ""
 
 
-def parse(items: list[str]) -> tuple[list[str], list[Range]]:
-    """Split ``--set`` items into fixed overrides and ranges; raise SceneError for a bad range."""
+def _range(item: str) -> tuple | None:
+    """(key, (START, STOP) texts and numbers, COUNT, spacing) of a range item, None for a fixed value."""
+    key, sep, value = item.partition("=")
+    match = _RANGE.match(value) if sep else None
+    if match is None:
+        return None
+    texts, digits, spacing = match.group(1, 2), match.group(3), match.group(4) or "lin"
+    count = int(digits) if len(digits) <= 15 else float(digits)  # (huge counts are refused, not made)
+    try:
+        numbers = tuple(float(text) for text in texts)
+    except ValueError:
+        return None  # not numbers: a plain value that happens to contain colons
+    return key.strip(), texts, numbers, count, spacing
+
+
+def run_seconds(scene, ranks: int, factor: bool = True) -> float:
+    """A lower estimate of one run's seconds on ``ranks`` ranks from the size of its mesh (when it can be
+    known beforehand): the rounds, the error estimate and G, and with ``factor`` the factorization of the
+    four blocks (each has about as many unknowns as the mesh has nodes)."""
+    from . import geometry
+    from .interface import BLOCKS
+    from .methods import COST_LAWS
+
+    nodes = geometry.estimated_vertices(scene) or 0.0
+    a, power = COST_LAWS["factor"]
+    return RUN_SECONDS + NODE_SECONDS * nodes + (len(BLOCKS) * a * nodes ** power / ranks if factor else 0.0)
+
+
+def sweep_seconds(solving: float, runs: float) -> float:
+    """A lower estimate of a sweep's seconds: its runs' (``solving``, :func:`run_seconds` summed) and the
+    writing of its file after every run."""
+    return solving + RECORD_SECONDS * runs * (runs - 1) / 2
+
+
+def _duration(seconds: float) -> str:
+    for unit, length, up_to in (("s", 1, 120), ("min", 60, 7200), ("h", 3600, 3 * 86400), ("days", 86400, math.inf)):
+        if seconds < up_to or unit == "days":
+            value = seconds / length
+            return f"{value:,.0f} {unit}" if 10 <= value < 1e5 else f"{value:.2g} {unit}"
+
+
+def _too_many(named: str, runs: float, per_run: float | None) -> str:
+    cost = (f"; at about {per_run:.2g} s a run they would take at least about "
+            f"{_duration(sweep_seconds(runs * per_run, runs))}" if per_run else "")
+    count = f"{runs:,}" if isinstance(runs, int) else f"about {runs:.3g}" if math.isfinite(runs) else "countless"
+    return (f"{named}: {count} runs, more than the {MAX_RUNS:,} a sweep makes (all are checked before the first, "
+            f"and the output file is written again after each){cost}: lower COUNT or split the sweep")
+
+
+def parse(items: list[str], per_run: float | None = None) -> tuple[list[str], list[Range]]:
+    """Split ``--set`` items into fixed overrides and ranges; raise SceneError for a bad range, or one of
+    more than MAX_RUNS values (before making them; ``per_run``: the seconds of a run, for the message)."""
     fixed, ranges = [], []
     for item in items:
-        key, sep, value = item.partition("=")
-        match = _RANGE.match(value) if sep else None
-        if match is None:
+        parts = _range(item)
+        if parts is None:
             fixed.append(item)
             continue
-        texts, count, spacing = match.group(1, 2), int(match.group(3)), match.group(4) or "lin"
-        try:
-            start, stop = (float(text) for text in texts)
-        except ValueError:
-            fixed.append(item)  # not numbers: a plain value that happens to contain colons
-            continue
-        key = key.strip()
+        key, texts, (start, stop), count, spacing = parts
         if count < 1:
             raise SceneError(f"--set {item}: COUNT must be at least 1")
+        if count > MAX_RUNS:
+            raise SceneError(_too_many(f"--set {item}", count, per_run))
         if spacing == "log":
             if start <= 0 or stop <= 0:
                 raise SceneError(f"--set {item}: a log range needs START > 0 and STOP > 0")
@@ -79,13 +143,14 @@ def parse(items: list[str]) -> tuple[list[str], list[Range]]:
             values = tuple(float(v) for v in values)
         if any(r.key == key for r in ranges):
             raise SceneError(f"--set {item}: {key} is swept twice")
-        ranges.append(Range(key, values))
+        ranges.append(Range(key, values, item))
     return fixed, ranges
 
 
-def plan(ranges: list[Range], paired: bool) -> list[dict]:
+def plan(ranges: list[Range], paired: bool, per_run: float | None = None) -> list[dict]:
     """The runs: key -> value for every combination of the ranges (the last varying fastest), or for
-    the ranges side by side when ``paired``."""
+    the ranges side by side when ``paired``.  Raises SceneError for more than MAX_RUNS runs (before
+    making them; ``per_run``: the seconds of a run, for the message)."""
     if not ranges:
         raise SceneError("sweep: no range to sweep; give --set KEY=START:STOP:COUNT")
     if paired:
@@ -94,6 +159,9 @@ def plan(ranges: list[Range], paired: bool) -> list[dict]:
             raise SceneError("--zip: the ranges must have the same COUNT (" +
                              ", ".join(f"{r.key}: {len(r.values)}" for r in ranges) + ")")
         combinations = zip(*(r.values for r in ranges))
+    elif math.prod(len(r.values) for r in ranges) > MAX_RUNS:
+        raise SceneError(_too_many(" x ".join(f"--set {r.item or r.key}" for r in ranges),
+                                   math.prod(len(r.values) for r in ranges), per_run))
     else:
         combinations = itertools.product(*(r.values for r in ranges))
     return [dict(zip((r.key for r in ranges), combination)) for combination in combinations]
@@ -121,17 +189,58 @@ def load_scenes(source: str, fixed: list[str], runs: list[dict]) -> list:
     return out
 
 
+def _base_seconds(source: str, fixed: list[str], ranks: int) -> float | None:
+    """:func:`run_seconds` of the scene with the fixed overrides, its factorization reused (None if the
+    scene is not valid without the ranges)."""
+    from . import scene
+
+    try:
+        return run_seconds(scene.load(source, fixed), ranks, factor=False)
+    except SceneError:
+        return None
+
+
+def check_cost(items: list[str], scenes: list, runs: list[dict], ranges: list[Range], ranks: int) -> None:
+    """Refuse a sweep given a key it does not read (:func:`ddsolve.cli.check_read`), or that cannot
+    finish: one whose largest mesh does not fit in this machine's memory (:func:`ddsolve.cli.check_size`)
+    or whose runs take more than MAX_HOURS by :func:`sweep_seconds`."""
+    from . import geometry
+    from .cli import check_read, check_size
+
+    check_read("sweep", items, scenes[0], ranks)
+
+    nodes = [geometry.estimated_vertices(scene) or 0.0 for scene in scenes]
+    largest = int(np.argmax(nodes))
+    try:
+        check_size(scenes[largest], ranks)
+    except DDSolveError as exc:
+        raise DDSolveError(f"sweep run {largest + 1} ({describe(runs[largest])}): {exc}") from None
+    seconds, previous = [], None
+    for scene in scenes:  # what the loop below reuses: the factorization while only loads change
+        reused = previous is not None and scene.mesh.target_error is None and \
+            (scene.geometry, scene.mesh, _blocks_key(scene)) == (previous.geometry, previous.mesh, _blocks_key(previous))
+        seconds.append(run_seconds(scene, ranks, factor=not reused))
+        previous = scene
+    total = sweep_seconds(sum(seconds), len(runs))
+    if total > 3600 * MAX_HOURS:
+        raise SceneError(f"{' x '.join(f'--set {r.item or r.key}' for r in ranges)}: {len(runs):,} runs would take "
+                         f"at least about {_duration(total)} (up to {max(seconds):.2g} s a run on meshes of up to "
+                         f"about {max(nodes):.2g} nodes), more than the {MAX_HOURS:g} h a sweep may take: lower COUNT, "
+                         "coarsen the mesh or split the sweep")
+
+
 def sweep(source: str, items: list[str], paired: bool, output: Path, comm, progress=print) -> list[dict] | None:
     """Run the sweep on ``comm`` (every rank), writing ``output`` on rank 0 after each run.
 
     Returns the records on rank 0 (None elsewhere).
     """
-    from . import driver, geometry
+    from . import adapt, driver, geometry
     from .exchange import collective
 
     def arrange():
-        fixed, ranges = parse(items)
-        return fixed, ranges, plan(ranges, paired)
+        per_run = _base_seconds(source, [item for item in items if _range(item) is None], comm.size)
+        fixed, ranges = parse(items, per_run)
+        return fixed, ranges, plan(ranges, paired, per_run)
 
     fixed, ranges, runs = collective(comm, arrange)  # the same on every rank, errors included
 
@@ -142,6 +251,7 @@ def sweep(source: str, items: list[str], paired: bool, output: Path, comm, progr
         return load_scenes(source, fixed, runs)
 
     scenes = comm.bcast(collective(comm, check, root_only=True), root=0)
+    collective(comm, lambda: check_cost(items, scenes, runs, ranges, comm.size), root_only=True)
     header = {"scene": str(source), "fixed": " ".join(fixed), "keys": [r.key for r in ranges],
               "mode": "zip" if paired else "product"}
     records: list[dict] = []
@@ -158,17 +268,19 @@ def sweep(source: str, items: list[str], paired: bool, output: Path, comm, progr
             previous = scene
             record = {"parameters": run, "mesh_reused": same_mesh, "factors_reused": same_blocks}
             try:
+                adaptive = scene.mesh.target_error is not None  # its levels are meshed and factored anew
                 if same_mesh:
                     collective(comm, lambda: geometry.check_loads(scene, mesh), root_only=True)
                 else:
                     mesh = None
-                    mesh = driver.build_mesh(scene, comm)
+                    mesh = None if adaptive else driver.build_mesh(scene, comm)
                 if same_blocks:
                     driver.reload(setup, scene)
-                else:
+                elif not adaptive:
                     setup = driver.prepare(scene, comm, mesh)
                 try:
-                    result = driver.solve(scene, comm, None, progress=lambda line: None, setup=setup)
+                    result = (adapt.solve(scene, comm, None, progress=lambda line: None) if adaptive else
+                              driver.solve(scene, comm, None, progress=lambda line: None, setup=setup))
                 except NotConvergedError as exc:
                     result = getattr(exc, "result", None)
                     record["message"] = str(exc)
@@ -198,7 +310,8 @@ def _numbers(result) -> dict:
     """What a run's record keeps of its result (NaN when the run failed)."""
     if result is None:
         return {"converged": False, "energy": math.nan, "iterations": 0, "rounds": 0, "unknowns": 0,
-                "setup_time": math.nan, "factorization_time": math.nan, "solve_time": math.nan, "fracture": None}
+                "setup_time": math.nan, "factorization_time": math.nan, "solve_time": math.nan, "fracture": None,
+                "kkt_tolerance": math.nan}
     timings = result.timings
     return {
         "converged": bool(result.converged), "energy": float(result.attrs.get("energy", math.nan)),
@@ -207,6 +320,7 @@ def _numbers(result) -> dict:
         "setup_time": float(timings.get("setup", math.nan)),
         "factorization_time": float(timings.get("factorization", math.nan)),
         "solve_time": float(timings.get("iterations", math.nan)), "fracture": result.fracture,
+        "kkt_tolerance": float(result.attrs.get("kkt_tolerance", math.nan)),
     }
 
 
@@ -224,7 +338,7 @@ def _line(number: int, total: int, record: dict) -> str:
 
 
 SCALARS = ("energy", "converged", "iterations", "rounds", "unknowns", "mesh_reused", "factors_reused", "time",
-           "setup_time", "factorization_time", "solve_time")
+           "setup_time", "factorization_time", "solve_time", "kkt_tolerance")
 TIP_FIELDS = {"G": np.nan, "contact": np.nan, "inner": np.nan, "outer": np.nan, "spacing": np.nan, "crack": -1}
 
 

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from ddsolve import adapt, geometry
+from ddsolve.errors import DDSolveError
 from ddsolve.interface import BLOCKS
 from ddsolve.result import Result
 from ddsolve.scene import Geometry
@@ -55,6 +56,11 @@ def test_the_loop_stops_at_the_target_the_level_limit_or_the_size_limit(monkeypa
     done, _, message = adapt._next(result, 0.01, adapt.MAX_LEVELS - 1)
     assert done and message == (f"mesh.target_error = 0.01 not reached in {adapt.MAX_LEVELS} levels "
                                 "(estimated error 0.05)")
-    monkeypatch.setattr(adapt, "MAX_UNKNOWNS", 100)
-    done, _, message = adapt._next(result, 0.01, 0)
+    monkeypatch.setattr(adapt, "MAX_UNKNOWNS", 100)  # 360 unknowns need about 9000 for the target
+    with pytest.raises(DDSolveError, match=r"mesh.target_error = 0.01 refused: it needs about 9e\+03 unknowns"):
+        adapt._next(result, 0.01, 0)
+    done, _, message = adapt._next(result, 0.01, 1)
+    assert done and "not reached, and out of reach: it needs about 9e+03 unknowns" in message
+    monkeypatch.setattr(adapt, "PREDICTION_MARGIN", 1e6)
+    done, _, message = adapt._next(result, 0.01, 1)
     assert done and "the next mesh would have about" in message
