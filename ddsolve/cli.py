@@ -9,6 +9,7 @@ that nothing read are reported when the run ends, as PETSc's ``-options_left`` d
 from __future__ import annotations
 
 import argparse
+import contextlib
 import difflib
 import importlib
 import math
@@ -24,7 +25,7 @@ from pathlib import Path
 from . import __version__
 from .environment import import_errors_explained
 from .errors import DDSolveError, NotConvergedError, UsageError
-from .launch import mpiexec_command
+from .launch import end_with_launcher, mpiexec_command
 
 #: Commands that hand options to PETSc.
 PETSC_COMMANDS = ("solve", "sweep", "reference", "version", "bench")
@@ -567,6 +568,8 @@ def _terminate(signum, _frame) -> None:
 #: Seconds an interrupt may wait for the main thread (busy in a library call: gmsh, a factorization,
 #: a blocking MPI call) before the watchdog stops the process itself.
 INTERRUPT_GRACE = 3.0
+#: Seconds MPI_Abort may take before the process ends itself (Abort waits for mpiexec, which may be gone).
+ABORT_GRACE = 1.0
 
 
 def _watch_interrupts() -> None:
@@ -587,15 +590,13 @@ def _watch_interrupts() -> None:
             signum = reader.recv(1)[0]
         time.sleep(INTERRUPT_GRACE)
         status = 143 if signum == signal.SIGTERM else 130
-        _report("ddsolve: terminated" if status == 143 else "ddsolve: interrupted")
-        if "ddsolve.io" in sys.modules:
-            sys.modules["ddsolve.io"].remove_scratch()
-        sys.stdout.flush()
-        sys.stderr.flush()
-        world = _world()
-        if world is not None:
-            world.Abort(status)
-        os._exit(status)
+        try:  # whatever fails here (a closed standard error, an Abort that hangs), the process ends
+            _report("ddsolve: terminated" if status == 143 else "ddsolve: interrupted")
+            if "ddsolve.io" in sys.modules:
+                sys.modules["ddsolve.io"].remove_scratch()
+            _abort(status)
+        finally:
+            os._exit(status)
 
     threading.Thread(target=watch, name="ddsolve-interrupts", daemon=True).start()
     _watch_interrupts.sockets = (reader, writer)  # keep them open
@@ -635,6 +636,7 @@ def guarded(call) -> int:
     """Run a command: a DDSolveError (or a missing petsc4py, mpi4py, h5py, gmsh...) becomes one line
     and its exit status, an interrupt or SIGTERM stops every rank, anything else is a bug (one
     traceback, abort)."""
+    end_with_launcher(os.getppid())
     signal.signal(signal.SIGTERM, _terminate)
     _watch_interrupts()
     try:
@@ -666,11 +668,16 @@ def _world():
 
 
 def _abort(status: int) -> None:
-    """End every rank at once: waiting for the others (PETSc's finalize does) would hang."""
+    """End every rank at once: waiting for the others (PETSc's finalize does) would hang.  If MPI_Abort
+    has not ended this process ABORT_GRACE seconds later (mpiexec is gone), it ends itself."""
     world = _world()
     if world is not None and world.size > 1:
-        sys.stdout.flush()
-        sys.stderr.flush()
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(OSError, ValueError):
+                stream.flush()
+        fallback = threading.Timer(ABORT_GRACE, os._exit, (status,))
+        fallback.daemon = True
+        fallback.start()
         world.Abort(status)
 
 
