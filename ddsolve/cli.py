@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import difflib
+import faulthandler
 import importlib
 import math
 import os
@@ -568,7 +569,7 @@ def _terminate(signum, _frame) -> None:
 #: Seconds an interrupt may wait for the main thread (busy in a library call: gmsh, a factorization,
 #: a blocking MPI call) before the watchdog stops the process itself.
 INTERRUPT_GRACE = 3.0
-#: Seconds MPI_Abort may take before the process ends itself (Abort waits for mpiexec, which may be gone).
+#: Seconds MPI_Abort may take before the process ends itself (Abort waits for mpiexec, which may not answer).
 ABORT_GRACE = 1.0
 
 
@@ -594,7 +595,7 @@ def _watch_interrupts() -> None:
             _report("ddsolve: terminated" if status == 143 else "ddsolve: interrupted")
             if "ddsolve.io" in sys.modules:
                 sys.modules["ddsolve.io"].remove_scratch()
-            _abort(status)
+            _abort(status, alone=True)
         finally:
             os._exit(status)
 
@@ -667,17 +668,17 @@ def _world():
     return MPI.COMM_WORLD if MPI.Is_initialized() and not MPI.Is_finalized() else None
 
 
-def _abort(status: int) -> None:
-    """End every rank at once: waiting for the others (PETSc's finalize does) would hang.  If MPI_Abort
-    has not ended this process ABORT_GRACE seconds later (mpiexec is gone), it ends itself."""
+def _abort(status: int, alone: bool = False) -> None:
+    """End every rank at once (with ``alone``, even a single rank): waiting for the others (PETSc's
+    finalize does) would hang.  MPI_Abort waits for mpiexec and holds the GIL meanwhile, so no Python
+    thread can run: if mpiexec does not answer, faulthandler's own C thread ends this process (status
+    1) ABORT_GRACE seconds later."""
     world = _world()
-    if world is not None and world.size > 1:
+    if world is not None and (world.size > 1 or alone):
         for stream in (sys.stdout, sys.stderr):
             with contextlib.suppress(OSError, ValueError):
                 stream.flush()
-        fallback = threading.Timer(ABORT_GRACE, os._exit, (status,))
-        fallback.daemon = True
-        fallback.start()
+        faulthandler.dump_traceback_later(ABORT_GRACE, exit=True, file=open(os.devnull, "w"))
         world.Abort(status)
 
 
