@@ -69,10 +69,12 @@ def gmsh_children(processes: dict) -> list[int]:
 
 
 def stop(folder: Path, phase: str, signum: int, target: str = "launcher", timeout: float = 240) -> dict:
-    """Run the case of ``phase`` in ``folder``, send ``signum`` to the ``target`` (the launcher, or with
-    "rank" the rank that meshes) when the phase has begun; the outcome: whether the phase was reached,
-    the launcher's exit status, seconds from the signal to its end, its standard error, and the processes
-    of the run alive AFTER seconds later (pid -> argv; they are then killed)."""
+    """Run the case of ``phase`` in ``folder``, send ``signum`` to the ``target`` when the phase has begun:
+    the launcher, "rank" the rank that meshes, or "ranks" every rank while the launcher (mpiexec) is
+    stopped (SIGSTOP: it does not answer their MPI_Abort) until they have ended.  The outcome: whether
+    the phase was reached, the launcher's exit status, seconds from the signal to its end (and with
+    "ranks", to the ranks' end), its output, and the processes of the run alive AFTER seconds after the
+    launcher's end (pid -> argv; they are then killed)."""
     arguments, sign = PHASES[phase]
     tag = uuid.uuid4().hex
     log = folder / f"procs-{tag}.txt"
@@ -82,7 +84,7 @@ def stop(folder: Path, phase: str, signum: int, target: str = "launcher", timeou
                                    stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                                    env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2]),
                                         "MPLBACKEND": "Agg", MARKER: tag})
-        seen_gmsh, reached, victim = False, False, process.pid
+        seen_gmsh, reached, victim, ranks_ended = False, False, process.pid, None
         try:
             while process.poll() is None and time.perf_counter() - started < timeout and not reached:
                 time.sleep(0.002 if sign == "scratch" else 0.02)
@@ -104,7 +106,16 @@ def stop(folder: Path, phase: str, signum: int, target: str = "launcher", timeou
                 ranks = sorted(pid for pid, (parent, _, _) in marked(tag).items() if parent == process.pid)
                 victim = ranks[0] if ranks else process.pid
             sent = time.perf_counter()
-            if process.poll() is None:
+            if process.poll() is None and target == "ranks":  # mpiexec alive but not answering their Abort
+                ranks = [pid for pid, (parent, _, _) in marked(tag).items() if parent == process.pid]
+                os.kill(process.pid, signal.SIGSTOP)
+                for pid in ranks:
+                    os.kill(pid, signum)
+                while set(ranks) & set(marked(tag)) and time.perf_counter() - sent < 30:
+                    time.sleep(0.02)
+                ranks_ended = time.perf_counter()
+                os.kill(process.pid, signal.SIGCONT)
+            elif process.poll() is None:
                 os.kill(victim, signum)
             try:
                 status = process.wait(timeout=60)
@@ -124,6 +135,7 @@ def stop(folder: Path, phase: str, signum: int, target: str = "launcher", timeou
         text = output.read()
     log.unlink()
     return {"reached": reached, "status": status, "seconds": ended - sent, "output": text,
+            "ranks_seconds": None if ranks_ended is None else ranks_ended - sent,
             "left": {pid: " ".join(argv)[:80] for pid, (_, _, argv) in left.items()}}
 
 
@@ -141,6 +153,8 @@ BEFORE = {
     ("levels", "SIGSEGV", "rank"): "exit 59, 3.2 s after the signal (PETSc's SEGV report, the other ranks "
                                    "aborted); nothing left",
     ("one process, meshing", "SIGTERM", "launcher"): "exit 143, 0.4 s after the signal; nothing left",
+    ("levels", "SIGTERM", "ranks"): "the 4 ranks still alive 20 s after the signal, stuck in MPI_Abort (which holds "
+                                    "the GIL, so the watchdog never ran); they would stay once mpiexec ends",
 }
 
 
@@ -152,17 +166,19 @@ def describe(outcome: dict) -> str:
     said = f", «{lines[0]}»" if lines else ""
     left = (f"; {len(outcome['left'])} PROCESSES ALIVE {AFTER:g} s later: " + "; ".join(outcome["left"].values())
             if outcome["left"] else f"; no process of the run alive {AFTER:g} s later")
-    return f"exit {outcome['status']}, {outcome['seconds']:.1f} s after the signal{said}{left}"
+    ranks = (f"the ranks ended {outcome['ranks_seconds']:.1f} s after the signal, then "
+             if outcome["ranks_seconds"] is not None else "")
+    return f"{ranks}exit {outcome['status']}, {outcome['seconds']:.1f} s after the signal{said}{left}"
 
 
 def measure(hostile) -> None:
     """Class 109: a signal to the launcher (or a rank) at each phase; processes alive 5 s after its end."""
     cases = [(phase, name, "launcher") for phase in ("meshing", "levels", "factorization", "write")
              for name in ("SIGTERM", "SIGINT", "SIGKILL")]
-    cases += [("meshing", "SIGKILL", "rank"), ("levels", "SIGSEGV", "rank"),
+    cases += [("meshing", "SIGKILL", "rank"), ("levels", "SIGSEGV", "rank"), ("levels", "SIGTERM", "ranks"),
               ("one process, meshing", "SIGTERM", "launcher"), ("one process, meshing", "SIGKILL", "launcher")]
     for phase, name, target in cases:
         outcome = stop(hostile.folder, phase, getattr(signal, name), target)
-        whom = "a rank" if target == "rank" else "the launcher" if phase.startswith("one") else "mpiexec (the launcher)"
+        whom = "a rank" if target == "rank" else "every rank while mpiexec is stopped" if target == "ranks" else "the launcher" if phase.startswith("one") else "mpiexec (the launcher)"
         label = f"{name} to {whom} during {phase}"
         hostile.rows[109].append((label, BEFORE.get((phase, name, target), "not measured"), describe(outcome)))
