@@ -570,7 +570,7 @@ def _terminate(signum, _frame) -> None:
 #: a blocking MPI call) before the watchdog stops the process itself.
 INTERRUPT_GRACE = 3.0
 #: Seconds MPI_Abort may take before the process ends itself (Abort waits for mpiexec, which may not answer).
-ABORT_GRACE = 1.0
+ABORT_GRACE = 2.0
 
 
 def _watch_interrupts() -> None:
