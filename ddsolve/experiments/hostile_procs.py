@@ -179,6 +179,7 @@ def measure(hostile) -> None:
               ("one process, meshing", "SIGTERM", "launcher"), ("one process, meshing", "SIGKILL", "launcher")]
     for phase, name, target in cases:
         outcome = stop(hostile.folder, phase, getattr(signal, name), target)
-        whom = "a rank" if target == "rank" else "every rank while mpiexec is stopped" if target == "ranks" else "the launcher" if phase.startswith("one") else "mpiexec (the launcher)"
+        whom = {"rank": "a rank", "ranks": "every rank while mpiexec is stopped"}.get(
+            target, "the launcher" if phase.startswith("one") else "mpiexec (the launcher)")
         label = f"{name} to {whom} during {phase}"
         hostile.rows[109].append((label, BEFORE.get((phase, name, target), "not measured"), describe(outcome)))
