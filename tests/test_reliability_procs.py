@@ -48,6 +48,15 @@ def test_a_crashing_rank_ends_the_others_and_its_gmsh_process(tmp_path, signum):
 
 
 @pytest.mark.mpi
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT], ids=lambda s: signal.Signals(s).name)
+def test_on_one_rank_too_the_status_is_mpiexecs(tmp_path, signum):
+    """docs/usage.md: under mpiexec (any -n) a signalled run exits with mpiexec's status, 1 for Open MPI."""
+    outcome = stop(tmp_path, "meshing on one rank", signum)
+    ended_cleanly(outcome, 1)
+    assert "ddsolve: terminated" in outcome["output"]
+
+
+@pytest.mark.mpi
 def test_ranks_end_when_mpiexec_does_not_answer_their_abort(tmp_path):
     """SIGTERM to every rank while mpiexec is stopped: MPI_Abort never returns (and holds the GIL)."""
     outcome = stop(tmp_path, "levels", signal.SIGTERM, target="ranks")

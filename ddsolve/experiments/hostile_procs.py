@@ -28,6 +28,8 @@ PHASES = {
                        "--set", "mesh.boundary_vertices=256", "--set", "mesh.degree=2", "-o", "out.h5"], "meshed"),
     "write": (["solve", "-n", "4", "partial-closure", "--set", "mesh.sigma_vertices=200",
                "--set", "mesh.boundary_vertices=256", "--set", "mesh.degree=2", "-o", "out.h5"], "scratch"),
+    "meshing on one rank": (["solve", "-n", "1", "partial-closure", "--set", "mesh.sigma_vertices=1600",
+                             "--set", "mesh.boundary_vertices=2048", "-o", "out.h5"], "gmsh"),
     "one process, meshing": (["mesh", "partial-closure", "--set", "mesh.sigma_vertices=1600",
                               "--set", "mesh.boundary_vertices=2048"], "gmsh"),
 }
@@ -152,6 +154,10 @@ BEFORE = {
     ("levels", "SIGTERM", "launcher"): "exit 1, 2.1 s after the signal, «ddsolve: terminated»; nothing left",
     ("levels", "SIGSEGV", "rank"): "exit 59, 3.2 s after the signal (PETSc's SEGV report, the other ranks "
                                    "aborted); nothing left",
+    ("meshing on one rank", "SIGTERM", "launcher"): "exit 1, 2.1 s after the signal, «ddsolve: terminated»; "
+                                                    "nothing left",
+    ("meshing on one rank", "SIGINT", "launcher"): "exit 1, 2.0 s after the signal, «ddsolve: terminated»; "
+                                                   "nothing left",
     ("one process, meshing", "SIGTERM", "launcher"): "exit 143, 0.4 s after the signal; nothing left",
     ("levels", "SIGTERM", "ranks"): "the 4 ranks still alive 20 s after the signal, stuck in MPI_Abort (which holds "
                                     "the GIL, so the watchdog never ran); they would stay once mpiexec ends",
@@ -176,6 +182,7 @@ def measure(hostile) -> None:
     cases = [(phase, name, "launcher") for phase in ("meshing", "levels", "factorization", "write")
              for name in ("SIGTERM", "SIGINT", "SIGKILL")]
     cases += [("meshing", "SIGKILL", "rank"), ("levels", "SIGSEGV", "rank"), ("levels", "SIGTERM", "ranks"),
+              ("meshing on one rank", "SIGTERM", "launcher"), ("meshing on one rank", "SIGINT", "launcher"),
               ("one process, meshing", "SIGTERM", "launcher"), ("one process, meshing", "SIGKILL", "launcher")]
     for phase, name, target in cases:
         outcome = stop(hostile.folder, phase, getattr(signal, name), target)
