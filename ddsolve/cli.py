@@ -107,9 +107,12 @@ def split_arguments(top: argparse.ArgumentParser, argv: list[str], petsc_command
 
 
 def init_petsc(options: list[str]) -> None:
+    """PETSc without its signal handler: on a crash (SIGSEGV...) it calls MPI_Abort inside the handler,
+    which can deadlock the crashed rank and with it the whole job; without it the rank dies of the
+    signal (after Open MPI's backtrace) and mpiexec ends the others."""
     import petsc4py
 
-    petsc4py.init([sys.argv[0], *options])
+    petsc4py.init([sys.argv[0], "-no_signal_handler", *options])
 
 
 def _root_print(*args, **kwargs) -> None:
