@@ -12,6 +12,7 @@ import argparse
 import codecs
 import contextlib
 import difflib
+import faulthandler
 import importlib
 import math
 import os
@@ -27,7 +28,7 @@ from pathlib import Path
 from . import __version__
 from .environment import import_errors_explained
 from .errors import DDSolveError, NotConvergedError, SceneError, UsageError
-from .launch import mpiexec_command
+from .launch import end_with_launcher, mpiexec_command
 
 #: Commands that hand options to PETSc.
 PETSC_COMMANDS = ("solve", "sweep", "reference", "version", "bench")
@@ -110,12 +111,15 @@ def split_arguments(top: argparse.ArgumentParser, argv: list[str], petsc_command
 
 
 def init_petsc(options: list[str]) -> None:
+    """PETSc without its signal handler: on a crash (SIGSEGV...) it calls MPI_Abort inside the handler,
+    which can deadlock the crashed rank and with it the whole job; without it the rank dies of the
+    signal (after Open MPI's backtrace) and mpiexec ends the others."""
     import petsc4py
 
-    petsc4py.init([sys.argv[0], *options])
-    from petsc4py import PETSc  # noqa: F401 -- PETSc starts here, and installs its signal handlers
+    petsc4py.init([sys.argv[0], "-no_signal_handler", *options])
+    from petsc4py import PETSc  # noqa: F401 -- PETSc starts here
 
-    # A closed pipe on standard output is an error to report in one line (EPIPE), not a PETSc crash.
+    # A closed pipe on standard output is an error to report in one line (EPIPE), not a death by SIGPIPE.
     signal.signal(signal.SIGPIPE, signal.SIG_IGN)
 
 
@@ -649,6 +653,8 @@ def _terminate(signum, _frame) -> None:
 #: Seconds an interrupt may wait for the main thread (busy in a library call: gmsh, a factorization,
 #: a blocking MPI call) before the watchdog stops the process itself.
 INTERRUPT_GRACE = 3.0
+#: Seconds MPI_Abort may take before the process ends itself (Abort waits for mpiexec, which may not answer).
+ABORT_GRACE = 2.0
 
 
 def _watch_interrupts() -> None:
@@ -669,15 +675,13 @@ def _watch_interrupts() -> None:
             signum = reader.recv(1)[0]
         time.sleep(INTERRUPT_GRACE)
         status = 143 if signum == signal.SIGTERM else 130
-        _report("ddsolve: terminated" if status == 143 else "ddsolve: interrupted")
-        if "ddsolve.io" in sys.modules:
-            sys.modules["ddsolve.io"].remove_scratch()
-        sys.stdout.flush()
-        sys.stderr.flush()
-        world = _world()
-        if world is not None:
-            world.Abort(status)
-        os._exit(status)
+        try:  # whatever fails here (a closed standard error, an Abort that hangs), the process ends
+            _report("ddsolve: terminated" if status == 143 else "ddsolve: interrupted")
+            if "ddsolve.io" in sys.modules:
+                sys.modules["ddsolve.io"].remove_scratch()
+            _abort(status, alone=True)
+        finally:
+            os._exit(status)
 
     threading.Thread(target=watch, name="ddsolve-interrupts", daemon=True).start()
     _watch_interrupts.sockets = (reader, writer)  # keep them open
@@ -720,6 +724,7 @@ def guarded(call) -> int:
     """Run a command: a DDSolveError (or a missing petsc4py, mpi4py, h5py, gmsh...) becomes one line
     and its exit status, an interrupt or SIGTERM stops every rank, anything else is a bug (one
     traceback, abort)."""
+    end_with_launcher(os.getppid())
     prepare_output()
     signal.signal(signal.SIGTERM, _terminate)
     _watch_interrupts()
@@ -828,12 +833,17 @@ def _world():
     return MPI.COMM_WORLD if MPI.Is_initialized() and not MPI.Is_finalized() else None
 
 
-def _abort(status: int) -> None:
-    """End every rank at once: waiting for the others (PETSc's finalize does) would hang."""
+def _abort(status: int, alone: bool = False) -> None:
+    """End every rank at once (with ``alone``, even a single rank): waiting for the others (PETSc's
+    finalize does) would hang.  MPI_Abort waits for mpiexec and holds the GIL meanwhile, so no Python
+    thread can run: if mpiexec does not answer, faulthandler's own C thread ends this process (status
+    1) ABORT_GRACE seconds later."""
     world = _world()
-    if world is not None and world.size > 1:
+    if world is not None and (world.size > 1 or alone):
         _flush_output()
-        sys.stderr.flush()
+        with contextlib.suppress(OSError, ValueError):
+            sys.stderr.flush()
+        faulthandler.dump_traceback_later(ABORT_GRACE, exit=True, file=open(os.devnull, "w"))
         world.Abort(status)
 
 

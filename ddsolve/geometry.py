@@ -19,6 +19,8 @@ import contextlib
 import io
 import math
 import multiprocessing
+import os
+import signal
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, TypeVar
@@ -26,6 +28,7 @@ from typing import Callable, TypeVar
 import numpy as np
 
 from .errors import MeshError, SceneError
+from .launch import end_with_parent
 from .mesh import CLAMPED, CRACK, SIGMA, TOL, HalfMesh, Mesh, elevate, make_half, make_mesh, merge_repeats, oriented
 from .scene import SIDES, Geometry, MeshOptions, Scene, readable
 
@@ -440,11 +443,12 @@ def apart(work: Callable[..., T], *args) -> T:
 
     gmsh does not return to Python while it meshes (a minute for a large mesh), so in this process a
     signal handler would run only after it; here the parent waits in short steps, and on SIGTERM or
-    Ctrl-C it kills the child and goes on with its own clean exit.  (The child touches no MPI.)
+    Ctrl-C it kills the child and goes on with its own clean exit.  (The child touches no MPI.)  The
+    child never outlives this process, however it ends (SIGKILL included): see :func:`_child`.
     """
     context = multiprocessing.get_context("fork")
     receiver, sender = context.Pipe(duplex=False)
-    child = context.Process(target=_child, args=(sender, work, args), daemon=True)
+    child = context.Process(target=_child, args=(os.getpid(), sender, work, args), daemon=True)
     child.start()
     sender.close()
     try:
@@ -462,7 +466,14 @@ def apart(work: Callable[..., T], *args) -> T:
     return value
 
 
-def _child(sender, work, args) -> None:
+def _child(parent: int, sender, work, args) -> None:
+    # The kernel kills this process when its parent ends; SIGINT and SIGTERM end it at once (gmsh does
+    # not return to Python for them), and they no longer wake the parent's watchdog through the
+    # inherited wakeup fd: the parent, which gets them too, cleans up and kills this child itself.
+    end_with_parent(parent)
+    signal.set_wakeup_fd(-1)
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, signal.SIG_DFL)
     try:
         outcome = (True, work(*args))
     except BaseException as exc:  # every error goes back to the parent, which raises it

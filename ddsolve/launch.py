@@ -1,12 +1,19 @@
 """Starting ddsolve under mpiexec (used by ``ddsolve solve -n N`` and by the experiments)."""
 from __future__ import annotations
 
+import ctypes
 import os
 import shutil
+import signal
 import subprocess
 import sys
 
 from .errors import DDSolveError
+
+#: Linux's prctl request: the signal the kernel sends a process when its parent ends.
+PR_SET_PDEATHSIG = 1
+#: Variables an MPI launcher (Open MPI, MPICH's hydra, PMIx) gives the ranks it starts.
+RANK_VARIABLES = ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK")
 
 #: Blocks of the decomposition: a rank count must divide them or be a multiple of them.
 BLOCK_COUNT = 4
@@ -38,3 +45,25 @@ def mpiexec_command(ranks: int, arguments: list[str], module: str = "ddsolve") -
             # spinning: with more ranks than cores, 5x faster rounds at 8 ranks on 2 cores.
             command += ["--mca", "mpi_yield_when_idle", "1"]
     return command + ["-n", str(ranks), sys.executable, "-m", module, *arguments]
+
+
+def end_with_parent(parent: int, signum: int = signal.SIGKILL) -> None:
+    """Have the kernel send ``signum`` to this process when its parent (the process ``parent``) ends,
+    and end at once if it has ended already.  SIGKILL of a parent cannot be caught, so this is the only
+    way its children learn of it.  Linux only: elsewhere nothing is done."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, int(signum), 0, 0, 0)
+    except (OSError, AttributeError):
+        return
+    if os.getppid() != parent:  # the parent ended before the request: nobody waits for this process
+        os._exit(128 + int(signum))
+
+
+def end_with_launcher(parent: int) -> None:
+    """A rank that mpiexec (or its daemon, the rank's parent ``parent``) started ends when mpiexec ends,
+    however it ends: ranks would otherwise outlive a killed launcher, reparented to init."""
+    if any(name in os.environ for name in RANK_VARIABLES):
+        end_with_parent(parent)

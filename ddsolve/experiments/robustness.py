@@ -627,7 +627,8 @@ class Hostile:
                  "before the fixes (numbers quoted, not measured again); *after* is measured by `./run robustness` "
                  "on this code, from a scratch folder, on the P = 13, M = 32 mesh. Exit statuses: 0 success, "
                  "1 refused or failed (nothing written), 2 command-line usage, 3 not converged (result written with "
-                 "converged = false), 4 diverged, 143 SIGTERM. The tests of each class are in "
+                 "converged = false), 4 diverged, 130 and 143 SIGINT and SIGTERM to one process (under mpiexec, "
+                 "`solve -n N`: mpiexec's 1, or 143 when a rank's abort reaches it first). The tests of each class are in "
                  "`tests/test_hostile_input.py`; `tests/test_fuzz.py` generates scenes, command lines and "
                  "corrupted result files, and `tests/test_convergence_claim.py` checks every converged result of "
                  "every method on the built-in scenes."]
