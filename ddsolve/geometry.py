@@ -19,7 +19,7 @@ import contextlib
 import io
 import math
 import multiprocessing
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable, TypeVar
 
@@ -108,7 +108,11 @@ def _mesh_half(scene: Scene, side: int, background: SizeMap | None = None) -> Ha
     """
     import gmsh  # imported here: importing gmsh changes the SIGINT handler until finalize
 
-    geometry, options = scene.geometry, scene.mesh
+    options = scene.mesh
+    shift = local_origin(scene.geometry.box)  # gmsh meshes the box about a nearby origin
+    geometry = translated(scene.geometry, -shift)
+    if background is not None:
+        background = SizeMap(background.corners - shift, background.sizes)
     x0, x1, y0, y1 = geometry.box
     ys = geometry.sigma
     cracks = [tip for piece in geometry.cracks for tip in piece if x0 < tip < x1]
@@ -157,7 +161,25 @@ def _mesh_half(scene: Scene, side: int, background: SizeMap | None = None) -> Ha
         cells = position[np.asarray(nodes, dtype=np.int64).reshape(-1, 3)]
     finally:
         gmsh.finalize()
-    return _box_half(points, cells, side, geometry, options.degree, origin(scene))
+    half = _box_half(points, cells, side, geometry, options.degree, origin(scene))
+    return replace(half, points=half.points + shift)
+
+
+def local_origin(box) -> np.ndarray:
+    """The point about which the box is meshed: the multiple of a power of two (at least 64 box sizes)
+    nearest the box's centre.  It is (0, 0) for a box near the origin; for a box far away, coordinates
+    relative to it are exact (a box at x = 1e9 is meshed as one at x = 0: gmsh fails on the former)."""
+    x0, x1, y0, y1 = box
+    unit = 2.0 ** math.ceil(math.log2(64.0 * max(x1 - x0, y1 - y0)))
+    return np.array([round(0.5 * (x0 + x1) / unit) * unit, round(0.5 * (y0 + y1) / unit) * unit])
+
+
+def translated(geometry: Geometry, offset: np.ndarray) -> Geometry:
+    """The box geometry moved by ``offset`` (dx, dy)."""
+    dx, dy = (float(v) for v in offset)
+    x0, x1, y0, y1 = geometry.box
+    return replace(geometry, box=(x0 + dx, x1 + dx, y0 + dy, y1 + dy), sigma=geometry.sigma + dy,
+                   cracks=tuple((a + dx, b + dx) for a, b in geometry.cracks))
 
 
 def estimated_vertices(scene: Scene) -> float | None:
@@ -450,8 +472,12 @@ def apart(work: Callable[..., T], *args) -> T:
     try:
         while not receiver.poll(0.05):
             if not child.is_alive() and not receiver.poll(0.05):
-                raise MeshError(f"gmsh stopped without a mesh (exit status {child.exitcode})")
-        ok, value = receiver.recv()
+                break
+        try:
+            ok, value = receiver.recv()
+        except EOFError:  # the child ended without an answer (gmsh aborted it)
+            child.join()
+            raise MeshError(f"gmsh stopped without a mesh (exit status {child.exitcode})") from None
     finally:
         receiver.close()
         if child.is_alive():
