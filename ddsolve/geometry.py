@@ -254,11 +254,13 @@ def graded_size(distance: np.ndarray, size: float, mu: float, length: float, sma
 
 def grading_offset(size: float, mu: float, length: float, smallest: float = 0.0) -> float:
     """r₀ = R (H/R)^(1/μ), which makes h(0) = r₀ (the smallest triangle at the point is as large as the
-    distance at which it is needed), but at least ``smallest`` × length; R when H ≥ R (no grading)."""
+    distance at which it is needed), but at least ``smallest`` × length, and large enough that h(0) is
+    too (a small μ asks for h(0) far below r₀); R when H ≥ R (no grading)."""
     radius = GRADING_RADIUS * length
     if size >= radius:
         return radius
-    return max(radius * (size / radius) ** (1.0 / mu), smallest * length)
+    floor = smallest * length
+    return max(radius * (size / radius) ** (1.0 / mu), floor, radius * (floor / size) ** (1.0 / (1.0 - mu)))
 
 
 def box_singular_points(geometry: Geometry) -> np.ndarray:
