@@ -613,10 +613,12 @@ def _from_gmsh(scene: Scene, background: SizeMap | None = None) -> Mesh:
         if options.kind == "geo":
             if options.size is not None:
                 gmsh.option.setNumber("Mesh.MeshSizeMax", options.size)
+            low, high = np.reshape(gmsh.model.getBoundingBox(-1, -1), (2, 3))
+            length = float(np.min((high - low)[:2]))
+            _bounded_curves(gmsh, groups, options.degree, length, where)
             if options.grading is not None or background is not None:
                 singular = model_singular_points(gmsh, groups) if options.grading is not None else None
-                low, high = np.reshape(gmsh.model.getBoundingBox(-1, -1), (2, 3))
-                set_size_field(gmsh, options, singular, float(np.min((high - low)[:2])), background)
+                set_size_field(gmsh, options, singular, length, background)
             try:
                 gmsh.model.mesh.generate(2)
                 if options.degree == 2:
@@ -658,6 +660,54 @@ def _from_gmsh(scene: Scene, background: SizeMap | None = None) -> Mesh:
         old[renumbered[0][renumbered[0] >= 0]] = np.flatnonzero(renumbered[0] >= 0)
         exact = normals[old[lower.sigma]]
     return make_mesh(*halves, where, exact_normals=exact)
+
+
+def _bounded_curves(gmsh, groups: dict[tuple[int, str], list[int]], degree: int, length: float, where: str) -> None:
+    """Refuse a .geo whose own sizes (its points' sizes, Mesh.MeshSizeFactor, mesh.size) ask gmsh for more
+    than it can do: elements below ``SMALLEST`` × the geometry's length, or a mesh too large to solve in
+    this machine's memory.  Its curves are meshed without the factor and with sizes of at least that
+    floor (a bounded amount of work), measured, and the mesh cleared; the smallest size asked is the
+    shortest edge times the factor, the number of vertices is estimated from the nodes on each surface's
+    boundary (divided by the factor).  gmsh itself, asked for too many nodes on a curve, makes one
+    element of it without a word, or asks on the terminal whether to go on."""
+    from .cli import RANK_MEMORY, VERTEX_MEMORY, _physical_memory
+
+    floor = SMALLEST["geo"] * length
+    saved = {name: gmsh.option.getNumber(name) for name in ("Mesh.MeshSizeFactor", "Mesh.MeshSizeMin")}
+    factor = saved["Mesh.MeshSizeFactor"]
+    gmsh.option.setNumber("Mesh.MeshSizeFactor", 1.0)
+    gmsh.option.setNumber("Mesh.MeshSizeMin", max(saved["Mesh.MeshSizeMin"], floor))
+    try:
+        gmsh.model.mesh.generate(1)
+    except Exception as exc:
+        raise MeshError(f"{where}: gmsh cannot mesh it ({' '.join(str(exc).split())})") from None
+    finally:
+        for name, value in saved.items():
+            gmsh.option.setNumber(name, value)
+    tags, coordinates, _ = gmsh.model.mesh.getNodes()
+    points = np.asarray(coordinates, dtype=np.float64).reshape(-1, 3)[_positions(tags)[
+        np.asarray(gmsh.model.mesh.getElementsByType(_LINE)[1], dtype=np.int64)]].reshape(-1, 2, 3)
+    shortest = factor * float(np.linalg.norm(points[:, 1] - points[:, 0], axis=1).min(initial=math.inf))
+    vertices = 0.0
+    for surface in groups[(2, "lower")] + groups[(2, "upper")]:
+        curves = {abs(tag) for _, tag in gmsh.model.getBoundary([(2, surface)], combined=False)}
+        boundary = sum(len(gmsh.model.mesh.getNodes(1, curve, includeBoundary=True)[0]) for curve in curves)
+        vertices += VERTICES_PER_BOUNDARY_NODE_SQUARED * (boundary / min(factor, 1.0)) ** 2 * degree ** 2
+    gmsh.model.mesh.clear()
+    if shortest <= 1.5 * floor:
+        raise MeshError(f"{where}: the file asks gmsh for elements of size {min(shortest, floor):.2g} or less (its points' "
+                        f"sizes times Mesh.MeshSizeFactor = {factor:g}), below what gmsh meshes reliably "
+                        f"({SMALLEST['geo']:g} × the geometry's size {length:.3g}): enlarge them")
+    memory = RANK_MEMORY + vertices * VERTEX_MEMORY
+    if memory > _physical_memory():
+        raise MeshError(f"{where}: its sizes (its points' sizes, Mesh.MeshSizeFactor = {factor:g}, mesh.size) give a "
+                        f"mesh of about {vertices:.2g} vertices, which needs about {memory / 1e9:.2g} GB to solve, more "
+                        f"than this machine's {_physical_memory() / 1e9:.3g} GB: enlarge them")
+
+
+#: Vertices of a uniform mesh of a surface per square of the number of nodes on its boundary: 0.072 for a
+#: square, 0.092 for a disc (2/√3 vertices per h², boundary length/h nodes).
+VERTICES_PER_BOUNDARY_NODE_SQUARED = 0.08
 
 
 def _physical_groups(gmsh, where: str) -> dict[tuple[int, str], list[int]]:
