@@ -65,6 +65,10 @@ def check_loads(scene: Scene, mesh: Mesh) -> None:
                              f"(boundaries: {', '.join(n for n in names if n != CLAMPED)})")
         if name == CLAMPED or all(_edge_set(half, name) <= _edge_set(half, CLAMPED) for half in mesh.halves):
             raise SceneError(f"{load.key}: boundary {name!r} is clamped (Γ_D), where no load can act")
+        if all(np.isin(half.nodes(name), half.clamped()).all() for half in mesh.halves):
+            raise SceneError(f"{load.key}: on this mesh every node of boundary {name!r} is clamped, so the load "
+                             "would act on nothing (a mesh coarser than the geometry): use smaller elements "
+                             "(mesh.size, or mesh.sigma_vertices and mesh.boundary_vertices) or mesh.degree = 2")
 
 
 def _edge_set(half: HalfMesh, name: str) -> set[tuple[int, int]]:

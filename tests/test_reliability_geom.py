@@ -55,21 +55,33 @@ def energy(path: Path) -> float:
 # --- class 2: coarse, thin, slender, far away ----------------------------------------------------
 @mpi
 @pytest.mark.parametrize("size", ["2", "3", "100"])
-def test_a_mesh_size_larger_than_the_box_is_solved(tmp_path, size):
-    solved(run("solve", "-n", "4", "partial-closure", "--set", f"mesh.size={size}", "-o", str(tmp_path / "r.h5")))
-    solved(run("check", str(tmp_path / "r.h5")))
+def test_a_mesh_size_larger_than_the_box_is_solved_where_the_loads_act(tmp_path, size):
+    """One element per side: P1 nodes of the loaded sides are all clamped (the load would act on nothing:
+    refused naming it); P2 has mid-side nodes, and a box clamped on one side only keeps free corners."""
+    output = tmp_path / "r.h5"
+    output.write_bytes(b"previous")
+    refused(run("solve", "-n", "4", "partial-closure", "--set", f"mesh.size={size}", "-o", str(output)), 1,
+            "loads.layer1.bottom", "mesh.size")
+    assert output.read_bytes() == b"previous"
+    for extra in (["--set", "mesh.degree=2"], ["--set", "geometry.clamped=['left']"]):
+        solved(run("solve", "-n", "4", "partial-closure", "--set", f"mesh.size={size}", *extra, "-o", str(output)))
+        solved(run("check", str(output)))
 
 
 @mpi
-def test_a_coarse_mesh_on_one_rank_and_p2(tmp_path):
-    solved(run("solve", "-n", "1", "partial-closure", "--set", "mesh.size=3", "-o", str(tmp_path / "one.h5")))
-    solved(run("solve", "-n", "4", "partial-closure", "--set", "mesh.size=2", "--set", "mesh.degree=2",
-               "-o", str(tmp_path / "p2.h5")))
+def test_a_coarse_mesh_on_one_rank(tmp_path):
+    refused(run("solve", "-n", "1", "partial-closure", "--set", "mesh.size=3", "-o", str(tmp_path / "one.h5")), 1,
+            "loads.layer1.bottom")
+    solved(run("solve", "-n", "1", "partial-closure", "--set", "mesh.size=3", "--set", "mesh.degree=2",
+               "-o", str(tmp_path / "one.h5")))
 
 
 @unit
 def test_reference_on_a_coarse_mesh(tmp_path):
-    solved(run("reference", "partial-closure", "--set", "mesh.size=2", "-o", str(tmp_path / "r.h5")))
+    refused(run("reference", "partial-closure", "--set", "mesh.size=2", "-o", str(tmp_path / "r.h5")), 1,
+            "loads.layer1.bottom")
+    solved(run("reference", "partial-closure", "--set", "mesh.size=2", "--set", "geometry.clamped=['left']",
+               "-o", str(tmp_path / "r.h5")))
 
 
 @mpi

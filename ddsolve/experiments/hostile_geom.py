@@ -23,6 +23,9 @@ def measure(hostile) -> None:
                  ["reference", "partial-closure", "--set", "mesh.size=2", "-o", "g2.h5"])
     hostile.case(102, "solve -n 1, mesh.size = 3", "exit 1, 34-line traceback (_UFuncOutputCastingError)",
                  ["solve", "-n", "1", "partial-closure", "--set", "mesh.size=3", "-o", "g2.h5"])
+    hostile.case(102, "mesh.size = 100, clamped on the left only", "exit 1, traceback (numpy "
+                 "_UFuncOutputCastingError in the error estimate)",
+                 [*solve, "--set", "mesh.size=100", "--set", "geometry.clamped=['left']", "-o", "g2.h5"])
     hostile.case(102, "P2, mesh.size = 2", traceback,
                  [*solve, "--set", "mesh.size=2", "--set", "mesh.degree=2", "-o", "g2.h5"])
     hostile.case(102, "box 2 × 2e-4 (P = 13, M = 32)", traceback,
