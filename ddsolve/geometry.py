@@ -483,7 +483,8 @@ def apart(work: Callable[..., T], *args) -> T:
             ok, value = receiver.recv()
         except EOFError:  # the child ended without an answer (gmsh aborted it)
             child.join()
-            raise MeshError(f"gmsh stopped without a mesh (exit status {child.exitcode})") from None
+            raise MeshError(f"gmsh stopped without a mesh (it aborted, exit status {child.exitcode}): change the element "
+                            "sizes (mesh.size, mesh.grading, the sizes of a .geo) or the geometry") from None
     finally:
         receiver.close()
         if child.is_alive():
@@ -495,6 +496,11 @@ def apart(work: Callable[..., T], *args) -> T:
 
 
 def _child(sender, work, args) -> None:
+    import os
+
+    quiet = os.open(os.devnull, os.O_WRONLY)  # gmsh writes its aborts to standard error: the parent reports
+    os.dup2(quiet, 2)
+    os.close(quiet)
     try:
         outcome = (True, work(*args))
     except BaseException as exc:  # every error goes back to the parent, which raises it
