@@ -171,7 +171,8 @@ def _patch_means(points: np.ndarray, nodes: np.ndarray, vertex: np.ndarray, scal
     values = _monomials(local, degree) @ coefficients[vertex]  # (p, r, 3)
     flat = nodes.ravel()
     count = np.bincount(flat, minlength=len(points))
-    sums = np.stack([np.bincount(flat, values[..., c].ravel(), minlength=len(points)) for c in range(3)], axis=1)
+    sums = np.stack([np.bincount(flat, values[..., c].ravel(), minlength=len(points)) for c in range(3)],
+                    axis=1).astype(np.float64)  # bincount of nothing is an integer array
     found = count > 0
     sums[found] /= count[found, None]
     return sums, found

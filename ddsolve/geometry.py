@@ -21,7 +21,7 @@ import math
 import multiprocessing
 import os
 import signal
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable, TypeVar
 
@@ -68,6 +68,10 @@ def check_loads(scene: Scene, mesh: Mesh) -> None:
                              f"(boundaries: {', '.join(n for n in names if n != CLAMPED)})")
         if name == CLAMPED or all(_edge_set(half, name) <= _edge_set(half, CLAMPED) for half in mesh.halves):
             raise SceneError(f"{load.key}: boundary {name!r} is clamped (Γ_D), where no load can act")
+        if all(np.isin(half.nodes(name), half.clamped()).all() for half in mesh.halves):
+            raise SceneError(f"{load.key}: on this mesh every node of boundary {name!r} is clamped, so the load "
+                             "would act on nothing (a mesh coarser than the geometry): use smaller elements "
+                             "(mesh.size, or mesh.sigma_vertices and mesh.boundary_vertices) or mesh.degree = 2")
 
 
 def _edge_set(half: HalfMesh, name: str) -> set[tuple[int, int]]:
@@ -111,7 +115,11 @@ def _mesh_half(scene: Scene, side: int, background: SizeMap | None = None) -> Ha
     """
     import gmsh  # imported here: importing gmsh changes the SIGINT handler until finalize
 
-    geometry, options = scene.geometry, scene.mesh
+    options = scene.mesh
+    shift = local_origin(scene.geometry.box)  # gmsh meshes the box about a nearby origin
+    geometry = translated(scene.geometry, -shift)
+    if background is not None:
+        background = SizeMap(background.corners - shift, background.sizes)
     x0, x1, y0, y1 = geometry.box
     ys = geometry.sigma
     cracks = [tip for piece in geometry.cracks for tip in piece if x0 < tip < x1]
@@ -160,7 +168,25 @@ def _mesh_half(scene: Scene, side: int, background: SizeMap | None = None) -> Ha
         cells = position[np.asarray(nodes, dtype=np.int64).reshape(-1, 3)]
     finally:
         gmsh.finalize()
-    return _box_half(points, cells, side, geometry, options.degree, origin(scene))
+    half = _box_half(points, cells, side, geometry, options.degree, origin(scene))
+    return replace(half, points=half.points + shift)
+
+
+def local_origin(box) -> np.ndarray:
+    """The point about which the box is meshed: the multiple of a power of two (at least 64 box sizes)
+    nearest the box's centre.  It is (0, 0) for a box near the origin; for a box far away, coordinates
+    relative to it are exact (a box at x = 1e9 is meshed as one at x = 0: gmsh fails on the former)."""
+    x0, x1, y0, y1 = box
+    unit = 2.0 ** math.ceil(math.log2(64.0 * max(x1 - x0, y1 - y0)))
+    return np.array([round(0.5 * (x0 + x1) / unit) * unit, round(0.5 * (y0 + y1) / unit) * unit])
+
+
+def translated(geometry: Geometry, offset: np.ndarray) -> Geometry:
+    """The box geometry moved by ``offset`` (dx, dy)."""
+    dx, dy = (float(v) for v in offset)
+    x0, x1, y0, y1 = geometry.box
+    return replace(geometry, box=(x0 + dx, x1 + dx, y0 + dy, y1 + dy), sigma=geometry.sigma + dy,
+                   cracks=tuple((a + dx, b + dx) for a, b in geometry.cracks))
 
 
 def estimated_vertices(scene: Scene) -> float | None:
@@ -235,11 +261,13 @@ def graded_size(distance: np.ndarray, size: float, mu: float, length: float, sma
 
 def grading_offset(size: float, mu: float, length: float, smallest: float = 0.0) -> float:
     """r₀ = R (H/R)^(1/μ), which makes h(0) = r₀ (the smallest triangle at the point is as large as the
-    distance at which it is needed), but at least ``smallest`` × length; R when H ≥ R (no grading)."""
+    distance at which it is needed), but at least ``smallest`` × length, and large enough that h(0) is
+    too (a small μ asks for h(0) far below r₀); R when H ≥ R (no grading)."""
     radius = GRADING_RADIUS * length
     if size >= radius:
         return radius
-    return max(radius * (size / radius) ** (1.0 / mu), smallest * length)
+    floor = smallest * length
+    return max(radius * (size / radius) ** (1.0 / mu), floor, radius * (floor / size) ** (1.0 / (1.0 - mu)))
 
 
 def box_singular_points(geometry: Geometry) -> np.ndarray:
@@ -454,8 +482,13 @@ def apart(work: Callable[..., T], *args) -> T:
     try:
         while not receiver.poll(0.05):
             if not child.is_alive() and not receiver.poll(0.05):
-                raise MeshError(f"gmsh stopped without a mesh (exit status {child.exitcode})")
-        ok, value = receiver.recv()
+                break
+        try:
+            ok, value = receiver.recv()
+        except EOFError:  # the child ended without an answer (gmsh aborted it)
+            child.join()
+            raise MeshError(f"gmsh stopped without a mesh (it aborted, exit status {child.exitcode}): change the element "
+                            "sizes (mesh.size, mesh.grading, the sizes of a .geo) or the geometry") from None
     finally:
         receiver.close()
         if child.is_alive():
@@ -474,6 +507,9 @@ def _child(parent: int, sender, work, args) -> None:
     signal.set_wakeup_fd(-1)
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, signal.SIG_DFL)
+    quiet = os.open(os.devnull, os.O_WRONLY)  # gmsh writes its aborts to standard error: the parent reports
+    os.dup2(quiet, 2)
+    os.close(quiet)
     try:
         outcome = (True, work(*args))
     except BaseException as exc:  # every error goes back to the parent, which raises it
@@ -597,10 +633,12 @@ def _from_gmsh(scene: Scene, background: SizeMap | None = None) -> Mesh:
         if options.kind == "geo":
             if options.size is not None:
                 gmsh.option.setNumber("Mesh.MeshSizeMax", options.size)
+            low, high = np.reshape(gmsh.model.getBoundingBox(-1, -1), (2, 3))
+            length = float(np.min((high - low)[:2]))
+            _bounded_curves(gmsh, groups, options.degree, length, where)
             if options.grading is not None or background is not None:
                 singular = model_singular_points(gmsh, groups) if options.grading is not None else None
-                low, high = np.reshape(gmsh.model.getBoundingBox(-1, -1), (2, 3))
-                set_size_field(gmsh, options, singular, float(np.min((high - low)[:2])), background)
+                set_size_field(gmsh, options, singular, length, background)
             try:
                 gmsh.model.mesh.generate(2)
                 if options.degree == 2:
@@ -642,6 +680,54 @@ def _from_gmsh(scene: Scene, background: SizeMap | None = None) -> Mesh:
         old[renumbered[0][renumbered[0] >= 0]] = np.flatnonzero(renumbered[0] >= 0)
         exact = normals[old[lower.sigma]]
     return make_mesh(*halves, where, exact_normals=exact)
+
+
+def _bounded_curves(gmsh, groups: dict[tuple[int, str], list[int]], degree: int, length: float, where: str) -> None:
+    """Refuse a .geo whose own sizes (its points' sizes, Mesh.MeshSizeFactor, mesh.size) ask gmsh for more
+    than it can do: elements below ``SMALLEST`` × the geometry's length, or a mesh too large to solve in
+    this machine's memory.  Its curves are meshed without the factor and with sizes of at least that
+    floor (a bounded amount of work), measured, and the mesh cleared; the smallest size asked is the
+    shortest edge times the factor, the number of vertices is estimated from the nodes on each surface's
+    boundary (divided by the factor).  gmsh itself, asked for too many nodes on a curve, makes one
+    element of it without a word, or asks on the terminal whether to go on."""
+    from .cli import RANK_MEMORY, VERTEX_MEMORY, _physical_memory
+
+    floor = SMALLEST["geo"] * length
+    saved = {name: gmsh.option.getNumber(name) for name in ("Mesh.MeshSizeFactor", "Mesh.MeshSizeMin")}
+    factor = saved["Mesh.MeshSizeFactor"]
+    gmsh.option.setNumber("Mesh.MeshSizeFactor", 1.0)
+    gmsh.option.setNumber("Mesh.MeshSizeMin", max(saved["Mesh.MeshSizeMin"], floor))
+    try:
+        gmsh.model.mesh.generate(1)
+    except Exception as exc:
+        raise MeshError(f"{where}: gmsh cannot mesh it ({' '.join(str(exc).split())})") from None
+    finally:
+        for name, value in saved.items():
+            gmsh.option.setNumber(name, value)
+    tags, coordinates, _ = gmsh.model.mesh.getNodes()
+    points = np.asarray(coordinates, dtype=np.float64).reshape(-1, 3)[_positions(tags)[
+        np.asarray(gmsh.model.mesh.getElementsByType(_LINE)[1], dtype=np.int64)]].reshape(-1, 2, 3)
+    shortest = factor * float(np.linalg.norm(points[:, 1] - points[:, 0], axis=1).min(initial=math.inf))
+    vertices = 0.0
+    for surface in groups[(2, "lower")] + groups[(2, "upper")]:
+        curves = {abs(tag) for _, tag in gmsh.model.getBoundary([(2, surface)], combined=False)}
+        boundary = sum(len(gmsh.model.mesh.getNodes(1, curve, includeBoundary=True)[0]) for curve in curves)
+        vertices += VERTICES_PER_BOUNDARY_NODE_SQUARED * (boundary / min(factor, 1.0)) ** 2 * degree ** 2
+    gmsh.model.mesh.clear()
+    if shortest <= 1.5 * floor:
+        raise MeshError(f"{where}: the file asks gmsh for elements of size {min(shortest, floor):.2g} or less (its points' "
+                        f"sizes times Mesh.MeshSizeFactor = {factor:g}), below what gmsh meshes reliably "
+                        f"({SMALLEST['geo']:g} × the geometry's size {length:.3g}): enlarge them")
+    memory = RANK_MEMORY + vertices * VERTEX_MEMORY
+    if memory > _physical_memory():
+        raise MeshError(f"{where}: its sizes (its points' sizes, Mesh.MeshSizeFactor = {factor:g}, mesh.size) give a "
+                        f"mesh of about {vertices:.2g} vertices, which needs about {memory / 1e9:.2g} GB to solve, more "
+                        f"than this machine's {_physical_memory() / 1e9:.3g} GB: enlarge them")
+
+
+#: Vertices of a uniform mesh of a surface per square of the number of nodes on its boundary: 0.072 for a
+#: square, 0.092 for a disc (2/√3 vertices per h², boundary length/h nodes).
+VERTICES_PER_BOUNDARY_NODE_SQUARED = 0.08
 
 
 def _physical_groups(gmsh, where: str) -> dict[tuple[int, str], list[int]]:

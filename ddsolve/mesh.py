@@ -310,7 +310,8 @@ def _check_cover(points: np.ndarray, cells: np.ndarray, where: str) -> None:
         raise MeshError(f"{where}: {int(np.sum(counts > 2) // 3 or 1)} edges are shared by more than two "
                         "triangles (overlapping cells)")
     outer = edges[counts == 1]
-    a, b = points[outer[:, 0]], points[outer[:, 1]]
+    corner = points[cells[0, 0]]  # about a point of the mesh: exact however far it is from (0, 0)
+    a, b = points[outer[:, 0]] - corner, points[outer[:, 1]] - corner
     enclosed = 0.5 * np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
     total = signed_areas(points, cells[:, :3]).sum()
     if abs(total - enclosed) > 1e-9 * abs(total):
@@ -364,6 +365,7 @@ def make_mesh(lower: HalfMesh, upper: HalfMesh, origin: str, exact_normals: np.n
         if half.degree != lower.degree:
             raise MeshError(f"{origin}: the halves have different element degrees")
     scale = max(np.ptp(half.points, axis=0).max() for half in (lower, upper))
+    check_resolution(lower, upper, origin)
     a, b = lower.points[lower.sigma], upper.points[upper.sigma]
     if len(a) != len(b) or np.abs(a - b).max() > TOL * scale:
         raise MeshError(f"{origin}: the Σ nodes of the two halves do not match ({len(a)} and {len(b)} nodes)")
@@ -376,14 +378,36 @@ def make_mesh(lower: HalfMesh, upper: HalfMesh, origin: str, exact_normals: np.n
     return Mesh(lower, upper, sigma, origin)
 
 
+#: The largest rounding of a node's coordinates (the spacing of doubles at the largest coordinate) that
+#: a mesh allows, relative to its shortest edge: the element matrices are then exact to this order.
+RESOLUTION = 1e-5
+
+
+def check_resolution(lower: HalfMesh, upper: HalfMesh, origin: str) -> None:
+    """Refuse a mesh whose coordinates are so large, against its smallest triangles, that double
+    precision cannot place its nodes (a small geometry far from (0, 0))."""
+    largest = max(float(np.abs(half.points).max()) for half in (lower, upper))
+    shortest = min(float(np.linalg.norm(np.diff(half.points[half.corners[:, [0, 1, 2, 0]]], axis=1),
+                                        axis=2).min()) for half in (lower, upper))
+    rounding = float(np.spacing(largest))
+    if not rounding <= RESOLUTION * shortest:
+        raise MeshError(f"{origin}: coordinates as large as {largest:.3g} are placed to {rounding:.2g} in double "
+                        f"precision, {rounding / shortest:.2g} of the shortest edge {shortest:.3g} (at most "
+                        f"{RESOLUTION:g}): move the geometry towards x = y = 0 (geometry.box, or the file's "
+                        f"coordinates, and the loads' x and y with it) or use elements of at least "
+                        f"{rounding / RESOLUTION:.2g}")
+
+
 def _check_only_sigma_is_shared(lower: HalfMesh, upper: HalfMesh, scale: float, origin: str) -> None:
     """The halves may touch along Σ only (else Σ does not split Ω)."""
     def midpoints(half: HalfMesh) -> set[tuple[int, int]]:
         edges = half.boundary_edges
         sigma_keys = set(_edge_keys(half.edges(SIGMA), len(half.points)).tolist())
         keep = ~np.isin(_edge_keys(edges, len(half.points)), list(sigma_keys))
-        mid = 0.5 * (half.points[edges[keep, 0]] + half.points[edges[keep, 1]])
+        mid = 0.5 * (half.points[edges[keep, 0]] + half.points[edges[keep, 1]]) - corner
         return set(map(tuple, np.round(mid / (1e-8 * scale)).astype(np.int64).tolist()))
+
+    corner = lower.points.min(axis=0)
 
     shared = midpoints(lower) & midpoints(upper)
     if shared:
