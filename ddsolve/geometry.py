@@ -477,7 +477,14 @@ def apart(work: Callable[..., T], *args) -> T:
     context = multiprocessing.get_context("fork")
     receiver, sender = context.Pipe(duplex=False)
     child = context.Process(target=_child, args=(os.getpid(), sender, work, args), daemon=True)
-    child.start()
+    # An interrupt inside fork's hooks (logging's lock release) would be printed as "Exception ignored":
+    # it waits, blocked, until the child exists, and then reaches this process's handler as usual.
+    interrupts = {signal.SIGINT, signal.SIGTERM}
+    signal.pthread_sigmask(signal.SIG_BLOCK, interrupts)
+    try:
+        child.start()
+    finally:
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, interrupts)
     sender.close()
     try:
         while not receiver.poll(0.05):
@@ -507,6 +514,7 @@ def _child(parent: int, sender, work, args) -> None:
     signal.set_wakeup_fd(-1)
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})  # blocked across the fork
     quiet = os.open(os.devnull, os.O_WRONLY)  # gmsh writes its aborts to standard error: the parent reports
     os.dup2(quiet, 2)
     os.close(quiet)
