@@ -8,9 +8,11 @@ complete new result set with exit 0 or the complete previous one, byte-identical
 from __future__ import annotations
 
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import textwrap
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -100,16 +102,83 @@ def interrupted(arguments: list[str], folder: Path, paths: list[Path], count: in
     return outcomes
 
 
-def solve_moments(folder: Path, count: int = 20, mesh: list[str] = LARGE) -> list[Outcome]:
+def solve_moments(folder: Path, count: int = 20, mesh: list[str] = LARGE, timeout: float = 600) -> list[Outcome]:
     """SIGTERM at ``count`` moments of ``solve -n 4 partial-closure`` (P = 400 by default)."""
     return interrupted(["solve", "-n", "4", "partial-closure", *mesh, "-o", "w.h5"], folder,
-                       result_set(folder, "w"), count)
+                       result_set(folder, "w"), count, timeout)
 
 
-def sweep_moments(folder: Path, count: int = 20, mesh: list[str] = LARGE) -> list[Outcome]:
+def sweep_moments(folder: Path, count: int = 20, mesh: list[str] = LARGE, timeout: float = 600) -> list[Outcome]:
     """SIGTERM at ``count`` moments of a sweep of three loads on 4 ranks."""
     return interrupted(["sweep", "-n", "4", "partial-closure", *mesh, *SWEEP, "-o", "s.h5"], folder,
-                       [folder / "s.h5"], count)
+                       [folder / "s.h5"], count, timeout)
+
+
+#: A process that replaces ``count`` files (``existing`` of them there before) as one set and sends
+#: itself ``signum`` just before file operation number ``step`` (the probe of the folder, the writes
+#: of the temporaries, the journal, links, renames, removals), under ddsolve.cli.guarded as the
+#: commands are.  Arguments: FOLDER COUNT STEP SIGNUM FINAL(0/1).
+COMMIT_CHILD = textwrap.dedent("""
+    import os, sys
+    from pathlib import Path
+    from ddsolve import cli, io
+
+    folder, count, step, signum, final = Path(sys.argv[1]), *map(int, sys.argv[2:5]), sys.argv[5] == "1"
+    calls = [0]
+
+    def counted(function):
+        def wrapper(*args, **kwargs):
+            calls[0] += 1
+            if calls[0] == step:
+                os.kill(os.getpid(), signum)
+            return function(*args, **kwargs)
+        return wrapper
+
+    for name in ("replace", "link", "unlink"):
+        setattr(os, name, counted(getattr(os, name)))
+
+    def writer(i):
+        return counted(lambda name: Path(name).write_bytes(f"new {i}".encode()))
+
+    sys.exit(cli.guarded(lambda: io.replace_together({folder / f"f{i}.h5": writer(i) for i in range(count)},
+                                                     final=final) or 0))
+""")
+
+
+def commit_step(folder: Path, count: int, existing: int, step: int, signum: int, final: bool = True
+                ) -> tuple[int, str, list[str]]:
+    """Run :data:`COMMIT_CHILD` in ``folder``, then what the next run does first (:func:`ddsolve.io.recover`);
+    returns the child's exit status, the set's state ("new", "old" or "mixed") and the scratch files left."""
+    from .. import io
+
+    paths = [folder / f"f{i}.h5" for i in range(count)]
+    previous = {}
+    for path in paths[:existing]:
+        previous[path] = f"old {path.name}".encode()
+        path.write_bytes(previous[path])
+    child = subprocess.run([sys.executable, "-c", COMMIT_CHILD, str(folder), str(count), str(step), str(int(signum)),
+                            "1" if final else "0"], capture_output=True, text=True, timeout=60,
+                           env=_environment(), stdin=subprocess.DEVNULL)
+    if "Traceback" in child.stderr:
+        raise RuntimeError(child.stderr)
+    io.recover(paths)
+    new = all(path.is_file() and path.read_bytes() == f"new {i}".encode() for i, path in enumerate(paths))
+    old = all(path.read_bytes() == data for path, data in previous.items()) and \
+        not any(path.exists() for path in paths[existing:])
+    left = [p.name for p in folder.iterdir() if ".ddsolve~" in p.name]
+    for path in folder.iterdir():
+        path.unlink()
+    return child.returncode, ("new" if new else "old" if old else "mixed"), left
+
+
+def commit_steps(folder: Path, signum: int, steps: int = 14) -> str:
+    """``signum`` before each file operation of a commit of 3 files (2 there before): what was left."""
+    folder.mkdir(exist_ok=True)
+    outcomes = [commit_step(folder, 3, 2, step, signum) for step in range(1, steps + 1)]
+    states = {state: sum(o[1] == state for o in outcomes) for state in ("new", "old", "mixed")}
+    statuses = sorted({o[0] for o in outcomes})
+    return (f"{steps} moments: {states['new']} new set, {states['old']} previous set, {states['mixed']} mixed; "
+            f"exit statuses {', '.join(map(str, statuses))}; {sum(bool(o[2]) for o in outcomes)} left scratch files")
 
 
 def summary(outcomes: list[Outcome]) -> str:
@@ -119,6 +188,72 @@ def summary(outcomes: list[Outcome]) -> str:
     return (f"{len(outcomes)} moments: {new} complete new set with exit 0, {old} previous set kept "
             f"(byte-identical) with a non-zero exit, {len(bad)} other"
             + (" (" + "; ".join(str(o).strip() for o in bad[:3]) + ")" if bad else ""))
+
+
+def measure(hostile) -> None:
+    """Classes 5 (105) and 8 (108) of docs/robustness.md."""
+    folder = hostile.folder / "writes"
+    folder.mkdir(exist_ok=True)
+    hostile.rows[105].append((
+        "SIGTERM at 20 evenly spaced moments of solve -n 4, P = 400, M = 512 (over a previous set)",
+        "18 previous set kept, exit 1; 1 new set but exit 1; 1 new set, exit 0 (the issue: also new .h5 and layers "
+        "beside no Σ file and no ParaView script)", summary(solve_moments(folder))))
+    hostile.rows[105].append((
+        "SIGTERM at 20 evenly spaced moments of sweep -n 4, 3 loads, P = 400", BEFORE_SWEEP,
+        summary(sweep_moments(folder))))
+    for signum, before in ((signal.SIGKILL, BEFORE_KILL), (signal.SIGTERM, BEFORE_TERM)):
+        hostile.rows[105].append((f"{signal.Signals(signum).name} before each file operation of a write of 3 files "
+                                  "(2 there before), then the next run", before,
+                                  commit_steps(folder / "steps", signum)))
+    _outputs_over_inputs(hostile)
+
+
+def _outputs_over_inputs(hostile) -> None:
+    """-o naming an input (scene, .geo, mesh file) or without .h5, for every command that takes -o."""
+    from .. import scene as scenes
+
+    folder = hostile.folder
+    (folder / "w-scene.toml").write_text(scenes.builtin_scenes()["partial-closure"])
+    for name in ("arc-bond.toml", "arc-bond.geo"):
+        shutil.copy(scenes.builtin_folder() / name, folder / name)
+    hostile.run(["mesh", "w-scene.toml", *SMALL, "-o", "w-sq.msh"])
+    materials = (folder / "w-scene.toml").read_text().split("[materials", 1)[1]
+    (folder / "w-m.toml").write_text(f'title = "m"\n[mesh]\nfile = "w-sq.msh"\n[materials{materials}')
+    inputs = ["w-scene.toml", "arc-bond.toml", "arc-bond.geo", "w-sq.msh", "w-m.toml"]
+
+    def unchanged(previous: dict):
+        def observe(_completed) -> str:
+            changed = [name for name, data in previous.items() if (folder / name).read_bytes() != data]
+            return "; inputs byte-identical" if not changed else f"; CHANGED: {', '.join(changed)}"
+        return observe
+
+    swept = ["--set", "materials.layer1.E=150:200:2"]
+    for command, output, scene, before in (
+            ("sweep", "w-scene.toml", "w-scene.toml", "exit 0; the scene file replaced by the sweep's HDF5 file"),
+            ("sweep", "arc-bond.geo", "arc-bond.toml", "exit 0; the .geo file replaced by the sweep's HDF5 file"),
+            ("sweep", "w-sq.msh", "w-m.toml", "exit 0; the mesh file replaced by the sweep's HDF5 file"),
+            ("sweep", "w.txt", "w-scene.toml", "exit 0; an HDF5 file named w.txt"),
+            ("solve", "arc-bond.geo", "arc-bond.toml", "exit 1: «-o arc-bond.geo: a result is an HDF5 file: give "
+             "it the suffix .h5»"),
+            ("reference", "w-sq.msh", "w-m.toml", "exit 1: «-o w-sq.msh: a result is an HDF5 file: give it the "
+             "suffix .h5»"),
+            ("mesh", "arc-bond.geo", "arc-bond.toml", "exit 1: «arc-bond.geo: is an input of this run»"),
+            ("export", "w-scene.toml", "", "exit 1: «-o w-scene.toml: no such directory»")):
+        mesh = [] if scene == "w-m.toml" else ["--set", "mesh.size=0.3"] if scene == "arc-bond.toml" else SMALL
+        arguments = ([command, "w-result.h5", "-o", output] if command == "export" else
+                     [command, scene, *mesh, *(swept if command == "sweep" else []), "-o", output])
+        if command == "export" and not (folder / "w-result.h5").exists():
+            hostile.run(["solve", "w-scene.toml", *SMALL, "-o", "w-result.h5"])
+        previous = {name: (folder / name).read_bytes() for name in inputs}
+        hostile.case(108, f"{command} -o {output}" + (f" ({scene})" if scene != output and scene else ""), before,
+                     arguments, observe=unchanged(previous))
+
+
+#: Measured on the code before these fixes (quoted).
+BEFORE_SWEEP = "see hostile_writes.py: measured before the fixes"
+BEFORE_KILL = ("14 moments: 5 new set, 7 previous set, 2 mixed for good (no journal: the next run "
+               "does not complete it)")
+BEFORE_TERM = "14 moments: 10 new set, 7 of them with exit 143; 4 previous set, exit 143"
 
 
 if __name__ == "__main__":
