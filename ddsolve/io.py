@@ -136,9 +136,9 @@ def check_result(path: Path, inputs: list[Path] = (), viewer: bool = True) -> No
     if not path.name:
         raise DDSolveError(f"-o {str(path)!r}: not a file name")
     if path.suffix.lower() not in RESULT_SUFFIXES:
-        kind = "an input of this run" if any(_same(path, source) for source in inputs) else "not an HDF5 name"
-        raise DDSolveError(f"-o {path}: {kind}; results are HDF5 files: give -o a new name ending in .h5"
-                           + (" (its viewer files are written beside it)" if viewer else ""))
+        raise DDSolveError(f"-o {path}: a result is an HDF5 file: give it the suffix .h5"
+                           + (" (its viewer files are written beside it)" if viewer else "")
+                           + ("; this name is an input of this run" if any(_same(path, s) for s in inputs) else ""))
     check_targets([path, *(export.viewer_paths(path.parent, path.stem) if viewer else [])], inputs)
 
 
