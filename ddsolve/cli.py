@@ -426,7 +426,8 @@ def cmd_export(args, _petsc_options) -> int:
     result = io.read(args.result)
     folder = Path(args.output) if args.output is not None else Path(args.result).parent
     if not folder.is_dir():
-        raise DDSolveError(f"-o {folder}: no such directory")
+        raise DDSolveError(f"-o {folder}: " + ("is a file, not a folder: give -o the folder for the viewer files"
+                                               if folder.exists() else "no such directory"))
     stem = Path(args.result).stem
     io.check_targets(export.viewer_paths(folder, stem, args.format), [Path(args.result)])
     written = io.write_viewer(result, folder, stem, args.format, final=True)
