@@ -111,7 +111,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, lev
         result.attrs.update({"target_error": target, "levels": len(rows)})
         result.timings["adaptive"] = time.perf_counter() - started
     if output is not None:
-        collective(comm, lambda: io.write(output, result), root_only=True)
+        collective(comm, lambda: io.write(output, result, final=True), root_only=True)
     if message:
         error = NotConvergedError(message)
         error.collective = True

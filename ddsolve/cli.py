@@ -28,7 +28,7 @@ from pathlib import Path
 from . import __version__
 from .environment import import_errors_explained
 from .errors import DDSolveError, NotConvergedError, SceneError, UsageError
-from .launch import end_with_launcher, mpiexec_command
+from .launch import end_with_launcher, end_with_parent, mpiexec_command
 
 #: Commands that hand options to PETSc.
 PETSC_COMMANDS = ("solve", "sweep", "reference", "version", "bench")
@@ -39,8 +39,6 @@ PREFIXES["sweep"] = PREFIXES["solve"]
 #: a solve (assembly, factorizations, Schur complements; measured with 4 ranks at P = 400, M = 512).
 RANK_MEMORY = 100e6
 VERTEX_MEMORY = 15e3
-#: Suffixes of a result file.
-RESULT_SUFFIXES = (".h5", ".hdf5")
 #: Suffix of the files ``mesh -o`` writes (gmsh chooses the format by the suffix).
 MESH_SUFFIX = ".msh"
 
@@ -246,15 +244,12 @@ def _inputs(args, scene) -> list[Path]:
 
 def check_outputs(args, scene) -> Path:
     """The result file of ``solve``/``reference`` and its viewer files, checked before any work."""
-    from . import export, io
+    from . import io
 
     output = _default_output(args)
     if not output.name:
         raise DDSolveError(f"-o {str(args.output)!r}: not a file name")
-    if output.suffix.lower() not in RESULT_SUFFIXES:
-        raise DDSolveError(f"-o {output}: a result is an HDF5 file: give it the suffix .h5 (its viewer files "
-                           "are written beside it)")
-    io.check_targets([output, *export.viewer_paths(output.parent, output.stem)], _inputs(args, scene))
+    io.check_result(output, _inputs(args, scene))
     return output
 
 
@@ -275,20 +270,66 @@ def report_unused_options(comm, command: str) -> None:
 # --- commands -------------------------------------------------------------------------------
 def _launch(args, petsc_options: list[str], scene_checks: bool) -> None:
     """With ``-n N``: check what can be checked here (the rank count, the modules, and with
-    ``scene_checks`` the scene, the mesh size and the output files), then replace this process by
-    mpiexec running the same command on N ranks."""
+    ``scene_checks`` the scene, the mesh size and the output files), then run mpiexec running the same
+    command on N ranks and end this process with its status (:func:`_supervise`)."""
     if args.ranks is None:
         return
     check_ranks(args.ranks)
     for module in ("petsc4py", "mpi4py", "h5py"):  # if one is missing, one line here, not one per rank
         importlib.import_module(module)
+    from . import export
+
     if scene_checks:
         scene = _load_scene(args, args.ranks)
         check_size(scene, args.ranks)
-        check_outputs(args, scene)
+        output = check_outputs(args, scene)
+        outputs = [output, *export.viewer_paths(output.parent, output.stem)]
+    else:
+        outputs = [_sweep_output(args)]
     forwarded = [arg for i, arg in enumerate(args.own) if i not in args.ranks_at]
     command = mpiexec_command(args.ranks, forwarded + (["--", *petsc_options] if petsc_options else []))
-    os.execvpe(command[0], command, {**os.environ, "DDSOLVE_LAUNCHED": repr(time.time())})  # start-up timing
+    sys.exit(_supervise(command, {**os.environ, "DDSOLVE_LAUNCHED": repr(time.time())}, outputs))  # start-up timing
+
+
+def _sweep_output(args) -> Path:
+    return Path(args.output) if args.output else Path(Path(args.scene).stem + "-sweep.h5")
+
+
+def _supervise(command: list[str], env: dict, outputs: list[Path]) -> int:
+    """Run the ranks' mpiexec and return its exit status.  SIGINT and SIGTERM are passed on to it once
+    (Open MPI then stops every rank); afterwards the result set ``outputs`` is made whole if a rank was
+    killed while renaming it (:func:`ddsolve.io.recover`), and the status is 0 if the run replaced it
+    (the signal came after its commit: the set is complete), else 130 or 143."""
+    import subprocess
+
+    from . import io
+
+    def identity(path: Path):
+        try:
+            info = os.stat(path, follow_symlinks=False)
+            return info.st_ino, info.st_mtime_ns, info.st_size
+        except OSError:
+            return None
+
+    before = identity(outputs[0])
+    signal.set_wakeup_fd(-1)  # the watchdog stays asleep: this process only waits for mpiexec
+    launcher = os.getpid()  # mpiexec gets SIGTERM (and stops the ranks) when this process ends, however
+    job = subprocess.Popen(command, env=env, start_new_session=True,
+                           preexec_fn=lambda: end_with_parent(launcher, signal.SIGTERM))
+    received: list[int] = []
+
+    def forward(signum, _frame) -> None:
+        if not received:
+            job.send_signal(signum)
+        received.append(signum)
+
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, forward)
+    status = job.wait()
+    io.recover(outputs)
+    if received:
+        return 0 if identity(outputs[0]) != before else (143 if received[0] == signal.SIGTERM else 130)
+    return status if status >= 0 else 128 - status
 
 
 def cmd_solve(args, petsc_options: list[str]) -> int:
@@ -336,7 +377,7 @@ def cmd_sweep(args, petsc_options: list[str]) -> int:
     from . import sweep
 
     started = time.perf_counter()
-    output = Path(args.output) if args.output else Path(Path(args.scene).stem + "-sweep.h5")
+    output = _sweep_output(args)
     records = sweep.sweep(args.scene, args.set or [], args.zip, output, MPI.COMM_WORLD, progress=_root_print)
     if records is not None:
         converged = sum(bool(r["converged"]) for r in records)
@@ -367,7 +408,7 @@ def cmd_reference(args, petsc_options: list[str]) -> int:
         geometry.check_loads(scene, mesh)
         check_range(scene, mesh)
         result = reference.solve(scene, mesh)
-        io.write(output, result)
+        io.write(output, result, final=True)
     report_unused_options(None, "reference")
     if not result.converged:
         raise NotConvergedError(result.message)
@@ -452,7 +493,7 @@ def cmd_plot(args, _petsc_options) -> int:
     plots.convergence([(result.method, result)], images[2])
     io.check_targets(names, [Path(args.result)])
     io.replace_together({path: (lambda name, data=image.getvalue(): Path(name).write_bytes(data))
-                         for path, image in zip(names, images)})
+                         for path, image in zip(names, images)}, final=True)
     print(f"wrote {', '.join(map(str, names))} (displacements ×{scale:g})")
     return 0
 
@@ -463,10 +504,11 @@ def cmd_export(args, _petsc_options) -> int:
     result = io.read(args.result)
     folder = Path(args.output) if args.output is not None else Path(args.result).parent
     if not folder.is_dir():
-        raise DDSolveError(f"-o {folder}: no such directory")
+        raise DDSolveError(f"-o {folder}: " + ("is a file, not a folder: give -o the folder for the viewer files"
+                                               if folder.exists() else "no such directory"))
     stem = Path(args.result).stem
     io.check_targets(export.viewer_paths(folder, stem, args.format), [Path(args.result)])
-    written = io.write_viewer(result, folder, stem, args.format)
+    written = io.write_viewer(result, folder, stem, args.format, final=True)
     print("wrote " + ", ".join(map(str, written)))
     return 0
 
@@ -490,7 +532,7 @@ def cmd_mesh(args, _petsc_options) -> int:
     print(f"Σ vertices {int(mesh.sigma.corner.sum())}, boundary vertices {meshes.boundary_vertex_count(mesh)}, "
           f"degree {mesh.degree}, boundaries: {', '.join(mesh.boundary_names())}")
     if args.output is not None:
-        io.atomic(Path(args.output), lambda name: geometry.write_msh(mesh, Path(name)))
+        io.atomic(Path(args.output), lambda name: geometry.write_msh(mesh, Path(name)), final=True)
         print(f"wrote {args.output} (gmsh, physical groups lower, upper, {', '.join(sorted(mesh.lower.boundaries.keys() | mesh.upper.boundaries.keys()))})")
     return 0
 
@@ -676,15 +718,28 @@ def _watch_interrupts() -> None:
         time.sleep(INTERRUPT_GRACE)
         status = 143 if signum == signal.SIGTERM else 130
         try:  # whatever fails here (a closed standard error, an Abort that hangs), the process ends
-            _report("ddsolve: terminated" if status == 143 else "ddsolve: interrupted")
             if "ddsolve.io" in sys.modules:
+                sys.modules["ddsolve.io"].COMMIT.acquire()  # a set being renamed into place is finished first
                 sys.modules["ddsolve.io"].remove_scratch()
+            status = _interrupted_status(status)
             _abort(status, alone=True)
         finally:
             os._exit(status)
 
     threading.Thread(target=watch, name="ddsolve-interrupts", daemon=True).start()
     _watch_interrupts.sockets = (reader, writer)  # keep them open
+
+
+def _interrupted_status(status: int) -> int:
+    """Report an interrupt; its exit status, or 0 if the result files that end the command were
+    already in place (they are complete)."""
+    io = sys.modules.get("ddsolve.io")
+    if io is not None and io.committed:
+        _report("ddsolve: " + ("terminated" if status == 143 else "interrupted") + " after its result files "
+                "were written (they are complete)")
+        return 0
+    _report("ddsolve: terminated" if status == 143 else "ddsolve: interrupted")
+    return status
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -740,8 +795,7 @@ def guarded(call) -> int:
             _abort(exc.exit_status)
         return exc.exit_status
     except KeyboardInterrupt as exc:
-        status = 143 if isinstance(exc, Terminated) else 130
-        _report("ddsolve: terminated" if status == 143 else "ddsolve: interrupted")
+        status = _interrupted_status(143 if isinstance(exc, Terminated) else 130)
         _abort(status)
         return status
     except Exception:

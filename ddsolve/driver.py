@@ -573,7 +573,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
             )
             result.fracture = fracture.finish(local.tips, volume, result)
         if output is not None:
-            collective(comm, lambda: io.write(output, result), root_only=True)
+            collective(comm, lambda: io.write(output, result, final=True), root_only=True)
         stages["Output"].pop()
         if failure is not None:  # not converged: the result is written with converged = false
             failure.result = result

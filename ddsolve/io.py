@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import glob
+import json
 import os
 import re
 import secrets
@@ -12,6 +13,7 @@ import signal
 import socket
 import subprocess
 import tempfile
+import threading
 import time
 from pathlib import Path
 from typing import Callable
@@ -32,13 +34,22 @@ READ_LIMIT = 16
 SIGMA_FIELDS = ("points", "normals", "weights", "crack", "tip", "clamped", "corner")
 
 
-#: Temporary and backup files of a write: ``.NAME.ddsolve~HOST~PID~RANDOM.tmp[.suffix]`` (the
-#: suffix keeps writers that look at it happy) and ``.NAME.ddsolve~HOST~PID~RANDOM.bak``.
-_SCRATCH = re.compile(r"^\.(?P<name>.+)\.ddsolve~(?P<host>[^~]*)~(?P<pid>\d+)~[0-9a-f]+\.(tmp|bak)")
+#: Temporary, backup and journal files of a write: ``.NAME.ddsolve~HOST~PID~RANDOM.tmp[.suffix]`` (the
+#: suffix keeps writers that look at it happy), ``.NAME.ddsolve~HOST~PID~RANDOM.bak`` and, during the
+#: renames of a set, ``.NAME.ddsolve~HOST~PID~RANDOM.journal`` (NAME: the set's first file).
+_SCRATCH = re.compile(r"^\.(?P<name>.+)\.ddsolve~(?P<host>[^~]*)~(?P<pid>\d+)~[0-9a-f]+\.(?P<kind>tmp|bak|journal)")
+#: Suffixes of a result file (and of a sweep file).
+RESULT_SUFFIXES = (".h5", ".hdf5")
 
 
 #: Temporary and backup files being written now (removed by :func:`remove_scratch` on a forced exit).
 _LIVE: set[Path] = set()
+#: Held while a set of files is renamed into place: whoever ends the process on an interrupt (the
+#: watchdog of ddsolve.cli) takes it first, so that a set is never left half renamed.
+COMMIT = threading.Lock()
+#: True once the set of files that ends the command (``final``) is in place: an interrupt after that
+#: point changes nothing, and the command ends with status 0.
+committed = False
 
 
 def remove_scratch() -> None:
@@ -56,22 +67,59 @@ def _scratch(path: Path, tag: str, kind: str) -> Path:
     return path.parent / (f".{path.name}.{tag}.{kind}" + (path.suffix if kind == "tmp" else ""))
 
 
+def _writer_gone(match: re.Match) -> bool:
+    """Whether the process that wrote a scratch file (on this machine) no longer exists."""
+    if match["host"] != _host():
+        return False
+    pid = int(match["pid"])
+    try:
+        if pid != os.getpid():
+            os.kill(pid, 0)
+        return False  # its writer is alive
+    except ProcessLookupError:
+        return True
+    except (PermissionError, OverflowError):
+        return False
+
+
+def recover(paths: list[Path]) -> None:
+    """Finish the sets that a run killed while renaming them left behind in the folders of ``paths``
+    (their journals name every file, so the new set is put in place whole), then remove the temporary
+    and backup files of killed runs for ``paths``."""
+    for folder in dict.fromkeys(Path(path).parent for path in paths):
+        for journal in folder.glob(".*.ddsolve~*.journal"):
+            match = _SCRATCH.match(journal.name)
+            if match and _writer_gone(match):
+                _roll_forward(journal)
+    for path in paths:
+        remove_stale(path)
+
+
+def _roll_forward(journal: Path) -> None:
+    """Rename every temporary file a journal lists over its target, remove its backups, then the journal."""
+    try:
+        entries = json.loads(journal.read_text())
+        for temporary, target in entries["renames"]:
+            if os.path.lexists(temporary):
+                os.replace(temporary, target)
+        for backup in entries["backups"]:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(backup)
+        journal.unlink()
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise DDSolveError(f"{journal}: cannot finish the result files an interrupted run was renaming "
+                           f"({_reason(exc) if isinstance(exc, OSError) else 'damaged journal'}); "
+                           "remove the journal and check the files it names") from None
+
+
 def remove_stale(path: Path) -> list[Path]:
     """Remove the temporary and backup files that runs killed while writing ``path`` left behind
     (those of a process on this machine that no longer exists); returns them."""
     removed = []
     for candidate in Path(path).parent.glob(f".{glob.escape(Path(path).name)}.ddsolve~*"):
         match = _SCRATCH.match(candidate.name)
-        if not match or match["name"] != Path(path).name or match["host"] != _host():
-            continue
-        pid = int(match["pid"])
-        try:
-            if pid != os.getpid():
-                os.kill(pid, 0)
-            continue  # its writer is alive
-        except ProcessLookupError:
-            pass
-        except (PermissionError, OverflowError):
+        if not match or match["name"] != Path(path).name or candidate.name.endswith(".journal") \
+                or not _writer_gone(match):
             continue
         try:
             candidate.unlink()
@@ -79,6 +127,23 @@ def remove_stale(path: Path) -> list[Path]:
         except OSError:
             pass
     return removed
+
+
+def check_result(path: Path, inputs: list[Path] = (), viewer: bool = True) -> None:
+    """Refuse a result (or sweep) file ``path`` that is not an HDF5 name, or whose set (with its viewer
+    files unless not ``viewer``) cannot be written or would replace one of the ``inputs``."""
+    path = Path(path)
+    if not path.name:
+        raise DDSolveError(f"-o {str(path)!r}: not a file name")
+    if path.suffix.lower() not in RESULT_SUFFIXES:
+        raise DDSolveError(f"-o {path}: a result is an HDF5 file: give it the suffix .h5"
+                           + (" (its viewer files are written beside it)" if viewer else "")
+                           + ("; this name is an input of this run" if any(_same(path, s) for s in inputs) else ""))
+    check_targets([path, *(export.viewer_paths(path.parent, path.stem) if viewer else [])], inputs)
+
+
+def _same(path: Path, source: Path) -> bool:
+    return path.exists() and Path(source).exists() and os.path.samefile(path, source)
 
 
 def check_targets(paths: list[Path], inputs: list[Path] = ()) -> None:
@@ -99,7 +164,7 @@ def check_targets(paths: list[Path], inputs: list[Path] = ()) -> None:
             kind = "a directory" if path.is_dir() else "not a regular file"
             raise DDSolveError(f"{path}: is {kind}; ddsolve replaces regular files only: choose another -o")
         for source in inputs:
-            if path.exists() and Path(source).exists() and os.path.samefile(path, source):
+            if _same(path, source):
                 raise DDSolveError(f"{path}: is an input of this run ({source}); choose another -o")
     for folder, path in {Path(path).parent: Path(path) for path in reversed(paths)}.items():
         if not folder.is_dir():
@@ -113,45 +178,58 @@ def check_targets(paths: list[Path], inputs: list[Path] = ()) -> None:
 
 
 @contextlib.contextmanager
-def _signals_deferred():
-    """SIGINT and SIGTERM wait until the block is done (so renames are never half done): their
-    handlers only note them, and the notes are raised again afterwards."""
+def _commit_section():
+    """The renames of a set: SIGINT and SIGTERM are deferred (blocked on this thread, and their Python
+    handlers, which run on the main thread whichever thread the signal reaches, only note them) and
+    :data:`COMMIT` is held, so the watchdog does not end the process in the middle either.  The noted
+    signals are raised again afterwards."""
     received: list[int] = []
     previous = {}
-    try:
-        for signum in (signal.SIGINT, signal.SIGTERM):
-            previous[signum] = signal.signal(signum, lambda number, _frame: received.append(number))
-    except ValueError:  # not the main thread: signals reach the main thread anyway
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
-        yield
-        return
-    try:
-        yield
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
-        for signum in dict.fromkeys(received):
-            signal.raise_signal(signum)
+    deferred = {signal.SIGINT, signal.SIGTERM}
+    with COMMIT:
+        main = threading.current_thread() is threading.main_thread()
+        if main:
+            blocked = signal.pthread_sigmask(signal.SIG_BLOCK, deferred)
+            for signum in deferred:
+                previous[signum] = signal.signal(signum, lambda number, _frame: received.append(number))
+        try:
+            yield
+        finally:
+            if main:
+                received += [signum for signum in signal.sigpending() & deferred if signum not in blocked]
+                for signum, handler in previous.items():
+                    signal.signal(signum, handler)
+                for signum in received:  # consume them here; they are raised again below
+                    if signum in signal.sigpending():
+                        signal.sigwait({signum})
+                signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
+    for signum in dict.fromkeys(received):
+        signal.raise_signal(signum)
 
 
-def replace_together(writers: dict[Path, Callable[[str], None]]) -> None:
+def replace_together(writers: dict[Path, Callable[[str], None]], final: bool = False) -> None:
     """Write a set of files so that they replace the previous ones together or not at all.
 
     Each ``write(temporary)`` writes its file under a temporary name in the target's folder; only
-    when every one has succeeded are they renamed over their targets, the previous versions kept
-    (as hard links, or renamed away) until all renames have succeeded, and put back if one fails.
-    Interrupts wait for the renames.  On any failure or interrupt the temporary files are removed
-    and the previous files are left as they were.  Temporaries that killed runs left behind for
-    these targets are removed first.
+    when every one has succeeded does the commit begin, with interrupts deferred (:func:`_commit_section`):
+    a journal naming every rename is written (the commit point), the previous versions are kept as
+    hard links (or renamed away), every temporary file is renamed over its target, then the journal
+    and the backups are removed.  A failed rename puts the previous set back.  On any failure or
+    interrupt before the commit point the temporary files are removed and the previous files are left
+    as they were.  A run killed (SIGKILL) after the commit point leaves its journal: the next write or
+    read of these files (:func:`recover`) completes the renames, so the set seen is always one whole
+    set.  ``final``: this set ends the command (a later interrupt ends it with status 0,
+    :data:`committed`).
     """
+    global committed
     paths = [Path(path) for path in writers]
     check_targets(paths)
-    for path in paths:
-        remove_stale(path)
+    recover(paths)
     tag = f"ddsolve~{_host()}~{os.getpid()}~{secrets.token_hex(4)}"
     temporaries: dict[Path, Path] = {}
     backups: dict[Path, Path] = {}
+    journal = _scratch(paths[0], tag, "journal")
+    draft = journal.with_name(journal.name + ".tmp")  # the journal while it is written
     try:
         for path, write in zip(paths, writers.values()):
             temporaries[path] = _scratch(path, tag, "tmp")
@@ -165,29 +243,34 @@ def replace_together(writers: dict[Path, Callable[[str], None]]) -> None:
                 os.chmod(temporaries[path], 0o644)
             except OSError as exc:
                 raise DDSolveError(f"{path}: cannot write ({_reason(exc)})") from None
+        backups = {path: _scratch(path, tag, "bak") for path in paths if os.path.lexists(path)}
+        entries = json.dumps({"renames": [[str(temporaries[path].absolute()), str(path.absolute())] for path in paths],
+                              "backups": [str(backup.absolute()) for backup in backups.values()]})
         moved: set[Path] = set()  # previous versions renamed away (no hard links here)
         done: list[Path] = []
         try:
-            with _signals_deferred():
-                for path in paths:
-                    if os.path.lexists(path):
-                        backups[path] = _scratch(path, tag, "bak")
-                        if _keep(path, backups[path]):
-                            moved.add(path)
+            with _commit_section():
+                draft.write_text(entries)
+                os.replace(draft, journal)  # the commit point
+                for path, backup in backups.items():
+                    if _keep(path, backup):
+                        moved.add(path)
                 for path in paths:
                     os.replace(temporaries[path], path)
                     done.append(path)
+                journal.unlink()
+                committed = final
         except OSError as exc:
             for path in paths:  # undo: the previous set comes back
                 if path in done and path not in backups:
                     os.unlink(path)
                 elif path in done or path in moved:
                     os.replace(backups[path], path)
-            failed = next(path for path in paths if path not in done)
+            failed = next((path for path in paths if path not in done), paths[0])
             raise DDSolveError(f"{failed}: cannot replace ({exc.strerror or exc}); the previous files are kept") \
                 from None
     finally:
-        for scratch in (*temporaries.values(), *backups.values()):
+        for scratch in (*temporaries.values(), *backups.values(), draft, journal):
             if os.path.lexists(scratch):
                 os.unlink(scratch)
         _LIVE.difference_update(temporaries.values())
@@ -225,9 +308,10 @@ def hdf5_image(name: str):
         out.write(image)
 
 
-def atomic(path: Path, write: Callable[[str], None]) -> None:
-    """Call ``write(temporary_path)`` then rename over ``path``: never a truncated file."""
-    replace_together({Path(path): write})
+def atomic(path: Path, write: Callable[[str], None], final: bool = False) -> None:
+    """Call ``write(temporary_path)`` then rename over ``path``: never a truncated file (``final``: as
+    for :func:`replace_together`)."""
+    replace_together({Path(path): write}, final)
 
 
 @functools.lru_cache(maxsize=None)
@@ -262,21 +346,21 @@ def provenance() -> dict[str, str]:
     }
 
 
-def write(path: Path, result: Result, viewer: str = "vtu") -> list[Path]:
+def write(path: Path, result: Result, viewer: str = "vtu", final: bool = False) -> list[Path]:
     """Write ``path`` (HDF5) and its viewer files (format ``viewer``, see :mod:`ddsolve.export`) beside
-    it, as one set; returns the paths written."""
+    it, as one set (``final``: as for :func:`replace_together`); returns the paths written."""
     path = Path(path)
     fields = analysis.cell_fields(result)
     writers = {path: lambda name: _write_hdf5(name, result, fields),
                **export.viewer_files(result, path.parent, path.stem, viewer, fields)}
-    replace_together(writers)
+    replace_together(writers, final)
     return list(writers)
 
 
-def write_viewer(result: Result, folder: Path, stem: str, viewer: str = "vtu") -> list[Path]:
+def write_viewer(result: Result, folder: Path, stem: str, viewer: str = "vtu", final: bool = False) -> list[Path]:
     """(Re)write the viewer files of ``result`` as ``folder/stem-*``; returns the paths written."""
     writers = export.viewer_files(result, Path(folder), stem, viewer)
-    replace_together(writers)
+    replace_together(writers, final)
     return list(writers)
 
 
@@ -333,6 +417,7 @@ def read(path: Path) -> Result:
     """Read a result file written by :func:`write`, checking that its parts fit together (one line
     naming the file and the part otherwise)."""
     path = Path(path)
+    recover([path])
     scenes.readable(path, "result file")
     try:
         with h5py.File(path, "r") as f:

@@ -12,8 +12,9 @@ does not fit in memory.
 
 Every rank loops over the runs; what does not change is reused: the mesh while the geometry and mesh
 keys stay the same, the assembled and factored blocks while only loads change (new right-hand sides
-only).  After each run rank 0 prints a progress line and rewrites the output file atomically (an
-interrupted sweep keeps the runs it finished; ``complete`` says whether all ran).  File layout (R runs,
+only).  After each run rank 0 prints a progress line; when every run has ended it writes the output
+file, replacing the previous one whole (an interrupted sweep leaves the previous file as it was;
+``complete`` is always true, kept for files of earlier versions).  File layout (R runs,
 T the most tips of a run, padded with NaN or −1):
 
 - attributes: ``scene`` (as given), ``fixed`` (the fixed overrides), ``keys`` (the swept keys),
@@ -245,10 +246,12 @@ def sweep(source: str, items: list[str], paired: bool, output: Path, comm, progr
     fixed, ranges, runs = collective(comm, arrange)  # the same on every rank, errors included
 
     def check():
-        folder = output.parent if str(output.parent) else Path(".")
-        if not folder.is_dir():
-            raise DDSolveError(f"{output}: output directory {folder} does not exist")
-        return load_scenes(source, fixed, runs)
+        from .io import check_result
+
+        scenes = load_scenes(source, fixed, runs)
+        inputs = [Path(source), *{scene.mesh.file for scene in scenes if scene.mesh.file is not None}]
+        check_result(output, [path for path in inputs if path.is_file()], viewer=False)
+        return scenes
 
     scenes = comm.bcast(collective(comm, check, root_only=True), root=0)
     collective(comm, lambda: check_cost(items, scenes, runs, ranges, comm.size), root_only=True)
@@ -294,7 +297,7 @@ def sweep(source: str, items: list[str], paired: bool, output: Path, comm, progr
                 record.update(_numbers(result))
                 records.append(record)
                 progress(_line(number, len(runs), record))
-                _write(output, header, records, complete=number == len(runs))
+        collective(comm, lambda: _write(output, header, records), root_only=True)
     finally:
         if setup is not None:
             setup.destroy()
@@ -342,7 +345,7 @@ SCALARS = ("energy", "converged", "iterations", "rounds", "unknowns", "mesh_reus
 TIP_FIELDS = {"G": np.nan, "contact": np.nan, "inner": np.nan, "outer": np.nan, "spacing": np.nan, "crack": -1}
 
 
-def _write(path: Path, header: dict, records: list[dict], complete: bool) -> None:
+def _write(path: Path, header: dict, records: list[dict]) -> None:
     import h5py
 
     from .io import atomic, provenance
@@ -360,7 +363,7 @@ def _write(path: Path, header: dict, records: list[dict], complete: bool) -> Non
 
     def write(name: str) -> None:
         with h5py.File(name, "w") as f:
-            for key, value in {**provenance(), **header, "runs": len(records), "complete": complete}.items():
+            for key, value in {**provenance(), **header, "runs": len(records), "complete": True}.items():
                 f.attrs[key] = value
             for key in header["keys"]:
                 f[f"parameters/{key}"] = np.array([r["parameters"][key] for r in records])
@@ -379,7 +382,7 @@ def _write(path: Path, header: dict, records: list[dict], complete: bool) -> Non
             f["contact_zones/end"] = columns[:, 2]
             f["contact_zones/crack"] = columns[:, 3].astype(np.int64)
 
-    atomic(path, write)
+    atomic(path, write, final=True)
 
 
 def read(path: Path) -> dict:
