@@ -1,5 +1,5 @@
 """ddsolve: domain decomposition for a two-layer elastic structure with a non-penetrating crack."""
-from .environment import find_petsc
+from ddsolve.environment import find_petsc
 
 __version__ = "0.1.0"
 

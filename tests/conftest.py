@@ -11,9 +11,9 @@ import meshio
 import numpy as np
 import pytest
 
-from ddsolve.geometry import split_box
-from ddsolve.mesh import Mesh
-from ddsolve.scene import Geometry
+from ddsolve.mesh.geometry import split_box
+from ddsolve.mesh.mesh import Mesh
+from ddsolve.problem.scene import Geometry
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The paper's two layers, as scene text.

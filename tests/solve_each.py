@@ -23,7 +23,7 @@ METHOD_SETTINGS = {
 
 def cases() -> list[tuple[str, str, list[str]]]:
     """(scene, method, overrides) for every built-in scene and method."""
-    from ddsolve import scene as scenes
+    from ddsolve.problem import scene as scenes
 
     out = []
     for name, text in sorted(scenes.builtin_scenes().items()):
@@ -40,8 +40,9 @@ def main(folder: Path) -> None:
     petsc4py.init(sys.argv[:1])
     from mpi4py import MPI
 
-    from ddsolve import driver, scene as scenes
     from ddsolve.errors import DivergedError, NotConvergedError
+    from ddsolve.problem import scene as scenes
+    from ddsolve.solve import driver
 
     comm = MPI.COMM_WORLD
     for name, method, overrides in cases():

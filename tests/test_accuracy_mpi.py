@@ -3,10 +3,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from ddsolve import analysis, io, scene
-
 from conftest import ddsolve, paper_references
+
+from ddsolve.io import hdf5 as io
+from ddsolve.post import analysis
+from ddsolve.problem import scene
 
 #: A small P2 mesh of the paper's family.
 P2 = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32", "--set", "mesh.degree=2"]

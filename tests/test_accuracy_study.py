@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from ddsolve.analysis import energy_error
 from ddsolve.experiments import accuracy
+from ddsolve.post.analysis import energy_error
 
 
 def test_three_levels_give_the_limit_and_the_exponent():

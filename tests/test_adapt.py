@@ -3,14 +3,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from ddsolve import adapt, geometry
-from ddsolve.errors import DDSolveError
-from ddsolve.interface import BLOCKS
-from ddsolve.result import Result
-from ddsolve.scene import Geometry
-
 from conftest import structured_mesh
+
+from ddsolve.errors import DDSolveError
+from ddsolve.mesh import sizing
+from ddsolve.mesh.mesh import BLOCKS
+from ddsolve.post.result import Result
+from ddsolve.problem.scene import Geometry
+from ddsolve.solve import adapt
 
 
 def _indicators(mesh, hot):
@@ -52,7 +52,7 @@ def test_the_loop_stops_at_the_target_the_level_limit_or_the_size_limit(monkeypa
                     attrs={"error_estimate": 0.05}, indicators=_indicators(mesh, np.array([3])))
     assert adapt._next(result, 0.1, 0) == (True, None, "")
     done, sizes, message = adapt._next(result, 0.01, 0)
-    assert not done and isinstance(sizes, geometry.SizeMap) and message == ""
+    assert not done and isinstance(sizes, sizing.SizeMap) and message == ""
     done, _, message = adapt._next(result, 0.01, adapt.MAX_LEVELS - 1)
     assert done and message == (f"mesh.target_error = 0.01 not reached in {adapt.MAX_LEVELS} levels "
                                 "(estimated error 0.05)")

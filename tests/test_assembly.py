@@ -3,12 +3,12 @@ import math
 
 import numpy as np
 import pytest
-
-from ddsolve import assembly, expressions, materials
-from ddsolve.mesh import SigmaLine
-from ddsolve.scene import Geometry, Load
-
 from conftest import structured_mesh
+
+from ddsolve.fem import assembly
+from ddsolve.mesh.mesh import SigmaLine
+from ddsolve.problem import expressions, materials
+from ddsolve.problem.scene import Geometry, Load
 
 STEEL = materials.Isotropic(E=200.0, nu=0.28)
 D_STEEL, C_STEEL = materials.elasticity(STEEL)
@@ -265,7 +265,7 @@ def test_sigma_weights_and_normals():
 
 
 def test_interpolation_is_exact_for_linear_fields_and_errors_vanish_on_the_same_mesh():
-    from ddsolve.analysis import interpolate
+    from ddsolve.post.analysis import interpolate
 
     coarse = structured_mesh(4, 2, shear=0.3).lower
     fine = structured_mesh(12, 6, shear=0.1).lower

@@ -4,13 +4,13 @@ import pytest
 
 petsc4py = pytest.importorskip("petsc4py")
 petsc4py.init()
+from conftest import structured_mesh  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
-from ddsolve import assembly, expressions, materials  # noqa: E402
-from ddsolve.blocks import Block, default_factor_package  # noqa: E402
-from ddsolve.scene import Load  # noqa: E402
-
-from conftest import structured_mesh  # noqa: E402
+from ddsolve.fem import assembly
+from ddsolve.parallel.blocks import Block, default_factor_package
+from ddsolve.problem import expressions, materials
+from ddsolve.problem.scene import Load
 
 
 @pytest.fixture(scope="module", params=[1, 2], ids=["P1", "P2"])
@@ -86,8 +86,10 @@ def test_power_iteration_bound_is_the_largest_eigenvalue_of_the_dual_operator():
     """driver.bound (rounds of block solves, here on one rank) against the assembled dense operator."""
     from mpi4py import MPI
 
-    from ddsolve import driver, geometry, scene
-    from ddsolve.interface import for_mesh
+    from ddsolve.dd.interface import for_mesh
+    from ddsolve.mesh import geometry
+    from ddsolve.problem import scene
+    from ddsolve.solve import driver
 
     s = scene.load("partial-closure", ["mesh.sigma_vertices=13", "mesh.boundary_vertices=32", "solver.method=uzawa"])
     mesh = geometry.build(s)

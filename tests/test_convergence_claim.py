@@ -8,13 +8,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from ddsolve import analysis, io
-from ddsolve.cli import mpiexec_command
-from ddsolve.interface import Interface
-
 from conftest import ddsolve
 from solve_each import cases
+
+from ddsolve.cli import mpiexec_command
+from ddsolve.dd import constraints
+from ddsolve.dd.interface import Interface
+from ddsolve.io import hdf5 as io
+from ddsolve.post import analysis
 
 HERE = Path(__file__).resolve().parent
 
@@ -69,16 +70,16 @@ def test_the_kkt_residuals_of_a_small_interface_by_hand():
     interface = Interface(np.array([0.5, 0.5]), np.array([False, True]), contact=True)
     traces = np.zeros((4, 4))
     lam = np.zeros(interface.size)
-    clean = analysis.kkt(interface, traces, lam, None, np.zeros(4), 1.0)
+    clean = constraints.kkt(interface, traces, lam, None, np.zeros(4), 1.0)
     assert clean.violations(1e-9) == []
     traces[[0, 2], 3] = 2e-3  # the lower face (u⁻ = v⁻) at the crack node 2e-3 above u⁺: penetration
     traces[0, 0] = 1e-3  # u⁻ tangential at the glued node off u⁺ and v⁻: a gluing gap
-    checked = analysis.kkt(interface, traces, lam, None, np.zeros(4), 1.0)
+    checked = constraints.kkt(interface, traces, lam, None, np.zeros(4), 1.0)
     assert checked.penetration == pytest.approx(2e-3) and checked.gluing_gap == pytest.approx(1e-3)
     contact = interface.slices["mu_c"]
     lam[contact] = 5.0  # pressed at its bound p = 5: the penetration is what the bound allows
-    at_bound = analysis.kkt(interface, traces, lam, 5.0, np.zeros(4), 1.0)
+    at_bound = constraints.kkt(interface, traces, lam, 5.0, np.zeros(4), 1.0)
     assert at_bound.penetration == 0.0 and at_bound.multiplier_bounds == 0.0
     lam[contact] = -1.0  # a pull on the crack faces
-    assert analysis.kkt(interface, traces, lam, None, np.zeros(4), 1.0).multiplier_bounds > 0
-    assert analysis.kkt(interface, traces * np.nan, lam, None, np.zeros(4), 1.0).violations(1e-9)
+    assert constraints.kkt(interface, traces, lam, None, np.zeros(4), 1.0).multiplier_bounds > 0
+    assert constraints.kkt(interface, traces * np.nan, lam, None, np.zeros(4), 1.0).violations(1e-9)

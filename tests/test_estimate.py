@@ -3,13 +3,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from ddsolve import analysis, estimate, geometry, reference, scene
-from ddsolve.assembly import element_geometry, strain_operator, element_dofs
-from ddsolve.materials import Isotropic, elasticity
-from ddsolve.scene import Geometry
-
 from conftest import structured_mesh
+
+from ddsolve.fem.assembly import element_dofs, strain_operator
+from ddsolve.mesh import geometry
+from ddsolve.mesh.element import element_geometry
+from ddsolve.post import analysis, estimate
+from ddsolve.problem import scene
+from ddsolve.problem.materials import Isotropic, elasticity
+from ddsolve.problem.scene import Geometry
+from ddsolve.solve import reference
 
 D, _ = elasticity(Isotropic(E=200.0, nu=0.28), "plane_strain")
 CRACKED = Geometry()

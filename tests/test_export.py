@@ -1,7 +1,6 @@
 """Viewer files (VTU and XDMF, P1 and P2) read back by meshio and ParaView, and the set-of-files writer."""
 from __future__ import annotations
 
-import os
 import random
 import shutil
 import subprocess
@@ -9,12 +8,15 @@ import subprocess
 import meshio
 import numpy as np
 import pytest
-
-from ddsolve import analysis, assembly, io, materials
-from ddsolve.errors import DDSolveError
-from ddsolve.export import merged_upper_nodes
-
 from conftest import ddsolve
+
+from ddsolve.errors import DDSolveError
+from ddsolve.fem import assembly
+from ddsolve.io import hdf5 as io
+from ddsolve.io import safe
+from ddsolve.io.viewer import merged_upper_nodes
+from ddsolve.post import analysis
+from ddsolve.problem import materials
 
 SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
 P2 = ["--set", "mesh.degree=2"]
@@ -156,18 +158,18 @@ def test_per_cell_arrays_of_the_result_become_cell_arrays(results, tmp_path):
 
 def test_a_failing_writer_keeps_the_previous_set_and_leaves_no_temporaries(tmp_path):
     first, second = tmp_path / "a.txt", tmp_path / "b.txt"
-    io.replace_together({first: lambda name: open(name, "w").write("old a"),
+    safe.replace_together({first: lambda name: open(name, "w").write("old a"),
                          second: lambda name: open(name, "w").write("old b")})
 
     def fails(name):
         raise OSError(28, "No space left on device")
 
     with pytest.raises(DDSolveError, match="b.txt: cannot write .No space left on device"):
-        io.replace_together({first: lambda name: open(name, "w").write("new a"), second: fails})
+        safe.replace_together({first: lambda name: open(name, "w").write("new a"), second: fails})
     assert first.read_text() == "old a" and second.read_text() == "old b"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt", "b.txt"]
     with pytest.raises(KeyboardInterrupt):
-        io.replace_together({first: lambda name: (_ for _ in ()).throw(KeyboardInterrupt())})
+        safe.replace_together({first: lambda name: (_ for _ in ()).throw(KeyboardInterrupt())})
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt", "b.txt"]
 
 

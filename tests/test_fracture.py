@@ -7,13 +7,16 @@ import math
 
 import numpy as np
 import pytest
+from conftest import MATERIALS, ddsolve
 
-from ddsolve import fracture, geometry, io, reference, scene
 from ddsolve.errors import SceneError
 from ddsolve.experiments.fracture import PLATE, example_scene, handbook, plate_scene
-from ddsolve.mesh import HalfMesh, make_mesh
-
-from conftest import MATERIALS, ddsolve
+from ddsolve.io import hdf5 as io
+from ddsolve.mesh import geometry
+from ddsolve.mesh.mesh import HalfMesh, make_mesh
+from ddsolve.post import fracture
+from ddsolve.problem import scene
+from ddsolve.solve import reference
 
 SMALL = ["mesh.sigma_vertices=25", "mesh.boundary_vertices=48"]
 #: A small graded mesh: P2, size 0.01 at the tips growing to 0.1, tips in patches meshed apart.

@@ -18,11 +18,13 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings, strategies as st
-
-from ddsolve import analysis, export, io
-
 from conftest import ddsolve, without_open_mpi_noise
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from ddsolve.io import hdf5 as io
+from ddsolve.io import viewer as export
+from ddsolve.post import analysis
 
 EXIT_STATUSES = {0, 1, 2, 3, 4}
 EXAMPLES = int(os.environ.get("DDSOLVE_FUZZ_EXAMPLES", "0"))

@@ -6,10 +6,12 @@ import math
 
 import numpy as np
 import pytest
-
-from ddsolve import analysis, geometry, io, scene
-
 from conftest import MATERIALS, ROOT, ddsolve
+
+from ddsolve.io import hdf5 as io
+from ddsolve.mesh import geometry, gmsh_io
+from ddsolve.post import analysis
+from ddsolve.problem import scene
 
 SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
 C = 0.078125  # the paper's load scale 1e-3 μ1
@@ -49,7 +51,7 @@ def test_rotation_by_37_degrees_rotates_the_solution(tmp_path, example, name):
     mesh = geometry.build(original)
     turned = geometry.Mesh(*(geometry.HalfMesh(h.points @ R.T, h.cells, h.side, h.sigma, h.boundaries)
                              for h in mesh.halves), mesh.sigma, "rotated")
-    geometry.write_msh(turned, tmp_path / "rotated.msh")
+    gmsh_io.write_msh(turned, tmp_path / "rotated.msh")
     scene_file = write_scene(tmp_path, "rotated", 'file = "rotated.msh"', rotated_loads(example, angle))
     ddsolve("reference", name, *SMALL, "-o", str(tmp_path / "plain.h5"))
     ddsolve("reference", str(scene_file), "-o", str(tmp_path / "turned.h5"))

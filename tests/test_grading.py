@@ -3,11 +3,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from ddsolve import geometry, mesh as meshes, scene
-from ddsolve.errors import SceneError
-
 from conftest import MATERIALS, ROOT
+
+from ddsolve.errors import SceneError
+from ddsolve.mesh import geometry, gmsh_io
+from ddsolve.mesh import mesh as meshes
+from ddsolve.mesh import sizing
+from ddsolve.problem import scene
 
 BOX = """
 [geometry]
@@ -46,10 +48,10 @@ def test_grading_needs_a_size_and_both_need_a_geometry():
 
 
 def test_singular_points_of_the_box():
-    paper = geometry.box_singular_points(scene.load("partial-closure").geometry)
+    paper = sizing.box_singular_points(scene.load("partial-closure").geometry)
     expected = {(-1, -1), (-1, 0), (-1, 1), (-0.5, 0), (0.5, 0), (1, -1), (1, 0), (1, 1)}
     assert set(map(tuple, paper.tolist())) == expected  # tips, Σ's ends, clamped-free corners
-    strip = geometry.box_singular_points(scene.load("strip-disbonds").geometry)  # clamped on the left only
+    strip = sizing.box_singular_points(scene.load("strip-disbonds").geometry)  # clamped on the left only
     assert set(map(tuple, strip.tolist())) == {(0, -0.5), (0, 0.5), (0, 0), (8, 0), (1, 0), (2, 0), (3.5, 0),
                                                 (4.5, 0), (6, 0), (7, 0)}
 
@@ -59,9 +61,9 @@ def _model_points(path):
 
     gmsh.initialize([], readConfigFiles=False)
     try:
-        geometry._quiet(gmsh)
-        geometry._open(gmsh, path)
-        return set(map(tuple, geometry.model_singular_points(gmsh, geometry._physical_groups(gmsh, str(path)))
+        gmsh_io._quiet(gmsh)
+        gmsh_io._open(gmsh, path)
+        return set(map(tuple, sizing.model_singular_points(gmsh, gmsh_io._physical_groups(gmsh, str(path)))
                        .round(6).tolist()))
     finally:
         gmsh.finalize()
@@ -102,18 +104,18 @@ def test_graded_meshes_follow_the_size_field_and_their_halves_match():
     size = 0.05
     graded = scene.loads(BOX, [f"mesh.size={size}", "mesh.grading=true"])
     mesh = geometry.build(graded)  # two gmsh sessions, one per half: make_mesh checks that Σ matches
-    points = geometry.box_singular_points(graded.geometry)
+    points = sizing.box_singular_points(graded.geometry)
     length = 2.0
     for half in mesh.halves:
         corners = half.points[half.corners]
         centres = corners.mean(axis=1)
         longest = np.linalg.norm(corners - corners[:, [1, 2, 0]], axis=2).max(axis=1)
         distance = np.linalg.norm(centres[:, None, :] - points[None, :, :], axis=2).min(axis=1)
-        wanted = geometry.graded_size(distance, size, 0.4, length)
+        wanted = sizing.graded_size(distance, size, 0.4, length)
         ratio = longest / wanted
         assert np.median(ratio) == pytest.approx(1.0, abs=0.25)  # gmsh follows the field ...
         assert ratio.max() < 2.0  # ... everywhere
-    at_points = geometry.graded_size(0.0, size, 0.4, length)
+    at_points = sizing.graded_size(0.0, size, 0.4, length)
     assert at_points < size / 10
     assert 0.5 * at_points < meshes.statistics(mesh.lower).h_min < 2.0 * at_points
     tips = mesh.sigma.points[mesh.sigma.tip]

@@ -5,10 +5,9 @@ import subprocess
 import sys
 
 import pytest
+from conftest import ROOT
 
 from ddsolve import cli
-
-from conftest import ROOT
 
 
 def test_help_lists_every_command_with_experiments_apart(capsys):

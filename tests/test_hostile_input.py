@@ -14,11 +14,14 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-
-from ddsolve import analysis, export, io, scene
-from ddsolve.errors import DDSolveError, SceneError
-
 from conftest import ddsolve, without_open_mpi_noise
+
+from ddsolve.errors import DDSolveError, SceneError
+from ddsolve.io import hdf5 as io
+from ddsolve.io import safe
+from ddsolve.io import viewer as export
+from ddsolve.post import analysis
+from ddsolve.problem import scene
 
 SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
 
@@ -181,7 +184,7 @@ def test_a_full_disk_during_any_write_is_one_line_and_replaces_nothing(tmp_path,
     writers = {path: (lambda name: Path(name).write_bytes(b"new")) for path in targets}
     writers[targets[2]] = full
     with pytest.raises(DDSolveError, match="cannot write .No space left on device.$"):
-        io.replace_together(writers)
+        safe.replace_together(writers)
     assert unchanged(kept) and sorted(tmp_path.iterdir()) == sorted(targets)
 
 
@@ -197,7 +200,7 @@ def test_a_failed_rename_puts_the_previous_set_back(tmp_path, monkeypatch):
 
     monkeypatch.setattr(os, "replace", failing)
     with pytest.raises(DDSolveError, match="cannot replace .Operation not permitted.; the previous files are kept"):
-        io.replace_together({path: (lambda name: Path(name).write_bytes(b"new")) for path in targets})
+        safe.replace_together({path: (lambda name: Path(name).write_bytes(b"new")) for path in targets})
     monkeypatch.undo()
     assert unchanged(kept) and sorted(tmp_path.iterdir()) == sorted(targets)
 
@@ -206,7 +209,7 @@ def test_hdf5_never_writes_to_a_full_disk_itself():
     """A full disk used to leave the HDF5 library broken (tracebacks, then a segfault at exit)."""
     code = ("from ddsolve import io\n"
             "try:\n"
-            "    with io.hdf5_image('/dev/full') as f:\n"
+            "    with safe.hdf5_image('/dev/full') as f:\n"
             "        f['x'] = list(range(100000))\n"
             "except OSError as exc:\n"
             "    print(exc.strerror)\n")
@@ -278,12 +281,12 @@ def test_temporary_files_of_killed_runs_are_removed_by_the_next_write(tmp_path):
     target = tmp_path / "x.h5"
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()
-    stale = tmp_path / f".x.h5.ddsolve~{io._host()}~{dead.pid}~0abc.tmp.h5"
-    alive = tmp_path / f".x.h5.ddsolve~{io._host()}~{os.getppid()}~0abd.tmp.h5"
+    stale = tmp_path / f".x.h5.ddsolve~{safe.host_tag()}~{dead.pid}~0abc.tmp.h5"
+    alive = tmp_path / f".x.h5.ddsolve~{safe.host_tag()}~{os.getppid()}~0abd.tmp.h5"
     other = tmp_path / f".x.h5.ddsolve~elsewhere~{dead.pid}~0abe.tmp.h5"
     for path in (stale, alive, other):
         path.write_bytes(b"half written")
-    io.atomic(target, lambda name: Path(name).write_bytes(b"new"))
+    safe.atomic(target, lambda name: Path(name).write_bytes(b"new"))
     assert target.read_bytes() == b"new"
     assert not stale.exists() and alive.exists() and other.exists()
 
@@ -302,7 +305,7 @@ def test_a_kill_during_the_write_keeps_the_previous_set(tmp_path):
     process.kill()
     process.wait()
     assert seen and unchanged(kept)
-    io.replace_together({path: (lambda name: Path(name).write_bytes(b"next")) for path in kept})  # the next write
+    safe.replace_together({path: (lambda name: Path(name).write_bytes(b"next")) for path in kept})  # the next write
     assert sorted(tmp_path.iterdir()) == sorted(kept)  # ... left nothing of the killed one
 
 

@@ -10,10 +10,9 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import ROOT
 
 from ddsolve import __version__, environment
-
-from conftest import ROOT
 
 DEBIAN_PYTHON = Path("/usr/bin/python3")
 

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from ddsolve.interface import Interface
+from ddsolve.dd.interface import Interface
 
 X = np.array([-1.0, -0.8, -0.5, -0.3, 0.0, 0.2, 0.5, 0.75, 1.0])
 WEIGHTS = 0.5 * (X[2:] - X[:-2])  # inner vertices; the ends are clamped

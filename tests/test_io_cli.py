@@ -2,11 +2,11 @@
 import h5py
 import numpy as np
 import pytest
-
-from ddsolve import cli, io
-from ddsolve.errors import UsageError
-
 from conftest import ddsolve
+
+from ddsolve import cli
+from ddsolve.errors import UsageError
+from ddsolve.io import hdf5 as io
 
 SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
 

@@ -2,11 +2,11 @@
 import meshio
 import numpy as np
 import pytest
-
-from ddsolve import geometry, mesh, scene
-from ddsolve.errors import MeshError
-
 from conftest import MATERIALS, structured_square
+
+from ddsolve.errors import MeshError
+from ddsolve.mesh import geometry, gmsh_io, mesh
+from ddsolve.problem import scene
 
 SCENE = """
 [mesh]
@@ -124,7 +124,7 @@ def test_unreadable_files(tmp_path):
 def test_a_written_msh_reads_back_as_the_same_mesh(tmp_path, mesh_file, degree):
     m = build(mesh_file, degree=degree)
     path = tmp_path / "halves.msh"
-    geometry.write_msh(m, path)
+    gmsh_io.write_msh(m, path)
     again = build(path, degree=degree)
     for a, b in zip(m.halves, again.halves):
         assert len(a.points) == len(b.points) and len(a.cells) == len(b.cells)

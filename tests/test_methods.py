@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from ddsolve.methods import box_qp, kkt_criterion, largest_eigenvalue, projected_gradient
+from ddsolve.dd.methods import box_qp, kkt_criterion, largest_eigenvalue, projected_gradient
 
 
 def random_problem(seed: int, n: int = 12):

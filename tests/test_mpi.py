@@ -3,10 +3,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from ddsolve import analysis, io
-
 from conftest import ddsolve, paper_references
+
+from ddsolve.io import hdf5 as io
+from ddsolve.post import analysis
 
 SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
 UZAWA = ["--set", "solver.method=uzawa"]
@@ -49,7 +49,7 @@ def test_dd_equals_the_reference(tmp_path, references, name, method):
 
 
 def test_contact_where_the_linear_problem_overlaps(references):
-    from ddsolve.analysis import normal_jump
+    from ddsolve.post.analysis import normal_jump
 
     contact, linear = io.read(references["partial-closure"]), io.read(references["linear"])
     crack = contact.crack

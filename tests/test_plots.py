@@ -4,10 +4,10 @@ from __future__ import annotations
 import matplotlib
 import numpy as np
 import pytest
-
-from ddsolve import io, plots
-
 from conftest import ddsolve
+
+from ddsolve.io import hdf5 as io
+from ddsolve.post import plots
 
 matplotlib.use("Agg")
 from matplotlib.figure import Figure  # noqa: E402

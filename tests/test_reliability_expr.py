@@ -15,14 +15,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings, strategies as st
-
-from ddsolve import expressions, scene
-from ddsolve.assembly import load_extent
-from ddsolve.errors import SceneError
-
 from conftest import structured_mesh
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from test_hostile_input import SMALL, previous_set, refused, run, unchanged
+
+from ddsolve.errors import SceneError
+from ddsolve.fem.assembly import load_extent
+from ddsolve.problem import expressions, scene
 
 EXAMPLES = int(os.environ.get("DDSOLVE_FUZZ_EXAMPLES", "0"))
 PAPER = scene.builtin_scenes()["partial-closure"]

@@ -10,12 +10,13 @@ from pathlib import Path
 
 import h5py
 import pytest
-from hypothesis import HealthCheck, given, settings, strategies as st
-
-from ddsolve import geometry, scene
-from ddsolve.errors import MeshError, SceneError
-
 from conftest import without_open_mpi_noise
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from ddsolve.errors import MeshError, SceneError
+from ddsolve.mesh import geometry, sizing
+from ddsolve.problem import scene
 
 SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
 unit, mpi = pytest.mark.unit, pytest.mark.mpi
@@ -192,8 +193,8 @@ def test_a_grading_exponent_near_zero_meshes(mu):
 @unit
 def test_the_graded_sizes_keep_the_floor():
     for mu in (1e-9, 0.01, 0.2, 0.4, 0.999):
-        smallest = float(geometry.graded_size(0.0, 0.05, mu, 2.0, geometry.SMALLEST["box"]))
-        assert smallest >= geometry.SMALLEST["box"] * 2.0 * (1 - 1e-9)
+        smallest = float(sizing.graded_size(0.0, 0.05, mu, 2.0, sizing.SMALLEST["box"]))
+        assert smallest >= sizing.SMALLEST["box"] * 2.0 * (1 - 1e-9)
 
 
 # --- class 4: a .geo that asks gmsh for too much -------------------------------------------------

@@ -22,7 +22,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = ["mesh.sigma_vertices=13", "mesh.boundary_vertices=32"]
@@ -82,7 +83,7 @@ def cases(folder: Path) -> list[tuple[str, list[str], list[str]]]:
 
 def schema_leaves() -> set[str]:
     """Every leaf key of the schema (load tables under one boundary name, each material kind)."""
-    from ddsolve import scene
+    from ddsolve.problem import scene
 
     def walk(schema: dict, path: tuple[str, ...]):
         for key, spec in schema.items():
@@ -112,13 +113,15 @@ def observe(command: str, output: Path, stdout: str) -> dict:
     if command == "mesh":
         return {"table": stdout, "msh": hashlib.sha256(output.read_bytes()).hexdigest()[:16]}
     if command == "sweep":
-        from ddsolve import sweep
+        from ddsolve.solve import sweep
 
         data = sweep.read(output)
         timing = {"time", "setup_time", "factorization_time", "solve_time", "attrs", "message"}
         return {name: _digest(value) for name, value in sorted(data.items()) if name not in timing} | \
             {"message": [str(m) for m in data["message"]]}
-    from ddsolve import analysis, io, scene as scenes
+    from ddsolve.io import hdf5 as io
+    from ddsolve.post import analysis
+    from ddsolve.problem import scene as scenes
 
     result = io.read(output)
     fields = analysis.cell_fields(result)
@@ -211,8 +214,9 @@ def test_a_sweep_of_too_many_runs_is_refused_at_once_with_its_estimate(tmp_path,
 
 @pytest.mark.unit
 def test_a_sweep_estimated_beyond_a_day_is_refused_naming_its_ranges():
-    from ddsolve import materials, scene, sweep
     from ddsolve.errors import SceneError
+    from ddsolve.problem import materials, scene
+    from ddsolve.solve import sweep
 
     base = scene.load("partial-closure", ["mesh.sigma_vertices=800", "mesh.boundary_vertices=1024"])
     values = tuple(float(v) for v in np.linspace(1.0, 2.0, 9500))
@@ -250,7 +254,7 @@ def test_an_adaptive_target_out_of_reach_is_refused_after_the_first_level(tmp_pa
 
 @pytest.mark.unit
 def test_the_prediction_uses_the_best_rate_of_the_element_degree():
-    from ddsolve import adapt
+    from ddsolve.solve import adapt
 
     assert adapt.needed_unknowns(560, 0.325, 0.00325, 1) == pytest.approx(560 * 1e4)  # N^-1/2
     assert adapt.needed_unknowns(560, 0.325, 0.00325, 2) == pytest.approx(560 * 1e2)  # N^-1
@@ -259,7 +263,7 @@ def test_the_prediction_uses_the_best_rate_of_the_element_degree():
 
 @pytest.mark.mpi
 def test_reference_honours_target_error_with_its_own_levels(tmp_path):
-    from ddsolve import io
+    from ddsolve.io import hdf5 as io
 
     completed, _ = ddsolve_run(["reference", "partial-closure", *SET_SMALL, "--set", "mesh.target_error=0.2",
                                 "-o", "r.h5"], tmp_path)
@@ -271,7 +275,7 @@ def test_reference_honours_target_error_with_its_own_levels(tmp_path):
 
 @pytest.mark.mpi
 def test_reference_honours_a_multiplier_bound_it_does_not_reach_and_refuses_one_it_does(tmp_path):
-    from ddsolve import io
+    from ddsolve.io import hdf5 as io
 
     free, _ = ddsolve_run(["reference", "partial-closure", *SET_SMALL, "--set", "solver.p=1e9", "-o", "a.h5"], tmp_path)
     plain, _ = ddsolve_run(["reference", "partial-closure", *SET_SMALL, "-o", "b.h5"], tmp_path)  # p = 1e7
@@ -310,7 +314,7 @@ def test_dzz_is_refused_in_plane_stress_which_has_no_out_of_plane_stress(tmp_pat
 
 @pytest.mark.mpi
 def test_sweep_honours_target_error(tmp_path):
-    from ddsolve import sweep
+    from ddsolve.solve import sweep
 
     for name, extra in (("plain.h5", []), ("adaptive.h5", ["--set", "mesh.target_error=0.2"])):
         completed, _ = ddsolve_run(["sweep", "partial-closure", *SET_SMALL, *extra, "--set",
@@ -359,8 +363,8 @@ def test_every_key_is_honoured_or_refused_naming_it(tmp_path, command):
 def test_sweeps_of_any_count_are_planned_or_refused_without_being_made(counts, paired):
     """Any COUNTs: either at most MAX_RUNS runs are planned, or SceneError names every range, with
     nothing the size of the count ever made (the address space is not touched)."""
-    from ddsolve import sweep
     from ddsolve.errors import SceneError
+    from ddsolve.solve import sweep
 
     items = [f"k{i}.v=1:2:{count}" for i, count in enumerate(counts)]
     total = counts[0] if paired else int(np.prod([float(c) for c in counts]))
@@ -384,7 +388,8 @@ def test_sweeps_of_any_count_are_planned_or_refused_without_being_made(counts, p
        command=st.sampled_from(COMMANDS), ranks=st.sampled_from([1, 2, 4, 8]))
 def test_every_key_is_read_or_has_a_reason(key, command, ranks):
     """The decision of ``unread`` for any key, command and rank count: a reason in words, or None."""
-    from ddsolve import cli, scene
+    from ddsolve import cli
+    from ddsolve.problem import scene
 
     reason = cli.unread(command, key.split("."), scene.load("partial-closure", SMALL), ranks)
     assert reason is None or (reason and "\n" not in reason)

@@ -13,13 +13,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from conftest import ddsolve, structured_square
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from ddsolve import geometry, io, mesh, scene, sweep
 from ddsolve.errors import DDSolveError, MeshError
 from ddsolve.experiments.hostile_msh import MATERIALS, PAPER_LOADS, energy, geometries, msh_versions
-
-from conftest import ddsolve, structured_square
+from ddsolve.io import hdf5 as io
+from ddsolve.mesh import geometry, mesh
+from ddsolve.problem import scene
+from ddsolve.solve import sweep
 
 pytestmark = pytest.mark.unit
 SHAPES = geometries()

@@ -10,7 +10,8 @@ import sys
 import time
 
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from ddsolve.experiments.hostile_procs import AFTER, PHASES, marked, stop
 
@@ -83,7 +84,7 @@ def test_a_one_process_run_ends_with_its_gmsh_process_and_the_documented_status(
 def test_a_child_asking_to_end_with_its_parent_ends_when_the_parent_is_killed():
     """A parent that sleeps, its child that asked for SIGKILL on the parent's end: SIGKILL the parent."""
     code = ("import os, time\n"
-            "from ddsolve.launch import end_with_parent\n"
+            "from ddsolve.parallel.launch import end_with_parent\n"
             "if os.fork() == 0:\n"
             "    end_with_parent(os.getppid())\n"
             "    time.sleep(60)\n"
@@ -115,7 +116,7 @@ def test_a_child_asking_to_end_with_its_parent_ends_when_the_parent_is_killed():
 @pytest.mark.unit
 def test_a_child_whose_parent_is_already_gone_ends_at_once():
     """The parent may end between the fork and the request: the child then ends itself."""
-    completed = subprocess.run([sys.executable, "-c", "from ddsolve.launch import end_with_parent\n"
+    completed = subprocess.run([sys.executable, "-c", "from ddsolve.parallel.launch import end_with_parent\n"
                                 "end_with_parent(1 << 22)\nprint('still alive')"],
                                capture_output=True, text=True, timeout=60)
     assert completed.returncode == 128 + signal.SIGKILL and "still alive" not in completed.stdout

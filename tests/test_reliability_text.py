@@ -17,12 +17,15 @@ from pathlib import Path
 
 import h5py
 import pytest
-from hypothesis import HealthCheck, given, settings, strategies as st
-
-from ddsolve import cli, io, plots, scene
-from ddsolve.errors import DDSolveError
-
 from conftest import ddsolve, without_open_mpi_noise
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from ddsolve import cli
+from ddsolve.errors import DDSolveError
+from ddsolve.io import hdf5 as io
+from ddsolve.post import plots
+from ddsolve.problem import scene
 
 SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
 #: Standard outputs that are not UTF-8: Python's own setting, and a C locale without UTF-8 mode.

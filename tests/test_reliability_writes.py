@@ -11,12 +11,12 @@ import sys
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, given, settings, strategies as st
-
-from ddsolve import io
-from ddsolve.experiments import hostile_writes
-
 from conftest import ROOT, ddsolve
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from ddsolve.experiments import hostile_writes
+from ddsolve.io import hdf5 as io
 
 SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
 P48 = ["--set", "mesh.sigma_vertices=48", "--set", "mesh.boundary_vertices=80"]

@@ -7,12 +7,15 @@ import subprocess
 import meshio
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings, strategies as st
-
-from ddsolve import analysis, geometry, io, scene
-from ddsolve.errors import SceneError
-
 from conftest import ddsolve, structured_square
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from ddsolve.errors import SceneError
+from ddsolve.io import hdf5 as io
+from ddsolve.mesh import geometry
+from ddsolve.post import analysis
+from ddsolve.problem import scene
 
 SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
 

@@ -1,10 +1,9 @@
 """Scene parsing, validation and overrides."""
 import pytest
-
-from ddsolve import scene
-from ddsolve.errors import SceneError
-
 from conftest import MATERIALS
+
+from ddsolve.errors import SceneError
+from ddsolve.problem import scene
 
 MINIMAL = """
 [mesh]

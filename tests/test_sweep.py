@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from ddsolve import io, scene, sweep
-from ddsolve.errors import SceneError
-
 from conftest import ddsolve
+
+from ddsolve.errors import SceneError
+from ddsolve.io import hdf5 as io
+from ddsolve.problem import scene
+from ddsolve.solve import sweep
 
 SMALL = ["--set", "mesh.sigma_vertices=25", "--set", "mesh.boundary_vertices=48"]
 

@@ -4,6 +4,6 @@ Internal to the experiments (they start these under mpiexec); not a user command
 """
 import sys
 
-from .parts import main
+from ddsolve.experiments.parts import main
 
 sys.exit(main())

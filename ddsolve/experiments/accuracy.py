@@ -16,8 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import report
-from ..analysis import energy_error
+from ddsolve.experiments import report
+from ddsolve.parallel import distribution
+from ddsolve.post.analysis import energy_error
 
 RESULTS = Path("results")
 DOCS = Path("docs")
@@ -63,8 +64,9 @@ def unknowns(mesh) -> int:
 # --- inside the MPI launch ------------------------------------------------------------------
 def family_run(scene_name: str, family: str, degree: int, output: Path, comm) -> None:
     """Every level of one family on one scene; a JSON record per level on rank 0."""
-    from .. import adapt, driver, scene as scenes
-    from ..io import provenance
+    from ddsolve.parallel.launch import provenance
+    from ddsolve.problem import scene as scenes
+    from ddsolve.solve import adapt, driver
 
     def say(line: str) -> None:
         if comm.rank == 0:
@@ -88,7 +90,7 @@ def family_run(scene_name: str, family: str, degree: int, output: Path, comm) ->
             scene = scenes.load(scene_name, _overrides(family, degree, level))
             comm.Barrier()
             started = time.perf_counter()
-            mesh = driver.build_mesh(scene, comm)
+            mesh = distribution.build_mesh(scene, comm)
             meshed = time.perf_counter() - started
             result = driver.solve(scene, comm, None, progress=_quiet, mesh=mesh)
             elapsed = time.perf_counter() - started
@@ -176,7 +178,7 @@ def accuracy() -> dict:
 
 def acceptance(records: dict, exact: dict) -> list[dict]:
     """Whole ``ddsolve solve`` launches of graded P2 aimed at 1 % and 0.1 % on every scene."""
-    from .. import io
+    from ddsolve.io import hdf5 as io
 
     launches = []
     for scene_name in SCENES:
@@ -218,7 +220,7 @@ STYLES = {("uniform", 1): ("tab:gray", "o", ":"), ("uniform", 2): ("black", "s",
 
 
 def plot(records: dict, path: Path) -> None:
-    from ..plots import _pyplot
+    from ddsolve.post.plots import _pyplot
 
     plt = _pyplot()
     fig, axes = plt.subplots(2, len(SCENES), figsize=(16, 9), constrained_layout=True)

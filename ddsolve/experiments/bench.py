@@ -22,10 +22,11 @@ from pathlib import Path
 
 import numpy as np
 
-from . import report
-from .. import scene as scenes
-from ..errors import DDSolveError
-from ..interface import BLOCKS as BLOCK_SPECS
+from ddsolve.errors import DDSolveError
+from ddsolve.experiments import report
+from ddsolve.mesh.mesh import BLOCKS as BLOCK_SPECS
+from ddsolve.parallel import distribution
+from ddsolve.problem import scene as scenes
 
 #: The paper's Table 1 meshes (P, M) and one finer mesh.
 TABLE1_MESHES = ((12, 32), (24, 48), (48, 80), (96, 144), (200, 256))
@@ -76,12 +77,14 @@ def monolithic(scene: scenes.Scene, mesh, systems) -> tuple["Result", dict]:
     """
     import dataclasses
 
-    from .. import assembly, reference
-    from ..blocks import Block
-    from ..interface import U_MINUS, U_PLUS, for_mesh
-    from ..io import provenance
-    from ..methods import box_qp
-    from ..result import Result
+    from ddsolve.dd.interface import for_mesh
+    from ddsolve.dd.methods import box_qp
+    from ddsolve.fem import assembly
+    from ddsolve.mesh.mesh import U_MINUS, U_PLUS
+    from ddsolve.parallel.blocks import Block
+    from ddsolve.parallel.launch import provenance
+    from ddsolve.post.result import Result
+    from ddsolve.solve import reference
 
     interface = for_mesh(mesh.sigma, scene.nonpenetration)
     contact = interface.slices["mu_c"]
@@ -137,12 +140,14 @@ def bench_baseline(name: str, P: int, M: int, repeats: int, output: Path, comm) 
     rank 0 writes the record as JSON (wall and CPU seconds: the CPU time of the DD sums its ranks)."""
     from petsc4py import PETSc
 
-    from .. import analysis, assembly, driver
-    from ..exchange import collective
-    from ..io import provenance
+    from ddsolve.fem import assembly
+    from ddsolve.parallel.exchange import collective
+    from ddsolve.parallel.launch import provenance
+    from ddsolve.post import analysis
+    from ddsolve.solve import driver
 
     scene = paper_scene(P, M, name=name)
-    mesh = driver.build_mesh(scene, comm)
+    mesh = distribution.build_mesh(scene, comm)
     systems = assembly.block_systems(scene, mesh) if comm.rank == 0 else None
     record = {"scene": name, "P": P, "M": M, "ranks": comm.size, "load": os.getloadavg()[0],
               "unknowns": sum(2 * len(mesh.half(spec.side).points) for spec in BLOCK_SPECS), "dd": [],
@@ -228,8 +233,8 @@ def baseline_line(record: dict) -> str:
 # --- inside the MPI launch ------------------------------------------------------------------
 def floor_time(scene: scenes.Scene, mesh, comm, package: str) -> float:
     """Wall time for one factorization and one solve of every block, all ranks together."""
-    from ..driver import make_blocks
-    from ..exchange import Exchange
+    from ddsolve.parallel.exchange import Exchange
+    from ddsolve.solve.driver import make_blocks
 
     exchange = Exchange(comm, 4)
     blocks = make_blocks(scene, mesh, exchange, package)
@@ -263,8 +268,11 @@ def bench_mesh(plan: str, P: int, M: int, output: Path, comm) -> None:
 
     Every rank takes part; rank 0 writes the record as JSON to ``output``.
     """
-    from .. import analysis, driver, geometry, mesh as meshes, reference
-    from ..io import provenance
+    from ddsolve.mesh import geometry
+    from ddsolve.mesh import mesh as meshes
+    from ddsolve.parallel.launch import provenance
+    from ddsolve.post import analysis
+    from ddsolve.solve import driver, reference
 
     runs, with_floor = PLANS[plan]
     base = paper_scene(P, M)
@@ -376,7 +384,7 @@ def methods_table(records: list[dict]) -> str:
 
 def speed_error_plot(records: list[dict], path: Path) -> None:
     """Wall time against energy error, one curve per method, one panel per mesh (the largest three)."""
-    from ..plots import _pyplot
+    from ddsolve.post.plots import _pyplot
 
     plt = _pyplot()
     shown = records[-3:]
@@ -405,8 +413,9 @@ def speed_error_plot(records: list[dict], path: Path) -> None:
 def block_timings(P: int, M: int, solves: int = 20, repeats: int = 3) -> dict:
     """One block of the (P, M) mesh, best of ``repeats``: factorization, one solve and the interface
     matrix, for each factorization package (with MUMPS also with the Schur complement requested)."""
-    from .. import assembly, geometry
-    from ..blocks import Block, default_factor_package
+    from ddsolve.fem import assembly
+    from ddsolve.mesh import geometry
+    from ddsolve.parallel.blocks import Block, default_factor_package
 
     scene = paper_scene(P, M)
     system = assembly.block_systems(scene, geometry.build(scene), [0])[0]

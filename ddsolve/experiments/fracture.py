@@ -22,7 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from . import report
+from ddsolve.experiments import report
+from ddsolve.parallel import launch
 
 RESULTS = Path("results")
 DOCS = Path("docs")
@@ -167,7 +168,7 @@ def example_scene(example: int, crack: tuple[float, float], folder: Path, name: 
                   degree: int = 2, sizes: dict = FD, write: bool = True):
     """Example 1 or 2 on the paper's square with ``crack``, meshed with tip refinement (``sizes``); the
     .geo file is written into ``folder`` if ``write``."""
-    from .. import scene
+    from ddsolve.problem import scene
 
     if write:
         geo = box_geo((-1.0, 1.0, -1.0, 1.0), [crack], {"left": None, "right": None}, sizes["h_tip"],
@@ -182,7 +183,7 @@ def plate_scene(folder: Path, sides: tuple[str, ...], clamp: float, nu: float, s
                 degree: int = 2, name: str = "plate", write: bool = True):
     """Two identical layers, each a plate (−W, W) × (−H, H) with a centre crack (−a, a) under the remote
     traction sign·σ on top and bottom, clamped on the segments |y| ≤ ``clamp`` of ``sides``."""
-    from .. import scene
+    from ddsolve.problem import scene
 
     W, H, a = plate["W"], plate["H"], plate["a"]
     if write:
@@ -215,7 +216,9 @@ def handbook(plate: dict, nu: float, model: str = "plane_strain") -> dict:
 # --- the checks (one MPI launch) ----------------------------------------------------------------------
 def checks(output: Path, comm) -> None:
     """Finite differences, radii and the analytic plate; writes a JSON record on rank 0."""
-    from .. import driver, fracture as fractures, io, scene as scenes
+    from ddsolve.post import fracture as fractures
+    from ddsolve.problem import scene as scenes
+    from ddsolve.solve import driver
 
     folder = Path(comm.bcast(tempfile.mkdtemp(prefix="ddsolve-fracture-") if comm.rank == 0 else None, root=0))
 
@@ -229,7 +232,7 @@ def checks(output: Path, comm) -> None:
         comm.Barrier()
         return driver.solve(scene, comm, None, progress=lambda line: None)
 
-    record = {"finite_differences": [], "radii": [], "plate": [], "provenance": io.provenance(),
+    record = {"finite_differences": [], "radii": [], "plate": [], "provenance": launch.provenance(),
               "fd_mesh": FD, "plate_setup": PLATE}
     try:
         for example in (1, 2):
@@ -315,7 +318,9 @@ def fracture() -> None:
         sweeps[("stiffness", example)] = path
     faces = RESULTS / "fracture-example1.h5"
     report.run(RANKS, ["solve", "partial-closure", *_sets(SWEEP_MESH), "-o", str(faces)])
-    from .. import io, plots, sweep
+    from ddsolve.io import hdf5 as io
+    from ddsolve.post import plots
+    from ddsolve.solve import sweep
 
     data = {key: sweep.read(path) for key, path in sweeps.items()}
     length_plot(data, record)
@@ -371,7 +376,7 @@ def stiffness_plot(data: dict) -> None:
 
 
 def _pyplot():
-    from ..plots import _pyplot as pyplot
+    from ddsolve.post.plots import _pyplot as pyplot
 
     return pyplot()
 

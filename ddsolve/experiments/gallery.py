@@ -7,9 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
-
-from . import report
+from ddsolve.experiments import report
 
 RESULTS = Path("results/gallery")
 DOCS = Path("docs")
@@ -36,7 +34,8 @@ SCENES = {
 
 def gallery() -> None:
     """Solve, draw and describe every gallery scene."""
-    from .. import analysis, io, plots
+    from ddsolve.io import hdf5 as io
+    from ddsolve.post import analysis, plots
 
     RESULTS.mkdir(parents=True, exist_ok=True)
     sections = []
@@ -52,7 +51,7 @@ def gallery() -> None:
 
 
 def section(name: str, description: str, result, scale: float, constraints) -> str:
-    from ..analysis import along_sigma, contact_zones, normal_jump
+    from ddsolve.post.analysis import along_sigma, contact_zones, normal_jump
 
     position, axis = along_sigma(result)
     crack = result.crack

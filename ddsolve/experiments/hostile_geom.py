@@ -3,7 +3,7 @@ and 4 (a gmsh size factor near zero in a .geo): the rows of docs/robustness.md, 
 ``measure(hostile)`` (see :class:`ddsolve.experiments.robustness.Hostile`)."""
 from __future__ import annotations
 
-from .. import scene as scenes
+from ddsolve.problem import scene as scenes
 
 SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
 

@@ -7,13 +7,13 @@ from __future__ import annotations
 
 import subprocess
 
-from .robustness import SMALL
+from ddsolve.experiments.robustness import SMALL
 
 
 def _unknowns(output: str):
     """A note on a run that wrote ``output``: its unknowns, estimated error and levels."""
     def observe(completed: subprocess.CompletedProcess, hostile) -> str:
-        from .. import io
+        from ddsolve.io import hdf5 as io
 
         path = hostile.folder / output
         if completed.returncode != 0 or not path.exists():
@@ -27,7 +27,7 @@ def _unknowns(output: str):
 
 def _sweep_unknowns(output: str):
     def observe(completed: subprocess.CompletedProcess, hostile) -> str:
-        from .. import sweep
+        from ddsolve.solve import sweep
 
         path = hostile.folder / output
         if completed.returncode != 0 or not path.exists():

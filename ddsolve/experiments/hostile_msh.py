@@ -81,7 +81,7 @@ def msh_versions(folder: Path, name: str, geo_text: str, loads: str, size: float
                  ) -> dict[int, Path]:
     """One gmsh mesh of ``geo_text`` written as MSH 2.2 and as MSH 4.1, each with a scene file:
     {2: scene of the 2.2 file, 4: scene of the 4.1 file} (gmsh runs in a child process)."""
-    from ..geometry import apart
+    from ddsolve.mesh.gmsh_io import apart
 
     geo = folder / f"{name}.geo"
     geo.write_text(geo_text)

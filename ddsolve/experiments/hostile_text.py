@@ -11,7 +11,7 @@ import sys
 import time
 from pathlib import Path
 
-from .robustness import SMALL
+from ddsolve.experiments.robustness import SMALL
 
 TEXT, MESSAGES = 103, 108
 #: Standard outputs that are not UTF-8: Python's setting, and a C locale without Python's UTF-8 mode.

@@ -17,6 +17,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from ddsolve.io import safe
+
 #: The mesh of the interrupted solves (P = 400, M = 512).
 LARGE = ["--set", "mesh.sigma_vertices=400", "--set", "mesh.boundary_vertices=512"]
 SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
@@ -26,7 +28,7 @@ SWEEP = ["--set", "loads.layer1.top.y=0.05:0.15:3"]
 
 def result_set(folder: Path, stem: str) -> list[Path]:
     """The files of the result set ``folder/stem.h5``: the HDF5 file and its viewer files."""
-    from ..export import viewer_paths
+    from ddsolve.io.viewer import viewer_paths
 
     return [folder / f"{stem}.h5", *viewer_paths(folder, stem)]
 
@@ -145,16 +147,15 @@ COMMIT_CHILD = textwrap.dedent("""
     def writer(i):
         return counted(lambda name: Path(name).write_bytes(f"new {i}".encode()))
 
-    sys.exit(cli.guarded(lambda: io.replace_together({folder / f"f{i}.h5": writer(i) for i in range(count)},
+    sys.exit(cli.guarded(lambda: safe.replace_together({folder / f"f{i}.h5": writer(i) for i in range(count)},
                                                      final=final) or 0))
 """)
 
 
 def commit_step(folder: Path, count: int, existing: int, step: int, signum: int, final: bool = True
                 ) -> tuple[int, str, list[str]]:
-    """Run :data:`COMMIT_CHILD` in ``folder``, then what the next run does first (:func:`ddsolve.io.recover`);
+    """Run :data:`COMMIT_CHILD` in ``folder``, then what the next run does first (:func:`ddsolve.io.safe.recover`);
     returns the child's exit status, the set's state ("new", "old" or "mixed") and the scratch files left."""
-    from .. import io
 
     paths = [folder / f"f{i}.h5" for i in range(count)]
     previous = {}
@@ -166,7 +167,7 @@ def commit_step(folder: Path, count: int, existing: int, step: int, signum: int,
                            env=_environment(), stdin=subprocess.DEVNULL)
     if "Traceback" in child.stderr:
         raise RuntimeError(child.stderr)
-    io.recover(paths)
+    safe.recover(paths)
     new = all(path.is_file() and path.read_bytes() == f"new {i}".encode() for i, path in enumerate(paths))
     old = all(path.read_bytes() == data for path, data in previous.items()) and \
         not any(path.exists() for path in paths[existing:])
@@ -215,7 +216,7 @@ def measure(hostile) -> None:
 
 def _outputs_over_inputs(hostile) -> None:
     """-o naming an input (scene, .geo, mesh file) or without .h5, for every command that takes -o."""
-    from .. import scene as scenes
+    from ddsolve.problem import scene as scenes
 
     folder = hostile.folder
     (folder / "w-scene.toml").write_text(scenes.builtin_scenes()["partial-closure"])

@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import report
-from .bench import TABLE1_MESHES
-from ..errors import DDSolveError
+from ddsolve.errors import DDSolveError
+from ddsolve.experiments import report
+from ddsolve.experiments.bench import TABLE1_MESHES
 
 #: The paper's Table 1: P, M, h⁻min, h⁻max, h⁺min, h⁺max, Nod⁻, Tri⁻, Nod⁺, Tri⁺, iterations.
 PAPER_TABLE1 = {
@@ -91,8 +91,8 @@ def table1_text(records: list[dict]) -> str:
 # --- θ sweep (Fig. 2) -------------------------------------------------------------------------
 def converges(scene, comm, mesh) -> tuple[bool, int]:
     """Run uzawa; (converged, iterations).  A run that neither converges nor blows up counts as failed."""
-    from .. import driver
-    from ..errors import NotConvergedError
+    from ddsolve.errors import NotConvergedError
+    from ddsolve.solve import driver
 
     try:
         result = driver.solve(scene, comm, None, progress=_quiet, mesh=mesh)
@@ -105,8 +105,10 @@ def converges(scene, comm, mesh) -> tuple[bool, int]:
 
 def theta_mesh(P: int, M: int, scene_name: str, output: Path, comm) -> None:
     """One mesh and scene: 2/λmax by power iteration, iterations over the θ grid, bisected threshold."""
-    from .. import driver, geometry, scene as scenes
-    from ..io import provenance
+    from ddsolve.mesh import geometry
+    from ddsolve.parallel.launch import provenance
+    from ddsolve.problem import scene as scenes
+    from ddsolve.solve import driver
 
     def scene(theta: float):
         return scenes.load(scene_name, [f"mesh.sigma_vertices={P}", f"mesh.boundary_vertices={M}",
@@ -150,7 +152,7 @@ def theta_sweep() -> list[dict]:
 
 
 def theta_plot(records: list[dict], path: Path) -> None:
-    from ..plots import _pyplot
+    from ddsolve.post.plots import _pyplot
 
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(8, 4.8), constrained_layout=True)
@@ -213,7 +215,8 @@ FIGURES = (("fig1", "partial-closure", 500.0), ("fig3", "linear", 500.0), ("fig4
 
 def figures() -> None:
     """Deformed layers coloured by von Mises stress, and the normal jump along Σ (contact vs overlap)."""
-    from .. import io, plots
+    from ddsolve.io import hdf5 as io
+    from ddsolve.post import plots
 
     RESULTS.mkdir(exist_ok=True)
     results = {}
@@ -230,7 +233,7 @@ def figures() -> None:
 
 
 def figures_text(results: dict) -> str:
-    from ..analysis import normal_jump
+    from ddsolve.post.analysis import normal_jump
 
     contact, linear = results["partial-closure"], results["linear"]
     crack = contact.crack

@@ -6,7 +6,7 @@ import importlib
 import sys
 from pathlib import Path
 
-from ..cli import guarded, init_petsc, split_arguments
+from ddsolve.parallel.runtime import guarded, init_petsc, split_arguments
 
 #: part -> (module in this package, function, typed arguments before OUTPUT).  The function is called
 #: with those arguments, the output path and MPI.COMM_WORLD.

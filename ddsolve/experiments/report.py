@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import DDSolveError
+from ddsolve.errors import DDSolveError
 
 
 def run(ranks: int, arguments: list[str], module: str = "ddsolve") -> None:
@@ -17,7 +17,7 @@ def run(ranks: int, arguments: list[str], module: str = "ddsolve") -> None:
     The calling process must not have started MPI (mpiexec cannot be nested in an MPI process);
     the child gets Python's view of the environment, without what an MPI library added in C.
     """
-    from ..launch import mpiexec_command
+    from ddsolve.parallel.launch import mpiexec_command
 
     completed = subprocess.run(mpiexec_command(ranks, arguments, module), env=dict(os.environ))
     if completed.returncode != 0:
@@ -36,7 +36,7 @@ def write_records(path: Path, records: list[dict], attrs: dict) -> None:
     """One HDF5 group per record: scalars as attributes, lists of numbers and of dicts as datasets."""
     import h5py
 
-    from ..io import atomic
+    from ddsolve.io.safe import atomic
 
     def store(group, record: dict) -> None:
         for key, value in record.items():

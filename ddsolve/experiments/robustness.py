@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import scene as scenes
+from ddsolve.problem import scene as scenes
 
 MESH = ["--set", "mesh.sigma_vertices=48", "--set", "mesh.boundary_vertices=80"]
 DOCS = Path("docs")
@@ -35,7 +35,7 @@ def _name(path: Path) -> str:
 def _run(arguments: list[str], ranks: int | None = 4, timeout: float = 600,
          folder: Path | None = None) -> tuple[subprocess.CompletedProcess, float]:
     """Run ddsolve (under mpiexec with ``ranks``) in ``folder``, so messages name files relatively."""
-    from ..launch import mpiexec_command
+    from ddsolve.parallel.launch import mpiexec_command
 
     command = mpiexec_command(ranks, arguments) if ranks else [sys.executable, "-m", "ddsolve", *arguments]
     started = time.perf_counter()
@@ -54,7 +54,7 @@ class Cases:
         self.references: dict[tuple, object] = {}
 
     def _reference(self, name: str, overrides: tuple[str, ...]):
-        from .. import io
+        from ddsolve.io import hdf5 as io
 
         key = (name, overrides)
         if key not in self.references:
@@ -70,7 +70,8 @@ class Cases:
     def against_reference(self, case: str, why: str, name: str, *settings: str, method: str = "schur",
                           test: str = "") -> None:
         """Solve with ``method`` on 4 ranks (``settings``: KEY=VALUE); the row shows rounds, error, penetration."""
-        from .. import analysis, io
+        from ddsolve.io import hdf5 as io
+        from ddsolve.post import analysis
 
         path = self.folder / "dd.h5"
         overrides = [item for setting in (*settings, f"solver.method={method}") for item in ("--set", setting)]
@@ -112,7 +113,7 @@ def interrupt(folder: Path, signum: int, wait: float = 6.0) -> dict:
     Returns the exit status, the seconds from the signal to the exit, the first line of standard
     error, whether the previous file survived and which temporary files are left in ``folder``.
     """
-    from ..launch import mpiexec_command
+    from ddsolve.parallel.launch import mpiexec_command
 
     kept = folder / "kept.h5"
     kept.write_bytes(b"previous result")
@@ -379,7 +380,7 @@ class Hostile:
         self.rows[number].append((label, before, outcome))
 
     def _previous(self, stems: tuple[str, ...]) -> dict[Path, bytes]:
-        from ..export import viewer_paths
+        from ddsolve.io.viewer import viewer_paths
 
         files = {}
         for stem in stems:
@@ -404,7 +405,8 @@ class Hostile:
     def error_against_reference(self, output: str, overrides: list[str]):
         """A note for a run that wrote ``output``: converged or not, and its energy error against the reference."""
         def observe(completed: subprocess.CompletedProcess) -> str:
-            from .. import analysis, io
+            from ddsolve.io import hdf5 as io
+            from ddsolve.post import analysis
 
             if not (self.folder / output).exists() or completed.returncode not in (0, 3):
                 return ""
@@ -594,7 +596,7 @@ class Hostile:
     def _options(self) -> None:
         def method_and_file(output: str):
             def observe(completed: subprocess.CompletedProcess) -> str:
-                from .. import io
+                from ddsolve.io import hdf5 as io
 
                 if not (self.folder / output).exists():
                     return f"; nothing written to {output}"

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import report
+from ddsolve.experiments import report
 
 RESULTS = Path("results/scaling")
 DOCS = Path("docs")
@@ -45,7 +45,7 @@ def cores() -> int:
 # --- calibration (inside MPI launches) ---------------------------------------------------------
 def network(output: Path, comm) -> None:
     """Latency and bandwidth of the collectives a round uses, between two ranks."""
-    from ..io import provenance
+    from ddsolve.parallel.launch import provenance
 
     sizes = [8, 800, 8_000, 80_000, 800_000, 8_000_000]
     samples = []
@@ -66,7 +66,7 @@ def network(output: Path, comm) -> None:
 
 def calibrate(output: Path, comm) -> None:
     """One block at each calibration size, on one rank: factorization, solve and interface-matrix times."""
-    from .bench import block_timings
+    from ddsolve.experiments.bench import block_timings
 
     if comm.rank == 0:
         output.write_text(json.dumps({"blocks": [block_timings(P, M, solves=10, repeats=2)
@@ -155,7 +155,7 @@ class CostModel:
 # --- the experiment ---------------------------------------------------------------------------
 def _solve(ranks: int, P: int, M: int, method: str, name: str) -> dict:
     """One ``ddsolve solve`` launch; its result file stays in results/scaling."""
-    from .. import io
+    from ddsolve.io import hdf5 as io
 
     path = RESULTS / f"{name}.h5"
     started = time.perf_counter()
@@ -178,7 +178,7 @@ def _solve(ranks: int, P: int, M: int, method: str, name: str) -> dict:
 def scaling() -> dict:
     """Calibrate, run strong, weak, rounds and large cases and the baseline, fit the model; write HDF5,
     docs/scaling.md, plots."""
-    from .bench import default_ranks
+    from ddsolve.experiments.bench import default_ranks
 
     RESULTS.mkdir(parents=True, exist_ok=True)
     print("scaling: calibration (one block at 5 sizes; MPI latency and bandwidth)", flush=True)
@@ -257,7 +257,7 @@ def predictions(model: CostModel) -> tuple[list[dict], list[dict]]:
 
 
 def plots(runs: list[dict], model: CostModel) -> None:
-    from ..plots import _pyplot
+    from ddsolve.post.plots import _pyplot
 
     plt = _pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.6), constrained_layout=True)
@@ -307,7 +307,7 @@ def plots(runs: list[dict], model: CostModel) -> None:
 
 
 def _launch_rows(runs: list[dict]) -> list[str]:
-    from ..driver import PHASES
+    from ddsolve.parallel.phases import PHASES
 
     rows = []
     for r in (r for r in runs if r["kind"] == "large"):
@@ -345,7 +345,7 @@ def _rounds_rows(runs: list[dict]) -> list[str]:
 
 
 def _baseline_rows(baseline: list[dict]) -> list[str]:
-    from .bench import MONOLITHIC_ORDERINGS
+    from ddsolve.experiments.bench import MONOLITHIC_ORDERINGS
 
     rows = []
     for b in baseline:
@@ -358,8 +358,8 @@ def _baseline_rows(baseline: list[dict]) -> list[str]:
 
 
 def text(record: dict, model: CostModel) -> str:
-    from ..driver import PHASES
-    from .bench import MONOLITHIC_ORDERINGS
+    from ddsolve.experiments.bench import MONOLITHIC_ORDERINGS
+    from ddsolve.parallel.phases import PHASES
 
     runs = record["runs"]
     c = record["cores"]

@@ -18,22 +18,14 @@ from functools import cached_property
 
 import numpy as np
 
-from .errors import MeshError
+from ddsolve.errors import MeshError
+from ddsolve.mesh.element import CELL_EDGES, EDGE_RULE, cell_edges, edge_keys, edge_points, edge_shapes
 
 #: Boundary names with a meaning: Σ (cracks included), the cracks, and Γ_D (both layers clamped).
 SIGMA, CRACK, CLAMPED = "sigma", "crack", "clamped"
 #: Relative tolerance for coordinates that must coincide (Σ nodes of the two halves).
 TOL = 1e-10
 
-
-def gauss_interval(points: int) -> tuple[np.ndarray, np.ndarray]:
-    """Gauss–Legendre rule on [0, 1]: (abscissae, weights)."""
-    s, w = np.polynomial.legendre.leggauss(points)
-    return 0.5 * (s + 1.0), 0.5 * w
-
-
-#: The rule for lengths and lumped weights along edges (exact for straight P2 edges).
-_EDGE_RULE = gauss_interval(4)
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,7 +75,7 @@ class HalfMesh:
     @cached_property
     def boundary_edges(self) -> np.ndarray:
         """Every edge used by exactly one cell, oriented counter-clockwise (with its midpoint for P2)."""
-        edges, counts = _cell_edges(self.cells)
+        edges, counts = cell_edges(self.cells)
         return edges[counts == 1]
 
 
@@ -163,42 +155,9 @@ def signed_areas(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     return 0.5 * (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
 
 
-#: Local (a, b, midpoint) node positions of the three edges of a P1 or P2 triangle.
-_CELL_EDGES = {3: np.array([[0, 1], [1, 2], [2, 0]]), 6: np.array([[0, 1, 3], [1, 2, 4], [2, 0, 5]])}
-
-
-def _cell_edges(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Every cell edge once per cell, ``(3m, 2|3)`` oriented with the cell, and how many cells use it."""
-    edges = cells[:, _CELL_EDGES[cells.shape[1]]].reshape(-1, 2 if cells.shape[1] == 3 else 3)
-    keys = _edge_keys(edges, int(cells.max(initial=0)) + 1)
-    _, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
-    return edges, counts[inverse]
-
-
-def _edge_keys(edges: np.ndarray, n: int) -> np.ndarray:
-    """An integer per undirected edge (its end nodes), for matching."""
-    return np.minimum(edges[:, 0], edges[:, 1]).astype(np.int64) * n + np.maximum(edges[:, 0], edges[:, 1])
-
-
-def edge_points(points: np.ndarray, edges: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Positions ``(e, q, 2)`` and tangents dx/ds ``(e, q, 2)`` at parameters ``s`` ``(q,)`` in [0, 1]."""
-    shapes, derivatives = edge_shapes(edges.shape[1], s)
-    nodes = points[edges]  # (e, k, 2)
-    return np.einsum("qk,ekd->eqd", shapes, nodes), np.einsum("qk,ekd->eqd", derivatives, nodes)
-
-
-def edge_shapes(nodes: int, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Lagrange shape functions on an edge (a, b[, midpoint]) and their s-derivatives, ``(q, k)``."""
-    s = np.asarray(s, dtype=float)
-    if nodes == 2:
-        return np.column_stack([1.0 - s, s]), np.column_stack([-np.ones_like(s), np.ones_like(s)])
-    shapes = np.column_stack([(1.0 - s) * (1.0 - 2.0 * s), s * (2.0 * s - 1.0), 4.0 * s * (1.0 - s)])
-    derivatives = np.column_stack([4.0 * s - 3.0, 4.0 * s - 1.0, 4.0 - 8.0 * s])
-    return shapes, derivatives
-
 
 def edge_lengths(points: np.ndarray, edges: np.ndarray) -> np.ndarray:
-    s, w = _EDGE_RULE
+    s, w = EDGE_RULE
     _, tangents = edge_points(points, edges, s)
     return np.linalg.norm(tangents, axis=2) @ w
 
@@ -253,9 +212,9 @@ def make_half(points: np.ndarray, cells: np.ndarray, side: int, boundaries: dict
     renumber[used] = np.arange(len(used))
     cells = renumber[cells]
     points = points[used]
-    edges, counts = _cell_edges(cells)
+    edges, counts = cell_edges(cells)
     outer = edges[counts == 1]
-    keys = _edge_keys(outer, len(points))
+    keys = edge_keys(outer, len(points))
     order = np.argsort(keys)
     named = {}
     for name, raw in boundaries.items():
@@ -264,7 +223,7 @@ def make_half(points: np.ndarray, cells: np.ndarray, side: int, boundaries: dict
             continue
         if np.any(raw < 0):
             raise MeshError(f"{where}: boundary {name!r} has nodes that no triangle uses")
-        wanted = _edge_keys(raw, len(points))
+        wanted = edge_keys(raw, len(points))
         if len(np.unique(wanted)) < len(wanted):
             raise MeshError(f"{where}: boundary {name!r} lists {len(wanted) - len(np.unique(wanted))} edges more "
                             "than once")
@@ -305,7 +264,7 @@ def _check_cover(points: np.ndarray, cells: np.ndarray, where: str) -> None:
     if len(np.unique(corners, axis=0)) < len(corners):
         repeated = len(corners) - len(np.unique(corners, axis=0))
         raise MeshError(f"{where}: {repeated} triangles are listed more than once")
-    edges, counts = _cell_edges(cells[:, :3])
+    edges, counts = cell_edges(cells[:, :3])
     if counts.max() > 2:
         raise MeshError(f"{where}: {int(np.sum(counts > 2) // 3 or 1)} edges are shared by more than two "
                         "triangles (overlapping cells)")
@@ -359,8 +318,8 @@ def make_mesh(lower: HalfMesh, upper: HalfMesh, origin: str, exact_normals: np.n
             raise MeshError(f"{where} touches no clamped boundary: the stiffness of blocks {blocks} would be "
                             "singular (rigid motions); clamp part of its outer boundary")
         crack_edges = half.edges(CRACK)
-        if len(crack_edges) and not np.isin(_edge_keys(crack_edges, len(half.points)),
-                                            _edge_keys(half.edges(SIGMA), len(half.points))).all():
+        if len(crack_edges) and not np.isin(edge_keys(crack_edges, len(half.points)),
+                                            edge_keys(half.edges(SIGMA), len(half.points))).all():
             raise MeshError(f"{where}: a crack is not on Σ (every {CRACK!r} edge must be a {SIGMA!r} edge)")
         if half.degree != lower.degree:
             raise MeshError(f"{origin}: the halves have different element degrees")
@@ -402,8 +361,8 @@ def _check_only_sigma_is_shared(lower: HalfMesh, upper: HalfMesh, scale: float, 
     """The halves may touch along Σ only (else Σ does not split Ω)."""
     def midpoints(half: HalfMesh) -> set[tuple[int, int]]:
         edges = half.boundary_edges
-        sigma_keys = set(_edge_keys(half.edges(SIGMA), len(half.points)).tolist())
-        keep = ~np.isin(_edge_keys(edges, len(half.points)), list(sigma_keys))
+        sigma_keys = set(edge_keys(half.edges(SIGMA), len(half.points)).tolist())
+        keep = ~np.isin(edge_keys(edges, len(half.points)), list(sigma_keys))
         mid = 0.5 * (half.points[edges[keep, 0]] + half.points[edges[keep, 1]]) - corner
         return set(map(tuple, np.round(mid / (1e-8 * scale)).astype(np.int64).tolist()))
 
@@ -421,7 +380,7 @@ def _sigma_line(lower: HalfMesh, upper: HalfMesh, exact_normals: np.ndarray | No
     order = lower.sigma
     points = lower.points[order]
     edges = np.column_stack([order[:-1:step], order[step::step]] + ([order[1::step]] if degree == 2 else []))
-    s, w = _EDGE_RULE
+    s, w = EDGE_RULE
     shapes, _ = edge_shapes(edges.shape[1], s)
     _, tangents = edge_points(lower.points, edges, s)
     speed = np.linalg.norm(tangents, axis=2)  # (e, q)
@@ -441,8 +400,8 @@ def _sigma_line(lower: HalfMesh, upper: HalfMesh, exact_normals: np.ndarray | No
         known = np.all(np.isfinite(exact_normals), axis=1)
         aligned = exact_normals * np.sign(np.sum(exact_normals * normals, axis=1))[:, None]
         normals[known] = aligned[known] / np.linalg.norm(aligned[known], axis=1, keepdims=True)
-    crack_keys = set(_edge_keys(lower.edges(CRACK), len(lower.points)).tolist())
-    on_crack = np.isin(_edge_keys(edges, len(lower.points)), list(crack_keys))
+    crack_keys = set(edge_keys(lower.edges(CRACK), len(lower.points)).tolist())
+    on_crack = np.isin(edge_keys(edges, len(lower.points)), list(crack_keys))
     crack_count = np.bincount(positions[:, :2].ravel(), np.repeat(on_crack, 2), minlength=len(order))
     edge_count = np.bincount(positions[:, :2].ravel(), minlength=len(order))
     if degree == 2:  # a midpoint belongs to its edge only
@@ -461,8 +420,8 @@ def _sigma_line(lower: HalfMesh, upper: HalfMesh, exact_normals: np.ndarray | No
 def elevate(points: np.ndarray, cells: np.ndarray, boundaries: dict[str, np.ndarray]
             ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
     """P1 → P2 with straight edges: a new node at the middle of every edge (raw, unchecked arrays)."""
-    edges = cells[:, _CELL_EDGES[3]].reshape(-1, 2)
-    keys = _edge_keys(edges, len(points))
+    edges = cells[:, CELL_EDGES[3]].reshape(-1, 2)
+    keys = edge_keys(edges, len(points))
     unique, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
     middles = 0.5 * (points[edges[first, 0]] + points[edges[first, 1]])
     numbers = len(points) + np.arange(len(unique))
@@ -470,9 +429,9 @@ def elevate(points: np.ndarray, cells: np.ndarray, boundaries: dict[str, np.ndar
     named = {}
     for name, raw in boundaries.items():
         raw = np.asarray(raw, dtype=np.int64).reshape(-1, 2)
-        position = np.searchsorted(unique, _edge_keys(raw, len(points)))
+        position = np.searchsorted(unique, edge_keys(raw, len(points)))
         if len(raw) and (np.any(position >= len(unique)) or np.any(unique[np.minimum(position, len(unique) - 1)]
-                                                                     != _edge_keys(raw, len(points)))):
+                                                                     != edge_keys(raw, len(points)))):
             raise MeshError(f"boundary {name!r} has edges that are not triangle edges")
         named[name] = np.column_stack([raw, numbers[position]])
     return np.vstack([points, middles]), cells6, named
@@ -510,6 +469,24 @@ def boundary_vertex_count(mesh: Mesh) -> int:
     coordinates = set()
     for half in mesh.halves:
         edges = half.boundary_edges[:, :2]
-        sigma = np.isin(_edge_keys(edges, len(half.points)), _edge_keys(half.edges(SIGMA)[:, :2], len(half.points)))
+        sigma = np.isin(edge_keys(edges, len(half.points)), edge_keys(half.edges(SIGMA)[:, :2], len(half.points)))
         coordinates.update(map(tuple, half.points[np.unique(edges[~sigma])].round(12).tolist()))
     return len(coordinates)
+
+
+@dataclass(frozen=True)
+class BlockSpec:
+    name: str
+    layer: str
+    side: int  # -1: lower half, +1: upper half
+
+
+BLOCKS = (
+    BlockSpec("u_minus", "layer1", -1),
+    BlockSpec("u_plus", "layer1", +1),
+    BlockSpec("v_minus", "layer2", -1),
+    BlockSpec("v_plus", "layer2", +1),
+)
+
+
+U_MINUS, U_PLUS, V_MINUS, V_PLUS = range(4)

@@ -5,7 +5,7 @@ solves the scene for every combination of the ranges (``--zip``: for the ranges 
 they must then have the same COUNT); a ``--set`` whose value is not a range is a fixed override.  A
 number in a key indexes a list: ``--set geometry.crack.0=-0.2:-0.8:7 --set geometry.crack.1=0.2:0.8:7
 --zip`` lengthens the crack symmetrically.  With ``mesh.target_error`` every run is adaptive
-(:mod:`ddsolve.adapt`; nothing is reused).  What cannot finish is refused before the first solve,
+(:mod:`ddsolve.solve.adapt`; nothing is reused).  What cannot finish is refused before the first solve,
 naming the ranges: more than ``MAX_RUNS`` runs (before their values are made), more than ``MAX_HOURS``
 by an estimate from below of each run's cost from its mesh size (:func:`run_seconds`), or a mesh that
 does not fit in memory.
@@ -25,7 +25,7 @@ T the most tips of a run, padded with NaN or −1):
   ``factors_reused``, ``time`` (the whole run), ``setup_time``, ``factorization_time``,
   ``solve_time`` (R,), ``message`` (R,) strings (empty when the run succeeded);
 - ``tips/G``, ``tips/contact``, ``tips/inner``, ``tips/outer``, ``tips/spacing``, ``tips/crack`` (R, T),
-  ``tips/points``, ``tips/directions`` (R, T, 2): G at every crack tip (see ddsolve.fracture);
+  ``tips/points``, ``tips/directions`` (R, T, 2): G at every crack tip (see ddsolve.post.fracture);
 - ``contact_zones/run``, ``start``, ``end``, ``crack`` (Z,): every contact zone of every run, as arc
   length along Σ.
 """
@@ -40,7 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import DDSolveError, NotConvergedError, SceneError
+from ddsolve.errors import DDSolveError, NotConvergedError, SceneError
+from ddsolve.parallel import distribution
 
 #: ``START:STOP:COUNT`` or ``START:STOP:COUNT:log`` (geometric spacing).
 _RANGE = re.compile(r"^\s*([^:\s]+)\s*:\s*([^:\s]+)\s*:\s*([0-9]+)\s*(?::\s*(lin|log)\s*)?$")
@@ -53,7 +54,7 @@ MAX_HOURS = 24.0
 #: P = 13 mesh of 86 nodes and 0.3-0.8 s for P = 200, 10,000 nodes): seconds for a run that reuses the
 #: mesh and the factorization, and seconds more per mesh node (P2 nodes counted); and, for writing the
 #: file again after every run, seconds per run already in it.  A run whose blocks change also factors
-#: them (:data:`ddsolve.methods.COST_LAWS`).
+#: them (:data:`ddsolve.dd.methods.COST_LAWS`).
 RUN_SECONDS = 0.02
 NODE_SECONDS = 1e-5
 RECORD_SECONDS = 2e-5
@@ -87,9 +88,9 @@ def run_seconds(scene, ranks: int, factor: bool = True) -> float:
     """A lower estimate of one run's seconds on ``ranks`` ranks from the size of its mesh (when it can be
     known beforehand): the rounds, the error estimate and G, and with ``factor`` the factorization of the
     four blocks (each has about as many unknowns as the mesh has nodes)."""
-    from . import geometry
-    from .interface import BLOCKS
-    from .methods import COST_LAWS
+    from ddsolve.dd.methods import COST_LAWS
+    from ddsolve.mesh import geometry
+    from ddsolve.mesh.mesh import BLOCKS
 
     nodes = geometry.estimated_vertices(scene) or 0.0
     a, power = COST_LAWS["factor"]
@@ -179,7 +180,7 @@ def describe(run: dict) -> str:
 
 def load_scenes(source: str, fixed: list[str], runs: list[dict]) -> list:
     """Every run's scene, checked before anything is solved (errors name the run)."""
-    from . import scene
+    from ddsolve.problem import scene
 
     out = []
     for number, run in enumerate(runs, 1):
@@ -193,7 +194,7 @@ def load_scenes(source: str, fixed: list[str], runs: list[dict]) -> list:
 def _base_seconds(source: str, fixed: list[str], ranks: int) -> float | None:
     """:func:`run_seconds` of the scene with the fixed overrides, its factorization reused (None if the
     scene is not valid without the ranges)."""
-    from . import scene
+    from ddsolve.problem import scene
 
     try:
         return run_seconds(scene.load(source, fixed), ranks, factor=False)
@@ -205,8 +206,8 @@ def check_cost(items: list[str], scenes: list, runs: list[dict], ranges: list[Ra
     """Refuse a sweep given a key it does not read (:func:`ddsolve.cli.check_read`), or that cannot
     finish: one whose largest mesh does not fit in this machine's memory (:func:`ddsolve.cli.check_size`)
     or whose runs take more than MAX_HOURS by :func:`sweep_seconds`."""
-    from . import geometry
-    from .cli import check_read, check_size
+    from ddsolve.mesh import geometry
+    from ddsolve.solve.checks import check_read, check_size
 
     check_read("sweep", items, scenes[0], ranks)
 
@@ -235,8 +236,9 @@ def sweep(source: str, items: list[str], paired: bool, output: Path, comm, progr
 
     Returns the records on rank 0 (None elsewhere).
     """
-    from . import adapt, driver, geometry
-    from .exchange import collective
+    from ddsolve.mesh import geometry
+    from ddsolve.parallel.exchange import collective
+    from ddsolve.solve import adapt, driver
 
     def arrange():
         per_run = _base_seconds(source, [item for item in items if _range(item) is None], comm.size)
@@ -246,7 +248,7 @@ def sweep(source: str, items: list[str], paired: bool, output: Path, comm, progr
     fixed, ranges, runs = collective(comm, arrange)  # the same on every rank, errors included
 
     def check():
-        from .io import check_result
+        from ddsolve.io.hdf5 import check_result
 
         scenes = load_scenes(source, fixed, runs)
         inputs = [Path(source), *{scene.mesh.file for scene in scenes if scene.mesh.file is not None}]
@@ -276,7 +278,7 @@ def sweep(source: str, items: list[str], paired: bool, output: Path, comm, progr
                     collective(comm, lambda: geometry.check_loads(scene, mesh), root_only=True)
                 else:
                     mesh = None
-                    mesh = None if adaptive else driver.build_mesh(scene, comm)
+                    mesh = None if adaptive else distribution.build_mesh(scene, comm)
                 if same_blocks:
                     driver.reload(setup, scene)
                 elif not adaptive:
@@ -348,7 +350,8 @@ TIP_FIELDS = {"G": np.nan, "contact": np.nan, "inner": np.nan, "outer": np.nan, 
 def _write(path: Path, header: dict, records: list[dict]) -> None:
     import h5py
 
-    from .io import atomic, provenance
+    from ddsolve.io.safe import atomic
+    from ddsolve.parallel.launch import provenance
 
     count = max((len(r["fracture"].G) for r in records if r["fracture"] is not None), default=0)
 
@@ -389,7 +392,7 @@ def read(path: Path) -> dict:
     """A sweep file as a dict: attributes under ``attrs``, datasets by their path (``tips/G``, ...)."""
     import h5py
 
-    from .scene import readable
+    from ddsolve.problem.scene import readable
 
     path = readable(path, "sweep file")
     out: dict = {}

@@ -25,10 +25,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .assembly import elasticity, shape_functions, to_global, trace_nodes
-from .interface import BLOCKS
-from .mesh import CRACK, Mesh, _CELL_EDGES, _cell_edges, _edge_keys, edge_points, edge_shapes, gauss_interval
-from .scene import Scene
+from ddsolve.fem.assembly import elasticity, to_global, trace_nodes
+from ddsolve.mesh.element import (CELL_EDGES, cell_edges, edge_keys, edge_points, edge_shapes, gauss_interval,
+                                  shape_functions)
+from ddsolve.mesh.mesh import BLOCKS, CRACK, Mesh
+from ddsolve.problem.scene import Scene
 
 #: Sampling points of the recovery per element (reference coordinates): where the strain of the
 #: element is most accurate.
@@ -36,7 +37,7 @@ _SAMPLES = {3: np.array([[1.0 / 3.0, 1.0 / 3.0]]),
             6: np.array([[1.0 / 6.0, 1.0 / 6.0], [2.0 / 3.0, 1.0 / 6.0], [1.0 / 6.0, 2.0 / 3.0]])}
 #: Quadrature for the indicators: degree 2 for P1 (ε* linear), degree 4 for P2 (ε* quadratic).
 _A, _B = 0.445948490915965, 0.091576213509771
-_RULES = {
+TRIANGLE_RULES = {
     3: (_SAMPLES[6], np.full(3, 1.0 / 6.0)),
     6: (np.array([[_A, _A], [1 - 2 * _A, _A], [_A, 1 - 2 * _A], [_B, _B], [1 - 2 * _B, _B], [_B, 1 - 2 * _B]]),
         0.5 * np.array([0.223381589678011] * 3 + [0.109951743655322] * 3)),
@@ -62,7 +63,7 @@ def _strains_at(points: np.ndarray, cells: np.ndarray, u: np.ndarray, xi: np.nda
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """At reference points ``xi``: positions ``(m, q, 2)``, det J ``(m, q)``, strains ``(m, q, 3)``.
 
-    The same isoparametric map as :func:`ddsolve.assembly.element_geometry`, written with matrix
+    The same isoparametric map as :func:`ddsolve.mesh.element.element_geometry`, written with matrix
     products (this runs on every cell of every block after every solve)."""
     values, reference = shape_functions(cells.shape[1], xi)  # (q, k), (q, k, 2)
     nodes = points[cells]  # (m, k, 2)
@@ -141,7 +142,7 @@ def _recover(points: np.ndarray, cells: np.ndarray, where: np.ndarray, strain: n
     coefficients[patches[good]] = solved[good]
     usable = np.zeros(len(points), dtype=bool)
     usable[patches[good]] = True
-    edges, counts = _cell_edges(corners)
+    edges, counts = cell_edges(corners)
     interior = usable.copy()
     interior[edges[counts == 1].ravel()] = False
     # A node takes the mean of the interior patches it is "own" to (its vertex, or a P2 midpoint's two
@@ -182,7 +183,7 @@ def block_indicators(points: np.ndarray, cells: np.ndarray, D: np.ndarray, u: np
     """``(2, m)``: per cell η_K² = ∫ (ε* − ε_h)ᵀ D (ε* − ε_h) and ∫ ε_hᵀ D ε_h, for the field u ``(n, 2)``."""
     k = cells.shape[1]
     samples = len(_SAMPLES[k])
-    xi, weights = _RULES[k]
+    xi, weights = TRIANGLE_RULES[k]
     where, det, strain = _strains_at(points, cells, u, np.vstack([_SAMPLES[k], xi]))  # one geometry pass
     recovered = _recover(points, cells, where[:, :samples], strain[:, :samples])
     det, strain = det[:, samples:], strain[:, samples:]
@@ -220,11 +221,11 @@ def contact_indicators(mesh: Mesh, u_minus: np.ndarray, u_plus: np.ndarray, mu_c
 
 def _edge_cells(cells: np.ndarray, edges: np.ndarray) -> np.ndarray:
     """The cell that has each boundary edge (by its end nodes)."""
-    pairs = cells[:, _CELL_EDGES[cells.shape[1]][:, :2]].reshape(-1, 2)
+    pairs = cells[:, CELL_EDGES[cells.shape[1]][:, :2]].reshape(-1, 2)
     n = int(max(cells.max(), edges.max())) + 1
-    keys = _edge_keys(pairs, n)
+    keys = edge_keys(pairs, n)
     order = np.argsort(keys)
-    found = order[np.searchsorted(keys[order], _edge_keys(edges[:, :2], n))]
+    found = order[np.searchsorted(keys[order], edge_keys(edges[:, :2], n))]
     return found // 3
 
 

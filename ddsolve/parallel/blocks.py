@@ -17,8 +17,8 @@ import re
 import numpy as np
 from petsc4py import PETSc
 
-from .assembly import BlockSystem
-from .errors import SolverError
+from ddsolve.errors import SolverError
+from ddsolve.fem.assembly import BlockSystem
 
 _FACTOR_TYPES = ("cholesky", "lu")
 _CHUNK = 64  # right-hand sides per multi-column solve when the flexibility is built by solves

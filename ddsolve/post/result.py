@@ -2,14 +2,10 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .mesh import HalfMesh, Mesh
-
-if TYPE_CHECKING:
-    from .fracture import Fracture
+from ddsolve.mesh.mesh import HalfMesh, Mesh
 
 
 @dataclass
@@ -22,7 +18,7 @@ class Result:
     active-set method (``schur``, the reference), how many constraints changed state (else empty).
     ``cell_data``: name -> block -> per-cell values ``(m,)`` or ``(m, c)`` of the block's half; the
     viewer files show every entry as a cell array of its layer.
-    ``indicators``: block name -> ``(m,)`` error indicator η_K per cell (see :mod:`ddsolve.estimate`);
+    ``indicators``: block name -> ``(m,)`` error indicator η_K per cell (see :mod:`ddsolve.post.estimate`);
     ``levels``: column -> ``(levels,)`` values of an adaptive run, one entry per mesh.
     """
 
@@ -83,3 +79,42 @@ class Result:
     @property
     def interface_x(self) -> np.ndarray:
         return self.interface_points[:, 0]
+
+
+#: Fewer Σ edges than this within the inner radius: G is printed with a note to refine near the tip.
+FEW_ELEMENTS = 2.0
+
+
+@dataclass
+class Fracture:
+    """G at every tip and where the crack faces touch.
+
+    Tips: ``points``, ``directions`` (unit, away from the crack), ``crack`` (index), ``inner`` and
+    ``outer`` radii, ``spacing`` (the mean length of the Σ edges at the tip), ``G`` and its part
+    ``contact`` from the turning normals (zero on a straight Σ).
+    Contact zones: ``zones`` ``(z, 2)`` as arc length along Σ from its first node (first and last
+    touching node), ``zone_crack`` the crack of each.
+    """
+
+    points: np.ndarray
+    directions: np.ndarray
+    crack: np.ndarray
+    inner: np.ndarray
+    outer: np.ndarray
+    spacing: np.ndarray
+    G: np.ndarray
+    contact: np.ndarray
+    zones: np.ndarray
+    zone_crack: np.ndarray
+
+    def lines(self) -> list[str]:
+        """One line per tip and one for the contact zones, as printed after a solve."""
+        lines = []
+        for (x, y), c, g, a, b, h in zip(self.points, self.crack, self.G, self.inner, self.outer, self.spacing):
+            note = f"; only {a / h:.1f} elements within the inner radius: refine near this tip" \
+                if a < FEW_ELEMENTS * h else ""
+            lines.append(f"G at tip ({x:.6g}, {y:.6g}) of crack {c}: {g:.6e}   (θ radii {a:.4g}, {b:.4g}{note})")
+        if np.size(self.zone_crack):
+            lines.append("crack faces in contact (arc length along Σ): " + ", ".join(
+                f"[{a:.4g}, {b:.4g}] on crack {c}" for (a, b), c in zip(self.zones, self.zone_crack)))
+        return lines

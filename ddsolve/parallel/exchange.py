@@ -14,7 +14,7 @@ from typing import Callable, TypeVar
 import numpy as np
 from mpi4py import MPI
 
-from .errors import DDSolveError
+from ddsolve.errors import DDSolveError
 
 T = TypeVar("T")
 ROOT = 0

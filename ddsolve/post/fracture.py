@@ -30,10 +30,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import assembly
-from .errors import SceneError
-from .interface import BLOCKS
-from .mesh import SIGMA, HalfMesh, Mesh, SigmaLine
+from ddsolve.errors import SceneError
+from ddsolve.fem import assembly
+from ddsolve.mesh import element
+from ddsolve.mesh.mesh import BLOCKS, SIGMA, HalfMesh, Mesh, SigmaLine
+from ddsolve.post.result import Fracture
 
 #: Σ turns by more than this between two edges at a kink (a smooth curve turns by h·κ per edge).
 KINK_DEGREES = 10.0
@@ -42,8 +43,6 @@ OUTER_FRACTION = 0.5
 INNER_FRACTION = 0.5
 #: Σ is straight when its normals agree to this.
 STRAIGHT = 1e-10
-#: Fewer Σ edges than this within the inner radius: G is printed with a note to refine near the tip.
-FEW_ELEMENTS = 2.0
 
 
 @dataclass(frozen=True)
@@ -72,40 +71,6 @@ class Tip:
     def describe(self) -> str:
         return f"({self.point[0]:.6g}, {self.point[1]:.6g})"
 
-
-@dataclass
-class Fracture:
-    """G at every tip and where the crack faces touch.
-
-    Tips: ``points``, ``directions`` (unit, away from the crack), ``crack`` (index), ``inner`` and
-    ``outer`` radii, ``spacing`` (the mean length of the Σ edges at the tip), ``G`` and its part
-    ``contact`` from the turning normals (zero on a straight Σ).
-    Contact zones: ``zones`` ``(z, 2)`` as arc length along Σ from its first node (first and last
-    touching node), ``zone_crack`` the crack of each.
-    """
-
-    points: np.ndarray
-    directions: np.ndarray
-    crack: np.ndarray
-    inner: np.ndarray
-    outer: np.ndarray
-    spacing: np.ndarray
-    G: np.ndarray
-    contact: np.ndarray
-    zones: np.ndarray
-    zone_crack: np.ndarray
-
-    def lines(self) -> list[str]:
-        """One line per tip and one for the contact zones, as printed after a solve."""
-        lines = []
-        for (x, y), c, g, a, b, h in zip(self.points, self.crack, self.G, self.inner, self.outer, self.spacing):
-            note = f"; only {a / h:.1f} elements within the inner radius: refine near this tip" \
-                if a < FEW_ELEMENTS * h else ""
-            lines.append(f"G at tip ({x:.6g}, {y:.6g}) of crack {c}: {g:.6e}   (θ radii {a:.4g}, {b:.4g}{note})")
-        if np.size(self.zone_crack):
-            lines.append("crack faces in contact (arc length along Σ): " + ", ".join(
-                f"[{a:.4g}, {b:.4g}] on crack {c}" for (a, b), c in zip(self.zones, self.zone_crack)))
-        return lines
 
 
 # --- tips and radii -----------------------------------------------------------------------------
@@ -224,8 +189,8 @@ def volume_terms(half: HalfMesh, D: np.ndarray, u: np.ndarray, fields: list[np.n
     cells = half.cells[support[half.cells].any(axis=1)]
     if len(cells) == 0:
         return out
-    xi, weights = assembly.quadrature(cells.shape[1])
-    det, gradients = assembly.element_geometry(half.points, cells, xi)
+    xi, weights = element.quadrature(cells.shape[1])
+    det, gradients = element.element_geometry(half.points, cells, xi)
     grad_u = np.einsum("mkd,mqke->mqde", u[cells], gradients)  # u_d,e
     strain = np.stack([grad_u[..., 0, 0], grad_u[..., 1, 1], grad_u[..., 0, 1] + grad_u[..., 1, 0]], axis=-1)
     s = strain @ D.T
@@ -278,7 +243,7 @@ def contact_terms(tips: list[Tip], result) -> np.ndarray:
 
 def finish(tips: list[Tip], volume: np.ndarray, result) -> Fracture:
     """G = volume terms − contact terms, and the contact zones of ``result``."""
-    from .analysis import contact_zones
+    from ddsolve.post.analysis import contact_zones
 
     contact = contact_terms(tips, result)
     sigma = result.mesh.sigma
@@ -300,7 +265,7 @@ def finish(tips: list[Tip], volume: np.ndarray, result) -> Fracture:
 
 def of_result(result, tips: list[Tip]) -> Fracture:
     """G at ``tips`` from a result's four blocks (one process)."""
-    from . import scene as scenes
+    from ddsolve.problem import scene as scenes
 
     scene = scenes.loads(result.scene)
     volume = np.zeros(len(tips))
@@ -314,7 +279,7 @@ def of_result(result, tips: list[Tip]) -> Fracture:
 
 def evaluate(result, inner: float | None = None, outer: float | None = None) -> Fracture:
     """G at every tip of a result (any source, one process); radii: given, else the scene's, else automatic."""
-    from . import scene as scenes
+    from ddsolve.problem import scene as scenes
 
     options = scenes.loads(result.scene).fracture
     tips = find_tips(result.mesh, inner if inner is not None else options.inner,

@@ -21,12 +21,12 @@ try:
 except ModuleNotFoundError:  # Python < 3.11
     import tomli as tomllib
 
-from . import expressions, materials
-from .errors import DDSolveError, MeshError, SceneError
-from .expressions import Expression
+from ddsolve.errors import DDSolveError, MeshError, SceneError
+from ddsolve.problem import expressions, materials
+from ddsolve.problem.expressions import Expression
 
 METHODS = ("auto", "schur", "mprgp", "fista", "uzawa", "feti")
-#: ``auto``: ``schur`` or ``feti`` by problem size and ranks per block (:func:`ddsolve.methods.choose`).
+#: ``auto``: ``schur`` or ``feti`` by problem size and ranks per block (:func:`ddsolve.dd.methods.choose`).
 DEFAULT_METHOD = "auto"
 STOP_RULES = ("paper", "relative", "kkt")
 #: Default stopping rule of each method and default tolerance of each rule.
@@ -117,7 +117,7 @@ class Solver:
 
 @dataclass(frozen=True)
 class FractureOptions:
-    """Radii of the θ field of the energy release rate (None: from the geometry, see ddsolve.fracture)."""
+    """Radii of the θ field of the energy release rate (None: from the geometry, see ddsolve.post.fracture)."""
 
     inner: float | None = None
     outer: float | None = None
@@ -627,56 +627,6 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None) -> Scene:
     )
 
 
-# ---------------------------------------------------------------------------------------------
-#: Stiffnesses (the largest entry of a layer's elastic matrix) whose element matrices stay normal
-#: double-precision numbers on any sensible mesh.
-STIFFNESS_RANGE = (1e-280, 1e280)
-#: Displacements whose squares (norms, energies) stay far inside double precision.
-DISPLACEMENT_RANGE = (1e-100, 1e100)
-
-
-def check_range(scene: Scene, mesh) -> None:
-    """Refuse moduli and loads a double-precision solve cannot represent, naming their keys.
-
-    Each layer's stiffness is the largest entry of its elastic matrix; its displacements are of
-    order (largest traction on the layer) × (size of the mesh) / stiffness.  Blocks are scaled to
-    order one (:class:`ddsolve.blocks.Block`), so only the ranges matter: stiffnesses within
-    STIFFNESS_RANGE, displacements within DISPLACEMENT_RANGE (their squares must not overflow).
-    A load that is not finite or singular on its boundary is refused first (:func:`ddsolve.assembly.load_extent`).
-    """
-    import numpy as np
-
-    from .assembly import load_extent
-
-    points = np.vstack([half.points for half in mesh.halves])
-    size = float(np.ptp(points, axis=0).max())
-    for layer in LAYERS:
-        key = f"materials.{layer}" + (".E" if isinstance(scene.materials[layer], materials.Isotropic) else "")
-        with np.errstate(all="ignore"):
-            D, _ = materials.elasticity(scene.materials[layer], scene.model)
-        stiffness = float(np.abs(D).max())
-        low, high = STIFFNESS_RANGE
-        if not low <= stiffness <= high:
-            raise SceneError(f"{key}: the elastic matrix has entries of {stiffness:.3g}, outside the range a "
-                             f"double-precision solve represents ({low:g} to {high:g}): change the unit of stress")
-        traction, worst = 0.0, None
-        for (name, boundary), load in scene.loads.items():
-            if name != layer:
-                continue
-            for half in mesh.halves:
-                if boundary not in half.boundaries:
-                    continue
-                value = load_extent(half.points, half.edges(boundary), load)
-                if value > traction:
-                    traction, worst = value, load.key
-        displacement = traction * size / stiffness
-        low, high = DISPLACEMENT_RANGE
-        if worst is not None and not (traction == 0.0 or low <= displacement <= high):
-            raise SceneError(f"{key}: the elastic matrix (largest entry {stiffness:.3g}) with {worst} up to "
-                             f"{traction:.3g} on a domain of size {size:.3g} gives displacements of order "
-                             f"{displacement:.1g}, outside the range a double-precision solve represents ({low:g} to "
-                             f"{high:g}): change the units of the moduli and the loads")
-
 
 def parse_override(item: str) -> tuple[list[str], Any]:
     """``section.key=value`` -> (["section", "key"], value); value read as TOML, else a string."""
@@ -741,7 +691,7 @@ def _list_index(values: list, path: list[str], depth: int, item: str) -> int:
 
 def builtin_folder() -> Path:
     """Where the scenes shipped with ddsolve (and their .geo files) are."""
-    return Path(str(resources.files("ddsolve") / "scenes"))
+    return Path(str(resources.files("ddsolve.problem") / "scenes"))
 
 
 def builtin_scenes() -> dict[str, str]:

@@ -6,7 +6,7 @@ All elements are processed at once (no Python loop over cells): element matrices
 (:class:`Pattern`, one per half: the two blocks of a half share it, only their values differ).  Degrees of
 freedom are interleaved, node ``v`` owning ``2v`` (x) and ``2v + 1`` (y), so the matrices have block
 size 2.  At the Σ nodes that carry multipliers the two dofs are instead the components in the node's
-(tangent, normal) frame (:attr:`~ddsolve.mesh.SigmaLine.frames`), so that every interface condition
+(tangent, normal) frame (:attr:`~ddsolve.mesh.mesh.SigmaLine.frames`), so that every interface condition
 acts on single dofs; :func:`to_global` turns a solution back.  No PETSc or MPI here.
 """
 from __future__ import annotations
@@ -15,52 +15,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import materials
-from .errors import SceneError
-from .interface import BLOCKS
-from .mesh import HalfMesh, Mesh, SigmaLine, edge_points, edge_shapes, gauss_interval
-from .scene import Load, Scene
-
-# --- the reference triangle -----------------------------------------------------------------------
-#: Quadrature on the reference triangle (ξ, η ≥ 0, ξ + η ≤ 1): points and weights summing to ½.
-#: P1 uses the centroid (gradients are constant); P2 the 6-point rule of degree 4 (Dunavant), exact
-#: for straight P2 stiffness and accurate for curved (isoparametric) cells.
-_A, _B = 0.445948490915965, 0.091576213509771
-_RULES = {
-    3: (np.array([[1.0 / 3.0, 1.0 / 3.0]]), np.array([0.5])),
-    6: (np.array([[_A, _A], [1 - 2 * _A, _A], [_A, 1 - 2 * _A], [_B, _B], [1 - 2 * _B, _B], [_B, 1 - 2 * _B]]),
-        0.5 * np.array([0.223381589678011] * 3 + [0.109951743655322] * 3)),
-}
-
-
-def quadrature(nodes: int) -> tuple[np.ndarray, np.ndarray]:
-    """The element rule of P1 (``nodes`` = 3) or P2 (6) cells: reference points ``(q, 2)``, weights ``(q,)``."""
-    return _RULES[nodes]
-
-
-def shape_functions(nodes: int, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Values ``(q, k)`` and reference gradients ``(q, k, 2)`` of the P1 (k = 3) or P2 (k = 6) basis."""
-    s, t = xi[:, 0], xi[:, 1]
-    r = 1.0 - s - t
-    if nodes == 3:
-        values = np.column_stack([r, s, t])
-        gradients = np.broadcast_to(np.array([[-1.0, -1.0], [1.0, 0.0], [0.0, 1.0]]), (len(xi), 3, 2)).copy()
-        return values, gradients
-    values = np.column_stack([r * (2 * r - 1), s * (2 * s - 1), t * (2 * t - 1), 4 * r * s, 4 * s * t, 4 * t * r])
-    ds = np.column_stack([1 - 4 * r, 4 * s - 1, 0 * s, 4 * (r - s), 4 * t, -4 * t])
-    dt = np.column_stack([1 - 4 * r, 0 * s, 4 * t - 1, -4 * s, 4 * s, 4 * (r - t)])
-    return values, np.stack([ds, dt], axis=2)
-
-
-def element_geometry(points: np.ndarray, cells: np.ndarray, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """At reference points ``xi``: det J ``(m, q)`` and physical gradients ``(m, q, k, 2)``."""
-    _, reference = shape_functions(cells.shape[1], xi)
-    nodes = points[cells]  # (m, k, 2)
-    jacobian = np.einsum("mkd,qke->mqde", nodes, reference)  # dx_d/dξ_e
-    det = jacobian[..., 0, 0] * jacobian[..., 1, 1] - jacobian[..., 0, 1] * jacobian[..., 1, 0]
-    inverse = np.stack([np.stack([jacobian[..., 1, 1], -jacobian[..., 0, 1]], -1),
-                        np.stack([-jacobian[..., 1, 0], jacobian[..., 0, 0]], -1)], -2) / det[..., None, None]
-    return det, np.einsum("qke,mqed->mqkd", reference, inverse)
+from ddsolve.errors import SceneError
+from ddsolve.mesh.element import TRIANGLE_RULES, edge_points, edge_shapes, element_geometry, gauss_interval
+from ddsolve.mesh.mesh import BLOCKS, HalfMesh, Mesh, SigmaLine
+from ddsolve.problem import materials
+from ddsolve.problem.scene import LAYERS, Load, Scene
 
 
 def strain_operator(gradients: np.ndarray) -> np.ndarray:
@@ -81,7 +40,7 @@ def element_dofs(cells: np.ndarray) -> np.ndarray:
 
 def element_stiffness(points: np.ndarray, cells: np.ndarray, D: np.ndarray) -> np.ndarray:
     """``(m, 2k, 2k)`` element stiffness matrices ∫ Bᵀ D B."""
-    xi, weights = _RULES[cells.shape[1]]
+    xi, weights = TRIANGLE_RULES[cells.shape[1]]
     det, gradients = element_geometry(points, cells, xi)
     out = np.zeros((len(cells), 2 * cells.shape[1], 2 * cells.shape[1]))
     for q, weight in enumerate(weights):
@@ -421,7 +380,7 @@ def rigid_body_modes(points: np.ndarray, centre: np.ndarray | None = None) -> np
 
 
 def elasticity(scene: Scene, layer: str) -> tuple[np.ndarray, np.ndarray]:
-    """(D, c) of a layer under the scene's plane model (see :func:`ddsolve.materials.elasticity`)."""
+    """(D, c) of a layer under the scene's plane model (see :func:`ddsolve.problem.materials.elasticity`)."""
     return materials.elasticity(scene.materials[layer], scene.model)
 
 
@@ -454,7 +413,7 @@ def csr_matvec(system: BlockSystem, x: np.ndarray) -> np.ndarray:
 # --- fields of a solution ---------------------------------------------------------------------------
 def cell_strains(points: np.ndarray, cells: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per cell: area ``(m,)`` and mean strain (εxx, εyy, γxy) ``(m, 3)`` of the field u ``(n, 2)``."""
-    xi, weights = _RULES[cells.shape[1]]
+    xi, weights = TRIANGLE_RULES[cells.shape[1]]
     det, gradients = element_geometry(points, cells, xi)
     local = u.reshape(-1)[element_dofs(cells)]
     strain = np.einsum("mqij,mj->mqi", strain_operator(gradients), local)
@@ -469,7 +428,7 @@ def energy(points: np.ndarray, cells: np.ndarray, D: np.ndarray, u: np.ndarray) 
 
 def cell_energies(points: np.ndarray, cells: np.ndarray, D: np.ndarray, u: np.ndarray) -> np.ndarray:
     """Per cell ∫ ε(u)ᵀ D ε(u) (twice the strain energy of the cell)."""
-    xi, weights = _RULES[cells.shape[1]]
+    xi, weights = TRIANGLE_RULES[cells.shape[1]]
     det, gradients = element_geometry(points, cells, xi)
     strain = np.einsum("mqij,mj->mqi", strain_operator(gradients), u.reshape(-1)[element_dofs(cells)])
     return np.einsum("mq,q,mqi,ij,mqj->m", det, weights, strain, D, strain)
@@ -484,3 +443,55 @@ def von_mises(points: np.ndarray, cells: np.ndarray, D: np.ndarray, c: np.ndarra
     """Per-cell von Mises stress of the mean strain (σzz from the plane model included)."""
     _, strain = cell_strains(points, cells, u)
     return materials.von_mises(*cell_stresses(D, c, strain))
+
+
+# ---------------------------------------------------------------------------------------------
+#: Stiffnesses (the largest entry of a layer's elastic matrix) whose element matrices stay normal
+#: double-precision numbers on any sensible mesh.
+STIFFNESS_RANGE = (1e-280, 1e280)
+
+
+#: Displacements whose squares (norms, energies) stay far inside double precision.
+DISPLACEMENT_RANGE = (1e-100, 1e100)
+
+
+def check_range(scene: Scene, mesh) -> None:
+    """Refuse moduli and loads a double-precision solve cannot represent, naming their keys.
+
+    Each layer's stiffness is the largest entry of its elastic matrix; its displacements are of
+    order (largest traction on the layer) × (size of the mesh) / stiffness.  Blocks are scaled to
+    order one (:class:`ddsolve.parallel.blocks.Block`), so only the ranges matter: stiffnesses within
+    STIFFNESS_RANGE, displacements within DISPLACEMENT_RANGE (their squares must not overflow).
+    A load that is not finite or singular on its boundary is refused first (:func:`ddsolve.fem.assembly.load_extent`).
+    """
+    import numpy as np
+
+
+    points = np.vstack([half.points for half in mesh.halves])
+    size = float(np.ptp(points, axis=0).max())
+    for layer in LAYERS:
+        key = f"materials.{layer}" + (".E" if isinstance(scene.materials[layer], materials.Isotropic) else "")
+        with np.errstate(all="ignore"):
+            D, _ = materials.elasticity(scene.materials[layer], scene.model)
+        stiffness = float(np.abs(D).max())
+        low, high = STIFFNESS_RANGE
+        if not low <= stiffness <= high:
+            raise SceneError(f"{key}: the elastic matrix has entries of {stiffness:.3g}, outside the range a "
+                             f"double-precision solve represents ({low:g} to {high:g}): change the unit of stress")
+        traction, worst = 0.0, None
+        for (name, boundary), load in scene.loads.items():
+            if name != layer:
+                continue
+            for half in mesh.halves:
+                if boundary not in half.boundaries:
+                    continue
+                value = load_extent(half.points, half.edges(boundary), load)
+                if value > traction:
+                    traction, worst = value, load.key
+        displacement = traction * size / stiffness
+        low, high = DISPLACEMENT_RANGE
+        if worst is not None and not (traction == 0.0 or low <= displacement <= high):
+            raise SceneError(f"{key}: the elastic matrix (largest entry {stiffness:.3g}) with {worst} up to "
+                             f"{traction:.3g} on a domain of size {size:.3g} gives displacements of order "
+                             f"{displacement:.1g}, outside the range a double-precision solve represents ({low:g} to "
+                             f"{high:g}): change the units of the moduli and the loads")

@@ -24,24 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .mesh import SigmaLine
-
-
-
-@dataclass(frozen=True)
-class BlockSpec:
-    name: str
-    layer: str
-    side: int  # -1: lower half, +1: upper half
-
-
-BLOCKS = (
-    BlockSpec("u_minus", "layer1", -1),
-    BlockSpec("u_plus", "layer1", +1),
-    BlockSpec("v_minus", "layer2", -1),
-    BlockSpec("v_plus", "layer2", +1),
-)
-U_MINUS, U_PLUS, V_MINUS, V_PLUS = range(4)
+from ddsolve.mesh.mesh import BLOCKS, U_MINUS, U_PLUS, V_MINUS, V_PLUS, SigmaLine
 
 
 @dataclass(frozen=True)

@@ -12,12 +12,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from . import scene as scenes
-from .analysis import along_sigma, layer_stresses, normal_jump
-from .interface import BLOCKS
+from ddsolve.mesh.mesh import BLOCKS
+from ddsolve.post.analysis import along_sigma, layer_stresses, normal_jump
+from ddsolve.problem import scene as scenes
 
 if TYPE_CHECKING:
-    from .result import Result
+    from ddsolve.post.result import Result
 
 
 #: Axis-label units.

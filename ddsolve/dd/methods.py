@@ -2,7 +2,7 @@
 
 A method sees the blocks only through a :class:`Rounds` object: each call is one round of block
 solves on all ranks (``solve``) or one collection of the blocks' Schur complements on Σ.
-Loads, traces and multipliers are related by :class:`~ddsolve.interface.Interface`:
+Loads, traces and multipliers are related by :class:`~ddsolve.dd.interface.Interface`:
 x_b(λ) = K_b⁻¹(f_b + ℓ_b(λ)) with ℓ(λ) = −Cᵀ W λ, and the constraint gap is C t.
 
 The fast methods solve the dual problem in the W-scaled variable y = W^½ λ,
@@ -23,10 +23,10 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-from .analysis import Constraints, kkt, kkt_tolerance
-from .errors import SolverError
-from .interface import Interface
-from .scene import Solver
+from ddsolve.dd.constraints import Constraints, kkt, kkt_tolerance
+from ddsolve.dd.interface import Interface
+from ddsolve.errors import SolverError
+from ddsolve.problem.scene import Solver
 
 
 class Rounds(Protocol):
@@ -535,7 +535,7 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
 # --- the final solve and the convergence claim ---------------------------------------------------
 def final_solve(rounds: Rounds, interface: Interface, solver: Solver, outcome: Outcome) -> Constraints:
     """One full round for the method's multipliers (the displacements that are written), then the
-    check of their KKT residuals against :func:`~ddsolve.analysis.kkt_tolerance`: a method that
+    check of their KKT residuals against :func:`~ddsolve.dd.constraints.kkt_tolerance`: a method that
     stopped on its own rule is converged only if they pass.  A method that can refine its
     multipliers (``outcome.refine``) gets another round when they do not, or when it asks for one, up to
     :data:`MAX_REFINEMENTS` times."""

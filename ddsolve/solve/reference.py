@@ -12,15 +12,17 @@ import time
 
 import numpy as np
 
-from . import analysis, assembly, estimate, fracture
-from .assembly import BlockSystem, coo_to_csr
-from .blocks import Block
-from .errors import SceneError, SolverError
-from .interface import BLOCKS, Interface, for_mesh
-from .io import provenance
-from .mesh import Mesh
-from .result import Result
-from .scene import Scene
+from ddsolve.dd import constraints
+from ddsolve.dd.interface import Interface, for_mesh
+from ddsolve.errors import SceneError, SolverError
+from ddsolve.fem import assembly
+from ddsolve.fem.assembly import BlockSystem, coo_to_csr
+from ddsolve.mesh.mesh import BLOCKS, Mesh
+from ddsolve.parallel.blocks import Block
+from ddsolve.parallel.launch import provenance
+from ddsolve.post import analysis, estimate, fracture
+from ddsolve.post.result import Result
+from ddsolve.problem.scene import Scene
 
 MAX_ACTIVE_SET_STEPS = 100
 
@@ -116,13 +118,13 @@ def solve(scene: Scene, mesh: Mesh) -> Result:
     check_bound(scene.solver.p, lam)
     elapsed = time.perf_counter() - started
     energy = sum(0.5 * u @ assembly.csr_matvec(s, u) - s.rhs @ u for s, u in zip(systems, fields))
-    checked = analysis.kkt(interface, traces, lam, None,
+    checked = constraints.kkt(interface, traces, lam, None,
                            np.array([analysis.block_residual(s, u, load)
                                      for s, u, load in zip(systems, fields, interface.loads(lam))]),
                            analysis.largest_displacement(u.reshape(-1, 2) for u in fields))
-    violations = checked.violations(analysis.kkt_tolerance(None))
+    violations = checked.violations(constraints.kkt_tolerance(None))
     message = (f"reference: the solution violates {', '.join(violations)} (scale-free tolerance "
-               f"{analysis.kkt_tolerance(None):g}): the problem is too ill-conditioned for double precision"
+               f"{constraints.kkt_tolerance(None):g}): the problem is too ill-conditioned for double precision"
                if violations else "")
     frames = mesh.sigma.frames[mesh.sigma.multiplier_nodes]
     solution = {spec.name: assembly.to_global(u, assembly.trace_nodes(mesh.half(spec.side), mesh.sigma), frames)
@@ -136,8 +138,8 @@ def solve(scene: Scene, mesh: Mesh) -> Result:
         timings={"factorization": factorization, "total": elapsed},
         message=message,
         attrs={**provenance(), "closed_vertices": int(closed.sum()), "energy": float(energy),
-               "error_estimate": estimated.relative, "kkt_tolerance": analysis.kkt_tolerance(None),
-               **{f"kkt_{name}": getattr(checked, name) for name in analysis.Constraints.NAMES}},
+               "error_estimate": estimated.relative, "kkt_tolerance": constraints.kkt_tolerance(None),
+               **{f"kkt_{name}": getattr(checked, name) for name in constraints.Constraints.NAMES}},
         indicators=estimated.indicators,
     )
     result.fracture = fracture.of_result(result, tips)

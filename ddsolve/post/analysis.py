@@ -5,14 +5,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import assembly, materials, scene as scenes
-from .errors import DDSolveError
-from .interface import BLOCKS, Interface, for_mesh
-from .result import Result
+from ddsolve.dd.constraints import Constraints, kkt, kkt_tolerance, scale_free_ratio
+from ddsolve.dd.interface import Interface, for_mesh
+from ddsolve.errors import DDSolveError
+from ddsolve.fem import assembly
+from ddsolve.mesh import element
+from ddsolve.mesh.mesh import BLOCKS
+from ddsolve.post.result import Result
+from ddsolve.problem import materials
+from ddsolve.problem import scene as scenes
 
 
 def elasticities(result: Result) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Layer -> (D, c) of the result's scene (see :func:`ddsolve.materials.elasticity`)."""
+    """Layer -> (D, c) of the result's scene (see :func:`ddsolve.problem.materials.elasticity`)."""
     scene = scenes.loads(result.scene)
     return {layer: assembly.elasticity(scene, layer) for layer in scenes.LAYERS}
 
@@ -71,53 +76,6 @@ def compare(a: Result, b: Result, names: tuple[str, str] = ("the result", "the r
     return Comparison(float(relative), float(difference), float(largest))
 
 
-#: The smallest tolerance of the final check: residuals at round-off level (with room for the
-#: conditioning of fine or strongly graded meshes) always pass.
-KKT_FLOOR = 1e-9
-#: The final check allows this multiple of a scale-free stopping tolerance (kkt, relative).
-KKT_FACTOR = 100.0
-#: The tolerance of the final check for the paper's dimensional stopping rule, which has no
-#: scale-free meaning of its own.
-KKT_PAPER = 1e-5
-
-
-def kkt_tolerance(solver: scenes.Solver | None) -> float:
-    """The scale-free tolerance every residual of :class:`Constraints` must meet for a result to be
-    called converged: round-off level for exact solves (``solver`` None: the reference), else
-    KKT_FACTOR × the stopping tolerance (KKT_PAPER for the paper's rule), never below KKT_FLOOR."""
-    if solver is None:
-        return KKT_FLOOR
-    if solver.stop == "paper":
-        return KKT_PAPER
-    return max(KKT_FLOOR, KKT_FACTOR * solver.tol)
-
-
-@dataclass(frozen=True)
-class Constraints:
-    """The KKT residuals of a result, each scale-free (0 for an exact solution)."""
-
-    penetration: float  # max (u⁻ − u⁺)·ν > 0 over crack nodes under non-penetration, / max|u|
-    gluing_gap: float  # max |gluing gap| over Σ (but the gap a multiplier at its bound ±p allows), / max|u|
-    complementarity: float  # max |μᶜ [u]·ν| (but where μᶜ = p) / (max|λ| max|u|)
-    multiplier_bounds: float  # max violation of 0 ≤ μᶜ ≤ p, |μ| ≤ p (a pull on closed crack faces), / max|λ|
-    equilibrium: float  # max over blocks of ‖K x − f − ℓ(λ)‖∞ / (‖K‖∞‖x‖∞ + ‖f + ℓ(λ)‖∞)
-    min_mu_c: float  # smallest contact multiplier (≥ 0 when dual feasible)
-    max_displacement: float  # max nodal |u|
-
-    NAMES = ("penetration", "gluing_gap", "complementarity", "multiplier_bounds", "equilibrium")
-
-    def violations(self, tolerance: float) -> list[str]:
-        """``name value`` of every residual above ``tolerance`` (or not a number), worst first."""
-        values = {name: getattr(self, name) for name in self.NAMES}
-        bad = [(name, value) for name, value in values.items() if not value <= tolerance]
-        bad.sort(key=lambda item: -item[1] if np.isfinite(item[1]) else -np.inf)
-        return [f"{name.replace('_', ' ')} {value:.2e}" for name, value in bad]
-
-    def summary(self) -> str:
-        labels = {"penetration": "max penetration", "gluing_gap": "max gluing gap",
-                  "equilibrium": "equilibrium residual"}
-        return "   ".join(f"{labels.get(name, name.replace('_', ' '))} {getattr(self, name):.3e}" for name in self.NAMES)
-
 
 def local_traces(result: Result) -> np.ndarray:
     """``(4, 2k)``: each block's displacements at the multiplier nodes in their (tangent, normal) frames."""
@@ -127,7 +85,7 @@ def local_traces(result: Result) -> np.ndarray:
 
 
 def multiplier_vector(interface: Interface, multipliers: dict[str, np.ndarray], frames: np.ndarray) -> np.ndarray:
-    """The λ of ``interface`` whose :meth:`~ddsolve.interface.Interface.split` (in (x, y)) is ``multipliers``."""
+    """The λ of ``interface`` whose :meth:`~ddsolve.dd.interface.Interface.split` (in (x, y)) is ``multipliers``."""
     lam = np.zeros(interface.size)
     rows = interface.slices["mu_c"]
     lam[rows] = multipliers["mu_c"][interface.vertex[rows]]
@@ -138,12 +96,6 @@ def multiplier_vector(interface: Interface, multipliers: dict[str, np.ndarray], 
     return lam
 
 
-def _ratio(value: float, scale: float) -> float:
-    """value / scale, 0 when the value is 0 (nothing to compare), NaN-propagating."""
-    if value == 0.0:
-        return 0.0
-    return value / scale if scale > 0.0 else np.inf
-
 
 def block_residual(system: assembly.BlockSystem, x: np.ndarray, load: np.ndarray) -> float:
     """‖K x − f − E ℓ‖∞ / (‖K‖∞‖x‖∞ + ‖f + E ℓ‖∞) for a whole block system, its solution ``x`` and
@@ -153,7 +105,7 @@ def block_residual(system: assembly.BlockSystem, x: np.ndarray, load: np.ndarray
     residual = float(np.abs(assembly.csr_matvec(system, x) - b).max(initial=0.0))
     rows = np.repeat(np.arange(system.size), np.diff(system.indptr))
     norm = float(np.bincount(rows, np.abs(system.data), minlength=system.size).max(initial=0.0))
-    return _ratio(residual, norm * float(np.abs(x).max(initial=0.0)) + float(np.abs(b).max(initial=0.0)))
+    return scale_free_ratio(residual, norm * float(np.abs(x).max(initial=0.0)) + float(np.abs(b).max(initial=0.0)))
 
 
 def equilibrium_residuals(result: Result, scene: scenes.Scene, interface: Interface, lam: np.ndarray) -> np.ndarray:
@@ -167,32 +119,6 @@ def equilibrium_residuals(result: Result, scene: scenes.Scene, interface: Interf
                                                                   frames), load))
     return np.array(out)
 
-
-def kkt(interface: Interface, traces: np.ndarray, lam: np.ndarray, p: float | None, equilibrium: np.ndarray,
-        largest: float) -> Constraints:
-    """The KKT residuals from the blocks' traces ``(4, 2k)`` (local frames) under the multipliers
-    ``lam`` (bound ``p``), their equilibrium residuals and the largest nodal displacement."""
-    gap = interface.gap(traces)
-    lower, upper = interface.bounds(p)
-    slack = 1e-9 * np.abs(upper[np.isfinite(upper)]).max(initial=0.0)
-    at_lower, at_upper = lam <= lower + slack, lam >= upper - slack
-    violated = np.where(at_upper, np.maximum(-gap, 0.0), np.where(at_lower, np.maximum(gap, 0.0), np.abs(gap)))
-    contact = interface.is_contact
-    mu_c = lam[contact]
-    bounds = float(np.maximum(lower - lam, lam - upper).max(initial=0.0))
-    finite = bool(np.all(np.isfinite(traces)) and np.all(np.isfinite(lam)) and np.isfinite(largest))
-    nan = float("nan")
-    return Constraints(
-        penetration=_ratio(float(np.where(at_upper, 0.0, np.maximum(gap, 0.0))[contact].max(initial=0.0)), largest)
-        if finite else nan,
-        gluing_gap=_ratio(float(violated[~contact].max(initial=0.0)), largest) if finite else nan,
-        complementarity=_ratio(float(np.abs(np.where(at_upper, 0.0, lam * gap)[contact]).max(initial=0.0)),
-                               float(np.abs(lam).max(initial=0.0)) * largest) if finite else nan,
-        multiplier_bounds=_ratio(max(bounds, 0.0), float(np.abs(lam).max(initial=0.0))) if finite else nan,
-        equilibrium=float(np.max(equilibrium, initial=0.0)),
-        min_mu_c=float(mu_c.min(initial=0.0)),
-        max_displacement=float(largest),
-    )
 
 
 def constraints(result: Result, equilibrium: np.ndarray | None = None) -> Constraints:
@@ -266,11 +192,11 @@ def interpolate(half, values: np.ndarray, points: np.ndarray) -> np.ndarray:
     nodes = half.points[half.cells[cell]]  # (q, k, 2)
     k = half.cells.shape[1]
     for _ in range(8 if k == 6 else 0):  # Newton on x(ξ) = points
-        shapes, gradients = assembly.shape_functions(k, xi)
+        shapes, gradients = element.shape_functions(k, xi)
         residual = np.einsum("qk,qkd->qd", shapes, nodes) - points
         jacobian = np.einsum("qkd,qke->qde", nodes, gradients)
         xi = xi - np.linalg.solve(jacobian, residual[..., None])[..., 0]
-    shapes, _ = assembly.shape_functions(k, xi)
+    shapes, _ = element.shape_functions(k, xi)
     return np.einsum("qk,qkc->qc", shapes, values[half.cells[cell]])
 
 

@@ -1,0 +1,1 @@
+"""Finite elements: assembly of the blocks' stiffness matrices and loads, fields of a solution."""

@@ -1,0 +1,1 @@
+"""Files: HDF5 results, viewer files, safe replacement of file sets."""

@@ -1,0 +1,123 @@
+"""ParaView view of a ddsolve result, written by ddsolve beside its viewer files.
+
+    pvpython THIS_FILE --png picture.png   # headless (add xvfb-run -a where there is no display)
+    paraview --script=THIS_FILE            # interactive
+
+Both layers side by side, displacements magnified by SCALE (the largest displacement drawn as a
+fixed fraction of the domain), cells coloured by von Mises stress up to its PERCENTILE-th percentile
+(the corner singularities would otherwise set the range), and the opening [u].nu of the crack faces
+with the contact pressure along Sigma.
+"""
+import argparse
+import os
+import sys
+
+from paraview.simple import (AssignViewToLayout, ColorBy, CreateLayout, CreateView, GetColorTransferFunction,
+                             GetScalarBar, OpenDataFile, Render, SaveScreenshot, Show, Text, WarpByVector)
+
+@SETTINGS@
+
+if "__file__" in globals():  # pvpython
+    HERE = os.path.dirname(os.path.abspath(__file__))
+else:  # ParaView's GUI runs scripts without __file__: where the files were written, else the working folder
+    HERE = WRITTEN_TO if os.path.isfile(os.path.join(WRITTEN_TO, FILES["layer1"])) else os.getcwd()
+DARK = [0.1, 0.1, 0.1]
+IMAGE = [1600, 1000]  # pixels of the --png picture
+LAYERS_HEIGHT = 0.62  # the layers' share of the height; the chart below
+#: A layer's view in that picture, and the band of its height (fractions) between the colour bar
+#: and the title, where the camera puts the layer.
+VIEW_PIXELS = [IMAGE[0] / (1 if STACKED else 2), IMAGE[1] * LAYERS_HEIGHT / (2 if STACKED else 1)]
+BAND = (110.0 / VIEW_PIXELS[1], 1.0 - 50.0 / VIEW_PIXELS[1])
+
+
+def optional(proxy, **values):
+    """Set the properties this ParaView version has (names change between versions)."""
+    for key, value in values.items():
+        try:
+            setattr(proxy, key, value)
+        except AttributeError:
+            pass
+
+
+def layer_view(layer):
+    reader = OpenDataFile(os.path.join(HERE, FILES[layer]))
+    warped = WarpByVector(Input=reader, Vectors=["POINTS", "displacement"], ScaleFactor=SCALE)
+    view = CreateView("RenderView")
+    view.OrientationAxesVisibility = 0
+    optional(view, UseColorPaletteForBackground=0)
+    view.Background = [1.0, 1.0, 1.0]
+    display = Show(warped, view)
+    display.Ambient, display.Diffuse = 1.0, 0.0  # flat colours: no lighting on a plane
+    ColorBy(display, ("CELLS", "von_mises"), separate=True)
+    lut = GetColorTransferFunction("von_mises", display, separate=True)
+    lut.ApplyPreset("Viridis (matplotlib)", True)
+    lut.AutomaticRescaleRangeMode = "Never"
+    lut.RescaleTransferFunction(0.0, CEILINGS[layer])
+    display.SetScalarBarVisibility(view, True)
+    bar = GetScalarBar(lut, view)
+    bar.Title = "von Mises stress (unit of E), top: %gth percentile" % PERCENTILE
+    bar.ComponentTitle = ""
+    bar.Orientation = "Horizontal"
+    bar.WindowLocation = "Lower Center"
+    bar.TitleColor = bar.LabelColor = DARK
+    optional(bar, TitleFontSize=22, LabelFontSize=20, ScalarBarLength=0.6, ScalarBarThickness=24,
+             RangeLabelFormat="%-#6.2g")
+    label = Show(Text(Text="%s, displacements x%g" % (TITLES[layer], SCALE)), view)
+    label.WindowLocation = "Upper Center"
+    label.FontSize = 26
+    label.Color = DARK
+    view.InteractionMode = "2D"
+    view.ResetCamera()
+    x0, x1, y0, y1, _, _ = warped.GetDataInformation().GetBounds()
+    low, high = BAND
+    scale = max((y1 - y0) / (2.0 * (high - low)), (x1 - x0) / (2.0 * 0.94 * VIEW_PIXELS[0] / VIEW_PIXELS[1]))
+    centre = [0.5 * (x0 + x1), 0.5 * (y0 + y1) - (low + high - 1.0) * scale, 0.0]
+    view.CameraFocalPoint, view.CameraPosition = centre, centre[:2] + [10.0 * scale]
+    view.CameraViewUp = [0.0, 1.0, 0.0]
+    view.CameraParallelScale = scale
+    return view
+
+
+def sigma_view():
+    reader = OpenDataFile(os.path.join(HERE, FILES["sigma"]))
+    view = CreateView("XYChartView")
+    view.ChartTitle = TITLE
+    view.BottomAxisTitle = SIGMA_X_LABEL
+    view.LeftAxisTitle = "opening (length unit)"
+    view.RightAxisTitle = "contact pressure (unit of E)"
+    optional(view, ChartTitleFontSize=26, LeftAxisTitleFontSize=22, BottomAxisTitleFontSize=22,
+             RightAxisTitleFontSize=22, LegendFontSize=20, LeftAxisLabelFontSize=18, BottomAxisLabelFontSize=18,
+             RightAxisLabelFontSize=18, ChartTitleBold=0, LeftAxisTitleBold=0, BottomAxisTitleBold=0,
+             RightAxisTitleBold=0)
+    line = Show(reader, view)
+    line.AttributeType = "Point Data"
+    line.UseIndexForXAxis = 0
+    line.XArrayName = SIGMA_X
+    line.SeriesVisibility = ["opening", "contact_pressure"]
+    line.SeriesPlotCorner = ["contact_pressure", "1"]
+    line.SeriesColor = ["opening", "0.12", "0.47", "0.71", "contact_pressure", "0.84", "0.15", "0.16"]
+    line.SeriesLabel = ["opening", "opening (u+ - u-).nu, left axis", "contact_pressure",
+                        "contact pressure, right axis"]
+    return view
+
+
+def main(argv):
+    parser = argparse.ArgumentParser(description="Show a ddsolve result in ParaView.")
+    parser.add_argument("--png", help="save the picture to this PNG file")
+    options, _ = parser.parse_known_args(argv)
+    layout = CreateLayout(TITLE)
+    layers = layout.SplitVertical(0, LAYERS_HEIGHT)
+    split = layout.SplitVertical if STACKED else layout.SplitHorizontal
+    first = split(layers, 0.5)
+    AssignViewToLayout(layer_view("layer1"), layout, hint=first)
+    AssignViewToLayout(layer_view("layer2"), layout, hint=first + 1)
+    AssignViewToLayout(sigma_view(), layout, hint=layers + 1)
+    if options.png:
+        layout.SetSize(*IMAGE)  # the picture's size (else the views are drawn small and magnified)
+    Render()
+    if options.png:
+        SaveScreenshot(options.png, layout, ImageResolution=IMAGE)
+        print("wrote " + options.png)
+
+
+main(getattr(sys, "argv", [""])[1:])  # ParaView's GUI may run scripts without sys.argv

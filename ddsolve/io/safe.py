@@ -1,0 +1,288 @@
+"""Safe writes: a file or a set of files replaced whole or not at all, never an input, with the
+temporaries of killed runs cleaned up; HDF5 files built in memory and written in one piece."""
+from __future__ import annotations
+
+import contextlib
+import glob
+import json
+import os
+import re
+import secrets
+import signal
+import socket
+import tempfile
+import threading
+from pathlib import Path
+from typing import Callable
+
+import h5py
+
+from ddsolve.errors import DDSolveError
+
+#: Temporary, backup and journal files of a write: ``.NAME.ddsolve~HOST~PID~RANDOM.tmp[.suffix]`` (the
+#: suffix keeps writers that look at it happy), ``.NAME.ddsolve~HOST~PID~RANDOM.bak`` and, during the
+#: renames of a set, ``.NAME.ddsolve~HOST~PID~RANDOM.journal`` (NAME: the set's first file).
+_SCRATCH = re.compile(r"^\.(?P<name>.+)\.ddsolve~(?P<host>[^~]*)~(?P<pid>\d+)~[0-9a-f]+\.(?P<kind>tmp|bak|journal)")
+
+
+#: Temporary and backup files being written now (removed by :func:`remove_scratch` on a forced exit).
+_LIVE: set[Path] = set()
+
+
+#: Held while a set of files is renamed into place: whoever ends the process on an interrupt (the
+#: watchdog of ddsolve.cli) takes it first, so that a set is never left half renamed.
+COMMIT = threading.Lock()
+
+
+#: True once the set of files that ends the command (``final``) is in place: an interrupt after that
+#: point changes nothing, and the command ends with status 0.
+committed = False
+
+
+def remove_scratch() -> None:
+    """Remove the temporary files of writes in progress (the previous files are untouched)."""
+    for path in list(_LIVE):
+        with contextlib.suppress(OSError):
+            path.unlink()
+
+
+def host_tag() -> str:
+    return re.sub(r"[^A-Za-z0-9_-]", "_", socket.gethostname()) or "host"
+
+
+def _scratch(path: Path, tag: str, kind: str) -> Path:
+    return path.parent / (f".{path.name}.{tag}.{kind}" + (path.suffix if kind == "tmp" else ""))
+
+
+def _writer_gone(match: re.Match) -> bool:
+    """Whether the process that wrote a scratch file (on this machine) no longer exists."""
+    if match["host"] != host_tag():
+        return False
+    pid = int(match["pid"])
+    try:
+        if pid != os.getpid():
+            os.kill(pid, 0)
+        return False  # its writer is alive
+    except ProcessLookupError:
+        return True
+    except (PermissionError, OverflowError):
+        return False
+
+
+def recover(paths: list[Path]) -> None:
+    """Finish the sets that a run killed while renaming them left behind in the folders of ``paths``
+    (their journals name every file, so the new set is put in place whole), then remove the temporary
+    and backup files of killed runs for ``paths``."""
+    for folder in dict.fromkeys(Path(path).parent for path in paths):
+        for journal in folder.glob(".*.ddsolve~*.journal"):
+            match = _SCRATCH.match(journal.name)
+            if match and _writer_gone(match):
+                _roll_forward(journal)
+    for path in paths:
+        remove_stale(path)
+
+
+def _roll_forward(journal: Path) -> None:
+    """Rename every temporary file a journal lists over its target, remove its backups, then the journal."""
+    try:
+        entries = json.loads(journal.read_text())
+        for temporary, target in entries["renames"]:
+            if os.path.lexists(temporary):
+                os.replace(temporary, target)
+        for backup in entries["backups"]:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(backup)
+        journal.unlink()
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise DDSolveError(f"{journal}: cannot finish the result files an interrupted run was renaming "
+                           f"({os_reason(exc) if isinstance(exc, OSError) else 'damaged journal'}); "
+                           "remove the journal and check the files it names") from None
+
+
+def remove_stale(path: Path) -> list[Path]:
+    """Remove the temporary and backup files that runs killed while writing ``path`` left behind
+    (those of a process on this machine that no longer exists); returns them."""
+    removed = []
+    for candidate in Path(path).parent.glob(f".{glob.escape(Path(path).name)}.ddsolve~*"):
+        match = _SCRATCH.match(candidate.name)
+        if not match or match["name"] != Path(path).name or candidate.name.endswith(".journal") \
+                or not _writer_gone(match):
+            continue
+        try:
+            candidate.unlink()
+            removed.append(candidate)
+        except OSError:
+            pass
+    return removed
+
+
+def same_file(path: Path, source: Path) -> bool:
+    return path.exists() and Path(source).exists() and os.path.samefile(path, source)
+
+
+def check_targets(paths: list[Path], inputs: list[Path] = ()) -> None:
+    """Refuse a set of output files that could not be written as a whole: an empty name, a name given
+    twice, an existing file that is not a regular file (a directory, a device, a FIFO), one of the
+    ``inputs``, or a folder that does not exist or where no file can be created."""
+    seen: dict[str, Path] = {}
+    for path in map(Path, paths):
+        if not path.name or str(path).endswith(os.sep):
+            raise DDSolveError(f"-o {str(path)!r}: not a file name")
+        key = os.path.abspath(path)
+        if key in seen:
+            raise DDSolveError(f"{path}: written twice in one set of result files")
+        seen[key] = path
+        if path.is_symlink():
+            continue  # the link itself is replaced, never its target
+        if path.exists() and not path.is_file():
+            kind = "a directory" if path.is_dir() else "not a regular file"
+            raise DDSolveError(f"{path}: is {kind}; ddsolve replaces regular files only: choose another -o")
+        for source in inputs:
+            if same_file(path, source):
+                raise DDSolveError(f"{path}: is an input of this run ({source}); choose another -o")
+    for folder, path in {Path(path).parent: Path(path) for path in reversed(paths)}.items():
+        if not folder.is_dir():
+            raise DDSolveError(f"{path}: output directory {folder} does not exist")
+        try:
+            handle, probe = tempfile.mkstemp(prefix=".ddsolve-probe.", dir=folder)
+            os.close(handle)
+            os.unlink(probe)
+        except OSError as exc:
+            raise DDSolveError(f"{path}: cannot write in {folder} ({exc.strerror or exc})") from None
+
+
+@contextlib.contextmanager
+def commit_section():
+    """The renames of a set: SIGINT and SIGTERM are deferred (blocked on this thread, and their Python
+    handlers, which run on the main thread whichever thread the signal reaches, only note them) and
+    :data:`COMMIT` is held, so the watchdog does not end the process in the middle either.  The noted
+    signals are raised again afterwards."""
+    received: list[int] = []
+    previous = {}
+    deferred = {signal.SIGINT, signal.SIGTERM}
+    with COMMIT:
+        main = threading.current_thread() is threading.main_thread()
+        if main:
+            blocked = signal.pthread_sigmask(signal.SIG_BLOCK, deferred)
+            for signum in deferred:
+                previous[signum] = signal.signal(signum, lambda number, _frame: received.append(number))
+        try:
+            yield
+        finally:
+            if main:
+                received += [signum for signum in signal.sigpending() & deferred if signum not in blocked]
+                for signum, handler in previous.items():
+                    signal.signal(signum, handler)
+                for signum in received:  # consume them here; they are raised again below
+                    if signum in signal.sigpending():
+                        signal.sigwait({signum})
+                signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
+    for signum in dict.fromkeys(received):
+        signal.raise_signal(signum)
+
+
+def replace_together(writers: dict[Path, Callable[[str], None]], final: bool = False) -> None:
+    """Write a set of files so that they replace the previous ones together or not at all.
+
+    Each ``write(temporary)`` writes its file under a temporary name in the target's folder; only
+    when every one has succeeded does the commit begin, with interrupts deferred (:func:`commit_section`):
+    a journal naming every rename is written (the commit point), the previous versions are kept as
+    hard links (or renamed away), every temporary file is renamed over its target, then the journal
+    and the backups are removed.  A failed rename puts the previous set back.  On any failure or
+    interrupt before the commit point the temporary files are removed and the previous files are left
+    as they were.  A run killed (SIGKILL) after the commit point leaves its journal: the next write or
+    read of these files (:func:`recover`) completes the renames, so the set seen is always one whole
+    set.  ``final``: this set ends the command (a later interrupt ends it with status 0,
+    :data:`committed`).
+    """
+    global committed
+    paths = [Path(path) for path in writers]
+    check_targets(paths)
+    recover(paths)
+    tag = f"ddsolve~{host_tag()}~{os.getpid()}~{secrets.token_hex(4)}"
+    temporaries: dict[Path, Path] = {}
+    backups: dict[Path, Path] = {}
+    journal = _scratch(paths[0], tag, "journal")
+    draft = journal.with_name(journal.name + ".tmp")  # the journal while it is written
+    try:
+        for path, write in zip(paths, writers.values()):
+            temporaries[path] = _scratch(path, tag, "tmp")
+            _LIVE.add(temporaries[path])
+            try:
+                temporaries[path].open("xb").close()
+            except OSError as exc:
+                raise DDSolveError(f"{path}: cannot write in {path.parent} ({exc.strerror or exc})") from None
+            try:
+                write(str(temporaries[path]))
+                os.chmod(temporaries[path], 0o644)
+            except OSError as exc:
+                raise DDSolveError(f"{path}: cannot write ({os_reason(exc)})") from None
+        backups = {path: _scratch(path, tag, "bak") for path in paths if os.path.lexists(path)}
+        entries = json.dumps({"renames": [[str(temporaries[path].absolute()), str(path.absolute())] for path in paths],
+                              "backups": [str(backup.absolute()) for backup in backups.values()]})
+        moved: set[Path] = set()  # previous versions renamed away (no hard links here)
+        done: list[Path] = []
+        try:
+            with commit_section():
+                draft.write_text(entries)
+                os.replace(draft, journal)  # the commit point
+                for path, backup in backups.items():
+                    if _keep(path, backup):
+                        moved.add(path)
+                for path in paths:
+                    os.replace(temporaries[path], path)
+                    done.append(path)
+                journal.unlink()
+                committed = final
+        except OSError as exc:
+            for path in paths:  # undo: the previous set comes back
+                if path in done and path not in backups:
+                    os.unlink(path)
+                elif path in done or path in moved:
+                    os.replace(backups[path], path)
+            failed = next((path for path in paths if path not in done), paths[0])
+            raise DDSolveError(f"{failed}: cannot replace ({exc.strerror or exc}); the previous files are kept") \
+                from None
+    finally:
+        for scratch in (*temporaries.values(), *backups.values(), draft, journal):
+            if os.path.lexists(scratch):
+                os.unlink(scratch)
+        _LIVE.difference_update(temporaries.values())
+
+
+def _keep(path: Path, backup: Path) -> bool:
+    """Keep the current ``path`` as ``backup``: a hard link, else (file systems without them) a
+    rename; returns whether it was renamed away."""
+    try:
+        os.link(path, backup, follow_symlinks=False)
+        return False
+    except OSError:
+        os.replace(path, backup)
+        return True
+
+
+def os_reason(exc: OSError) -> str:
+    """The one-line reason of a failed write."""
+    return exc.strerror or " ".join(str(exc).split())
+
+
+@contextlib.contextmanager
+def hdf5_image(name: str):
+    """An HDF5 file built in memory and written to ``name`` in one piece when the block ends: the
+    HDF5 library never writes to the disk itself (a full disk would leave it broken), and a failed
+    write is a plain OSError."""
+    f = h5py.File(f"{name}.image", "w", driver="core", backing_store=False)
+    try:
+        yield f
+        f.flush()
+        image = f.id.get_file_image()
+    finally:
+        f.close()
+    with open(name, "wb") as out:
+        out.write(image)
+
+
+def atomic(path: Path, write: Callable[[str], None], final: bool = False) -> None:
+    """Call ``write(temporary_path)`` then rename over ``path``: never a truncated file (``final``: as
+    for :func:`replace_together`)."""
+    replace_together({Path(path): write}, final)

@@ -1,0 +1,1 @@
+"""Meshes: the two halves and Σ, the reference cells, and geometry (box, gmsh, mesh files)."""

@@ -1,0 +1,348 @@
+"""gmsh: a session in a child process (gmsh does not return to Python while it meshes), geometries and
+meshes with physical groups (.geo, .msh 2.2 and 4.1) read into a Mesh, and a Mesh written as .msh."""
+from __future__ import annotations
+
+import math
+import multiprocessing
+import os
+import signal
+from pathlib import Path
+from typing import Callable, TypeVar
+
+import numpy as np
+
+from ddsolve.environment import end_with_parent
+from ddsolve.errors import MeshError
+from ddsolve.mesh.mesh import CLAMPED, CRACK, SIGMA, TOL, Mesh, elevate, make_half, make_mesh, merge_repeats
+from ddsolve.mesh.sizing import SMALLEST, SizeMap, model_singular_points, node_positions, set_size_field
+from ddsolve.problem.scene import Scene, readable
+
+T = TypeVar("T")
+
+
+#: Physical groups a gmsh geometry must have.
+REQUIRED_GROUPS = {2: ("lower", "upper"), 1: (SIGMA, CLAMPED)}
+
+
+#: gmsh element types: triangle, 6-node triangle, line, 3-node line.
+GMSH_TRIANGLE, GMSH_TRIANGLE6, GMSH_LINE, GMSH_LINE3 = 2, 9, 1, 8
+
+
+# --- gmsh in a child process -------------------------------------------------------------------
+def apart(work: Callable[..., T], *args) -> T:
+    """``work(*args)`` in a forked child process; its value or exception comes back through a pipe.
+
+    gmsh does not return to Python while it meshes (a minute for a large mesh), so in this process a
+    signal handler would run only after it; here the parent waits in short steps, and on SIGTERM or
+    Ctrl-C it kills the child and goes on with its own clean exit.  (The child touches no MPI.)  The
+    child never outlives this process, however it ends (SIGKILL included): see :func:`_child`.
+    """
+    context = multiprocessing.get_context("fork")
+    receiver, sender = context.Pipe(duplex=False)
+    child = context.Process(target=_child, args=(os.getpid(), sender, work, args), daemon=True)
+    # An interrupt inside fork's hooks (logging's lock release) would be printed as "Exception ignored":
+    # it waits, blocked, until the child exists, and then reaches this process's handler as usual.
+    interrupts = {signal.SIGINT, signal.SIGTERM}
+    signal.pthread_sigmask(signal.SIG_BLOCK, interrupts)
+    try:
+        child.start()
+    finally:
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, interrupts)
+    sender.close()
+    try:
+        while not receiver.poll(0.05):
+            if not child.is_alive() and not receiver.poll(0.05):
+                break
+        try:
+            ok, value = receiver.recv()
+        except EOFError:  # the child ended without an answer (gmsh aborted it)
+            child.join()
+            raise MeshError(f"gmsh stopped without a mesh (it aborted, exit status {child.exitcode}): change the element "
+                            "sizes (mesh.size, mesh.grading, the sizes of a .geo) or the geometry") from None
+    finally:
+        receiver.close()
+        if child.is_alive():
+            child.kill()
+        child.join()
+    if not ok:
+        raise value
+    return value
+
+
+def _child(parent: int, sender, work, args) -> None:
+    # The kernel kills this process when its parent ends; SIGINT and SIGTERM end it at once (gmsh does
+    # not return to Python for them), and they no longer wake the parent's watchdog through the
+    # inherited wakeup fd: the parent, which gets them too, cleans up and kills this child itself.
+    end_with_parent(parent)
+    signal.set_wakeup_fd(-1)
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})  # blocked across the fork
+    quiet = os.open(os.devnull, os.O_WRONLY)  # gmsh writes its aborts to standard error: the parent reports
+    os.dup2(quiet, 2)
+    os.close(quiet)
+    try:
+        outcome = (True, work(*args))
+    except BaseException as exc:  # every error goes back to the parent, which raises it
+        outcome = (False, exc)
+    sender.send(outcome)
+    sender.close()
+
+
+# --- gmsh geometries with physical groups --------------------------------------------------------
+def has_halves(path: Path) -> bool:
+    """Whether a .msh file has the physical surfaces ``lower`` and ``upper`` (else it is a box file)."""
+    import gmsh
+
+    readable(path, "mesh file", MeshError)
+    gmsh.initialize([], readConfigFiles=False)
+    try:
+        _quiet(gmsh)
+        _open(gmsh, path)
+        names = {gmsh.model.getPhysicalName(dim, tag) for dim, tag in gmsh.model.getPhysicalGroups(2)}
+    finally:
+        gmsh.finalize()
+    return {"lower", "upper"} <= names
+
+
+def _quiet(gmsh) -> None:
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.option.setNumber("General.Verbosity", 0)
+
+
+def _open(gmsh, path: Path) -> None:
+    try:
+        gmsh.open(str(path))
+    except Exception as exc:  # gmsh raises a bare Exception with its last error
+        raise MeshError(f"{path}: gmsh cannot read it ({' '.join(str(exc).split())})") from None
+
+
+def from_gmsh(scene: Scene, background: SizeMap | None = None) -> Mesh:
+    """A .geo meshed or a .msh read by gmsh (:func:`_from_gmsh`) in a child process (:func:`apart`)."""
+    return apart(_from_gmsh, scene, background)
+
+
+def _from_gmsh(scene: Scene, background: SizeMap | None = None) -> Mesh:
+    """Mesh a .geo (honouring ``mesh.size``, ``mesh.grading`` and a ``background`` size map) or read a
+    .msh, both with physical groups."""
+    import gmsh
+
+    path, options = scene.mesh.file, scene.mesh
+    where = str(path)
+    if scene.geometry.given:
+        raise MeshError(f"{where}: geometry.{sorted(scene.geometry.given)[0]} does not apply to a geometry "
+                        "with physical groups (they define it)")
+    readable(path, "mesh file", MeshError)
+    gmsh.initialize([], readConfigFiles=False)
+    try:
+        _quiet(gmsh)
+        if options.kind == "geo":
+            gmsh.option.setNumber("General.NumThreads", 1)
+            gmsh.option.setNumber("Mesh.MaxNumThreads2D", 1)
+        _open(gmsh, path)
+        groups = _physical_groups(gmsh, where)
+        if options.kind == "geo":
+            if options.size is not None:
+                gmsh.option.setNumber("Mesh.MeshSizeMax", options.size)
+            low, high = np.reshape(gmsh.model.getBoundingBox(-1, -1), (2, 3))
+            length = float(np.min((high - low)[:2]))
+            _bounded_curves(gmsh, groups, options.degree, length, where)
+            if options.grading is not None or background is not None:
+                singular = model_singular_points(gmsh, groups) if options.grading is not None else None
+                set_size_field(gmsh, options, singular, length, background)
+            try:
+                gmsh.model.mesh.generate(2)
+                if options.degree == 2:
+                    gmsh.model.mesh.setOrder(2)
+            except Exception as exc:
+                raise MeshError(f"{where}: gmsh cannot mesh it ({' '.join(str(exc).split())})") from None
+        tags, coordinates, _ = gmsh.model.mesh.getNodes()
+        points = np.asarray(coordinates, dtype=np.float64).reshape(-1, 3)
+        if np.abs(points[:, 2]).max(initial=0.0) > TOL * max(np.ptp(points[:, :2], axis=0).max(), 1e-300):
+            raise MeshError(f"{where}: the geometry is not planar (z != 0)")
+        points = points[:, :2]
+        position = node_positions(tags)
+        surfaces = {name: _elements(gmsh, groups[(2, name)], (GMSH_TRIANGLE, GMSH_TRIANGLE6), position, where)
+                    for name in ("lower", "upper")}
+        curves = {name: _elements(gmsh, entities, (GMSH_LINE, GMSH_LINE3), position, where)
+                  for (dim, name), entities in groups.items() if dim == 1}
+        normals = _curve_normals(gmsh, groups[(1, SIGMA)], position, len(points)) if options.kind == "geo" else None
+    finally:
+        gmsh.finalize()
+    cells = surfaces["lower"]
+    if cells.shape[1] == 6 and options.degree == 1:
+        raise MeshError(f"{where}: the file has 6-node (P2) triangles: set mesh.degree = 2")
+    halves, renumbered = [], []
+    for side, name in ((-1, "lower"), (1, "upper")):
+        cells = surfaces[name]
+        used = np.zeros(len(points), dtype=bool)
+        used[cells] = True
+        mine = {curve: edges[used[edges].all(axis=1)] for curve, edges in curves.items()}
+        half_points = points
+        if cells.shape[1] == 3 and options.degree == 2:
+            half_points, cells, mine = elevate(points, cells, {k: v[:, :2] for k, v in mine.items()})
+        half, renumber = make_half(half_points, cells, side, mine, where)
+        halves.append(half)
+        renumbered.append(renumber)
+    exact = None
+    if normals is not None:
+        lower = halves[0]
+        old = np.full(len(lower.points), -1, dtype=np.int64)
+        old[renumbered[0][renumbered[0] >= 0]] = np.flatnonzero(renumbered[0] >= 0)
+        exact = normals[old[lower.sigma]]
+    return make_mesh(*halves, where, exact_normals=exact)
+
+
+def _bounded_curves(gmsh, groups: dict[tuple[int, str], list[int]], degree: int, length: float, where: str) -> None:
+    """Refuse a .geo whose own sizes (its points' sizes, Mesh.MeshSizeFactor, mesh.size) ask gmsh for more
+    than it can do: elements below ``SMALLEST`` × the geometry's length, or a mesh too large to solve in
+    this machine's memory.  Its curves are meshed without the factor and with sizes of at least that
+    floor (a bounded amount of work), measured, and the mesh cleared; the smallest size asked is the
+    shortest edge times the factor, the number of vertices is estimated from the nodes on each surface's
+    boundary (divided by the factor).  gmsh itself, asked for too many nodes on a curve, makes one
+    element of it without a word, or asks on the terminal whether to go on."""
+    from ddsolve.environment import RANK_MEMORY, VERTEX_MEMORY, physical_memory
+
+    floor = SMALLEST["geo"] * length
+    saved = {name: gmsh.option.getNumber(name) for name in ("Mesh.MeshSizeFactor", "Mesh.MeshSizeMin")}
+    factor = saved["Mesh.MeshSizeFactor"]
+    gmsh.option.setNumber("Mesh.MeshSizeFactor", 1.0)
+    gmsh.option.setNumber("Mesh.MeshSizeMin", max(saved["Mesh.MeshSizeMin"], floor))
+    try:
+        gmsh.model.mesh.generate(1)
+    except Exception as exc:
+        raise MeshError(f"{where}: gmsh cannot mesh it ({' '.join(str(exc).split())})") from None
+    finally:
+        for name, value in saved.items():
+            gmsh.option.setNumber(name, value)
+    tags, coordinates, _ = gmsh.model.mesh.getNodes()
+    points = np.asarray(coordinates, dtype=np.float64).reshape(-1, 3)[node_positions(tags)[
+        np.asarray(gmsh.model.mesh.getElementsByType(GMSH_LINE)[1], dtype=np.int64)]].reshape(-1, 2, 3)
+    shortest = factor * float(np.linalg.norm(points[:, 1] - points[:, 0], axis=1).min(initial=math.inf))
+    vertices = 0.0
+    for surface in groups[(2, "lower")] + groups[(2, "upper")]:
+        curves = {abs(tag) for _, tag in gmsh.model.getBoundary([(2, surface)], combined=False)}
+        boundary = sum(len(gmsh.model.mesh.getNodes(1, curve, includeBoundary=True)[0]) for curve in curves)
+        vertices += VERTICES_PER_BOUNDARY_NODE_SQUARED * (boundary / min(factor, 1.0)) ** 2 * degree ** 2
+    gmsh.model.mesh.clear()
+    if shortest <= 1.5 * floor:
+        raise MeshError(f"{where}: the file asks gmsh for elements of size {min(shortest, floor):.2g} or less (its points' "
+                        f"sizes times Mesh.MeshSizeFactor = {factor:g}), below what gmsh meshes reliably "
+                        f"({SMALLEST['geo']:g} × the geometry's size {length:.3g}): enlarge them")
+    memory = RANK_MEMORY + vertices * VERTEX_MEMORY
+    if memory > physical_memory():
+        raise MeshError(f"{where}: its sizes (its points' sizes, Mesh.MeshSizeFactor = {factor:g}, mesh.size) give a "
+                        f"mesh of about {vertices:.2g} vertices, which needs about {memory / 1e9:.2g} GB to solve, more "
+                        f"than this machine's {physical_memory() / 1e9:.3g} GB: enlarge them")
+
+
+#: Vertices of a uniform mesh of a surface per square of the number of nodes on its boundary: 0.072 for a
+#: square, 0.092 for a disc (2/√3 vertices per h², boundary length/h nodes).
+VERTICES_PER_BOUNDARY_NODE_SQUARED = 0.08
+
+
+def _physical_groups(gmsh, where: str) -> dict[tuple[int, str], list[int]]:
+    """(dim, name) -> entity tags; the required groups must exist."""
+    groups: dict[tuple[int, str], list[int]] = {}
+    for dim, tag in gmsh.model.getPhysicalGroups():
+        name = gmsh.model.getPhysicalName(dim, tag)
+        if dim in (1, 2) and name:
+            groups.setdefault((dim, name), []).extend(int(e) for e in gmsh.model.getEntitiesForPhysicalGroup(dim, tag))
+    for dim, names in REQUIRED_GROUPS.items():
+        for name in names:
+            if (dim, name) not in groups:
+                kind = "surface" if dim == 2 else "curve"
+                raise MeshError(f"{where}: missing physical {kind} {name!r} (required: surfaces lower, upper; "
+                                "curves sigma, clamped; optional: crack and names for loads)")
+    return groups
+
+
+def _elements(gmsh, entities: list[int], types: tuple[int, int], position: np.ndarray, where: str) -> np.ndarray:
+    """Node indices of the elements of ``entities`` (of the linear or the quadratic type), each once
+    (:func:`~ddsolve.mesh.mesh.merge_repeats`: a MSH 2.2 file lists an element once per physical group)."""
+    dim = 2 if types[0] == GMSH_TRIANGLE else 1
+    width = {GMSH_TRIANGLE: 3, GMSH_TRIANGLE6: 6, GMSH_LINE: 2, GMSH_LINE3: 3}
+    found = {t: [] for t in types}
+    for entity in dict.fromkeys(entities):
+        element_types, _, node_tags = gmsh.model.mesh.getElements(dim, entity)
+        in_groups = len(gmsh.model.getPhysicalGroupsForEntity(dim, entity))
+        for kind, nodes in zip(element_types, node_tags):
+            if kind in found:
+                found[kind].append(merge_repeats(np.asarray(nodes, dtype=np.int64).reshape(-1, width[kind]), in_groups))
+            elif dim == 2:
+                raise MeshError(f"{where}: the surfaces must hold triangles only (found gmsh element type {kind})")
+    kind = types[1] if found[types[1]] else types[0]
+    nodes = np.concatenate(found[kind]) if found[kind] else np.zeros((0, width[kind]), dtype=np.int64)
+    return position[nodes]
+
+
+def _curve_normals(gmsh, entities: list[int], position: np.ndarray, count: int) -> np.ndarray:
+    """Unit normals of Σ's curves at their nodes from gmsh's parametrization (NaN where unknown).
+
+    Inside a curve the normal is exact; at a point where curves meet it is exact when the curves
+    meeting there have the same tangent, and unknown at a kink (the caller averages the edges).
+    """
+    found: dict[int, list[np.ndarray]] = {}
+    for entity in entities:
+        tags, coordinates, _ = gmsh.model.mesh.getNodes(1, entity, includeBoundary=True, returnParametricCoord=False)
+        if len(tags) == 0:
+            continue
+        # Parameters recomputed from the coordinates: those stored with the nodes are less accurate.
+        parameters = gmsh.model.getParametrization(1, entity, coordinates)
+        derivative = np.asarray(gmsh.model.getDerivative(1, entity, parameters), dtype=float).reshape(-1, 3)[:, :2]
+        length = np.linalg.norm(derivative, axis=1)
+        for tag, d, size in zip(np.asarray(tags, dtype=np.int64), derivative, length):
+            if size > 0:
+                found.setdefault(int(tag), []).append(np.array([-d[1], d[0]]) / size)
+    normals = np.full((count, 2), np.nan)
+    for tag, candidates in found.items():
+        first = candidates[0]
+        if all(abs(abs(first @ other) - 1.0) < 1e-10 for other in candidates):  # one tangent line: no kink
+            normals[position[tag]] = first
+    return normals
+
+
+def write_msh(mesh: Mesh, path: Path) -> None:
+    """Write ``mesh`` as a gmsh .msh file with the physical groups :func:`from_gmsh` reads.
+
+    The Σ nodes of the two halves become one node each, so the file describes one domain.
+    """
+    import gmsh
+
+    lower, upper = mesh.lower, mesh.upper
+    offset = len(lower.points)
+    upper_numbers = offset + np.arange(len(upper.points))
+    upper_numbers[upper.sigma] = lower.sigma  # shared Σ nodes
+    keep = np.ones(len(upper.points), dtype=bool)
+    keep[upper.sigma] = False
+    points = np.vstack([lower.points, upper.points[keep]])
+    compact = np.cumsum(np.concatenate([np.ones(offset, dtype=bool), keep])) - 1
+    numbers = {-1: np.arange(offset), 1: compact[upper_numbers]}
+    element = {3: (GMSH_TRIANGLE, GMSH_LINE), 6: (GMSH_TRIANGLE6, GMSH_LINE3)}[lower.cells.shape[1]]
+    gmsh.initialize([], readConfigFiles=False)
+    try:
+        _quiet(gmsh)
+        gmsh.model.add("ddsolve")
+        entity = gmsh.model.addDiscreteEntity(0)
+        gmsh.model.mesh.addNodes(0, entity, np.arange(1, len(points) + 1),
+                                 np.column_stack([points, np.zeros(len(points))]).ravel())
+        next_element = 1
+        for half in (lower, upper):
+            surface = gmsh.model.addDiscreteEntity(2)
+            cells = numbers[half.side][half.cells] + 1
+            gmsh.model.mesh.addElementsByType(surface, element[0], np.arange(next_element, next_element + len(cells)),
+                                              cells.ravel())
+            next_element += len(cells)
+            gmsh.model.setPhysicalName(2, gmsh.model.addPhysicalGroup(2, [surface]), half.name)
+        for name in sorted(set(lower.boundaries) | set(upper.boundaries)):
+            halves = (lower,) if name in (SIGMA, CRACK) else (lower, upper)  # Σ edges are shared
+            edges = np.concatenate([numbers[half.side][half.edges(name)] for half in halves]) + 1
+            curve = gmsh.model.addDiscreteEntity(1)
+            gmsh.model.mesh.addElementsByType(curve, element[1], np.arange(next_element, next_element + len(edges)),
+                                              edges.ravel())
+            next_element += len(edges)
+            gmsh.model.setPhysicalName(1, gmsh.model.addPhysicalGroup(1, [curve]), name)
+        gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
+        gmsh.write(str(path))
+    finally:
+        gmsh.finalize()

@@ -1,0 +1,1 @@
+"""PETSc and MPI: blocks as PETSc solvers, message passing, launching ranks."""

@@ -1,0 +1,124 @@
+"""The mesh on the ranks: each rank receives the half its blocks live on and Σ; rank 0 checks the
+whole mesh once and gets the upper half back for output."""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+from mpi4py import MPI
+
+from ddsolve.fem.assembly import check_range
+from ddsolve.mesh import geometry, sizing
+from ddsolve.mesh.mesh import BLOCKS, U_PLUS, HalfMesh, Mesh, SigmaLine
+from ddsolve.parallel.exchange import Exchange, collective
+from ddsolve.parallel.phases import Phases
+from ddsolve.post import fracture
+from ddsolve.problem.scene import Scene
+
+
+@dataclass(frozen=True, eq=False)
+class LocalMesh:
+    """What a rank holds of the mesh: the halves its blocks live on, Σ, and the size of both halves."""
+
+    halves: dict[int, HalfMesh]
+    sigma: SigmaLine
+    nodes: dict[int, int]  # side -> nodes of that half (both sides)
+    cells: dict[int, int]  # side -> cells of that half (both sides)
+    origin: str
+    tips: list = dataclasses.field(default_factory=list)  # the crack tips (fracture.Tip)
+
+    def half(self, side: int) -> HalfMesh:
+        return self.halves[side]
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the mesh arrays held here (halves and Σ)."""
+        arrays = [getattr(self.sigma, name) for name in ("points", "normals", "weights", "crack", "tip", "clamped",
+                                                          "corner")]
+        for half in self.halves.values():
+            arrays += [half.points, half.cells, half.sigma, *half.boundaries.values()]
+        return int(sum(a.nbytes for a in arrays))
+
+
+def whole(mesh: Mesh, tips: list | None = None) -> LocalMesh:
+    """The whole mesh as a rank holding both halves sees it."""
+    halves = {-1: mesh.lower, 1: mesh.upper}
+    return LocalMesh(halves, mesh.sigma, {side: len(half.points) for side, half in halves.items()},
+                     {side: len(half.cells) for side, half in halves.items()}, mesh.origin, tips or [])
+
+
+def build_mesh(scene: Scene, comm: MPI.Comm, background: sizing.SizeMap | None = None) -> Mesh:
+    """The scene's whole mesh on every rank (sized by ``background``, the same on every rank, if given),
+    for experiments and adaptive levels that need it everywhere."""
+    exchange = Exchange(comm, len(BLOCKS))
+    try:
+        mine = local_mesh(scene, comm, exchange, keep_whole=True, background=background)
+    finally:
+        exchange.free()
+    halves = {side: comm.bcast(mine.halves.get(side) if comm.rank == 0 else None, root=0) for side in (-1, 1)}
+    return Mesh(halves[-1], halves[1], mine.sigma, mine.origin)
+
+
+def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases | None = None,
+               keep_whole: bool = False, background: sizing.SizeMap | None = None) -> LocalMesh:
+    """Each rank gets the half its blocks live on (both with one rank), Σ, and the crack tips
+    (the mesh sized by ``background``, if given).
+
+    A box is meshed by the leaders of u⁻ (rank 0, lower half) and u⁺ (upper half) at once, else
+    rank 0 makes the whole mesh.  Rank 0 pairs the halves (checks, Σ, the loads' boundaries), then
+    each half goes to the ranks that need it by a broadcast among them.  Rank 0 keeps the upper half
+    only with one rank (or ``keep_whole``); it gets it back for output (:func:`gather_upper`).
+    """
+    rank = comm.rank
+    upper_maker = exchange.leader(U_PLUS)
+    split = scene.mesh.kind == "box" and comm.size > 1
+    if split:
+        side = -1 if rank == 0 else 1 if rank == upper_maker else 0
+        made = collective(comm, lambda: geometry.generate_half(scene, side, background) if side else None)
+        if rank == upper_maker:
+            comm.send(made, dest=0)
+        halves = {-1: made, 1: comm.recv(source=upper_maker)} if rank == 0 else {side: made} if side else {}
+        paired = collective(comm, lambda: geometry.pair(scene, halves[-1], halves[1]), root_only=True)
+    else:
+        paired = collective(comm, lambda: geometry.build(scene, background), root_only=True)
+        halves = {-1: paired.lower, 1: paired.upper} if rank == 0 else {}
+    tips = collective(comm, lambda: whole_mesh_checks(scene, paired), root_only=True)
+    if phases is not None:
+        phases.end("meshing")
+    sigma, nodes, cells, tips = comm.bcast((paired.sigma, {s: len(h.points) for s, h in halves.items()},
+                                            {s: len(h.cells) for s, h in halves.items()}, tips)
+                                           if rank == 0 else None, root=0)
+    needed = sorted({BLOCKS[b].side for b in exchange.local_blocks})
+    if comm.size > 1:
+        if not split and upper_maker != 0:  # rank 0 made both halves: the upper one goes to u⁺'s leader
+            if rank == 0:
+                comm.send(halves[1], dest=upper_maker)
+            elif rank == upper_maker:
+                halves[1] = comm.recv(source=0)
+        group = comm.Split(color=int(needed[0] > 0), key=rank)  # the ranks of one half; its maker is the first
+        halves = {needed[0]: group.bcast(halves.get(needed[0]), root=0),
+                  **({1: halves[1]} if keep_whole and rank == 0 else {})}
+        group.Free()
+    if phases is not None:
+        phases.end("distribution")
+    return LocalMesh(halves, sigma, nodes, cells, geometry.origin(scene), tips)
+
+
+def whole_mesh_checks(scene: Scene, mesh: Mesh) -> list[fracture.Tip]:
+    """What needs the whole mesh (rank 0, before it is distributed): the loads' boundaries, the range of
+    the moduli and loads, and the crack tips with their θ radii (which keep clear of the outer boundary)."""
+    geometry.check_loads(scene, mesh)
+    check_range(scene, mesh)
+    return fracture.find_tips(mesh, scene.fracture.inner, scene.fracture.outer)
+
+
+def gather_upper(mesh: LocalMesh, exchange: Exchange) -> Mesh | None:
+    """The whole mesh on rank 0 for output: the upper half comes from u⁺'s leader (None elsewhere)."""
+    source = exchange.leader(U_PLUS)
+    upper = mesh.halves.get(1)
+    if source != 0:
+        if exchange.comm.rank == source:
+            exchange.comm.send(upper, dest=0)
+        elif exchange.is_root:
+            upper = exchange.comm.recv(source=source)
+    return Mesh(mesh.half(-1), upper, mesh.sigma, mesh.origin) if exchange.is_root else None

@@ -1,0 +1,83 @@
+"""The phases of a launch, each timed (wall and CPU seconds) with the peak memory at its end."""
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+
+
+def peak_memory_mb() -> float:
+    """This process's peak resident memory so far, in MB."""
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # kB on Linux
+
+
+#: Environment variable with the wall-clock time (time.time()) at which ``ddsolve solve -n`` started mpiexec.
+LAUNCHED = "DDSOLVE_LAUNCHED"
+
+
+#: The phases of a launch, in order; their sum is the whole launch (``total``).
+PHASES = ("startup", "meshing", "distribution", "assembly", "factorization", "iterations", "estimate", "output",
+          "write")
+
+
+def launch_age() -> float:
+    """Seconds since the launch began: since ``ddsolve solve -n`` started mpiexec, else since this
+    process started (Linux), else 0."""
+    launched = os.environ.get(LAUNCHED)
+    if launched:
+        try:
+            return max(0.0, time.time() - float(launched))
+        except ValueError:
+            pass
+    try:
+        with open("/proc/self/stat") as stat, open("/proc/uptime") as uptime:
+            started = int(stat.read().rsplit(")", 1)[1].split()[19]) / os.sysconf("SC_CLK_TCK")
+            return max(0.0, float(uptime.read().split()[0]) - started)
+    except (OSError, ValueError, IndexError):
+        return 0.0
+
+
+def cpu_seconds() -> float:
+    """CPU seconds of this process and of its children that ended (gmsh meshes in one)."""
+    times = os.times()
+    return times.user + times.system + times.children_user + times.children_system
+
+
+class Phases:
+    """Wall seconds (this rank's clock), CPU seconds and peak memory at the end of each phase."""
+
+    def __init__(self, startup: float = 0.0):
+        self.wall = {"startup": startup}
+        self.cpu = {"startup": cpu_seconds()}
+        self.peak = {"startup": peak_memory_mb()}
+        self._wall, self._cpu = time.perf_counter(), cpu_seconds()
+
+    def end(self, name: str) -> None:
+        wall, cpu = time.perf_counter(), cpu_seconds()
+        self.wall[name] = self.wall.get(name, 0.0) + wall - self._wall
+        self.cpu[name] = self.cpu.get(name, 0.0) + cpu - self._cpu
+        self.peak[name] = peak_memory_mb()
+        self._wall, self._cpu = wall, cpu
+
+    def skip(self, name: str) -> None:
+        """Record phase ``name`` as not done (zero seconds), e.g. a factorization reused."""
+        self.wall.setdefault(name, 0.0)
+        self.cpu.setdefault(name, 0.0)
+        self.peak[name] = peak_memory_mb()
+
+
+def memory_record(ranks: list[tuple[dict, dict, dict]], unknowns: int, whole_mesh_bytes: int) -> dict:
+    """The result file's ``/memory``: per rank, the peak resident memory (MB) at the end of every phase,
+    the unknowns it works on, its mesh arrays and its factors (MUMPS's own count, MB); and per phase the
+    largest peak per unknown of a rank (bytes)."""
+    record = {"unknowns": unknowns, "whole_mesh_bytes": whole_mesh_bytes}
+    for key in ("unknowns", "mesh_bytes", "factor_mb"):
+        record[f"rank_{key}"] = np.array([mine[key] for mine, _, _ in ranks])
+    for phase in ranks[0][1]:
+        peaks = np.array([peak[phase] for _, peak, _ in ranks])
+        record[f"peak_mb_{phase}"] = peaks
+        record[f"bytes_per_unknown_{phase}"] = float(np.max(peaks * 2 ** 20 / record["rank_unknowns"]))
+    return record

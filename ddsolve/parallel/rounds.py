@@ -1,0 +1,170 @@
+"""Rounds of block solves: rank 0 sends a command and interface loads, every rank solves its blocks,
+rank 0 gathers traces (or Schur complements); the other ranks serve rounds until STOP."""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from mpi4py import MPI
+
+from ddsolve.errors import DDSolveError, SolverError
+from ddsolve.mesh.mesh import BLOCKS
+from ddsolve.parallel.blocks import Block
+from ddsolve.parallel.exchange import Exchange
+
+STOP, SOLVE_LOAD, SOLVE_FULL, SCHUR, REPORT_ERROR, DIRICHLET, DIAGONAL = range(7)
+
+
+#: Commands whose round sends a trace vector to every block.
+WITH_LOADS = (SOLVE_LOAD, SOLVE_FULL, DIRICHLET)
+
+
+def result_width(command: int, trace_size: int) -> int:
+    """Values per block a round returns (before the status flag): a Schur complement, or the trace,
+    the energy xᵀ K x, the work of the body loads, and (full solves) the relative residual and the
+    largest nodal |x|."""
+    return trace_size ** 2 if command == SCHUR else trace_size + 4
+
+
+class BlockServer:
+    """The blocks this rank works on and what a round does with them."""
+
+    def __init__(self, blocks: list[Block], exchange: Exchange):
+        self.blocks, self.exchange = blocks, exchange
+        self.solutions: dict[int, np.ndarray] = {}  # led blocks' solutions from the last full solve
+        self.error = ""
+
+    def run(self, command: int, loads: list[np.ndarray] | None, width: int) -> np.ndarray:
+        """One round on the local blocks: the rows of the led blocks, each ending with a status flag."""
+        rows, failed = {}, False
+        try:
+            for i, (index, block) in enumerate(zip(self.exchange.local_blocks, self.blocks)):
+                if command == SCHUR:
+                    value = block.schur_complement()
+                elif command in (DIRICHLET, DIAGONAL):
+                    trace = block.dirichlet(loads[i]) if command == DIRICHLET else block.trace_diagonal()
+                    value = np.concatenate([trace, np.zeros(width - len(trace))]) if block.is_leader else None
+                else:
+                    value = self._solve(index, block, loads[i], full=command == SOLVE_FULL)
+                if block.is_leader:
+                    rows[index] = value
+        except DDSolveError as exc:
+            self.error, failed = str(exc), True
+        # Every rank of a block learns whether one of them failed (PETSc errors are collective anyway).
+        for group in self.exchange.groups:
+            if group.size > 1:
+                failed = group.allreduce(failed, op=MPI.LOR)
+        out = np.full((len(self.exchange.led_blocks), width + 1), np.nan)
+        out[:, -1] = float(failed)
+        if not failed:
+            for i, index in enumerate(self.exchange.led_blocks):
+                out[i, :-1] = rows[index].ravel()
+        return out
+
+    def _solve(self, index: int, block: Block, load: np.ndarray, full: bool) -> np.ndarray | None:
+        x = block.solve(load, body=full)
+        trace, energies = block.trace(x), block.energies()
+        checks = np.zeros(2)
+        if full:
+            checks = np.array([block.residual(), block.largest_displacement(x)])
+            whole = block.gather(x)
+            if block.is_leader:
+                self.solutions[index] = whole
+        return np.concatenate([trace, energies, checks]) if block.is_leader else None
+
+
+class ParallelRounds:
+    """Rank 0's implementation of :class:`~ddsolve.dd.methods.Rounds` over an :class:`Exchange`.
+
+    Between rounds rank 0 is updating multipliers: that time is logged in the PETSc stage
+    ``Update``, the rounds themselves in ``Rounds``.
+    """
+
+    def __init__(self, exchange: Exchange, server: BlockServer, trace_size: int, stages: dict):
+        self.exchange, self.server, self.trace_size, self.stages = exchange, server, trace_size, stages
+        self.count = 0
+        self.elapsed = 0.0  # seconds inside rounds
+        self.work = np.zeros(len(BLOCKS))  # work of the body loads in the last solve
+        self.residuals = np.zeros(len(BLOCKS))  # relative residuals of the last full solve
+        self.largest = 0.0  # largest nodal displacement in the last full solve
+
+    def _round(self, command: int, loads: np.ndarray | None) -> np.ndarray:
+        self.stages["Update"].pop()
+        self.stages["Rounds"].push()
+        started = time.perf_counter()
+        self.exchange.command(command)
+        local = None
+        if loads is not None:
+            local = self.exchange.scatter(loads, self.trace_size)
+        width = result_width(command, self.trace_size)
+        results = self.exchange.gather(self.server.run(command, local, width), width + 1)
+        self.count += 1
+        if np.any(results[:, -1] != 0.0):
+            self.exchange.command(REPORT_ERROR)
+            messages = self.exchange.comm.gather(self.server.error, root=0)
+            raise SolverError(next(m for m in messages if m))
+        self.elapsed += time.perf_counter() - started
+        self.stages["Rounds"].pop()
+        self.stages["Update"].push()
+        return results[:, :-1]
+
+    def solve(self, loads: np.ndarray, full: bool) -> tuple[np.ndarray, np.ndarray]:
+        results = self._round(SOLVE_FULL if full else SOLVE_LOAD, loads)
+        trace = self.trace_size
+        self.work = results[:, trace + 1]
+        if full:
+            self.residuals, self.largest = results[:, trace + 2], float(results[:, trace + 3].max())
+        return results[:, :trace], results[:, trace]
+
+    def potential_energy(self, energies: np.ndarray) -> float:
+        """Π = Σ_b ½ x_bᵀ K_b x_b − f_bᵀ x_b of the last full solve, whose energies are given."""
+        return float(0.5 * energies.sum() - self.work.sum())
+
+    def schur_complements(self) -> np.ndarray:
+        return self._round(SCHUR, None).reshape(-1, self.trace_size, self.trace_size)
+
+    def dirichlet(self, traces: np.ndarray) -> np.ndarray:
+        return self._round(DIRICHLET, traces)[:, :self.trace_size]
+
+    def trace_diagonals(self) -> np.ndarray:
+        return self._round(DIAGONAL, None)[:, :self.trace_size]
+
+    def stop(self) -> None:
+        self.exchange.command(STOP)
+
+
+def serve(exchange: Exchange, server: BlockServer, trace_size: int, stages: dict) -> None:
+    """Worker loop: answer rank 0's rounds until it says STOP."""
+    stages["Rounds"].push()
+    while True:
+        command = exchange.command()
+        if command == STOP:
+            break
+        if command == REPORT_ERROR:
+            exchange.comm.gather(server.error, root=0)
+            continue
+        local = exchange.scatter(None, trace_size) if command in WITH_LOADS else None
+        width = result_width(command, trace_size)
+        exchange.gather(server.run(command, local, width), width + 1)
+    stages["Rounds"].pop()
+
+
+def drive(setup, server: BlockServer, work) -> tuple[object, ParallelRounds | None, DDSolveError | None]:
+    """Rank 0 runs ``work(rounds)`` (its time between rounds is the Update stage) while the other
+    ranks serve rounds; rank 0 always sends STOP, so an error there cannot leave the others waiting.
+    Returns (value, rounds, error) on rank 0 and (None, None, None) elsewhere."""
+    exchange, stages = setup.exchange, setup.stages
+    if not exchange.is_root:
+        serve(exchange, server, setup.interface.trace_size, stages)
+        return None, None, None
+    rounds = ParallelRounds(exchange, server, setup.interface.trace_size, stages)
+    value, failure = None, None
+    stages["Update"].push()
+    try:
+        value = work(rounds)
+    except DDSolveError as exc:
+        failure = exc
+    finally:
+        stages["Update"].pop()
+    rounds.stop()
+    return value, rounds, failure

@@ -1,0 +1,289 @@
+"""The process runtime of every command and rank: PETSc options and initialization, one-line
+errors and exit statuses, interrupts and signals, output in any encoding, and ending every rank
+together (abort)."""
+from __future__ import annotations
+
+import argparse
+import codecs
+import contextlib
+import difflib
+import faulthandler
+import os
+import signal
+import socket
+import sys
+import threading
+import time
+import traceback
+import unicodedata
+
+from ddsolve.environment import import_errors_explained
+from ddsolve.errors import DDSolveError, UsageError
+from ddsolve.parallel.launch import end_with_launcher
+
+#: Commands that hand options to PETSc.
+PETSC_COMMANDS = ("solve", "sweep", "reference", "version", "bench")
+
+
+def is_number(text: str) -> bool:
+    try:
+        float(text)
+        return True
+    except ValueError:
+        return False
+
+
+def _subcommands(top: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    return next(action.choices for action in top._actions if isinstance(action, argparse._SubParsersAction))
+
+
+def split_arguments(top: argparse.ArgumentParser, argv: list[str], petsc_commands: tuple[str, ...] = PETSC_COMMANDS
+                    ) -> tuple[list[str], list[str]]:
+    """(ddsolve's arguments, PETSc's options), wherever the user typed them.
+
+    An option of the command (and its value) is ddsolve's; any other single-dash word that is not a
+    number starts a PETSc option, whose value is the next word unless that is an option; ``--``
+    hands everything after it to PETSc.  A command without PETSc options refuses them.
+    """
+    command = next((arg for arg in argv if not arg.startswith("-")), None)
+    sub = _subcommands(top).get(command)
+    if sub is None:
+        return list(argv), []
+    options = sub._option_string_actions
+    own: list[str] = []
+    petsc: list[str] = []
+    i = 0
+    while i < len(argv):
+        arg = argv[i]
+        if arg == "--":
+            petsc += argv[i + 1:]
+            break
+        name = arg.split("=", 1)[0] if arg.startswith("--") else arg
+        glued = len(arg) > 2 and arg[:2] in options and is_number(arg[2:])  # -n4
+        if name in options or glued:
+            own.append(arg)
+            takes_value = not glued and "=" not in arg and options[name].nargs != 0
+            if takes_value and i + 1 < len(argv):
+                own.append(argv[i + 1])
+                i += 1
+        elif arg.startswith("-") and not arg.startswith("--") and len(arg) > 1 and not is_number(arg):
+            petsc.append(arg)
+            if i + 1 < len(argv) and argv[i + 1] != "--" and (not argv[i + 1].startswith("-")
+                                                             or is_number(argv[i + 1])):
+                petsc.append(argv[i + 1])
+                i += 1
+        else:
+            own.append(arg)
+        i += 1
+    if petsc and command not in petsc_commands:
+        close = difflib.get_close_matches(petsc[0], list(options), n=1)
+        hint = f" (did you mean {close[0]}?)" if close else ""
+        raise UsageError(f"{command}: unknown option {petsc[0]}{hint}; {command} takes no PETSc options")
+    return own, petsc
+
+
+def init_petsc(options: list[str]) -> None:
+    """PETSc without its signal handler: on a crash (SIGSEGV...) it calls MPI_Abort inside the handler,
+    which can deadlock the crashed rank and with it the whole job; without it the rank dies of the
+    signal (after Open MPI's backtrace) and mpiexec ends the others."""
+    import petsc4py
+
+    petsc4py.init([sys.argv[0], "-no_signal_handler", *options])
+    from petsc4py import PETSc  # noqa: F401 -- PETSc starts here
+
+    # A closed pipe on standard output is an error to report in one line (EPIPE), not a death by SIGPIPE.
+    signal.signal(signal.SIGPIPE, signal.SIG_IGN)
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, turned into an exception so that temporary files are removed on the way out."""
+
+
+def _terminate(signum, _frame) -> None:
+    raise Terminated(signal.Signals(signum).name)
+
+
+#: Seconds an interrupt may wait for the main thread (busy in a library call: gmsh, a factorization,
+#: a blocking MPI call) before the watchdog stops the process itself.
+INTERRUPT_GRACE = 3.0
+
+
+#: Seconds MPI_Abort may take before the process ends itself (Abort waits for mpiexec, which may not answer).
+ABORT_GRACE = 2.0
+
+
+def watch_interrupts() -> None:
+    """Make every phase interruptible: Python runs signal handlers only between bytecodes, so a signal
+    that arrives during a long library call waits for it.  The signal's byte on the wakeup fd wakes
+    this thread at once; if the process is still alive INTERRUPT_GRACE seconds later, it reports,
+    removes the temporary files being written and ends the job itself."""
+    try:
+        reader, writer = socket.socketpair()
+        writer.setblocking(False)
+        signal.set_wakeup_fd(writer.fileno(), warn_on_full_buffer=False)
+    except (ValueError, OSError):  # not the main thread: nothing to watch
+        return
+
+    def watch() -> None:
+        signum = 0
+        while signum not in (signal.SIGINT, signal.SIGTERM):
+            signum = reader.recv(1)[0]
+        time.sleep(INTERRUPT_GRACE)
+        status = 143 if signum == signal.SIGTERM else 130
+        try:  # whatever fails here (a closed standard error, an Abort that hangs), the process ends
+            if "ddsolve.io.safe" in sys.modules:
+                sys.modules["ddsolve.io.safe"].COMMIT.acquire()  # a set being renamed into place is finished first
+                sys.modules["ddsolve.io.safe"].remove_scratch()
+            status = interrupted_status(status)
+            abort(status, alone=True)
+        finally:
+            os._exit(status)
+
+    threading.Thread(target=watch, name="ddsolve-interrupts", daemon=True).start()
+    watch_interrupts.sockets = (reader, writer)  # keep them open
+
+
+def interrupted_status(status: int) -> int:
+    """Report an interrupt; its exit status, or 0 if the result files that end the command were
+    already in place (they are complete)."""
+    io = sys.modules.get("ddsolve.io.safe")
+    if io is not None and io.committed:
+        report("ddsolve: " + ("terminated" if status == 143 else "interrupted") + " after its result files "
+                "were written (they are complete)")
+        return 0
+    report("ddsolve: terminated" if status == 143 else "ddsolve: interrupted")
+    return status
+
+
+def guarded(call) -> int:
+    """Run a command: a DDSolveError (or a missing petsc4py, mpi4py, h5py, gmsh...) becomes one line
+    and its exit status, an interrupt or SIGTERM stops every rank, anything else is a bug (one
+    traceback, abort)."""
+    end_with_launcher(os.getppid())
+    prepare_output()
+    signal.signal(signal.SIGTERM, _terminate)
+    watch_interrupts()
+    try:
+        with import_errors_explained():
+            status = call()
+            if sys.stdout is not None:
+                sys.stdout.flush()  # a full disk or a closed pipe is this command's error
+            return status
+    except DDSolveError as exc:
+        report(f"ddsolve: error: {exc}", everywhere=not exc.collective)
+        if not exc.collective:  # raised on this rank only: the others cannot know, so stop them
+            abort(exc.exit_status)
+        return exc.exit_status
+    except KeyboardInterrupt as exc:
+        status = interrupted_status(143 if isinstance(exc, Terminated) else 130)
+        abort(status)
+        return status
+    except Exception:
+        traceback.print_exc()
+        abort(1)
+        return 1
+
+
+#: ASCII spellings of the symbols in ddsolve's messages that are neither Greek letters (spelt by their
+#: names: Σ -> Sigma, θ -> theta) nor letters with accents or super- and subscripts (their base forms).
+SPELLINGS = {"−": "-", "×": "x", "·": "*", "≤": "<=", "≥": ">=", "≈": "~", "±": "+-", "∞": "inf", "→": "->",
+             "‖": "||", "«": '"', "»": '"', "—": "--", "–": "-", "…": "...", "°": " deg", "⁄": "/"}
+
+
+def _ascii(char: str) -> str:
+    if char in SPELLINGS:
+        return SPELLINGS[char]
+    name = unicodedata.name(char, "")
+    if name.startswith("GREEK ") and " LETTER " in name:
+        letter = name.split(" LETTER ")[1].replace("FINAL ", "").split()[0].lower()
+        return letter.capitalize() if " CAPITAL " in name else letter
+    if char.isascii() and char.isprintable():
+        return char
+    return char.encode("ascii", "backslashreplace").decode("ascii")
+
+
+def spelled_in_ascii(error: UnicodeError) -> tuple[str, int]:
+    """Codec error handler ``ddsolve``: what an output's encoding cannot hold, in ASCII spellings
+    (:data:`SPELLINGS`, Greek letters by name, base forms without accents), else as backslash escapes."""
+    if not isinstance(error, UnicodeEncodeError):
+        raise error
+    text = unicodedata.normalize("NFKD", error.object[error.start:error.end])
+    return "".join(_ascii(char) for char in text if not unicodedata.combining(char)), error.end
+
+
+class CheckedOutput:
+    """Standard output whose write errors (a full disk, a closed pipe) are one-line errors, whatever
+    writes -- a print, argparse's help, the final flush; after one, the rest goes to /dev/null, so
+    that the flush at Python's exit does not fail again."""
+
+    def __init__(self, stream):
+        self.stream = stream
+
+    def __getattr__(self, name: str):
+        return getattr(self.stream, name)
+
+    def write(self, text: str) -> int:
+        return self._checked(self.stream.write, text)
+
+    def flush(self) -> None:
+        self._checked(self.stream.flush)
+
+    def _checked(self, call, *args):
+        try:
+            return call(*args)
+        except OSError as exc:
+            with contextlib.suppress(OSError, ValueError):
+                devnull = os.open(os.devnull, os.O_WRONLY)
+                os.dup2(devnull, self.stream.fileno())
+                os.close(devnull)
+            raise DDSolveError(f"cannot write to standard output: {exc.strerror or exc}") from None
+
+
+def prepare_output() -> None:
+    """Standard output and error in any encoding (ASCII in a C locale, latin-1...): what the encoding
+    cannot hold is spelt in ASCII (:func:`spelled_in_ascii`), never an error; standard output checked
+    (:class:`CheckedOutput`)."""
+    codecs.register_error("ddsolve", spelled_in_ascii)
+    for stream in (sys.stdout, sys.stderr):
+        if hasattr(stream, "reconfigure"):
+            stream.reconfigure(errors="ddsolve")
+    if sys.stdout is not None and not isinstance(sys.stdout, CheckedOutput):
+        sys.stdout = CheckedOutput(sys.stdout)
+
+
+def flush_output() -> None:
+    """Flush standard output before an error line or an abort (a failure to write it is reported by
+    the command's own flush, or lost with the error being reported)."""
+    with contextlib.suppress(DDSolveError, AttributeError):
+        sys.stdout.flush()
+
+
+def comm_world():
+    """MPI.COMM_WORLD if mpi4py is in use, else None."""
+    if "mpi4py.MPI" not in sys.modules:
+        return None
+    from mpi4py import MPI
+
+    return MPI.COMM_WORLD if MPI.Is_initialized() and not MPI.Is_finalized() else None
+
+
+def abort(status: int, alone: bool = False) -> None:
+    """End every rank at once (with ``alone``, even a single rank): waiting for the others (PETSc's
+    finalize does) would hang.  MPI_Abort waits for mpiexec and holds the GIL meanwhile, so no Python
+    thread can run: if mpiexec does not answer, faulthandler's own C thread ends this process (status
+    1) ABORT_GRACE seconds later."""
+    world = comm_world()
+    if world is not None and (world.size > 1 or alone):
+        flush_output()
+        with contextlib.suppress(OSError, ValueError):
+            sys.stderr.flush()
+        faulthandler.dump_traceback_later(ABORT_GRACE, exit=True, file=open(os.devnull, "w"))
+        world.Abort(status)
+
+
+def report(message: str, everywhere: bool = False) -> None:
+    """Print an error once (on rank 0 when MPI is running, unless it happened on one rank only)."""
+    world = comm_world()
+    if world is None or world.rank == 0 or everywhere:
+        flush_output()
+        print(message, file=sys.stderr, flush=True)

@@ -1,0 +1,1 @@
+"""The problem: scenes (geometry, materials, loads, solver settings), materials and load expressions."""

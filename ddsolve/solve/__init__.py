@@ -1,0 +1,1 @@
+"""Solves: the domain-decomposition driver, the monolithic reference, adaptivity, sweeps."""

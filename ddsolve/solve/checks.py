@@ -1,0 +1,97 @@
+"""What is checked before any work: rank counts and mesh sizes this machine can hold, and keys a
+command does not read (refused, naming them)."""
+from __future__ import annotations
+
+from ddsolve.environment import RANK_MEMORY, VERTEX_MEMORY, physical_memory
+from ddsolve.errors import DDSolveError, SceneError, UsageError
+
+
+def check_ranks(ranks: int) -> None:
+    """Refuse a rank count ddsolve cannot use, or that this machine cannot start, before mpiexec."""
+    from ddsolve.parallel.launch import supported
+
+    if not supported(ranks):
+        raise UsageError(f"-n {ranks}: unsupported number of ranks: use 1, 2 or a multiple of 4")
+    memory = ranks * RANK_MEMORY
+    if memory > physical_memory():
+        raise UsageError(f"-n {ranks}: {ranks} ranks need about {memory / 1e9:.3g} GB before any mesh "
+                         f"(about {RANK_MEMORY / 1e6:g} MB each), more than this machine's "
+                         f"{physical_memory() / 1e9:.3g} GB; for ranks on several machines start mpiexec yourself")
+
+
+def check_size(scene, ranks: int = 1) -> None:
+    """Refuse a mesh that cannot fit in this machine's memory, before it is made."""
+    from ddsolve.mesh import geometry
+
+    vertices = geometry.estimated_vertices(scene)
+    if vertices is None:
+        return
+    memory = ranks * RANK_MEMORY + vertices * VERTEX_MEMORY
+    if memory > physical_memory():
+        options = scene.mesh
+        keys = (f"mesh.size = {options.size:g}" if options.size is not None else
+                f"mesh.sigma_vertices = {options.sigma_vertices}, mesh.boundary_vertices = {options.boundary_vertices}")
+        raise DDSolveError(f"{keys}: a mesh of about {vertices:.2g} vertices needs about {memory / 1e9:.2g} GB "
+                           f"to solve (about {VERTEX_MEMORY / 1e3:g} kB per vertex), more than this machine's "
+                           f"{physical_memory() / 1e9:.3g} GB")
+
+
+#: The sections of a scene that ``mesh`` does not read, besides mesh.target_error.
+NOT_MESHING = ("title", "materials", "loads", "contact", "solver", "fracture")
+
+
+#: Material keys that give only the out-of-plane stress or strain (``plane_stress``: E3, nu13 and nu23;
+#: ``plane_strain``: Dzz), which a sweep file does not keep.
+OUT_OF_PLANE = {"plane_stress": ("E3", "nu13", "nu23", "Dzz"), "plane_strain": ("Dzz",)}
+
+
+def unread(command: str, path: list[str], scene, ranks: int) -> str | None:
+    """Why ``command`` on ``ranks`` ranks would not read the key ``path`` of ``scene`` (None: it does)."""
+    from ddsolve.mesh.mesh import BLOCKS
+
+    section, leaf = path[0], path[2:3]
+    if command == "mesh":
+        if section in NOT_MESHING or path[:2] == ["mesh", "target_error"]:
+            return "mesh makes the starting mesh only (solve, reference and sweep read the key)"
+        return None
+    if section == "solver" and command == "reference":
+        return None if path[1:] == ["p"] else ("it sets how solve and sweep iterate, and reference solves the "
+                                               "discrete problem exactly")
+    if section == "materials" and leaf == ["Dzz"] and scene.model == "plane_stress":
+        return "Dzz gives the out-of-plane stress of plane strain, and materials.model = plane_stress has none"
+    if command == "sweep" and (section == "title" or section == "materials" and leaf
+                               and leaf[0] in OUT_OF_PLANE[scene.model]):
+        return ("a sweep file keeps no title" if section == "title" else "it gives only the out-of-plane stress or "
+                "strain, which a sweep file does not keep (solve and reference write it)")
+    if section == "solver":
+        method = scene.solver.method
+        if method == "auto" and ranks // len(BLOCKS) <= 1:  # whole blocks: auto is schur
+            method = "schur"
+        if path[1:] == ["theta"] and method != "uzawa":
+            return f"it is the step of method uzawa, and method {method} takes none"
+        if path[1:] == ["max_iterations"] and method == "schur":
+            return "method schur is exact in a few rounds and iterates no further (uzawa, mprgp, fista and feti do)"
+    return None
+
+
+def check_read(command: str, items: list[str], scene, ranks: int = 1) -> None:
+    """Refuse a ``--set`` item whose key (or a key of the table it sets) ``command`` would not read
+    (:func:`unread`): every key a command is given is honoured or refused."""
+    from ddsolve.problem.scene import parse_override, printable
+
+    def leaves(path: list[str], value) -> list[list[str]]:
+        if isinstance(value, dict) and value:
+            return [leaf for key, sub in value.items() for leaf in leaves([*path, key], sub)]
+        return [path]
+
+    for item in items:
+        for path in leaves(*parse_override(item)):
+            why = unread(command, path, scene, ranks)
+            if why is not None:
+                raise SceneError(f"--set {printable(item)}: {printable('.'.join(path))} is not read by {command}: "
+                                 f"{why}; leave it out")
+
+
+def nodes_in_memory(ranks: int) -> float:
+    """The most mesh nodes a solve on ``ranks`` ranks holds in this machine's memory (as in check_size)."""
+    return max(physical_memory() - ranks * RANK_MEMORY, 0.0) / VERTEX_MEMORY

@@ -1,0 +1,271 @@
+"""The domain-decomposition solve: scene -> meshes -> blocks on ranks -> multiplier method -> result.
+
+Rank 0 reads the scene; the leaders of u⁻ and u⁺ mesh a half each (or rank 0 reads the whole mesh);
+each rank receives only the half its blocks live on, and Σ (:func:`local_mesh`); every rank assembles
+and factors the blocks (or the rows of a block) it owns; rank 0 runs the multiplier method while the
+other ranks serve rounds of block solves (:func:`serve`); rank 0 gathers the block solutions (and the
+upper half) and writes the result.  Every phase of the launch is timed, with its CPU time and peak
+memory (:class:`Phases`); the result file has them in ``/timings`` and ``/memory``.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from ddsolve.dd import methods
+from ddsolve.dd.interface import Interface, for_mesh
+from ddsolve.errors import DDSolveError, DivergedError, NotConvergedError
+from ddsolve.fem import assembly
+from ddsolve.io import hdf5 as io
+from ddsolve.mesh.mesh import BLOCKS, Mesh
+from ddsolve.parallel import launch
+from ddsolve.parallel.blocks import Block
+from ddsolve.parallel.distribution import LocalMesh, gather_upper, local_mesh, whole, whole_mesh_checks
+from ddsolve.parallel.exchange import Exchange, collective
+from ddsolve.parallel.launch import supported
+from ddsolve.parallel.phases import Phases, launch_age, memory_record
+from ddsolve.parallel.rounds import BlockServer, drive
+from ddsolve.post import estimate, fracture
+from ddsolve.post.result import Result
+from ddsolve.problem.scene import Scene
+
+#: Default block factorization per method.  The iterative methods make one solve per round with one
+#: factorization, where PETSc's own Cholesky is about 3x faster than MUMPS; ``schur`` needs MUMPS for
+#: the Schur complements (``./run bench factor`` measures both).
+FACTOR_PACKAGE = {"uzawa": "petsc", "fista": "petsc", "mprgp": "petsc", "schur": "mumps", "feti": "mumps"}
+STAGES = ("Setup", "Factorization", "Rounds", "Update", "Output")
+
+
+
+def run_method(scene: Scene, setup: "Setup", server: BlockServer, progress):
+    """The scene's multiplier method on rank 0, then the final round; (outcome, rounds, failure)."""
+    interface = setup.interface
+
+    def work(rounds):
+        method = scene.solver.method
+        outcome = methods.METHODS[method](rounds, interface, scene.solver, methods.Progress(method, out=progress))
+        if not outcome.diverged:
+            methods.final_solve(rounds, interface, scene.solver, outcome)  # the displacements for λ, checked
+        return outcome
+
+    outcome, rounds, failure = drive(setup, server, work)
+    if failure is None and outcome is not None:
+        if outcome.diverged:
+            failure = DivergedError(outcome.message)
+        elif not outcome.converged:
+            failure = NotConvergedError(outcome.message)
+    return outcome, rounds, failure
+
+
+def gather_estimate(scene: Scene, mesh: LocalMesh, exchange: Exchange, server: BlockServer
+                    ) -> dict[str, np.ndarray] | None:
+    """Each block's leader computes its error indicators from the last full solve; rank 0 gets them
+    (block name -> ``(2, cells)``, see :func:`ddsolve.post.estimate.block_indicators`), None elsewhere."""
+    local = [estimate.block_part(scene, mesh, index, server.solutions[index]).ravel()
+             for index in exchange.led_blocks]
+    parts = exchange.gather_varying(local, [2 * mesh.cells[spec.side] for spec in BLOCKS])
+    return None if parts is None else {spec.name: part.reshape(2, -1) for spec, part in zip(BLOCKS, parts)}
+
+
+
+
+@dataclass
+class Setup:
+    """What every rank holds after assembly and factorization."""
+
+    mesh: LocalMesh
+    exchange: Exchange
+    blocks: list[Block]
+    interface: Interface
+    stages: dict
+    phases: Phases
+    scene: Scene  # with the method resolved
+
+    @property
+    def timings(self) -> dict:
+        return self.phases.wall
+
+    def destroy(self) -> None:
+        for block in self.blocks:
+            block.destroy()
+        self.exchange.free()
+
+
+
+def local_systems(scene: Scene, mesh: LocalMesh | Mesh, exchange: Exchange) -> list[assembly.BlockSystem]:
+    """Assemble this rank's blocks (or its rows of the one it shares); blocks of one half share its
+    sparsity pattern."""
+    group = exchange.groups[0]
+    rows = None
+    if group.size > 1:
+        half = mesh.half(BLOCKS[exchange.local_blocks[0]].side)
+        rows = assembly.row_ranges(len(half.points), group.size)[group.rank]
+    return assembly.block_systems(scene, mesh, exchange.local_blocks, rows)
+
+
+def make_blocks(scene: Scene, mesh: LocalMesh | Mesh, exchange: Exchange, package: str) -> list[Block]:
+    """This rank's blocks as PETSc objects; no assembled array outlives its PETSc matrix."""
+    systems = local_systems(scene, mesh, exchange)
+    blocks = []
+    while systems:
+        blocks.append(Block(systems.pop(0), comm=PETSc.Comm(exchange.groups[len(blocks)]), factor_package=package))
+    return blocks
+
+
+def reload(setup: "Setup", scene: Scene) -> None:
+    """Give the factored blocks of ``setup`` the loads of ``scene`` (same mesh, materials, method)."""
+    systems = collective(setup.exchange.comm, lambda: local_systems(scene, setup.mesh, setup.exchange))
+    for block, system in zip(setup.blocks, systems):
+        block.system = replace(block.system, rhs=system.rhs)
+    setup.phases = Phases()
+    setup.phases.end("assembly")
+    setup.phases.skip("factorization")
+
+
+def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phases | None = None) -> Setup:
+    """Build (or take) the mesh, assemble and factor every rank's blocks."""
+    if not supported(comm.size):
+        error = DDSolveError(f"unsupported number of ranks {comm.size}: use 1, 2 or a multiple of 4")
+        error.collective = True  # every rank sees the same size
+        raise error
+    phases = phases if phases is not None else Phases()
+    stages = {name: PETSc.Log.Stage(name) for name in STAGES}
+
+    stages["Setup"].push()
+    exchange = Exchange(comm, len(BLOCKS))
+    if mesh is not None:
+        tips = comm.bcast(collective(comm, lambda: whole_mesh_checks(scene, mesh), root_only=True), root=0)
+        local = whole(mesh, tips)
+    else:
+        local = local_mesh(scene, comm, exchange, phases)
+    scene = resolve(scene, comm.size, local)
+    method = scene.solver.method
+    blocks = collective(comm, lambda: make_blocks(scene, local, exchange, FACTOR_PACKAGE[method]))
+    interface = for_mesh(local.sigma, scene.nonpenetration)
+    stages["Setup"].pop()
+    phases.end("assembly")
+
+    stages["Factorization"].push()
+    def factor():
+        for block in blocks:
+            block.factor(schur=method == "schur")
+            if method == "feti":
+                block.factor_dirichlet()
+
+    collective(comm, factor)
+    stages["Factorization"].pop()
+    phases.end("factorization")
+    return Setup(local, exchange, blocks, interface, stages, phases, scene)
+
+
+def resolve(scene: Scene, ranks: int, mesh: LocalMesh) -> Scene:
+    """The scene with ``auto`` replaced by the method :func:`ddsolve.dd.methods.choose` picks."""
+    if scene.solver.method != "auto":
+        return scene
+    per_block = max(1, ranks // len(BLOCKS))
+    method = methods.choose(per_block, 2 * max(mesh.nodes.values()), int(mesh.sigma.corner.sum()))
+    return dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, method=method))
+
+
+def bound(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, iterations: int = 300) -> float:
+    """λmax of the dual operator C K⁻¹ Cᵀ W by power iteration (one round each); 2/λmax bounds Uzawa's θ."""
+    setup = prepare(scene, comm, mesh)
+    try:
+        def work(rounds):
+            problem = methods.DualProblem(rounds, setup.interface, scene.solver)
+            return methods.largest_eigenvalue(problem.apply, setup.interface.size, iterations, tolerance=1e-9)
+
+        estimate, _, failure = drive(setup, BlockServer(setup.blocks, setup.exchange), work)
+        failure = comm.bcast(failure, root=0)
+        if failure is not None:
+            failure.collective = True
+            raise failure
+        return comm.bcast(estimate, root=0)
+    finally:
+        setup.destroy()
+
+
+def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mesh: Mesh | None = None,
+          setup: Setup | None = None) -> Result | None:
+    """Run the domain decomposition for ``scene`` on ``comm``; write ``output`` on rank 0.
+
+    Returns the result on rank 0 (None elsewhere).  A run that reaches max_iterations writes its
+    result with converged = false and then raises NotConvergedError on every rank (the error holds
+    the result as ``result``).  ``mesh`` (on every rank) skips building it; ``setup`` (from
+    :func:`prepare`, loads from :func:`reload`) skips assembly and factorization and is kept.
+    """
+    own = setup is None
+    if own:
+        setup = prepare(scene, comm, mesh, Phases(launch_age() if mesh is None else 0.0))
+    else:
+        # the method the setup was made for (``auto`` resolved), the scene's other solver settings
+        scene = dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, method=setup.scene.solver.method))
+        setup.scene = scene
+    phases = setup.phases
+    local, exchange, interface, stages, scene = setup.mesh, setup.exchange, setup.interface, setup.stages, setup.scene
+    method = scene.solver.method
+
+    try:
+        server = BlockServer(setup.blocks, exchange)
+        outcome, rounds, failure = run_method(scene, setup, server, progress)
+        failure = comm.bcast(failure, root=0)
+        if failure is not None:
+            failure.collective = True
+        phases.end("iterations")
+        if failure is not None and not isinstance(failure, NotConvergedError):
+            raise failure
+
+        parts = gather_estimate(scene, local, exchange, server)
+        phases.end("estimate")
+        stages["Output"].push()
+        volume = comm.reduce(fracture.block_terms(scene, local, local.tips, {b: server.solutions[b]
+                                                                            for b in exchange.led_blocks}), root=0)
+        sizes = [2 * local.nodes[spec.side] for spec in BLOCKS]
+        solutions = exchange.gather_varying([server.solutions[b] for b in exchange.led_blocks], sizes)
+        mine = {"mesh_bytes": local.nbytes, "unknowns": sum(len(b.system.rhs) for b in setup.blocks),
+                "factor_mb": sum(b.factor_megabytes() for b in setup.blocks)}
+        mesh = gather_upper(local, exchange)
+        phases.end("output")
+        memory = comm.gather((mine, phases.peak, phases.cpu), root=0)
+        result = None
+        if exchange.is_root:
+            timings = dict(phases.wall)
+            timings["update"] = timings["iterations"] - rounds.elapsed
+            timings["setup"] = sum(timings.get(name, 0.0) for name in ("meshing", "distribution", "assembly"))
+            for name in phases.cpu:  # CPU seconds of every rank together
+                timings[f"{name}_cpu"] = sum(cpu[name] for _, _, cpu in memory)
+            frames = mesh.sigma.frames[mesh.sigma.multiplier_nodes]
+            solution = {spec.name: assembly.to_global(x, assembly.trace_nodes(mesh.half(spec.side), mesh.sigma),
+                                                      frames) for spec, x in zip(BLOCKS, solutions)}
+            multipliers = interface.split(outcome.lam, frames)
+            estimated = estimate.combine(mesh, parts, solution, multipliers["mu_c"])
+            result = Result(
+                scene=scene.text, method=method, converged=outcome.converged, iterations=outcome.iterations,
+                solves=rounds.count, wall_time=timings["factorization"] + timings["iterations"], ranks=comm.size,
+                mesh=mesh, solution=solution, multipliers=multipliers,
+                history=np.array(outcome.history), timings=timings, message=outcome.message,
+                active_set_changes=np.array(outcome.active_set_changes, dtype=np.int64),
+                memory=memory_record(memory, sum(sizes), whole(mesh).nbytes),
+                attrs={**launch.provenance(), "stop": scene.solver.stop, "tol": scene.solver.tol,
+                       "peak_memory_mb": [max(peak.values()) for _, peak, _ in memory], **outcome.details,
+                       "error_estimate": estimated.relative},
+                indicators=estimated.indicators,
+            )
+            result.fracture = fracture.finish(local.tips, volume, result)
+        if output is not None:
+            collective(comm, lambda: io.write(output, result, final=True), root_only=True)
+        stages["Output"].pop()
+        if failure is not None:  # not converged: the result is written with converged = false
+            failure.result = result
+            raise failure
+        return result
+    finally:
+        if own:
+            setup.destroy()
+
+
