@@ -21,22 +21,15 @@ from ddsolve.errors import DDSolveError, NotConvergedError, UsageError
 from ddsolve.io import safe
 from ddsolve.mesh import gmsh_io
 from ddsolve.parallel.launch import mpiexec_command, supervise
-from ddsolve.parallel.runtime import guarded, init_petsc, is_number, split_arguments
+from ddsolve.mesh.mesh import BLOCKS
+from ddsolve.parallel.runtime import Parser, guarded, init_petsc, is_number, split_arguments
 from ddsolve.solve.checks import check_ranks, check_read, check_size
 
 #: Options-prefixes of the KSPs (what a misspelt option is compared with).
-PREFIXES = {"solve": ("u_minus_", "u_plus_", "v_minus_", "v_plus_"), "reference": ("reference_",)}
+PREFIXES = {"solve": tuple(f"{spec.name}_" for spec in BLOCKS), "reference": ("reference_",)}
 PREFIXES["sweep"] = PREFIXES["solve"]
 #: Suffix of the files ``mesh -o`` writes (gmsh chooses the format by the suffix).
 MESH_SUFFIX = ".msh"
-
-
-class Parser(argparse.ArgumentParser):
-    """argparse with one-line errors (exit status 2) instead of a usage block."""
-
-    def error(self, message: str):
-        command = self.prog.removeprefix("ddsolve").strip()
-        raise UsageError(f"{command + ': ' if command else ''}{message} (see {self.prog} --help)")
 
 
 
@@ -127,16 +120,13 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
     from mpi4py import MPI
 
     from ddsolve.parallel.exchange import collective
-    from ddsolve.solve import adapt, driver
+    from ddsolve.solve import run
 
     comm = MPI.COMM_WORLD
-    scene = collective(comm, lambda: _load_scene(args, comm.size), root_only=True)
-    scene = comm.bcast(scene, root=0)
-    output = collective(comm, lambda: (check_size(scene, comm.size), check_outputs(args, scene))[1], root_only=True)
-    output = comm.bcast(output, root=0)
+    scene = comm.bcast(collective(comm, lambda: _load_scene(args, comm.size), root_only=True), root=0)
+    output = comm.bcast(collective(comm, lambda: check_outputs(args, scene), root_only=True), root=0)
     try:
-        solve = adapt.solve if scene.mesh.target_error is not None else driver.solve
-        result = solve(scene, comm, output, progress=_root_print)
+        result = run.solve(scene, comm, output, progress=_root_print)
     except DDSolveError as exc:
         if exc.collective:  # every rank is here: the others are not waiting in a solve
             report_unused_options(comm, "solve")
@@ -179,30 +169,14 @@ def cmd_sweep(args, petsc_options: list[str]) -> int:
 
 def cmd_reference(args, petsc_options: list[str]) -> int:
     init_petsc(petsc_options)
-    from ddsolve.fem.assembly import check_range
-    from ddsolve.io import hdf5 as io
-    from ddsolve.mesh import geometry
-    from ddsolve.solve import reference
+    from ddsolve.solve import run
 
     scene = _load_scene(args)
-    check_size(scene)
     output = check_outputs(args, scene)
-    if scene.mesh.target_error is not None:  # adaptive, every level solved by the reference
-        from mpi4py import MPI
-
-        from ddsolve.solve import adapt
-
-        result = adapt.solve(scene, MPI.COMM_SELF, output, progress=_root_print,
-                             level=lambda mesh: reference.solve(scene, mesh))
-    else:
-        mesh = geometry.build(scene)
-        geometry.check_loads(scene, mesh)
-        check_range(scene, mesh)
-        result = reference.solve(scene, mesh)
-        io.write(output, result, final=True)
-    report_unused_options(None, "reference")
-    if not result.converged:
-        raise NotConvergedError(result.message)
+    try:
+        result = run.reference(scene, output, progress=_root_print)
+    finally:
+        report_unused_options(None, "reference")
     print(f"reference: {result.iterations} active-set steps, {result.wall_time:.3f} s -> {output}")
     print(estimate_line(result))
     _print_fracture(result)
@@ -333,60 +307,6 @@ def cmd_mesh(args, _petsc_options) -> int:
     return 0
 
 
-def _meshes(text: str | None):
-    from ddsolve.experiments.bench import BENCH_MESHES
-
-    if not text:
-        return BENCH_MESHES
-    try:
-        return tuple(tuple(int(v) for v in pair.split(":")) for pair in text.split(","))
-    except ValueError:
-        raise DDSolveError(f"--meshes {text}: expected P:M pairs separated by commas, e.g. 48:80,96:144") from None
-
-
-def cmd_bench(args, petsc_options) -> int:
-    from ddsolve.experiments import bench
-
-    if args.what == "factor":
-        init_petsc(petsc_options)
-        for P, M in _meshes(args.meshes or "200:256"):
-            bench.factor(P, M)
-    elif args.what == "baseline":
-        bench.baseline(_meshes(args.meshes or "400:512,800:1024"), ranks=args.ranks, repeats=args.repeats,
-                       busy=args.busy)
-    else:
-        bench.methods(_meshes(args.meshes), Path(args.output), Path("docs"))
-        print(f"wrote {args.output}, docs/results.md (bench-methods section), docs/bench-methods.png")
-    return 0
-
-
-#: Experiments: command -> (module, function, one-line summary, what it writes).
-EXPERIMENTS = {
-    "table1": ("paper", "table1", "the paper's Table 1: meshes, the paper's algorithm and the default method",
-               "docs/results.md (table1)"),
-    "theta-sweep": ("paper", "theta_sweep", "Uzawa's iterations against its step θ",
-                    "docs/results.md (theta-sweep), docs/theta-sweep.png"),
-    "figures": ("paper", "figures", "the paper's figures: deformed layers, normal jump along Σ",
-                "docs/results.md (figures), docs/fig*.png"),
-    "accuracy": ("accuracy", "accuracy", "error against the continuous solution: uniform, graded, adaptive, P1, P2",
-                 "docs/results.md (accuracy), docs/accuracy.png, results/accuracy.h5"),
-    "scaling": ("scaling", "scaling", "strong and weak scaling, P = 800 and 1600, a fitted cost model",
-                "docs/scaling.md, docs/scaling-*.png, results/scaling.h5"),
-    "robustness": ("robustness", "robustness", "every hard case and bad input, measured", "docs/robustness.md"),
-    "gallery": ("gallery", "gallery", "structures beyond the paper's square, solved and drawn",
-                "docs/gallery.md, docs/gallery-*.png, results/gallery/"),
-    "fracture": ("fracture", "fracture", "G at the crack tips: finite differences, radii, a plate; G against "
-                 "crack length and E2/E1", "docs/fracture.md, docs/fracture-*.png, results/fracture-*"),
-}
-
-
-def cmd_experiment(args, _petsc_options) -> int:
-    module, function, _, written = EXPERIMENTS[args.command]
-    getattr(importlib.import_module(f".experiments.{module}", __package__), function)()
-    print(f"wrote {written}")
-    return 0
-
-
 def cmd_scenes(_args, _petsc_options) -> int:
     from ddsolve.problem import scene
 
@@ -409,7 +329,8 @@ def cmd_version(_args, petsc_options) -> int:
 
 
 def parser() -> argparse.ArgumentParser:
-    """The command line; ``ddsolve --help`` lists the commands (the epilog), experiments apart."""
+    """The command line; ``ddsolve --help`` lists the commands (the epilog).  The experiments have their
+    own (:mod:`ddsolve.experiments.commands`)."""
     top = Parser(prog="ddsolve", description="Domain decomposition (PETSc/MPI) for a two-layer "
                                   "elastic structure with a non-penetrating crack.",
                                   formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -459,18 +380,6 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("-o", dest="output", metavar="DIR", help="folder for the files (default: the result's)")
     command("scenes", "list the built-in scenes", cmd_scenes)
     command("version", "versions of ddsolve, PETSc and MPI", cmd_version)
-
-    experiments = "experiments (each reruns its measurements and rewrites its part of docs/ and results/)"
-    for name, (_, _, summary, written) in EXPERIMENTS.items():
-        command(name, summary, cmd_experiment, experiments, f"; writes {written}")
-    p = command("bench", "`bench methods`: every method and tolerance; `bench baseline`: the default method against "
-                "one MUMPS factorization of the whole problem; `bench factor`: block factorizations", cmd_bench, experiments)
-    p.add_argument("what", choices=("methods", "baseline", "factor"))
-    p.add_argument("--meshes", help="comma-separated P:M pairs (default: Table 1 and 400:512; baseline: 400:512,800:1024)")
-    p.add_argument("-n", dest="ranks", type=int, metavar="N", help="ranks of the DD in `bench baseline` (default: 4, or fewer if there are fewer cores)")
-    p.add_argument("--repeats", type=int, default=3, help="side-by-side pairs per case in `bench baseline`")
-    p.add_argument("--busy", action="store_true", help="`bench baseline` with a second process keeping a core busy")
-    p.add_argument("-o", dest="output", default="results/bench-methods.h5", help="HDF5 file for `methods`")
 
     width = max(len(name) for commands in listing.values() for name, _ in commands) + 2
     top.epilog = "\n\n".join(group + ":\n" + "\n".join(f"  {name:{width}s}{summary}" for name, summary in commands)

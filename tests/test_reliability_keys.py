@@ -121,11 +121,9 @@ def observe(command: str, output: Path, stdout: str) -> dict:
             {"message": [str(m) for m in data["message"]]}
     from ddsolve.io import hdf5 as io
     from ddsolve.post import analysis
-    from ddsolve.problem import scene as scenes
-
     result = io.read(output)
     fields = analysis.cell_fields(result)
-    return {"title": scenes.loads(result.scene).title, "method": result.method, "converged": bool(result.converged),
+    return {"title": result.parsed_scene.title, "method": result.method, "converged": bool(result.converged),
             "iterations": int(result.iterations), "points": len(result.lower.points) + len(result.upper.points),
             "energy": _digest(result.attrs.get("energy", np.nan)), "kkt_tolerance": float(result.attrs.get("kkt_tolerance", 0)),
             "solution": _digest(*result.solution.values(), *result.multipliers.values()),

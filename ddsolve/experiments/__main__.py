@@ -1,9 +1,7 @@
-"""One MPI launch of an experiment: ``python -m ddsolve.experiments PART ARGS... OUTPUT``.
-
-Internal to the experiments (they start these under mpiexec); not a user command.
-"""
+"""``python -m ddsolve.experiments COMMAND ...``: an experiment (``./run COMMAND``), or one MPI launch of a
+part of one (``PART ARGS... OUTPUT``, which the experiments start under mpiexec themselves)."""
 import sys
 
-from ddsolve.experiments.parts import main
+from ddsolve.experiments import commands, parts
 
-sys.exit(main())
+sys.exit(parts.main() if sys.argv[1:2] and sys.argv[1] in parts.PARTS else commands.main())

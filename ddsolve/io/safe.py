@@ -15,8 +15,6 @@ import threading
 from pathlib import Path
 from typing import Callable
 
-import h5py
-
 from ddsolve.errors import DDSolveError
 
 #: Temporary, backup and journal files of a write: ``.NAME.ddsolve~HOST~PID~RANDOM.tmp[.suffix]`` (the
@@ -271,6 +269,8 @@ def hdf5_image(name: str):
     """An HDF5 file built in memory and written to ``name`` in one piece when the block ends: the
     HDF5 library never writes to the disk itself (a full disk would leave it broken), and a failed
     write is a plain OSError."""
+    import h5py  # here: the command line's checks import this module without HDF5
+
     f = h5py.File(f"{name}.image", "w", driver="core", backing_store=False)
     try:
         yield f

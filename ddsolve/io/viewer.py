@@ -20,7 +20,6 @@ from ddsolve.errors import DDSolveError
 from ddsolve.mesh.mesh import BLOCKS
 from ddsolve.post import analysis, plots
 from ddsolve.post.result import Result
-from ddsolve.problem import scene as scenes
 
 FORMATS = ("vtu", "xdmf")
 LAYER_TITLES = {"layer1": "layer 1 (u)", "layer2": "layer 2 (v)"}
@@ -213,7 +212,7 @@ def paraview_script(result: Result, folder: Path, files: dict[str, str],
                 for layer in LAYER_TITLES}
     graph = analysis.sigma_is_graph(result)
     settings = {
-        "TITLE": scenes.loads(result.scene).title, "FILES": files, "WRITTEN_TO": str(Path(folder).resolve()), "SCALE": plots.magnification(result),
+        "TITLE": result.parsed_scene.title, "FILES": files, "WRITTEN_TO": str(Path(folder).resolve()), "SCALE": plots.magnification(result),
         "CEILINGS": ceilings, "TITLES": LAYER_TITLES,
         "STACKED": plots.one_above_the_other(np.vstack([result.lower.points, result.upper.points])),
         "PERCENTILE": plots.STRESS_PERCENTILE,

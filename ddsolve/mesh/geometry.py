@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ddsolve.errors import MeshError, SceneError
-from ddsolve.mesh.gmsh_io import GMSH_TRIANGLE, apart, from_gmsh, has_halves
+from ddsolve.mesh.gmsh_io import GMSH_TRIANGLE, apart, from_gmsh, has_halves, session
 from ddsolve.mesh.mesh import (CLAMPED, CRACK, SIGMA, TOL, HalfMesh, Mesh, elevate, make_half, make_mesh, merge_repeats,
                                oriented)
 from ddsolve.mesh.sizing import SizeMap, box_length, box_singular_points, node_positions, set_size_field
@@ -106,8 +106,6 @@ def _mesh_half(scene: Scene, side: int, background: SizeMap | None = None) -> Ha
     meshed alone in a process or after the other one, and the Σ vertices of both halves come from the
     same curves meshed with the same size field.
     """
-    import gmsh  # imported here: importing gmsh changes the SIGINT handler until finalize
-
     options = scene.mesh
     shift = local_origin(scene.geometry.box)  # gmsh meshes the box about a nearby origin
     geometry = translated(scene.geometry, -shift)
@@ -130,9 +128,7 @@ def _mesh_half(scene: Scene, side: int, background: SizeMap | None = None) -> Ha
         h = options.size
         counts = [max(1, math.ceil(length / h - 1e-9)) for length in [*np.diff(sigma_x), *lengths]]
         size_field = f"{h:.17f}"
-    gmsh.initialize([], readConfigFiles=False)
-    try:
-        _quiet_deterministic(gmsh)
+    with session(deterministic=True) as gmsh:
         geo = gmsh.model.geo
         on_sigma = [geo.addPoint(x, ys, 0.0) for x in sigma_x]
         sigma = [geo.addLine(a, b) for a, b in zip(on_sigma[:-1], on_sigma[1:])]
@@ -159,8 +155,6 @@ def _mesh_half(scene: Scene, side: int, background: SizeMap | None = None) -> Ha
         position = node_positions(tags)
         _, nodes = gmsh.model.mesh.getElementsByType(GMSH_TRIANGLE, surface)
         cells = position[np.asarray(nodes, dtype=np.int64).reshape(-1, 3)]
-    finally:
-        gmsh.finalize()
     half = _box_half(points, cells, side, geometry, options.degree, origin(scene))
     return replace(half, points=half.points + shift)
 
@@ -209,13 +203,6 @@ def _distance_to_sigma(ys: float, height: float) -> str:
     """gmsh MathEval text for |y − ys| / height (written out so the paper's square gives Fabs(y))."""
     shifted = "y" if ys == 0.0 else f"(y {'-' if ys > 0 else '+'} {abs(ys):.17f})"
     return f"Fabs({shifted})" if height == 1.0 else f"Fabs({shifted}) / {height:.17f}"
-
-
-def _quiet_deterministic(gmsh) -> None:
-    for name, value in {"General.Terminal": 0, "General.Verbosity": 0, "General.NumThreads": 1,
-                        "Mesh.MaxNumThreads2D": 1, "Mesh.Algorithm": 5, "Mesh.MeshSizeFromPoints": 0,
-                        "Mesh.MeshSizeExtendFromBoundary": 0, "Mesh.MeshSizeFromCurvature": 0}.items():
-        gmsh.option.setNumber(name, value)
 
 
 

@@ -2,6 +2,7 @@
 meshes with physical groups (.geo, .msh 2.2 and 4.1) read into a Mesh, and a Mesh written as .msh."""
 from __future__ import annotations
 
+import contextlib
 import math
 import multiprocessing
 import os
@@ -92,22 +93,34 @@ def _child(parent: int, sender, work, args) -> None:
 # --- gmsh geometries with physical groups --------------------------------------------------------
 def has_halves(path: Path) -> bool:
     """Whether a .msh file has the physical surfaces ``lower`` and ``upper`` (else it is a box file)."""
-    import gmsh
-
     readable(path, "mesh file", MeshError)
-    gmsh.initialize([], readConfigFiles=False)
-    try:
-        _quiet(gmsh)
+    with session() as gmsh:
         _open(gmsh, path)
         names = {gmsh.model.getPhysicalName(dim, tag) for dim, tag in gmsh.model.getPhysicalGroups(2)}
-    finally:
-        gmsh.finalize()
     return {"lower", "upper"} <= names
 
 
-def _quiet(gmsh) -> None:
-    gmsh.option.setNumber("General.Terminal", 0)
-    gmsh.option.setNumber("General.Verbosity", 0)
+#: gmsh's options in every session: nothing on the terminal.
+QUIET = {"General.Terminal": 0, "General.Verbosity": 0}
+#: More options for meshes that must not depend on timing: one thread, one algorithm, sizes only from the
+#: size field (a half is the same whether it is meshed alone in a process or after the other one).
+DETERMINISTIC = {"General.NumThreads": 1, "Mesh.MaxNumThreads2D": 1, "Mesh.Algorithm": 5,
+                 "Mesh.MeshSizeFromPoints": 0, "Mesh.MeshSizeExtendFromBoundary": 0, "Mesh.MeshSizeFromCurvature": 0}
+
+
+@contextlib.contextmanager
+def session(deterministic: bool = False):
+    """gmsh, initialized without the user's configuration files and quiet (``deterministic``: with the
+    options of :data:`DETERMINISTIC` too), finalized however the block ends; yields the gmsh module."""
+    import gmsh  # imported here: importing gmsh changes the SIGINT handler until finalize
+
+    gmsh.initialize([], readConfigFiles=False)
+    try:
+        for name, value in {**QUIET, **(DETERMINISTIC if deterministic else {})}.items():
+            gmsh.option.setNumber(name, value)
+        yield gmsh
+    finally:
+        gmsh.finalize()
 
 
 def _open(gmsh, path: Path) -> None:
@@ -125,17 +138,13 @@ def from_gmsh(scene: Scene, background: SizeMap | None = None) -> Mesh:
 def _from_gmsh(scene: Scene, background: SizeMap | None = None) -> Mesh:
     """Mesh a .geo (honouring ``mesh.size``, ``mesh.grading`` and a ``background`` size map) or read a
     .msh, both with physical groups."""
-    import gmsh
-
     path, options = scene.mesh.file, scene.mesh
     where = str(path)
     if scene.geometry.given:
         raise MeshError(f"{where}: geometry.{sorted(scene.geometry.given)[0]} does not apply to a geometry "
                         "with physical groups (they define it)")
     readable(path, "mesh file", MeshError)
-    gmsh.initialize([], readConfigFiles=False)
-    try:
-        _quiet(gmsh)
+    with session() as gmsh:
         if options.kind == "geo":
             gmsh.option.setNumber("General.NumThreads", 1)
             gmsh.option.setNumber("Mesh.MaxNumThreads2D", 1)
@@ -167,8 +176,6 @@ def _from_gmsh(scene: Scene, background: SizeMap | None = None) -> Mesh:
         curves = {name: _elements(gmsh, entities, (GMSH_LINE, GMSH_LINE3), position, where)
                   for (dim, name), entities in groups.items() if dim == 1}
         normals = _curve_normals(gmsh, groups[(1, SIGMA)], position, len(points)) if options.kind == "geo" else None
-    finally:
-        gmsh.finalize()
     cells = surfaces["lower"]
     if cells.shape[1] == 6 and options.degree == 1:
         raise MeshError(f"{where}: the file has 6-node (P2) triangles: set mesh.degree = 2")
@@ -307,8 +314,6 @@ def write_msh(mesh: Mesh, path: Path) -> None:
 
     The Σ nodes of the two halves become one node each, so the file describes one domain.
     """
-    import gmsh
-
     lower, upper = mesh.lower, mesh.upper
     offset = len(lower.points)
     upper_numbers = offset + np.arange(len(upper.points))
@@ -319,9 +324,7 @@ def write_msh(mesh: Mesh, path: Path) -> None:
     compact = np.cumsum(np.concatenate([np.ones(offset, dtype=bool), keep])) - 1
     numbers = {-1: np.arange(offset), 1: compact[upper_numbers]}
     element = {3: (GMSH_TRIANGLE, GMSH_LINE), 6: (GMSH_TRIANGLE6, GMSH_LINE3)}[lower.cells.shape[1]]
-    gmsh.initialize([], readConfigFiles=False)
-    try:
-        _quiet(gmsh)
+    with session() as gmsh:
         gmsh.model.add("ddsolve")
         entity = gmsh.model.addDiscreteEntity(0)
         gmsh.model.mesh.addNodes(0, entity, np.arange(1, len(points) + 1),
@@ -344,5 +347,3 @@ def write_msh(mesh: Mesh, path: Path) -> None:
             gmsh.model.setPhysicalName(1, gmsh.model.addPhysicalGroup(1, [curve]), name)
         gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
         gmsh.write(str(path))
-    finally:
-        gmsh.finalize()

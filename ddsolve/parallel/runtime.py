@@ -25,6 +25,14 @@ from ddsolve.parallel.launch import end_with_launcher
 PETSC_COMMANDS = ("solve", "sweep", "reference", "version", "bench")
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse with one-line errors (exit status 2) instead of a usage block."""
+
+    def error(self, message: str):
+        command = self.prog.removeprefix("ddsolve").strip() if self.prog.startswith("ddsolve ") else ""
+        raise UsageError(f"{command + ': ' if command else ''}{message} (see {self.prog} --help)")
+
+
 def is_number(text: str) -> bool:
     try:
         float(text)

@@ -18,7 +18,7 @@ from ddsolve.problem import scene as scenes
 
 def elasticities(result: Result) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Layer -> (D, c) of the result's scene (see :func:`ddsolve.problem.materials.elasticity`)."""
-    scene = scenes.loads(result.scene)
+    scene = result.parsed_scene
     return {layer: assembly.elasticity(scene, layer) for layer in scenes.LAYERS}
 
 
@@ -124,7 +124,7 @@ def equilibrium_residuals(result: Result, scene: scenes.Scene, interface: Interf
 def constraints(result: Result, equilibrium: np.ndarray | None = None) -> Constraints:
     """The KKT residuals of a result (:func:`kkt`): the interface conditions from its displacements
     and multipliers, each block's equilibrium from assembling the blocks again (unless given)."""
-    scene = scenes.loads(result.scene)
+    scene = result.parsed_scene
     interface = for_mesh(result.mesh.sigma, scene.nonpenetration)
     frames = result.mesh.sigma.frames[result.multiplier_nodes]
     lam = multiplier_vector(interface, result.multipliers, frames)
@@ -141,7 +141,7 @@ def largest_displacement(fields) -> float:
 
 def tolerance_of(result: Result) -> float:
     """The tolerance the result's residuals are checked against (see :func:`kkt_tolerance`)."""
-    return kkt_tolerance(None if result.method == "reference" else scenes.loads(result.scene).solver)
+    return kkt_tolerance(None if result.method == "reference" else result.parsed_scene.solver)
 
 
 #: A point within this fraction of a boundary edge's length outside a mesh still lies in its domain:
@@ -221,7 +221,7 @@ class CellFields:
 
 def cell_fields(result: Result) -> dict[str, CellFields]:
     """Block name -> its per-cell strains, stresses, von Mises stress and energy density."""
-    scene = scenes.loads(result.scene)
+    scene = result.parsed_scene
     out = {}
     for spec in BLOCKS:
         half, u = result.half(spec.name), result.solution[spec.name]

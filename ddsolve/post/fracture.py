@@ -265,9 +265,7 @@ def finish(tips: list[Tip], volume: np.ndarray, result) -> Fracture:
 
 def of_result(result, tips: list[Tip]) -> Fracture:
     """G at ``tips`` from a result's four blocks (one process)."""
-    from ddsolve.problem import scene as scenes
-
-    scene = scenes.loads(result.scene)
+    scene = result.parsed_scene
     volume = np.zeros(len(tips))
     for spec in BLOCKS:
         half = result.half(spec.name)
@@ -279,9 +277,7 @@ def of_result(result, tips: list[Tip]) -> Fracture:
 
 def evaluate(result, inner: float | None = None, outer: float | None = None) -> Fracture:
     """G at every tip of a result (any source, one process); radii: given, else the scene's, else automatic."""
-    from ddsolve.problem import scene as scenes
-
-    options = scenes.loads(result.scene).fracture
+    options = result.parsed_scene.fracture
     tips = find_tips(result.mesh, inner if inner is not None else options.inner,
                      outer if outer is not None else options.outer)
     return of_result(result, tips)

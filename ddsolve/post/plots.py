@@ -14,7 +14,6 @@ import numpy as np
 
 from ddsolve.mesh.mesh import BLOCKS
 from ddsolve.post.analysis import along_sigma, layer_stresses, normal_jump
-from ddsolve.problem import scene as scenes
 
 if TYPE_CHECKING:
     from ddsolve.post.result import Result
@@ -42,7 +41,7 @@ PLAIN_TEXT = {"parse_math": False, "usetex": False}
 def drawn_title(result: Result) -> str:
     """The scene's title as a picture shows it (with PLAIN_TEXT): on one line, at most TITLE_LENGTH
     characters."""
-    words = "".join(char if char.isprintable() else " " for char in scenes.loads(result.scene).title)
+    words = "".join(char if char.isprintable() else " " for char in result.parsed_scene.title)
     return words if len(words) <= TITLE_LENGTH else words[:TITLE_LENGTH - 1].rstrip() + "…"
 
 

@@ -2,10 +2,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
 
 import numpy as np
 
 from ddsolve.mesh.mesh import HalfMesh, Mesh
+from ddsolve.problem import scene as scenes
 
 
 @dataclass
@@ -42,6 +45,43 @@ class Result:
     fracture: Fracture | None = None  # G at the crack tips and the contact zones
     indicators: dict[str, np.ndarray] = field(default_factory=dict)
     levels: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @cached_property
+    def parsed_scene(self) -> scenes.Scene:
+        """The scene of this result, parsed once (``scene`` is its canonical TOML text)."""
+        return scenes.loads(self.scene, origin="the result's scene")
+
+    @property
+    def energy(self) -> float:
+        """The potential energy Π = ½ a(u, u) − L(u) of the discrete solution."""
+        return float(self.attrs.get("energy", np.nan))
+
+    @property
+    def error_estimate(self) -> float:
+        """The estimated relative discretization error in the energy norm (ZZ recovery plus contact)."""
+        return float(self.attrs.get("error_estimate", np.nan))
+
+    @property
+    def G(self) -> np.ndarray:
+        """``(tips,)``: the energy release rate at every crack tip (see :attr:`tips`)."""
+        return self.fracture.G if self.fracture is not None else np.zeros(0)
+
+    @property
+    def tips(self) -> np.ndarray:
+        """``(tips, 2)``: the crack tips, in the order of :attr:`G`."""
+        return self.fracture.points if self.fracture is not None else np.zeros((0, 2))
+
+    @property
+    def contact_zones(self) -> np.ndarray:
+        """``(zones, 2)``: where the crack faces touch, as arc length along Σ from its first node."""
+        return self.fracture.zones if self.fracture is not None else np.zeros((0, 2))
+
+    def save(self, path: str | Path, viewer: str = "vtu") -> list[Path]:
+        """Write the result set: the HDF5 file ``path`` and its viewer files (``vtu`` or ``xdmf``) beside
+        it, replaced together; returns the paths written."""
+        from ddsolve.io.hdf5 import write  # deferred, as meshio's Mesh.write: io is the stage above
+
+        return write(Path(path), self, viewer)
 
     @property
     def lower(self) -> HalfMesh:

@@ -14,7 +14,7 @@ import stat
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 try:
     import tomllib
@@ -135,6 +135,21 @@ class Scene:
     solver: Solver
     fracture: FractureOptions = FractureOptions()
     text: str = field(repr=False, default="")
+    #: Where the scene came from (named in messages) and the folder its file names are relative to.
+    origin: str = field(repr=False, default="scene", compare=False)
+    base: Path | None = field(repr=False, default=None, compare=False)
+
+    @classmethod
+    def load(cls, source: str | Path, overrides: dict[str, Any] | Sequence[str] = ()) -> Scene:
+        """A scene from a file path or a built-in name (``ddsolve scenes``), with ``overrides``: dotted
+        keys and values (``{"solver.tol": 1e-10}``) or ``KEY=VALUE`` items as ``--set`` takes them."""
+        return load(source, override_items(overrides))
+
+    def with_(self, overrides: dict[str, Any] | Sequence[str] = (), **more: Any) -> Scene:
+        """This scene with some keys changed, validated as a scene file is:
+        ``scene.with_({"materials.layer2.E": 20.0})`` or ``scene.with_(**{"solver.tol": 1e-10})``."""
+        items = override_items(overrides) + override_items(more)
+        return loads(self.text, items, origin=self.origin, base=self.base)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -598,7 +613,7 @@ def _material(table: dict) -> materials.Material:
     return materials.Isotropic(**table)
 
 
-def _to_scene(data: dict, raw: dict, text: str, base: Path | None) -> Scene:
+def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str) -> Scene:
     mesh = dict(data["mesh"])
     if mesh["file"] is not None:
         mesh["file"] = Path(mesh["file"])
@@ -624,8 +639,26 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None) -> Scene:
         solver=Solver(**data["solver"]),
         fracture=FractureOptions(**data["fracture"]),
         text=text,
+        origin=origin,
+        base=base,
     )
 
+
+
+def override_items(overrides: dict[str, Any] | Sequence[str]) -> list[str]:
+    """``KEY=VALUE`` items from a dict of dotted keys and Python values (numbers, booleans, text, lists,
+    numpy scalars and arrays) or from items already written so."""
+    if not isinstance(overrides, dict):
+        return [str(item) for item in overrides]
+    items = []
+    for key, value in overrides.items():
+        value = value.tolist() if hasattr(value, "tolist") else value  # numpy scalars and arrays
+        try:
+            items.append(f"{key}={_toml_value(value)}")
+        except TypeError:
+            raise SceneError(f"{printable(str(key))}: {type(value).__name__} is not a scene value "
+                             "(a number, a boolean, a string or a list of them)") from None
+    return items
 
 
 def parse_override(item: str) -> tuple[list[str], Any]:
@@ -757,7 +790,7 @@ def loads(text: str, overrides: list[str] = (), origin: str = "scene", base: Pat
         written = {key: value for key, value in data.items() if key != "geometry"}
     else:
         written = data
-    return _to_scene(data, raw, dumps(written), base)
+    return _to_scene(data, raw, dumps(written), base, origin)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -170,7 +170,9 @@ def plan(ranges: list[Range], paired: bool, per_run: float | None = None) -> lis
 
 
 def overrides(run: dict) -> list[str]:
-    return [f"{key}={value!r}" for key, value in run.items()]
+    from ddsolve.problem.scene import override_items
+
+    return override_items(run)
 
 
 def describe(run: dict) -> str:
@@ -178,26 +180,29 @@ def describe(run: dict) -> str:
                     for key, value in run.items())
 
 
-def load_scenes(source: str, fixed: list[str], runs: list[dict]) -> list:
-    """Every run's scene, checked before anything is solved (errors name the run)."""
-    from ddsolve.problem import scene
+def scene_with(source, items: list[str]):
+    """The scene ``source`` (a Scene, a file or a built-in name) with the ``KEY=VALUE`` items."""
+    from ddsolve.problem.scene import Scene
 
+    return source.with_(items) if isinstance(source, Scene) else Scene.load(source, items)
+
+
+def load_scenes(source, fixed: list[str], runs: list[dict]) -> list:
+    """Every run's scene, checked before anything is solved (errors name the run)."""
     out = []
     for number, run in enumerate(runs, 1):
         try:
-            out.append(scene.load(source, fixed + overrides(run)))
+            out.append(scene_with(source, fixed + overrides(run)))
         except SceneError as exc:
             raise SceneError(f"sweep run {number} ({describe(run)}): {exc}") from None
     return out
 
 
-def _base_seconds(source: str, fixed: list[str], ranks: int) -> float | None:
+def _base_seconds(source, fixed: list[str], ranks: int) -> float | None:
     """:func:`run_seconds` of the scene with the fixed overrides, its factorization reused (None if the
     scene is not valid without the ranges)."""
-    from ddsolve.problem import scene
-
     try:
-        return run_seconds(scene.load(source, fixed), ranks, factor=False)
+        return run_seconds(scene_with(source, fixed), ranks, factor=False)
     except SceneError:
         return None
 
@@ -231,18 +236,24 @@ def check_cost(items: list[str], scenes: list, runs: list[dict], ranges: list[Ra
                          "coarsen the mesh or split the sweep")
 
 
-def sweep(source: str, items: list[str], paired: bool, output: Path, comm, progress=print) -> list[dict] | None:
-    """Run the sweep on ``comm`` (every rank), writing ``output`` on rank 0 after each run.
+def sweep(source, items: list[str], paired: bool, output: Path | None, comm, progress=print,
+          values: dict | None = None) -> list[dict] | None:
+    """Run the sweep of ``source`` (a Scene, a scene file or a built-in name) on ``comm`` (every rank):
+    ``items`` are ``--set`` items (ranges and fixed values), ``values`` more swept keys with their values
+    given (key -> sequence).  Writes ``output`` (if given) on rank 0 at the end.
 
     Returns the records on rank 0 (None elsewhere).
     """
     from ddsolve.mesh import geometry
     from ddsolve.parallel.exchange import collective
+    from ddsolve.problem.scene import Scene
     from ddsolve.solve import adapt, driver
 
     def arrange():
         per_run = _base_seconds(source, [item for item in items if _range(item) is None], comm.size)
         fixed, ranges = parse(items, per_run)
+        ranges += [Range(key, tuple(value.tolist() if hasattr(value, "tolist") else value))
+                   for key, value in (values or {}).items()]
         return fixed, ranges, plan(ranges, paired, per_run)
 
     fixed, ranges, runs = collective(comm, arrange)  # the same on every rank, errors included
@@ -251,13 +262,15 @@ def sweep(source: str, items: list[str], paired: bool, output: Path, comm, progr
         from ddsolve.io.hdf5 import check_result
 
         scenes = load_scenes(source, fixed, runs)
-        inputs = [Path(source), *{scene.mesh.file for scene in scenes if scene.mesh.file is not None}]
-        check_result(output, [path for path in inputs if path.is_file()], viewer=False)
+        if output is not None:
+            inputs = [*([] if isinstance(source, Scene) else [Path(source)]),
+                      *{scene.mesh.file for scene in scenes if scene.mesh.file is not None}]
+            check_result(output, [path for path in inputs if path.is_file()], viewer=False)
         return scenes
 
     scenes = comm.bcast(collective(comm, check, root_only=True), root=0)
     collective(comm, lambda: check_cost(items, scenes, runs, ranges, comm.size), root_only=True)
-    header = {"scene": str(source), "fixed": " ".join(fixed), "keys": [r.key for r in ranges],
+    header = {"scene": source.origin if isinstance(source, Scene) else str(source), "fixed": " ".join(fixed), "keys": [r.key for r in ranges],
               "mode": "zip" if paired else "product"}
     records: list[dict] = []
     mesh = setup = previous = None
@@ -299,7 +312,8 @@ def sweep(source: str, items: list[str], paired: bool, output: Path, comm, progr
                 record.update(_numbers(result))
                 records.append(record)
                 progress(_line(number, len(runs), record))
-        collective(comm, lambda: _write(output, header, records), root_only=True)
+        if output is not None:
+            collective(comm, lambda: _write(output, header, records), root_only=True)
     finally:
         if setup is not None:
             setup.destroy()

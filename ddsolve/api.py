@@ -1,0 +1,90 @@
+"""The Python API: load a scene, change it, solve it on any communicator, read and write results.
+
+    import ddsolve
+
+    scene = ddsolve.Scene.load("partial-closure").with_({"solver.tol": 1e-10})
+    result = ddsolve.solve(scene)            # every rank of the communicator takes part
+    print(result.energy, result.G)
+    result.save("ex1.h5")
+    again = ddsolve.load("ex1.h5")
+
+The command line is a layer over these functions; errors are :class:`ddsolve.DDSolveError` with the
+same one-line messages.  Under ``mpiexec -n 4 python -m mpi4py script.py`` an error on one rank
+ends every rank (mpi4py's runner aborts the job on an uncaught exception).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable, Sequence
+
+from ddsolve.errors import NotConvergedError
+from ddsolve.io import hdf5
+from ddsolve.post.result import Result
+from ddsolve.problem.scene import Scene
+
+def _scene(scene: Scene | str | Path) -> Scene:
+    return scene if isinstance(scene, Scene) else Scene.load(scene)
+
+
+def _comm(comm):
+    """The communicator to run on (MPI.COMM_WORLD by default), with PETSc initialized."""
+    from ddsolve.parallel.launch import init_petsc
+
+    init_petsc([])
+    from mpi4py import MPI
+
+    return MPI.COMM_WORLD if comm is None else comm
+
+
+def _silent(*_args, **_kwargs) -> None:
+    """No progress lines (the default of the API; the command line prints them)."""
+
+
+def solve(scene: Scene | str | Path, comm=None, output: str | Path | None = None,
+          progress: Callable[[str], None] | None = None) -> Result:
+    """Solve ``scene`` by domain decomposition on every rank of ``comm`` (default: MPI.COMM_WORLD; a
+    plain ``python`` process is one rank).  With ``mesh.target_error`` the mesh is refined adaptively.
+
+    Returns the same :class:`Result` on every rank; ``output`` (an ``.h5`` path) also writes the result
+    set (the HDF5 file and its viewer files) from rank 0.  ``progress`` receives progress lines on
+    rank 0.  Raises :class:`ddsolve.NotConvergedError` (with the result as ``.result``) when the solve
+    did not converge, and other :class:`ddsolve.DDSolveError` for what cannot be solved.
+    """
+    from ddsolve.solve import run
+
+    comm = _comm(comm)
+    try:
+        result = run.solve(_scene(scene), comm, Path(output) if output is not None else None, progress or _silent)
+    except NotConvergedError as error:  # raised on every rank; the result (written) is rank 0's
+        error.result = comm.bcast(getattr(error, "result", None), root=0)
+        raise
+    return comm.bcast(result, root=0)
+
+
+def reference(scene: Scene | str | Path, output: str | Path | None = None) -> Result:
+    """The monolithic reference: the same discrete problem as one system, solved exactly on this process."""
+    from ddsolve.solve import run
+
+    _comm(None)
+    return run.reference(_scene(scene), Path(output) if output is not None else None)
+
+
+def load(path: str | Path) -> Result:
+    """Read a result file written by :func:`solve`, :func:`reference`, :meth:`Result.save` or the CLI."""
+    return hdf5.read(Path(path))
+
+
+def sweep(scene: Scene | str | Path, parameters: dict[str, Sequence], paired: bool = False,
+          output: str | Path | None = None, comm=None, progress: Callable[[str], None] | None = None) -> list[dict]:
+    """Solve ``scene`` for every combination of ``parameters`` (dotted key -> values; ``paired``: the
+    value lists side by side), reusing the mesh and the factorizations where they do not change.
+
+    Returns one record per run (``parameters``, ``energy``, ``converged``, ``G`` per tip, ...) on every
+    rank; ``output`` also writes them to one HDF5 file (the layout of ``ddsolve sweep``).
+    """
+    from ddsolve.solve import sweep as sweeps
+
+    comm = _comm(comm)
+    records = sweeps.sweep(_scene(scene), [], paired, Path(output) if output is not None else None, comm,
+                           progress or _silent, values=parameters)
+    return comm.bcast(records, root=0)

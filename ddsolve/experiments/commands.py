@@ -1,0 +1,106 @@
+"""The experiments' commands (``python -m ddsolve.experiments COMMAND``, ``./run COMMAND``): each reruns
+its measurements and rewrites its part of docs/ and results/.  The solver never imports them."""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from pathlib import Path
+
+from ddsolve.errors import DDSolveError
+from ddsolve.parallel.runtime import Parser, guarded, init_petsc, split_arguments
+
+#: Experiments: command -> (module, function, one-line summary, what it writes).
+EXPERIMENTS = {
+    "table1": ("paper", "table1", "the paper's Table 1: meshes, the paper's algorithm and the default method",
+               "docs/results.md (table1)"),
+    "theta-sweep": ("paper", "theta_sweep", "Uzawa's iterations against its step θ",
+                    "docs/results.md (theta-sweep), docs/theta-sweep.png"),
+    "figures": ("paper", "figures", "the paper's figures: deformed layers, normal jump along Σ",
+                "docs/results.md (figures), docs/fig*.png"),
+    "accuracy": ("accuracy", "accuracy", "error against the continuous solution: uniform, graded, adaptive, P1, P2",
+                 "docs/results.md (accuracy), docs/accuracy.png, results/accuracy.h5"),
+    "scaling": ("scaling", "scaling", "strong and weak scaling, P = 800 and 1600, a fitted cost model",
+                "docs/scaling.md, docs/scaling-*.png, results/scaling.h5"),
+    "robustness": ("robustness", "robustness", "every hard case and bad input, measured", "docs/robustness.md"),
+    "gallery": ("gallery", "gallery", "structures beyond the paper's square, solved and drawn",
+                "docs/gallery.md, docs/gallery-*.png, results/gallery/"),
+    "fracture": ("fracture", "fracture", "G at the crack tips: finite differences, radii, a plate; G against "
+                 "crack length and E2/E1", "docs/fracture.md, docs/fracture-*.png, results/fracture-*"),
+    "architecture": ("architecture", "architecture", "the package's stages and the imports between them, read "
+                     "from the source", "docs/architecture.png"),
+}
+#: The experiment that hands options to PETSc.
+PETSC_COMMANDS = ("bench",)
+
+
+def meshes(text: str | None):
+    """``--meshes P:M,P:M`` as pairs (default: the benchmark meshes)."""
+    from ddsolve.experiments.bench import BENCH_MESHES
+
+    if not text:
+        return BENCH_MESHES
+    try:
+        return tuple(tuple(int(v) for v in pair.split(":")) for pair in text.split(","))
+    except ValueError:
+        raise DDSolveError(f"--meshes {text}: expected P:M pairs separated by commas, e.g. 48:80,96:144") from None
+
+
+def cmd_bench(args, petsc_options) -> int:
+    from ddsolve.experiments import bench
+
+    if args.what == "factor":
+        init_petsc(petsc_options)
+        for P, M in meshes(args.meshes or "200:256"):
+            bench.factor(P, M)
+    elif args.what == "baseline":
+        bench.baseline(meshes(args.meshes or "400:512,800:1024"), ranks=args.ranks, repeats=args.repeats,
+                       busy=args.busy)
+    else:
+        bench.methods(meshes(args.meshes), Path(args.output), Path("docs"))
+        print(f"wrote {args.output}, docs/results.md (bench-methods section), docs/bench-methods.png")
+    return 0
+
+
+def cmd_experiment(args, _petsc_options) -> int:
+    module, function, _, written = EXPERIMENTS[args.command]
+    getattr(importlib.import_module(f"ddsolve.experiments.{module}"), function)()
+    print(f"wrote {written}")
+    return 0
+
+
+def parser() -> argparse.ArgumentParser:
+    """The experiments' command line; its epilog lists them, one line each."""
+    top = Parser(prog="python -m ddsolve.experiments", description="ddsolve's experiments: each reruns its "
+                 "measurements and rewrites its part of docs/ and results/.",
+                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = top.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name, (_, _, summary, written) in EXPERIMENTS.items():
+        sub.add_parser(name, description=f"{summary}; writes {written}").set_defaults(run=cmd_experiment)
+    summary = ("`bench methods`: every method and tolerance; `bench baseline`: the default method against one MUMPS "
+               "factorization of the whole problem; `bench factor`: block factorizations")
+    p = sub.add_parser("bench", description=summary)
+    p.set_defaults(run=cmd_bench)
+    p.add_argument("what", choices=("methods", "baseline", "factor"))
+    p.add_argument("--meshes", help="comma-separated P:M pairs (default: Table 1 and 400:512; baseline: "
+                   "400:512,800:1024)")
+    p.add_argument("-n", dest="ranks", type=int, metavar="N",
+                   help="ranks of the DD in `bench baseline` (default: 4, or fewer if there are fewer cores)")
+    p.add_argument("--repeats", type=int, default=3, help="side-by-side pairs per case in `bench baseline`")
+    p.add_argument("--busy", action="store_true", help="`bench baseline` with a second process keeping a core busy")
+    p.add_argument("-o", dest="output", default="results/bench-methods.h5", help="HDF5 file for `methods`")
+    listing = [(name, summary) for name, (_, _, summary, _) in EXPERIMENTS.items()] + [("bench", summary)]
+    width = max(len(name) for name, _ in listing) + 2
+    top.epilog = ("experiments (each reruns its measurements and rewrites its part of docs/ and results/):\n"
+                  + "\n".join(f"  {name:{width}s}{text}" for name, text in listing))
+    return top
+
+
+def main(argv: list[str] | None = None) -> int:
+    top = parser()
+
+    def run() -> int:
+        own, petsc_options = split_arguments(top, sys.argv[1:] if argv is None else argv, PETSC_COMMANDS)
+        args = top.parse_args(own)
+        return args.run(args, petsc_options)
+    return guarded(run)

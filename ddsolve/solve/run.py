@@ -1,0 +1,49 @@
+"""A scene solved as the commands solve it: the checks before any work, the solve (adaptive when the
+scene sets ``mesh.target_error``), the result set written.  The command line and the Python API both
+call these, so a script and ``ddsolve solve`` do the same thing (sweeps: :func:`ddsolve.solve.sweep.sweep`)."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable
+
+from ddsolve.errors import NotConvergedError
+from ddsolve.fem.assembly import check_range
+from ddsolve.io import hdf5
+from ddsolve.mesh import geometry
+from ddsolve.parallel.exchange import collective
+from ddsolve.post.result import Result
+from ddsolve.problem.scene import Scene
+from ddsolve.solve import adapt, checks, driver
+from ddsolve.solve import reference as monolithic
+
+
+def solve(scene: Scene, comm, output: Path | None, progress: Callable[[str], None] = print) -> Result | None:
+    """The domain decomposition of ``scene`` on every rank of ``comm``, adaptive when the scene asks;
+    ``output`` written from rank 0.  The result on rank 0, None elsewhere."""
+    collective(comm, lambda: checks.check_size(scene, comm.size), root_only=True)
+    method = adapt.solve if scene.mesh.target_error is not None else driver.solve
+    return method(scene, comm, output, progress=progress)
+
+
+def reference(scene: Scene, output: Path | None = None, progress: Callable[[str], None] = print) -> Result:
+    """The monolithic reference of ``scene`` on this process (adaptive when the scene asks); raises
+    NotConvergedError, with the result, when its final check fails."""
+    checks.check_size(scene)
+    if scene.mesh.target_error is not None:  # adaptive, every level solved by the reference
+        from mpi4py import MPI
+
+        result = adapt.solve(scene, MPI.COMM_SELF, output, progress=progress,
+                             level=lambda mesh: monolithic.solve(scene, mesh))
+    else:
+        mesh = geometry.build(scene)
+        geometry.check_loads(scene, mesh)
+        check_range(scene, mesh)
+        result = monolithic.solve(scene, mesh)
+        if output is not None:
+            hdf5.write(output, result, final=True)
+    if not result.converged:
+        error = NotConvergedError(result.message)
+        error.result = result
+        raise error
+    return result
+

@@ -1,0 +1,80 @@
+"""The package layout is the architecture: stages that point one way, no import cycles, PETSc and MPI
+only in the parallel and solve stages.  The graph is built from the source (every import statement,
+at module level or inside a function), so a deferred import counts as much as any other."""
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+from ddsolve.experiments.architecture import DEFERRED, SERIAL, STAGES, import_graph, imports, modules, stage
+
+
+def test_the_graph_sees_every_module_and_the_known_imports():
+    edges = import_graph()
+    assert len(edges) == len(modules()) > 40
+    assert "ddsolve.mesh.mesh" in edges["ddsolve.fem.assembly"]
+    assert "ddsolve.dd.constraints" in edges["ddsolve.dd.methods"]
+
+
+def test_the_deferred_import_is_the_only_one_left_out():
+    full, plain = import_graph(deferred=True), import_graph()
+    assert {(m, t) for m in full for t in full[m] - plain[m]} == DEFERRED
+
+
+def cycles(edges: dict[str, set[str]]) -> list[list[str]]:
+    """Every cycle a depth-first search closes (empty for an acyclic graph)."""
+    state: dict[str, int] = {}
+    found = []
+
+    def visit(node: str, trail: list[str]) -> None:
+        state[node] = 1
+        for target in sorted(edges.get(node, ())):
+            if state.get(target) == 1:
+                found.append(trail[trail.index(target):] + [target])
+            elif target not in state:
+                visit(target, trail + [target])
+        state[node] = 2
+
+    for node in sorted(edges):
+        if node not in state:
+            visit(node, [node])
+    return found
+
+
+def test_the_cycle_search_finds_cycles():
+    assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == [["a", "b", "c", "a"]]
+    assert cycles({"a": {"b", "c"}, "b": {"c"}, "c": set()}) == []
+
+
+def test_no_import_cycle():
+    found = cycles(import_graph())
+    assert not found, "import cycles: " + "; ".join(" -> ".join(cycle) for cycle in found)
+
+
+def test_stages_point_one_way():
+    wrong = [f"{module} ({stage(module)}) imports {target} ({stage(target)})"
+             for module, targets in import_graph().items() for target in targets
+             if STAGES.index(stage(target)) > STAGES.index(stage(module))]
+    assert not wrong, "\n".join(wrong)
+
+
+def test_petsc_and_mpi_only_in_the_parallel_and_solve_stages():
+    offenders = [f"{name} imports {imported}" for name, path in modules().items() if stage(name) in SERIAL
+                 for imported in imports(path) if imported.split(".")[0] in ("petsc4py", "mpi4py")]
+    assert not offenders, "\n".join(offenders)
+
+
+def test_nothing_imports_the_experiments():
+    users = [f"{module} imports {target}" for module, targets in import_graph().items() for target in targets
+             if stage(target) == "experiments" and stage(module) != "experiments"]
+    assert not users, "\n".join(users)
+
+
+def test_tests_import_no_private_name():
+    private = []
+    for path in Path(__file__).parent.glob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("ddsolve"):
+                private += [f"{path.name}: {node.module}.{alias.name}" for alias in node.names
+                            if alias.name.startswith("_") and not alias.name.endswith("__")]
+    assert not private, "\n".join(private)
