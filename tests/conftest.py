@@ -1,6 +1,7 @@
 """Shared test helpers: small structured meshes and launching ddsolve under mpiexec."""
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import subprocess
@@ -16,6 +17,8 @@ from ddsolve.mesh.mesh import Mesh
 from ddsolve.problem.scene import Geometry
 
 ROOT = Path(__file__).resolve().parents[1]
+#: The small mesh of the paper's square that most end-to-end tests solve (P = 13, M = 32).
+SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
 #: The paper's two layers, as scene text.
 MATERIALS = """
 [materials.layer1]
@@ -25,6 +28,52 @@ nu = 0.28
 E = 112.0
 nu = 0.32
 """
+
+
+#: Programs whose start makes a test an end-to-end (``mpi``) test.
+RUNNERS = ("python", "mpiexec", "mpirun", "pvpython", "xvfb-run", "run", "bash", "sh", "timeout")
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """A test is ``unit`` unless it is marked ``mpi``: ``-m unit`` runs the serial numerics alone."""
+    for item in items:
+        if item.get_closest_marker("mpi") is None:
+            item.add_marker(pytest.mark.unit)
+
+
+@contextlib.contextmanager
+def no_runs_unless_mpi(item: pytest.Item):
+    """While a test that is not marked ``mpi`` is set up (its fixtures too) and run, starting ddsolve,
+    mpiexec or another Python fails and asks for the mark.  (Libraries' own helpers, such as ctypes
+    asking ldconfig where a library is, are not runs.)"""
+    if item.get_closest_marker("mpi") is not None:
+        yield
+        return
+    popen = subprocess.Popen
+
+    class Refused(popen):
+        def __init__(self, args, *rest, **options):
+            words = [str(word) for word in ([args] if isinstance(args, (str, Path)) else args)]
+            if any(Path(word).name.startswith(RUNNERS) for word in words[:1]) or "ddsolve" in words:
+                raise AssertionError(f"{item.nodeid} starts {' '.join(words[:4])}...: mark it pytest.mark.mpi")
+            super().__init__(args, *rest, **options)
+    subprocess.Popen = Refused
+    try:
+        yield
+    finally:
+        subprocess.Popen = popen
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_setup(item: pytest.Item):
+    with no_runs_unless_mpi(item):
+        yield
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_call(item: pytest.Item):
+    with no_runs_unless_mpi(item):
+        yield
 
 
 def structured_square(nx: int, ny: int, shear: float = 0.0) -> tuple[np.ndarray, np.ndarray]:

@@ -9,6 +9,8 @@ from ddsolve.io import hdf5 as io
 from ddsolve.post import analysis
 from ddsolve.problem import scene
 
+pytestmark = pytest.mark.mpi
+
 #: A small P2 mesh of the paper's family.
 P2 = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32", "--set", "mesh.degree=2"]
 METHODS = {

@@ -31,6 +31,7 @@ def every_result(tmp_path_factory) -> Path:
     return folder
 
 
+@pytest.mark.mpi
 def test_every_converged_result_of_every_method_passes_the_check(every_result):
     converged = 0
     for name, method, _ in cases():
@@ -50,11 +51,13 @@ def test_every_converged_result_of_every_method_passes_the_check(every_result):
     assert converged >= len(cases()) - 4  # only uzawa may run out of iterations (the slender strip)
 
 
+@pytest.mark.mpi
 def test_the_check_command_says_the_same(every_result):
     passed = ddsolve("check", str(every_result / "partial-closure-mprgp.h5"))
     assert "KKT check passed" in passed.stdout and "max gluing gap" in passed.stdout
 
 
+@pytest.mark.mpi
 def test_a_wrong_answer_fails_the_check_with_status_3(every_result, tmp_path):
     result = io.read(every_result / "partial-closure-schur.h5")
     result.solution["u_plus"] = result.solution["u_plus"] * 1.01  # no longer glued to v_plus

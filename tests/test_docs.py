@@ -3,9 +3,10 @@ from __future__ import annotations
 
 import re
 
-from conftest import ROOT, ddsolve
+import pytest
+from conftest import ROOT, SMALL, ddsolve
 
-SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
+pytestmark = pytest.mark.mpi
 
 
 def python_blocks(section: str) -> list[str]:

@@ -8,7 +8,7 @@ import subprocess
 import meshio
 import numpy as np
 import pytest
-from conftest import ddsolve
+from conftest import SMALL, ddsolve
 
 from ddsolve.errors import DDSolveError
 from ddsolve.fem import assembly
@@ -18,7 +18,6 @@ from ddsolve.io.viewer import merged_upper_nodes
 from ddsolve.post import analysis
 from ddsolve.problem import materials
 
-SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
 P2 = ["--set", "mesh.degree=2"]
 LAYER_ARRAYS = {"stress": 9, "strain": 9, "von_mises": 1, "energy_density": 1, "half": 1, "error_indicator": 1}
 SIGMA_ARRAYS = {"jump": 3, "opening": 1, "contact_pressure": 1, "mu_g": 3, "mu_minus": 3, "mu_plus": 3,
@@ -42,6 +41,7 @@ def components(values: np.ndarray) -> int:
     return 1 if values.ndim == 1 else values.shape[1]
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("fmt", ["vtu", "xdmf"])
 @pytest.mark.parametrize("degree", [1, 2])
 def test_meshio_reads_every_viewer_file_with_its_named_arrays(results, degree, fmt):
@@ -82,6 +82,7 @@ def test_meshio_reads_every_viewer_file_with_its_named_arrays(results, degree, f
     assert np.array_equal(sigma.point_data["mu_g"][nodes, :2], result.multipliers["mu_g"])
 
 
+@pytest.mark.mpi
 def test_layer_mesh_is_one_mesh_with_separate_crack_faces(results):
     result = io.read(results[1])
     mesh = meshio.read(results[1].with_name("p1-layer1.vtu"))
@@ -100,6 +101,7 @@ def test_layer_mesh_is_one_mesh_with_separate_crack_faces(results):
     assert len(shared) == glued
 
 
+@pytest.mark.mpi
 def test_energy_density_integrates_to_the_strain_energy(results):
     result = io.read(results[2])
     fields = analysis.cell_fields(result)
@@ -128,6 +130,7 @@ def test_plane_stress_strain_zz_makes_sigma_zz_vanish():
                                          "plane_stress") is None
 
 
+@pytest.mark.mpi
 def test_plane_stress_result_has_its_strain_zz(tmp_path):
     path = tmp_path / "ps.h5"
     ddsolve("reference", "orthotropic-plate", "--set", "mesh.size=0.25", "-o", str(path))
@@ -136,6 +139,7 @@ def test_plane_stress_result_has_its_strain_zz(tmp_path):
     assert np.all(stress[:, 8] == 0.0) and np.abs(strain[:, 8]).max() > 0.0
 
 
+@pytest.mark.mpi
 def test_per_cell_arrays_of_the_result_become_cell_arrays(results, tmp_path):
     result = io.read(results[1])
     damage_values = {block: np.arange(len(result.half(block).cells), dtype=float) + (100 if block.endswith("plus") else 0)
@@ -173,6 +177,7 @@ def test_a_failing_writer_keeps_the_previous_set_and_leaves_no_temporaries(tmp_p
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt", "b.txt"]
 
 
+@pytest.mark.mpi
 def test_export_command(results, tmp_path):
     out = ddsolve("export", str(results[2]), "--format", "vtu", "-o", str(tmp_path)).stdout
     names = ["p2-layer1.vtu", "p2-layer2.vtu", "p2-sigma.vtu", "p2-paraview.py"]

@@ -165,6 +165,7 @@ def test_given_radii_are_checked():
         fracture.find_tips(mesh, 0.3, None)
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("ranks", [1, 4])
 def test_parallel_solve_writes_and_prints_g(tmp_path, ranks):
     """The DD solve sums the blocks' terms from the ranks that own them: the same G as the reference to 1e-8,
@@ -188,6 +189,7 @@ def test_parallel_solve_writes_and_prints_g(tmp_path, ranks):
     assert np.all(np.abs(opening[touching]) < 1e-9 * np.abs(opening).max()) and np.all(pressure[touching] >= 0)
 
 
+@pytest.mark.mpi
 def test_bad_radius_is_one_line(tmp_path):
     run = ddsolve("solve", "partial-closure", "--set", "fracture.outer=0.7", "-o", str(tmp_path / "x.h5"),
                   ranks=2, check=False)

@@ -25,6 +25,9 @@ from hypothesis import strategies as st
 from ddsolve.io import hdf5 as io
 from ddsolve.io import viewer as export
 from ddsolve.post import analysis
+from ddsolve.problem import scene as scene_module
+
+pytestmark = pytest.mark.mpi
 
 EXIT_STATUSES = {0, 1, 2, 3, 4}
 EXAMPLES = int(os.environ.get("DDSOLVE_FUZZ_EXAMPLES", "0"))
@@ -60,7 +63,7 @@ def previous(tmp_path_factory) -> Path:
     folder = tmp_path_factory.mktemp("previous")
     ddsolve("solve", "partial-closure", *[item for s in SMALL for item in ("--set", s)], "-o",
             str(folder / "out.h5"), ranks=2)
-    shutil.copy(Path(__file__).resolve().parents[1] / "ddsolve" / "scenes" / "partial-closure.toml",
+    shutil.copy(scene_module.builtin_folder() / "partial-closure.toml",
                 folder / "scene.toml")
     (folder / "dir.h5").mkdir()
     return folder

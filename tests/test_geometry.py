@@ -6,14 +6,15 @@ import math
 
 import numpy as np
 import pytest
-from conftest import MATERIALS, ROOT, ddsolve
+from conftest import MATERIALS, ROOT, SMALL, ddsolve
 
 from ddsolve.io import hdf5 as io
 from ddsolve.mesh import geometry, gmsh_io
 from ddsolve.post import analysis
 from ddsolve.problem import scene
 
-SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
+pytestmark = pytest.mark.mpi
+
 C = 0.078125  # the paper's load scale 1e-3 μ1
 EXAMPLE1_GEO = (ROOT / "docs" / "example1.geo").read_text()
 

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import MATERIALS, ROOT
+from conftest import MATERIALS
 
 from ddsolve.errors import SceneError
 from ddsolve.mesh import geometry, gmsh_io
@@ -57,21 +57,15 @@ def test_singular_points_of_the_box():
 
 
 def _model_points(path):
-    import gmsh
-
-    gmsh.initialize([], readConfigFiles=False)
-    try:
-        gmsh_io._quiet(gmsh)
-        gmsh_io._open(gmsh, path)
-        return set(map(tuple, sizing.model_singular_points(gmsh, gmsh_io._physical_groups(gmsh, str(path)))
+    with gmsh_io.session() as gmsh:
+        gmsh_io.open_file(gmsh, path)
+        return set(map(tuple, sizing.model_singular_points(gmsh, gmsh_io.physical_groups(gmsh, str(path)))
                        .round(6).tolist()))
-    finally:
-        gmsh.finalize()
 
 
 def test_singular_points_of_gmsh_geometries():
     corners = {(-1, -1), (1, -1), (1, 1), (-1, 1), (-1, 0), (1, 0)}
-    scenes = ROOT / "ddsolve" / "scenes"
+    scenes = scene.builtin_folder()
     # The arc's centre is a geometry point too, but on no curve: not singular.
     assert _model_points(scenes / "arc-bond.geo") == corners | {(-0.5, 0.151470), (0.5, 0.151470)}
     # The kink inside the crack is a re-entrant corner of the upper half.

@@ -11,6 +11,8 @@ from conftest import ROOT
 from ddsolve import cli
 from ddsolve.experiments import commands
 
+pytestmark = pytest.mark.mpi
+
 
 def subcommands(top: argparse.ArgumentParser) -> dict:
     return next(a for a in top._actions if isinstance(a, argparse._SubParsersAction)).choices

@@ -14,7 +14,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from conftest import ddsolve, without_open_mpi_noise
+from conftest import SMALL, ddsolve, without_open_mpi_noise
 
 from ddsolve.errors import DDSolveError, SceneError
 from ddsolve.io import hdf5 as io
@@ -22,8 +22,6 @@ from ddsolve.io import safe
 from ddsolve.io import viewer as export
 from ddsolve.post import analysis
 from ddsolve.problem import scene
-
-SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
 
 
 def run(*args: str, env: dict | None = None, timeout: float = 120, cwd: Path | None = None
@@ -66,6 +64,7 @@ def result_file(tmp_path_factory) -> Path:
 
 
 # --- 1. silent wrong answers -----------------------------------------------------------------------
+@pytest.mark.mpi
 @pytest.mark.parametrize("overrides", [
     ["--set", "solver.theta=1e6"],  # met the paper's rule after 3 iterations, gluing gap 1.7
     ["--set", "materials.layer1.E=1e-6", "--set", "materials.layer2.E=1e-6"],  # θ = 65 far too large
@@ -80,6 +79,7 @@ def test_a_stopping_rule_met_too_early_is_not_called_converged(tmp_path, overrid
     refused(run("check", str(output)), 3, "KKT check failed", "converged = false")
 
 
+@pytest.mark.mpi
 def test_tiny_moduli_are_solved_as_accurately_as_ordinary_ones(tmp_path):
     """E = 1e-20 in both layers: MUMPS gave a 33 % error before the blocks were scaled to order one."""
     tiny = [*SMALL, "--set", "materials.layer1.E=1e-20", "--set", "materials.layer2.E=1e-20"]
@@ -91,6 +91,7 @@ def test_tiny_moduli_are_solved_as_accurately_as_ordinary_ones(tmp_path):
     assert result.attrs["kkt_equilibrium"] < 1e-14
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("command, overrides, fragment", [
     ("solve", ["--set", "materials.layer1.E=1e308"], "materials.layer1.E: the elastic matrix has entries of 1.28e+308"),
     ("reference", ["--set", "materials.layer1.E=1e-300"], "materials.layer1.E: the elastic matrix has entries of 1.28e-300"),
@@ -108,6 +109,7 @@ def test_moduli_and_loads_beyond_double_precision_are_refused_by_name(tmp_path, 
 
 
 # --- 2. tracebacks ------------------------------------------------------------------------------
+@pytest.mark.mpi
 @pytest.mark.parametrize("arguments, env, fragment", [
     (["solve", "-n", "1", "partial-closure", *SMALL, "-u_minus_pc_type", "nonsense"], {},
      "block u_minus: Unable to find requested PC type nonsense (from -u_minus_pc_type nonsense)"),
@@ -157,6 +159,7 @@ def corrupt(source: Path, target: Path, edit: str) -> Path:
 EDITS = ["truncated", "wrong shape", "rows missing", "cell index", "strings", "scene", "crack flags"]
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("edit", EDITS)
 def test_a_broken_result_file_is_named_with_what_is_broken(tmp_path, result_file, edit):
     broken = corrupt(result_file, tmp_path / "broken.h5", edit)
@@ -165,6 +168,7 @@ def test_a_broken_result_file_is_named_with_what_is_broken(tmp_path, result_file
     assert "\n" not in str(raised.value)
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("command, edit", [("check", "wrong shape"), ("plot", "cell index"),
                                            ("compare", "rows missing"), ("export", "strings")])
 def test_commands_on_a_broken_result_file_give_one_line(tmp_path, result_file, command, edit):
@@ -205,6 +209,7 @@ def test_a_failed_rename_puts_the_previous_set_back(tmp_path, monkeypatch):
     assert unchanged(kept) and sorted(tmp_path.iterdir()) == sorted(targets)
 
 
+@pytest.mark.mpi
 def test_hdf5_never_writes_to_a_full_disk_itself():
     """A full disk used to leave the HDF5 library broken (tracebacks, then a segfault at exit)."""
     code = ("from ddsolve import io\n"
@@ -219,6 +224,7 @@ def test_hdf5_never_writes_to_a_full_disk_itself():
 
 
 # --- 3. hangs and runaway work ---------------------------------------------------------------
+@pytest.mark.mpi
 @pytest.mark.parametrize("ranks, fragment", [
     ("99999999999", "unsupported number of ranks"), ("-1", "unsupported number of ranks"),
     ("0", "unsupported number of ranks"), ("2147483648", "more than this machine's"),
@@ -229,6 +235,7 @@ def test_impossible_rank_counts_are_refused_before_mpiexec(ranks, fragment):
     assert time.perf_counter() - started < 20
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("command", [["solve", "-n", "4"], ["reference"], ["mesh"]])
 def test_an_impossible_mesh_is_refused_with_its_memory_estimate(command):
     huge = ["--set", "mesh.sigma_vertices=1000000000", "--set", "mesh.boundary_vertices=400000000"]
@@ -236,6 +243,7 @@ def test_an_impossible_mesh_is_refused_with_its_memory_estimate(command):
             "mesh.sigma_vertices = 1000000000, mesh.boundary_vertices = 400000000: a mesh of about", " GB")
 
 
+@pytest.mark.mpi
 def test_a_signal_stops_a_long_library_call_within_seconds(tmp_path):
     """gmsh meshing P = 1600 runs for tens of seconds inside C code, where Python's handlers wait."""
     process = subprocess.Popen([sys.executable, "-m", "ddsolve", "mesh", "partial-closure", "--set",
@@ -251,6 +259,7 @@ def test_a_signal_stops_a_long_library_call_within_seconds(tmp_path):
 
 
 # --- 4. lost or corrupted files -------------------------------------------------------------
+@pytest.mark.mpi
 def test_outputs_that_would_lose_a_file_are_refused_before_the_solve(tmp_path, mesh_file):
     scene_file = tmp_path / "s.toml"
     scene_file.write_text(scene.builtin_scenes()["partial-closure"].replace(
@@ -277,6 +286,7 @@ def test_outputs_that_would_lose_a_file_are_refused_before_the_solve(tmp_path, m
     assert unchanged(kept) and (tmp_path / "fifo.h5").exists()
 
 
+@pytest.mark.mpi
 def test_temporary_files_of_killed_runs_are_removed_by_the_next_write(tmp_path):
     target = tmp_path / "x.h5"
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
@@ -291,6 +301,7 @@ def test_temporary_files_of_killed_runs_are_removed_by_the_next_write(tmp_path):
     assert not stale.exists() and alive.exists() and other.exists()
 
 
+@pytest.mark.mpi
 def test_a_kill_during_the_write_keeps_the_previous_set(tmp_path):
     """SIGKILL (nothing can be cleaned up) while the result set is being written."""
     output = tmp_path / "k.h5"
@@ -315,6 +326,7 @@ def test_a_crack_too_short_to_mesh_names_the_crack_key():
         scene.load("partial-closure", ["geometry.crack=[0.1, 0.100000000001]"])
 
 
+@pytest.mark.mpi
 def test_a_scale_that_draws_nothing_useful_is_refused(tmp_path, result_file):
     local = tmp_path / "r.h5"
     local.write_bytes(result_file.read_bytes())
@@ -323,6 +335,7 @@ def test_a_scale_that_draws_nothing_useful_is_refused(tmp_path, result_file):
 
 
 # --- 6. options typed after PETSc options -----------------------------------------------------
+@pytest.mark.mpi
 def test_ddsolve_options_after_petsc_options_are_honoured(tmp_path):
     completed = run("solve", "-n", "2", "partial-closure", *SMALL, "-u_minus_ksp_type", "preonly",
                     "--set", "solver.method=mprgp", "-o", str(tmp_path / "out.h5"), "-u_minus_ksp_typo", "cg",
@@ -334,6 +347,7 @@ def test_ddsolve_options_after_petsc_options_are_honoured(tmp_path):
                                         "are u_minus_, u_plus_, v_minus_, v_plus_): -u_minus_ksp_typo cg")
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("arguments, fragment", [
     (["check", "x.h5", "-bogus"], "check: unknown option -bogus"),
     (["plot", "x.h5", "-scale", "5"], "did you mean --scale?"),

@@ -14,6 +14,8 @@ from conftest import ROOT
 
 from ddsolve import __version__, environment
 
+pytestmark = pytest.mark.mpi
+
 DEBIAN_PYTHON = Path("/usr/bin/python3")
 
 

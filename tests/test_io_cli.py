@@ -2,13 +2,11 @@
 import h5py
 import numpy as np
 import pytest
-from conftest import ddsolve
+from conftest import SMALL, ddsolve
 
 from ddsolve import cli
 from ddsolve.errors import UsageError
 from ddsolve.io import hdf5 as io
-
-SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
 
 
 @pytest.fixture(scope="module")
@@ -18,6 +16,7 @@ def reference_file(tmp_path_factory):
     return path
 
 
+@pytest.mark.mpi
 def test_result_layout_and_round_trip(reference_file):
     with h5py.File(reference_file) as f:
         for name in ("mesh/lower/points", "mesh/lower/cells", "mesh/upper/points", "mesh/upper/cells",
@@ -39,6 +38,7 @@ def test_result_layout_and_round_trip(reference_file):
     assert again.scene == result.scene and np.array_equal(again.solution["v_plus"], result.solution["v_plus"])
 
 
+@pytest.mark.mpi
 def test_output_directory_must_exist_and_nothing_partial_is_left(tmp_path, reference_file):
     result = io.read(reference_file)
     from ddsolve.errors import DDSolveError
@@ -65,6 +65,7 @@ def test_ddsolve_options_are_taken_wherever_they_are_typed():
         cli.split_arguments(top, ["plot", "r.h5", "-scale", "5"])
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("arguments, message", [
     (["solve", "nope.toml"], "nope.toml: no such scene file or built-in scene"),
     (["solve", "partial-closure", "--set", "solver.thta=3"], "did you mean solver.theta?"),
@@ -79,6 +80,7 @@ def test_bad_input_is_one_line_and_nonzero(tmp_path, arguments, message):
     assert "Traceback" not in completed.stderr
 
 
+@pytest.mark.mpi
 def test_missing_mesh_file_is_reported(tmp_path):
     scene = tmp_path / "s.toml"
     scene.write_text('[mesh]\nfile = "absent.msh"\n[materials.layer1]\nE = 1.0\nnu = 0.3\n'
@@ -88,6 +90,7 @@ def test_missing_mesh_file_is_reported(tmp_path):
     assert completed.stderr.strip() == f"ddsolve: error: {tmp_path / 'absent.msh'}: mesh file not found"
 
 
+@pytest.mark.mpi
 def test_compare_check_and_plot(tmp_path, reference_file):
     out = ddsolve("compare", str(reference_file), str(reference_file)).stdout
     assert "relative energy-norm error 0.000e+00" in out

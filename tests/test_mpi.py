@@ -3,12 +3,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import ddsolve, paper_references
+from conftest import SMALL, ddsolve, paper_references
 
 from ddsolve.io import hdf5 as io
 from ddsolve.post import analysis
 
-SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
 UZAWA = ["--set", "solver.method=uzawa"]
 #: Each method with a tolerance tight enough for a 1e-8 energy error.
 TIGHT = {
@@ -26,6 +25,7 @@ def references(tmp_path_factory):
     return paper_references(tmp_path_factory.mktemp("references"), *SMALL)
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("method", TIGHT)
 @pytest.mark.parametrize("name", ["partial-closure", "full-opening", "linear"])
 def test_dd_equals_the_reference(tmp_path, references, name, method):
@@ -48,6 +48,7 @@ def test_dd_equals_the_reference(tmp_path, references, name, method):
         assert reference.attrs["closed_vertices"] == 0 and np.all(result.multipliers["mu_c"] == 0.0)
 
 
+@pytest.mark.mpi
 def test_contact_where_the_linear_problem_overlaps(references):
     from ddsolve.post.analysis import normal_jump
 
@@ -59,6 +60,7 @@ def test_contact_where_the_linear_problem_overlaps(references):
     assert np.all(contact.multipliers["mu_c"][crack & ~overlap] < 1e-9)
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("method", ["uzawa", "schur", "mprgp", "fista"])
 def test_rank_counts_agree(tmp_path, method):
     results = {}
@@ -74,6 +76,7 @@ def test_rank_counts_agree(tmp_path, method):
         assert np.allclose(results[ranks].history, results[4].history, rtol=1e-6, atol=1e-14)
 
 
+@pytest.mark.mpi
 def test_unsupported_rank_count_fails_on_every_rank(tmp_path):
     completed = ddsolve("solve", "partial-closure", *SMALL, "-o", str(tmp_path / "x.h5"), ranks=3, check=False,
                         timeout=120)
@@ -82,6 +85,7 @@ def test_unsupported_rank_count_fails_on_every_rank(tmp_path):
     assert not (tmp_path / "x.h5").exists()
 
 
+@pytest.mark.mpi
 def test_max_iterations_writes_an_unconverged_result(tmp_path):
     output = tmp_path / "short.h5"
     completed = ddsolve("solve", "partial-closure", *SMALL, *UZAWA, "--set", "solver.max_iterations=25",
@@ -92,6 +96,7 @@ def test_max_iterations_writes_an_unconverged_result(tmp_path):
     assert not result.converged and result.iterations == 25 and len(result.history) == 25
 
 
+@pytest.mark.mpi
 def test_divergence_stops_early_and_keeps_the_previous_file(tmp_path):
     output = tmp_path / "kept.h5"
     output.write_bytes(b"previous result")
@@ -103,6 +108,7 @@ def test_divergence_stops_early_and_keeps_the_previous_file(tmp_path):
     assert output.read_bytes() == b"previous result"
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("method, options", [
     ("schur", []),  # block interface matrices by parallel multi-column MUMPS solves
     ("feti", []),  # Neumann and Dirichlet solves by parallel MUMPS
@@ -124,6 +130,7 @@ def test_eight_ranks_split_every_block_over_two(tmp_path, method, options):
     assert np.all(memory["rank_mesh_bytes"] > 0.45 * memory["whole_mesh_bytes"])
 
 
+@pytest.mark.mpi
 def test_an_active_multiplier_bound_p_is_honoured_by_schur_and_mprgp(tmp_path):
     """With p smaller than the gluing forces, schur's fallback (all bounds) and MPRGP solve the same QP."""
     results = {}

@@ -8,6 +8,8 @@ import time
 
 import pytest
 
+pytestmark = pytest.mark.mpi
+
 
 def test_sigterm_ends_meshing_at_once():
     """gmsh meshes in a thread, so the signal handler runs while it meshes (P = 1600 takes a minute)."""

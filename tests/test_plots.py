@@ -4,7 +4,7 @@ from __future__ import annotations
 import matplotlib
 import numpy as np
 import pytest
-from conftest import ddsolve
+from conftest import SMALL, ddsolve
 
 from ddsolve.io import hdf5 as io
 from ddsolve.post import plots
@@ -12,7 +12,6 @@ from ddsolve.post import plots
 matplotlib.use("Agg")
 from matplotlib.figure import Figure  # noqa: E402
 
-SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
 METHODS = ("schur", "mprgp", "fista", "uzawa")
 
 
@@ -56,6 +55,7 @@ def visible_lines(ax):
     return out
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("method", METHODS + ("reference",))
 def test_every_method_has_a_finite_history_per_iteration(results, method):
     result = results[method]
@@ -74,6 +74,7 @@ def test_every_method_has_a_finite_history_per_iteration(results, method):
             assert np.all(result.history[:-1] >= tol)
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("method", METHODS + ("reference",))
 def test_the_convergence_plot_of_every_method_shows_labelled_curves(results, method, figures, tmp_path):
     result = results[method]
@@ -94,6 +95,7 @@ def test_the_convergence_plot_of_every_method_shows_labelled_curves(results, met
         assert axes[0].get_yscale() in ("log", "symlog")
 
 
+@pytest.mark.mpi
 def test_zero_entries_stay_visible(results, figures, tmp_path):
     reference = results["reference"]
     assert reference.history[-1] == 0.0  # the reference's last step violates nothing at all
@@ -104,12 +106,14 @@ def test_zero_entries_stay_visible(results, figures, tmp_path):
     assert len(y) == reference.iterations
 
 
+@pytest.mark.mpi
 def test_several_methods_in_one_plot(results, figures, tmp_path):
     curves = plots.convergence([(m, results[m]) for m in METHODS], tmp_path / "c.png")
     assert [c.label for c in curves] == list(METHODS) + ["schur"]
     assert len(visible_lines(figures[0].axes[0])) == len(METHODS)
 
 
+@pytest.mark.mpi
 def test_deformed_layers_and_crack_faces_are_labelled(results, figures, tmp_path):
     result = results["schur"]
     scale = plots.deformed_layers(result, tmp_path / "d.png")
@@ -129,6 +133,7 @@ def test_deformed_layers_and_crack_faces_are_labelled(results, figures, tmp_path
     assert len(x) == len(result.crack) and np.all(np.isfinite(opening))
 
 
+@pytest.mark.mpi
 def test_magnification_draws_the_largest_displacement_at_a_fixed_fraction(results):
     result = results["reference"]
     scale = plots.magnification(result)
@@ -136,6 +141,7 @@ def test_magnification_draws_the_largest_displacement_at_a_fixed_fraction(result
     assert 0.05 <= scale * largest / 2.0 <= 0.12  # 8 % of the square's side, to one significant digit
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("value", ["nan", "inf", "-1", "0", "abc"])
 def test_scale_must_be_a_finite_positive_number(tmp_path, results, value):
     completed = ddsolve("plot", "nothing.h5", f"--scale={value}", check=False)

@@ -47,7 +47,6 @@ def scene_with_load(folder: Path, name: str, value: str, prefix: bytes = b"") ->
 
 
 # --- class 1: the parser's limits (no MPI) -----------------------------------------------------------------
-@pytest.mark.unit
 @pytest.mark.parametrize("text, fragment, position", [
     ("(" * 3000 + "x" + ")" * 3000, "nested more than 50 deep", 51),
     ("^".join(["x"] * 3000), "nested more than 50 deep", 101),
@@ -70,7 +69,6 @@ def test_expressions_beyond_the_bounds_name_key_and_position(text, fragment, pos
     assert fragment in message and message.endswith(f"at position {position}"), message
 
 
-@pytest.mark.unit
 def test_a_megabyte_expression_is_refused_at_once_with_a_short_message():
     text = "+".join(["1.0"] * 262144)  # 1 MB: the tokenizer took 66 s before its traceback
     started = time.perf_counter()
@@ -79,7 +77,6 @@ def test_a_megabyte_expression_is_refused_at_once_with_a_short_message():
     assert f"{len(text)} characters, more than the 10000" in message and "at position 10001" in message
 
 
-@pytest.mark.unit
 def test_a_long_sum_is_accepted_evaluated_and_sent_to_ranks():
     """3000 terms: a flat chain, no deeper than one term (evaluation and pickling do not recurse through it)."""
     loaded = scene.loads(PAPER, [f'{KEY}="{"+".join(["x"] * 3000)}"'])
@@ -89,14 +86,12 @@ def test_a_long_sum_is_accepted_evaluated_and_sent_to_ranks():
     np.testing.assert_allclose(part(x, x), 3000 * x, rtol=1e-12)
 
 
-@pytest.mark.unit
 def test_nesting_up_to_the_bound_is_accepted():
     for text in ("(" * 49 + "x" + ")" * 49, "sin(" * 49 + "x" + ")" * 49, "1-2/(" * 48 + "x" + ")" * 48):
         part = expressions.parse(text)
         pickle.loads(pickle.dumps(part))(np.zeros(3), np.zeros(3))
 
 
-@pytest.mark.unit
 def test_flat_chains_evaluate_like_the_binary_operators():
     """a - b as a + (-b) and a/b/c as a chain: the same doubles as the left-associative operators."""
     rng = np.random.default_rng(1)
@@ -107,14 +102,12 @@ def test_flat_chains_evaluate_like_the_binary_operators():
         assert np.array_equal(expressions.parse(text)(x, y), values), text
 
 
-@pytest.mark.unit
 def test_a_million_coefficients_are_refused():
     with pytest.raises(SceneError, match=rf"s.toml: {KEY}: 1000000 polynomial coefficients, more than the 101"):
         scene.loads(PAPER.replace("y = [0.0, -0.078125]", "y = [" + "0.0, " * 999999 + "0.0]", 1), origin="s.toml")
     assert scene.loads(PAPER, [f"{KEY}=[{', '.join(['0.0'] * 101)}]"]).loads[("layer1", "top")].y.degree == 100
 
 
-@pytest.mark.unit
 @pytest.mark.parametrize("value", ["[" * 3000 + "]" * 3000, "{a=" * 3000 + "1" + "}" * 3000], ids=["arrays", "tables"])
 def test_toml_nested_too_deeply_is_refused(tmp_path, value):
     with pytest.raises(SceneError, match=r"^--set loads\.layer1\.top\.y=.*: arrays or tables nested too deeply$"):
@@ -136,7 +129,6 @@ def extent(top_edges, text: str) -> list[float]:
             for points, edges in top_edges]
 
 
-@pytest.mark.unit
 @pytest.mark.parametrize("text", ["1e-4/(x-0.0123)^2", "1/(x-0.0123)", "1/sqrt(sqrt((x-0.0123)^2))",
                                   "1e-4/(x+0.7071)^3", "sin(x)/(x-0.51)^2"])
 def test_singular_loads_are_refused_naming_the_key(top_edges, text):
@@ -146,7 +138,6 @@ def test_singular_loads_are_refused_naming_the_key(top_edges, text):
             load_extent(points, edges, scene.Load("loads.layer1.top", y=expressions.parse(text)))
 
 
-@pytest.mark.unit
 @pytest.mark.parametrize("text, value", [("exp(1000*x)", "not finite"), ("1/sqrt(x+1)", "not finite"),
                                          ("1/x", "not finite"), ("1e300*1e300*x", "not finite")])
 def test_loads_not_finite_on_their_boundary_name_the_key(top_edges, text, value):
@@ -155,7 +146,6 @@ def test_loads_not_finite_on_their_boundary_name_the_key(top_edges, text, value)
             load_extent(points, edges, scene.Load("loads.layer1.top", y=expressions.parse(text)))
 
 
-@pytest.mark.unit
 @pytest.mark.parametrize("text, largest", [("sin(pi*x/2)^2", 1.0), ("exp(-((x-0.3)/0.01)^2)", 1.0),
                                            ("1/(x-1.01)^2", 1e4), ("sqrt(x^2)", 1.0), ("sin(1/(x-0.0123))", 1.0),
                                            ("1e-3*(x^2 - y)", 1e-3), ("-0.078125*x", 0.078125)])
@@ -164,7 +154,6 @@ def test_bounded_loads_are_accepted_with_their_largest_value(top_edges, text, la
         assert value == pytest.approx(largest, rel=1e-3)
 
 
-@pytest.mark.unit
 def test_fibre_angles_a_double_cannot_place_are_refused():
     orthotropic = "materials.layer2={{E1=140.0, E2=10.0, G12=5.0, nu12=0.3, angle={}}}"
     for angle in ("1e20", "-1e7", "1.5e6"):
@@ -175,7 +164,6 @@ def test_fibre_angles_a_double_cannot_place_are_refused():
         scene.loads(PAPER, [orthotropic.format(angle)])
 
 
-@pytest.mark.unit
 def test_a_byte_order_mark_is_dropped(tmp_path):
     plain = scene.load(scene_with_load(tmp_path, "plain", "[0.0, -0.078125]"))
     marked = scene.load(scene_with_load(tmp_path, "marked", "[0.0, -0.078125]", prefix=b"\xef\xbb\xbf"))
@@ -289,7 +277,6 @@ EXPRESSIONS = st.one_of(
 )
 
 
-@pytest.mark.unit
 @settings(max_examples=EXAMPLES or 150, deadline=None, derandomize=not EXAMPLES,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(text=EXPRESSIONS)
@@ -311,7 +298,6 @@ def test_fuzz_expressions_parse_or_name_the_position(text):
     assert values.shape == x.shape
 
 
-@pytest.mark.unit
 @settings(max_examples=EXAMPLES or 40, deadline=None, derandomize=not EXAMPLES,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 @given(text=EXPRESSIONS, component=st.sampled_from(["x", "y", "pressure"]))
@@ -332,7 +318,6 @@ POLES = st.tuples(st.floats(-0.97, 0.97).filter(lambda a: a == 0.0 or abs(a) > 1
                   st.sampled_from(["1", "2", "3", "0.5", "1.5"]), st.sampled_from(["1", "1e-4", "sin(x)+2", "exp(x)"]))
 
 
-@pytest.mark.unit
 @settings(max_examples=EXAMPLES or 30, deadline=None, derandomize=not EXAMPLES)
 @given(pole=POLES)
 def test_fuzz_singular_loads_are_refused(top_edges, pole):
@@ -343,7 +328,6 @@ def test_fuzz_singular_loads_are_refused(top_edges, pole):
             load_extent(points, edges, scene.Load("loads.layer1.top", y=expressions.parse(text)))
 
 
-@pytest.mark.unit
 @settings(max_examples=EXAMPLES or 30, deadline=None, derandomize=not EXAMPLES)
 @given(pole=POLES, away=st.floats(0.05, 10.0))
 def test_fuzz_loads_with_poles_off_the_boundary_are_accepted(top_edges, pole, away):

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import h5py
 import pytest
-from conftest import without_open_mpi_noise
+from conftest import SMALL, without_open_mpi_noise
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -18,8 +18,7 @@ from ddsolve.errors import MeshError, SceneError
 from ddsolve.mesh import geometry, sizing
 from ddsolve.problem import scene
 
-SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
-unit, mpi = pytest.mark.unit, pytest.mark.mpi
+mpi = pytest.mark.mpi
 
 
 def run(*args: str, timeout: float = 240, cwd: Path | None = None) -> subprocess.CompletedProcess:
@@ -77,7 +76,7 @@ def test_a_coarse_mesh_on_one_rank(tmp_path):
                "-o", str(tmp_path / "one.h5")))
 
 
-@unit
+@pytest.mark.mpi
 def test_reference_on_a_coarse_mesh(tmp_path):
     refused(run("reference", "partial-closure", "--set", "mesh.size=2", "-o", str(tmp_path / "r.h5")), 1,
             "loads.layer1.bottom")
@@ -129,7 +128,6 @@ def test_a_box_too_far_for_its_elements_is_refused_and_the_previous_files_kept(t
     assert output.read_bytes() == b"previous"
 
 
-@unit
 def test_the_box_is_meshed_about_a_nearby_origin():
     assert list(geometry.local_origin((-1.0, 1.0, -1.0, 1.0))) == [0.0, 0.0]
     assert list(geometry.local_origin((0.0, 8.0, -0.5, 0.5))) == [0.0, 0.0]
@@ -139,7 +137,6 @@ def test_the_box_is_meshed_about_a_nearby_origin():
     assert mesh.lower.points[:, 0].min() == 1e9 and mesh.upper.points[:, 1].max() == 7.0
 
 
-@unit
 def test_building_a_box_too_far_for_its_elements_is_refused():
     scene_text = scene.builtin_scenes()["partial-closure"]
     options = [*SMALL[1::2], *box(1e14, 1e14 + 2.0, -1.0, 1.0, (1e14 + 0.5, 1e14 + 1.5))[1::2]]
@@ -148,7 +145,6 @@ def test_building_a_box_too_far_for_its_elements_is_refused():
 
 
 # --- class 8: ν near ½, grading near 0 -----------------------------------------------------------
-@unit
 @pytest.mark.parametrize("layer", ["layer1", "layer2"])
 def test_nearly_incompressible_layers_are_refused_naming_nu_and_its_range(layer):
     with pytest.raises(SceneError, match=rf"materials\.{layer}\.nu = 0\.4999999999999999 .*at most 0\.4999999925"):
@@ -157,7 +153,6 @@ def test_nearly_incompressible_layers_are_refused_naming_nu_and_its_range(layer)
         scene.loads(scene.builtin_scenes()["partial-closure"], [f"materials.{layer}.nu={nu}"])
 
 
-@unit
 def test_nu_near_minus_one_in_plane_stress_is_refused():
     with pytest.raises(SceneError, match=r"materials\.layer2\.nu = .*at least -0\.99999998"):
         scene.loads(scene.builtin_scenes()["partial-closure"],
@@ -181,7 +176,7 @@ def test_nu_04999_still_solves(tmp_path):
                "-o", str(tmp_path / "r.h5")))
 
 
-@unit
+@pytest.mark.mpi
 @pytest.mark.parametrize("mu", ["1e-9", "0.01"])
 def test_a_grading_exponent_near_zero_meshes(mu):
     for degree in ("1", "2"):
@@ -190,7 +185,6 @@ def test_a_grading_exponent_near_zero_meshes(mu):
     solved(run("mesh", "arc-bond", "--set", "mesh.size=0.1", "--set", f"mesh.grading={mu}"))
 
 
-@unit
 def test_the_graded_sizes_keep_the_floor():
     for mu in (1e-9, 0.01, 0.2, 0.4, 0.999):
         smallest = float(sizing.graded_size(0.0, 0.05, mu, 2.0, sizing.SMALLEST["box"]))
@@ -206,7 +200,7 @@ def geo_scene(folder: Path, name: str, edit) -> Path:
     return path
 
 
-@unit
+@pytest.mark.mpi
 @pytest.mark.parametrize("name, edit, fragments", [
     ("factor", lambda text: "Mesh.MeshSizeFactor = 1e-9;\n" + text, ("factor.geo", "Mesh.MeshSizeFactor = 1e-09")),
     ("tinylc", lambda text: text.replace("lc = 1.0;", "lc = 1e-9;", 1), ("tinylc.geo", "below what gmsh meshes")),
@@ -225,7 +219,7 @@ def test_solve_of_a_geo_with_a_tiny_size_factor_is_refused_and_the_previous_file
     assert output.read_bytes() == b"previous"
 
 
-@unit
+@pytest.mark.mpi
 def test_the_shipped_geo_files_still_mesh():
     for name in ("arc-bond", "kinked-bond"):
         solved(run("mesh", name, "--set", "mesh.degree=2"))
@@ -244,7 +238,7 @@ y = -0.01
 """
 
 
-@unit
+@pytest.mark.mpi
 @settings(max_examples=4, deadline=None, suppress_health_check=list(HealthCheck))
 @given(offset=st.sampled_from([0.0, -3.0, 1e3, 1e6, 1e9, 1e12, -1e15]),
        width=st.sampled_from([2e-4, 1.0, 2.0, 1000.0]), height=st.sampled_from([2e-4, 1.0, 2.0, 1000.0]),

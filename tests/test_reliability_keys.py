@@ -210,7 +210,6 @@ def test_a_sweep_of_too_many_runs_is_refused_at_once_with_its_estimate(tmp_path,
     assert elapsed < 30 and not (tmp_path / "s.h5").exists()
 
 
-@pytest.mark.unit
 def test_a_sweep_estimated_beyond_a_day_is_refused_naming_its_ranges():
     from ddsolve.errors import SceneError
     from ddsolve.problem import materials, scene
@@ -250,7 +249,6 @@ def test_an_adaptive_target_out_of_reach_is_refused_after_the_first_level(tmp_pa
     assert completed.stdout.count("level ") == 1
 
 
-@pytest.mark.unit
 def test_the_prediction_uses_the_best_rate_of_the_element_degree():
     from ddsolve.solve import adapt
 
@@ -322,7 +320,6 @@ def test_sweep_honours_target_error(tmp_path):
     assert (adaptive["unknowns"] > plain["unknowns"]).all() and not adaptive["mesh_reused"].any()
 
 
-@pytest.mark.unit
 def test_the_cases_cover_every_key_of_the_schema(tmp_path):
     covered = {key.replace("layer2", "layer1") for key, _, _ in cases(tmp_path)}
     expected = {key.replace("layer2", "layer1").replace(".NAME", ".top") for key in schema_leaves()}
@@ -355,7 +352,6 @@ def test_every_key_is_honoured_or_refused_naming_it(tmp_path, command):
 
 
 # --- the generator that would have found these bugs ------------------------------------------------
-@pytest.mark.unit
 @settings(max_examples=60, deadline=None)
 @given(counts=st.lists(st.integers(1, 10 ** 12), min_size=1, max_size=4), paired=st.booleans())
 def test_sweeps_of_any_count_are_planned_or_refused_without_being_made(counts, paired):
@@ -378,7 +374,6 @@ def test_sweeps_of_any_count_are_planned_or_refused_without_being_made(counts, p
     assert fixed == [] and len(runs) <= sweep.MAX_RUNS
 
 
-@pytest.mark.unit
 @settings(max_examples=40, deadline=None)
 @given(key=st.sampled_from(sorted({"title", "mesh.target_error", "solver.theta", "solver.max_iterations",
                                    "solver.tol", "solver.p", "solver.method", "materials.layer1.E",
@@ -386,10 +381,10 @@ def test_sweeps_of_any_count_are_planned_or_refused_without_being_made(counts, p
        command=st.sampled_from(COMMANDS), ranks=st.sampled_from([1, 2, 4, 8]))
 def test_every_key_is_read_or_has_a_reason(key, command, ranks):
     """The decision of ``unread`` for any key, command and rank count: a reason in words, or None."""
-    from ddsolve import cli
     from ddsolve.problem import scene
+    from ddsolve.solve import checks
 
-    reason = cli.unread(command, key.split("."), scene.load("partial-closure", SMALL), ranks)
+    reason = checks.unread(command, key.split("."), scene.load("partial-closure", SMALL), ranks)
     assert reason is None or (reason and "\n" not in reason)
     if command == "mesh":
         assert (reason is None) == (key.split(".")[0] in ("geometry", "mesh") and key != "mesh.target_error")

@@ -24,7 +24,6 @@ from ddsolve.mesh import geometry, mesh
 from ddsolve.problem import scene
 from ddsolve.solve import sweep
 
-pytestmark = pytest.mark.unit
 SHAPES = geometries()
 
 
@@ -218,6 +217,7 @@ def _unprivileged() -> list[str]:
     return ["setpriv", "--reuid=nobody", "--regid=nogroup", "--clear-groups"]
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("arguments, target, what", CASES)
 def test_an_input_without_read_permission_is_one_line(inputs, arguments, target, what):
     user = _unprivileged()
@@ -232,6 +232,7 @@ def test_an_input_without_read_permission_is_one_line(inputs, arguments, target,
     assert not (inputs / "s.h5").exists() and not (inputs / "out.h5").exists()
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("arguments, target, what", CASES[:1] + CASES[3:4] + CASES[7:8])
 def test_an_input_in_a_folder_without_search_permission_is_one_line(inputs, arguments, target, what):
     user = _unprivileged()
@@ -250,6 +251,7 @@ def test_an_input_in_a_folder_without_search_permission_is_one_line(inputs, argu
     assert "(permission denied)" in completed.stderr
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("arguments, target, what", CASES[:1] + CASES[2:3] + CASES[3:4] + CASES[6:9])
 def test_a_directory_in_place_of_an_input_is_one_line(inputs, tmp_path, arguments, target, what):
     folder = tmp_path / "work"
@@ -260,6 +262,7 @@ def test_a_directory_in_place_of_an_input_is_one_line(inputs, tmp_path, argument
     _one_line(completed, f"ddsolve: error: {target}: cannot read {what} (is a directory)")
 
 
+@pytest.mark.mpi
 def test_a_fifo_in_place_of_a_mesh_file_does_not_hang(inputs, tmp_path):
     folder = tmp_path / "work"
     shutil.copytree(inputs, folder)
@@ -269,6 +272,7 @@ def test_a_fifo_in_place_of_a_mesh_file_does_not_hang(inputs, tmp_path):
     _one_line(completed, "example1-p1-v4.msh: cannot read mesh file (not a regular file)")
 
 
+@pytest.mark.mpi
 def test_missing_inputs_keep_their_messages(inputs):
     _one_line(_run(inputs, "mesh", "nope.toml"), "nope.toml: no such scene file or built-in scene (built-in: ")
     _one_line(_run(inputs, "mesh", "geo.toml", "--set", "mesh.file=gone.geo"), "gone.geo: mesh file not found")

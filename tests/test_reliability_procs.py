@@ -69,7 +69,7 @@ def test_ranks_end_when_mpiexec_does_not_answer_their_abort(tmp_path):
     assert outcome["left"] == {}, outcome["left"]
 
 
-@pytest.mark.unit
+@pytest.mark.mpi
 @pytest.mark.parametrize("signum, status", [(signal.SIGTERM, 143), (signal.SIGINT, 130),
                                             (signal.SIGKILL, -signal.SIGKILL)], ids=["SIGTERM", "SIGINT", "SIGKILL"])
 def test_a_one_process_run_ends_with_its_gmsh_process_and_the_documented_status(tmp_path, signum, status):
@@ -80,7 +80,7 @@ def test_a_one_process_run_ends_with_its_gmsh_process_and_the_documented_status(
                                                                else "ddsolve: interrupted")
 
 
-@pytest.mark.unit
+@pytest.mark.mpi
 def test_a_child_asking_to_end_with_its_parent_ends_when_the_parent_is_killed():
     """A parent that sleeps, its child that asked for SIGKILL on the parent's end: SIGKILL the parent."""
     code = ("import os, time\n"
@@ -113,7 +113,7 @@ def test_a_child_asking_to_end_with_its_parent_ends_when_the_parent_is_killed():
         parent.wait()
 
 
-@pytest.mark.unit
+@pytest.mark.mpi
 def test_a_child_whose_parent_is_already_gone_ends_at_once():
     """The parent may end between the fork and the request: the child then ends itself."""
     completed = subprocess.run([sys.executable, "-c", "from ddsolve.parallel.launch import end_with_parent\n"

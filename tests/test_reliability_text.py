@@ -17,17 +17,16 @@ from pathlib import Path
 
 import h5py
 import pytest
-from conftest import ddsolve, without_open_mpi_noise
+from conftest import SMALL, ddsolve, without_open_mpi_noise
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from ddsolve import cli
 from ddsolve.errors import DDSolveError
 from ddsolve.io import hdf5 as io
+from ddsolve.parallel import runtime
 from ddsolve.post import plots
 from ddsolve.problem import scene
 
-SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
 #: Standard outputs that are not UTF-8: Python's own setting, and a C locale without UTF-8 mode.
 ENCODINGS = {"ascii": {"PYTHONIOENCODING": "ascii"}, "latin-1": {"PYTHONIOENCODING": "latin-1"},
              "C locale": {"LANG": "C", "LC_ALL": "C", "PYTHONUTF8": "0", "PYTHONIOENCODING": ""}}
@@ -83,7 +82,7 @@ def titled(folder: Path, name: str, title: str) -> Path:
 
 
 # --- class 3: output that is not UTF-8 --------------------------------------------------------------
-@pytest.mark.unit
+@pytest.mark.mpi
 @pytest.mark.parametrize("encoding", ENCODINGS)
 @pytest.mark.parametrize("command, spelt, in_latin1", [
     (["reference", "partial-closure", *SMALL, "-o", "r.h5"], "theta radii", "theta radii"),  # G at the tips
@@ -99,7 +98,7 @@ def test_output_in_any_encoding_spells_greek_in_ascii(folder, encoding, command,
         assert spelt in completed.stdout.decode("ascii")
 
 
-@pytest.mark.unit
+@pytest.mark.mpi
 @pytest.mark.parametrize("encoding", ENCODINGS)
 def test_an_error_with_greek_letters_is_spelt_in_ascii(tmp_path, encoding):
     completed = run("solve", "partial-closure", *SMALL, "--set", "geometry.crack=[-1, 0.5]", env=ENCODINGS[encoding],
@@ -115,7 +114,7 @@ def test_every_rank_writes_in_ascii(tmp_path):
     assert "theta radii" in completed.stdout.decode("ascii")
 
 
-@pytest.mark.unit
+@pytest.mark.mpi
 @pytest.mark.parametrize("title", [r"$\frac{$", r"$\foo$", "$$", r"cost $5 and $6", "a\fb\tc\nd", "漢字 🎉",
                                    "long title " * 9310])
 def test_plot_draws_any_title_as_plain_text(folder, title):
@@ -125,14 +124,14 @@ def test_plot_draws_any_title_as_plain_text(folder, title):
         assert (folder / f"{path.stem}-{name}.png").stat().st_size > 1000
 
 
-@pytest.mark.unit
+@pytest.mark.mpi
 def test_a_long_title_is_shortened_with_an_ellipsis(folder):
     result = io.read(titled(folder, "long", "x" * 100_000))
     shown = plots.drawn_title(result)
     assert len(shown) == plots.TITLE_LENGTH and shown.endswith("…")
 
 
-@pytest.mark.unit
+@pytest.mark.mpi
 @pytest.mark.parametrize("output", ["out.txt", "out", "out.h5", "out.vtu", "out.MSH", ".msh"])
 def test_mesh_names_the_format_it_writes(tmp_path, output):
     (tmp_path / output).write_bytes(b"previous")
@@ -141,7 +140,7 @@ def test_mesh_names_the_format_it_writes(tmp_path, output):
     assert (tmp_path / output).read_bytes() == b"previous"
 
 
-@pytest.mark.unit
+@pytest.mark.mpi
 def test_mesh_writes_msh(tmp_path):
     clean(run("mesh", "partial-closure", *SMALL, "-o", "halves.msh", cwd=tmp_path, timeout=60))
     assert (tmp_path / "halves.msh").read_bytes().startswith(b"$MeshFormat\n4.1")
@@ -153,7 +152,7 @@ COMMANDS = [["check", "base.h5"], ["compare", "base.h5", "base.h5"], ["scenes"],
             ["export", "base.h5", "-o", "exported"], ["version"]]
 
 
-@pytest.mark.unit
+@pytest.mark.mpi
 @pytest.mark.parametrize("buffered", [True, False], ids=["buffered", "unbuffered"])
 @pytest.mark.parametrize("command", COMMANDS, ids=lambda c: c[0] + ("-help" if "--help" in c else ""))
 def test_a_full_disk_on_standard_output_is_one_line(folder, command, buffered):
@@ -163,7 +162,7 @@ def test_a_full_disk_on_standard_output_is_one_line(folder, command, buffered):
     one_line(completed, 1, "cannot write to standard output: No space left on device")
 
 
-@pytest.mark.unit
+@pytest.mark.mpi
 @pytest.mark.parametrize("command", [["scenes"], ["reference", "partial-closure", *SMALL, "-o", "piped.h5"]],
                          ids=lambda c: c[0])
 def test_a_closed_pipe_on_standard_output_is_one_line(folder, command):
@@ -178,14 +177,14 @@ def test_a_closed_pipe_on_standard_output_is_one_line(folder, command):
 
 
 # --- class 8: compare on different domains, -n twice --------------------------------------------------------
-@pytest.mark.unit
+@pytest.mark.mpi
 @pytest.mark.parametrize("order", [("base.h5", "wide.h5"), ("wide.h5", "base.h5")])
 def test_compare_of_different_domains_names_both_files(folder, order):
     line = one_line(run("compare", *order, cwd=folder), 1, "different domains", *order, "geometry.box")
     assert "points lie outside" not in line
 
 
-@pytest.mark.unit
+@pytest.mark.mpi
 def test_compare_of_a_curved_bond_line_at_two_mesh_sizes(tmp_path):
     """The fine mesh's Σ nodes lie just outside the coarse mesh's chords: the same domain."""
     for name, size in (("coarse", "0.25"), ("fine", "0.125")):
@@ -196,7 +195,7 @@ def test_compare_of_a_curved_bond_line_at_two_mesh_sizes(tmp_path):
         assert float(completed.stdout.split()[3]) < 0.5
 
 
-@pytest.mark.unit
+@pytest.mark.mpi
 @pytest.mark.parametrize("ranks", [["-n", "4", "-n", "8"], ["-n4", "-n", "8"], ["-n", "2", "-n2"]])
 @pytest.mark.parametrize("command", ["solve", "sweep"])
 def test_ranks_given_twice_is_a_usage_error_before_mpiexec(tmp_path, command, ranks):
@@ -206,20 +205,19 @@ def test_ranks_given_twice_is_a_usage_error_before_mpiexec(tmp_path, command, ra
 
 
 # --- fuzz: the generators that would have found these -----------------------------------------------------
-@pytest.mark.unit
 @settings(max_examples=300, deadline=None)
 @given(text=st.text(), encoding=st.sampled_from(["ascii", "latin-1", "cp1252", "iso8859-7", "utf-8", "koi8-r"]))
 def test_fuzz_any_text_in_any_encoding(text, encoding):
     """Whatever a message holds (Greek, symbols, a user's title with lone surrogates), every output encoding
     takes it: the error handler of standard output and error never fails, and spells in ASCII."""
-    codecs.register_error("ddsolve", cli.spelled_in_ascii)  # as every command does (cli.prepare_output)
+    codecs.register_error("ddsolve", runtime.spelled_in_ascii)  # as every command does (runtime.prepare_output)
     encoded = text.encode(encoding, "ddsolve")
     encoded.decode(encoding)
     if encoding == "ascii":
         assert encoded.isascii()
 
 
-@pytest.mark.unit
+@pytest.mark.mpi
 @settings(max_examples=5, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
                                                                  HealthCheck.too_slow])
 @given(title=st.one_of(
@@ -242,7 +240,7 @@ def test_fuzz_titles_plot_without_error(folder, title):
         plots.deformed_layers(result, folder / "fuzz-deformed.png")
 
 
-@pytest.mark.unit
+@pytest.mark.mpi
 @settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(encoding=st.sampled_from(sorted(ENCODINGS)), command=st.sampled_from(COMMANDS[:5]),
        output=st.sampled_from(["file", "full", "closed"]), buffered=st.booleans())

@@ -11,16 +11,16 @@ import sys
 from pathlib import Path
 
 import pytest
-from conftest import ROOT, ddsolve
+from conftest import ROOT, SMALL, ddsolve
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from ddsolve.experiments import hostile_writes
 from ddsolve.io import hdf5 as io
+from ddsolve.problem.scene import builtin_folder
 
-SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
 P48 = ["--set", "mesh.sigma_vertices=48", "--set", "mesh.boundary_vertices=80"]
-SCENES = ROOT / "ddsolve" / "scenes"
+SCENES = builtin_folder()
 
 # --- the commit protocol, in a child process killed or signalled at every step --------------------
 CHILD = hostile_writes.COMMIT_CHILD
@@ -37,7 +37,7 @@ def _commit(folder: Path, count: int, existing: int, step: int, signum: int, fin
 COMMIT_POINT, STEPS = 5, 14
 
 
-@pytest.mark.unit
+@pytest.mark.mpi
 @pytest.mark.parametrize("step", range(1, STEPS + 1))
 def test_sigkill_at_every_step_of_a_commit_leaves_one_whole_set(tmp_path, step):
     status, state, left = _commit(tmp_path, 3, 2, step, signal.SIGKILL)
@@ -46,7 +46,7 @@ def test_sigkill_at_every_step_of_a_commit_leaves_one_whole_set(tmp_path, step):
     assert status == (0 if step == STEPS else -signal.SIGKILL)
 
 
-@pytest.mark.unit
+@pytest.mark.mpi
 @pytest.mark.parametrize("step", range(1, STEPS + 1))
 def test_sigterm_at_every_step_of_a_commit_new_set_and_0_or_old_set_and_143(tmp_path, step):
     status, state, left = _commit(tmp_path, 3, 2, step, signal.SIGTERM)
@@ -54,13 +54,13 @@ def test_sigterm_at_every_step_of_a_commit_new_set_and_0_or_old_set_and_143(tmp_
     assert (state, status) == (("old", 143) if step <= COMMIT_POINT - 1 else ("new", 0)), (step, state, status)
 
 
-@pytest.mark.unit
+@pytest.mark.mpi
 def test_a_signal_during_a_commit_that_does_not_end_the_command_is_raised_after_it(tmp_path):
     status, state, left = _commit(tmp_path, 3, 2, COMMIT_POINT + 1, signal.SIGTERM, final=False)
     assert (state, status, left) == ("new", 143, [])
 
 
-@pytest.mark.unit
+@pytest.mark.mpi
 @settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(count=st.integers(1, 4), existing=st.integers(0, 4), step=st.integers(1, 20),
        signum=st.sampled_from([signal.SIGKILL, signal.SIGTERM, signal.SIGINT]))
@@ -72,7 +72,7 @@ def test_fuzz_signals_at_random_moments_of_a_write(tmp_path_factory, count, exis
         assert (state, status) in (("new", 0), ("old", 143 if signum == signal.SIGTERM else 130)), (state, status)
 
 
-@pytest.mark.unit
+@pytest.mark.mpi
 def test_a_journal_left_by_a_killed_run_is_completed_by_the_next_read(tmp_path):
     paths = [tmp_path / f"f{i}.h5" for i in range(3)]
     for path in paths:
@@ -142,7 +142,7 @@ def test_no_result_command_writes_over_an_input_or_without_h5(inputs, command, o
     _refused(inputs, [*command.split(), str(inputs / scene), *mesh, *extra, "-o", str(inputs / output)], output)
 
 
-@pytest.mark.unit
+@pytest.mark.mpi
 @pytest.mark.parametrize("output", ["scene.toml", "arc-bond.geo", "sq.msh", "m.toml"])
 def test_mesh_does_not_write_over_an_input(inputs, output):
     scene, mesh = SCENE_OF[output]
@@ -151,13 +151,13 @@ def test_mesh_does_not_write_over_an_input(inputs, output):
     _refused(inputs, ["mesh", str(inputs / scene), *mesh, "-o", str(inputs / output)], output)
 
 
-@pytest.mark.unit
+@pytest.mark.mpi
 @pytest.mark.parametrize("output", ["r.h5", "scene.toml", "sq.msh"])
 def test_export_o_naming_a_file_is_refused(inputs, output):
     _refused(inputs, ["export", str(inputs / "r.h5"), "-o", str(inputs / output)], output)
 
 
-@pytest.mark.unit
+@pytest.mark.mpi
 def test_export_and_plot_write_beside_their_input_and_keep_it(inputs, tmp_path):
     result = tmp_path / "r.h5"
     shutil.copy(inputs / "r.h5", result)

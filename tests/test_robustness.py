@@ -7,7 +7,7 @@ import subprocess
 import meshio
 import numpy as np
 import pytest
-from conftest import ddsolve, structured_square
+from conftest import SMALL, ddsolve, structured_square
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -16,8 +16,6 @@ from ddsolve.io import hdf5 as io
 from ddsolve.mesh import geometry
 from ddsolve.post import analysis
 from ddsolve.problem import scene
-
-SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
 
 
 def solve_and_reference(tmp_path, name, *overrides, method_args=(), ranks=4):
@@ -29,6 +27,7 @@ def solve_and_reference(tmp_path, name, *overrides, method_args=(), ranks=4):
 
 
 # --- hard numerical cases ---------------------------------------------------------------------
+@pytest.mark.mpi
 @pytest.mark.parametrize("overrides", [
     ["--set", "materials.layer2.E=0.02"],  # E2/E1 = 1e-4
     ["--set", "materials.layer2.E=2e6"],  # E2/E1 = 1e4
@@ -46,6 +45,7 @@ def test_default_method_matches_the_reference_on_hard_cases(tmp_path, overrides)
     assert analysis.constraints(result).penetration < 1e-9
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("name", ["full-closure", "full-opening"])
 def test_full_closure_and_full_opening(tmp_path, name):
     result, reference = solve_and_reference(tmp_path, name, *SMALL)
@@ -58,6 +58,7 @@ def test_full_closure_and_full_opening(tmp_path, name):
         assert np.all(result.multipliers["mu_c"][crack] == 0)
 
 
+@pytest.mark.mpi
 def test_load_on_layer_2_only(tmp_path):
     overrides = ["--set", "loads.layer1.bottom.y=[]", "--set", "loads.layer1.top.y=[]",
                  "--set", "loads.layer2.bottom.y=[0.0, 0.05]", "--set", "loads.layer2.top.x=[0.02]"]
@@ -66,6 +67,7 @@ def test_load_on_layer_2_only(tmp_path):
     assert np.abs(result.solution["u_minus"]).max() > 0  # layer 1 moves through the gluing
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("method", ["schur", "mprgp", "fista", "uzawa"])
 def test_zero_load_gives_exactly_zero_without_division_by_zero(tmp_path, method):
     overrides = ["--set", "loads.layer1.bottom.y=[0.0]", "--set", "loads.layer1.top.y=[0.0]",
@@ -78,6 +80,7 @@ def test_zero_load_gives_exactly_zero_without_division_by_zero(tmp_path, method)
     assert np.all(np.isfinite(result.history))
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("method", ["schur", "mprgp", "fista"])
 @pytest.mark.parametrize("factors", [(2.0 ** -40, 2.0 ** 40), (1e-12, 1e12)], ids=["powers-of-two", "decimal"])
 def test_scaled_loads_give_scaled_solutions_in_the_same_iterations(tmp_path, method, factors):
@@ -103,6 +106,7 @@ def test_scaled_loads_give_scaled_solutions_in_the_same_iterations(tmp_path, met
             assert difference <= agreement * np.abs(values).max()
 
 
+@pytest.mark.mpi
 def test_strongly_graded_and_distorted_mesh(tmp_path):
     """Cells of aspect ratio about 60 at Σ, growing geometrically (×1.6) towards y = ±1."""
     points, cells = structured_square(16, 12)
@@ -124,6 +128,7 @@ def test_strongly_graded_and_distorted_mesh(tmp_path):
     assert analysis.compare(result, reference).energy_error < 1e-6
 
 
+@pytest.mark.mpi
 def test_uzawa_above_the_stable_bound_with_a_closed_crack(tmp_path):
     completed = ddsolve("solve", "full-closure", "--set", "mesh.sigma_vertices=48", "--set",
                         "mesh.boundary_vertices=80", "--set", "solver.method=uzawa", "-o", str(tmp_path / "x.h5"),
@@ -143,17 +148,20 @@ def one_line_failure(completed: subprocess.CompletedProcess, fragment: str, stat
     assert "Traceback" not in completed.stdout + completed.stderr
 
 
+@pytest.mark.mpi
 def test_five_ranks_are_refused_on_every_rank(tmp_path):
     completed = ddsolve("solve", "partial-closure", *SMALL, "-o", str(tmp_path / "x.h5"), ranks=5, check=False)
     one_line_failure(completed, "unsupported number of ranks 5: use 1, 2 or a multiple of 4")
 
 
+@pytest.mark.mpi
 def test_unwritable_output_is_reported_and_all_ranks_exit(tmp_path):
     completed = ddsolve("solve", "partial-closure", *SMALL, "-o", "/proc/ddsolve-result.h5", ranks=4,
                         check=False, timeout=120)
     one_line_failure(completed, "/proc/ddsolve-result.h5: cannot write")
 
 
+@pytest.mark.mpi
 def test_halves_with_different_sigma_vertices_are_rejected(tmp_path):
     points, cells = structured_square(8, 2)
     upper = points[:, 1] > 0
@@ -174,6 +182,7 @@ def test_halves_with_different_sigma_vertices_are_rejected(tmp_path):
     one_line_failure(completed, "the Σ nodes of the two halves do not match")
 
 
+@pytest.mark.mpi
 def test_a_block_solver_failing_on_one_rank_stops_every_rank(tmp_path):
     output = tmp_path / "kept.h5"
     output.write_bytes(b"previous")
@@ -184,6 +193,7 @@ def test_a_block_solver_failing_on_one_rank_stops_every_rank(tmp_path):
     assert output.read_bytes() == b"previous"
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
 def test_a_signal_stops_every_rank_promptly_and_keeps_the_previous_file(tmp_path, signum):
     from ddsolve.experiments.robustness import interrupt

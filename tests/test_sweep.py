@@ -60,6 +60,7 @@ def test_a_number_in_a_key_indexes_a_list():
         scene.load("partial-closure", ["geometry.cracks.0.1=0.6"])
 
 
+@pytest.mark.mpi
 def test_loads_sweep_reuses_the_factorization(tmp_path):
     """Only loads change: one mesh, one factorization; G scales with the load squared; the middle run equals a
     separate solve; one progress line per run."""
@@ -83,6 +84,7 @@ def test_loads_sweep_reuses_the_factorization(tmp_path):
     assert data["energy"][1] == pytest.approx(single.attrs["energy"], rel=1e-10)
 
 
+@pytest.mark.mpi
 def test_geometry_sweep_remeshes(tmp_path):
     """A crack growing at both ends: a new mesh per run, tips where the crack ends are, G of each run equal to
     a separate solve, contact zones recorded per run."""
@@ -98,6 +100,7 @@ def test_geometry_sweep_remeshes(tmp_path):
     assert sorted(set(data["contact_zones/run"].tolist())) == [0, 1]
 
 
+@pytest.mark.mpi
 def test_a_failed_run_is_recorded_and_the_sweep_goes_on(tmp_path):
     out = tmp_path / "short.h5"
     run = ddsolve("sweep", "partial-closure", *SMALL, "--set", "solver.method=uzawa",
@@ -108,6 +111,7 @@ def test_a_failed_run_is_recorded_and_the_sweep_goes_on(tmp_path):
     assert np.isfinite(data["tips/G"]).all()
 
 
+@pytest.mark.mpi
 @pytest.mark.parametrize("arguments, message", [
     (["--set", "geometry.crack.1=0.5:1.5:3"], "sweep run 3 (geometry.crack.1=1.5): partial-closure: "
                                               "geometry.crack: the crack [-0.5, 1.5] leaves the box"),

@@ -95,7 +95,7 @@ def has_halves(path: Path) -> bool:
     """Whether a .msh file has the physical surfaces ``lower`` and ``upper`` (else it is a box file)."""
     readable(path, "mesh file", MeshError)
     with session() as gmsh:
-        _open(gmsh, path)
+        open_file(gmsh, path)
         names = {gmsh.model.getPhysicalName(dim, tag) for dim, tag in gmsh.model.getPhysicalGroups(2)}
     return {"lower", "upper"} <= names
 
@@ -123,7 +123,7 @@ def session(deterministic: bool = False):
         gmsh.finalize()
 
 
-def _open(gmsh, path: Path) -> None:
+def open_file(gmsh, path: Path) -> None:
     try:
         gmsh.open(str(path))
     except Exception as exc:  # gmsh raises a bare Exception with its last error
@@ -148,8 +148,8 @@ def _from_gmsh(scene: Scene, background: SizeMap | None = None) -> Mesh:
         if options.kind == "geo":
             gmsh.option.setNumber("General.NumThreads", 1)
             gmsh.option.setNumber("Mesh.MaxNumThreads2D", 1)
-        _open(gmsh, path)
-        groups = _physical_groups(gmsh, where)
+        open_file(gmsh, path)
+        groups = physical_groups(gmsh, where)
         if options.kind == "geo":
             if options.size is not None:
                 gmsh.option.setNumber("Mesh.MeshSizeMax", options.size)
@@ -248,7 +248,7 @@ def _bounded_curves(gmsh, groups: dict[tuple[int, str], list[int]], degree: int,
 VERTICES_PER_BOUNDARY_NODE_SQUARED = 0.08
 
 
-def _physical_groups(gmsh, where: str) -> dict[tuple[int, str], list[int]]:
+def physical_groups(gmsh, where: str) -> dict[tuple[int, str], list[int]]:
     """(dim, name) -> entity tags; the required groups must exist."""
     groups: dict[tuple[int, str], list[int]] = {}
     for dim, tag in gmsh.model.getPhysicalGroups():
