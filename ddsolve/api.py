@@ -14,6 +14,7 @@ ends every rank (mpi4py's runner aborts the job on an uncaught exception).
 """
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 from typing import Callable, Sequence
 
@@ -27,10 +28,12 @@ def _scene(scene: Scene | str | Path) -> Scene:
 
 
 def _comm(comm):
-    """The communicator to run on (MPI.COMM_WORLD by default), with PETSc initialized."""
-    from ddsolve.parallel.launch import init_petsc
+    """The communicator to run on (MPI.COMM_WORLD by default), with PETSc initialized: as the command line
+    does, without PETSc's signal handler, unless the script started PETSc itself."""
+    import petsc4py
 
-    init_petsc([])
+    if "petsc4py.PETSc" not in sys.modules:
+        petsc4py.init([sys.argv[0] if sys.argv and sys.argv[0] else "ddsolve", "-no_signal_handler"])
     from mpi4py import MPI
 
     return MPI.COMM_WORLD if comm is None else comm
@@ -50,7 +53,7 @@ def solve(scene: Scene | str | Path, comm=None, output: str | Path | None = None
     rank 0.  Raises :class:`ddsolve.NotConvergedError` (with the result as ``.result``) when the solve
     did not converge, and other :class:`ddsolve.DDSolveError` for what cannot be solved.
     """
-    from ddsolve.solve import run
+    from ddsolve.solvers import run
 
     comm = _comm(comm)
     try:
@@ -63,7 +66,7 @@ def solve(scene: Scene | str | Path, comm=None, output: str | Path | None = None
 
 def reference(scene: Scene | str | Path, output: str | Path | None = None) -> Result:
     """The monolithic reference: the same discrete problem as one system, solved exactly on this process."""
-    from ddsolve.solve import run
+    from ddsolve.solvers import run
 
     _comm(None)
     return run.reference(_scene(scene), Path(output) if output is not None else None)
@@ -82,7 +85,7 @@ def sweep(scene: Scene | str | Path, parameters: dict[str, Sequence], paired: bo
     Returns one record per run (``parameters``, ``energy``, ``converged``, ``G`` per tip, ...) on every
     rank; ``output`` also writes them to one HDF5 file (the layout of ``ddsolve sweep``).
     """
-    from ddsolve.solve import sweep as sweeps
+    from ddsolve.solvers import sweep as sweeps
 
     comm = _comm(comm)
     records = sweeps.sweep(_scene(scene), [], paired, Path(output) if output is not None else None, comm,

@@ -23,7 +23,7 @@ from ddsolve.mesh import gmsh_io
 from ddsolve.parallel.launch import mpiexec_command, supervise
 from ddsolve.mesh.mesh import BLOCKS
 from ddsolve.parallel.runtime import Parser, guarded, init_petsc, is_number, split_arguments
-from ddsolve.solve.checks import check_ranks, check_read, check_size
+from ddsolve.solvers.checks import check_ranks, check_read, check_size
 
 #: Options-prefixes of the KSPs (what a misspelt option is compared with).
 PREFIXES = {"solve": tuple(f"{spec.name}_" for spec in BLOCKS), "reference": ("reference_",)}
@@ -120,7 +120,7 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
     from mpi4py import MPI
 
     from ddsolve.parallel.exchange import collective
-    from ddsolve.solve import run
+    from ddsolve.solvers import run
 
     comm = MPI.COMM_WORLD
     scene = comm.bcast(collective(comm, lambda: _load_scene(args, comm.size), root_only=True), root=0)
@@ -153,7 +153,7 @@ def cmd_sweep(args, petsc_options: list[str]) -> int:
 
     from mpi4py import MPI
 
-    from ddsolve.solve import sweep
+    from ddsolve.solvers import sweep
 
     started = time.perf_counter()
     output = _sweep_output(args)
@@ -169,7 +169,7 @@ def cmd_sweep(args, petsc_options: list[str]) -> int:
 
 def cmd_reference(args, petsc_options: list[str]) -> int:
     init_petsc(petsc_options)
-    from ddsolve.solve import run
+    from ddsolve.solvers import run
 
     scene = _load_scene(args)
     output = check_outputs(args, scene)

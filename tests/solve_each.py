@@ -42,7 +42,7 @@ def main(folder: Path) -> None:
 
     from ddsolve.errors import DivergedError, NotConvergedError
     from ddsolve.problem import scene as scenes
-    from ddsolve.solve import driver
+    from ddsolve.solvers import driver
 
     comm = MPI.COMM_WORLD
     for name, method, overrides in cases():

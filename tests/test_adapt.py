@@ -10,7 +10,7 @@ from ddsolve.mesh import sizing
 from ddsolve.mesh.mesh import BLOCKS
 from ddsolve.post.result import Result
 from ddsolve.problem.scene import Geometry
-from ddsolve.solve import adapt
+from ddsolve.solvers import adapt
 
 
 def _indicators(mesh, hot):

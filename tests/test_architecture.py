@@ -1,5 +1,5 @@
 """The package layout is the architecture: stages that point one way, no import cycles, PETSc and MPI
-only in the parallel and solve stages.  The graph is built from the source (every import statement,
+only in the parallel and solvers stages.  The graph is built from the source (every import statement,
 at module level or inside a function), so a deferred import counts as much as any other."""
 from __future__ import annotations
 
@@ -58,7 +58,7 @@ def test_stages_point_one_way():
     assert not wrong, "\n".join(wrong)
 
 
-def test_petsc_and_mpi_only_in_the_parallel_and_solve_stages():
+def test_petsc_and_mpi_only_in_the_parallel_and_solvers_stages():
     offenders = [f"{name} imports {imported}" for name, path in modules().items() if stage(name) in SERIAL
                  for imported in imports(path) if imported.split(".")[0] in ("petsc4py", "mpi4py")]
     assert not offenders, "\n".join(offenders)

@@ -89,7 +89,7 @@ def test_power_iteration_bound_is_the_largest_eigenvalue_of_the_dual_operator():
     from ddsolve.dd.interface import for_mesh
     from ddsolve.mesh import geometry
     from ddsolve.problem import scene
-    from ddsolve.solve import driver
+    from ddsolve.solvers import driver
 
     s = scene.load("partial-closure", ["mesh.sigma_vertices=13", "mesh.boundary_vertices=32", "solver.method=uzawa"])
     mesh = geometry.build(s)

@@ -12,7 +12,7 @@ from ddsolve.post import analysis, estimate
 from ddsolve.problem import scene
 from ddsolve.problem.materials import Isotropic, elasticity
 from ddsolve.problem.scene import Geometry
-from ddsolve.solve import reference
+from ddsolve.solvers import reference
 
 D, _ = elasticity(Isotropic(E=200.0, nu=0.28), "plane_strain")
 CRACKED = Geometry()

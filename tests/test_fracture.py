@@ -16,7 +16,7 @@ from ddsolve.mesh import geometry
 from ddsolve.mesh.mesh import HalfMesh, make_mesh
 from ddsolve.post import fracture
 from ddsolve.problem import scene
-from ddsolve.solve import reference
+from ddsolve.solvers import reference
 
 SMALL = ["mesh.sigma_vertices=25", "mesh.boundary_vertices=48"]
 #: A small graded mesh: P2, size 0.01 at the tips growing to 0.1, tips in patches meshed apart.

@@ -113,7 +113,7 @@ def observe(command: str, output: Path, stdout: str) -> dict:
     if command == "mesh":
         return {"table": stdout, "msh": hashlib.sha256(output.read_bytes()).hexdigest()[:16]}
     if command == "sweep":
-        from ddsolve.solve import sweep
+        from ddsolve.solvers import sweep
 
         data = sweep.read(output)
         timing = {"time", "setup_time", "factorization_time", "solve_time", "attrs", "message"}
@@ -213,7 +213,7 @@ def test_a_sweep_of_too_many_runs_is_refused_at_once_with_its_estimate(tmp_path,
 def test_a_sweep_estimated_beyond_a_day_is_refused_naming_its_ranges():
     from ddsolve.errors import SceneError
     from ddsolve.problem import materials, scene
-    from ddsolve.solve import sweep
+    from ddsolve.solvers import sweep
 
     base = scene.load("partial-closure", ["mesh.sigma_vertices=800", "mesh.boundary_vertices=1024"])
     values = tuple(float(v) for v in np.linspace(1.0, 2.0, 9500))
@@ -250,7 +250,7 @@ def test_an_adaptive_target_out_of_reach_is_refused_after_the_first_level(tmp_pa
 
 
 def test_the_prediction_uses_the_best_rate_of_the_element_degree():
-    from ddsolve.solve import adapt
+    from ddsolve.solvers import adapt
 
     assert adapt.needed_unknowns(560, 0.325, 0.00325, 1) == pytest.approx(560 * 1e4)  # N^-1/2
     assert adapt.needed_unknowns(560, 0.325, 0.00325, 2) == pytest.approx(560 * 1e2)  # N^-1
@@ -310,7 +310,7 @@ def test_dzz_is_refused_in_plane_stress_which_has_no_out_of_plane_stress(tmp_pat
 
 @pytest.mark.mpi
 def test_sweep_honours_target_error(tmp_path):
-    from ddsolve.solve import sweep
+    from ddsolve.solvers import sweep
 
     for name, extra in (("plain.h5", []), ("adaptive.h5", ["--set", "mesh.target_error=0.2"])):
         completed, _ = ddsolve_run(["sweep", "partial-closure", *SET_SMALL, *extra, "--set",
@@ -358,7 +358,7 @@ def test_sweeps_of_any_count_are_planned_or_refused_without_being_made(counts, p
     """Any COUNTs: either at most MAX_RUNS runs are planned, or SceneError names every range, with
     nothing the size of the count ever made (the address space is not touched)."""
     from ddsolve.errors import SceneError
-    from ddsolve.solve import sweep
+    from ddsolve.solvers import sweep
 
     items = [f"k{i}.v=1:2:{count}" for i, count in enumerate(counts)]
     total = counts[0] if paired else int(np.prod([float(c) for c in counts]))
@@ -382,7 +382,7 @@ def test_sweeps_of_any_count_are_planned_or_refused_without_being_made(counts, p
 def test_every_key_is_read_or_has_a_reason(key, command, ranks):
     """The decision of ``unread`` for any key, command and rank count: a reason in words, or None."""
     from ddsolve.problem import scene
-    from ddsolve.solve import checks
+    from ddsolve.solvers import checks
 
     reason = checks.unread(command, key.split("."), scene.load("partial-closure", SMALL), ranks)
     assert reason is None or (reason and "\n" not in reason)

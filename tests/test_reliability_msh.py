@@ -22,7 +22,7 @@ from ddsolve.experiments.hostile_msh import MATERIALS, PAPER_LOADS, energy, geom
 from ddsolve.io import hdf5 as io
 from ddsolve.mesh import geometry, mesh
 from ddsolve.problem import scene
-from ddsolve.solve import sweep
+from ddsolve.solvers import sweep
 
 SHAPES = geometries()
 

@@ -9,7 +9,7 @@ from conftest import ddsolve
 from ddsolve.errors import SceneError
 from ddsolve.io import hdf5 as io
 from ddsolve.problem import scene
-from ddsolve.solve import sweep
+from ddsolve.solvers import sweep
 
 SMALL = ["--set", "mesh.sigma_vertices=25", "--set", "mesh.boundary_vertices=48"]
 

@@ -66,7 +66,7 @@ def family_run(scene_name: str, family: str, degree: int, output: Path, comm) ->
     """Every level of one family on one scene; a JSON record per level on rank 0."""
     from ddsolve.parallel.launch import provenance
     from ddsolve.problem import scene as scenes
-    from ddsolve.solve import adapt, driver
+    from ddsolve.solvers import adapt, driver
 
     def say(line: str) -> None:
         if comm.rank == 0:

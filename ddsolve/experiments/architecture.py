@@ -7,7 +7,7 @@ from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[1]
 #: The stages from the bottom up: a module may import from its own stage and the stages before it.
-STAGES = ("errors", "environment", "problem", "mesh", "fem", "dd", "post", "io", "parallel", "solve", "api", "cli",
+STAGES = ("errors", "environment", "problem", "mesh", "fem", "dd", "post", "io", "parallel", "solvers", "api", "cli",
           "experiments")
 #: The one import against the stages' direction, deferred into a method: ``Result.save`` writes the
 #: result through the io stage, as meshio's ``Mesh.write`` does; io imports nothing at load time that
@@ -80,36 +80,43 @@ def stage_graph() -> dict[tuple[str, str], int]:
 
 
 def architecture() -> None:
-    """Draw docs/architecture.png: the stages bottom-up, an arrow per stage that imports another."""
+    """Draw docs/architecture.png: which stage imports which, as a matrix of module-import counts.  The
+    stages run bottom-up in both directions, so every import that points the right way lies below the
+    diagonal; one above it would point against the layering."""
     from ..post.plots import _pyplot
 
     plt = _pyplot()
     counts = stage_graph()
-    sizes = {name: 0 for name in STAGES}
+    lines = {name: 0 for name in STAGES}
+    files = {name: 0 for name in STAGES}
     for module, path in modules().items():
-        sizes[stage(module)] += sum(1 for _ in path.open(encoding="utf-8"))
-    fig, ax = plt.subplots(figsize=(11, 9))
-    rows = {name: i for i, name in enumerate(STAGES)}
-    x = {name: (0.0 if name not in ("errors", "environment") else (-0.9 if name == "errors" else 0.9)) for name in STAGES}
-    y = {name: rows[name] - (1 if name == "environment" else 0) for name in STAGES}
-    for (source, target), count in sorted(counts.items()):
-        against = STAGES.index(target) > STAGES.index(source)
-        ax.annotate("", xy=(x[target], y[target]), xytext=(x[source], y[source]),
-                    arrowprops=dict(arrowstyle="->", color="crimson" if against else "0.55", lw=0.6 + 0.15 * count ** 0.5,
-                                    connectionstyle=f"arc3,rad={0.35 if (rows[source] - rows[target]) % 2 else -0.35}",
-                                    shrinkA=14, shrinkB=14, linestyle="--" if against else "-"))
-    for name in STAGES:
-        serial = name in SERIAL
-        ax.text(x[name], y[name], f"{name}\n{sizes[name]} lines", ha="center", va="center", fontsize=10, zorder=3,
-                bbox=dict(boxstyle="round,pad=0.4", fc="#dbe9f6" if serial else "#fde2c8", ec="0.3"))
-    ax.set_xlim(-2.2, 2.2)
-    ax.set_ylim(-1.6, len(STAGES) - 1.2)
-    ax.axis("off")
-    deferred = ", ".join(f"{a.split('.')[-1]} → {b.split('.')[-1]}" for a, b in sorted(DEFERRED))
-    ax.set_title("ddsolve's stages, bottom up (blue: no PETSc or MPI); an arrow per stage imported,\n"
-                 f"width ∝ √(module imports); dashed red: the one deferred import against the direction ({deferred})",
-                 fontsize=10)
+        lines[stage(module)] += sum(1 for _ in path.open(encoding="utf-8"))
+        files[stage(module)] += 1
+    order = STAGES[::-1]  # the top stage first
+    n = len(order)
+    fig, ax = plt.subplots(figsize=(10.5, 8.5))
+    ax.imshow([[0] * n] * n, cmap="Greys", vmin=0, vmax=1)
+    for i, source in enumerate(order):
+        for j, target in enumerate(order):
+            if (source, target) in counts:
+                against = STAGES.index(target) > STAGES.index(source)
+                ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, color="#e8a0a0" if against else "#9ec5e8"))
+                ax.text(j, i, str(counts[source, target]), ha="center", va="center", fontsize=9)
+            elif i == j:
+                ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1, color="0.85"))
+    labels = [f"{name} ({files[name]} module{'s' if files[name] > 1 else ''}, {lines[name]} lines)" + (" *" if name in SERIAL else "")
+              for name in order]
+    ax.set_yticks(range(n), labels, fontsize=9)
+    ax.set_xticks(range(n), order, rotation=45, ha="right", fontsize=9)
+    ax.set_xlim(-0.5, n - 0.5)
+    ax.set_ylim(n - 0.5, -0.5)
+    ax.set_xlabel("is imported by the stage on the left (number of module imports)")
+    deferred = ", ".join(f"{a.split('.')[-2]}.{a.split('.')[-1]} → {b.split('.')[-2]}.{b.split('.')[-1]}"
+                         for a, b in sorted(DEFERRED))
+    ax.set_title("ddsolve's stages: who imports whom (every import, deferred ones too)\n"
+                 "blue: down the layers; red: against them (only Result.save's deferred import,\n"
+                 f"{deferred}); * a stage without PETSc or MPI", fontsize=10)
     out = Path("docs") / "architecture.png"
     fig.savefig(out, dpi=110, bbox_inches="tight")
     plt.close(fig)
-    print(f"wrote {out}: {len(counts)} arrows between {len(STAGES)} stages")
+    print(f"wrote {out}: {len(counts)} stage pairs, {sum(counts.values())} module imports between stages")

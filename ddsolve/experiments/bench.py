@@ -84,7 +84,7 @@ def monolithic(scene: scenes.Scene, mesh, systems) -> tuple["Result", dict]:
     from ddsolve.parallel.blocks import Block
     from ddsolve.parallel.launch import provenance
     from ddsolve.post.result import Result
-    from ddsolve.solve import reference
+    from ddsolve.solvers import reference
 
     interface = for_mesh(mesh.sigma, scene.nonpenetration)
     contact = interface.slices["mu_c"]
@@ -144,7 +144,7 @@ def bench_baseline(name: str, P: int, M: int, repeats: int, output: Path, comm) 
     from ddsolve.parallel.exchange import collective
     from ddsolve.parallel.launch import provenance
     from ddsolve.post import analysis
-    from ddsolve.solve import driver
+    from ddsolve.solvers import driver
 
     scene = paper_scene(P, M, name=name)
     mesh = distribution.build_mesh(scene, comm)
@@ -234,7 +234,7 @@ def baseline_line(record: dict) -> str:
 def floor_time(scene: scenes.Scene, mesh, comm, package: str) -> float:
     """Wall time for one factorization and one solve of every block, all ranks together."""
     from ddsolve.parallel.exchange import Exchange
-    from ddsolve.solve.driver import make_blocks
+    from ddsolve.solvers.driver import make_blocks
 
     exchange = Exchange(comm, 4)
     blocks = make_blocks(scene, mesh, exchange, package)
@@ -272,7 +272,7 @@ def bench_mesh(plan: str, P: int, M: int, output: Path, comm) -> None:
     from ddsolve.mesh import mesh as meshes
     from ddsolve.parallel.launch import provenance
     from ddsolve.post import analysis
-    from ddsolve.solve import driver, reference
+    from ddsolve.solvers import driver, reference
 
     runs, with_floor = PLANS[plan]
     base = paper_scene(P, M)

@@ -218,7 +218,7 @@ def checks(output: Path, comm) -> None:
     """Finite differences, radii and the analytic plate; writes a JSON record on rank 0."""
     from ddsolve.post import fracture as fractures
     from ddsolve.problem import scene as scenes
-    from ddsolve.solve import driver
+    from ddsolve.solvers import driver
 
     folder = Path(comm.bcast(tempfile.mkdtemp(prefix="ddsolve-fracture-") if comm.rank == 0 else None, root=0))
 
@@ -320,7 +320,7 @@ def fracture() -> None:
     report.run(RANKS, ["solve", "partial-closure", *_sets(SWEEP_MESH), "-o", str(faces)])
     from ddsolve.io import hdf5 as io
     from ddsolve.post import plots
-    from ddsolve.solve import sweep
+    from ddsolve.solvers import sweep
 
     data = {key: sweep.read(path) for key, path in sweeps.items()}
     length_plot(data, record)

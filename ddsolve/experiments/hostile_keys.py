@@ -27,7 +27,7 @@ def _unknowns(output: str):
 
 def _sweep_unknowns(output: str):
     def observe(completed: subprocess.CompletedProcess, hostile) -> str:
-        from ddsolve.solve import sweep
+        from ddsolve.solvers import sweep
 
         path = hostile.folder / output
         if completed.returncode != 0 or not path.exists():

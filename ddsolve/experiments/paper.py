@@ -92,7 +92,7 @@ def table1_text(records: list[dict]) -> str:
 def converges(scene, comm, mesh) -> tuple[bool, int]:
     """Run uzawa; (converged, iterations).  A run that neither converges nor blows up counts as failed."""
     from ddsolve.errors import NotConvergedError
-    from ddsolve.solve import driver
+    from ddsolve.solvers import driver
 
     try:
         result = driver.solve(scene, comm, None, progress=_quiet, mesh=mesh)
@@ -108,7 +108,7 @@ def theta_mesh(P: int, M: int, scene_name: str, output: Path, comm) -> None:
     from ddsolve.mesh import geometry
     from ddsolve.parallel.launch import provenance
     from ddsolve.problem import scene as scenes
-    from ddsolve.solve import driver
+    from ddsolve.solvers import driver
 
     def scene(theta: float):
         return scenes.load(scene_name, [f"mesh.sigma_vertices={P}", f"mesh.boundary_vertices={M}",

@@ -5,7 +5,7 @@ solves the scene for every combination of the ranges (``--zip``: for the ranges 
 they must then have the same COUNT); a ``--set`` whose value is not a range is a fixed override.  A
 number in a key indexes a list: ``--set geometry.crack.0=-0.2:-0.8:7 --set geometry.crack.1=0.2:0.8:7
 --zip`` lengthens the crack symmetrically.  With ``mesh.target_error`` every run is adaptive
-(:mod:`ddsolve.solve.adapt`; nothing is reused).  What cannot finish is refused before the first solve,
+(:mod:`ddsolve.solvers.adapt`; nothing is reused).  What cannot finish is refused before the first solve,
 naming the ranges: more than ``MAX_RUNS`` runs (before their values are made), more than ``MAX_HOURS``
 by an estimate from below of each run's cost from its mesh size (:func:`run_seconds`), or a mesh that
 does not fit in memory.
@@ -212,7 +212,7 @@ def check_cost(items: list[str], scenes: list, runs: list[dict], ranges: list[Ra
     finish: one whose largest mesh does not fit in this machine's memory (:func:`ddsolve.cli.check_size`)
     or whose runs take more than MAX_HOURS by :func:`sweep_seconds`."""
     from ddsolve.mesh import geometry
-    from ddsolve.solve.checks import check_read, check_size
+    from ddsolve.solvers.checks import check_read, check_size
 
     check_read("sweep", items, scenes[0], ranks)
 
@@ -247,7 +247,7 @@ def sweep(source, items: list[str], paired: bool, output: Path | None, comm, pro
     from ddsolve.mesh import geometry
     from ddsolve.parallel.exchange import collective
     from ddsolve.problem.scene import Scene
-    from ddsolve.solve import adapt, driver
+    from ddsolve.solvers import adapt, driver
 
     def arrange():
         per_run = _base_seconds(source, [item for item in items if _range(item) is None], comm.size)

@@ -1,6 +1,6 @@
 """Adaptive refinement to a target error (``mesh.target_error``): solve, estimate, mark, re-mesh, repeat.
 
-Each level is an ordinary domain-decomposition solve (:func:`ddsolve.solve.driver.solve`) with its error
+Each level is an ordinary domain-decomposition solve (:func:`ddsolve.solvers.driver.solve`) with its error
 estimate.  While the estimate is above the target, rank 0 marks the cells that carry the largest
 indicators (Dörfler marking: the fewest cells whose η_K² add up to ``DORFLER`` of η²), asks for
 ``REFINE`` × their size and the present size elsewhere, and gmsh meshes the geometry again with that
@@ -30,7 +30,7 @@ from ddsolve.parallel import distribution
 from ddsolve.parallel.exchange import collective
 from ddsolve.post.result import Result
 from ddsolve.problem.scene import Scene
-from ddsolve.solve import driver
+from ddsolve.solvers import driver
 
 #: Dörfler's bulk parameter θ: the marked cells carry at least this fraction of η².
 DORFLER = 0.5
@@ -57,7 +57,7 @@ def unknowns(mesh: Mesh) -> int:
 def largest_level(ranks: int) -> int:
     """The most unknowns a level may have on ``ranks`` ranks: MAX_UNKNOWNS, or fewer if this machine's
     memory holds fewer (:func:`ddsolve.cli.nodes_in_memory`; four unknowns per mesh node)."""
-    from ddsolve.solve.checks import nodes_in_memory
+    from ddsolve.solvers.checks import nodes_in_memory
 
     return int(min(MAX_UNKNOWNS, 4 * nodes_in_memory(ranks)))
 
@@ -76,7 +76,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, lev
     """Refine until the estimated relative energy-norm error is at most ``scene.mesh.target_error``.
 
     ``level(mesh)`` solves one level (on every rank; the result on rank 0): by default the domain
-    decomposition (:func:`ddsolve.solve.driver.solve`); ``reference`` passes the monolithic solve.  Prints a
+    decomposition (:func:`ddsolve.solvers.driver.solve`); ``reference`` passes the monolithic solve.  Prints a
     line per level on rank 0 (via ``progress``); writes the last level's result with the level table.
     Returns the result on rank 0 (None elsewhere).  Raises DDSolveError on every rank after the first
     level, nothing written, if the target needs more unknowns than a level may have

@@ -1,6 +1,6 @@
 """A scene solved as the commands solve it: the checks before any work, the solve (adaptive when the
 scene sets ``mesh.target_error``), the result set written.  The command line and the Python API both
-call these, so a script and ``ddsolve solve`` do the same thing (sweeps: :func:`ddsolve.solve.sweep.sweep`)."""
+call these, so a script and ``ddsolve solve`` do the same thing (sweeps: :func:`ddsolve.solvers.sweep.sweep`)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -13,8 +13,8 @@ from ddsolve.mesh import geometry
 from ddsolve.parallel.exchange import collective
 from ddsolve.post.result import Result
 from ddsolve.problem.scene import Scene
-from ddsolve.solve import adapt, checks, driver
-from ddsolve.solve import reference as monolithic
+from ddsolve.solvers import adapt, checks, driver
+from ddsolve.solvers import reference as monolithic
 
 
 def solve(scene: Scene, comm, output: Path | None, progress: Callable[[str], None] = print) -> Result | None:
