@@ -55,8 +55,8 @@ def unread(command: str, path: list[str], scene, ranks: int) -> str | None:
             return "mesh makes the starting mesh only (solve, reference and sweep read the key)"
         return None
     if section == "solver" and command == "reference":
-        return None if path[1:] == ["p"] else ("it sets how solve and sweep iterate, and reference solves the "
-                                               "discrete problem exactly")
+        return ("it sets how solve and sweep iterate and bound their multipliers, and reference solves the discrete "
+                "problem exactly, without a bound")
     if section == "materials" and leaf == ["Dzz"] and scene.model == "plane_stress":
         return "Dzz gives the out-of-plane stress of plane strain, and materials.model = plane_stress has none"
     if command == "sweep" and (section == "title" or section == "materials" and leaf

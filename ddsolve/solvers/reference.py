@@ -14,7 +14,7 @@ import numpy as np
 
 from ddsolve.dd import constraints
 from ddsolve.dd.interface import Interface, for_mesh
-from ddsolve.errors import SceneError, SolverError
+from ddsolve.errors import SolverError
 from ddsolve.fem import assembly
 from ddsolve.fem.assembly import BlockSystem, coo_to_csr
 from ddsolve.mesh.mesh import BLOCKS, Mesh
@@ -37,16 +37,6 @@ def contact_violation(penetration: np.ndarray, mu_c: np.ndarray, closed: np.ndar
         return largest / scale if largest > 0.0 else 0.0
 
     return max(relative(penetration[~closed], scale_u), relative(-mu_c[closed], scale_mu))
-
-
-def check_bound(p: float | None, lam: np.ndarray) -> None:
-    """Honour the multiplier bound ``solver.p`` or refuse it: the reference imposes no bound, so its
-    solution is the bounded problem's only if no multiplier exceeds p."""
-    largest = float(np.abs(lam).max(initial=0.0))
-    if p is not None and largest > p:
-        raise SceneError(f"solver.p = {p:g}: the multipliers of the unbounded solution reach {largest:.3g}, so the "
-                         "bound changes the problem, and reference imposes no bound: leave solver.p out, raise it "
-                         f"above {largest:.3g}, or solve with solve, which imposes it")
 
 
 def numbering(systems: list[BlockSystem], interface: Interface, closed: np.ndarray) -> list[np.ndarray]:
@@ -115,7 +105,6 @@ def solve(scene: Scene, mesh: Mesh) -> Result:
         closed = stays | enters
     else:
         raise SolverError(f"reference: the active set did not settle in {MAX_ACTIVE_SET_STEPS} steps")
-    check_bound(scene.solver.p, lam)
     elapsed = time.perf_counter() - started
     energy = sum(0.5 * u @ assembly.csr_matvec(s, u) - s.rhs @ u for s, u in zip(systems, fields))
     checked = constraints.kkt(interface, traces, lam, None,
