@@ -212,7 +212,7 @@ def test_a_failed_rename_puts_the_previous_set_back(tmp_path, monkeypatch):
 @pytest.mark.mpi
 def test_hdf5_never_writes_to_a_full_disk_itself():
     """A full disk used to leave the HDF5 library broken (tracebacks, then a segfault at exit)."""
-    code = ("from ddsolve import io\n"
+    code = ("from ddsolve.io import safe\n"
             "try:\n"
             "    with safe.hdf5_image('/dev/full') as f:\n"
             "        f['x'] = list(range(100000))\n"

@@ -123,12 +123,13 @@ def sweep_moments(folder: Path, count: int = 20, mesh: list[str] = LARGE, timeou
 
 #: A process that replaces ``count`` files (``existing`` of them there before) as one set and sends
 #: itself ``signum`` just before file operation number ``step`` (the probe of the folder, the writes
-#: of the temporaries, the journal, links, renames, removals), under ddsolve.cli.guarded as the
+#: of the temporaries, the journal, links, renames, removals), under ddsolve.parallel.runtime.guarded as the
 #: commands are.  Arguments: FOLDER COUNT STEP SIGNUM FINAL(0/1).
 COMMIT_CHILD = textwrap.dedent("""
     import os, sys
     from pathlib import Path
-    from ddsolve import cli, io
+    from ddsolve.io import safe
+    from ddsolve.parallel.runtime import guarded
 
     folder, count, step, signum, final = Path(sys.argv[1]), *map(int, sys.argv[2:5]), sys.argv[5] == "1"
     calls = [0]
@@ -147,8 +148,8 @@ COMMIT_CHILD = textwrap.dedent("""
     def writer(i):
         return counted(lambda name: Path(name).write_bytes(f"new {i}".encode()))
 
-    sys.exit(cli.guarded(lambda: safe.replace_together({folder / f"f{i}.h5": writer(i) for i in range(count)},
-                                                     final=final) or 0))
+    sys.exit(guarded(lambda: safe.replace_together({folder / f"f{i}.h5": writer(i) for i in range(count)},
+                                                final=final) or 0))
 """)
 
 
