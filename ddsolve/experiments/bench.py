@@ -119,13 +119,10 @@ def monolithic(scene: scenes.Scene, mesh, systems) -> tuple["Result", dict]:
     loads = np.array([assembly.csr_matvec(s, u)[s.trace_dofs] - s.rhs[s.trace_dofs] for s, u in zip(systems, fields)])
     lam = interface.multipliers(loads)
     lam[contact] = y / np.sqrt(interface.row_weights[contact]) if len(normal) else lam[contact]
-    frames = mesh.sigma.frames[mesh.sigma.multiplier_nodes]
-    solution = {spec.name: assembly.to_global(u, assembly.trace_nodes(mesh.half(spec.side), mesh.sigma), frames)
-                for spec, u in zip(BLOCK_SPECS, fields)}
-    result = Result(scene=scene.text, method="monolithic", converged=True, iterations=1, solves=2 if len(normal) else 1,
-                    wall_time=timings["factorization"] + timings["solve"], ranks=1, mesh=mesh, solution=solution,
-                    multipliers=interface.split(lam, frames), history=np.zeros(0), timings=timings,
-                    attrs=provenance())
+    result = Result.from_blocks(scene.text, "monolithic", mesh, fields, interface, lam, converged=True,
+                                iterations=1, solves=2 if len(normal) else 1,
+                                wall_time=timings["factorization"] + timings["solve"], ranks=1, history=np.zeros(0),
+                                timings=timings, attrs=provenance())
     return result, timings
 
 
@@ -154,9 +151,13 @@ def bench_baseline(name: str, P: int, M: int, repeats: int, output: Path, comm) 
               **{f"mono {label}": [] for label in MONOLITHIC_ORDERINGS}}
 
     def timed(label, ordering):
-        PETSc.Options()["reference_mat_mumps_icntl_7"] = ordering
+        options = PETSc.Options()
+        options["reference_mat_mumps_icntl_7"] = ordering
         started = time.process_time()
-        result, timings = monolithic(scene, mesh, systems)
+        try:
+            result, timings = monolithic(scene, mesh, systems)
+        finally:
+            options.delValue("reference_mat_mumps_icntl_7")
         return result, {**timings, "solve_phase": timings["factorization"] + timings["solve"],
                         "cpu": time.process_time() - started}
 

@@ -7,6 +7,7 @@ command line.
 """
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import dataclasses
 import functools
@@ -75,7 +76,10 @@ class Block:
         try:
             self.ksp.setFromOptions()
         except PETSc.Error as exc:
-            raise SolverError(f"block {self.name}: {petsc_failure(exc, self.ksp.getOptionsPrefix())}") from None
+            message = f"block {self.name}: {petsc_failure(exc, self.ksp.getOptionsPrefix())}"
+            self.ksp.destroy()
+            self.matrix.destroy()
+            raise SolverError(message) from None
         self.rhs, self.x = self.matrix.createVecLeft(), self.matrix.createVecRight()
         self._schur: np.ndarray | None = None  # as stored by MUMPS (one triangle valid)
         self._dirichlet = self._dirichlet_matrix = self._work = None  # see factor_dirichlet
@@ -130,9 +134,10 @@ class Block:
                 trace = PETSc.IS().createGeneral(self.trace_dofs.astype(PETSc.IntType), comm=PETSc.COMM_SELF)
                 _call("MatFactorSetSchurIS", pc.getFactorMatrix().handle, trace.handle)
                 trace.destroy()
+                self.ksp.setUp()
             else:
-                _default_ordering(self.ksp)
-            self.ksp.setUp()
+                with _default_ordering(self.ksp):
+                    self.ksp.setUp()
             if schur:
                 # Copy S now: solves factor the stored Schur complement in place.  Factor it once here,
                 # otherwise every later solve factors it again.
@@ -156,11 +161,11 @@ class Block:
         ksp.setType(PETSc.KSP.Type.PREONLY)
         ksp.getPC().setType(PETSc.PC.Type.CHOLESKY)
         ksp.getPC().setFactorSolverType(self.ksp.getPC().getFactorSolverType())
-        ksp.setFromOptions()
-        self._dirichlet = ksp
+        self._dirichlet = ksp  # destroyed with the block, whatever happens below
         try:
-            _default_ordering(ksp)
-            ksp.setUp()
+            ksp.setFromOptions()
+            with _default_ordering(ksp):
+                ksp.setUp()
         except PETSc.Error as exc:
             raise SolverError(f"block {self.name}: Dirichlet problem setup failed (PETSc error {exc.ierr})") from None
         self._work = self.matrix.createVecLeft()
@@ -407,16 +412,22 @@ def _petsc_c():
 MUMPS_ORDERING = 2
 
 
-def _default_ordering(ksp: PETSc.KSP) -> None:
-    """Ask MUMPS (if it factors this KSP's matrix) for :data:`MUMPS_ORDERING` unless the options say
-    otherwise (MUMPS reads its controls from the options when it starts, at the factorization)."""
+@contextlib.contextmanager
+def _default_ordering(ksp: PETSc.KSP):
+    """While the block is factored, ask MUMPS (if it factors this KSP's matrix) for :data:`MUMPS_ORDERING`
+    unless the options say otherwise (MUMPS reads its controls from the options when it starts, at the
+    factorization); the option is removed from PETSc's database again afterwards."""
     pc = ksp.getPC()
-    if ksp.getType() != PETSc.KSP.Type.PREONLY or pc.getType() not in _FACTOR_TYPES or \
-            pc.getFactorSolverType() != "mumps":
-        return
     options, key = PETSc.Options(), f"{ksp.getOptionsPrefix() or ''}mat_mumps_icntl_7"
-    if not options.hasName(key):
+    ours = (ksp.getType() == PETSc.KSP.Type.PREONLY and pc.getType() in _FACTOR_TYPES
+            and pc.getFactorSolverType() == "mumps" and not options.hasName(key))
+    if ours:
         options[key] = MUMPS_ORDERING
+    try:
+        yield
+    finally:
+        if ours:
+            options.delValue(key)
 
 
 #: Options PETSc itself reads only when it finalizes.

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ddsolve.mesh.mesh import HalfMesh, Mesh
+from ddsolve.fem import assembly
+from ddsolve.mesh.mesh import BLOCKS, HalfMesh, Mesh
 from ddsolve.problem import scene as scenes
 
 
@@ -82,6 +83,19 @@ class Result:
         from ddsolve.io.hdf5 import write  # deferred, as meshio's Mesh.write: io is the stage above
 
         return write(Path(path), self, viewer)
+
+    @classmethod
+    def from_blocks(cls, scene: str, method: str, mesh: Mesh, fields: list[np.ndarray], interface, lam: np.ndarray,
+                    **record) -> "Result":
+        """The one way a run makes its result: the four blocks' nodal displacements ``fields`` (in the order
+        of BLOCKS, Σ nodes in their (tangent, normal) frames) and the multipliers ``lam`` of ``interface``,
+        turned into (x, y) values on ``mesh``; ``record``: the result's other fields."""
+        sigma = mesh.sigma
+        frames = sigma.frames[sigma.multiplier_nodes]
+        solution = {spec.name: assembly.to_global(u, assembly.trace_nodes(mesh.half(spec.side), sigma), frames)
+                    for spec, u in zip(BLOCKS, fields)}
+        return cls(scene=scene, method=method, mesh=mesh, solution=solution,
+                   multipliers=interface.split(lam, frames), **record)
 
     @property
     def lower(self) -> HalfMesh:

@@ -239,23 +239,17 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
             timings["setup"] = sum(timings.get(name, 0.0) for name in ("meshing", "distribution", "assembly"))
             for name in phases.cpu:  # CPU seconds of every rank together
                 timings[f"{name}_cpu"] = sum(cpu[name] for _, _, cpu in memory)
-            frames = mesh.sigma.frames[mesh.sigma.multiplier_nodes]
-            solution = {spec.name: assembly.to_global(x, assembly.trace_nodes(mesh.half(spec.side), mesh.sigma),
-                                                      frames) for spec, x in zip(BLOCKS, solutions)}
-            multipliers = interface.split(outcome.lam, frames)
-            estimated = estimate.combine(mesh, parts, solution, multipliers["mu_c"])
-            result = Result(
-                scene=scene.text, method=method, converged=outcome.converged, iterations=outcome.iterations,
-                solves=rounds.count, wall_time=timings["factorization"] + timings["iterations"], ranks=comm.size,
-                mesh=mesh, solution=solution, multipliers=multipliers,
+            result = Result.from_blocks(
+                scene.text, method, mesh, solutions, interface, outcome.lam, converged=outcome.converged,
+                iterations=outcome.iterations, solves=rounds.count,
+                wall_time=timings["factorization"] + timings["iterations"], ranks=comm.size,
                 history=np.array(outcome.history), timings=timings, message=outcome.message,
                 active_set_changes=np.array(outcome.active_set_changes, dtype=np.int64),
                 memory=memory_record(memory, sum(sizes), whole(mesh).nbytes),
                 attrs={**launch.provenance(), "stop": scene.solver.stop, "tol": scene.solver.tol,
-                       "peak_memory_mb": [max(peak.values()) for _, peak, _ in memory], **outcome.details,
-                       "error_estimate": estimated.relative},
-                indicators=estimated.indicators,
-            )
+                       "peak_memory_mb": [max(peak.values()) for _, peak, _ in memory], **outcome.details})
+            estimated = estimate.combine(mesh, parts, result.solution, result.multipliers["mu_c"])
+            result.attrs["error_estimate"], result.indicators = estimated.relative, estimated.indicators
             result.fracture = fracture.finish(local.tips, volume, result)
         if output is not None:
             collective(comm, lambda: io.write(output, result, final=True), root_only=True)

@@ -17,7 +17,7 @@ from ddsolve.dd.interface import Interface, for_mesh
 from ddsolve.errors import SolverError
 from ddsolve.fem import assembly
 from ddsolve.fem.assembly import BlockSystem, coo_to_csr
-from ddsolve.mesh.mesh import BLOCKS, Mesh
+from ddsolve.mesh.mesh import Mesh
 from ddsolve.parallel.blocks import Block
 from ddsolve.parallel.launch import provenance
 from ddsolve.post import analysis, estimate, fracture
@@ -115,21 +115,15 @@ def solve(scene: Scene, mesh: Mesh) -> Result:
     message = (f"reference: the solution violates {', '.join(violations)} (scale-free tolerance "
                f"{constraints.kkt_tolerance(None):g}): the problem is too ill-conditioned for double precision"
                if violations else "")
-    frames = mesh.sigma.frames[mesh.sigma.multiplier_nodes]
-    solution = {spec.name: assembly.to_global(u, assembly.trace_nodes(mesh.half(spec.side), mesh.sigma), frames)
-                for spec, u in zip(BLOCKS, fields)}
-    multipliers = interface.split(lam, frames)
-    estimated = estimate.of_scene(scene, mesh, solution, multipliers["mu_c"])
-    result = Result(
-        scene=scene.text, method="reference", converged=not violations, iterations=step, solves=step,
-        wall_time=elapsed, ranks=1, mesh=mesh, solution=solution, multipliers=multipliers,
-        history=np.array(history), active_set_changes=np.array(changes, dtype=np.int64),
-        timings={"factorization": factorization, "total": elapsed},
-        message=message,
+    result = Result.from_blocks(
+        scene.text, "reference", mesh, fields, interface, lam, converged=not violations, iterations=step,
+        solves=step, wall_time=elapsed, ranks=1, history=np.array(history),
+        active_set_changes=np.array(changes, dtype=np.int64),
+        timings={"factorization": factorization, "total": elapsed}, message=message,
         attrs={**provenance(), "closed_vertices": int(closed.sum()), "energy": float(energy),
-               "error_estimate": estimated.relative, "kkt_tolerance": constraints.kkt_tolerance(None),
-               **{f"kkt_{name}": getattr(checked, name) for name in constraints.Constraints.NAMES}},
-        indicators=estimated.indicators,
-    )
+               "kkt_tolerance": constraints.kkt_tolerance(None),
+               **{f"kkt_{name}": getattr(checked, name) for name in constraints.Constraints.NAMES}})
+    estimated = estimate.of_scene(scene, mesh, result.solution, result.multipliers["mu_c"])
+    result.attrs["error_estimate"], result.indicators = estimated.relative, estimated.indicators
     result.fracture = fracture.of_result(result, tips)
     return result
