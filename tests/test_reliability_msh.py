@@ -227,7 +227,7 @@ def test_an_input_without_read_permission_is_one_line(inputs, arguments, target,
         completed = _run(inputs, *arguments, user=user)
     finally:
         (inputs / target).chmod(0o644)
-    _one_line(completed, f"ddsolve: error: {target}: cannot read {what} (permission denied)")
+    _one_line(completed, f"{target}: cannot read {what} (permission denied)")
     assert before == {path.name: path.read_bytes() for path in inputs.iterdir() if path.is_file()}
     assert not (inputs / "s.h5").exists() and not (inputs / "out.h5").exists()
 
@@ -259,7 +259,7 @@ def test_a_directory_in_place_of_an_input_is_one_line(inputs, tmp_path, argument
     (folder / target).unlink()
     (folder / target).mkdir()
     completed = _run(folder, *arguments)
-    _one_line(completed, f"ddsolve: error: {target}: cannot read {what} (is a directory)")
+    _one_line(completed, f"{target}: cannot read {what} (is a directory)")
 
 
 @pytest.mark.mpi

@@ -21,7 +21,7 @@ try:
 except ModuleNotFoundError:  # Python < 3.11
     import tomli as tomllib
 
-from ddsolve.errors import DDSolveError, MeshError, SceneError
+from ddsolve.errors import DDSolveError, SceneError
 from ddsolve.problem import expressions, materials
 from ddsolve.problem.expressions import Expression
 
@@ -771,7 +771,7 @@ def load(source: str | Path, overrides: list[str] = ()) -> Scene:
         base = path.parent
     scene = loads(text, overrides, origin=str(source), base=base)
     if scene.mesh.file is not None:
-        readable(scene.mesh.file, "mesh file", MeshError)
+        readable(scene.mesh.file, "mesh file", SceneError)  # the scene names it: a scene error
     return scene
 
 
