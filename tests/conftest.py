@@ -12,6 +12,7 @@ import meshio
 import numpy as np
 import pytest
 
+from ddsolve.io import viewer as export
 from ddsolve.mesh.geometry import split_box
 from ddsolve.mesh.mesh import Mesh
 from ddsolve.problem.scene import Geometry
@@ -146,3 +147,27 @@ def paper_references(folder: Path, *options: str) -> dict[str, Path]:
         out[name] = folder / f"{name}.h5"
         ddsolve("reference", name, *options, "-o", str(out[name]))
     return out
+
+
+def refused(completed: subprocess.CompletedProcess, status: int, *fragments: str) -> str:
+    """The run failed with ``status`` and one line on standard error holding every fragment."""
+    assert completed.returncode == status, (completed.returncode, completed.stderr)
+    assert "Traceback" not in completed.stdout + completed.stderr
+    lines = completed.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("ddsolve: error: "), completed.stderr
+    for fragment in fragments:
+        assert fragment in lines[0], (fragment, lines[0])
+    return lines[0]
+
+
+def previous_set(output: Path) -> dict[Path, bytes]:
+    """Stand-ins for a previous result set at ``output`` (the .h5 and its viewer files)."""
+    files = {path: f"previous {path.name}".encode() for path in
+             [output, *export.viewer_paths(output.parent, output.stem)]}
+    for path, data in files.items():
+        path.write_bytes(data)
+    return files
+
+
+def unchanged(files: dict[Path, bytes]) -> bool:
+    return all(path.is_file() and path.read_bytes() == data for path, data in files.items())

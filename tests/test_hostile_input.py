@@ -14,12 +14,11 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from conftest import SMALL, ddsolve, without_open_mpi_noise
+from conftest import SMALL, ddsolve, previous_set, refused, unchanged, without_open_mpi_noise
 
 from ddsolve.errors import DDSolveError, SceneError
 from ddsolve.io import hdf5 as io
 from ddsolve.io import safe
-from ddsolve.io import viewer as export
 from ddsolve.post import analysis
 from ddsolve.problem import scene
 
@@ -30,30 +29,6 @@ def run(*args: str, env: dict | None = None, timeout: float = 120, cwd: Path | N
     return without_open_mpi_noise(subprocess.run([sys.executable, "-m", "ddsolve", *args], capture_output=True,
                                                  text=True, timeout=timeout, stdin=subprocess.DEVNULL, cwd=cwd,
                                                  env={**os.environ, "MPLBACKEND": "Agg", **(env or {})}))
-
-
-def refused(completed: subprocess.CompletedProcess, status: int, *fragments: str) -> str:
-    """The run failed with ``status`` and one line on standard error holding every fragment."""
-    assert completed.returncode == status, (completed.returncode, completed.stderr)
-    assert "Traceback" not in completed.stdout + completed.stderr
-    lines = completed.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("ddsolve: error: "), completed.stderr
-    for fragment in fragments:
-        assert fragment in lines[0], (fragment, lines[0])
-    return lines[0]
-
-
-def previous_set(output: Path) -> dict[Path, bytes]:
-    """Stand-ins for a previous result set at ``output`` (the .h5 and its viewer files)."""
-    files = {path: f"previous {path.name}".encode() for path in
-             [output, *export.viewer_paths(output.parent, output.stem)]}
-    for path, data in files.items():
-        path.write_bytes(data)
-    return files
-
-
-def unchanged(files: dict[Path, bytes]) -> bool:
-    return all(path.is_file() and path.read_bytes() == data for path, data in files.items())
 
 
 @pytest.fixture(scope="module")

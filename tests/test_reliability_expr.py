@@ -15,10 +15,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import structured_mesh
+from conftest import SMALL, previous_set, refused, structured_mesh, unchanged
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from test_hostile_input import SMALL, previous_set, refused, run, unchanged
+from test_hostile_input import run
 
 from ddsolve.errors import SceneError
 from ddsolve.fem.assembly import load_extent

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import h5py
 import pytest
-from conftest import SMALL, without_open_mpi_noise
+from conftest import SMALL, refused, without_open_mpi_noise
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -25,16 +25,6 @@ def run(*args: str, timeout: float = 240, cwd: Path | None = None) -> subprocess
     return without_open_mpi_noise(subprocess.run([sys.executable, "-m", "ddsolve", *args], capture_output=True,
                                                  text=True, timeout=timeout, stdin=subprocess.DEVNULL, cwd=cwd,
                                                  env={**os.environ, "MPLBACKEND": "Agg"}))
-
-
-def refused(completed: subprocess.CompletedProcess, status: int, *fragments: str) -> str:
-    assert completed.returncode == status, (completed.returncode, completed.stderr)
-    assert "Traceback" not in completed.stdout + completed.stderr
-    lines = completed.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("ddsolve: error: "), completed.stderr
-    for fragment in fragments:
-        assert fragment in lines[0], (fragment, lines[0])
-    return lines[0]
 
 
 def solved(completed: subprocess.CompletedProcess) -> None:
