@@ -50,17 +50,17 @@ def test_the_loop_stops_at_the_target_the_level_limit_or_the_size_limit(monkeypa
     result = Result(scene="", method="schur", converged=True, iterations=1, solves=3, wall_time=0.0, ranks=1,
                     mesh=mesh, solution={}, multipliers={}, history=np.zeros(0),
                     attrs={"error_estimate": 0.05}, indicators=_indicators(mesh, np.array([3])))
-    assert adapt._next(result, 0.1, 0) == (True, None, "")
-    done, sizes, message = adapt._next(result, 0.01, 0)
+    assert adapt.next_level(result, 0.1, 0) == (True, None, "")
+    done, sizes, message = adapt.next_level(result, 0.01, 0)
     assert not done and isinstance(sizes, sizing.SizeMap) and message == ""
-    done, _, message = adapt._next(result, 0.01, adapt.MAX_LEVELS - 1)
+    done, _, message = adapt.next_level(result, 0.01, adapt.MAX_LEVELS - 1)
     assert done and message == (f"mesh.target_error = 0.01 not reached in {adapt.MAX_LEVELS} levels "
                                 "(estimated error 0.05)")
     monkeypatch.setattr(adapt, "MAX_UNKNOWNS", 100)  # 360 unknowns need about 9000 for the target
     with pytest.raises(DDSolveError, match=r"mesh.target_error = 0.01 refused: it needs about 9e\+03 unknowns"):
-        adapt._next(result, 0.01, 0)
-    done, _, message = adapt._next(result, 0.01, 1)
+        adapt.next_level(result, 0.01, 0)
+    done, _, message = adapt.next_level(result, 0.01, 1)
     assert done and "not reached, and out of reach: it needs about 9e+03 unknowns" in message
     monkeypatch.setattr(adapt, "PREDICTION_MARGIN", 1e6)
-    done, _, message = adapt._next(result, 0.01, 1)
+    done, _, message = adapt.next_level(result, 0.01, 1)
     assert done and "the next mesh would have about" in message

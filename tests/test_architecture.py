@@ -78,3 +78,20 @@ def test_tests_import_no_private_name():
                 private += [f"{path.name}: {node.module}.{alias.name}" for alias in node.names
                             if alias.name.startswith("_") and not alias.name.endswith("__")]
     assert not private, "\n".join(private)
+
+
+def test_tests_use_no_private_attribute_of_a_ddsolve_module():
+    private = []
+    for path in Path(__file__).parent.glob("*.py"):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        modules = {alias.asname or alias.name for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)
+                   and (node.module or "").startswith("ddsolve") for alias in node.names
+                   if f"{node.module}.{alias.name}" in modules_of_ddsolve()}
+        private += [f"{path.name}:{node.lineno}: {node.value.id}.{node.attr}" for node in ast.walk(tree)
+                    if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in modules
+                    and node.attr.startswith("_") and not node.attr.endswith("__")]
+    assert not private, "\n".join(private)
+
+
+def modules_of_ddsolve() -> set[str]:
+    return set(modules())

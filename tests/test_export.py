@@ -121,7 +121,7 @@ def test_plane_stress_strain_zz_makes_sigma_zz_vanish():
     assert np.array_equal(materials.out_of_plane_strain(isotropic, "plane_strain"), np.zeros(3))
     orthotropic = materials.Orthotropic(E1=140.0, E2=10.0, G12=5.0, nu12=0.3, angle=30.0)
     e = materials.out_of_plane_strain(orthotropic, "plane_stress")
-    C = materials._stiffness_3d(orthotropic)
+    C = materials.stiffness_3d(orthotropic)
     full = np.zeros((2, 6))
     full[:, [0, 1, 5]] = strain
     full[:, 2] = strain @ e

@@ -64,7 +64,7 @@ def elasticity(material, model: str = "plane_strain") -> tuple[np.ndarray, np.nd
         D = np.array(material.D, dtype=float)
         check_positive_definite(D, "D")
         return D, (np.array(material.Dzz, dtype=float) if model == "plane_strain" else np.zeros(3))
-    C = _stiffness_3d(material)
+    C = stiffness_3d(material)
     if model == "plane_strain":
         return C[np.ix_(_PLANE, _PLANE)], C[_ZZ, _PLANE]
     S = np.linalg.inv(C)
@@ -78,7 +78,7 @@ def out_of_plane_strain(material, model: str = "plane_strain") -> np.ndarray | N
         return np.zeros(3)
     if isinstance(material, Anisotropic):
         return None
-    C = _stiffness_3d(material)
+    C = stiffness_3d(material)
     return -C[_ZZ, _PLANE] / C[_ZZ, _ZZ]
 
 
@@ -94,7 +94,7 @@ def check_positive_definite(D: np.ndarray, name: str) -> None:
         raise MaterialError(f"{name} is not positive definite (smallest eigenvalue {smallest:.3g})")
 
 
-def _stiffness_3d(material) -> np.ndarray:
+def stiffness_3d(material) -> np.ndarray:
     """6×6 Voigt stiffness (engineering shears) in the x, y, z frame."""
     if isinstance(material, Isotropic):
         E, nu = material.E, material.nu

@@ -103,7 +103,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, lev
                          "level_time": time.perf_counter() - mark, "elapsed": time.perf_counter() - started})
             progress(f"level {number}: {rows[-1]['unknowns']:,} unknowns, estimated error {100 * estimate:.3g} %, "
                      f"{rows[-1]['level_time']:.2f} s (mesh {meshing:.2f} s, solve {result.wall_time:.2f} s)")
-        decision = collective(comm, lambda: _next(result, target, number), root_only=True)
+        decision = collective(comm, lambda: next_level(result, target, number), root_only=True)
         done, background, message = comm.bcast(decision, root=0)
         if done:
             break
@@ -121,7 +121,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, lev
     return result
 
 
-def _next(result: Result, target: float, level: int) -> tuple[bool, SizeMap | None, str]:
+def next_level(result: Result, target: float, level: int) -> tuple[bool, SizeMap | None, str]:
     """Rank 0's decision after a level: (stop, the next size map, why the target was not reached).
     Raises DDSolveError after the first level if the target is out of reach."""
     estimate = float(result.attrs["error_estimate"])
