@@ -22,9 +22,12 @@ from ddsolve.io import safe
 from ddsolve.mesh import gmsh_io
 from ddsolve.parallel.launch import mpiexec_command, supervise
 from ddsolve.mesh.mesh import BLOCKS
-from ddsolve.parallel.runtime import Parser, guarded, init_petsc, is_number, split_arguments
+from ddsolve.parallel import runtime
+from ddsolve.parallel.runtime import Parser, guarded, init_petsc, is_number
 from ddsolve.solvers.checks import check_ranks, check_read, check_size
 
+#: ddsolve's commands that hand options to PETSc.
+PETSC_COMMANDS = ("solve", "sweep", "reference", "version")
 #: Options-prefixes of the KSPs (what a misspelt option is compared with).
 PREFIXES = {"solve": tuple(f"{spec.name}_" for spec in BLOCKS), "reference": ("reference_",)}
 PREFIXES["sweep"] = PREFIXES["solve"]
@@ -32,6 +35,10 @@ PREFIXES["sweep"] = PREFIXES["solve"]
 MESH_SUFFIX = ".msh"
 
 
+def split_arguments(top: argparse.ArgumentParser, argv: list[str]) -> tuple[list[str], list[str]]:
+    """(ddsolve's arguments, PETSc's options) of a command line (:func:`ddsolve.parallel.runtime.split_arguments`
+    with the commands that take PETSc options)."""
+    return runtime.split_arguments(top, argv, PETSC_COMMANDS)
 
 def _root_print(*args, **kwargs) -> None:
     from mpi4py import MPI

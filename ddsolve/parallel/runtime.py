@@ -21,10 +21,6 @@ from ddsolve.environment import import_errors_explained
 from ddsolve.errors import DDSolveError, UsageError
 from ddsolve.parallel.launch import end_with_launcher
 
-#: Commands that hand options to PETSc.
-PETSC_COMMANDS = ("solve", "sweep", "reference", "version", "bench")
-
-
 class Parser(argparse.ArgumentParser):
     """argparse with one-line errors (exit status 2) instead of a usage block."""
 
@@ -45,7 +41,7 @@ def _subcommands(top: argparse.ArgumentParser) -> dict[str, argparse.ArgumentPar
     return next(action.choices for action in top._actions if isinstance(action, argparse._SubParsersAction))
 
 
-def split_arguments(top: argparse.ArgumentParser, argv: list[str], petsc_commands: tuple[str, ...] = PETSC_COMMANDS
+def split_arguments(top: argparse.ArgumentParser, argv: list[str], petsc_commands: tuple[str, ...]
                     ) -> tuple[list[str], list[str]]:
     """(ddsolve's arguments, PETSc's options), wherever the user typed them.
 
