@@ -108,39 +108,66 @@ def _energy_density(strain: np.ndarray, D: np.ndarray, det: np.ndarray, weights:
 
 def recovered_strain(points: np.ndarray, cells: np.ndarray, u: np.ndarray) -> np.ndarray:
     """``(n, 3)``: the SPR-recovered strain (εxx, εyy, γxy) at every node of the block."""
-    where, _, strain = _strains_at(points, cells, u, _SAMPLES[cells.shape[1]])
-    return _recover(points, cells, where, strain)
+    return _recover(points, cells, *_sampled_strains(points, cells, u))
+
+
+#: Cells whose temporaries the estimate holds at once: its memory stays that of a few arrays per node
+#: whatever the mesh (all at once, the temporaries took about 1.3 kB per cell).
+CHUNK_CELLS = 2 ** 14
+
+
+def _chunks(count: int, size: int = CHUNK_CELLS):
+    """Consecutive slices of ``range(count)`` of at most ``size`` items."""
+    return (slice(start, min(start + size, count)) for start in range(0, count, size))
+
+
+def _sampled_strains(points: np.ndarray, cells: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Positions ``(m, s, 2)`` and strains ``(m, s, 3)`` at the sampling points of every cell."""
+    xi = _SAMPLES[cells.shape[1]]
+    where, strain = np.empty((len(cells), len(xi), 2)), np.empty((len(cells), len(xi), 3))
+    for chunk in _chunks(len(cells)):
+        where[chunk], _, strain[chunk] = _strains_at(points, cells[chunk], u, xi)
+    return where, strain
 
 
 def _recover(points: np.ndarray, cells: np.ndarray, where: np.ndarray, strain: np.ndarray) -> np.ndarray:
-    """SPR from the positions ``(m, s, 2)`` and strains ``(m, s, 3)`` at the sampling points."""
+    """SPR from the positions ``(m, s, 2)`` and strains ``(m, s, 3)`` at the sampling points; the
+    patch sums are gathered a chunk of cells at a time."""
     k = cells.shape[1]
     degree = 1 if k == 3 else 2
+    b = 3 if degree == 1 else 6
+    n = len(points)
     corners = cells[:, :3]
-    vertex = corners.ravel()  # patch of each (cell, corner) pair
-    cell = np.repeat(np.arange(len(cells)), 3)
-    offsets = where[cell] - points[vertex][:, None, :]  # (3m, s, 2)
-    scale = np.zeros(len(points))
-    np.maximum.at(scale, vertex, np.abs(offsets).max(axis=(1, 2)))
-    basis = _monomials(offsets / scale[vertex][:, None, None], degree)  # (3m, s, b)
-    b = basis.shape[-1]
+    scale = np.zeros(n)
+    for chunk in _chunks(len(cells)):
+        offsets = where[chunk, None, :, :] - points[corners[chunk]][:, :, None, :]  # (c, 3, s, 2)
+        np.maximum.at(scale, corners[chunk].ravel(), np.abs(offsets).max(axis=(2, 3)).ravel())
     # The patch normal equations Σ PPᵀ a = Σ P ε, summed per vertex (upper triangle of the symmetric part).
     upper = np.triu_indices(b)
-    transposed = basis.transpose(0, 2, 1)
-    normal = (transposed @ basis)[:, upper[0], upper[1]]  # (3m, b(b+1)/2)
-    moments = (transposed @ strain[cell]).reshape(len(vertex), -1)  # (3m, 3b)
-    cells_at = np.bincount(vertex, minlength=len(points))
+    normal, moments = np.zeros((len(upper[0]), n)), np.zeros((3 * b, n))
+    for chunk in _chunks(len(cells)):
+        vertex = corners[chunk].ravel()
+        cell = np.repeat(np.arange(chunk.start, chunk.stop), 3)
+        basis = _monomials((where[cell] - points[vertex][:, None, :]) / scale[vertex][:, None, None], degree)
+        transposed = basis.transpose(0, 2, 1)
+        pairs = (transposed @ basis)[:, upper[0], upper[1]]  # (3c, b(b+1)/2)
+        products = (transposed @ strain[cell]).reshape(len(vertex), -1)  # (3c, 3b)
+        for j in range(len(normal)):
+            normal[j] += np.bincount(vertex, pairs[:, j], minlength=n)
+        for j in range(len(moments)):
+            moments[j] += np.bincount(vertex, products[:, j], minlength=n)
+    cells_at = np.bincount(corners.ravel(), minlength=n)
     patches = np.flatnonzero(cells_at)
     A = np.zeros((len(patches), b, b))
     for j, (row, column) in enumerate(zip(*upper)):
-        A[:, row, column] = A[:, column, row] = np.bincount(vertex, normal[:, j], minlength=len(points))[patches]
-    rhs = np.stack([np.bincount(vertex, moments[:, j], minlength=len(points))[patches]
-                    for j in range(3 * b)], axis=1).reshape(-1, b, 3)
+        A[:, row, column] = A[:, column, row] = normal[j, patches]
+    rhs = moments[:, patches].T.reshape(-1, b, 3)
+    del normal, moments
     solved, good = _solve_spd(A, rhs)
     good &= cells_at[patches] >= 3
-    coefficients = np.zeros((len(points), b, 3))
+    coefficients = np.zeros((n, b, 3))
     coefficients[patches[good]] = solved[good]
-    usable = np.zeros(len(points), dtype=bool)
+    usable = np.zeros(n, dtype=bool)
     usable[patches[good]] = True
     edges, counts = cell_edges(corners)
     interior = usable.copy()
@@ -148,48 +175,56 @@ def _recover(points: np.ndarray, cells: np.ndarray, where: np.ndarray, strain: n
     # A node takes the mean of the interior patches it is "own" to (its vertex, or a P2 midpoint's two
     # ends); a node without one (at the boundary) the mean of the interior patches of its cells, else
     # of the usable patches of its cells.
-    own = cells[cell[:, None], _OWN[k][np.tile(np.arange(3), len(cells))]]  # (3m, r) node per own slot
-    out, found = _patch_means(points, own, vertex, scale, coefficients, interior[vertex], degree)
+    own = _OWN[k]
+    out, found = _patch_means(points, cells, lambda c: cells[c][:, own], scale, coefficients, interior, degree)
     missing = ~found
     if missing.any():
         near = np.flatnonzero(missing[cells].any(axis=1))  # the cells with a node still missing
-        pairs = (near[:, None] * 3 + np.arange(3)).ravel()
-        nodes = np.repeat(cells[near], 3, axis=0)  # (pairs, k): every node of the cell
+        every = np.broadcast_to(np.arange(k), (3, k))  # every node of the cell, for each corner's patch
         for level in (usable, interior):  # interior patches override boundary ones
-            values, count = _patch_means(points, nodes, vertex[pairs], scale, coefficients, level[vertex[pairs]],
-                                         degree)
+            values, count = _patch_means(points, cells[near], lambda c: cells[near[c]][:, every], scale,
+                                         coefficients, level, degree)
             take = missing & count
             out[take] = values[take]
     return out
 
 
-def _patch_means(points: np.ndarray, nodes: np.ndarray, vertex: np.ndarray, scale: np.ndarray,
-                 coefficients: np.ndarray, use: np.ndarray, degree: int) -> tuple[np.ndarray, np.ndarray]:
-    """The mean over the pairs with ``use`` of patch ``vertex``'s polynomial at ``nodes`` ``(p, r)``;
-    ``(n, 3)`` values and ``(n,)`` whether a node got any."""
-    nodes, vertex = nodes[use], vertex[use]
-    local = (points[nodes] - points[vertex][:, None, :]) / scale[vertex][:, None, None]
-    values = _monomials(local, degree) @ coefficients[vertex]  # (p, r, 3)
-    flat = nodes.ravel()
-    count = np.bincount(flat, minlength=len(points))
-    sums = np.stack([np.bincount(flat, values[..., c].ravel(), minlength=len(points)) for c in range(3)],
-                    axis=1).astype(np.float64)  # bincount of nothing is an integer array
+def _patch_means(points: np.ndarray, cells: np.ndarray, nodes, scale: np.ndarray, coefficients: np.ndarray,
+                 use: np.ndarray, degree: int) -> tuple[np.ndarray, np.ndarray]:
+    """The mean, over the corners of ``cells`` whose patch has ``use``, of the corner patch's polynomial
+    at the nodes ``nodes(chunk)`` ``(c, 3, r)`` gives for a chunk of cells; ``(n, 3)`` values and ``(n,)``
+    whether a node got any."""
+    n = len(points)
+    count, sums = np.zeros(n, dtype=np.int64), np.zeros((3, n))
+    for chunk in _chunks(len(cells)):
+        vertex = cells[chunk, :3].ravel()
+        at = nodes(chunk).reshape(len(vertex), -1)  # (3c, r)
+        chosen = use[vertex]
+        vertex, at = vertex[chosen], at[chosen]
+        local = (points[at] - points[vertex][:, None, :]) / scale[vertex][:, None, None]
+        values = _monomials(local, degree) @ coefficients[vertex]  # (p, r, 3)
+        flat = at.ravel()
+        count += np.bincount(flat, minlength=n)
+        for c in range(3):
+            sums[c] += np.bincount(flat, values[..., c].ravel(), minlength=n)
     found = count > 0
-    sums[found] /= count[found, None]
-    return sums, found
+    sums[:, found] /= count[found]
+    return sums.T.copy(), found
 
 
 def block_indicators(points: np.ndarray, cells: np.ndarray, D: np.ndarray, u: np.ndarray) -> np.ndarray:
     """``(2, m)``: per cell η_K² = ∫ (ε* − ε_h)ᵀ D (ε* − ε_h) and ∫ ε_hᵀ D ε_h, for the field u ``(n, 2)``."""
     k = cells.shape[1]
-    samples = len(_SAMPLES[k])
+    recovered = recovered_strain(points, cells, u)
     xi, weights = TRIANGLE_RULES[k]
-    where, det, strain = _strains_at(points, cells, u, np.vstack([_SAMPLES[k], xi]))  # one geometry pass
-    recovered = _recover(points, cells, where[:, :samples], strain[:, :samples])
-    det, strain = det[:, samples:], strain[:, samples:]
     values, _ = shape_functions(k, xi)
-    difference = np.tensordot(recovered[cells], values, axes=([1], [1])).transpose(0, 2, 1) - strain
-    return np.stack([_energy_density(difference, D, det, weights), _energy_density(strain, D, det, weights)])
+    out = np.empty((2, len(cells)))
+    for chunk in _chunks(len(cells)):
+        _, det, strain = _strains_at(points, cells[chunk], u, xi)
+        difference = np.tensordot(recovered[cells[chunk]], values, axes=([1], [1])).transpose(0, 2, 1) - strain
+        out[0, chunk] = _energy_density(difference, D, det, weights)
+        out[1, chunk] = _energy_density(strain, D, det, weights)
+    return out
 
 
 def contact_indicators(mesh: Mesh, u_minus: np.ndarray, u_plus: np.ndarray, mu_c: np.ndarray

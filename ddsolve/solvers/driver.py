@@ -219,6 +219,11 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
         phases.end("iterations")
         if failure is not None and not isinstance(failure, NotConvergedError):
             raise failure
+        mine = {"mesh_bytes": local.nbytes, "unknowns": sum(len(b.system.rhs) for b in setup.blocks),
+                "factor_mb": sum(b.factor_megabytes() for b in setup.blocks)}
+        if own:  # the factors are done with: the estimate and the output run in the memory they held
+            for block in setup.blocks:
+                block.destroy()
 
         parts = gather_estimate(scene, local, exchange, server)
         phases.end("estimate")
@@ -227,8 +232,6 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
                                                                             for b in exchange.led_blocks}), root=0)
         sizes = [2 * local.nodes[spec.side] for spec in BLOCKS]
         solutions = exchange.gather_varying([server.solutions[b] for b in exchange.led_blocks], sizes)
-        mine = {"mesh_bytes": local.nbytes, "unknowns": sum(len(b.system.rhs) for b in setup.blocks),
-                "factor_mb": sum(b.factor_megabytes() for b in setup.blocks)}
         mesh = gather_upper(local, exchange)
         phases.end("output")
         memory = comm.gather((mine, phases.peak, phases.cpu), root=0)
