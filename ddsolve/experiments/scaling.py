@@ -2,11 +2,11 @@
 
 Strong scaling (one mesh, N = 1, 2, 4, 8 ranks) and weak scaling (unknowns per rank fixed) of
 ``schur``, MPRGP (many rounds: it exposes the per-round exchange) and ``feti``; rounds against P for
-the iterative methods; the two large meshes with every phase of the launch and the memory per
-unknown; the monolithic MUMPS baseline; calibration runs: one block's factorization, solve and
-interface-matrix times at several sizes (one rank), and MPI latency and bandwidth (two ranks).  A
-cost model fitted to the calibration data predicts every measured run (validation) and the solve
-phase on 64 to 1024 cores.
+the iterative methods; the whole launch of Example 1 (P = 800 and 1600, its 0.1 % runs) with every
+phase on every rank; meshing against the ranks; the memory per unknown; the monolithic MUMPS
+baseline; calibration runs: one block's factorization, solve and interface-matrix times at several
+sizes (one rank), and MPI latency and bandwidth (two ranks).  A cost model fitted to the calibration
+data predicts every measured run (validation) and the solve phase on 64 to 1024 cores.
 """
 from __future__ import annotations
 
@@ -25,7 +25,16 @@ STRONG_MESH = (400, 512)
 RANKS = (1, 2, 4, 8)
 #: Weak scaling: about 12k unknowns per block and rank (P ∝ √N).
 WEAK_MESHES = {1: (100, 128), 2: (141, 181), 4: (200, 256), 8: (283, 362)}
-LARGE_MESHES = ((800, 1024), (1600, 2048))
+#: The whole launch (default method, 4 ranks): label -> the ``--set`` items on Example 1.
+LAUNCH_CASES = {
+    "P = 800": ("mesh.sigma_vertices=800", "mesh.boundary_vertices=1024"),
+    "P = 1600": ("mesh.sigma_vertices=1600", "mesh.boundary_vertices=2048"),
+    "0.1 %, graded P2": ("mesh.size=0.02458", "mesh.degree=2", "mesh.grading=true"),
+    "target 0.1 %": ("mesh.target_error=0.001",),
+    "target 1 %": ("mesh.target_error=0.01",),
+}
+#: Meshing against the ranks: one mesh on each of RANKS.
+MESHING_CASE = LAUNCH_CASES["P = 800"]
 CALIBRATION_MESHES = ((100, 128), (141, 181), (200, 256), (283, 362), (400, 512))
 METHODS = ("schur", "mprgp", "feti")
 #: Rounds against P (kkt 1e-6, 4 ranks): the iterative methods up to their largest affordable mesh.
@@ -154,25 +163,44 @@ class CostModel:
 
 # --- the experiment ---------------------------------------------------------------------------
 def _solve(ranks: int, P: int, M: int, method: str, name: str) -> dict:
-    """One ``ddsolve solve`` launch; its result file stays in results/scaling."""
+    """One ``ddsolve solve`` launch of the paper's family; its result file stays in results/scaling."""
+    tolerance = "solver.tol=1e-8" if method == "schur" else "solver.tol=1e-6"
+    return {"P": P, "M": M, **_launch(ranks, (f"mesh.sigma_vertices={P}", f"mesh.boundary_vertices={M}",
+                                               f"solver.method={method}", tolerance), name)}
+
+
+def _launch(ranks: int, settings: tuple[str, ...], name: str) -> dict:
+    """One ``ddsolve solve`` launch of Example 1 with ``settings``; what the scaling page reads of it.
+
+    *sum* is the launch from the result's ``/timings`` (an adaptive run: its start-up, every level and
+    the write); *solve phase* its factorizations and iterations (an adaptive run: of every level)."""
     from ddsolve.io import hdf5 as io
+    from ddsolve.parallel.phases import PHASES
 
     path = RESULTS / f"{name}.h5"
     started = time.perf_counter()
-    report.run(ranks, ["solve", "partial-closure", "--set", f"mesh.sigma_vertices={P}",
-                       "--set", f"mesh.boundary_vertices={M}", "--set", f"solver.method={method}",
-                       "--set", "solver.tol=1e-8" if method == "schur" else "solver.tol=1e-6", "-o", str(path)])
+    report.run(ranks, ["solve", "partial-closure", *[item for setting in settings for item in ("--set", setting)],
+                       "-o", str(path)])
     launch = time.perf_counter() - started
     result = io.read(path)
-    lower = result.lower
+    timings = {key: float(value) for key, value in result.timings.items()}
+    levels = getattr(result, "levels", None) or {}
+    if "adaptive" in timings:
+        total = timings["startup"] + timings["adaptive"] + timings.get("write", 0.0)
+        solve_phase = float(np.sum(levels["solve_time"])) if "solve_time" in levels else result.wall_time
+    else:
+        total, solve_phase = sum(timings.get(phase, 0.0) for phase in PHASES), result.wall_time
     memory = {key: (value.tolist() if hasattr(value, "tolist") else value) for key, value in result.memory.items()}
-    return {"name": name, "ranks": ranks, "P": P, "M": M, "method": result.method, "rounds": result.solves,
-            "unknowns": 2 * len(lower.points), "trace": 2 * len(result.multiplier_nodes),
+    return {"name": name, "ranks": ranks, "settings": " ".join(settings), "method": result.method,
+            "rounds": result.solves, "unknowns": 2 * len(result.lower.points),
+            "trace": 2 * len(result.multiplier_nodes),
             "multipliers": int(sum(v.size for v in result.multipliers.values())),
             "interface_unknowns": int(result.attrs.get("interface_unknowns", 0)),
             "rank0_time": float(result.attrs.get("rank0_solve_time", 0.0)),
             "peak_memory_mb": [float(m) for m in result.attrs["peak_memory_mb"]], "wall_time": result.wall_time,
-            "launch": launch, "memory": memory, **{key: float(value) for key, value in result.timings.items()}}
+            "error_estimate": float(result.attrs.get("error_estimate", np.nan)),
+            "levels": len(levels.get("unknowns", [])), "sum": total, "solve_phase": solve_phase,
+            "launch": launch, "memory": memory, **timings}
 
 
 def scaling() -> dict:
@@ -195,9 +223,12 @@ def scaling() -> dict:
         for P, M in (mesh for mesh in ROUNDS_MESHES if mesh[0] <= largest):
             print(f"scaling: rounds, {method}, P = {P}", flush=True)
             runs.append({"kind": "rounds", **_solve(4, P, M, method, f"rounds-{method}-{P}")})
-    for P, M in LARGE_MESHES:
-        print(f"scaling: large, P = {P}", flush=True)
-        runs.append({"kind": "large", **_solve(4, P, M, "auto", f"large-{P}")})
+    for label, settings in LAUNCH_CASES.items():
+        print(f"scaling: whole launch, {label}", flush=True)
+        runs.append({"kind": "launch", "label": label, **_launch(4, settings, f"launch-{len(runs)}")})
+    for ranks in RANKS:
+        print(f"scaling: meshing, N = {ranks}", flush=True)
+        runs.append({"kind": "meshing", **_launch(ranks, MESHING_CASE, f"meshing-{ranks}")})
     baseline = []
     for P, M in BASELINE_MESHES:
         for name in ("linear", "partial-closure"):
@@ -310,24 +341,52 @@ def _launch_rows(runs: list[dict]) -> list[str]:
     from ddsolve.parallel.phases import PHASES
 
     rows = []
-    for r in (r for r in runs if r["kind"] == "large"):
-        phases = [r.get(name, 0.0) for name in PHASES]
-        total = sum(phases)
-        rows.append(f"| {r['P']} | {4 * r['unknowns']:,} | {r['method']} | "
-                    + " | ".join(f"{t:.2f}" for t in phases) + f" | {total:.1f} | {r['launch']:.1f} "
-                    f"| {r['wall_time']:.2f} | {total / r['wall_time']:.2f} |")
+    for r in (r for r in runs if r["kind"] == "launch"):
+        phases = " | ".join(f"{r.get(name, 0.0):.2f}" for name in PHASES)
+        adaptive = f"{r['adaptive']:.2f} ({r['levels']} solves)" if "adaptive" in r else "—"
+        rows.append(f"| {r['label']} | {4 * r['unknowns']:,} | {100 * r['error_estimate']:.3g} % | {phases} "
+                    f"| {adaptive} | {r['sum']:.1f} | {r['launch']:.1f} | {r['solve_phase']:.2f} "
+                    f"| {r['sum'] / r['solve_phase']:.2f} |")
+    return rows
+
+
+def _per_rank_rows(runs: list[dict]) -> list[str]:
+    """CPU seconds of every phase on each rank (``/memory`` ``cpu_s_<phase>``), the launch cases."""
+    from ddsolve.parallel.phases import PHASES
+
+    rows = []
+    for r in (r for r in runs if r["kind"] == "launch" and "adaptive" not in r):
+        for rank in range(r["ranks"]):
+            cpu = [r["memory"].get(f"cpu_s_{name}", [float("nan")] * r["ranks"])[rank] for name in PHASES]
+            peak = max(r["memory"].get(f"peak_mb_{name}", [0.0] * r["ranks"])[rank] for name in PHASES)
+            rows.append(f"| {r['label']} | {rank} | " + " | ".join(f"{t:.2f}" for t in cpu) + f" | {peak:.0f} |")
+    return rows
+
+
+def _meshing_rows(runs: list[dict]) -> list[str]:
+    """Meshing against the ranks on one mesh: rank 0's wall time, the largest per-rank CPU seconds and
+    their ratio to two ranks."""
+    meshing = {r["ranks"]: r for r in runs if r["kind"] == "meshing"}
+    two = max(meshing[2]["memory"]["cpu_s_meshing"]) if 2 in meshing else float("nan")
+    rows = []
+    for ranks, r in sorted(meshing.items()):
+        cpu = r["memory"]["cpu_s_meshing"]
+        rows.append(f"| {ranks} | {4 * r['unknowns']:,} | {r['meshing']:.2f} | {max(cpu):.2f} | {min(cpu):.2f} "
+                    f"| {max(cpu) / two:.2f} | {r['distribution']:.2f} | {max(r['peak_memory_mb']):.0f} |")
     return rows
 
 
 def _memory_rows(runs: list[dict]) -> list[str]:
     rows = []
-    for r in (r for r in runs if r["kind"] in ("large", "rounds") and r.get("memory") and r["P"] >= 800):
+    for r in (r for r in runs if (r["kind"] == "launch" and "adaptive" not in r)
+              or (r["kind"] == "rounds" and r["P"] >= 800)):
         m = r["memory"]
         per_phase = [m.get(f"bytes_per_unknown_{name}", float("nan")) for name in
-                     ("meshing", "assembly", "factorization", "iterations", "output")]
+                     ("meshing", "assembly", "factorization", "iterations", "estimate", "output")]
         factor = max(m.get("rank_factor_mb", [0.0]))
         mesh = max(m.get("rank_mesh_bytes", [0])) / 2 ** 20
-        rows.append(f"| {r['P']} | {r['method']} | {max(r['peak_memory_mb']):.0f} | {factor:.0f} | {mesh:.0f} | "
+        label = r.get("label", f"P = {r.get('P')}")
+        rows.append(f"| {label} | {r['method']} | {max(r['peak_memory_mb']):.0f} | {factor:.0f} | {mesh:.0f} | "
                     + " | ".join(f"{b:.0f}" for b in per_phase) + " |")
     return rows
 
@@ -367,9 +426,10 @@ def text(record: dict, model: CostModel) -> str:
         "# Scaling",
         "",
         "`./run scaling` regenerates this page: calibration, strong and weak scaling on N = 1, 2, 4, 8 ranks, "
-        "rounds against P for the iterative methods, the two largest meshes with every phase of the launch and the "
-        "memory per unknown, the monolithic MUMPS baseline, the fitted cost model and its predictions. Result files "
-        "of every run are in `results/scaling/`, the aggregate in `results/scaling.h5`.",
+        "rounds against P for the iterative methods, the whole launch of Example 1 (P = 800 and 1600, and its 0.1 % "
+        "runs) phase by phase and rank by rank, meshing against the ranks, the memory per unknown, the monolithic "
+        "MUMPS baseline, the fitted cost model and its predictions. Result files of every run are in "
+        "`results/scaling/`, the aggregate in `results/scaling.h5`.",
         "",
         f"**This machine has {c} cores.** With more ranks than cores the ranks share cores (Open MPI "
         "oversubscription; waiting ranks yield their core), so every run with N > 2 here measures overhead, not "
@@ -421,13 +481,33 @@ def text(record: dict, model: CostModel) -> str:
         "",
         "## Whole launch (default method, 4 ranks)",
         "",
-        "Phases from the result file's `/timings` (rank 0's clock; *startup*: from `ddsolve solve -n` starting "
-        "mpiexec to the solver's start; *iterations*: the rounds and rank 0's updates); *sum*: the phases added up, "
-        "*launch*: the command's wall time measured outside it; *solve phase* = factorization + iterations.",
+        "Example 1 as a user launches it (`./run solve -n 4 partial-closure --set ...`, the settings in "
+        "`results/scaling.h5`). Phases from the result file's `/timings` (rank 0's clock; *startup*: from "
+        "`ddsolve solve -n` starting mpiexec to the solver's start; *iterations*: the rounds and rank 0's updates; "
+        "*adaptive*: every level of a `mesh.target_error` run, whose other columns are its last level's); *sum*: "
+        "the launch from the timings, *launch*: the command's wall time measured outside it (with the Python and "
+        "MPI start-up of the launcher); *solve phase* = factorization + iterations (of every level).",
         "",
-        "| P | unknowns | method | " + " | ".join(PHASES) + " | sum (s) | launch (s) | solve phase (s) | sum / solve |",
-        "|---" * (len(PHASES) + 7) + "|",
+        "| case | unknowns | estimated error | " + " | ".join(PHASES)
+        + " | adaptive (s) | sum (s) | launch (s) | solve phase (s) | sum / solve |",
+        "|---" * (len(PHASES) + 8) + "|",
         *_launch_rows(runs),
+        "",
+        "CPU seconds of every phase on each rank (`/memory` `cpu_s_<phase>`) and the rank's peak memory:",
+        "",
+        "| case | rank | " + " | ".join(PHASES) + " | peak (MB) |",
+        "|---" * (len(PHASES) + 3) + "|",
+        *_per_rank_rows(runs),
+        "",
+        "## Meshing against the ranks",
+        "",
+        f"One mesh ({', '.join(MESHING_CASE)}) on N ranks: rank 0's meshing wall time, the largest and smallest "
+        "per-rank meshing CPU seconds, the largest against the 2-rank run's, the distribution, the peak memory:",
+        "",
+        "| N | unknowns | meshing wall (s) | meshing CPU, largest rank (s) | smallest rank (s) | largest / 2 ranks "
+        "| distribution (s) | peak per rank (MB) |",
+        "|---|---|---|---|---|---|---|---|",
+        *_meshing_rows(runs),
         "",
         "## Memory",
         "",
@@ -435,9 +515,9 @@ def text(record: dict, model: CostModel) -> str:
         "the mesh arrays a rank holds, and the largest peak per unknown of a rank at the end of each phase (bytes "
         "per unknown it works on; the result file's `/memory`):",
         "",
-        "| P | method | peak per rank (MB) | factors (MB) | mesh (MB) | meshing | assembly | factorization "
-        "| iterations | output |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| case | method | peak per rank (MB) | factors (MB) | mesh (MB) | meshing | assembly | factorization "
+        "| iterations | estimate | output |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
         *_memory_rows(runs),
         "",
         "## The monolithic baseline",
