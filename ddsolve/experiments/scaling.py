@@ -359,7 +359,8 @@ def _per_rank_rows(runs: list[dict]) -> list[str]:
         for rank in range(r["ranks"]):
             cpu = [r["memory"].get(f"cpu_s_{name}", [float("nan")] * r["ranks"])[rank] for name in PHASES]
             peak = max(r["memory"].get(f"peak_mb_{name}", [0.0] * r["ranks"])[rank] for name in PHASES)
-            rows.append(f"| {r['label']} | {rank} | " + " | ".join(f"{t:.2f}" for t in cpu) + f" | {peak:.0f} |")
+            rows.append(f"| {r['label']} | {rank} | " + " | ".join("—" if np.isnan(t) else f"{t:.2f}" for t in cpu)
+                        + f" | {peak:.0f} |")
     return rows
 
 
