@@ -143,8 +143,29 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
         print(f"{result.method}: converged after {result.iterations} iterations, {result.solves} rounds of "
               f"block solves, {result.wall_time:.3f} s on {result.ranks} ranks -> {output}", flush=True)
         print(estimate_line(result), flush=True)
+        print(launch_line(result), flush=True)
         _print_fracture(result)
     return 0
+
+
+def launch_line(result) -> str:
+    """The launch phase by phase (rank 0's clock, the result's ``/timings``) against its solve phase, and the
+    largest peak memory of a rank."""
+    from ddsolve.parallel.phases import PHASES
+
+    timings = result.timings
+    phases = [(name, timings[name]) for name in PHASES if name in timings]
+    total = sum(seconds for _, seconds in phases)
+    solve = result.wall_time
+    if "adaptive" in timings:  # every level; the phases are the last level's
+        levels = result.levels.get("solve_time", [solve]) if result.levels else [solve]
+        total, solve = timings.get("startup", 0.0) + timings["adaptive"], float(sum(levels))
+        phases = [("startup", timings.get("startup", 0.0)), (f"{len(levels)} levels", timings["adaptive"])]
+    peaks = result.attrs.get("peak_memory_mb")
+    memory = f"; peak memory {max(peaks):.0f} MB (largest rank)" if peaks is not None and len(peaks) else ""
+    ratio = f"{total / solve:.2f} x" if solve > 0 else "n/a:"
+    return (f"launch {total:.2f} s = {ratio} the solve phase ({solve:.2f} s): "
+            + ", ".join(f"{name} {seconds:.2f}" for name, seconds in phases) + memory)
 
 
 def _print_fracture(result) -> None:

@@ -6,6 +6,7 @@ import pytest
 from conftest import SMALL, ddsolve, paper_references
 
 from ddsolve.io import hdf5 as io
+from ddsolve.parallel.phases import PHASES
 from ddsolve.post import analysis
 
 UZAWA = ["--set", "solver.method=uzawa"]
@@ -142,3 +143,19 @@ def test_an_active_multiplier_bound_p_is_honoured_by_schur_and_mprgp(tmp_path):
     multipliers = np.concatenate([np.ravel(v) for v in results["schur"].multipliers.values()])
     assert np.abs(multipliers).max() == pytest.approx(0.005)  # the bound is active
     assert analysis.compare(results["mprgp"], results["schur"]).energy_error < 1e-6
+
+
+@pytest.mark.mpi
+def test_the_launch_is_printed_phase_by_phase_and_every_rank_times_its_phases(tmp_path):
+    output = tmp_path / "run.h5"
+    completed = ddsolve("solve", "partial-closure", *SMALL, "-o", str(output), ranks=2)
+    line = next(line for line in completed.stdout.splitlines() if line.startswith("launch "))
+    result = io.read(output)
+    phases = [name for name in PHASES if name in result.timings and name != "write"]
+    total = sum(result.timings[name] for name in phases)
+    assert f"launch {total:.2f} s = {total / result.wall_time:.2f} x the solve phase ({result.wall_time:.2f} s)" in line
+    assert all(f"{name} {result.timings[name]:.2f}" in line for name in phases)
+    for name in phases[1:]:  # start-up is timed before MPI: every other phase on every rank
+        cpu = result.memory[f"cpu_s_{name}"]
+        assert len(cpu) == 2 and np.all(cpu >= 0.0)
+    assert np.isclose(result.memory["cpu_s_assembly"].sum(), result.timings["assembly_cpu"])
