@@ -169,8 +169,10 @@ def launch_line(result) -> str:
 
 
 def _print_fracture(result) -> None:
-    """G at every crack tip and the contact zones, after a solve."""
-    for line in result.fracture.lines() if result.fracture is not None else []:
+    """G at every crack tip and the contact zones, then the reactions, after a solve."""
+    from ddsolve.post import reactions
+
+    for line in (result.fracture.lines() if result.fracture is not None else []) + reactions.lines(result.reactions):
         print(line, flush=True)
 
 

@@ -66,6 +66,15 @@ def cases(folder: Path) -> list[tuple[str, list[str], list[str]]]:
     for key, value in {"D": "[[300.0, 80.0, 0.0], [80.0, 250.0, 0.0], [0.0, 0.0, 90.0]]",
                        "Dzz": "[100.0, 100.0, 0.0]"}.items():
         out.append((f"materials.layer1.{key}", [_table("layer1", ANISOTROPIC)], [_table("layer1", ANISOTROPIC, key, value)]))
+    heated = ["temperature.layer1=100.0"]
+    for key in ("alpha1", "alpha2"):
+        out.append((f"materials.layer1.{key}", [_table("layer1", ORTHOTROPIC), *heated],
+                    [_table("layer1", ORTHOTROPIC, key, "1e-5")]))
+    out += [("materials.layer1.alpha", heated, ["materials.layer1.alpha=1e-5"]),
+            ("temperature.layer1", ["materials.layer1.alpha=1e-5"], ["temperature.layer1=50.0"]),
+            ("displacements.layer1.top.x", [], ["displacements.layer1.top.x=0.001"]),
+            ("displacements.layer1.top.y", [], ["displacements.layer1.top.y=0.001"]),
+            ("displacements.layer1.top.normal", [], ["displacements.layer1.top.normal=0.001"])]
     out += [("loads.layer1.top.x", [], ["loads.layer1.top.x=0.01"]),
             ("loads.layer1.top.y", [], ["loads.layer1.top.y=[0.0, -0.05]"]),
             ("loads.layer2.top.pressure", [], ["loads.layer2.top.pressure=0.01"]),

@@ -39,8 +39,10 @@ class Coupling:
 class Interface:
     """Multiplier layout and the maps between traces, gaps, multipliers and interface loads."""
 
-    def __init__(self, weights: np.ndarray, crack: np.ndarray, contact: bool):
-        """``weights`` and ``crack`` (bool) of the k multiplier nodes; ``contact``: non-penetration holds."""
+    def __init__(self, weights: np.ndarray, crack: np.ndarray, contact: bool, fixed: np.ndarray | None = None):
+        """``weights`` and ``crack`` (bool) of the k multiplier nodes; ``contact``: non-penetration holds;
+        ``fixed`` ``(4, 2k)``: the blocks' prescribed trace entries (:mod:`ddsolve.fem.supports`): a
+        multiplier between two prescribed entries has nothing to enforce and does not exist."""
         self.weights = np.asarray(weights, dtype=np.float64)
         self.crack = np.asarray(crack, dtype=bool)
         k = len(self.weights)
@@ -56,6 +58,13 @@ class Interface:
             "mu_minus": _both_components(all_vertices),
             "mu_plus": _both_components(all_vertices),
         }
+        if fixed is not None:
+            pairs = {"mu_c": (U_MINUS, U_PLUS), "mu_g": (U_MINUS, U_PLUS), "mu_minus": (U_MINUS, V_MINUS),
+                     "mu_plus": (U_PLUS, V_PLUS)}
+            for name, (vertices, components) in families.items():
+                entries = 2 * vertices + components
+                kept = ~(fixed[pairs[name][0], entries] & fixed[pairs[name][1], entries])
+                families[name] = (vertices[kept], components[kept])
         self.slices: dict[str, slice] = {}
         start = 0
         for name, (vertices, _) in families.items():
@@ -116,7 +125,8 @@ class Interface:
         for name, block in (("mu_minus", V_MINUS), ("mu_plus", V_PLUS)):
             rows = self.slices[name]
             lam[rows] = loads[block][self.trace_index[rows]] / self.row_weights[rows]
-        minus = lam[self.slices["mu_minus"]]  # indexed by trace position
+        minus = np.zeros(self.trace_size)  # indexed by trace position
+        minus[self.trace_index[self.slices["mu_minus"]]] = lam[self.slices["mu_minus"]]
         for name in ("mu_c", "mu_g"):
             rows = self.slices[name]
             traces = self.trace_index[rows]
@@ -165,10 +175,11 @@ class Interface:
         return out
 
 
-def for_mesh(sigma: SigmaLine, contact: bool) -> Interface:
-    """The interface of a mesh's Σ (``contact``: the scene's non-penetration condition)."""
+def for_mesh(sigma: SigmaLine, contact: bool, fixed: np.ndarray | None = None) -> Interface:
+    """The interface of a mesh's Σ (``contact``: the scene's non-penetration condition; ``fixed``: the
+    blocks' prescribed trace entries, see :class:`Interface`)."""
     nodes = sigma.multiplier_nodes
-    return Interface(sigma.weights[nodes], sigma.crack[nodes], contact)
+    return Interface(sigma.weights[nodes], sigma.crack[nodes], contact, fixed)
 
 
 def _both_components(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -16,9 +16,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ddsolve.errors import SceneError
-from ddsolve.mesh.element import TRIANGLE_RULES, edge_points, edge_shapes, element_geometry, gauss_interval
+from ddsolve.fem import supports
+from ddsolve.mesh.element import (TRIANGLE_RULES, edge_points, edge_shapes, element_geometry, gauss_interval,
+                                  shape_functions)
 from ddsolve.mesh.mesh import BLOCKS, HalfMesh, Mesh, SigmaLine
 from ddsolve.problem import materials
+from ddsolve.problem.expressions import Expression
 from ddsolve.problem.scene import LAYERS, Load, Scene
 
 
@@ -334,39 +337,117 @@ def pattern(half: HalfMesh, rows: tuple[int, int] | None = None) -> Pattern:
 
 
 def block_system(name: str, half: HalfMesh, sigma: SigmaLine, D: np.ndarray, loads: list[Load],
-                 rows: tuple[int, int] | None = None, shared: Pattern | None = None) -> BlockSystem:
-    """Assemble a block (or its ``rows``): stiffness with clamped dofs decoupled, the loads on the
+                 rows: tuple[int, int] | None = None, shared: Pattern | None = None,
+                 prescribed: tuple[np.ndarray, np.ndarray] | None = None,
+                 thermal: tuple[np.ndarray, Expression] | None = None) -> BlockSystem:
+    """Assemble a block (or its ``rows``): stiffness with prescribed dofs decoupled, the loads on the
     half's named boundaries, Σ dofs in local frames.  ``shared``: the half's :func:`pattern` for
-    these rows, when another block of the half has made it."""
+    these rows, when another block of the half has made it.  ``prescribed``: (fixed, values) ``(n, 2)``
+    in the dof frames (:func:`ddsolve.fem.supports.block_supports`; default: Γ_D, zero); nonzero values
+    are lifted, rhs = f − K g, and a prescribed dof's row reads K_ii x_i = K_ii g_i.  ``thermal``: the
+    layer's eigenstrain per unit temperature and the temperature change, whose load ∫ Bᵀ D ε₀ is added."""
     n = 2 * len(half.points)
     structure = shared if shared is not None else pattern(half, rows)
     first, last = structure.first, structure.last
     nodes = trace_nodes(half, sigma)
     frames = sigma.frames[sigma.multiplier_nodes]
     rotated = not np.allclose(frames, np.eye(2), rtol=0.0, atol=0.0)
-    data = np.zeros(len(structure.indices))
+    if prescribed is None:
+        fixed = np.zeros((len(half.points), 2), dtype=bool)
+        fixed[half.clamped()] = True
+        prescribed = (fixed, np.zeros((len(half.points), 2)))
+    fixed, values = prescribed[0].reshape(-1), prescribed[1].reshape(-1)
+    lifted = bool(np.any(values[fixed] != 0.0))
+    data, lift, diagonal = np.zeros(len(structure.indices)), np.zeros(n), np.zeros(n)
     step = max(1, ELEMENT_ENTRIES // structure.positions[0].size)
     for start in range(0, len(structure.cells), step):  # element matrices a slice at a time: bounded memory
         cells = slice(start, start + step)
         matrices = element_stiffness(half.points, structure.cells[cells], D)
         if rotated:
             rotate_elements(matrices, structure.cells[cells], nodes, frames, len(half.points))
+        dofs = element_dofs(structure.cells[cells])
+        if lifted:
+            lift += np.bincount(dofs.ravel(), np.einsum("mij,mj->mi", matrices, np.where(fixed[dofs], values[dofs],
+                                                                                          0.0)).ravel(), minlength=n)
+        each = np.arange(dofs.shape[1])
+        own = matrices[:, each, each]
+        diagonal += np.bincount(dofs.ravel(), own.ravel(), minlength=n)
+        held = fixed[dofs]  # a prescribed dof keeps its diagonal entry only
+        matrices[held] = 0.0
+        matrices.transpose(0, 2, 1)[held] = 0.0
+        matrices[:, each, each] = own
         data += structure.sum(matrices, cells)
     del matrices
-    clamped = np.zeros(n, dtype=bool)
-    clamped[element_dofs(half.clamped()[:, None]).ravel()] = True
     rhs = np.zeros(n)
     for load in loads:
         rhs += boundary_load(half.points, half.edges(load.boundary), load)
+    if thermal is not None:
+        rhs += thermal_load(half.points, structure.cells, D, *thermal)
     if rotated:
         rhs = rotate_vector(rhs, nodes, frames)
-    rhs[clamped] = 0.0
+    rhs -= lift
+    rhs[fixed] = diagonal[fixed] * values[fixed]
     modes = rigid_body_modes(half.points[first // 2:last // 2], centre=half.points.mean(axis=0))
     if rotated:
         mine = (nodes >= first // 2) & (nodes < last // 2)
         modes = np.array([rotate_vector(mode, nodes[mine] - first // 2, frames[mine]) for mode in modes])
     return BlockSystem(name, structure.indptr, structure.indices, data, rhs[first:last],
                        element_dofs(nodes[:, None]).ravel(), n, first, modes)
+
+
+def thermal_load(points: np.ndarray, cells: np.ndarray, D: np.ndarray, eigenstrain: np.ndarray,
+                 temperature: Expression) -> np.ndarray:
+    """∫ Bᵀ D ε₀ over ``cells`` as a dof vector ``(2n,)`` (x, y), ε₀ = ``eigenstrain`` × ΔT(x, y)."""
+    xi, weights = TRIANGLE_RULES[6]  # exact to degree 4
+    det, gradients = element_geometry(points, cells, xi)
+    change = cell_temperatures(points, cells, temperature, xi)
+    force = np.einsum("mq,q,mqja,j->ma", det * change, weights, strain_operator(gradients), D @ eigenstrain)
+    return np.bincount(element_dofs(cells).ravel(), force.ravel(), minlength=2 * len(points))
+
+
+def cell_temperatures(points: np.ndarray, cells: np.ndarray, temperature: Expression, xi: np.ndarray) -> np.ndarray:
+    """ΔT ``(m, q)`` at the reference points ``xi`` of every cell; a SceneError if it is not finite."""
+    shapes, _ = shape_functions(cells.shape[1], xi)
+    position = np.einsum("qk,mkd->mqd", shapes, points[cells])
+    change = np.broadcast_to(np.asarray(temperature(position[..., 0], position[..., 1]), dtype=np.float64),
+                             position.shape[:2])
+    if not np.all(np.isfinite(change)):
+        x, y = position[tuple(np.argwhere(~np.isfinite(change))[0])]
+        raise SceneError(f"temperature: the temperature change is not finite at (x, y) = ({x:.6g}, {y:.6g})")
+    return change
+
+
+def eigenstrains(scene: Scene, layer: str, points: np.ndarray, cells: np.ndarray, xi: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The layer's eigenstrain ε₀ ``(m, q, 3)`` at the reference points ``xi`` of ``cells`` and the σzz it
+    relieves ``(m, q)`` (σzz = c·ε − that), or None without a thermal load."""
+    thermal = thermal_of(scene, layer)
+    if thermal is None:
+        return None
+    change = cell_temperatures(points, cells, thermal[1], xi)
+    _, relieved = materials.thermal_strain(scene.materials[layer], scene.model)
+    return change[..., None] * thermal[0], change * relieved
+
+
+def cell_eigenstrains(scene: Scene, layer: str, points: np.ndarray, cells: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """Per cell the mean eigenstrain ``(m, 3)`` and relieved σzz ``(m,)`` of :func:`eigenstrains` (zeros
+    without a thermal load)."""
+    xi, weights = TRIANGLE_RULES[6]
+    found = eigenstrains(scene, layer, points, cells, xi)
+    if found is None:
+        return np.zeros((len(cells), 3)), np.zeros(len(cells))
+    det, _ = element_geometry(points, cells, xi)
+    share = det * weights / (det @ weights)[:, None]
+    return np.einsum("mq,mqi->mi", share, found[0]), np.einsum("mq,mq->m", share, found[1])
+
+
+def thermal_of(scene: Scene, layer: str) -> tuple[np.ndarray, Expression] | None:
+    """(eigenstrain per unit ΔT, ΔT) of a layer, or None when it has no temperature change or expansion."""
+    if layer not in scene.temperature:
+        return None
+    strain, _ = materials.thermal_strain(scene.materials[layer], scene.model)
+    return (strain, scene.temperature[layer]) if np.any(strain != 0.0) else None
 
 
 def rigid_body_modes(points: np.ndarray, centre: np.ndarray | None = None) -> np.ndarray:
@@ -390,17 +471,23 @@ def layer_loads(scene: Scene, layer: str, half: HalfMesh) -> list[Load]:
 
 
 def block_systems(scene: Scene, mesh: Mesh, which: list[int] | None = None,
-                  rows: tuple[int, int] | None = None) -> list[BlockSystem]:
-    """Assemble the scene's blocks with indices in ``which`` (all four by default), or their ``rows``."""
+                  rows: tuple[int, int] | None = None, table: supports.SigmaSupports | None = None
+                  ) -> list[BlockSystem]:
+    """Assemble the scene's blocks with indices in ``which`` (all four by default), or their ``rows``;
+    ``table``: the Σ supports (:func:`ddsolve.fem.supports.sigma_supports`; made from ``mesh``, which
+    must then be whole, if not given)."""
     systems, patterns = [], {}
+    if table is None:
+        table = supports.sigma_supports(scene, mesh)
     for index in range(len(BLOCKS)) if which is None else which:
         spec = BLOCKS[index]
         half = mesh.half(spec.side)
         D, _ = elasticity(scene, spec.layer)
         if spec.side not in patterns:
             patterns[spec.side] = pattern(half, rows)
+        prescribed = supports.block_supports(scene, half, mesh.sigma, spec.layer, index, table)
         systems.append(block_system(spec.name, half, mesh.sigma, D, layer_loads(scene, spec.layer, half), rows,
-                                    patterns[spec.side]))
+                                    patterns[spec.side], prescribed, thermal_of(scene, spec.layer)))
     return systems
 
 

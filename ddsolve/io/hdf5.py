@@ -105,6 +105,9 @@ def _write_hdf5(name: str, result: Result, fields: dict[str, analysis.CellFields
         for name, values in result.levels.items():
             f[f"levels/{name}"] = values
         _write_fracture(f, result)
+        for layer, named in result.reactions.items():
+            for name, force in named.items():
+                f[f"reactions/{layer}/{name}"] = np.asarray(force, dtype=np.float64)
         for spec in BLOCKS:
             f[f"paraview/{spec.name}/displacement"] = export.padded(result.solution[spec.name])
             f[f"paraview/{spec.name}/von_mises"] = fields[spec.name].von_mises
@@ -213,6 +216,8 @@ def _read(f: h5py.File, path: Path) -> Result:
         message=str(f.attrs.get("message", "")),
         attrs={k: v for k, v in f.attrs.items() if k not in known},
         fracture=_read_fracture(f),
+        reactions={layer: {name: _array(f, f"reactions/{layer}/{name}", "f", (2,)) for name in f[f"reactions/{layer}"]}
+                   for layer in f.get("reactions", {})},
         indicators={spec.name: _array(f, f"error/indicator/{spec.name}", "f", (len(mesh.half(spec.side).cells),))
                     for spec in BLOCKS if spec.name in f.get("error/indicator", {})},
         levels={name: _array(f, f"levels/{name}", "f", (None,)) for name in f.get("levels", {})},

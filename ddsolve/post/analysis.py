@@ -8,7 +8,7 @@ import numpy as np
 from ddsolve.dd.constraints import Constraints, kkt, kkt_tolerance, scale_free_ratio
 from ddsolve.dd.interface import Interface, for_mesh
 from ddsolve.errors import DDSolveError
-from ddsolve.fem import assembly
+from ddsolve.fem import assembly, supports
 from ddsolve.mesh import element
 from ddsolve.mesh.mesh import BLOCKS
 from ddsolve.post.result import Result
@@ -125,7 +125,8 @@ def constraints(result: Result, equilibrium: np.ndarray | None = None) -> Constr
     """The KKT residuals of a result (:func:`kkt`): the interface conditions from its displacements
     and multipliers, each block's equilibrium from assembling the blocks again (unless given)."""
     scene = result.parsed_scene
-    interface = for_mesh(result.mesh.sigma, scene.nonpenetration)
+    interface = for_mesh(result.mesh.sigma, scene.nonpenetration,
+                         supports.sigma_supports(scene, result.mesh).fixed)
     frames = result.mesh.sigma.frames[result.multiplier_nodes]
     lam = multiplier_vector(interface, result.multipliers, frames)
     if equilibrium is None:
@@ -228,12 +229,16 @@ def cell_fields(result: Result) -> dict[str, CellFields]:
         D, c = assembly.elasticity(scene, spec.layer)
         out_of_plane = materials.out_of_plane_strain(scene.materials[spec.layer], scene.model)
         area, strain = assembly.cell_strains(half.points, half.cells, u)
-        stress, stress_zz = assembly.cell_stresses(D, c, strain)
+        eigenstrain, relieved = assembly.cell_eigenstrains(scene, spec.layer, half.points, half.cells)
+        stress, stress_zz = assembly.cell_stresses(D, c, strain - eigenstrain)  # mechanical: σ = D (ε − ε₀)
+        stress_zz = stress_zz + eigenstrain @ c - relieved
         strain_zz = strain @ out_of_plane if out_of_plane is not None else np.full(len(strain), np.nan)
+        elastic = strain - eigenstrain
         out[spec.name] = CellFields(
             strain=strain, strain_zz=strain_zz, stress=stress, stress_zz=stress_zz,
             von_mises=materials.von_mises(stress, stress_zz),
-            energy_density=0.5 * assembly.cell_energies(half.points, half.cells, D, u) / area)
+            energy_density=0.5 * assembly.cell_energies(half.points, half.cells, D, u) / area
+            if not np.any(eigenstrain) else 0.5 * np.einsum("mi,mi->m", stress, elastic))
     return out
 
 

@@ -177,10 +177,13 @@ def _directions(tip: Tip, sigma: SigmaLine, points: np.ndarray) -> np.ndarray:
 
 
 # --- the integrals --------------------------------------------------------------------------------
-def volume_terms(half: HalfMesh, D: np.ndarray, u: np.ndarray, fields: list[np.ndarray]) -> np.ndarray:
-    """∫ [σ_ij u_i,k θ_k,j − ½ σ:ε div θ] over ``half`` for each nodal θ ``(n, 2)`` in ``fields``.
+def volume_terms(half: HalfMesh, D: np.ndarray, u: np.ndarray, fields: list[np.ndarray],
+                 thermal: tuple[np.ndarray, object] | None = None) -> np.ndarray:
+    """∫ [σ_ij u_i,k θ_k,j − ½ σ:(ε − ε₀) div θ] + eigenstrain term, over ``half``, for each nodal θ
+    ``(n, 2)`` in ``fields``.
 
-    ``u`` ``(n, 2)`` in x, y; σ = D ε (Voigt, engineering shear), so ½ σ:ε is the in-plane energy density.
+    ``u`` ``(n, 2)`` in x, y; σ = D (ε − ε₀) (Voigt, engineering shear), the mechanical stress, with the
+    eigenstrain ε₀ = e ΔT of ``thermal`` (e, ΔT) (zero without), so ½ σ:(ε − ε₀) is the in-plane energy density.
     """
     out = np.zeros(len(fields))
     support = np.zeros(len(half.points), dtype=bool)
@@ -193,6 +196,8 @@ def volume_terms(half: HalfMesh, D: np.ndarray, u: np.ndarray, fields: list[np.n
     det, gradients = element.element_geometry(half.points, cells, xi)
     grad_u = np.einsum("mkd,mqke->mqde", u[cells], gradients)  # u_d,e
     strain = np.stack([grad_u[..., 0, 0], grad_u[..., 1, 1], grad_u[..., 0, 1] + grad_u[..., 1, 0]], axis=-1)
+    if thermal is not None:
+        strain = strain - assembly.cell_temperatures(half.points, cells, thermal[1], xi)[..., None] * thermal[0]
     s = strain @ D.T
     stress = np.stack([np.stack([s[..., 0], s[..., 2]], -1), np.stack([s[..., 2], s[..., 1]], -1)], -2)
     density = 0.5 * np.sum(s * strain, axis=-1)
@@ -202,8 +207,23 @@ def volume_terms(half: HalfMesh, D: np.ndarray, u: np.ndarray, fields: list[np.n
         grad_theta = np.einsum("mkd,mqke->mqde", field[cells], gradients)  # θ_k,j
         integrand = np.einsum("mqkj,mqkj->mq", momentum, grad_theta) - density * (grad_theta[..., 0, 0]
                                                                                    + grad_theta[..., 1, 1])
+        if thermal is not None:
+            integrand = integrand + eigenstrain_term(half, cells, xi, gradients, s, field, thermal)
         out[i] = float(np.sum(volume * integrand))
     return out
+
+
+def eigenstrain_term(half: HalfMesh, cells: np.ndarray, xi: np.ndarray, gradients: np.ndarray, stress: np.ndarray,
+                     field: np.ndarray, thermal: tuple[np.ndarray, object]) -> np.ndarray:
+    """σ : (∂ε₀/∂x_k) θ_k at the quadrature points ``(m, q)``: the part of −dΠ/da an eigenstrain that varies
+    in space adds (Shih, Moran and Nakamura 1986, eq. 13: J = ∫ [σ_ij u_i,1 − W δ_1j] q_,j dA +
+    ∫ σ_ij ∂ε₀_ij/∂x_1 q dA, with W the energy of ε − ε₀).  ε₀ = e ΔT; ∇ΔT from ΔT interpolated at the nodes."""
+    eigenstrain, temperature = thermal
+    nodal = np.asarray(temperature(half.points[cells][..., 0], half.points[cells][..., 1]), dtype=np.float64)
+    grad_change = np.einsum("mk,mqkd->mqd", np.broadcast_to(nodal, cells.shape), gradients)
+    shapes, _ = element.shape_functions(cells.shape[1], xi)
+    theta_q = np.einsum("qk,mkd->mqd", shapes, field[cells])
+    return (stress @ eigenstrain) * np.einsum("mqd,mqd->mq", grad_change, theta_q)
 
 
 def block_terms(scene, mesh: Mesh, tips: list[Tip], solutions: dict[int, np.ndarray]) -> np.ndarray:
@@ -218,7 +238,8 @@ def block_terms(scene, mesh: Mesh, tips: list[Tip], solutions: dict[int, np.ndar
         half = mesh.half(spec.side)
         u = assembly.to_global(np.asarray(x), assembly.trace_nodes(half, mesh.sigma), frames)
         D, _ = assembly.elasticity(scene, spec.layer)
-        out += volume_terms(half, D, u, [theta(tip, mesh.sigma, half.points) for tip in tips])
+        out += volume_terms(half, D, u, [theta(tip, mesh.sigma, half.points) for tip in tips],
+                            assembly.thermal_of(scene, spec.layer))
     return out
 
 
@@ -271,7 +292,7 @@ def of_result(result, tips: list[Tip]) -> Fracture:
         half = result.half(spec.name)
         D, _ = assembly.elasticity(scene, spec.layer)
         fields = [theta(tip, result.mesh.sigma, half.points) for tip in tips]
-        volume += volume_terms(half, D, result.solution[spec.name], fields)
+        volume += volume_terms(half, D, result.solution[spec.name], fields, assembly.thermal_of(scene, spec.layer))
     return finish(tips, volume, result)
 
 

@@ -24,6 +24,8 @@ class Result:
     viewer files show every entry as a cell array of its layer.
     ``indicators``: block name -> ``(m,)`` error indicator η_K per cell (see :mod:`ddsolve.post.estimate`);
     ``levels``: column -> ``(levels,)`` values of an adaptive run, one entry per mesh.
+    ``reactions``: layer -> boundary -> the force ``(2,)`` its support exerts on the layer
+    (:mod:`ddsolve.post.reactions`).
     """
 
     scene: str
@@ -44,6 +46,8 @@ class Result:
     message: str = ""
     attrs: dict = field(default_factory=dict)
     fracture: Fracture | None = None  # G at the crack tips and the contact zones
+    #: layer -> supported or displaced boundary name -> the reaction force (x, y) on that layer
+    reactions: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
     indicators: dict[str, np.ndarray] = field(default_factory=dict)
     levels: dict[str, np.ndarray] = field(default_factory=dict)
 

@@ -23,6 +23,7 @@ _PLANE, _ZZ = [0, 1, 5], 2
 class Isotropic:
     E: float
     nu: float
+    alpha: float = 0.0  # thermal expansion coefficient
 
 
 @dataclass(frozen=True)
@@ -30,7 +31,8 @@ class Orthotropic:
     """Fibre direction 1 at ``angle`` degrees from x, direction 2 in the plane, 3 out of it.
 
     The out-of-plane constants matter for plane strain only; they default to E3 = E2, ν13 = ν12 and
-    ν23 = ν12 (so that isotropic constants give the isotropic law).
+    ν23 = ν12 (so that isotropic constants give the isotropic law).  The expansion coefficient out of
+    the plane is ``alpha2``.
     """
 
     E1: float
@@ -41,6 +43,8 @@ class Orthotropic:
     E3: float | None = None
     nu13: float | None = None
     nu23: float | None = None
+    alpha1: float = 0.0  # thermal expansion along the fibres
+    alpha2: float = 0.0  # across them, in the plane and out of it
 
 
 @dataclass(frozen=True)
@@ -80,6 +84,33 @@ def out_of_plane_strain(material, model: str = "plane_strain") -> np.ndarray | N
         return None
     C = stiffness_3d(material)
     return -C[_ZZ, _PLANE] / C[_ZZ, _ZZ]
+
+
+def thermal_strain(material, model: str = "plane_strain") -> tuple[np.ndarray, float]:
+    """(e, s) per unit temperature change: the in-plane eigenstrain ε₀ = e ΔT (Voigt, engineering shear)
+    with σ = D (ε − ε₀), and the out-of-plane stress σzz = c·ε − s ΔT.
+
+    The 3-D eigenstrain is α ΔT (α = diag(α1, α2, α2) in the fibre frame, rotated by the fibre angle).
+    Plane stress: ε₀ is its in-plane part and σzz = 0.  Plane strain (εzz = 0): σ_p = C_pp ε − (C_pp ε₀_p +
+    C_pz ε₀_zz), so ε₀ = ε₀_p + C_pp⁻¹ C_pz ε₀_zz ((1 + ν) α ΔT for an isotropic layer), and
+    s = C_zp ε₀_p + C_zz ε₀_zz.  A full matrix (``Anisotropic``) takes no expansion.
+    """
+    if isinstance(material, Anisotropic):
+        return np.zeros(3), 0.0
+    if isinstance(material, Isotropic):
+        strain = np.array([material.alpha, material.alpha, material.alpha, 0.0, 0.0, 0.0])
+    else:
+        cos, sin = math.cos(math.radians(material.angle)), math.sin(math.radians(material.angle))
+        a1, a2 = material.alpha1, material.alpha2
+        strain = np.array([a1 * cos ** 2 + a2 * sin ** 2, a1 * sin ** 2 + a2 * cos ** 2, a2, 0.0, 0.0,
+                           2.0 * (a1 - a2) * sin * cos])  # engineering shear
+    in_plane = strain[_PLANE]
+    if model == "plane_stress":
+        return in_plane, 0.0
+    C = stiffness_3d(material)
+    coupling = C[_PLANE, _ZZ]
+    return in_plane + np.linalg.solve(C[np.ix_(_PLANE, _PLANE)], coupling) * strain[_ZZ], \
+        float(C[_ZZ, _PLANE] @ in_plane + C[_ZZ, _ZZ] * strain[_ZZ])
 
 
 def check_positive_definite(D: np.ndarray, name: str) -> None:

@@ -106,6 +106,25 @@ class Load:
 
 
 @dataclass(frozen=True)
+class Displacement:
+    """Prescribed displacement components on the boundary ``key`` names (``displacements.LAYER.NAME``):
+    x and y, or the normal component; each an expression in x and y, or None (that component is free)."""
+
+    key: str
+    x: Expression | None = None
+    y: Expression | None = None
+    normal: Expression | None = None
+
+    @property
+    def boundary(self) -> str:
+        return self.key.rsplit(".", 1)[1]
+
+    @property
+    def layer(self) -> str:
+        return self.key.split(".")[1]
+
+
+@dataclass(frozen=True)
 class Solver:
     method: str
     theta: float | str | None  # Uzawa's step, or "auto"; the other methods need none
@@ -134,6 +153,10 @@ class Scene:
     nonpenetration: bool
     solver: Solver
     fracture: FractureOptions = FractureOptions()
+    #: (layer, boundary name) -> prescribed displacement; ``geometry.clamped`` is the shorthand for zero.
+    displacements: dict[tuple[str, str], Displacement] = field(default_factory=dict)
+    #: layer -> temperature change ΔT (an expression in x and y); absent: no thermal load.
+    temperature: dict[str, Expression] = field(default_factory=dict)
     text: str = field(repr=False, default="")
     #: Where the scene came from (named in messages) and the folder its file names are relative to.
     origin: str = field(repr=False, default="scene", compare=False)
@@ -364,10 +387,11 @@ def _load_value(value: Any) -> Expression:
         raise TypeError("a number, a list of coefficients in x or an expression string") from None
 
 
-_ISOTROPIC = {"E": (_positive(_number), REQUIRED), "nu": (_poisson, REQUIRED)}
+_ISOTROPIC = {"E": (_positive(_number), REQUIRED), "nu": (_poisson, REQUIRED), "alpha": (_number, None)}
 _ORTHOTROPIC = {"E1": (_positive(_number), REQUIRED), "E2": (_positive(_number), REQUIRED),
                 "G12": (_positive(_number), REQUIRED), "nu12": (_number, REQUIRED), "angle": (_angle, 0.0),
-                "E3": (_positive(_number), None), "nu13": (_number, None), "nu23": (_number, None)}
+                "E3": (_positive(_number), None), "nu13": (_number, None), "nu23": (_number, None),
+                "alpha1": (_number, None), "alpha2": (_number, None)}
 _ANISOTROPIC = {"D": (_matrix3, REQUIRED), "Dzz": (_fixed_numbers(3), [0.0, 0.0, 0.0])}
 
 
@@ -375,12 +399,13 @@ def _material_schema(raw: dict) -> dict:
     """The material's kind follows from its keys: D (a matrix), E1, E2, ... (orthotropic) or E, nu."""
     if "D" in raw:
         return _ANISOTROPIC
-    if any(key in _ORTHOTROPIC and key not in _ISOTROPIC for key in raw):
+    if any(key in _ORTHOTROPIC and key not in _ISOTROPIC and not key.startswith("alpha") for key in raw):
         return _ORTHOTROPIC
     return _ISOTROPIC
 
 
 _LOAD = {"x": (_load_value, None), "y": (_load_value, None), "pressure": (_load_value, None)}
+_DISPLACEMENT = {"x": (_load_value, None), "y": (_load_value, None), "normal": (_load_value, None)}
 
 SCHEMA: dict[str, Any] = {
     "title": (_string, ""),
@@ -405,6 +430,8 @@ SCHEMA: dict[str, Any] = {
         **{layer: _material_schema for layer in LAYERS},
     },
     "loads": {layer: Tables(_LOAD) for layer in LAYERS},
+    "displacements": {layer: Tables(_DISPLACEMENT) for layer in LAYERS},
+    "temperature": {layer: (_load_value, None) for layer in LAYERS},
     "contact": {"nonpenetration": (_boolean, True)},
     "solver": {
         "method": (_choice(METHODS), DEFAULT_METHOD),
@@ -417,7 +444,8 @@ SCHEMA: dict[str, Any] = {
     "fracture": {"inner": (_positive(_number), None), "outer": (_positive(_number), None)},
 }
 # Tables that exist only when the scene writes them (a boundary without a load is not integrated).
-OPTIONAL_TABLES = {("loads",), *(("loads", layer) for layer in LAYERS)}
+OPTIONAL_TABLES = {("loads",), *(("loads", layer) for layer in LAYERS), ("displacements",),
+                   *(("displacements", layer) for layer in LAYERS), ("temperature",)}
 
 
 def _excerpt(text: str, position: int, width: int = 60) -> str:
@@ -546,6 +574,7 @@ def _cross_checks(data: dict, raw: dict, origin: str) -> None:
             if table["pressure"] is not None and (table["x"] is not None or table["y"] is not None):
                 raise SceneError(f"{origin}: loads.{layer}.{printable(name)}: pressure excludes x and y "
                                  "(a pressure acts along the normal)")
+    _displacement_checks(data, origin)
     solver = data["solver"]
     if solver["method"] == "uzawa" and solver["theta"] is None:
         raise SceneError(f"{origin}: solver.theta is required by method uzawa")
@@ -560,6 +589,37 @@ def _cross_checks(data: dict, raw: dict, origin: str) -> None:
     if None not in radii.values() and radii["inner"] >= radii["outer"]:
         raise SceneError(f"{origin}: fracture.inner = {radii['inner']:g} must be below fracture.outer = "
                          f"{radii['outer']:g}")
+
+
+#: Components of a load and of a displacement on one boundary that act in the same direction.
+SAME_COMPONENT = {"x": ("x",), "y": ("y",), "normal": ("pressure", "x", "y")}
+
+
+def _displacement_checks(data: dict, origin: str) -> None:
+    """A displacement gives x and y, or normal; it is not on a clamped side, nor on a boundary loaded in
+    the same component (a pressure acts along the normal; a normal displacement with x or y loads, or a
+    pressure with x or y displacements, mixes frames: refused too)."""
+    clamped = set(data["geometry"]["clamped"]) if data["mesh"]["file"] is None else set()
+    for layer, tables in data.get("displacements", {}).items():
+        for name, table in tables.items():
+            key = f"displacements.{layer}.{printable(name)}"
+            given = [component for component, value in table.items() if value is not None]
+            if not given:
+                raise SceneError(f"{origin}: {key}: give x, y or normal")
+            if "normal" in given and len(given) > 1:
+                raise SceneError(f"{origin}: {key}: normal excludes x and y (give the normal component, or x "
+                                 "and y)")
+            if name in clamped or name == "clamped":
+                raise SceneError(f"{origin}: {key}: boundary {printable(name)!r} is clamped (geometry.clamped); "
+                                 "remove it there to prescribe other values")
+            load = data.get("loads", {}).get(layer, {}).get(name)
+            for component in given if load is not None else ():
+                loaded = [part for part in SAME_COMPONENT[component] if load[part] is not None]
+                if component != "normal" and load["pressure"] is not None:
+                    loaded.append("pressure")
+                if loaded:
+                    raise SceneError(f"{origin}: {key}.{component}: boundary {printable(name)!r} of {layer} is "
+                                     f"also loaded in that direction (loads.{layer}.{printable(name)}.{loaded[0]})")
 
 
 #: The largest ratio of the largest to the smallest eigenvalue of a layer's elastic matrix: 2/√ε, which
@@ -606,6 +666,7 @@ def _mesh_refinement_checks(mesh: dict, origin: str) -> None:
 
 
 def _material(table: dict) -> materials.Material:
+    table = {key: value for key, value in table.items() if not (key.startswith("alpha") and value is None)}
     if "D" in table:
         return materials.Anisotropic(D=table["D"], Dzz=table["Dzz"])
     if "E1" in table:
@@ -626,6 +687,12 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str) 
         for layer, tables in data.get("loads", {}).items()
         for name, table in tables.items()
     }
+    displacements = {
+        (layer, name): Displacement(key=f"displacements.{layer}.{name}", **table)
+        for layer, tables in data.get("displacements", {}).items()
+        for name, table in tables.items()
+    }
+    temperature = {layer: value for layer, value in data.get("temperature", {}).items() if value is not None}
     return Scene(
         title=data["title"],
         geometry=Geometry(box=tuple(geometry["box"]), sigma=geometry["sigma"],
@@ -638,6 +705,8 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str) 
         nonpenetration=data["contact"]["nonpenetration"],
         solver=Solver(**data["solver"]),
         fracture=FractureOptions(**data["fracture"]),
+        displacements=displacements,
+        temperature=temperature,
         text=text,
         origin=origin,
         base=base,

@@ -37,7 +37,7 @@ def check_size(scene, ranks: int = 1) -> None:
 
 
 #: The sections of a scene that ``mesh`` does not read, besides mesh.target_error.
-NOT_MESHING = ("title", "materials", "loads", "contact", "solver", "fracture")
+NOT_MESHING = ("title", "materials", "loads", "displacements", "temperature", "contact", "solver", "fracture")
 
 
 #: Material keys that give only the out-of-plane stress or strain (``plane_stress``: E3, nu13 and nu23;

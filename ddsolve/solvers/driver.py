@@ -30,7 +30,7 @@ from ddsolve.parallel.exchange import Exchange, collective
 from ddsolve.parallel.launch import supported
 from ddsolve.parallel.phases import Phases, launch_age, memory_record
 from ddsolve.parallel.rounds import BlockServer, drive
-from ddsolve.post import estimate, fracture
+from ddsolve.post import estimate, fracture, reactions
 from ddsolve.post.result import Result
 from ddsolve.problem.scene import Scene
 
@@ -105,7 +105,7 @@ def local_systems(scene: Scene, mesh: LocalMesh | Mesh, exchange: Exchange) -> l
     if group.size > 1:
         half = mesh.half(BLOCKS[exchange.local_blocks[0]].side)
         rows = assembly.row_ranges(len(half.points), group.size)[group.rank]
-    return assembly.block_systems(scene, mesh, exchange.local_blocks, rows)
+    return assembly.block_systems(scene, mesh, exchange.local_blocks, rows, getattr(mesh, "supports", None))
 
 
 def make_blocks(scene: Scene, mesh: LocalMesh | Mesh, exchange: Exchange, package: str) -> list[Block]:
@@ -139,14 +139,14 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
     stages["Setup"].push()
     exchange = Exchange(comm, len(BLOCKS))
     if mesh is not None:
-        tips = comm.bcast(collective(comm, lambda: whole_mesh_checks(scene, mesh), root_only=True), root=0)
-        local = whole(mesh, tips)
+        tips, table = comm.bcast(collective(comm, lambda: whole_mesh_checks(scene, mesh), root_only=True), root=0)
+        local = whole(mesh, tips, table)
     else:
         local = local_mesh(scene, comm, exchange, phases)
     scene = resolve(scene, comm.size, local)
     method = scene.solver.method
     blocks = collective(comm, lambda: make_blocks(scene, local, exchange, FACTOR_PACKAGE[method]))
-    interface = for_mesh(local.sigma, scene.nonpenetration)
+    interface = for_mesh(local.sigma, scene.nonpenetration, local.supports.fixed)
     stages["Setup"].pop()
     phases.end("assembly")
 
@@ -254,6 +254,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
             estimated = estimate.combine(mesh, parts, result.solution, result.multipliers["mu_c"])
             result.attrs["error_estimate"], result.indicators = estimated.relative, estimated.indicators
             result.fracture = fracture.finish(local.tips, volume, result)
+            result.reactions = reactions.of_result(result, local.supports)
         if output is not None:
             collective(comm, lambda: io.write(output, result, final=True), root_only=True)
         stages["Output"].pop()

@@ -15,12 +15,12 @@ import numpy as np
 from ddsolve.dd import constraints
 from ddsolve.dd.interface import Interface, for_mesh
 from ddsolve.errors import SolverError
-from ddsolve.fem import assembly
+from ddsolve.fem import assembly, supports
 from ddsolve.fem.assembly import BlockSystem, coo_to_csr
 from ddsolve.mesh.mesh import Mesh
 from ddsolve.parallel.blocks import Block
 from ddsolve.parallel.launch import provenance
-from ddsolve.post import analysis, estimate, fracture
+from ddsolve.post import analysis, estimate, fracture, reactions
 from ddsolve.post.result import Result
 from ddsolve.problem.scene import Scene
 
@@ -71,9 +71,10 @@ def merged_system(systems: list[BlockSystem], numbers: list[np.ndarray]) -> Bloc
 def solve(scene: Scene, mesh: Mesh) -> Result:
     """Solve the scene's discrete problem exactly; return it in the result schema."""
     tips = fracture.find_tips(mesh, scene.fracture.inner, scene.fracture.outer)
-    systems = assembly.block_systems(scene, mesh)
+    table = supports.check(scene, mesh)
+    systems = assembly.block_systems(scene, mesh, table=table)
     started = time.perf_counter()  # the solve phase: merging, factorizations, active-set steps
-    interface = for_mesh(mesh.sigma, scene.nonpenetration)
+    interface = for_mesh(mesh.sigma, scene.nonpenetration, table.fixed)
     contact_rows = interface.slices["mu_c"]
     closed = np.zeros(contact_rows.stop - contact_rows.start, dtype=bool)
     history, changes = [], []
@@ -126,4 +127,5 @@ def solve(scene: Scene, mesh: Mesh) -> Result:
     estimated = estimate.of_scene(scene, mesh, result.solution, result.multipliers["mu_c"])
     result.attrs["error_estimate"], result.indicators = estimated.relative, estimated.indicators
     result.fracture = fracture.of_result(result, tips)
+    result.reactions = reactions.of_result(result, table)
     return result

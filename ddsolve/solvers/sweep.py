@@ -321,8 +321,9 @@ def sweep(source, items: list[str], paired: bool, output: Path | None, comm, pro
 
 
 def _blocks_key(scene) -> tuple:
-    """What the assembled and factored blocks depend on besides the mesh (loads excluded)."""
-    return scene.materials, scene.model, scene.nonpenetration, scene.solver.method
+    """What the assembled and factored blocks depend on besides the mesh (loads excluded; prescribed
+    displacements decide which dofs the blocks hold, and their values the Σ supports)."""
+    return scene.materials, scene.model, scene.nonpenetration, scene.solver.method, scene.displacements
 
 
 def _numbers(result) -> dict:

@@ -1,0 +1,228 @@
+"""Supports: which degrees of freedom a scene prescribes, with which values, in every block.
+
+A block's dof frame is (x, y) at every node but the Σ nodes that carry multipliers, whose dofs are in
+Σ's (tangent, normal) frame.  Γ_D (``geometry.clamped``, the boundary named ``clamped``) fixes both
+components of both layers to zero, and wins where it meets a displaced boundary.  A boundary in
+``[displacements.LAYER.NAME]`` fixes x and/or y, or the normal component (a straight boundary whose
+normal is along a dof axis: x or y away from Σ, Σ's tangent or normal at a multiplier node).  Where
+several boundaries meet, their conditions are combined; two that fix the same direction must agree.
+
+At a Σ multiplier node the gluing ties the dofs of the blocks: every block at a glued vertex, the
+blocks of one face (u⁻ with v⁻, u⁺ with v⁺) at a crack vertex.  A dof that one block prescribes is
+prescribed in every block tied to it (:func:`sigma_supports`), so that every multiplier either couples
+free dofs or only prescribed ones; the latter rows are dropped (:class:`ddsolve.dd.interface.Interface`),
+and the discrete problem is exactly the monolithic one with those unknowns prescribed.  A contact row
+between a prescribed and a free crack-face normal is refused.  No PETSc or MPI here.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ddsolve.errors import MeshError, SceneError
+from ddsolve.mesh.mesh import BLOCKS, CLAMPED, CRACK, SIGMA, HalfMesh, Mesh, SigmaLine
+from ddsolve.problem.scene import Scene
+
+#: Directions closer than this (1 − |cos|) are the same; values agreeing to this (relative) are equal.
+ALIGNED = 1e-9
+AGREE = 1e-10
+
+
+@dataclass(frozen=True)
+class SigmaSupports:
+    """Prescribed trace entries of the four blocks, ``fixed`` ``(4, 2k)`` and ``values`` ``(4, 2k)``
+    (the k multiplier nodes, in their Σ frames), after the gluing's ties."""
+
+    fixed: np.ndarray
+    values: np.ndarray
+
+
+def node_frames(half: HalfMesh, sigma: SigmaLine) -> np.ndarray:
+    """``(n, 2, 2)``: every node's dof frame (rows: the dof directions), identity off the Σ multiplier nodes."""
+    frames = np.broadcast_to(np.eye(2), (len(half.points), 2, 2)).copy()
+    frames[half.sigma[sigma.multiplier_nodes]] = sigma.frames[sigma.multiplier_nodes]
+    return frames
+
+
+def _rows(scene: Scene, half: HalfMesh, layer: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
+    """The layer's displacement conditions on this half as rows (node, direction in x, y, value, key)."""
+    clamped = np.zeros(len(half.points), dtype=bool)
+    clamped[half.clamped()] = True
+    nodes, directions, values, keys = [], [], [], []
+    for (name_layer, name), displacement in scene.displacements.items():
+        edges = half.edges(name)
+        if name_layer != layer or len(edges) == 0:
+            continue
+        where = np.unique(edges)
+        where = where[~clamped[where]]
+        x, y = half.points[where].T
+        parts = {"x": (displacement.x, np.array([1.0, 0.0])), "y": (displacement.y, np.array([0.0, 1.0]))}
+        if displacement.normal is not None:
+            parts = {"normal": (displacement.normal, _normal(half, edges, f"{displacement.key}.normal"))}
+        for component, (expression, direction) in parts.items():
+            if expression is None:
+                continue
+            value = np.broadcast_to(np.asarray(expression(x, y), dtype=np.float64), x.shape)
+            if not np.all(np.isfinite(value)):
+                bad = np.flatnonzero(~np.isfinite(value))[0]
+                raise SceneError(f"{displacement.key}.{component}: the displacement is not finite at (x, y) = "
+                                 f"({x[bad]:.6g}, {y[bad]:.6g})")
+            nodes.append(where)
+            directions.append(np.broadcast_to(direction, (len(where), 2)))
+            values.append(value)
+            keys += [f"{displacement.key}.{component}"] * len(where)
+    if not nodes:
+        return np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(0), []
+    return np.concatenate(nodes), np.concatenate(directions), np.concatenate(values), keys
+
+
+def _normal(half: HalfMesh, edges: np.ndarray, key: str) -> np.ndarray:
+    """The outward unit normal of a straight boundary (edges counter-clockwise around the half)."""
+    chord = half.points[edges[:, 1]] - half.points[edges[:, 0]]
+    normals = np.column_stack([chord[:, 1], -chord[:, 0]]) / np.linalg.norm(chord, axis=1)[:, None]
+    if np.abs(normals - normals[0]).max() > ALIGNED ** 0.5:
+        raise SceneError(f"{key}: the boundary is not straight (its normal turns): give x and y")
+    return normals[0]
+
+
+def fold(count: int, nodes: np.ndarray, directions: np.ndarray, values: np.ndarray, keys: list[str],
+         frames: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rows of conditions u·e = g at ``nodes`` -> ``fixed`` ``(count, 2)`` and ``values`` ``(count, 2)`` in
+    the nodes' ``frames``: both components where two directions are fixed, else the one axis of the
+    frame the direction lies along; a SceneError naming the key when the direction lies along no axis or
+    two conditions disagree."""
+    fixed, out = np.zeros((count, 2), dtype=bool), np.zeros((count, 2))
+    if len(nodes) == 0:
+        return fixed, out
+    local = np.einsum("nab,nb->na", frames[nodes], directions)  # the direction in the node's frame
+    normal = np.zeros((count, 2, 2))
+    np.add.at(normal, nodes, np.einsum("na,nb->nab", local, local))
+    moment = np.zeros((count, 2))
+    np.add.at(moment, nodes, local * values[:, None])
+    scale = max(float(np.abs(values).max()), 1e-300)
+    full = np.abs(np.linalg.det(normal)) > ALIGNED
+    solved = np.linalg.solve(normal[full], moment[full][..., None])[..., 0] if full.any() else np.zeros((0, 2))
+    out[full], fixed[full] = solved, True
+    axis = np.argmax(np.abs(local), axis=1)
+    partial = ~full[nodes]
+    loose = partial & (np.abs(local).max(axis=1) < 1.0 - ALIGNED)
+    if loose.any():
+        i = np.flatnonzero(loose)[0]
+        x, y = points[nodes[i]]
+        raise SceneError(f"{keys[i]}: at ({x:.6g}, {y:.6g}) the direction fixed is along neither dof axis there "
+                         "(x and y, or Σ's tangent and normal at a Σ node): give both components")
+    sign = np.sign(local[np.arange(len(nodes)), axis])
+    fixed[nodes[partial], axis[partial]] = True
+    out[nodes[partial], axis[partial]] = (sign * values)[partial]
+    implied = np.einsum("na,na->n", local, out[nodes])
+    bad = np.abs(implied - values) > AGREE * scale
+    if bad.any():
+        i = np.flatnonzero(bad)[0]
+        x, y = points[nodes[i]]
+        raise SceneError(f"{keys[i]}: at ({x:.6g}, {y:.6g}) it disagrees with another prescribed displacement "
+                         f"there ({values[i]:.6g} against {implied[i]:.6g})")
+    return fixed, out
+
+
+def own_supports(scene: Scene, half: HalfMesh, sigma: SigmaLine, layer: str) -> tuple[np.ndarray, np.ndarray]:
+    """The block's own prescribed dofs ``(n, 2)`` and values ``(n, 2)`` in its dof frames: Γ_D and the layer's
+    displacements (before the gluing's ties)."""
+    nodes, directions, values, keys = _rows(scene, half, layer)
+    fixed, out = fold(len(half.points), nodes, directions, values, keys, node_frames(half, sigma), half.points)
+    fixed[half.clamped()] = True
+    out[half.clamped()] = 0.0
+    return fixed, out
+
+
+def sigma_supports(scene: Scene, mesh: Mesh) -> SigmaSupports:
+    """The prescribed trace entries of the four blocks after the gluing's ties (needs both halves)."""
+    sigma = mesh.sigma
+    nodes = sigma.multiplier_nodes
+    k = len(nodes)
+    fixed, values = np.zeros((4, 2 * k), dtype=bool), np.zeros((4, 2 * k))
+    for b, spec in enumerate(BLOCKS):
+        half = mesh.half(spec.side)
+        own, prescribed = own_supports(scene, half, sigma, spec.layer)
+        fixed[b], values[b] = own[half.sigma[nodes]].ravel(), prescribed[half.sigma[nodes]].ravel()
+    crack = np.repeat(sigma.crack[nodes], 2)
+    points = sigma.points[np.repeat(nodes, 2)]
+    scale = max(float(np.abs(values).max(initial=0.0)), 1e-300)
+    # Tie groups (indices of BLOCKS): all four at glued vertices, each face (u⁻ with v⁻, u⁺ with v⁺) at crack ones.
+    for group in ([0, 1, 2, 3], [0, 2], [1, 3]):
+        where = ~crack if len(group) == 4 else crack
+        any_fixed = fixed[group].any(axis=0) & where
+        if not any_fixed.any():
+            continue
+        count = fixed[group].sum(axis=0)
+        value = np.where(count > 0, (values[group] * fixed[group]).sum(axis=0) / np.maximum(count, 1), 0.0)
+        spread = np.where(fixed[group], np.abs(values[group] - value), 0.0).max(axis=0)
+        bad = any_fixed & (spread > AGREE * scale)
+        if bad.any():
+            x, y = points[np.flatnonzero(bad)[0]]
+            raise SceneError(f"displacements: the layers' prescribed displacements differ at the glued Σ node "
+                             f"({x:.6g}, {y:.6g}); glued layers move together there")
+        for member in group:
+            values[member, any_fixed] = value[any_fixed]
+            fixed[member, any_fixed] = True
+    if scene.nonpenetration:
+        normal = np.flatnonzero(crack & (np.arange(2 * k) % 2 == 1))
+        lone = fixed[0, normal] != fixed[1, normal]
+        if lone.any():
+            x, y = sigma.points[nodes[normal[lone][0] // 2]]
+            raise SceneError(f"displacements: the normal displacement of one crack face is prescribed at "
+                             f"({x:.6g}, {y:.6g}) and the other face's is free; with contact.nonpenetration "
+                             "prescribe both faces or neither there")
+    return SigmaSupports(fixed, values)
+
+
+def block_supports(scene: Scene, half: HalfMesh, sigma: SigmaLine, layer: str, block: int,
+                   table: SigmaSupports) -> tuple[np.ndarray, np.ndarray]:
+    """A block's prescribed dofs and values ``(n, 2)``: its own, and at the Σ multiplier nodes the tied ones."""
+    fixed, values = own_supports(scene, half, sigma, layer)
+    at = half.sigma[sigma.multiplier_nodes]
+    fixed[at] = table.fixed[block].reshape(-1, 2)
+    values[at] = table.values[block].reshape(-1, 2)
+    return fixed, values
+
+
+def check(scene: Scene, mesh: Mesh) -> SigmaSupports:
+    """Every displacement names a boundary of the mesh, and every block is held by its supports (the
+    rigid motions of its half fixed); returns the Σ table (:func:`sigma_supports`)."""
+    names = mesh.boundary_names()
+    for (_, name), displacement in scene.displacements.items():
+        if name not in names or name in (CLAMPED, SIGMA, CRACK):
+            raise SceneError(f"{displacement.key}: no boundary named {name!r} in {mesh.origin} "
+                             f"(boundaries: {', '.join(n for n in names if n != CLAMPED)})")
+    table = sigma_supports(scene, mesh)
+    for b, spec in enumerate(BLOCKS):
+        half = mesh.half(spec.side)
+        fixed, _ = block_supports(scene, half, mesh.sigma, spec.layer, b, table)
+        motion = free_motion(half.points, fixed, node_frames(half, mesh.sigma))
+        if motion is not None:
+            blocks = "u_minus and v_minus" if half.side < 0 else "u_plus and v_plus"
+            if not scene.displacements:
+                raise MeshError(f"{mesh.origin}: {half.name} half touches no clamped boundary: the stiffness of "
+                                f"blocks {blocks} would be singular (rigid motions); clamp part of its outer boundary")
+            raise SceneError(f"block {spec.name} ({half.name} half of {spec.layer}) can {motion} under its supports "
+                             "(a block held only through Σ is not solved yet): clamp or support more of its boundary")
+    return table
+
+
+def free_motion(points: np.ndarray, fixed: np.ndarray, frames: np.ndarray) -> str | None:
+    """A rigid motion of the nodes that the prescribed dofs leave free, described, or None."""
+    nodes, axis = np.nonzero(fixed)
+    if len(nodes) == 0:
+        return "move rigidly"
+    direction = frames[nodes, axis]  # the fixed dof's direction in x, y
+    centre = points.mean(axis=0)
+    size = max(float(np.ptp(points, axis=0).max()), 1e-300)
+    arm = (points[nodes] - centre) / size
+    rows = np.column_stack([direction, direction[:, 1] * arm[:, 0] - direction[:, 0] * arm[:, 1]])
+    _, singular, vt = np.linalg.svd(rows, full_matrices=True)
+    if len(singular) == 3 and singular[-1] > 1e-10 * singular[0]:
+        return None
+    v = vt[-1]
+    if abs(v[2]) > 1e-6:
+        return "rotate"
+    return f"translate along ({v[0]:.3g}, {v[1]:.3g})"
