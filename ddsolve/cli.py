@@ -133,7 +133,7 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
     scene = comm.bcast(collective(comm, lambda: _load_scene(args, comm.size), root_only=True), root=0)
     output = comm.bcast(collective(comm, lambda: check_outputs(args, scene), root_only=True), root=0)
     try:
-        result = run.solve(scene, comm, output, progress=_root_print)
+        result = run.solve(scene, comm, output, progress=_root_print, gather=False)
     except DDSolveError as exc:
         if exc.collective:  # every rank is here: the others are not waiting in a solve
             report_unused_options(comm, "solve")
@@ -214,10 +214,14 @@ def cmd_reference(args, petsc_options: list[str]) -> int:
 
 
 def estimate_line(result) -> str:
-    """The estimated discretization error of a result, in one line."""
-    unknowns = 4 * (len(result.lower.points) + len(result.upper.points))
+    """The estimated discretization error of a result, in one line (a result written by the ranks, whose
+    rank 0 holds no mesh: its unknowns from /memory, its degree from Σ)."""
+    if result.mesh is None:
+        unknowns, degree = result.memory["unknowns"], 1 if result.on_sigma.sigma.corner.all() else 2
+    else:
+        unknowns, degree = 4 * (len(result.lower.points) + len(result.upper.points)), result.mesh.degree
     return (f"estimated discretization error {100 * result.attrs['error_estimate']:.3g} % (relative, energy norm; "
-            f"{unknowns} unknowns, P{result.mesh.degree})")
+            f"{unknowns} unknowns, P{degree})")
 
 
 def cmd_compare(args, _petsc_options) -> int:

@@ -163,7 +163,7 @@ def reaction_traction(result) -> str:
     count = sum(len(h.nodes("left")) for h in result.mesh.halves)
     for b, half in ((0, result.lower), (1, result.upper)):
         nodes = half.nodes("left")
-        r = reactions.residual(source, result.mesh, b, result.solution["u_minus" if b == 0 else "u_plus"], nodes)
+        r = reactions.residual(source, half, "layer1", result.solution["u_minus" if b == 0 else "u_plus"], nodes)
         forces.append(r[nodes, 1])
         rows.append(np.column_stack([assembly.boundary_load(half.points, half.edges("left"), Load(
             "loads.layer1.left", y=expressions.parse(f"y^{j}"))).reshape(-1, 2)[nodes, 1] for j in range(count)]))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import h5py
@@ -14,7 +15,7 @@ from ddsolve.io import viewer as export
 from ddsolve.io.safe import check_targets, hdf5_image, recover, replace_together, same_file
 from ddsolve.mesh.mesh import BLOCKS, HalfMesh, Mesh, SigmaLine
 from ddsolve.post import analysis
-from ddsolve.post.result import Result
+from ddsolve.post.result import OnSigma, Result
 from ddsolve.problem import scene as scenes
 
 MULTIPLIERS = ("mu_c", "mu_g", "mu_minus", "mu_plus")
@@ -49,9 +50,27 @@ def write(path: Path, result: Result, viewer: str = "vtu", final: bool = False) 
     it, as one set (``final``: as for :func:`replace_together`); returns the paths written."""
     path = Path(path)
     fields = analysis.cell_fields(result)
-    writers = {path: lambda name: _write_hdf5(name, result, fields),
+    part = result_part(result, fields)
+    writers = {path: lambda name: write_part(name, part),
                **export.viewer_files(result, path.parent, path.stem, viewer, fields)}
     replace_together(writers, final)
+    return list(writers)
+
+
+def parallel_available(comm) -> bool:
+    """Whether the ranks of ``comm`` can write one HDF5 file together (h5py built with MPI, more than
+    one rank): :func:`write_distributed` then writes a result without gathering it."""
+    return comm is not None and comm.size > 1 and bool(h5py.get_config().mpi)
+
+
+def write_distributed(path: Path, part: "Part", viewer: export.Distributed, comm, final: bool = False) -> list[Path]:
+    """Every rank of ``comm`` writes its ``part`` of the result file ``path`` and its share of the VTU
+    viewer files (``viewer``) into the same files, collectively (parallel HDF5); rank 0 commits the
+    set as :func:`replace_together` does.  The file reads as :func:`write`'s."""
+    path = Path(path)
+    writers = {path: lambda name: write_part(name, part, comm),
+               **export.distributed_files(viewer, path.parent, path.stem, comm)}
+    replace_together(writers, final, comm)
     return list(writers)
 
 
@@ -62,56 +81,105 @@ def write_viewer(result: Result, folder: Path, stem: str, viewer: str = "vtu", f
     return list(writers)
 
 
-def _write_hdf5(name: str, result: Result, fields: dict[str, analysis.CellFields]) -> None:
+@dataclass
+class Part:
+    """What one rank writes of a result file: whole datasets by path (each held by one rank) and, on
+    rank 0, the attributes by group ("" the root, "timings", "memory")."""
+
+    datasets: dict[str, np.ndarray] = field(default_factory=dict)
+    attrs: dict[str, dict] = field(default_factory=dict)
+
+
+def half_datasets(half: HalfMesh, multiplier_nodes: np.ndarray) -> dict[str, np.ndarray]:
+    """``/mesh/<half>/...``: the points, cells, Σ nodes, interface nodes and boundaries of ``half``."""
+    group = f"mesh/{half.name}"
+    out = {f"{group}/points": half.points, f"{group}/cells": half.cells, f"{group}/sigma": half.sigma,
+           f"{group}/interface": half.sigma[multiplier_nodes]}
+    out.update({f"{group}/boundaries/{boundary}": edges for boundary, edges in half.boundaries.items()})
+    return out
+
+
+def block_datasets(block: str, u: np.ndarray, von_mises: np.ndarray, indicator: np.ndarray | None = None,
+                   cell_data: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
+    """A block's solution ``(n, 2)``, its viewer arrays, error indicators and per-cell data."""
+    out = {f"solution/{block}": u, f"paraview/{block}/displacement": export.padded(u),
+           f"paraview/{block}/von_mises": von_mises}
+    if indicator is not None:
+        out[f"error/indicator/{block}"] = indicator
+    out.update({f"cell_data/{name}/{block}": values for name, values in (cell_data or {}).items()})
+    return out
+
+
+def sigma_datasets(on: OnSigma, history: np.ndarray, active_set_changes: np.ndarray,
+                   levels: dict[str, np.ndarray], fracture, reactions: dict[str, dict[str, np.ndarray]]
+                   ) -> dict[str, np.ndarray]:
+    """What rank 0 writes: Σ, the interface, the history, the levels of an adaptive run, /fracture and
+    /reactions."""
+    sigma, nodes = on.sigma, on.sigma.multiplier_nodes
+    out = {f"sigma/{key}": getattr(sigma, key) for key in SIGMA_FIELDS}
+    out.update({"interface/x": sigma.points[nodes, 0], "interface/points": sigma.points[nodes],
+                "interface/normal": sigma.normals[nodes], "interface/crack": sigma.crack[nodes],
+                **{f"interface/{name}": on.multipliers[name] for name in MULTIPLIERS},
+                "history/criterion": np.asarray(history, dtype=np.float64),
+                "history/active_set_changes": np.asarray(active_set_changes, dtype=np.int64),
+                **{f"levels/{name}": values for name, values in levels.items()}})
+    out.update({f"reactions/{layer}/{name}": np.asarray(force, dtype=np.float64)
+                for layer, named in reactions.items() for name, force in named.items()})
+    if fracture is not None:
+        out.update({f"fracture/{key}": getattr(fracture, key) for key in FRACTURE_FIELDS})
+        out.update({"fracture/arclength": sigma.arclength[nodes], "fracture/opening": on.opening,
+                    "fracture/pressure": on.multipliers["mu_c"]})
+    return out
+
+
+def attributes(result: Result) -> dict[str, dict]:
+    """The attributes of a result file by group: the root's, /timings and /memory."""
+    root = {key: getattr(result, key) for key in ("converged", "iterations", "solves", "method", "wall_time",
+                                                    "ranks", "scene", "message")}
+    return {"": {**root, **result.attrs}, "timings": dict(result.timings),
+            **({"memory": dict(result.memory)} if result.memory else {})}
+
+
+def result_part(result: Result, fields: dict[str, analysis.CellFields]) -> Part:
+    """The whole result file as one process writes it."""
+    datasets = {}
+    for half in (result.lower, result.upper):
+        datasets.update(half_datasets(half, result.multiplier_nodes))
+    for spec in BLOCKS:
+        datasets.update(block_datasets(spec.name, result.solution[spec.name], fields[spec.name].von_mises,
+                                       result.indicators.get(spec.name),
+                                       {name: per_block[spec.name] for name, per_block in result.cell_data.items()
+                                        if spec.name in per_block}))
+    datasets.update(sigma_datasets(result.on_sigma, result.history, result.active_set_changes, result.levels,
+                                   result.fracture, result.reactions))
+    return Part(datasets, attributes(result))
+
+
+def write_part(name: str, part: Part, comm=None) -> None:
+    """Write the result file ``name``: in memory and in one piece (:func:`hdf5_image`), or with ``comm``
+    (more than one rank, h5py with MPI) collectively, every rank its own datasets.  Every rank creates
+    every dataset (shapes and types gathered first) and writes the attributes (rank 0's);
+    ``/timings`` gets the seconds this took as ``write``."""
     started = time.perf_counter()
-    with hdf5_image(name) as f:
-        for key in ("converged", "iterations", "solves", "method", "wall_time", "ranks", "scene", "message"):
-            f.attrs[key] = getattr(result, key)
-        for key, value in result.attrs.items():
-            f.attrs[key] = value
-        timings = f.create_group("timings")
-        for key, value in result.timings.items():
-            timings.attrs[key] = value
-        if result.memory:
-            memory = f.create_group("memory")
-            for key, value in result.memory.items():
-                memory.attrs[key] = value
-        for half in (result.lower, result.upper):
-            group = f.create_group(f"mesh/{half.name}")
-            group["points"] = half.points
-            group["cells"] = half.cells
-            group["sigma"] = half.sigma
-            group["interface"] = half.sigma[result.multiplier_nodes]
-            for boundary, edges in half.boundaries.items():
-                group[f"boundaries/{boundary}"] = edges
-        sigma = result.mesh.sigma
-        for key in SIGMA_FIELDS:
-            f[f"sigma/{key}"] = getattr(sigma, key)
-        for name, values in result.solution.items():
-            f[f"solution/{name}"] = values
-        f["interface/x"] = result.interface_x
-        f["interface/points"] = result.interface_points
-        f["interface/normal"] = result.normals
-        f["interface/crack"] = result.crack
-        for name in MULTIPLIERS:
-            f[f"interface/{name}"] = result.multipliers[name]
-        f["history/criterion"] = np.asarray(result.history, dtype=np.float64)
-        f["history/active_set_changes"] = np.asarray(result.active_set_changes, dtype=np.int64)
-        for name, per_block in result.cell_data.items():
-            for block, values in per_block.items():
-                f[f"cell_data/{name}/{block}"] = values
-        for name, values in result.indicators.items():
-            f[f"error/indicator/{name}"] = values
-        for name, values in result.levels.items():
-            f[f"levels/{name}"] = values
-        _write_fracture(f, result)
-        for layer, named in result.reactions.items():
-            for name, force in named.items():
-                f[f"reactions/{layer}/{name}"] = np.asarray(force, dtype=np.float64)
-        for spec in BLOCKS:
-            f[f"paraview/{spec.name}/displacement"] = export.padded(result.solution[spec.name])
-            f[f"paraview/{spec.name}/von_mises"] = fields[spec.name].von_mises
-        timings.attrs["write"] = time.perf_counter() - started
+    shapes = {key: (np.shape(values), np.asarray(values).dtype.str) for key, values in part.datasets.items()}
+    attrs = part.attrs
+    if comm is not None and comm.size > 1:
+        shapes = {key: shape for mine in comm.allgather(shapes) for key, shape in mine.items()}
+        attrs = comm.bcast(attrs, root=0)
+        opened = h5py.File(name, "w", driver="mpio", comm=comm)
+    else:
+        opened = hdf5_image(name)
+    with opened as f:
+        created = {key: f.create_dataset(key, shape=shape, dtype=dtype) for key, (shape, dtype) in sorted(shapes.items())}
+        for key, values in part.datasets.items():
+            if np.size(values):
+                created[key][...] = values
+        for group, values in attrs.items():
+            target = f.require_group(group) if group else f
+            for key, value in values.items():
+                target.attrs[key] = value
+        elapsed = time.perf_counter() - started
+        f.require_group("timings").attrs["write"] = comm.bcast(elapsed, root=0) if comm is not None else elapsed
 
 
 def read(path: Path) -> Result:
@@ -228,21 +296,6 @@ def _read(f: h5py.File, path: Path) -> Result:
 #: Per-tip datasets of /fracture (the fields of ddsolve.post.result.Fracture), then the contact zones.
 FRACTURE_FIELDS = ("points", "directions", "crack", "inner", "outer", "spacing", "G", "contact", "zones",
                    "zone_crack")
-
-
-def _write_fracture(f, result: Result) -> None:
-    """/fracture/{G, points, ...} (tips), /fracture/{zones, zone_crack} (contact zones as arc length along
-    Σ) and, over the multiplier nodes, /fracture/arclength, opening ([u]·ν) and pressure (μᶜ)."""
-    from ddsolve.post.analysis import normal_jump
-
-    if result.fracture is None:
-        return
-    group = f.create_group("fracture")
-    for key in FRACTURE_FIELDS:
-        group[key] = getattr(result.fracture, key)
-    group["arclength"] = result.mesh.sigma.arclength[result.multiplier_nodes]
-    group["opening"] = normal_jump(result)
-    group["pressure"] = result.multipliers["mu_c"]
 
 
 def _read_fracture(f):

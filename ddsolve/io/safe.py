@@ -179,7 +179,7 @@ def commit_section():
         signal.raise_signal(signum)
 
 
-def replace_together(writers: dict[Path, Callable[[str], None]], final: bool = False) -> None:
+def replace_together(writers: dict[Path, Callable[[str], None]], final: bool = False, comm=None) -> None:
     """Write a set of files so that they replace the previous ones together or not at all.
 
     Each ``write(temporary)`` writes its file under a temporary name in the target's folder; only
@@ -191,61 +191,109 @@ def replace_together(writers: dict[Path, Callable[[str], None]], final: bool = F
     as they were.  A run killed (SIGKILL) after the commit point leaves its journal: the next write or
     read of these files (:func:`recover`) completes the renames, so the set seen is always one whole
     set.  ``final``: this set ends the command (a later interrupt ends it with status 0,
-    :data:`committed`).
+    :data:`committed`).  With ``comm`` (an MPI communicator, more than one rank) every rank calls every
+    writer with the same temporary name (writers that write one file together); rank 0 checks,
+    creates the temporaries and commits; an error on any rank is raised on every rank and no rank
+    returns before the commit is decided.
     """
     global committed
     paths = [Path(path) for path in writers]
-    check_targets(paths)
-    recover(paths)
-    tag = f"ddsolve~{host_tag()}~{os.getpid()}~{secrets.token_hex(4)}"
-    temporaries: dict[Path, Path] = {}
-    backups: dict[Path, Path] = {}
+    root = comm is None or comm.rank == 0
+    tag = _on_all(comm, lambda: _begin(paths), root_only=True)
+    temporaries = {path: _scratch(path, tag, "tmp") for path in paths}
     journal = _scratch(paths[0], tag, "journal")
     draft = journal.with_name(journal.name + ".tmp")  # the journal while it is written
+    _LIVE.update(temporaries.values())
     try:
         for path, write in zip(paths, writers.values()):
-            temporaries[path] = _scratch(path, tag, "tmp")
-            _LIVE.add(temporaries[path])
-            try:
-                temporaries[path].open("xb").close()
-            except OSError as exc:
-                raise DDSolveError(f"{path}: cannot write in {path.parent} ({exc.strerror or exc})") from None
-            try:
-                write(str(temporaries[path]))
-                os.chmod(temporaries[path], 0o644)
-            except OSError as exc:
-                raise DDSolveError(f"{path}: cannot write ({os_reason(exc)})") from None
-        backups = {path: _scratch(path, tag, "bak") for path in paths if os.path.lexists(path)}
-        entries = json.dumps({"renames": [[str(temporaries[path].absolute()), str(path.absolute())] for path in paths],
-                              "backups": [str(backup.absolute()) for backup in backups.values()]})
-        moved: set[Path] = set()  # previous versions renamed away (no hard links here)
-        done: list[Path] = []
-        try:
-            with commit_section():
-                draft.write_text(entries)
-                os.replace(draft, journal)  # the commit point
-                for path, backup in backups.items():
-                    if _keep(path, backup):
-                        moved.add(path)
-                for path in paths:
-                    os.replace(temporaries[path], path)
-                    done.append(path)
-                journal.unlink()
-                committed = final
-        except OSError as exc:
-            for path in paths:  # undo: the previous set comes back
-                if path in done and path not in backups:
-                    os.unlink(path)
-                elif path in done or path in moved:
-                    os.replace(backups[path], path)
-            failed = next((path for path in paths if path not in done), paths[0])
-            raise DDSolveError(f"{failed}: cannot replace ({exc.strerror or exc}); the previous files are kept") \
-                from None
+            _on_all(comm, lambda: _create(path, temporaries[path]), root_only=True)
+            _on_all(comm, lambda: _write(path, write, temporaries[path]))
+        _on_all(comm, lambda: _commit(paths, temporaries, tag, final), root_only=True)
+        committed = final
     finally:
-        for scratch in (*temporaries.values(), *backups.values(), draft, journal):
-            if os.path.lexists(scratch):
-                os.unlink(scratch)
+        if root:
+            for scratch in (*temporaries.values(), draft, journal):
+                if os.path.lexists(scratch):
+                    os.unlink(scratch)
         _LIVE.difference_update(temporaries.values())
+
+
+def _on_all(comm, work: Callable[[], object], root_only: bool = False):
+    """``work()`` on every rank of ``comm`` (or rank 0 only; its value to all), its first DDSolveError
+    raised on every rank; without ``comm`` just ``work()``."""
+    if comm is None or comm.size == 1:
+        return work()
+    value, error = None, None
+    if not root_only or comm.rank == 0:
+        try:
+            value = work()
+        except DDSolveError as exc:
+            error = exc
+    first = next((e for e in comm.allgather(error) if e is not None), None)
+    if first is not None:
+        first.collective = True
+        raise first
+    return comm.bcast(value, root=0) if root_only else value
+
+
+def _begin(paths: list[Path]) -> str:
+    """Check the targets, finish or clean up what killed runs left; the tag of this write."""
+    check_targets(paths)
+    recover(paths)
+    return f"ddsolve~{host_tag()}~{os.getpid()}~{secrets.token_hex(4)}"
+
+
+def _create(path: Path, temporary: Path) -> None:
+    try:
+        temporary.open("xb").close()
+    except OSError as exc:
+        raise DDSolveError(f"{path}: cannot write in {path.parent} ({exc.strerror or exc})") from None
+
+
+def _write(path: Path, write: Callable[[str], None], temporary: Path) -> None:
+    try:
+        write(str(temporary))
+        if os.path.exists(temporary):
+            os.chmod(temporary, 0o644)
+    except OSError as exc:
+        raise DDSolveError(f"{path}: cannot write ({os_reason(exc)})") from None
+
+
+def _commit(paths: list[Path], temporaries: dict[Path, Path], tag: str, final: bool) -> None:
+    """The commit of a written set (see :func:`replace_together`)."""
+    global committed
+    journal = _scratch(paths[0], tag, "journal")
+    draft = journal.with_name(journal.name + ".tmp")
+    backups = {path: _scratch(path, tag, "bak") for path in paths if os.path.lexists(path)}
+    entries = json.dumps({"renames": [[str(temporaries[path].absolute()), str(path.absolute())] for path in paths],
+                          "backups": [str(backup.absolute()) for backup in backups.values()]})
+    moved: set[Path] = set()  # previous versions renamed away (no hard links here)
+    done: list[Path] = []
+    try:
+        with commit_section():
+            draft.write_text(entries)
+            os.replace(draft, journal)  # the commit point
+            for path, backup in backups.items():
+                if _keep(path, backup):
+                    moved.add(path)
+            for path in paths:
+                os.replace(temporaries[path], path)
+                done.append(path)
+            journal.unlink()
+            committed = final
+    except OSError as exc:
+        for path in paths:  # undo: the previous set comes back
+            if path in done and path not in backups:
+                os.unlink(path)
+            elif path in done or path in moved:
+                os.replace(backups[path], path)
+        failed = next((path for path in paths if path not in done), paths[0])
+        raise DDSolveError(f"{failed}: cannot replace ({exc.strerror or exc}); the previous files are kept") \
+            from None
+    finally:
+        for backup in backups.values():
+            if os.path.lexists(backup):
+                os.unlink(backup)
 
 
 def _keep(path: Path, backup: Path) -> bool:

@@ -10,6 +10,7 @@ and quadratic Σ edges.  Nothing here writes: :func:`viewer_files` returns write
 from __future__ import annotations
 
 from dataclasses import dataclass
+import os
 from importlib import resources
 from pathlib import Path
 from typing import Callable
@@ -19,7 +20,7 @@ import numpy as np
 from ddsolve.errors import DDSolveError
 from ddsolve.mesh.mesh import BLOCKS
 from ddsolve.post import analysis, plots
-from ddsolve.post.result import Result
+from ddsolve.post.result import OnSigma, Result
 
 FORMATS = ("vtu", "xdmf")
 LAYER_TITLES = {"layer1": "layer 1 (u)", "layer2": "layer 2 (v)"}
@@ -29,7 +30,9 @@ _XDMF_TOPOLOGY = {"triangle": "Triangle", "triangle6": "Triangle_6", "line": "Po
 
 @dataclass(frozen=True)
 class ViewerMesh:
-    """One viewer file's content, in meshio's terms (points 3-D, one cell block)."""
+    """One viewer file's content, in meshio's terms (points 3-D, one cell block), or a share of it: its
+    point rows from ``first_point`` and cell rows from ``first_cell`` (cells numbered in the whole mesh)
+    of ``total_points`` and ``total_cells`` (None: this share is the whole mesh)."""
 
     name: str
     points: np.ndarray
@@ -37,19 +40,42 @@ class ViewerMesh:
     cells: np.ndarray
     point_data: dict[str, np.ndarray]
     cell_data: dict[str, np.ndarray]
+    first_point: int = 0
+    first_cell: int = 0
+    total_points: int | None = None
+    total_cells: int | None = None
+
+
+@dataclass(frozen=True)
+class Glue:
+    """What a half needs of the other half to take its share of a layer mesh (all Σ-sized): both halves'
+    Σ nodes, the cracks, the node and cell counts of both halves (side -> count), and the other half's
+    displacement of the layer at the Σ nodes ``(s, 2)``."""
+
+    lower_sigma: np.ndarray
+    upper_sigma: np.ndarray
+    crack: np.ndarray
+    nodes: dict[int, int]
+    cells: dict[int, int]
+    other: np.ndarray
 
 
 def merged_upper_nodes(result: Result) -> tuple[np.ndarray, int]:
     """The layer-mesh node of every upper-half node (lower nodes keep their numbers), and the node
     count: a Σ node off the cracks is the lower half's node; crack nodes keep one node per face."""
-    lower, upper, sigma = result.lower, result.upper, result.mesh.sigma
-    glued = ~sigma.crack
-    own = np.ones(len(upper.points), dtype=bool)
-    own[upper.sigma[glued]] = False
-    index = np.empty(len(upper.points), dtype=np.int64)
-    index[own] = len(lower.points) + np.arange(own.sum())
-    index[upper.sigma[glued]] = lower.sigma[glued]
-    return index, len(lower.points) + int(own.sum())
+    return _upper_index(result.lower.sigma, result.upper.sigma, result.mesh.sigma.crack, len(result.lower.points),
+                        len(result.upper.points))
+
+
+def _upper_index(lower_sigma: np.ndarray, upper_sigma: np.ndarray, crack: np.ndarray, lower_count: int,
+                 upper_count: int) -> tuple[np.ndarray, int]:
+    glued = ~crack
+    own = np.ones(upper_count, dtype=bool)
+    own[upper_sigma[glued]] = False
+    index = np.empty(upper_count, dtype=np.int64)
+    index[own] = lower_count + np.arange(own.sum())
+    index[upper_sigma[glued]] = lower_sigma[glued]
+    return index, lower_count + int(own.sum())
 
 
 def padded(values: np.ndarray) -> np.ndarray:
@@ -67,74 +93,98 @@ def tensors(xx: np.ndarray, yy: np.ndarray, xy: np.ndarray, zz: np.ndarray) -> n
     return out
 
 
+def layer_share(layer: str, half, u: np.ndarray, fields: analysis.CellFields, glue: Glue,
+                indicator: np.ndarray | None = None, cell_data: dict[str, np.ndarray] | None = None) -> ViewerMesh:
+    """One half's share of the mesh of ``layer`` (see :func:`layer_mesh`): its nodes (the upper half's
+    own nodes only, merged Σ nodes are the lower half's), its cells and their fields."""
+    glued = ~glue.crack
+    lower_count = glue.nodes[-1]
+    index, count = _upper_index(glue.lower_sigma, glue.upper_sigma, glue.crack, lower_count, glue.nodes[1])
+    if half.side < 0:
+        points, displacement, cells, first = half.points, u.copy(), half.cells, 0
+        merged = glue.lower_sigma[glued]
+        displacement[merged] = 0.5 * (u[merged] + glue.other[glued])
+    else:
+        own = index >= lower_count
+        points, displacement, cells, first = half.points[own], u[own], index[half.cells], lower_count
+    cell_data_out = {
+        "stress": tensors(*fields.stress.T, fields.stress_zz),
+        "strain": tensors(fields.strain[:, 0], fields.strain[:, 1], 0.5 * fields.strain[:, 2], fields.strain_zz),
+        "von_mises": fields.von_mises, "energy_density": fields.energy_density,
+        "half": np.full(len(half.cells), half.side, dtype=np.int32),
+    }
+    extra = [("error_indicator", indicator)] if indicator is not None else []
+    for name, values in extra + list((cell_data or {}).items()):
+        if name in cell_data_out:
+            raise DDSolveError(f"cell data {name}: the name of a field the viewer files already have")
+        values = np.asarray(values)
+        if np.ndim(values) == 0 or len(values) != len(half.cells):
+            raise DDSolveError(f"cell data {name}: {np.size(values)} values for the {len(half.cells)} cells "
+                               f"of the {half.name} half")
+        cell_data_out[name] = values if values.dtype.kind in "iuf" else values.astype(np.float64)
+    return ViewerMesh(layer, padded(points), "triangle" if cells.shape[1] == 3 else "triangle6", cells,
+                      {"displacement": padded(displacement)}, cell_data_out, first, 0 if half.side < 0
+                      else glue.cells[-1], count, glue.cells[-1] + glue.cells[1])
+
+
+def joined(shares: list[ViewerMesh]) -> ViewerMesh:
+    """The whole mesh from its shares (in row order)."""
+    first = shares[0]
+
+    def stack(values: list[np.ndarray]) -> np.ndarray:
+        return np.concatenate(values) if values[0].ndim == 1 else np.vstack(values)
+
+    return ViewerMesh(first.name, stack([s.points for s in shares]), first.cell_type,
+                      stack([s.cells for s in shares]),
+                      {key: stack([s.point_data[key] for s in shares]) for key in first.point_data},
+                      {key: stack([s.cell_data[key] for s in shares]) for key in first.cell_data})
+
+
+def glue_of(result: Result, layer: str, side: int) -> Glue:
+    """The :class:`Glue` of one half of ``layer`` in a whole result."""
+    other = next(spec.name for spec in BLOCKS if spec.layer == layer and spec.side == -side)
+    return Glue(result.lower.sigma, result.upper.sigma, result.mesh.sigma.crack,
+                {-1: len(result.lower.points), 1: len(result.upper.points)},
+                {-1: len(result.lower.cells), 1: len(result.upper.cells)},
+                result.solution[other][result.half(other).sigma])
+
+
 def layer_mesh(result: Result, layer: str, fields: dict[str, analysis.CellFields]) -> ViewerMesh:
     """Both halves of ``layer`` as one mesh with its displacement and per-cell fields.
 
     A merged Σ node shows the mean of the two halves' displacements (equal up to the solver's
     tolerance).  Cells: the lower half's, then the upper half's (cell array ``half``: −1, +1).
     """
-    minus, plus = (spec.name for spec in BLOCKS if spec.layer == layer)
-    lower, upper = result.lower, result.upper
-    index, count = merged_upper_nodes(result)
-    points, displacement = np.zeros((count, 2)), np.zeros((count, 2))
-    points[index], points[:len(lower.points)] = upper.points, lower.points
-    displacement[index] = result.solution[plus]
-    displacement[:len(lower.points)] = result.solution[minus]
-    glued = ~result.mesh.sigma.crack
-    merged = lower.sigma[glued]
-    displacement[merged] = 0.5 * (result.solution[minus][merged] + result.solution[plus][upper.sigma[glued]])
-    cells = np.vstack([lower.cells, index[upper.cells]])
-
-    def both(per_block: dict[str, np.ndarray], name: str) -> np.ndarray:
-        arrays = [np.asarray(per_block[block]) for block in (minus, plus)]
-        for array, half in zip(arrays, (lower, upper)):
-            if len(array) != len(half.cells):
-                raise DDSolveError(f"cell data {name}: {len(array)} values for the {len(half.cells)} cells "
-                                   f"of the {half.name} half")
-        joined = np.concatenate(arrays)
-        return joined if joined.dtype.kind in "iuf" else joined.astype(np.float64)  # e.g. flags as numbers
-
-    low, up = fields[minus], fields[plus]
-    strain = np.concatenate([low.strain, up.strain])
-    stress = np.concatenate([low.stress, up.stress])
-    cell_data = {
-        "stress": tensors(*stress.T, np.concatenate([low.stress_zz, up.stress_zz])),
-        "strain": tensors(strain[:, 0], strain[:, 1], 0.5 * strain[:, 2],
-                          np.concatenate([low.strain_zz, up.strain_zz])),
-        "von_mises": np.concatenate([low.von_mises, up.von_mises]),
-        "energy_density": np.concatenate([low.energy_density, up.energy_density]),
-        "half": np.repeat(np.array([-1, 1], dtype=np.int32), [len(lower.cells), len(upper.cells)]),
-    }
-    if result.indicators:
-        cell_data["error_indicator"] = both(result.indicators, "error_indicator")
-    for name, per_block in result.cell_data.items():
-        if name in cell_data:
-            raise DDSolveError(f"cell data {name}: the name of a field the viewer files already have")
-        cell_data[name] = both(per_block, name)
-    return ViewerMesh(layer, padded(points), "triangle" if cells.shape[1] == 3 else "triangle6", cells,
-                      {"displacement": padded(displacement)}, cell_data)
+    shares = []
+    for spec in (spec for spec in BLOCKS if spec.layer == layer):  # the lower half's block first
+        shares.append(layer_share(layer, result.half(spec.name), result.solution[spec.name], fields[spec.name],
+                                  glue_of(result, layer, spec.side), result.indicators.get(spec.name),
+                                  {name: per_block[spec.name] for name, per_block in result.cell_data.items()
+                                   if spec.name in per_block}))
+    return joined(sorted(shares, key=lambda share: share.first_point))
 
 
-def sigma_cells(result: Result) -> tuple[str, np.ndarray]:
+def sigma_cells(sigma, degree: int) -> tuple[str, np.ndarray]:
     """Σ as line cells over its nodes: segments (P1) or quadratic edges (ends, midpoint) for P2."""
-    count = len(result.mesh.sigma.points)
-    if result.mesh.degree == 1:
+    count = len(sigma.points)
+    if degree == 1:
         first = np.arange(count - 1)
         return "line", np.column_stack([first, first + 1])
-    first = np.flatnonzero(result.mesh.sigma.corner)[:-1]
+    first = np.flatnonzero(sigma.corner)[:-1]
     return "line3", np.column_stack([first, first + 2, first + 1])
 
 
-def sigma_mesh(result: Result) -> ViewerMesh:
-    """The Σ nodes in order with the jump of layer 1, its normal part, the multipliers, the normals."""
-    sigma = result.mesh.sigma
-    jump = result.solution["u_plus"][result.upper.sigma] - result.solution["u_minus"][result.lower.sigma]
-    nodes = result.multiplier_nodes
+def sigma_mesh(on: OnSigma, degree: int) -> ViewerMesh:
+    """The Σ nodes in order with the jump of layer 1, its normal part, the multipliers, the normals
+    (``on``: :attr:`ddsolve.post.result.Result.on_sigma`; ``degree`` of the elements)."""
+    sigma = on.sigma
+    jump = on.traces["u_plus"] - on.traces["u_minus"]
+    nodes = sigma.multiplier_nodes
     on_sigma = {}
-    for name, values in result.multipliers.items():  # clamped nodes carry none: 0 there
+    for name, values in on.multipliers.items():  # clamped nodes carry none: 0 there
         on_sigma[name] = np.zeros((len(sigma.points),) + values.shape[1:])
         on_sigma[name][nodes] = values
-    cell_type, cells = sigma_cells(result)
+    cell_type, cells = sigma_cells(sigma, degree)
     return ViewerMesh("sigma", padded(sigma.points), cell_type, cells, {
         "jump": padded(jump),
         "opening": np.einsum("sd,sd->s", jump, sigma.normals),
@@ -148,13 +198,88 @@ def sigma_mesh(result: Result) -> ViewerMesh:
 
 
 # --- writers -----------------------------------------------------------------------------------
-def write_vtu(mesh: ViewerMesh, name: str) -> None:
-    """Binary, uncompressed: zlib would take most of a solve's output time for a third of the size."""
-    import meshio
+#: VTK cell type numbers of the meshio cell types the viewer files use.
+_VTK_TYPES = {"triangle": 5, "triangle6": 22, "line": 3, "line3": 21}
+_VTK_NUMBERS = {"f8": "Float64", "f4": "Float32", "i8": "Int64", "i4": "Int32", "u1": "UInt8", "i1": "Int8"}
 
-    meshio.write(name, meshio.Mesh(mesh.points, [(mesh.cell_type, mesh.cells)], point_data=mesh.point_data,
-                                   cell_data={key: [values] for key, values in mesh.cell_data.items()}),
-                 file_format="vtu", compression=None)
+
+def _share_arrays(share: ViewerMesh) -> list[tuple[str, str, np.ndarray, int]]:
+    """(section, name, rows, first row) of every array of a share, in file order."""
+    k = share.cells.shape[1]
+    cells = np.arange(share.first_cell, share.first_cell + len(share.cells))
+    return ([("Points", "Points", share.points, share.first_point),
+             ("Cells", "connectivity", share.cells.astype(np.int64), share.first_cell),
+             ("Cells", "offsets", (k * (cells + 1)).astype(np.int64), share.first_cell),
+             ("Cells", "types", np.full(len(cells), _VTK_TYPES[share.cell_type], dtype=np.uint8), share.first_cell)]
+            + [("PointData", key, values, share.first_point) for key, values in share.point_data.items()]
+            + [("CellData", key, values, share.first_cell) for key, values in share.cell_data.items()])
+
+
+def write_vtu(mesh: ViewerMesh, name: str, comm=None) -> None:
+    """A VTU file with its arrays appended raw (uncompressed: zlib would take most of a solve's output
+    time for a third of the size).  With ``comm``, ``mesh`` is this rank's share (or None) and the ranks
+    write the one file together: rank 0 its header and layout, then every rank its rows in place."""
+    shares = [mesh] if mesh is not None else []
+    layout = [(section, key, values.dtype.str[1:], values.shape[1:]) for share in shares
+              for section, key, values, _ in _share_arrays(share)]
+    totals = (0, 0)
+    if shares:
+        totals = (mesh.total_points if mesh.total_points is not None else len(mesh.points),
+                  mesh.total_cells if mesh.total_cells is not None else len(mesh.cells))
+    if comm is not None and comm.size > 1:
+        gathered = comm.allgather((layout, totals))
+        totals = max(t for _, t in gathered)
+        layout = [entry for entries, _ in gathered for entry in entries]
+    arrays: dict[tuple[str, str], tuple[str, tuple]] = {}
+    for section, key, dtype, shape in layout:  # the first share that has an array fixes its place
+        arrays.setdefault((section, key), (dtype, shape))
+    offsets, position = {}, 0
+    for entry, (dtype, shape) in arrays.items():
+        rows = totals[0] if entry[0] in ("Points", "PointData") else totals[1]
+        size = rows * int(np.prod(shape, dtype=np.int64)) * np.dtype(dtype).itemsize
+        offsets[entry] = (position, size)
+        position += 8 + size
+    head = _vtu_head(arrays, offsets, totals).encode()
+    tail = b"\n</AppendedData>\n</VTKFile>\n"
+    rank = comm.rank if comm is not None else 0
+    if rank == 0:
+        with open(name, "wb") as out:
+            out.write(head)
+            for start, size in offsets.values():
+                out.seek(len(head) + start)
+                out.write(np.uint64(size).tobytes())
+            out.seek(len(head) + position)
+            out.write(tail)
+    if comm is not None and comm.size > 1:
+        comm.barrier()
+    if shares:
+        handle = os.open(name, os.O_WRONLY)
+        try:
+            for share in shares:
+                for section, key, values, row in _share_arrays(share):
+                    data = np.ascontiguousarray(values).tobytes()
+                    if data:
+                        row_bytes = len(data) // len(values)
+                        os.pwrite(handle, data, len(head) + offsets[(section, key)][0] + 8 + row * row_bytes)
+        finally:
+            os.close(handle)
+
+
+def _vtu_head(arrays: dict, offsets: dict, totals: tuple[int, int]) -> str:
+    lines = ['<?xml version="1.0"?>',
+             '<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">',
+             "<UnstructuredGrid>", f'<Piece NumberOfPoints="{totals[0]}" NumberOfCells="{totals[1]}">']
+    for section in ("Points", "Cells", "PointData", "CellData"):
+        lines.append(f"<{section}>")
+        for (where, key), (dtype, shape) in arrays.items():
+            if where == section:
+                name = "" if section == "Points" else f' Name="{key}"'
+                components = f' NumberOfComponents="{int(np.prod(shape))}"' if shape else ""
+                lines.append(f'<DataArray type="{_VTK_NUMBERS[dtype]}"{name}{components} '
+                             f'format="appended" offset="{offsets[(where, key)][0]}"/>')
+        lines.append(f"</{section}>")
+    lines += ["</Piece>", "</UnstructuredGrid>", '<AppendedData encoding="raw">', "_"]
+    return "\n".join(lines[:-1]) + "\n_"
 
 
 def _data_item(heavy: str, path: str, values: np.ndarray) -> str:
@@ -203,19 +328,14 @@ def write_heavy_data(meshes: list[ViewerMesh], name: str) -> None:
 
 
 # --- the ParaView script -----------------------------------------------------------------------
-def paraview_script(result: Result, folder: Path, files: dict[str, str],
-                    fields: dict[str, analysis.CellFields]) -> str:
-    """A pvpython script showing the layers side by side (warped, coloured by von Mises stress) and
-    the opening along Σ; ``files``: layer1, layer2, sigma -> file names in ``folder``, beside the script."""
-    ceilings = {layer: plots.stress_ceiling(np.concatenate([fields[spec.name].von_mises for spec in BLOCKS
-                                                            if spec.layer == layer]))
-                for layer in LAYER_TITLES}
-    graph = analysis.sigma_is_graph(result)
+def paraview_script(title: str, folder: Path, files: dict[str, str], ceilings: dict[str, float], scale: float,
+                    stacked: bool, graph: bool) -> str:
+    """A pvpython script showing the layers side by side (warped by ``scale``, coloured by von Mises
+    stress up to ``ceilings`` per layer) and the opening along Σ (against x if Σ is a ``graph``);
+    ``files``: layer1, layer2, sigma -> file names in ``folder``, beside the script."""
     settings = {
-        "TITLE": result.parsed_scene.title, "FILES": files, "WRITTEN_TO": str(Path(folder).resolve()), "SCALE": plots.magnification(result),
-        "CEILINGS": ceilings, "TITLES": LAYER_TITLES,
-        "STACKED": plots.one_above_the_other(np.vstack([result.lower.points, result.upper.points])),
-        "PERCENTILE": plots.STRESS_PERCENTILE,
+        "TITLE": title, "FILES": files, "WRITTEN_TO": str(Path(folder).resolve()), "SCALE": scale,
+        "CEILINGS": ceilings, "TITLES": LAYER_TITLES, "STACKED": stacked, "PERCENTILE": plots.STRESS_PERCENTILE,
         "SIGMA_X": "x" if graph else "arc_length",
         "SIGMA_X_LABEL": f"{'x on Sigma' if graph else 'arc length along Sigma'} ({plots.LENGTH})",
     }
@@ -224,13 +344,28 @@ def paraview_script(result: Result, folder: Path, files: dict[str, str],
     return template.replace("@SETTINGS@", values)
 
 
+def result_script(result: Result, folder: Path, files: dict[str, str], fields: dict[str, analysis.CellFields]) -> str:
+    """:func:`paraview_script` of a whole result."""
+    ceilings = {layer: plots.stress_ceiling(np.concatenate([fields[spec.name].von_mises for spec in BLOCKS
+                                                            if spec.layer == layer]))
+                for layer in LAYER_TITLES}
+    points = np.vstack([result.lower.points, result.upper.points])
+    return paraview_script(result.parsed_scene.title, folder, files, ceilings, plots.magnification(result),
+                           plots.one_above_the_other(points), analysis.sigma_is_graph(result))
+
+
 # --- the set of files ---------------------------------------------------------------------------
 VIEWER_MESHES = (*LAYER_TITLES, "sigma")
 
 
+def viewer_names(stem: str, fmt: str = "vtu") -> dict[str, str]:
+    """Viewer mesh -> its file name."""
+    return {mesh: f"{stem}-{mesh}.{fmt}" for mesh in VIEWER_MESHES}
+
+
 def viewer_paths(folder: Path, stem: str, fmt: str = "vtu") -> list[Path]:
     """Every file :func:`viewer_files` writes for ``folder/stem`` in format ``fmt``."""
-    names = [f"{stem}-{mesh}.{fmt}" for mesh in VIEWER_MESHES] + ([f"{stem}-xdmf.h5"] if fmt == "xdmf" else [])
+    names = list(viewer_names(stem, fmt).values()) + ([f"{stem}-xdmf.h5"] if fmt == "xdmf" else [])
     return [Path(folder) / name for name in names + [f"{stem}-paraview.py"]]
 
 
@@ -242,9 +377,10 @@ def viewer_files(result: Result, folder: Path, stem: str, fmt: str = "vtu",
         raise DDSolveError(f"--format {fmt}: expected one of {', '.join(FORMATS)}")
     folder = Path(folder)
     fields = analysis.cell_fields(result) if fields is None else fields
-    meshes = [layer_mesh(result, layer, fields) for layer in LAYER_TITLES] + [sigma_mesh(result)]
-    names = {mesh.name: f"{stem}-{mesh.name}.{fmt}" for mesh in meshes}
-    script = paraview_script(result, folder, names, fields)
+    meshes = [layer_mesh(result, layer, fields) for layer in LAYER_TITLES] + [sigma_mesh(result.on_sigma,
+                                                                                           result.mesh.degree)]
+    names = viewer_names(stem, fmt)
+    script = result_script(result, folder, names, fields)
     writers: dict[Path, Callable[[str], None]] = {}
     if fmt == "vtu":
         for mesh in meshes:
@@ -256,4 +392,30 @@ def viewer_files(result: Result, folder: Path, stem: str, fmt: str = "vtu",
             text = xdmf_text(mesh, heavy)
             writers[folder / names[mesh.name]] = lambda name, text=text: Path(name).write_text(text, encoding="utf-8")
     writers[folder / f"{stem}-paraview.py"] = lambda name: Path(name).write_text(script, encoding="utf-8")
+    return writers
+
+
+@dataclass(frozen=True)
+class Distributed:
+    """A rank's part of the VTU viewer files of a result the ranks write together: its shares of the
+    viewer meshes (mesh name -> :func:`layer_share`, or Σ's :func:`sigma_mesh` on rank 0) and, on
+    rank 0, the ParaView script's text."""
+
+    shares: dict[str, ViewerMesh]
+    script: str = ""
+
+
+def distributed_files(viewer: Distributed, folder: Path, stem: str, comm) -> dict[Path, Callable[[str], None]]:
+    """Path -> collective writer (every rank of ``comm`` calls it with the same temporary name) of the
+    VTU viewer files; each rank writes its shares into the one file of each mesh."""
+    folder = Path(folder)
+    writers: dict[Path, Callable[[str], None]] = {
+        folder / file: (lambda name, mesh=mesh: write_vtu(viewer.shares.get(mesh), name, comm))
+        for mesh, file in viewer_names(stem).items()}
+
+    def script(name: str) -> None:
+        if comm.rank == 0:
+            Path(name).write_text(viewer.script, encoding="utf-8")
+
+    writers[folder / f"{stem}-paraview.py"] = script
     return writers

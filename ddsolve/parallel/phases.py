@@ -71,11 +71,14 @@ class Phases:
 
 def memory_record(ranks: list[tuple[dict, dict, dict]], unknowns: int, whole_mesh_bytes: int) -> dict:
     """The result file's ``/memory``: per rank, the peak resident memory (MB) and the CPU seconds of every
-    phase, the unknowns it works on, its mesh arrays and its factors (MUMPS's own count, MB); and per phase
-    the largest peak per unknown of a rank (bytes)."""
-    record = {"unknowns": unknowns, "whole_mesh_bytes": whole_mesh_bytes}
-    for key in ("unknowns", "mesh_bytes", "factor_mb"):
-        record[f"rank_{key}"] = np.array([mine[key] for mine, _, _ in ranks])
+    phase, the unknowns it works on, its mesh arrays, its factors (MUMPS's own count, MB) and the mesh and
+    solution arrays it holds at output (``rank_held_bytes``, against ``whole_held_bytes``: the whole mesh
+    and the four solutions); and per phase the largest peak per unknown of a rank (bytes)."""
+    record = {"unknowns": unknowns, "whole_mesh_bytes": whole_mesh_bytes,
+              "whole_held_bytes": whole_mesh_bytes + 8 * unknowns}
+    for key in ("unknowns", "mesh_bytes", "factor_mb", "held_bytes"):
+        if all(key in mine for mine, _, _ in ranks):
+            record[f"rank_{key}"] = np.array([mine[key] for mine, _, _ in ranks])
     for phase in ranks[0][1]:
         peaks = np.array([peak[phase] for _, peak, _ in ranks])
         record[f"cpu_s_{phase}"] = np.array([cpu.get(phase, 0.0) for _, _, cpu in ranks])

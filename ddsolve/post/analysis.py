@@ -11,7 +11,7 @@ from ddsolve.errors import DDSolveError
 from ddsolve.fem import assembly, supports
 from ddsolve.mesh import element
 from ddsolve.mesh.mesh import BLOCKS
-from ddsolve.post.result import Result
+from ddsolve.post.result import OnSigma, Result
 from ddsolve.problem import materials
 from ddsolve.problem import scene as scenes
 
@@ -222,24 +222,24 @@ class CellFields:
 
 def cell_fields(result: Result) -> dict[str, CellFields]:
     """Block name -> its per-cell strains, stresses, von Mises stress and energy density."""
-    scene = result.parsed_scene
-    out = {}
-    for spec in BLOCKS:
-        half, u = result.half(spec.name), result.solution[spec.name]
-        D, c = assembly.elasticity(scene, spec.layer)
-        out_of_plane = materials.out_of_plane_strain(scene.materials[spec.layer], scene.model)
-        area, strain = assembly.cell_strains(half.points, half.cells, u)
-        eigenstrain, relieved = assembly.cell_eigenstrains(scene, spec.layer, half.points, half.cells)
-        stress, stress_zz = assembly.cell_stresses(D, c, strain - eigenstrain)  # mechanical: σ = D (ε − ε₀)
-        stress_zz = stress_zz + eigenstrain @ c - relieved
-        strain_zz = strain @ out_of_plane if out_of_plane is not None else np.full(len(strain), np.nan)
-        elastic = strain - eigenstrain
-        out[spec.name] = CellFields(
-            strain=strain, strain_zz=strain_zz, stress=stress, stress_zz=stress_zz,
-            von_mises=materials.von_mises(stress, stress_zz),
-            energy_density=0.5 * assembly.cell_energies(half.points, half.cells, D, u) / area
-            if not np.any(eigenstrain) else 0.5 * np.einsum("mi,mi->m", stress, elastic))
-    return out
+    return {spec.name: block_cell_fields(result.parsed_scene, spec.layer, result.half(spec.name),
+                                         result.solution[spec.name]) for spec in BLOCKS}
+
+
+def block_cell_fields(scene: scenes.Scene, layer: str, half, u: np.ndarray) -> CellFields:
+    """The :class:`CellFields` of one block: displacements ``u`` ``(n, 2)`` of ``layer`` on ``half``;
+    stresses are mechanical, σ = D (ε − ε₀), with the thermal eigenstrain ε₀."""
+    D, c = assembly.elasticity(scene, layer)
+    out_of_plane = materials.out_of_plane_strain(scene.materials[layer], scene.model)
+    area, strain = assembly.cell_strains(half.points, half.cells, u)
+    eigenstrain, relieved = assembly.cell_eigenstrains(scene, layer, half.points, half.cells)
+    stress, stress_zz = assembly.cell_stresses(D, c, strain - eigenstrain)
+    stress_zz = stress_zz + eigenstrain @ c - relieved
+    strain_zz = strain @ out_of_plane if out_of_plane is not None else np.full(len(strain), np.nan)
+    energy_density = (0.5 * assembly.cell_energies(half.points, half.cells, D, u) / area if not np.any(eigenstrain)
+                      else 0.5 * np.einsum("mi,mi->m", stress, strain - eigenstrain))
+    return CellFields(strain=strain, strain_zz=strain_zz, stress=stress, stress_zz=stress_zz,
+                      von_mises=materials.von_mises(stress, stress_zz), energy_density=energy_density)
 
 
 def layer_stresses(result: Result) -> dict[str, np.ndarray]:
@@ -249,14 +249,13 @@ def layer_stresses(result: Result) -> dict[str, np.ndarray]:
 
 def normal_jump(result: Result) -> np.ndarray:
     """[u]·ν = (u⁺ − u⁻)·ν of layer 1 at the k multiplier nodes (negative: overlap)."""
-    jump = result.solution["u_plus"][result.interface_nodes("u_plus")] - \
-        result.solution["u_minus"][result.interface_nodes("u_minus")]
-    return np.einsum("kd,kd->k", jump, result.normals)
+    return result.on_sigma.opening
 
 
-def sigma_is_graph(result: Result) -> bool:
+def sigma_is_graph(result: Result | OnSigma) -> bool:
     """Whether Σ is a graph over x (x increases along it): Σ quantities are then plotted against x."""
-    points = result.interface_points
+    sigma = (result.on_sigma if isinstance(result, Result) else result).sigma
+    points = sigma.points[sigma.multiplier_nodes]
     return len(points) < 2 or bool(np.all(np.diff(points[:, 0]) > 0))
 
 
@@ -267,10 +266,10 @@ def along_sigma(result: Result) -> tuple[np.ndarray, str]:
     return result.mesh.sigma.arclength[result.multiplier_nodes], "arc length along Σ"
 
 
-def contact_zones(result: Result, tolerance: float = 1e-9) -> list[tuple[int, int]]:
+def contact_zones(result: Result | OnSigma, tolerance: float = 1e-9) -> list[tuple[int, int]]:
     """Runs ``[first, last]`` of multiplier nodes where the crack faces touch: crack nodes whose opening
     [u]·ν is at most ``tolerance`` × max |u|.  (Not μᶜ > 0: a multiplier recovered from residuals, as
     the reference's, is round-off where the faces are apart.)"""
-    largest = max(np.abs(u).max(initial=0.0) for u in result.solution.values())
-    touching = result.crack & (normal_jump(result) <= tolerance * largest)
-    return result.mesh.sigma.pieces(touching)
+    on = result.on_sigma if isinstance(result, Result) else result
+    touching = on.sigma.crack[on.sigma.multiplier_nodes] & (on.opening <= tolerance * on.largest)
+    return on.sigma.pieces(touching)

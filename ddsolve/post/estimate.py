@@ -28,7 +28,7 @@ import numpy as np
 from ddsolve.fem.assembly import elasticity, to_global, trace_nodes
 from ddsolve.mesh.element import (CELL_EDGES, cell_edges, edge_keys, edge_points, edge_shapes, gauss_interval,
                                   shape_functions)
-from ddsolve.mesh.mesh import BLOCKS, CRACK, Mesh
+from ddsolve.mesh.mesh import BLOCKS, CRACK, HalfMesh, Mesh, SigmaLine
 from ddsolve.problem.scene import Scene
 
 #: Sampling points of the recovery per element (reference coordinates): where the strain of the
@@ -231,27 +231,36 @@ def contact_indicators(mesh: Mesh, u_minus: np.ndarray, u_plus: np.ndarray, mu_c
                        ) -> tuple[np.ndarray, np.ndarray]:
     """Per cell of the lower and the upper half: half of 2 |∫_E μᶜ_h [u_h]·ν ds| for the crack edges E
     of the cell.  ``mu_c`` ``(k,)`` over the multiplier nodes (0 where there is none)."""
-    sigma = mesh.sigma
-    out = []
+    pressure, jump = contact_on_sigma(mesh.sigma, mu_c, u_minus[mesh.lower.sigma], u_plus[mesh.upper.sigma])
+    lower, upper = (half_contact_indicators(half, pressure, jump) for half in mesh.halves)
+    return lower, upper
+
+
+def contact_on_sigma(sigma: SigmaLine, mu_c: np.ndarray, minus: np.ndarray, plus: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """``(s,)`` contact pressure (0 off the multiplier nodes) and normal jump [u]·ν at every Σ node, from
+    the displacements ``(s, 2)`` of u⁻ and u⁺ at the Σ nodes."""
     pressure = np.zeros(len(sigma.points))
     pressure[sigma.multiplier_nodes] = mu_c
-    jump = np.einsum("sd,sd->s", u_plus[mesh.upper.sigma] - u_minus[mesh.lower.sigma], sigma.normals)
-    for half in mesh.halves:
-        edges = half.edges(CRACK)
-        cells = np.zeros(len(half.cells))
-        if len(edges) and np.any(pressure):
-            position = np.full(len(half.points), -1, dtype=np.int64)
-            position[half.sigma] = np.arange(len(half.sigma))
-            s, w = gauss_interval(4)
-            shapes, _ = edge_shapes(edges.shape[1], s)
-            _, tangents = edge_points(half.points, edges, s)
-            speed = np.linalg.norm(tangents, axis=2)  # (e, q)
-            along = position[edges]
-            product = (shapes @ pressure[along].T).T * (shapes @ jump[along].T).T  # (e, q)
-            defect = np.abs(np.einsum("eq,eq,q->e", product, speed, w))  # |∫ μ [u]·ν| per edge
-            np.add.at(cells, _edge_cells(half.cells, edges), defect)  # ½ of 2|∫ μ [u]·ν|
-        out.append(cells)
-    return out[0], out[1]
+    return pressure, np.einsum("sd,sd->s", plus - minus, sigma.normals)
+
+
+def half_contact_indicators(half: HalfMesh, pressure: np.ndarray, jump: np.ndarray) -> np.ndarray:
+    """``(m,)``: the contact term of every cell of ``half`` (see :func:`contact_indicators`)."""
+    edges = half.edges(CRACK)
+    cells = np.zeros(len(half.cells))
+    if len(edges) and np.any(pressure):
+        position = np.full(len(half.points), -1, dtype=np.int64)
+        position[half.sigma] = np.arange(len(half.sigma))
+        s, w = gauss_interval(4)
+        shapes, _ = edge_shapes(edges.shape[1], s)
+        _, tangents = edge_points(half.points, edges, s)
+        speed = np.linalg.norm(tangents, axis=2)  # (e, q)
+        along = position[edges]
+        product = (shapes @ pressure[along].T).T * (shapes @ jump[along].T).T  # (e, q)
+        defect = np.abs(np.einsum("eq,eq,q->e", product, speed, w))  # |∫ μ [u]·ν| per edge
+        np.add.at(cells, _edge_cells(half.cells, edges), defect)  # ½ of 2|∫ μ [u]·ν|
+    return cells
 
 
 def _edge_cells(cells: np.ndarray, edges: np.ndarray) -> np.ndarray:
@@ -279,18 +288,27 @@ class Estimate:
     @property
     def relative(self) -> float:
         """η / sqrt(‖u_h‖² + η²): the estimated relative energy-norm error."""
-        total = self.absolute ** 2 + self.energy
-        return float(self.absolute / np.sqrt(total)) if total > 0 else 0.0
+        return relative(self.absolute ** 2, self.energy)
+
+
+def relative(squared: float, energy: float) -> float:
+    """η / sqrt(‖u_h‖² + η²) from η² = ``squared`` and ‖u_h‖²_E = ``energy`` (sums over the blocks)."""
+    total = squared + energy
+    return float(np.sqrt(squared / total)) if total > 0 else 0.0
+
+
+def block_estimate(part: np.ndarray, contact: np.ndarray | float = 0.0) -> tuple[np.ndarray, float, float]:
+    """One block's indicators η_K ``(m,)``, Σ η_K² and ‖u_h‖²_E from its :func:`block_indicators` ``part``
+    and its cells' contact terms (u⁻ and u⁺ only); the estimate of the run sums the last two."""
+    squared = np.maximum(part[0] + contact, 0.0)
+    return np.sqrt(squared), float(squared.sum()), float(part[1].sum())
 
 
 def combine(mesh: Mesh, parts: dict[str, np.ndarray], solution: dict[str, np.ndarray], mu_c: np.ndarray
             ) -> Estimate:
     """The estimate from each block's :func:`block_indicators` and the contact term (rank 0's part)."""
-    lower, upper = contact_indicators(mesh, solution["u_minus"], solution["u_plus"], mu_c)
-    squared = {name: parts[name][0].copy() for name in parts}
-    squared["u_minus"] += lower
-    squared["u_plus"] += upper
-    return Estimate({name: np.sqrt(np.maximum(values, 0.0)) for name, values in squared.items()},
+    contact = dict(zip(("u_minus", "u_plus"), contact_indicators(mesh, solution["u_minus"], solution["u_plus"], mu_c)))
+    return Estimate({name: block_estimate(part, contact.get(name, 0.0))[0] for name, part in parts.items()},
                     float(sum(parts[name][1].sum() for name in parts)))
 
 

@@ -34,7 +34,7 @@ from ddsolve.errors import SceneError
 from ddsolve.fem import assembly
 from ddsolve.mesh import element
 from ddsolve.mesh.mesh import BLOCKS, SIGMA, HalfMesh, Mesh, SigmaLine
-from ddsolve.post.result import Fracture
+from ddsolve.post.result import Fracture, OnSigma
 
 #: Σ turns by more than this between two edges at a kink (a smooth curve turns by h·κ per edge).
 KINK_DEGREES = 10.0
@@ -243,17 +243,16 @@ def block_terms(scene, mesh: Mesh, tips: list[Tip], solutions: dict[int, np.ndar
     return out
 
 
-def contact_terms(tips: list[Tip], result) -> np.ndarray:
+def contact_terms(tips: list[Tip], on: OnSigma) -> np.ndarray:
     """Σ_k λ_k (u⁻_k − u⁺_k)·ν̇_k per tip: the work of the contact forces on the turning normals."""
     out = np.zeros(len(tips))
-    sigma = result.mesh.sigma
-    mu = result.multipliers["mu_c"]
+    sigma = on.sigma
+    mu = on.multipliers["mu_c"]
     if not tips or not np.any(mu != 0.0) or np.abs(sigma.normals - sigma.normals[0]).max() <= STRAIGHT:
         return out
     nodes = sigma.multiplier_nodes
     turning = np.gradient(sigma.normals, sigma.arclength, axis=0)[nodes]  # dν/ds
-    gap = result.solution["u_minus"][result.interface_nodes("u_minus")] - \
-        result.solution["u_plus"][result.interface_nodes("u_plus")]
+    gap = on.gap
     force = sigma.weights[nodes] * mu
     tangents = sigma.frames[nodes, 0]
     for i, tip in enumerate(tips):
@@ -262,17 +261,18 @@ def contact_terms(tips: list[Tip], result) -> np.ndarray:
     return out
 
 
-def finish(tips: list[Tip], volume: np.ndarray, result) -> Fracture:
-    """G = volume terms − contact terms, and the contact zones of ``result``."""
+def finish(tips: list[Tip], volume: np.ndarray, on: OnSigma) -> Fracture:
+    """G = volume terms − contact terms, and the contact zones, from the Σ data ``on`` of a result
+    (:attr:`ddsolve.post.result.Result.on_sigma`)."""
     from ddsolve.post.analysis import contact_zones
 
-    contact = contact_terms(tips, result)
-    sigma = result.mesh.sigma
+    contact = contact_terms(tips, on)
+    sigma = on.sigma
     crack_of = np.full(len(sigma.points), -1)
     for index, (first, last) in enumerate(sigma.pieces(sigma.crack)):
         crack_of[first:last + 1] = index
     nodes = sigma.multiplier_nodes
-    runs = np.array(contact_zones(result), dtype=np.int64).reshape(-1, 2)
+    runs = np.array(contact_zones(on), dtype=np.int64).reshape(-1, 2)
     arc = sigma.arclength[nodes]
     return Fracture(
         points=np.array([tip.point for tip in tips]).reshape(-1, 2),
@@ -293,7 +293,7 @@ def of_result(result, tips: list[Tip]) -> Fracture:
         D, _ = assembly.elasticity(scene, spec.layer)
         fields = [theta(tip, result.mesh.sigma, half.points) for tip in tips]
         volume += volume_terms(half, D, result.solution[spec.name], fields, assembly.thermal_of(scene, spec.layer))
-    return finish(tips, volume, result)
+    return finish(tips, volume, result.on_sigma)
 
 
 def evaluate(result, inner: float | None = None, outer: float | None = None) -> Fracture:

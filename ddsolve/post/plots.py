@@ -26,10 +26,23 @@ LENGTH, STRESS = "length unit", "unit of E"
 STRESS_PERCENTILE = 99.0
 
 
-def stress_ceiling(values: np.ndarray) -> float:
-    """Top of the stress colour range: the STRESS_PERCENTILE-th percentile (1 when all is zero)."""
-    top = float(np.percentile(values, STRESS_PERCENTILE)) if len(values) else 0.0
+def stress_ceiling(values: np.ndarray, total: int | None = None) -> float:
+    """Top of the stress colour range: the STRESS_PERCENTILE-th percentile (1 when all is zero) of
+    ``values``, or (``total`` given) of ``total`` values whose :func:`largest_values` parts are ``values``."""
+    values = np.sort(np.asarray(values, dtype=np.float64))
+    total = len(values) if total is None else total
+    top = 0.0
+    if total:
+        position = STRESS_PERCENTILE / 100.0 * (total - 1)  # numpy's linear percentile
+        low, high = (int(np.floor(position)) - (total - len(values)), int(np.ceil(position)) - (total - len(values)))
+        top = float(values[low] + (values[high] - values[low]) * (position - np.floor(position)))
     return top if top > 0.0 and np.isfinite(top) else 1.0
+
+
+def largest_values(values: np.ndarray, total: int) -> np.ndarray:
+    """The values of a part of ``total`` values that :func:`stress_ceiling` of the whole may need."""
+    keep = total - int(np.floor(STRESS_PERCENTILE / 100.0 * (total - 1)))
+    return np.sort(values)[-keep:] if len(values) > keep else np.asarray(values)
 
 
 #: The longest scene title drawn in a picture (a line across it); a longer one ends in an ellipsis.
@@ -71,8 +84,11 @@ def magnification(result: Result, fraction: float = 0.08) -> float:
     """A displacement magnification from the data: the largest displacement drawn as ``fraction`` of
     the domain's size, rounded to one significant digit (1 when nothing moves)."""
     points = np.vstack([result.lower.points, result.upper.points])
-    size = np.ptp(points, axis=0).max()
-    largest = max(np.abs(u).max(initial=0.0) for u in result.solution.values())
+    return scale_for(np.ptp(points, axis=0).max(), result.on_sigma.largest, fraction)
+
+
+def scale_for(size: float, largest: float, fraction: float = 0.08) -> float:
+    """:func:`magnification` for a domain of ``size`` and a largest nodal displacement ``largest``."""
     if largest == 0.0 or not np.isfinite(largest):
         return 1.0
     raw = fraction * size / largest

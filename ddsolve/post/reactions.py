@@ -12,35 +12,80 @@ from __future__ import annotations
 import numpy as np
 
 from ddsolve.fem import assembly, supports
-from ddsolve.mesh.mesh import BLOCKS, CLAMPED, Mesh
+from ddsolve.mesh.mesh import BLOCKS, CLAMPED, HalfMesh, Mesh, SigmaLine
 from ddsolve.problem.scene import LAYERS, Scene
 
 
-def residual(scene: Scene, mesh: Mesh, block: int, u: np.ndarray, nodes: np.ndarray) -> np.ndarray:
-    """``(n, 2)``: K u − f of block ``block`` in x and y, exact at ``nodes`` (elsewhere partial)."""
-    spec = BLOCKS[block]
-    half = mesh.half(spec.side)
+def residual(scene: Scene, half: HalfMesh, layer: str, u: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """``(n, 2)``: K u − f of ``layer``'s block on ``half`` in x and y, exact at ``nodes`` (elsewhere partial)."""
     near = np.zeros(len(half.points), dtype=bool)
     near[nodes] = True
     cells = half.cells[near[half.cells].any(axis=1)]
-    D, _ = assembly.elasticity(scene, spec.layer)
+    D, _ = assembly.elasticity(scene, layer)
     forces = np.einsum("mij,mj->mi", assembly.element_stiffness(half.points, cells, D),
                        u.reshape(-1)[assembly.element_dofs(cells)])
     out = np.bincount(assembly.element_dofs(cells).ravel(), forces.ravel(), minlength=2 * len(half.points))
-    for load in assembly.layer_loads(scene, spec.layer, half):
+    for load in assembly.layer_loads(scene, layer, half):
         out -= assembly.boundary_load(half.points, half.edges(load.boundary), load)
-    thermal = assembly.thermal_of(scene, spec.layer)
+    thermal = assembly.thermal_of(scene, layer)
     if thermal is not None:
         out -= assembly.thermal_load(half.points, cells, D, *thermal)
     return out.reshape(-1, 2)
 
 
-def supported_boundaries(scene: Scene, mesh: Mesh, layer: str) -> list[str]:
-    """The layer's supported boundaries: the clamped sides of a box (or ``clamped``), then its displaced ones."""
-    names = mesh.boundary_names()
+def supported_boundaries(scene: Scene, names: set[str], layer: str) -> list[str]:
+    """The layer's supported boundaries among ``names``: the clamped sides of a box (or ``clamped``), then its
+    displaced ones."""
     clamped = [side for side in scene.geometry.clamped if side in names] if scene.mesh.kind == "box" else \
-        ([CLAMPED] if any(len(half.edges(CLAMPED)) for half in mesh.halves) else [])
-    return clamped + [name for (owner, name) in scene.displacements if owner == layer]
+        ([CLAMPED] if CLAMPED in names else [])
+    return clamped + [name for (owner, name) in scene.displacements if owner == layer and name in names]
+
+
+def block_forces(scene: Scene, half: HalfMesh, sigma: SigmaLine, block: int, u: np.ndarray,
+                 table: supports.SigmaSupports) -> tuple[np.ndarray, np.ndarray]:
+    """Block ``block``'s support forces ``(n, 2)`` in its dof frames, on the prescribed directions only
+    (a roller carries no force along itself), and which of them its own conditions prescribe."""
+    layer = BLOCKS[block].layer
+    fixed, _ = supports.block_supports(scene, half, sigma, layer, block, table)
+    own, _ = supports.own_supports(scene, half, sigma, layer)
+    r = residual(scene, half, layer, u, np.flatnonzero(fixed.any(axis=1)))
+    return np.einsum("nab,nb->na", supports.node_frames(half, sigma), r) * fixed, own & fixed
+
+
+def tie(sigma: SigmaLine, entries: list[np.ndarray], own: list[np.ndarray]) -> list[np.ndarray]:
+    """The four blocks' forces at the Σ multiplier nodes ``(k, 2)`` after those at entries the gluing ties
+    to a prescribed one go to the tied blocks prescribing them on their own (equal shares)."""
+    entries = list(entries)
+    crack = np.repeat(sigma.crack[sigma.multiplier_nodes], 2).reshape(-1, 2)
+    for group in ([0, 1, 2, 3], [0, 2], [1, 3]):
+        where = ~crack if len(group) == 4 else crack
+        owning = np.array([own[b] for b in group]) & where
+        count = owning.sum(axis=0)
+        total = np.where(where, sum(entries[b] for b in group), 0.0)
+        for position, b in enumerate(group):
+            moved = np.where(count > 0, np.where(owning[position], total / np.maximum(count, 1), 0.0), entries[b])
+            entries[b] = np.where(where, moved, entries[b])
+    return entries
+
+
+def boundary_sums(scene: Scene, half: HalfMesh, sigma: SigmaLine, layer: str, forces: np.ndarray
+                  ) -> dict[str, np.ndarray]:
+    """Boundary name -> the sum ``(2,)`` in x, y of a block's support forces (in its dof frames) on it."""
+    vectors = np.einsum("nab,na->nb", supports.node_frames(half, sigma), forces)
+    return {name: vectors[half.nodes(name)].sum(axis=0)
+            for name in supported_boundaries(scene, set(half.boundaries), layer)}
+
+
+def ordered(scene: Scene, parts: list[tuple[str, dict[str, np.ndarray]]]) -> dict[str, dict[str, np.ndarray]]:
+    """layer -> boundary -> reaction: the blocks' ``(layer, boundary sums)`` added up, every layer's boundaries
+    in the scene's order."""
+    out: dict[str, dict[str, np.ndarray]] = {layer: {} for layer in LAYERS}
+    for layer, sums in parts:
+        for name, force in sums.items():
+            out[layer][name] = out[layer].get(name, np.zeros(2)) + force
+    names = set().union(*(named for named in out.values()))
+    return {layer: {name: named[name] for name in supported_boundaries(scene, names, layer) if name in named}
+            for layer, named in out.items()}
 
 
 def reactions(scene: Scene, mesh: Mesh, solution: dict[str, np.ndarray],
@@ -50,40 +95,15 @@ def reactions(scene: Scene, mesh: Mesh, solution: dict[str, np.ndarray],
     table = table if table is not None else supports.sigma_supports(scene, mesh)
     sigma = mesh.sigma
     at = sigma.multiplier_nodes
-    forces, owned = [], []
+    forces, own = zip(*(block_forces(scene, mesh.half(spec.side), sigma, b, solution[spec.name], table)
+                        for b, spec in enumerate(BLOCKS)))
+    positions = [mesh.half(spec.side).sigma[at] for spec in BLOCKS]
+    tied = tie(sigma, [f[p] for f, p in zip(forces, positions)], [o[p] for o, p in zip(own, positions)])
+    parts = []
     for b, spec in enumerate(BLOCKS):
-        half = mesh.half(spec.side)
-        fixed, _ = supports.block_supports(scene, half, sigma, spec.layer, b, table)
-        own, _ = supports.own_supports(scene, half, sigma, spec.layer)
-        frames = supports.node_frames(half, sigma)
-        held = np.flatnonzero(fixed.any(axis=1))
-        r = residual(scene, mesh, b, solution[spec.name], held)
-        local = np.einsum("nab,nb->na", frames, r) * fixed  # on the prescribed directions only
-        forces.append(local)
-        owned.append(own & fixed)
-    # Σ entries tied to a prescribed one: their force goes to a tied block prescribing it on its own.
-    crack = np.repeat(sigma.crack[at], 2)
-    entries = [f[half_sigma] for f, half_sigma in
-               zip(forces, [mesh.half(spec.side).sigma[at] for spec in BLOCKS])]
-    own_entries = [o[mesh.half(spec.side).sigma[at]] for o, spec in zip(owned, BLOCKS)]
-    for group in ([0, 1, 2, 3], [0, 2], [1, 3]):
-        where = (~crack if len(group) == 4 else crack).reshape(-1, 2)
-        own = np.array([own_entries[b] for b in group]) & where
-        count = own.sum(axis=0)
-        total = np.where(where, sum(entries[b] for b in group), 0.0)
-        for position, b in enumerate(group):
-            moved = np.where(count > 0, np.where(own[position], total / np.maximum(count, 1), 0.0), entries[b])
-            entries[b] = np.where(where, moved, entries[b])
-    out: dict[str, dict[str, np.ndarray]] = {layer: {} for layer in LAYERS}
-    for b, spec in enumerate(BLOCKS):
-        half = mesh.half(spec.side)
-        frames = supports.node_frames(half, sigma)
-        forces[b][half.sigma[at]] = entries[b]
-        vectors = np.einsum("nab,na->nb", frames, forces[b])  # back to x, y
-        for name in supported_boundaries(scene, mesh, spec.layer):
-            nodes = half.nodes(name)
-            out[spec.layer][name] = out[spec.layer].get(name, np.zeros(2)) + vectors[nodes].sum(axis=0)
-    return out
+        forces[b][positions[b]] = tied[b]
+        parts.append((spec.layer, boundary_sums(scene, mesh.half(spec.side), sigma, spec.layer, forces[b])))
+    return ordered(scene, parts)
 
 
 def of_result(result, table: supports.SigmaSupports | None = None) -> dict[str, dict[str, np.ndarray]]:

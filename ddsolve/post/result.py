@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ddsolve.fem import assembly
-from ddsolve.mesh.mesh import BLOCKS, HalfMesh, Mesh
+from ddsolve.mesh.mesh import BLOCKS, HalfMesh, Mesh, SigmaLine
 from ddsolve.problem import scene as scenes
 
 
@@ -35,7 +35,7 @@ class Result:
     solves: int
     wall_time: float
     ranks: int
-    mesh: Mesh
+    mesh: Mesh | None  # None on rank 0 of a run whose ranks wrote the result (see ``held``)
     solution: dict[str, np.ndarray]  # block name -> (n, 2) nodal displacements
     multipliers: dict[str, np.ndarray]
     history: np.ndarray
@@ -50,6 +50,7 @@ class Result:
     reactions: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
     indicators: dict[str, np.ndarray] = field(default_factory=dict)
     levels: dict[str, np.ndarray] = field(default_factory=dict)
+    held: OnSigma | None = None  # rank 0 of a run whose ranks wrote the result: all it holds (no mesh, no solution)
 
     @cached_property
     def parsed_scene(self) -> scenes.Scene:
@@ -101,6 +102,15 @@ class Result:
         return cls(scene=scene, method=method, mesh=mesh, solution=solution,
                    multipliers=interface.split(lam, frames), **record)
 
+    @cached_property
+    def on_sigma(self) -> OnSigma:
+        """What the Σ post-processing (G, contact zones, the opening) needs of this result."""
+        if self.held is not None:
+            return self.held
+        return OnSigma(self.mesh.sigma, self.multipliers,
+                       {name: u[self.half(name).sigma] for name, u in self.solution.items()},
+                       max(np.abs(u).max(initial=0.0) for u in self.solution.values()))
+
     @property
     def lower(self) -> HalfMesh:
         return self.mesh.lower
@@ -137,6 +147,29 @@ class Result:
     @property
     def interface_x(self) -> np.ndarray:
         return self.interface_points[:, 0]
+
+
+@dataclass(frozen=True)
+class OnSigma:
+    """Σ-sized data of a result: Σ, the multipliers over its k multiplier nodes, every block's nodal
+    displacement (x, y) at the Σ nodes ``(s, 2)``, and the largest nodal |u| of the four blocks.  A run
+    that writes its result from the ranks holds only this (and its own blocks) on rank 0."""
+
+    sigma: SigmaLine
+    multipliers: dict[str, np.ndarray]
+    traces: dict[str, np.ndarray]
+    largest: float
+
+    @property
+    def gap(self) -> np.ndarray:
+        """``(k, 2)``: u⁻ − u⁺ (layer 1) at the multiplier nodes."""
+        nodes = self.sigma.multiplier_nodes
+        return self.traces["u_minus"][nodes] - self.traces["u_plus"][nodes]
+
+    @property
+    def opening(self) -> np.ndarray:
+        """``(k,)``: [u]·ν = (u⁺ − u⁻)·ν of layer 1 at the multiplier nodes (negative: overlap)."""
+        return -np.einsum("kd,kd->k", self.gap, self.sigma.normals[self.sigma.multiplier_nodes])
 
 
 #: Fewer Σ edges than this within the inner radius: G is printed with a note to refine near the tip.

@@ -3,8 +3,9 @@
 Rank 0 reads the scene; the leaders of u⁻ and u⁺ mesh a half each (or rank 0 reads the whole mesh);
 each rank receives only the half its blocks live on, and Σ (:func:`local_mesh`); every rank assembles
 and factors the blocks (or the rows of a block) it owns; rank 0 runs the multiplier method while the
-other ranks serve rounds of block solves (:func:`serve`); rank 0 gathers the block solutions (and the
-upper half) and writes the result.  Every phase of the launch is timed, with its CPU time and peak
+other ranks serve rounds of block solves (:func:`serve`); the ranks write their parts of the result
+together (:class:`OnRanks`, parallel HDF5), or rank 0 gathers the block solutions (and the upper half)
+and writes the result.  Every phase of the launch is timed, with its CPU time and peak
 memory (:class:`Phases`); the result file has them in ``/timings`` and ``/memory``.
 """
 from __future__ import annotations
@@ -22,7 +23,7 @@ from ddsolve.dd.interface import Interface, for_mesh
 from ddsolve.errors import DDSolveError, DivergedError, NotConvergedError
 from ddsolve.fem import assembly
 from ddsolve.io import hdf5 as io
-from ddsolve.mesh.mesh import BLOCKS, Mesh
+from ddsolve.mesh.mesh import BLOCKS, U_PLUS, Mesh
 from ddsolve.parallel import launch
 from ddsolve.parallel.blocks import Block
 from ddsolve.parallel.distribution import LocalMesh, gather_upper, local_mesh, whole, whole_mesh_checks
@@ -30,8 +31,9 @@ from ddsolve.parallel.exchange import Exchange, collective
 from ddsolve.parallel.launch import supported
 from ddsolve.parallel.phases import Phases, launch_age, memory_record
 from ddsolve.parallel.rounds import BlockServer, drive
-from ddsolve.post import estimate, fracture, reactions
-from ddsolve.post.result import Result
+from ddsolve.io import viewer
+from ddsolve.post import analysis, estimate, fracture, plots, reactions
+from ddsolve.post.result import OnSigma, Result
 from ddsolve.problem.scene import Scene
 
 #: Default block factorization per method.  The iterative methods make one solve per round with one
@@ -72,6 +74,122 @@ def gather_estimate(scene: Scene, mesh: LocalMesh, exchange: Exchange, server: B
     return None if parts is None else {spec.name: part.reshape(2, -1) for spec, part in zip(BLOCKS, parts)}
 
 
+
+
+def half_bytes(half) -> int:
+    """Bytes of a half's mesh arrays."""
+    return int(sum(a.nbytes for a in (half.points, half.cells, half.sigma, *half.boundaries.values())))
+
+
+def whole_mesh_bytes(local: LocalMesh, exchange: Exchange) -> int:
+    """Bytes of the whole mesh's arrays (both halves and Σ), counted by the leaders of u⁻ and u⁺."""
+    own = sum(half_bytes(local.half(BLOCKS[b].side)) for b in (0, U_PLUS) if exchange.comm.rank == exchange.leader(b))
+    return exchange.comm.allreduce(own) + local.nbytes - sum(half_bytes(half) for half in local.halves.values())
+
+
+class OnRanks:
+    """The result as the ranks hold it for a distributed write: each block's leader has its block's
+    displacements (x, y), indicators, cell fields and viewer share; rank 0 the Σ data (:class:`OnSigma`)
+    and the estimate, from sums over the blocks.  Only Σ-sized arrays and scalars are exchanged."""
+
+    def __init__(self, scene: Scene, local: LocalMesh, exchange: Exchange, server: BlockServer,
+                 interface: Interface, lam: np.ndarray | None):
+        comm, sigma = exchange.comm, local.sigma
+        frames = sigma.frames[sigma.multiplier_nodes]
+        self.scene, self.local, self.exchange = scene, local, exchange
+        self.solutions = {BLOCKS[b].name: assembly.to_global(server.solutions[b], assembly.trace_nodes(
+            local.half(BLOCKS[b].side), sigma), frames) for b in exchange.led_blocks}
+        traces = exchange.gather_varying([self.solutions[BLOCKS[b].name][local.half(BLOCKS[b].side).sigma].ravel()
+                                          for b in exchange.led_blocks], [2 * len(sigma.points)] * len(BLOCKS))
+        largest = comm.allreduce(max((np.abs(u).max(initial=0.0) for u in self.solutions.values()), default=0.0),
+                                 op=MPI.MAX)
+        on = OnSigma(sigma, interface.split(lam, frames), {spec.name: trace.reshape(-1, 2) for spec, trace in
+                                                           zip(BLOCKS, traces)}, largest) if exchange.is_root else None
+        self.on = comm.bcast(on, root=0)
+        pressure, jump = estimate.contact_on_sigma(sigma, self.on.multipliers["mu_c"], self.on.traces["u_minus"],
+                                                   self.on.traces["u_plus"])
+        self.indicators, squared, energy = {}, 0.0, 0.0
+        for name, u in self.solutions.items():
+            spec = next(spec for spec in BLOCKS if spec.name == name)
+            half = local.half(spec.side)
+            part = estimate.block_indicators(half.points, half.cells, assembly.elasticity(scene, spec.layer)[0], u)
+            contact = estimate.half_contact_indicators(half, pressure, jump) if spec.layer == "layer1" else 0.0
+            self.indicators[name], block_squared, block_energy = estimate.block_estimate(part, contact)
+            squared, energy = squared + block_squared, energy + block_energy
+        totals = comm.reduce(np.array([squared, energy]), op=MPI.SUM, root=0)
+        self.relative = estimate.relative(*totals) if exchange.is_root else None
+        self.reactions = self._reactions()
+
+    def _reactions(self) -> dict[str, dict[str, np.ndarray]] | None:
+        """The reactions on rank 0: each leader its block's support forces, the gluing's ties settled on
+        rank 0 from the Σ entries (:func:`ddsolve.post.reactions.reactions` in one process)."""
+        scene, local, exchange = self.scene, self.local, self.exchange
+        sigma = local.sigma
+        count = 2 * len(sigma.multiplier_nodes)
+        forces, own, positions = {}, {}, {}
+        for b in exchange.led_blocks:
+            half = local.half(BLOCKS[b].side)
+            positions[b] = half.sigma[sigma.multiplier_nodes]
+            forces[b], own[b] = reactions.block_forces(scene, half, sigma, b, self.solutions[BLOCKS[b].name],
+                                                       local.supports)
+        entries = exchange.gather_varying([np.concatenate([forces[b][positions[b]].ravel(), own[b][positions[b]].ravel()])
+                                           for b in exchange.led_blocks], [2 * count] * len(BLOCKS))
+        tied = None
+        if exchange.is_root:
+            tied = reactions.tie(sigma, [e[:count].reshape(-1, 2) for e in entries],
+                                 [e[count:].reshape(-1, 2) != 0.0 for e in entries])
+        tied = exchange.comm.bcast(tied, root=0)
+        parts = []
+        for b in exchange.led_blocks:
+            forces[b][positions[b]] = tied[b]
+            half = local.half(BLOCKS[b].side)
+            parts.append((BLOCKS[b].layer, reactions.boundary_sums(scene, half, sigma, BLOCKS[b].layer, forces[b])))
+        parts = exchange.comm.gather(parts, root=0)
+        return reactions.ordered(scene, [part for mine in parts for part in mine]) if exchange.is_root else None
+
+    @property
+    def held_bytes(self) -> int:
+        """Bytes of the mesh and solution arrays this rank holds at output."""
+        return self.local.nbytes + sum(u.nbytes for u in self.solutions.values())
+
+    def files(self, result: Result | None, output: Path) -> tuple[io.Part, viewer.Distributed]:
+        """This rank's part of the result file and of the viewer files (``result``: rank 0's)."""
+        local, exchange, comm = self.local, self.exchange, self.exchange.comm
+        sigma, nodes = local.sigma, local.sigma.multiplier_nodes
+        written = {side: min(b for b in exchange.led_blocks if BLOCKS[b].side == side)
+                   for side in {BLOCKS[b].side for b in exchange.led_blocks}}  # a half's first led block
+        datasets = {}
+        for side in written:
+            datasets.update(io.half_datasets(local.half(side), nodes))
+        held = comm.allgather({side: (local.half(side).sigma, np.ptp(local.half(side).points, axis=0),
+                                      local.half(side).points.min(axis=0)) for side in written})
+        sides = {side: value for mine in held for side, value in mine.items()}
+        low = np.min([corner for _, _, corner in sides.values()], axis=0)
+        high = np.max([corner + extent for _, extent, corner in sides.values()], axis=0)
+        shares, tops, fields = {}, {}, {}
+        for name, u in self.solutions.items():
+            spec = next(spec for spec in BLOCKS if spec.name == name)
+            fields[name] = analysis.block_cell_fields(self.scene, spec.layer, local.half(spec.side), u)
+            datasets.update(io.block_datasets(name, u, fields[name].von_mises, self.indicators[name]))
+            other = next(o.name for o in BLOCKS if o.layer == spec.layer and o.side == -spec.side)
+            glue = viewer.Glue(sides[-1][0], sides[1][0], sigma.crack, local.nodes, local.cells,
+                               self.on.traces[other])
+            shares[spec.layer] = viewer.layer_share(spec.layer, local.half(spec.side), u, fields[name], glue,
+                                                    self.indicators[name])
+            tops[spec.layer] = plots.largest_values(fields[name].von_mises, sum(local.cells.values()))
+        tops = comm.gather(tops, root=0)
+        script = ""
+        if exchange.is_root:
+            datasets.update(io.sigma_datasets(self.on, result.history, result.active_set_changes, result.levels,
+                                              result.fracture))
+            shares["sigma"] = viewer.sigma_mesh(self.on, local.half(-1).degree)
+            ceilings = {layer: plots.stress_ceiling(np.concatenate([top[layer] for top in tops if layer in top]),
+                                                    sum(local.cells.values())) for layer in viewer.LAYER_TITLES}
+            script = viewer.paraview_script(self.scene.title, output.parent, viewer.viewer_names(output.stem),
+                                            ceilings, plots.scale_for(float((high - low).max()), self.on.largest),
+                                            plots.one_above_the_other(np.array([low, high])),
+                                            analysis.sigma_is_graph(self.on))
+        return io.Part(datasets, io.attributes(result) if exchange.is_root else {}), viewer.Distributed(shares, script)
 
 
 @dataclass
@@ -191,8 +309,13 @@ def bound(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, iterations: in
 
 
 def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mesh: Mesh | None = None,
-          setup: Setup | None = None) -> Result | None:
-    """Run the domain decomposition for ``scene`` on ``comm``; write ``output`` on rank 0.
+          setup: Setup | None = None, gather: bool = True) -> Result | None:
+    """Run the domain decomposition for ``scene`` on ``comm``; write ``output``.
+
+    Not ``gather`` (the command line), with ``output`` on more than one rank and h5py built with MPI:
+    every rank writes its part of the result set (:class:`OnRanks`) and rank 0's result holds only the
+    Σ data, the scalars and G (``mesh`` None, ``solution`` empty); else rank 0 gathers the whole
+    result and writes it.
 
     Returns the result on rank 0 (None elsewhere).  A run that reaches max_iterations writes its
     result with converged = false and then raises NotConvergedError on every rank (the error holds
@@ -225,14 +348,24 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
             for block in setup.blocks:
                 block.destroy()
 
-        parts = gather_estimate(scene, local, exchange, server)
+        distributed = output is not None and not gather and io.parallel_available(comm)
+        if distributed:  # the estimate on the blocks' leaders
+            shares = OnRanks(scene, local, exchange, server, interface, outcome.lam if exchange.is_root else None)
+        else:
+            parts = gather_estimate(scene, local, exchange, server)
         phases.end("estimate")
         stages["Output"].push()
         volume = comm.reduce(fracture.block_terms(scene, local, local.tips, {b: server.solutions[b]
                                                                             for b in exchange.led_blocks}), root=0)
         sizes = [2 * local.nodes[spec.side] for spec in BLOCKS]
-        solutions = exchange.gather_varying([server.solutions[b] for b in exchange.led_blocks], sizes)
-        mesh = gather_upper(local, exchange)
+        whole_bytes = whole_mesh_bytes(local, exchange)
+        if distributed:
+            mine["held_bytes"] = shares.held_bytes
+        else:
+            solutions = exchange.gather_varying([server.solutions[b] for b in exchange.led_blocks], sizes)
+            mesh = gather_upper(local, exchange)
+            mine["held_bytes"] = (whole_bytes + 8 * sum(sizes) if exchange.is_root else
+                                  local.nbytes + sum(8 * sizes[b] for b in exchange.led_blocks))
         phases.end("output")
         memory = comm.gather((mine, phases.peak, phases.cpu), root=0)
         result = None
@@ -242,20 +375,30 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
             timings["setup"] = sum(timings.get(name, 0.0) for name in ("meshing", "distribution", "assembly"))
             for name in phases.cpu:  # CPU seconds of every rank together
                 timings[f"{name}_cpu"] = sum(cpu[name] for _, _, cpu in memory)
-            result = Result.from_blocks(
-                scene.text, method, mesh, solutions, interface, outcome.lam, converged=outcome.converged,
-                iterations=outcome.iterations, solves=rounds.count,
+            record = dict(
+                converged=outcome.converged, iterations=outcome.iterations, solves=rounds.count,
                 wall_time=timings["factorization"] + timings["iterations"], ranks=comm.size,
                 history=np.array(outcome.history), timings=timings, message=outcome.message,
                 active_set_changes=np.array(outcome.active_set_changes, dtype=np.int64),
-                memory=memory_record(memory, sum(sizes), whole(mesh).nbytes),
+                memory=memory_record(memory, sum(sizes), whole_bytes),
                 attrs={**launch.provenance(), "stop": scene.solver.stop, "tol": scene.solver.tol,
                        "peak_memory_mb": [max(peak.values()) for _, peak, _ in memory], **outcome.details})
-            estimated = estimate.combine(mesh, parts, result.solution, result.multipliers["mu_c"])
-            result.attrs["error_estimate"], result.indicators = estimated.relative, estimated.indicators
-            result.fracture = fracture.finish(local.tips, volume, result)
-            result.reactions = reactions.of_result(result, local.supports)
-        if output is not None:
+            if distributed:
+                result = Result(scene=scene.text, method=method, mesh=None, solution={},
+                                multipliers=shares.on.multipliers, held=shares.on, **record)
+                result.attrs["error_estimate"] = shares.relative
+                result.fracture = fracture.finish(local.tips, volume, shares.on)
+                result.reactions = shares.reactions
+            else:
+                result = Result.from_blocks(scene.text, method, mesh, solutions, interface, outcome.lam, **record)
+                estimated = estimate.combine(mesh, parts, result.solution, result.multipliers["mu_c"])
+                result.attrs["error_estimate"], result.indicators = estimated.relative, estimated.indicators
+                result.fracture = fracture.finish(local.tips, volume, result.on_sigma)
+                result.reactions = reactions.of_result(result, local.supports)
+        if distributed:
+            part, viewer = shares.files(result, output)
+            io.write_distributed(output, part, viewer, comm, final=True)
+        elif output is not None:
             collective(comm, lambda: io.write(output, result, final=True), root_only=True)
         stages["Output"].pop()
         if failure is not None:  # not converged: the result is written with converged = false

@@ -17,12 +17,16 @@ from ddsolve.solvers import adapt, checks, driver
 from ddsolve.solvers import reference as monolithic
 
 
-def solve(scene: Scene, comm, output: Path | None, progress: Callable[[str], None] = print) -> Result | None:
+def solve(scene: Scene, comm, output: Path | None, progress: Callable[[str], None] = print,
+          gather: bool = True) -> Result | None:
     """The domain decomposition of ``scene`` on every rank of ``comm``, adaptive when the scene asks;
-    ``output`` written from rank 0.  The result on rank 0, None elsewhere."""
+    ``output`` written.  The result on rank 0, None elsewhere; not ``gather``: the ranks write their
+    parts of ``output`` and rank 0's result holds only Σ, the scalars and G (see
+    :func:`ddsolve.solvers.driver.solve`)."""
     collective(comm, lambda: checks.check_size(scene, comm.size), root_only=True)
-    method = adapt.solve if scene.mesh.target_error is not None else driver.solve
-    return method(scene, comm, output, progress=progress)
+    if scene.mesh.target_error is not None:
+        return adapt.solve(scene, comm, output, progress=progress)
+    return driver.solve(scene, comm, output, progress=progress, gather=gather)
 
 
 def reference(scene: Scene, output: Path | None = None, progress: Callable[[str], None] = print) -> Result:
