@@ -181,7 +181,7 @@ class OnRanks:
         script = ""
         if exchange.is_root:
             datasets.update(io.sigma_datasets(self.on, result.history, result.active_set_changes, result.levels,
-                                              result.fracture))
+                                              result.fracture, result.reactions))
             shares["sigma"] = viewer.sigma_mesh(self.on, local.half(-1).degree)
             ceilings = {layer: plots.stress_ceiling(np.concatenate([top[layer] for top in tops if layer in top]),
                                                     sum(local.cells.values())) for layer in viewer.LAYER_TITLES}
