@@ -223,6 +223,8 @@ def _read(f: h5py.File, path: Path) -> Result:
 #: Per-tip datasets of /fracture (the fields of ddsolve.post.result.Fracture), then the contact zones.
 FRACTURE_FIELDS = ("points", "directions", "crack", "inner", "outer", "spacing", "G", "contact", "zones",
                    "zone_crack")
+#: Per-tip datasets added later (the split into modes I and II): absent from older files, read as NaN.
+MODE_FIELDS = ("G_I", "G_II", "phase", "symmetric")
 
 
 def _write_fracture(f, result: Result) -> None:
@@ -233,7 +235,7 @@ def _write_fracture(f, result: Result) -> None:
     if result.fracture is None:
         return
     group = f.create_group("fracture")
-    for key in FRACTURE_FIELDS:
+    for key in FRACTURE_FIELDS + MODE_FIELDS:
         group[key] = getattr(result.fracture, key)
     group["arclength"] = result.mesh.sigma.arclength[result.multiplier_nodes]
     group["opening"] = normal_jump(result)
@@ -245,4 +247,5 @@ def _read_fracture(f):
 
     if "fracture" not in f:
         return None
-    return Fracture(**{key: _dataset(f, f"fracture/{key}")[()] for key in FRACTURE_FIELDS})
+    return Fracture(**{key: _dataset(f, f"fracture/{key}")[()] for key in FRACTURE_FIELDS},
+                    **{key: _dataset(f, f"fracture/{key}")[()] for key in MODE_FIELDS if f"fracture/{key}" in f})
