@@ -22,7 +22,11 @@ respect to moving the mesh nodes by θ (tests/test_fracture.py checks it against
 
 The radii come from the geometry: ``outer`` is half the distance from the tip to the nearest other
 tip, point of the outer boundary (loaded, free or clamped) or kink of Σ, ``inner`` half of ``outer``;
-the scene's ``[fracture] inner, outer`` override them.  No PETSc or MPI here.
+the scene's ``[fracture] inner, outer`` override them.
+
+G splits into opening and sliding (:func:`mode_split`): by the domain integral of the parts of the fields
+symmetric and antisymmetric about Σ where the θ disc is mirror-symmetric, else by virtual crack closure of
+the tip's gluing forces (docs/fracture.md, "Modes I and II").  No PETSc or MPI here.
 """
 from __future__ import annotations
 

@@ -177,8 +177,10 @@ class Fracture:
             self.symmetric = np.zeros(count, dtype=bool)
 
     def modes(self) -> list[str]:
-        """Per tip: «(G_I ..., G_II ..., ψ = ...°)», with «by crack closure» where not split by symmetry."""
-        return [f"(G_I {g1:.3e}, G_II {g2:.3e}, ψ = {psi:.1f}°{'' if by_symmetry else ', by crack closure'})"
+        """Per tip: «(G_I ..., G_II ..., ψ = ...°)», with «by crack closure» where not split by symmetry;
+        empty where there is no split (a result written before it)."""
+        return ["" if np.isnan(g1) else
+                f"(G_I {g1:.3e}, G_II {g2:.3e}, ψ = {psi:.1f}°{'' if by_symmetry else ', by crack closure'})"
                 for g1, g2, psi, by_symmetry in zip(self.G_I, self.G_II, self.phase, self.symmetric)]
 
     def lines(self) -> list[str]:
@@ -188,7 +190,7 @@ class Fracture:
                                                  self.modes()):
             note = f"; only {a / h:.1f} elements within the inner radius: refine near this tip" \
                 if a < FEW_ELEMENTS * h else ""
-            lines.append(f"G at tip ({x:.6g}, {y:.6g}) of crack {c}: {g:.6e} {modes}   (θ radii {a:.4g}, {b:.4g}{note})")
+            lines.append(f"G at tip ({x:.6g}, {y:.6g}) of crack {c}: {g:.6e}{' ' * bool(modes)}{modes}   (θ radii {a:.4g}, {b:.4g}{note})")
         if np.size(self.zone_crack):
             lines.append("crack faces in contact (arc length along Σ): " + ", ".join(
                 f"[{a:.4g}, {b:.4g}] on crack {c}" for (a, b), c in zip(self.zones, self.zone_crack)))
