@@ -126,7 +126,7 @@ def sigma_datasets(on: OnSigma, history: np.ndarray, active_set_changes: np.ndar
     out.update({f"reactions/{layer}/{name}": np.asarray(force, dtype=np.float64)
                 for layer, named in reactions.items() for name, force in named.items()})
     if fracture is not None:
-        out.update({f"fracture/{key}": getattr(fracture, key) for key in FRACTURE_FIELDS})
+        out.update({f"fracture/{key}": getattr(fracture, key) for key in FRACTURE_FIELDS + MODE_FIELDS})
         out.update({"fracture/arclength": sigma.arclength[nodes], "fracture/opening": on.opening,
                     "fracture/pressure": on.multipliers["mu_c"]})
     return out
@@ -296,6 +296,8 @@ def _read(f: h5py.File, path: Path) -> Result:
 #: Per-tip datasets of /fracture (the fields of ddsolve.post.result.Fracture), then the contact zones.
 FRACTURE_FIELDS = ("points", "directions", "crack", "inner", "outer", "spacing", "G", "contact", "zones",
                    "zone_crack")
+#: Per-tip datasets added later (the split into modes I and II): absent from older files, read as NaN.
+MODE_FIELDS = ("G_I", "G_II", "phase", "symmetric")
 
 
 def _read_fracture(f):
@@ -303,4 +305,5 @@ def _read_fracture(f):
 
     if "fracture" not in f:
         return None
-    return Fracture(**{key: _dataset(f, f"fracture/{key}")[()] for key in FRACTURE_FIELDS})
+    return Fracture(**{key: _dataset(f, f"fracture/{key}")[()] for key in FRACTURE_FIELDS},
+                    **{key: _dataset(f, f"fracture/{key}")[()] for key in MODE_FIELDS if f"fracture/{key}" in f})

@@ -22,10 +22,15 @@ respect to moving the mesh nodes by θ (tests/test_fracture.py checks it against
 
 The radii come from the geometry: ``outer`` is half the distance from the tip to the nearest other
 tip, point of the outer boundary (loaded, free or clamped) or kink of Σ, ``inner`` half of ``outer``;
-the scene's ``[fracture] inner, outer`` override them.  No PETSc or MPI here.
+the scene's ``[fracture] inner, outer`` override them.
+
+G splits into opening and sliding (:func:`mode_split`): by the domain integral of the parts of the fields
+symmetric and antisymmetric about Σ where the θ disc is mirror-symmetric, else by virtual crack closure of
+the tip's gluing forces (docs/fracture.md, "Modes I and II").  No PETSc or MPI here.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -261,9 +266,11 @@ def contact_terms(tips: list[Tip], on: OnSigma) -> np.ndarray:
     return out
 
 
-def finish(tips: list[Tip], volume: np.ndarray, on: OnSigma) -> Fracture:
+def finish(tips: list[Tip], volume: np.ndarray, on: OnSigma, split: dict[str, np.ndarray] | None = None
+           ) -> Fracture:
     """G = volume terms − contact terms, and the contact zones, from the Σ data ``on`` of a result
-    (:attr:`ddsolve.post.result.Result.on_sigma`)."""
+    (:attr:`ddsolve.post.result.Result.on_sigma`); ``split``: G's split into modes I and II
+    (:func:`mode_split`), or none."""
     from ddsolve.post.analysis import contact_zones
 
     contact = contact_terms(tips, on)
@@ -274,13 +281,15 @@ def finish(tips: list[Tip], volume: np.ndarray, on: OnSigma) -> Fracture:
     nodes = sigma.multiplier_nodes
     runs = np.array(contact_zones(on), dtype=np.int64).reshape(-1, 2)
     arc = sigma.arclength[nodes]
+    G = np.asarray(volume, dtype=np.float64) - contact
     return Fracture(
         points=np.array([tip.point for tip in tips]).reshape(-1, 2),
         directions=np.array([tip.direction for tip in tips]).reshape(-1, 2),
         crack=np.array([tip.crack for tip in tips], dtype=np.int64),
         inner=np.array([tip.inner for tip in tips]), outer=np.array([tip.outer for tip in tips]),
-        spacing=np.array([tip.spacing for tip in tips]), G=np.asarray(volume, dtype=np.float64) - contact, contact=contact,
+        spacing=np.array([tip.spacing for tip in tips]), G=G, contact=contact,
         zones=arc[runs].reshape(-1, 2), zone_crack=crack_of[nodes[runs[:, 0]]] if len(runs) else np.zeros(0, np.int64),
+        **(split or {}),
     )
 
 
@@ -293,7 +302,7 @@ def of_result(result, tips: list[Tip]) -> Fracture:
         D, _ = assembly.elasticity(scene, spec.layer)
         fields = [theta(tip, result.mesh.sigma, half.points) for tip in tips]
         volume += volume_terms(half, D, result.solution[spec.name], fields, assembly.thermal_of(scene, spec.layer))
-    return finish(tips, volume, result.on_sigma)
+    return finish(tips, volume, result.on_sigma, mode_split(tips, result))
 
 
 def evaluate(result, inner: float | None = None, outer: float | None = None) -> Fracture:
@@ -302,3 +311,174 @@ def evaluate(result, inner: float | None = None, outer: float | None = None) -> 
     tips = find_tips(result.mesh, inner if inner is not None else options.inner,
                      outer if outer is not None else options.outer)
     return of_result(result, tips)
+
+
+# --- modes I and II -------------------------------------------------------------------------------
+#: A reflection about Σ leaves a layer's law unchanged when it reproduces D to this (relative).
+MIRROR = 1e-10
+
+
+def mode_split(tips: list[Tip], result) -> dict[str, np.ndarray]:
+    """G_I, G_II, the phase angle (degrees) and ``symmetric`` (how each tip was split) at every tip.
+
+    Where the θ disc is mirror-symmetric about Σ (Σ straight there, both layers' laws unchanged by the
+    reflection: always for isotropic layers) the fields split into a part symmetric about Σ (opening,
+    mode I) and an antisymmetric one (sliding, mode II), and the domain integral of each part is its G
+    (:func:`mirror_split`); elsewhere the virtual crack closure of the tip's gluing forces μᵍ on the jumps
+    behind it (:func:`closure_split`).  A tip whose faces touch at the first crack node behind it
+    (non-penetration holds there) has G_I = 0.  ψ = atan2(s_II √G_II, s_I √G_I), s_I the sign of the
+    opening and s_II that of the sliding behind the tip in its frame (x along the extension, y turned
+    90° counter-clockwise from it): atan(√(G_II/G_I)) signed like K_II/K_I.
+    """
+    count = len(tips)
+    out = {"G_I": np.full(count, np.nan), "G_II": np.full(count, np.nan), "phase": np.full(count, np.nan),
+           "symmetric": np.zeros(count, dtype=bool)}
+    for i, tip in enumerate(tips):
+        parts = mirror_split(tip, result)
+        out["symmetric"][i] = parts is not None
+        G_I, G_II = parts if parts is not None else closure_split(tip, result)
+        opening, sliding, closed = _behind(tip, result)
+        if closed:
+            G_I = 0.0
+        out["G_I"][i], out["G_II"][i] = G_I, G_II
+        K_I = math.sqrt(max(G_I, 0.0)) * (-1.0 if opening < 0.0 else 1.0) + 0.0  # + 0.0: no −0.0 (atan2 → 180°)
+        K_II = math.sqrt(max(G_II, 0.0)) * (-1.0 if sliding < 0.0 else 1.0) + 0.0
+        out["phase"][i] = math.degrees(math.atan2(K_II, K_I))
+    return out
+
+
+def mirror_split(tip: Tip, result) -> tuple[float, float] | None:
+    """(G_I, G_II): the domain integral of the parts of the four blocks' fields symmetric and antisymmetric
+    about Σ's line at the tip, or None where the disc is not mirror-symmetric.
+
+    Block (layer, side) at a node x takes the mirror image R u(x′) of the same layer's block on the other
+    side at x′ = x reflected about Σ (R the reflection; the other half's field interpolated with its own
+    shape functions); u_I = (u + R u(x′))/2, u_II = (u − R u(x′))/2.  θ is symmetric, so the cross term of
+    the quadratic integral is odd and vanishes up to the interpolation: G_I + G_II = G.
+    """
+    sigma = result.mesh.sigma
+    normal = sigma.normals[tip.node]
+    reflection = np.eye(2) - 2.0 * np.outer(normal, normal)
+    scene = result.parsed_scene
+    laws = {spec.layer: assembly.elasticity(scene, spec.layer)[0] for spec in BLOCKS}
+    if not _straight_near(tip, sigma) or not all(mirrored_law(D, reflection) for D in laws.values()):
+        return None
+    from ddsolve.errors import DDSolveError
+    from ddsolve.post.analysis import interpolate
+
+    parts = np.zeros(2)
+    for half, other in ((result.lower, result.upper), (result.upper, result.lower)):
+        field = theta(tip, sigma, half.points)
+        nodes = np.unique(half.cells[np.any(field != 0.0, axis=1)[half.cells].any(axis=1)])
+        blocks = [spec for spec in BLOCKS if result.half(spec.name) is half]
+        partners = [next(o for o in BLOCKS if o.layer == spec.layer and o is not spec) for spec in blocks]
+        images = half.points[nodes] - 2.0 * ((half.points[nodes] - tip.point) @ normal)[:, None] * normal
+        try:
+            mirrored = interpolate(other, np.hstack([result.solution[p.name] for p in partners]), images)
+        except DDSolveError:  # the mirror image of the disc leaves the other half
+            return None
+        for j, spec in enumerate(blocks):
+            u = result.solution[spec.name]
+            image = mirrored[:, 2 * j:2 * j + 2] @ reflection
+            thermal = assembly.thermal_of(scene, spec.layer)
+            if thermal is not None and not mirrored_temperature(thermal, half.points[nodes], images):
+                return None
+            for k, sign in enumerate((1.0, -1.0)):
+                part = np.zeros_like(u)
+                part[nodes] = 0.5 * (u[nodes] + sign * image)
+                # a temperature symmetric about Σ strains the symmetric part only: its eigenstrain is mode I's
+                parts[k] += volume_terms(half, laws[spec.layer], part, [field], thermal if k == 0 else None)[0]
+    return float(parts[0]), float(parts[1])
+
+
+def closure_split(tip: Tip, result) -> tuple[float, float]:
+    """(G_I, G_II) by the virtual crack closure technique from the tip's gluing forces.
+
+    Advancing the tip by one element releases u⁻ = u⁺ at the tip node (and, for P2, at the midpoint ahead):
+    the forces w_k μᵍ_k that hold the upper half to the lower one (μ⁻ and μ⁺ act within one half and stay),
+    whose work on the jumps [u] = u⁺ − u⁻ they close is the energy released.  The jumps are taken at the
+    nodes as far behind the tip (P1: the vertex behind with the tip's force; P2: the vertex behind with the
+    tip's force and the midpoint behind with the midpoint's), components in the tip's (τ, ν) frame (ν gives
+    G_I, τ gives G_II), and for unequal elements ahead (a₁) and behind (a₂) with the jump scaled as √r:
+    G = −Σ F·[u] / (2√(a₁a₂)).  NaN where the nodes do not exist (a tip one element from the crack's end).
+    """
+    sigma = result.mesh.sigma
+    step = 1 if tip.direction @ sigma.frames[tip.node, 0] > 0 else -1
+    span = 2 if result.mesh.degree == 2 else 1
+    nodes = tip.node + step * np.arange(-span, span + 1)  # behind ... tip ... ahead
+    multiplier = np.searchsorted(sigma.multiplier_nodes, nodes.clip(0, len(sigma.points) - 1))
+    valid = (nodes >= 0) & (nodes < len(sigma.points)) & (multiplier < len(sigma.multiplier_nodes))
+    if not valid.all() or np.any(sigma.multiplier_nodes[multiplier] != nodes):
+        return math.nan, math.nan
+    frame = sigma.frames[tip.node]
+    force = (sigma.weights[nodes, None] * result.multipliers["mu_g"][multiplier]) @ frame.T
+    jump = (result.solution["u_plus"][result.upper.sigma[nodes]]
+            - result.solution["u_minus"][result.lower.sigma[nodes]]) @ frame.T
+    ahead = np.linalg.norm(sigma.points[nodes[-1]] - tip.point)
+    behind = np.linalg.norm(sigma.points[nodes[0]] - tip.point)
+    work = -np.sum(force[span:2 * span] * jump[:span], axis=0)  # the tip's force on the farthest jump behind
+    tangential, normal = work / (2.0 * math.sqrt(ahead * behind))
+    return float(normal), float(tangential)
+
+
+def _straight_near(tip: Tip, sigma: SigmaLine) -> bool:
+    """Σ is the straight line through the tip within the θ disc (and one edge beyond)."""
+    reach = tip.outer + np.linalg.norm(np.diff(sigma.points, axis=0), axis=1).max()
+    near = np.linalg.norm(sigma.points - tip.point, axis=1) <= reach
+    normal = sigma.normals[tip.node]
+    off = np.abs((sigma.points[near] - tip.point) @ normal)
+    return bool(off.max() <= STRAIGHT * reach and np.abs(sigma.normals[near] - normal).max() <= STRAIGHT)
+
+
+def mirrored_temperature(thermal: tuple[np.ndarray, object], points: np.ndarray, images: np.ndarray) -> bool:
+    """Whether a layer's eigenstrain e ΔT is its own mirror image: no shear in e, ΔT equal at ``points``
+    and their ``images``."""
+    strain, temperature = thermal
+    here, there = temperature(points[:, 0], points[:, 1]), temperature(images[:, 0], images[:, 1])
+    return bool(abs(strain[2]) <= MIRROR * np.abs(strain).max()
+                and np.abs(here - there).max(initial=0.0) <= MIRROR * np.abs(here).max(initial=0.0))
+
+
+def disc_part(half: HalfMesh, tips: list[Tip]) -> tuple[HalfMesh, np.ndarray]:
+    """What the split into modes reads of ``half``: the cells whose bounding box reaches into a tip's θ
+    disc (which hold the disc and, Σ being straight there, its mirror image) and every Σ node; with the
+    indices of the nodes kept (the part's nodes in order)."""
+    corners = half.points[half.cells]
+    low, high = corners.min(axis=1), corners.max(axis=1)
+    near = np.zeros(len(half.cells), dtype=bool)
+    for tip in tips:
+        gap = np.maximum(np.maximum(low - tip.point, tip.point - high), 0.0)
+        near |= np.hypot(gap[:, 0], gap[:, 1]) <= tip.outer
+    kept = np.union1d(np.unique(half.cells[near]), half.sigma)
+    position = np.full(len(half.points), -1, dtype=np.int64)
+    position[kept] = np.arange(len(kept))
+    return HalfMesh(half.points[kept], position[half.cells[near]], half.side, position[half.sigma]), kept
+
+
+def mirrored_law(D: np.ndarray, reflection: np.ndarray) -> bool:
+    """Whether the in-plane law D (Voigt, engineering shear) is unchanged by the ``reflection``."""
+    basis = np.array([[[1.0, 0.0], [0.0, 0.0]], [[0.0, 0.0], [0.0, 1.0]], [[0.0, 0.5], [0.5, 0.0]]])
+    turned = reflection @ basis @ reflection.T
+    T = np.stack([turned[:, 0, 0], turned[:, 1, 1], 2.0 * turned[:, 0, 1]])  # columns: the images of the basis
+    return bool(np.abs(T.T @ D @ T - D).max() <= MIRROR * np.abs(D).max())
+
+
+def _behind(tip: Tip, result) -> tuple[float, float, bool]:
+    """Opening and sliding summed over the tip's crack nodes within ``inner`` (sliding along the extension,
+    signed as K_II), and whether the faces touch (a contact zone, with non-penetration) at the crack node
+    nearest the tip."""
+    from ddsolve.post.analysis import contact_zones
+
+    sigma = result.mesh.sigma
+    distance = np.linalg.norm(result.interface_points - tip.point, axis=1)
+    crack = result.crack & (distance <= tip.inner)
+    if not crack.any():
+        return 0.0, 0.0, False
+    jump = result.solution["u_plus"][result.interface_nodes("u_plus")] - \
+        result.solution["u_minus"][result.interface_nodes("u_minus")]
+    normal = sigma.normals[tip.node]
+    upward = np.sign(normal @ np.array([-tip.direction[1], tip.direction[0]]))  # ν is the tip frame's ±y
+    nearest = np.flatnonzero(crack)[np.argmin(distance[crack])]
+    closed = result.parsed_scene.nonpenetration and any(
+        first <= nearest <= last for first, last in contact_zones(result))
+    return float(np.sum(jump[crack] @ normal)), float(upward * np.sum(jump[crack] @ tip.direction)), bool(closed)

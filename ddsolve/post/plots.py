@@ -156,7 +156,7 @@ def interface_jumps(results: list[tuple[str, Result]], path: Path) -> None:
 
 def crack_faces(result: Result, path: Path) -> None:
     """Along Σ: the opening [u]·ν of layer 1 and the contact pressure μᶜ, cracks shaded; with the result's
-    fracture data, the contact zones shaded red and G written at each crack tip."""
+    fracture data, the contact zones shaded red and G with its split into modes written at each crack tip."""
     plt = _pyplot()
     position, axis_label = along_sigma(result)
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 5.5), sharex=True, constrained_layout=True)
@@ -174,11 +174,12 @@ def crack_faces(result: Result, path: Path) -> None:
                 ax.axvspan(*np.interp([start, end], arc, position), color="tab:red", alpha=0.15, linewidth=0)
         if len(fracture.zones):
             shading += "; red: faces in contact"
-        for point, rate in zip(fracture.points, fracture.G):
+        for point, rate, modes in zip(fracture.points, fracture.G, fracture.modes()):
             nearest = int(np.argmin(np.linalg.norm(result.interface_points - point, axis=1)))
             top.axvline(position[nearest], color="0.4", linestyle=":", linewidth=0.8)
-            top.annotate(f"G = {rate:.3e}", (position[nearest], 0.0), xytext=(3, 6), textcoords="offset points",
-                         fontsize=8, rotation=90, va="bottom")
+            split = "\n" + modes.strip("()") if modes else ""  # older results have no split
+            top.annotate(f"G = {rate:.3e}{split}", (position[nearest], 0.0), xytext=(3, 6),
+                         textcoords="offset points", fontsize=7, rotation=90, va="bottom")
     top.axhline(0.0, color="black", linewidth=0.6)
     top.set_ylabel(f"opening [u]·ν ({LENGTH})")
     bottom.set_ylabel(f"contact pressure μᶜ ({STRESS})")

@@ -182,7 +182,10 @@ class Fracture:
 
     Tips: ``points``, ``directions`` (unit, away from the crack), ``crack`` (index), ``inner`` and
     ``outer`` radii, ``spacing`` (the mean length of the Σ edges at the tip), ``G`` and its part
-    ``contact`` from the turning normals (zero on a straight Σ).
+    ``contact`` from the turning normals (zero on a straight Σ); its split into opening ``G_I`` and
+    sliding ``G_II``, the phase angle ``phase`` ψ = atan(√(G_II/G_I)) in degrees, signed as K_II/K_I,
+    and ``symmetric``: split by the mirror symmetry about Σ (else by virtual crack closure; see
+    :func:`ddsolve.post.fracture.mode_split`).  Results written before the split have NaN there.
     Contact zones: ``zones`` ``(z, 2)`` as arc length along Σ from its first node (first and last
     touching node), ``zone_crack`` the crack of each.
     """
@@ -197,14 +200,34 @@ class Fracture:
     contact: np.ndarray
     zones: np.ndarray
     zone_crack: np.ndarray
+    G_I: np.ndarray | None = None
+    G_II: np.ndarray | None = None
+    phase: np.ndarray | None = None
+    symmetric: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        count = len(self.G)
+        for name in ("G_I", "G_II", "phase"):
+            if getattr(self, name) is None:
+                setattr(self, name, np.full(count, np.nan))
+        if self.symmetric is None:
+            self.symmetric = np.zeros(count, dtype=bool)
+
+    def modes(self) -> list[str]:
+        """Per tip: «(G_I ..., G_II ..., ψ = ...°)», with «by crack closure» where not split by symmetry;
+        empty where there is no split (a result written before it)."""
+        return ["" if np.isnan(g1) else
+                f"(G_I {g1:.3e}, G_II {g2:.3e}, ψ = {psi:.1f}°{'' if by_symmetry else ', by crack closure'})"
+                for g1, g2, psi, by_symmetry in zip(self.G_I, self.G_II, self.phase, self.symmetric)]
 
     def lines(self) -> list[str]:
         """One line per tip and one for the contact zones, as printed after a solve."""
         lines = []
-        for (x, y), c, g, a, b, h in zip(self.points, self.crack, self.G, self.inner, self.outer, self.spacing):
+        for (x, y), c, g, a, b, h, modes in zip(self.points, self.crack, self.G, self.inner, self.outer, self.spacing,
+                                                 self.modes()):
             note = f"; only {a / h:.1f} elements within the inner radius: refine near this tip" \
                 if a < FEW_ELEMENTS * h else ""
-            lines.append(f"G at tip ({x:.6g}, {y:.6g}) of crack {c}: {g:.6e}   (θ radii {a:.4g}, {b:.4g}{note})")
+            lines.append(f"G at tip ({x:.6g}, {y:.6g}) of crack {c}: {g:.6e}{' ' * bool(modes)}{modes}   (θ radii {a:.4g}, {b:.4g}{note})")
         if np.size(self.zone_crack):
             lines.append("crack faces in contact (arc length along Σ): " + ", ".join(
                 f"[{a:.4g}, {b:.4g}] on crack {c}" for (a, b), c in zip(self.zones, self.zone_crack)))

@@ -120,6 +120,24 @@ class OnRanks:
         self.relative = estimate.relative(*totals) if exchange.is_root else None
         self.reactions = self._reactions()
 
+    def mode_split(self, result: Result | None) -> dict[str, np.ndarray] | None:
+        """G's split into modes I and II on rank 0 (``result``: rank 0's), from the parts of the halves
+        around the tips (:func:`ddsolve.post.fracture.disc_part`) that each leader sends with its block's
+        displacements there."""
+        local, exchange = self.local, self.exchange
+        mine = []
+        for b in exchange.led_blocks:
+            part, kept = fracture.disc_part(local.half(BLOCKS[b].side), local.tips)
+            mine.append((b, part, self.solutions[BLOCKS[b].name][kept]))
+        parts = exchange.comm.gather(mine, root=0)
+        if not exchange.is_root:
+            return None
+        parts = [part for group in parts for part in group]
+        halves = {BLOCKS[b].side: half for b, half, _ in parts}
+        disc = dataclasses.replace(result, mesh=Mesh(halves[-1], halves[1], local.sigma, local.origin),
+                                   solution={BLOCKS[b].name: u for b, _, u in parts}, held=None)
+        return fracture.mode_split(local.tips, disc)
+
     def _reactions(self) -> dict[str, dict[str, np.ndarray]] | None:
         """The reactions on rank 0: each leader its block's support forces, the gluing's ties settled on
         rank 0 from the Σ entries (:func:`ddsolve.post.reactions.reactions` in one process)."""
@@ -387,15 +405,18 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
                 result = Result(scene=scene.text, method=method, mesh=None, solution={},
                                 multipliers=shares.on.multipliers, held=shares.on, **record)
                 result.attrs["error_estimate"] = shares.relative
-                result.fracture = fracture.finish(local.tips, volume, shares.on)
                 result.reactions = shares.reactions
             else:
                 result = Result.from_blocks(scene.text, method, mesh, solutions, interface, outcome.lam, **record)
                 estimated = estimate.combine(mesh, parts, result.solution, result.multipliers["mu_c"])
                 result.attrs["error_estimate"], result.indicators = estimated.relative, estimated.indicators
-                result.fracture = fracture.finish(local.tips, volume, result.on_sigma)
+                result.fracture = fracture.finish(local.tips, volume, result.on_sigma,
+                                                  fracture.mode_split(local.tips, result))
                 result.reactions = reactions.of_result(result, local.supports)
         if distributed:
+            split = shares.mode_split(result)  # collective: the parts around the tips go to rank 0
+            if exchange.is_root:
+                result.fracture = fracture.finish(local.tips, volume, shares.on, split)
             part, viewer = shares.files(result, output)
             io.write_distributed(output, part, viewer, comm, final=True)
         elif output is not None:

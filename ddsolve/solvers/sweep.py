@@ -24,7 +24,8 @@ T the most tips of a run, padded with NaN or −1):
   check, from solver.tol), ``mesh_reused``,
   ``factors_reused``, ``time`` (the whole run), ``setup_time``, ``factorization_time``,
   ``solve_time`` (R,), ``message`` (R,) strings (empty when the run succeeded);
-- ``tips/G``, ``tips/contact``, ``tips/inner``, ``tips/outer``, ``tips/spacing``, ``tips/crack`` (R, T),
+- ``tips/G``, ``tips/G_I``, ``tips/G_II``, ``tips/phase``, ``tips/contact``, ``tips/inner``, ``tips/outer``,
+  ``tips/spacing``, ``tips/crack`` (R, T),
   ``tips/points``, ``tips/directions`` (R, T, 2): G at every crack tip (see ddsolve.post.fracture);
 - ``contact_zones/run``, ``start``, ``end``, ``crack`` (Z,): every contact zone of every run, as arc
   length along Σ.
@@ -359,7 +360,8 @@ def _line(number: int, total: int, record: dict) -> str:
 
 SCALARS = ("energy", "converged", "iterations", "rounds", "unknowns", "mesh_reused", "factors_reused", "time",
            "setup_time", "factorization_time", "solve_time", "kkt_tolerance")
-TIP_FIELDS = {"G": np.nan, "contact": np.nan, "inner": np.nan, "outer": np.nan, "spacing": np.nan, "crack": -1}
+TIP_FIELDS = {"G": np.nan, "contact": np.nan, "inner": np.nan, "outer": np.nan, "spacing": np.nan, "crack": -1,
+              "G_I": np.nan, "G_II": np.nan, "phase": np.nan}
 
 
 def _write(path: Path, header: dict, records: list[dict]) -> None:
