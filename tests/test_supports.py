@@ -11,7 +11,8 @@ from ddsolve.errors import DDSolveError, SceneError
 from ddsolve.fem import assembly
 from ddsolve.io import hdf5 as io
 from ddsolve.mesh import geometry
-from ddsolve.mesh.mesh import HalfMesh, make_mesh
+from ddsolve.mesh.element import TRIANGLE_RULES, element_geometry
+from ddsolve.mesh.mesh import BLOCKS, HalfMesh, make_mesh
 from ddsolve.post import analysis, fracture
 from ddsolve.problem import expressions, scene
 from ddsolve.problem.scene import Load
@@ -99,7 +100,7 @@ def test_clamped_layers_under_uniform_heating_carry_the_closed_form_stress(model
 def test_free_expansion_carries_no_stress():
     """Two identical layers, the same α, uniform ΔT, on rollers: the left side (u_x = 0) and the bottom
     (u_y = 0) hold both halves' rigid motions with the top displaced by the free expansion (a block
-    held only through Σ is not solved yet): zero stress (1e-12 of EαΔT) and G = 0."""
+    held only through Σ is not solved yet): zero stress (1e-12 of EαΔT), G = 0 and Π = 0."""
     strain = (1 + NU) * ALPHA * DT  # plane strain
     text = SQUARE % ("[]", "plane_strain", ALPHA) + f"""
 [displacements.layer1.left]
@@ -122,6 +123,8 @@ y = {2 * strain!r}
     x, y = result.lower.points.T
     assert np.allclose(result.solution["u_minus"], np.column_stack([strain * (x + 1), strain * (y + 1)]),
                        rtol=0, atol=1e-14)
+    # No stress, no traction: the potential energy (the mechanical one, ½ ∫ (ε − ε₀):D:(ε − ε₀)) vanishes.
+    assert abs(result.energy) <= 1e-12 * E * strain ** 2 * 4.0
 
 
 def test_g_under_a_thermal_mismatch_is_the_derivative_of_the_energy():
@@ -189,12 +192,84 @@ normal = 0.002
 """
 
 
+#: No load: the right side clamped, both layers' left side displaced by one vector G_LEFT (Σ's left end, a
+#: glued vertex, displaced with it).
+DISPLACED = """
+[geometry]
+box = [-1.0, 1.0, -1.0, 1.0]
+crack = [-0.5, 0.5]
+clamped = ["right"]
+[mesh]
+size = 0.25
+degree = %d
+[materials.layer1]
+E = 200.0
+nu = 0.3
+[materials.layer2]
+E = 50.0
+nu = 0.2
+[displacements.layer1.left]
+x = 0.01
+y = -0.02
+[displacements.layer2.left]
+x = 0.01
+y = -0.02
+"""
+G_LEFT = np.array([0.01, -0.02])
+
+#: ROLLERS with a traction on the right side, whose top corner node is prescribed in y (a load f_P on a
+#: prescribed dof).
+PULLED = ROLLERS + """
+[loads.layer1.right]
+y = 0.5
+"""
+
+
+@pytest.mark.parametrize("degree", [1, 2])
+def test_energy_with_a_displaced_boundary_is_half_the_work_of_the_reactions(degree):
+    """No load (Clapeyron): Π = ½ a(u, u) = ½ Σ g·R over the supports (only the displaced side moves) to 1e-10,
+    and ½ Σ_b ∫ ε(u_b)ᵀ D ε(u_b) element by element agrees."""
+    result = solved(scene.loads(DISPLACED % degree))
+    work = 0.5 * sum(G_LEFT @ result.reactions[layer]["left"] for layer in ("layer1", "layer2"))
+    assert work > 0
+    assert result.energy == pytest.approx(work, rel=1e-10)
+    assert result.energy == pytest.approx(0.5 * analysis.block_energies(result).sum(), rel=1e-10)
+
+
+def mechanical_energy(result) -> float:
+    """½ Σ_b ∫ (ε(u_b) − ε₀)ᵀ D (ε(u_b) − ε₀) − the work of the tractions, element by element from the fields."""
+    source, total = result.parsed_scene, 0.0
+    xi, weights = TRIANGLE_RULES[6]
+    for spec in BLOCKS:
+        half, u = result.mesh.half(spec.side), result.solution[spec.name].reshape(-1)
+        D, _ = assembly.elasticity(source, spec.layer)
+        det, gradients = element_geometry(half.points, half.cells, xi)
+        strain = np.einsum("mqij,mj->mqi", assembly.strain_operator(gradients), u[assembly.element_dofs(half.cells)])
+        eigenstrain = assembly.eigenstrains(source, spec.layer, half.points, half.cells, xi)
+        elastic = strain - (eigenstrain[0] if eigenstrain is not None else 0.0)
+        total += 0.5 * np.einsum("mq,q,mqi,ij,mqj->", det, weights, elastic, D, elastic)
+        for load in assembly.layer_loads(source, spec.layer, half):
+            total -= assembly.boundary_load(half.points, half.edges(load.boundary), load) @ u
+    return float(total)
+
+
+@pytest.mark.parametrize("text", [ROLLERS, PULLED], ids=["rollers", "pulled"])
+def test_energy_is_the_mechanical_energy_less_the_work_of_the_tractions(text):
+    """Prescribed values (x, y and normal, at Σ too) and a thermal mismatch, with and without a traction:
+    the result's Π equals ½ ∫ (ε − ε₀):D:(ε − ε₀) − ∫ t·u integrated from the fields, to 1e-10."""
+    result = solved(scene.loads(text))
+    assert result.energy == pytest.approx(mechanical_energy(result), rel=1e-10)
+
+
 @pytest.mark.mpi
-@pytest.mark.parametrize("method, ranks", [("schur", 4), ("feti", 4), ("mprgp", 1), ("fista", 1), ("uzawa", 1)])
+@pytest.mark.parametrize("method, ranks", [("schur", 4), ("schur", 8), ("feti", 4), ("mprgp", 1), ("fista", 1),
+                                          ("uzawa", 1)])
 def test_every_method_agrees_with_the_reference_under_displacement_control(method, ranks, tmp_path):
     """Rollers, a displaced and a normally displaced side, a thermal mismatch: each method's displacements equal
     the reference's (1e-8 of the largest for the exact schur, 1e-5 for the iterative ones), and so do the
-    reactions, printed one line per boundary and layer and read back from the file."""
+    reactions, printed one line per boundary and layer and read back from the file, and the potential
+    energy (1e-10 for schur, on 8 ranks with distributed blocks too; 1e-6 for the iterative ones at their
+    default tolerances, measured 2e-10 to 4e-8)."""
     path = tmp_path / "rollers.toml"
     path.write_text(ROLLERS)
     expected = solved(scene.load(path))
@@ -210,6 +285,7 @@ def test_every_method_agrees_with_the_reference_under_displacement_control(metho
         for name, force in named.items():
             assert np.abs(got.reactions[layer][name] - force).max() <= 1e2 * tolerance * np.abs(force).max() + 1e-12
             assert f"reaction on {layer} at {name}: " in completed.stdout
+    assert got.energy == pytest.approx(expected.energy, rel=1e-10 if method == "schur" else 1e-6)
 
 
 @pytest.mark.parametrize("override, message", [

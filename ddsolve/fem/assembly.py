@@ -222,6 +222,11 @@ class BlockSystem:
     their right-hand side is zero.  ``indptr``, ``indices``, ``data`` are the CSR arrays of the local
     rows with global columns.  ``trace_dofs`` are the dofs of the multiplier nodes, in Σ order, in
     their local frames; ``modes`` are the rigid-body motions of the local rows (for algebraic multigrid).
+    ``energy_offset`` is what Π = ½ a(u, u) − L(u) adds to ½ xᵀKx − xᵀrhs of the decoupled, lifted system
+    at its solution (a constant; the local rows' share, so the shares of a distributed block sum to it):
+    with g the prescribed values and f the loads, ½ g_P·(K g)_P + ½ Σ K_ii g_i² − f_P·g_P, and with a
+    thermal load ½ ∫ ε₀ᵀ D ε₀, so that Π is the mechanical energy ½ ∫ (ε − ε₀)ᵀ D (ε − ε₀) minus the
+    work of the tractions.
     """
 
     name: str
@@ -234,6 +239,7 @@ class BlockSystem:
     first: int = 0
     modes: np.ndarray | None = None  # (3, local dofs)
     block_size: int = 2
+    energy_offset: float = 0.0
 
 
 def row_ranges(nodes: int, parts: int) -> list[tuple[int, int]]:
@@ -345,7 +351,8 @@ def block_system(name: str, half: HalfMesh, sigma: SigmaLine, D: np.ndarray, loa
     these rows, when another block of the half has made it.  ``prescribed``: (fixed, values) ``(n, 2)``
     in the dof frames (:func:`ddsolve.fem.supports.block_supports`; default: Γ_D, zero); nonzero values
     are lifted, rhs = f − K g, and a prescribed dof's row reads K_ii x_i = K_ii g_i.  ``thermal``: the
-    layer's eigenstrain per unit temperature and the temperature change, whose load ∫ Bᵀ D ε₀ is added."""
+    layer's eigenstrain per unit temperature and the temperature change, whose load ∫ Bᵀ D ε₀ is added.
+    Both shift the potential energy by a constant: :attr:`BlockSystem.energy_offset`."""
     n = 2 * len(half.points)
     structure = shared if shared is not None else pattern(half, rows)
     first, last = structure.first, structure.last
@@ -381,10 +388,17 @@ def block_system(name: str, half: HalfMesh, sigma: SigmaLine, D: np.ndarray, loa
     rhs = np.zeros(n)
     for load in loads:
         rhs += boundary_load(half.points, half.edges(load.boundary), load)
+    offset = 0.0
     if thermal is not None:
         rhs += thermal_load(half.points, structure.cells, D, *thermal)
+        owned = (structure.cells[:, 0] >= first // 2) & (structure.cells[:, 0] < last // 2)  # each cell once
+        offset += thermal_energy(half.points, structure.cells[owned], D, *thermal)
     if rotated:
         rhs = rotate_vector(rhs, nodes, frames)
+    if lifted:
+        held = np.flatnonzero(fixed[first:last]) + first
+        g = values[held]
+        offset += float(g @ (0.5 * lift[held] + 0.5 * diagonal[held] * g - rhs[held]))
     rhs -= lift
     rhs[fixed] = diagonal[fixed] * values[fixed]
     modes = rigid_body_modes(half.points[first // 2:last // 2], centre=half.points.mean(axis=0))
@@ -392,7 +406,7 @@ def block_system(name: str, half: HalfMesh, sigma: SigmaLine, D: np.ndarray, loa
         mine = (nodes >= first // 2) & (nodes < last // 2)
         modes = np.array([rotate_vector(mode, nodes[mine] - first // 2, frames[mine]) for mode in modes])
     return BlockSystem(name, structure.indptr, structure.indices, data, rhs[first:last],
-                       element_dofs(nodes[:, None]).ravel(), n, first, modes)
+                       element_dofs(nodes[:, None]).ravel(), n, first, modes, energy_offset=offset)
 
 
 def thermal_load(points: np.ndarray, cells: np.ndarray, D: np.ndarray, eigenstrain: np.ndarray,
@@ -403,6 +417,15 @@ def thermal_load(points: np.ndarray, cells: np.ndarray, D: np.ndarray, eigenstra
     change = cell_temperatures(points, cells, temperature, xi)
     force = np.einsum("mq,q,mqja,j->ma", det * change, weights, strain_operator(gradients), D @ eigenstrain)
     return np.bincount(element_dofs(cells).ravel(), force.ravel(), minlength=2 * len(points))
+
+
+def thermal_energy(points: np.ndarray, cells: np.ndarray, D: np.ndarray, eigenstrain: np.ndarray,
+                   temperature: Expression) -> float:
+    """½ ∫ ε₀ᵀ D ε₀ over ``cells``, ε₀ = ``eigenstrain`` × ΔT(x, y), with the quadrature of :func:`thermal_load`."""
+    xi, weights = TRIANGLE_RULES[6]
+    det, _ = element_geometry(points, cells, xi)
+    change = cell_temperatures(points, cells, temperature, xi)
+    return 0.5 * float(np.einsum("mq,q->", det * change ** 2, weights)) * float(eigenstrain @ D @ eigenstrain)
 
 
 def cell_temperatures(points: np.ndarray, cells: np.ndarray, temperature: Expression, xi: np.ndarray) -> np.ndarray:

@@ -249,10 +249,12 @@ class Block:
         return self._gather_trace(x[self.trace_rows])
 
     def energies(self) -> np.ndarray | None:
-        """(xᵀ b, xᵀ f) of the last solve, on the leader: the energy xᵀ K x and the work of the body
-        loads f (the traction loads, whatever the interface loads were)."""
+        """(xᵀ b, xᵀ f − c) of the last solve, on the leader: the energy xᵀ K x and the work of the body
+        loads f (the traction loads, whatever the interface loads were) less the system's energy offset c
+        (prescribed values, thermal load), so that ½ xᵀ K x − (xᵀ f − c) is the block's share of Π."""
         x = self.x.getArray(readonly=True)
-        local = np.array([np.dot(x, self.rhs.getArray(readonly=True)) * self.scale, np.dot(x, self.system.rhs)])
+        local = np.array([np.dot(x, self.rhs.getArray(readonly=True)) * self.scale,
+                          np.dot(x, self.system.rhs) - self.system.energy_offset])
         return self.mpi.reduce(local, root=0) if self.mpi.size > 1 else local
 
     def gather(self, x: np.ndarray) -> np.ndarray | None:

@@ -84,7 +84,7 @@ class ParallelRounds:
         self.exchange, self.server, self.trace_size, self.stages = exchange, server, trace_size, stages
         self.count = 0
         self.elapsed = 0.0  # seconds inside rounds
-        self.work = np.zeros(len(BLOCKS))  # work of the body loads in the last solve
+        self.work = np.zeros(len(BLOCKS))  # work of the body loads less the energy offsets, last solve
         self.residuals = np.zeros(len(BLOCKS))  # relative residuals of the last full solve
         self.largest = 0.0  # largest nodal displacement in the last full solve
 
@@ -117,7 +117,8 @@ class ParallelRounds:
         return results[:, :trace], results[:, trace]
 
     def potential_energy(self, energies: np.ndarray) -> float:
-        """Π = Σ_b ½ x_bᵀ K_b x_b − f_bᵀ x_b of the last full solve, whose energies are given."""
+        """Π = Σ_b ½ x_bᵀ K_b x_b − (f_bᵀ x_b − c_b) of the last full solve, whose energies are given
+        (c_b: the block's energy offset, :class:`~ddsolve.fem.assembly.BlockSystem`)."""
         return float(0.5 * energies.sum() - self.work.sum())
 
     def schur_complements(self) -> np.ndarray:

@@ -59,7 +59,8 @@ class Result:
 
     @property
     def energy(self) -> float:
-        """The potential energy Π = ½ a(u, u) − L(u) of the discrete solution."""
+        """The potential energy Π = ½ a(u, u) − L(u) of the discrete solution, prescribed values included; with a
+        thermal load the mechanical energy ½ ∫ (ε − ε₀):D:(ε − ε₀) less the work of the tractions."""
         return float(self.attrs.get("energy", np.nan))
 
     @property

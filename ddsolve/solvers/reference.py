@@ -107,7 +107,8 @@ def solve(scene: Scene, mesh: Mesh) -> Result:
     else:
         raise SolverError(f"reference: the active set did not settle in {MAX_ACTIVE_SET_STEPS} steps")
     elapsed = time.perf_counter() - started
-    energy = sum(0.5 * u @ assembly.csr_matvec(s, u) - s.rhs @ u for s, u in zip(systems, fields))
+    energy = sum(0.5 * u @ assembly.csr_matvec(s, u) - s.rhs @ u + s.energy_offset
+                 for s, u in zip(systems, fields))
     checked = constraints.kkt(interface, traces, lam, None,
                            np.array([analysis.block_residual(s, u, load)
                                      for s, u, load in zip(systems, fields, interface.loads(lam))]),
