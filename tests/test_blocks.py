@@ -63,6 +63,39 @@ def test_schur_complement_from_mumps_is_the_condensed_stiffness(system):
     plain.destroy()
 
 
+@pytest.mark.skipif(default_factor_package("mumps") != "mumps", reason="PETSc without MUMPS")
+@pytest.mark.parametrize("route", ["inverse", "solves"])
+def test_every_schur_route_gives_the_condensed_stiffness(system, route):
+    """``inverse`` (MUMPS's entries of K⁻¹) and ``solves`` (multi-column solves) after a plain factorization
+    give the Schur complement of ``factorization``, and solves afterwards are still ordinary ones."""
+    reference = Block(system, factor_package="mumps")
+    reference.factor(schur=True)
+    expected = reference.schur_complement()
+    reference.destroy()
+    block = Block(system, factor_package="mumps")
+    block.factor(schur=True, route=route)
+    assert block.route == route
+    assert np.abs(block.schur_complement() - expected).max() < 1e-10 * np.abs(expected).max()
+    if route == "inverse":
+        assert np.allclose(block.inverse_entries(), block.flexibility(), rtol=1e-10, atol=1e-14)
+    x = block.solve(np.ones(len(system.trace_dofs)), body=True)
+    rhs = system.rhs.copy()
+    rhs[system.trace_dofs] += 1.0
+    assert np.allclose(dense(system) @ x, rhs, rtol=1e-9, atol=1e-12)
+    block.destroy()
+
+
+def test_a_route_mumps_cannot_take_falls_back_to_solves_and_a_bad_route_is_refused(system):
+    from ddsolve.errors import SolverError
+
+    plain = Block(system, factor_package="petsc")
+    plain.factor(schur=True, route="inverse")  # PETSc's Cholesky has no inverse entries
+    assert plain.route == "solves"
+    with pytest.raises(SolverError, match="unknown Schur complement route 'lu'"):
+        plain.factor(schur=True, route="lu")
+    plain.destroy()
+
+
 def test_options_prefix_selects_the_block_solver(system):
     options = PETSc.Options()
     options["u_minus_ksp_type"] = "cg"

@@ -74,7 +74,7 @@ def monolithic(scene: scenes.Scene, mesh, systems) -> tuple["Result", dict]:
 
     Returns the result and its timings: ``merge`` (the glued matrix), ``factorization`` and
     ``solve`` (solves and the dense contact problem); ``factorization + solve`` is the solve phase;
-    ``factorization_cpu`` and ``solve_cpu`` are their CPU seconds.
+    ``merge_cpu``, ``factorization_cpu`` and ``solve_cpu`` are CPU seconds.
     """
     import dataclasses
 
@@ -89,14 +89,14 @@ def monolithic(scene: scenes.Scene, mesh, systems) -> tuple["Result", dict]:
 
     interface = for_mesh(mesh.sigma, scene.nonpenetration)
     contact = interface.slices["mu_c"]
-    started = time.perf_counter()
+    started, cpu = time.perf_counter(), time.process_time()
     numbers = reference.numbering(systems, interface, np.zeros(contact.stop - contact.start, dtype=bool))
     unknowns = interface.trace_unknowns()
     normal = 2 * interface.vertex[contact] + 1
     faces = np.concatenate([unknowns[U_MINUS][normal], unknowns[U_PLUS][normal]])  # crack normal unknowns
     system = dataclasses.replace(reference.merged_system(systems, numbers), trace_dofs=faces)
     block = Block(system, factor_package="mumps")
-    timings = {"merge": time.perf_counter() - started}
+    timings = {"merge": time.perf_counter() - started, "merge_cpu": time.process_time() - cpu}
     started, cpu = time.perf_counter(), time.process_time()
     block.factor(schur=len(faces) > 0)
     timings["factorization"] = time.perf_counter() - started
@@ -187,8 +187,8 @@ ACCOUNT_PHASES = ("assembly", "analysis", "numeric factorization", "Schur extrac
                   "solves", "rounds, other")
 #: PETSc's events (``-log_view`` names) that time the phases inside the factorizations and solves.
 ACCOUNT_EVENTS = {"analysis": "MatCholFctrSym", "numeric factorization": "MatCholFctrNum", "solves": "MatSolve"}
-#: Phases of the DD that the ranks share (block work); the others run on rank 0 alone.
-PARALLEL_PHASES = ("assembly", "analysis", "numeric factorization", "Schur extraction", "solves")
+#: Phases of the DD that the ranks share (block work); the interface solve runs on rank 0 alone.
+PARALLEL_PHASES = ("assembly", "analysis", "numeric factorization", "Schur extraction", "solves", "rounds, other")
 
 
 def _event_seconds() -> dict[str, float]:
@@ -204,49 +204,58 @@ def _event_seconds() -> dict[str, float]:
 
 def phase_account(scene: scenes.Scene, mesh, systems) -> dict[str, dict[str, float]]:
     """CPU seconds per phase (:data:`ACCOUNT_PHASES`) of the default method with all four blocks in
-    this process, and of the monolithic AMF solve, one after the other in one process with one BLAS
-    thread (phases inside MUMPS from PETSc's event log: wall seconds of single-threaded work).
+    this process, and of the monolithic AMF solve, one after the other in one process.
 
-    The DD's ``assembly`` is the block matrices (the monolithic's: the glued matrix, built from
-    them); ``Schur extraction`` the factorization phase beyond MUMPS's analysis and numeric
-    factorization (copying S_b, factoring it for the solves); ``interface solve`` rank 0's dense
-    solve (the monolithic's: its dense contact problem); ``rounds, other`` the rest of the rounds
-    (messages, traces, checks).
+    Phases inside MUMPS (:data:`ACCOUNT_EVENTS`) split the CPU seconds of the phase that holds them in
+    proportion of PETSc's event times to the phase's wall time (on a loaded machine wall time is
+    not CPU time).  The DD's ``assembly`` is the block matrices (the monolithic's: the glued matrix,
+    built from them); ``Schur extraction`` the factorization phase beyond MUMPS's analysis and
+    numeric factorization (copying S_b, factoring it for the solves); ``interface solve`` rank 0's
+    dense solve between rounds (the monolithic's: its dense contact problem); ``rounds, other`` the
+    rest of the rounds (messages, traces, checks).
     """
     from mpi4py import MPI
     from petsc4py import PETSc
 
     from ddsolve.solvers import driver
 
+    def share(cpu: float, wall: float, seconds: float) -> float:
+        return cpu * seconds / wall if wall > 0.0 else 0.0
+
     PETSc.Log.begin()
     before = _event_seconds()
     dd = driver.solve(scene, MPI.COMM_SELF, None, progress=lambda line: None, mesh=mesh)
     events = {phase: seconds - before[phase] for phase, seconds in _event_seconds().items()}
-    factor_cpu, rounds_cpu = dd.timings["factorization_cpu"], dd.timings["iterations_cpu"]
-    interface = dd.attrs.get("rank0_solve_time", dd.timings["update"])
-    dd_phases = {"assembly": dd.timings["assembly_cpu"], **events,
-                 "Schur extraction": max(factor_cpu - events["analysis"] - events["numeric factorization"], 0.0),
-                 "interface solve": interface,
-                 "rounds, other": max(rounds_cpu - interface - events["solves"], 0.0)}
+    t = dd.timings
+    analysis = share(t["factorization_cpu"], t["factorization"], events["analysis"])
+    numeric = share(t["factorization_cpu"], t["factorization"], events["numeric factorization"])
+    solves = share(t["iterations_cpu"], t["iterations"], events["solves"])
+    interface = share(t["iterations_cpu"], t["iterations"], t["update"])
+    dd_phases = {"assembly": t["assembly_cpu"], "analysis": analysis, "numeric factorization": numeric,
+                 "Schur extraction": max(t["factorization_cpu"] - analysis - numeric, 0.0),
+                 "interface solve": interface, "solves": solves,
+                 "rounds, other": max(t["iterations_cpu"] - interface - solves, 0.0)}
     options = PETSc.Options()
     options["reference_mat_mumps_icntl_7"] = MONOLITHIC_ORDERINGS["AMF"]
     before = _event_seconds()
     try:
-        _, timings = monolithic(scene, mesh, systems)
+        _, t = monolithic(scene, mesh, systems)
     finally:
         options.delValue("reference_mat_mumps_icntl_7")
     events = {phase: seconds - before[phase] for phase, seconds in _event_seconds().items()}
-    mono_phases = {"assembly": timings["merge"], **events,
-                   "Schur extraction": max(timings["factorization_cpu"] - events["analysis"]
-                                           - events["numeric factorization"], 0.0),
-                   "interface solve": max(timings["solve_cpu"] - events["solves"], 0.0), "rounds, other": 0.0}
+    analysis = share(t["factorization_cpu"], t["factorization"], events["analysis"])
+    numeric = share(t["factorization_cpu"], t["factorization"], events["numeric factorization"])
+    solves = share(t["solve_cpu"], t["solve"], events["solves"])
+    mono_phases = {"assembly": t["merge_cpu"], "analysis": analysis, "numeric factorization": numeric,
+                   "Schur extraction": max(t["factorization_cpu"] - analysis - numeric, 0.0),
+                   "interface solve": max(t["solve_cpu"] - solves, 0.0), "solves": solves, "rounds, other": 0.0}
     return {"dd": dd_phases, "mono": mono_phases}
 
 
 def structure_bound(account: dict[str, dict[str, float]], ranks: int) -> float:
     """The largest wall-time ratio monolithic / DD that the DD's measured work allows on ``ranks``
-    ranks: block work (:data:`PARALLEL_PHASES`) shared perfectly, rank 0's work added; solve phases
-    only (no assembly on either side)."""
+    ranks: block work (:data:`PARALLEL_PHASES`) shared perfectly, rank 0's interface solve added;
+    solve phases only (no assembly on either side)."""
     dd, mono = account["dd"], account["mono"]
     shared = sum(dd[phase] for phase in PARALLEL_PHASES if phase != "assembly")
     alone = sum(dd[phase] for phase in ACCOUNT_PHASES if phase not in PARALLEL_PHASES)
@@ -341,9 +350,10 @@ def account_table(records: list[dict]) -> str:
                      f"| {min(m['solve_phase'] for m in mono):.3f} | {min(m['cpu'] for m in mono):.2f} | {ratio:.2f} "
                      f"| {min(d['cpu'] for d in dd) / min(m['cpu'] for m in mono):.2f} "
                      f"| {structure_bound(record['account'], record['ranks']):.2f} |")
-    lines += ["", "Per phase, CPU seconds in one process with one BLAS thread (DD: all four blocks; phases inside "
-              "MUMPS from PETSc's event log). *Ratio the DD's work allows*: monolithic solve phase / (the DD's block "
-              "work shared perfectly among the ranks + rank 0's interface solve and rounds).", "",
+    lines += ["", "Per phase, CPU seconds in one process (DD: all four blocks; phases inside "
+              "MUMPS: the CPU seconds of the factorization or of the rounds split in proportion of PETSc's event times). "
+              "*Ratio the DD's work allows*: monolithic solve phase / (the DD's block work shared perfectly among "
+              "the ranks + rank 0's interface solve).", "",
               "| scene | P | side | " + " | ".join(ACCOUNT_PHASES) + " | solve phase |",
               "|---|---|---|" + "---|" * (len(ACCOUNT_PHASES) + 1)]
     for record in records:
