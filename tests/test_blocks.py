@@ -66,14 +66,21 @@ def test_schur_complement_from_mumps_is_the_condensed_stiffness(system):
 @pytest.mark.skipif(default_factor_package("mumps") != "mumps", reason="PETSc without MUMPS")
 @pytest.mark.parametrize("route", ["inverse", "solves"])
 def test_every_schur_route_gives_the_condensed_stiffness(system, route):
-    """``inverse`` (MUMPS's entries of K⁻¹) and ``solves`` (multi-column solves) after a plain factorization
-    give the Schur complement of ``factorization``, and solves afterwards are still ordinary ones."""
+    """``-u_minus_schur_complement inverse`` (MUMPS's entries of K⁻¹) and ``solves`` (multi-column solves)
+    after a plain factorization give the Schur complement of ``factorization``, and solves afterwards are
+    still ordinary ones."""
     reference = Block(system, factor_package="mumps")
     reference.factor(schur=True)
+    assert reference.route == "factorization"
     expected = reference.schur_complement()
     reference.destroy()
-    block = Block(system, factor_package="mumps")
-    block.factor(schur=True, route=route)
+    options = PETSc.Options()
+    options["u_minus_schur_complement"] = route
+    try:
+        block = Block(system, factor_package="mumps")
+        block.factor(schur=True)
+    finally:
+        options.delValue("u_minus_schur_complement")
     assert block.route == route
     assert np.abs(block.schur_complement() - expected).max() < 1e-10 * np.abs(expected).max()
     if route == "inverse":
@@ -85,15 +92,22 @@ def test_every_schur_route_gives_the_condensed_stiffness(system, route):
     block.destroy()
 
 
-def test_a_route_mumps_cannot_take_falls_back_to_solves_and_a_bad_route_is_refused(system):
+def test_a_route_the_package_cannot_take_falls_back_to_solves_and_a_bad_route_is_refused(system):
     from ddsolve.errors import SolverError
 
-    plain = Block(system, factor_package="petsc")
-    plain.factor(schur=True, route="inverse")  # PETSc's Cholesky has no inverse entries
-    assert plain.route == "solves"
-    with pytest.raises(SolverError, match="unknown Schur complement route 'lu'"):
-        plain.factor(schur=True, route="lu")
-    plain.destroy()
+    options = PETSc.Options()
+    try:
+        options["u_minus_schur_complement"] = "inverse"
+        plain = Block(system, factor_package="petsc")
+        plain.factor(schur=True)  # PETSc's Cholesky has no entries of the inverse
+        assert plain.route == "solves"
+        options["u_minus_schur_complement"] = "lu"
+        with pytest.raises(SolverError, match=r"^-u_minus_schur_complement lu: unknown, use one of factorization, "
+                                              r"inverse, solves$"):
+            plain.factor(schur=True)
+        plain.destroy()
+    finally:
+        options.delValue("u_minus_schur_complement")
 
 
 def test_options_prefix_selects_the_block_solver(system):

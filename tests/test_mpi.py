@@ -146,18 +146,18 @@ def test_an_active_multiplier_bound_p_is_honoured_by_schur_and_mprgp(tmp_path):
 
 @pytest.mark.mpi
 def test_every_schur_complement_route_gives_the_same_answer(tmp_path):
-    """``solver.schur_complement``: the Schur complements from the factorization, from MUMPS's entries of
-    K⁻¹ or from multi-column solves give the same solution; a key the method does not read is refused."""
+    """``-<block>_schur_complement``: the Schur complements from the factorization, from MUMPS's entries of
+    K⁻¹ or from multi-column solves give the same solution; a bad value is refused in one line naming it."""
     results = {}
     for route in ("factorization", "inverse", "solves"):
         output = tmp_path / f"{route}.h5"
-        ddsolve("solve", "partial-closure", *SMALL, "--set", f"solver.schur_complement={route}", "-o", str(output),
+        options = [f"-{block}_schur_complement" for block in ("u_minus", "v_minus", "u_plus", "v_plus")]
+        ddsolve("solve", "partial-closure", *SMALL, *(w for o in options for w in (o, route)), "-o", str(output),
                 ranks=2)
         results[route] = io.read(output)
         assert results[route].converged and results[route].method == "schur" and results[route].solves == 3
     for route in ("inverse", "solves"):
         assert analysis.compare(results[route], results["factorization"]).energy_error < 1e-10
         assert results[route].attrs["energy"] == pytest.approx(results["factorization"].attrs["energy"], rel=1e-10)
-    refused(ddsolve("solve", "partial-closure", *SMALL, "--set", "solver.method=mprgp", "--set",
-                    "solver.schur_complement=solves", "-o", str(tmp_path / "x.h5"), check=False), 1,
-            "solver.schur_complement is not read by solve", "method mprgp")
+    refused(ddsolve("solve", "partial-closure", *SMALL, "-v_plus_schur_complement", "lu", "-o", str(tmp_path / "x.h5"),
+                    ranks=2, check=False), 1, "-v_plus_schur_complement lu: unknown, use one of factorization")

@@ -57,7 +57,6 @@ def test_overrides_are_typed_and_validated():
     ("solver.tol=0", "solver.tol must be > 0"),
     ("solver.method=newton", "solver.method must be one of"),
     ("solver.stop=sometimes", "solver.stop must be one of"),
-    ("solver.schur_complement=lu", "solver.schur_complement must be one of factorization, inverse, solves"),
     ("materials.layer1.E=0", "materials.layer1.E must be > 0"),
     ("materials.layer2.nu=0.5", "materials.layer2.nu must be in (-1, 0.5)"),
     ("materials.layer2.nu=-1", "materials.layer2.nu must be in (-1, 0.5)"),

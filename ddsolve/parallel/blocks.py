@@ -20,10 +20,12 @@ from petsc4py import PETSc
 
 from ddsolve.errors import SolverError
 from ddsolve.fem.assembly import BlockSystem
-from ddsolve.problem.scene import SCHUR_ROUTES
 
 _FACTOR_TYPES = ("cholesky", "lu")
 _CHUNK = 64  # right-hand sides per multi-column solve when the flexibility is built by solves
+#: How :meth:`Block.schur_complement` gets S, chosen per block by the PETSc option
+#: ``-<block>_schur_complement`` (see :meth:`Block.factor`); the first is the default.
+SCHUR_ROUTES = ("factorization", "inverse", "solves")
 _NONE = np.zeros(0)
 
 
@@ -121,23 +123,26 @@ class Block:
     def is_direct(self) -> bool:
         return self.ksp.getType() == PETSc.KSP.Type.PREONLY and self.ksp.getPC().getType() in _FACTOR_TYPES
 
-    def factor(self, schur: bool = False, route: str = "factorization") -> None:
+    def factor(self, schur: bool = False) -> None:
         """Set up the solver (factorization for direct solvers).
 
-        ``route`` (one of ``SCHUR_ROUTES``) says how :meth:`schur_complement` will get S:
-        ``factorization`` (with ``schur``, MUMPS and one rank): MUMPS computes the Schur complement on
-        the trace dofs with the factorization, so :meth:`schur_complement` costs no extra solves
-        (MUMPS then orders by AMD whatever ICNTL(7) asks); ``inverse`` (MUMPS, one rank): a plain
-        factorization (AMF), then :meth:`inverse_entries`; ``solves``: a plain factorization, then
-        :meth:`flexibility`.  Blocks on several ranks, or not factored by MUMPS, use ``solves``.
+        With ``schur``, the option ``-<block>_schur_complement`` (one of :data:`SCHUR_ROUTES`) says how
+        :meth:`schur_complement` will get S.  ``factorization`` (the default; MUMPS, one rank): MUMPS
+        computes the Schur complement on the trace dofs with the factorization, so
+        :meth:`schur_complement` costs no extra solves (MUMPS then orders by AMD whatever ICNTL(7)
+        asks); ``inverse`` (MUMPS, one rank): a plain factorization (AMF), then :meth:`inverse_entries`;
+        ``solves``: a plain factorization, then :meth:`flexibility`.  Blocks on several ranks, or not
+        factored by MUMPS, use ``solves``.
         """
-        if route not in SCHUR_ROUTES:
-            raise SolverError(f"block {self.name}: unknown Schur complement route {route!r} "
-                              f"(one of {', '.join(SCHUR_ROUTES)})")
         pc = self.ksp.getPC()
-        whole_mumps = (self.mpi.size == 1 and self.is_direct() and pc.getFactorSolverType() == "mumps"
-                       and _petsc_c() is not None)
-        self.route = route if whole_mumps else "solves"
+        if schur:
+            prefix = self.ksp.getOptionsPrefix() or ""
+            route = PETSc.Options(prefix).getString("schur_complement", SCHUR_ROUTES[0])
+            if route not in SCHUR_ROUTES:
+                raise SolverError(f"-{prefix}schur_complement {route}: unknown, use one of {', '.join(SCHUR_ROUTES)}")
+            whole_mumps = (self.mpi.size == 1 and self.is_direct() and pc.getFactorSolverType() == "mumps"
+                           and _petsc_c() is not None)
+            self.route = route if whole_mumps else "solves"
         schur = schur and self.route == "factorization"
         try:
             if schur:

@@ -29,10 +29,6 @@ METHODS = ("auto", "schur", "mprgp", "fista", "uzawa", "feti")
 #: ``auto``: ``schur`` or ``feti`` by problem size and ranks per block (:func:`ddsolve.dd.methods.choose`).
 DEFAULT_METHOD = "auto"
 STOP_RULES = ("paper", "relative", "kkt")
-#: How method ``schur`` gets the blocks' Schur complements (``solver.schur_complement``; see
-#: ``ddsolve.parallel.blocks.Block.factor`` and docs/methods.md): from MUMPS's factorization, from
-#: MUMPS's entries of the inverse, or from multi-column solves.
-SCHUR_ROUTES = ("factorization", "inverse", "solves")
 #: Default stopping rule of each method and default tolerance of each rule.
 DEFAULT_STOP = {"uzawa": "paper", "schur": "kkt", "mprgp": "kkt", "fista": "kkt", "feti": "kkt", "auto": "kkt"}
 DEFAULT_TOL = {"paper": 1e-6, "relative": 1e-6, "kkt": 1e-8}
@@ -117,7 +113,6 @@ class Solver:
     tol: float
     stop: str
     max_iterations: int
-    schur_complement: str = SCHUR_ROUTES[0]  # how method schur gets the blocks' Schur complements
 
 
 @dataclass(frozen=True)
@@ -418,7 +413,6 @@ SCHEMA: dict[str, Any] = {
         "tol": (_positive(_number), None),
         "stop": (_choice(STOP_RULES), None),
         "max_iterations": (_count(1), 20000),
-        "schur_complement": (_choice(SCHUR_ROUTES), SCHUR_ROUTES[0]),
     },
     "fracture": {"inner": (_positive(_number), None), "outer": (_positive(_number), None)},
 }

@@ -71,8 +71,6 @@ def unread(command: str, path: list[str], scene, ranks: int) -> str | None:
             return f"it is the step of method uzawa, and method {method} takes none"
         if path[1:] == ["max_iterations"] and method == "schur":
             return "method schur is exact in a few rounds and iterates no further (uzawa, mprgp, fista and feti do)"
-        if path[1:] == ["schur_complement"] and method != "schur":
-            return f"it is how method schur gets the blocks' Schur complements, and method {method} uses none"
     return None
 
 

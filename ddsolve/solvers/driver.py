@@ -153,7 +153,7 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
     stages["Factorization"].push()
     def factor():
         for block in blocks:
-            block.factor(schur=method == "schur", route=scene.solver.schur_complement)
+            block.factor(schur=method == "schur")
             if method == "feti":
                 block.factor_dirichlet()
 
