@@ -63,6 +63,53 @@ def test_schur_complement_from_mumps_is_the_condensed_stiffness(system):
     plain.destroy()
 
 
+@pytest.mark.skipif(default_factor_package("mumps") != "mumps", reason="PETSc without MUMPS")
+@pytest.mark.parametrize("route", ["inverse", "solves"])
+def test_every_schur_route_gives_the_condensed_stiffness(system, route):
+    """``-u_minus_schur_complement inverse`` (MUMPS's entries of K⁻¹) and ``solves`` (multi-column solves)
+    after a plain factorization give the Schur complement of ``factorization``, and solves afterwards are
+    still ordinary ones."""
+    reference = Block(system, factor_package="mumps")
+    reference.factor(schur=True)
+    assert reference.route == "factorization"
+    expected = reference.schur_complement()
+    reference.destroy()
+    options = PETSc.Options()
+    options["u_minus_schur_complement"] = route
+    try:
+        block = Block(system, factor_package="mumps")
+        block.factor(schur=True)
+    finally:
+        options.delValue("u_minus_schur_complement")
+    assert block.route == route
+    assert np.abs(block.schur_complement() - expected).max() < 1e-10 * np.abs(expected).max()
+    if route == "inverse":
+        assert np.allclose(block.inverse_entries(), block.flexibility(), rtol=1e-10, atol=1e-14)
+    x = block.solve(np.ones(len(system.trace_dofs)), body=True)
+    rhs = system.rhs.copy()
+    rhs[system.trace_dofs] += 1.0
+    assert np.allclose(dense(system) @ x, rhs, rtol=1e-9, atol=1e-12)
+    block.destroy()
+
+
+def test_a_route_the_package_cannot_take_falls_back_to_solves_and_a_bad_route_is_refused(system):
+    from ddsolve.errors import SolverError
+
+    options = PETSc.Options()
+    try:
+        options["u_minus_schur_complement"] = "inverse"
+        plain = Block(system, factor_package="petsc")
+        plain.factor(schur=True)  # PETSc's Cholesky has no entries of the inverse
+        assert plain.route == "solves"
+        options["u_minus_schur_complement"] = "lu"
+        with pytest.raises(SolverError, match=r"^-u_minus_schur_complement lu: unknown, use one of factorization, "
+                                              r"inverse, solves$"):
+            plain.factor(schur=True)
+        plain.destroy()
+    finally:
+        options.delValue("u_minus_schur_complement")
+
+
 def test_options_prefix_selects_the_block_solver(system):
     options = PETSc.Options()
     options["u_minus_ksp_type"] = "cg"

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import SMALL, ddsolve, paper_references
+from conftest import SMALL, ddsolve, paper_references, refused
 
 from ddsolve.io import hdf5 as io
 from ddsolve.parallel.phases import PHASES
@@ -159,3 +159,22 @@ def test_the_launch_is_printed_phase_by_phase_and_every_rank_times_its_phases(tm
         cpu = result.memory[f"cpu_s_{name}"]
         assert len(cpu) == 2 and np.all(cpu >= 0.0)
     assert np.isclose(result.memory["cpu_s_assembly"].sum(), result.timings["assembly_cpu"])
+
+
+@pytest.mark.mpi
+def test_every_schur_complement_route_gives_the_same_answer(tmp_path):
+    """``-<block>_schur_complement``: the Schur complements from the factorization, from MUMPS's entries of
+    K⁻¹ or from multi-column solves give the same solution; a bad value is refused in one line naming it."""
+    results = {}
+    for route in ("factorization", "inverse", "solves"):
+        output = tmp_path / f"{route}.h5"
+        options = [f"-{block}_schur_complement" for block in ("u_minus", "v_minus", "u_plus", "v_plus")]
+        ddsolve("solve", "partial-closure", *SMALL, *(w for o in options for w in (o, route)), "-o", str(output),
+                ranks=2)
+        results[route] = io.read(output)
+        assert results[route].converged and results[route].method == "schur" and results[route].solves == 3
+    for route in ("inverse", "solves"):
+        assert analysis.compare(results[route], results["factorization"]).energy_error < 1e-10
+        assert results[route].attrs["energy"] == pytest.approx(results["factorization"].attrs["energy"], rel=1e-10)
+    refused(ddsolve("solve", "partial-closure", *SMALL, "-v_plus_schur_complement", "lu", "-o", str(tmp_path / "x.h5"),
+                    ranks=2, check=False), 1, "-v_plus_schur_complement lu: unknown, use one of factorization")

@@ -73,7 +73,8 @@ def monolithic(scene: scenes.Scene, mesh, systems) -> tuple["Result", dict]:
     (A = W^½ B S⁻¹ Bᵀ W^½, B the normal jump), then one solve with the contact forces.
 
     Returns the result and its timings: ``merge`` (the glued matrix), ``factorization`` and
-    ``solve`` (solves and the dense contact problem); ``factorization + solve`` is the solve phase.
+    ``solve`` (solves and the dense contact problem); ``factorization + solve`` is the solve phase;
+    ``merge_cpu``, ``factorization_cpu`` and ``solve_cpu`` are CPU seconds.
     """
     import dataclasses
 
@@ -88,18 +89,19 @@ def monolithic(scene: scenes.Scene, mesh, systems) -> tuple["Result", dict]:
 
     interface = for_mesh(mesh.sigma, scene.nonpenetration)
     contact = interface.slices["mu_c"]
-    started = time.perf_counter()
+    started, cpu = time.perf_counter(), time.process_time()
     numbers = reference.numbering(systems, interface, np.zeros(contact.stop - contact.start, dtype=bool))
     unknowns = interface.trace_unknowns()
     normal = 2 * interface.vertex[contact] + 1
     faces = np.concatenate([unknowns[U_MINUS][normal], unknowns[U_PLUS][normal]])  # crack normal unknowns
     system = dataclasses.replace(reference.merged_system(systems, numbers), trace_dofs=faces)
     block = Block(system, factor_package="mumps")
-    timings = {"merge": time.perf_counter() - started}
-    started = time.perf_counter()
+    timings = {"merge": time.perf_counter() - started, "merge_cpu": time.process_time() - cpu}
+    started, cpu = time.perf_counter(), time.process_time()
     block.factor(schur=len(faces) > 0)
     timings["factorization"] = time.perf_counter() - started
-    started = time.perf_counter()
+    timings["factorization_cpu"] = time.process_time() - cpu
+    started, cpu = time.perf_counter(), time.process_time()
     x = block.solve(np.zeros(len(faces)), body=True).copy()
     y = np.zeros(len(normal))
     if len(normal):
@@ -114,6 +116,7 @@ def monolithic(scene: scenes.Scene, mesh, systems) -> tuple["Result", dict]:
         x = block.solve(-scaled.T @ y, body=True)  # the contact forces −Bᵀ W μ on the faces
     x = x.copy()
     timings["solve"] = time.perf_counter() - started
+    timings["solve_cpu"] = time.process_time() - cpu
     block.destroy()
     fields = [x[number] for number in numbers]
     loads = np.array([assembly.csr_matvec(s, u)[s.trace_dofs] - s.rhs[s.trace_dofs] for s, u in zip(systems, fields)])
@@ -133,8 +136,9 @@ MONOLITHIC_ORDERINGS = {"mumps default": 7, "AMF": 2}
 
 def bench_baseline(name: str, P: int, M: int, repeats: int, output: Path, comm) -> None:
     """Inside one launch: the monolithic MUMPS solve on rank 0 (the other ranks sleep), once with each
-    of :data:`MONOLITHIC_ORDERINGS`, and the default method on all ranks, in turn ``repeats`` times;
-    rank 0 writes the record as JSON (wall and CPU seconds: the CPU time of the DD sums its ranks)."""
+    of :data:`MONOLITHIC_ORDERINGS`, and the default method on all ranks, in turn ``repeats`` times,
+    then :func:`phase_account` on rank 0; rank 0 writes the record as JSON (wall and CPU seconds of
+    the solve phases: the CPU time of the DD sums its ranks)."""
     from petsc4py import PETSc
 
     from ddsolve.fem import assembly
@@ -153,13 +157,12 @@ def bench_baseline(name: str, P: int, M: int, repeats: int, output: Path, comm) 
     def timed(label, ordering):
         options = PETSc.Options()
         options["reference_mat_mumps_icntl_7"] = ordering
-        started = time.process_time()
         try:
             result, timings = monolithic(scene, mesh, systems)
         finally:
             options.delValue("reference_mat_mumps_icntl_7")
         return result, {**timings, "solve_phase": timings["factorization"] + timings["solve"],
-                        "cpu": time.process_time() - started}
+                        "cpu": timings["factorization_cpu"] + timings["solve_cpu"]}
 
     for _ in range(repeats):
         monos = {label: collective(comm, lambda: timed(label, ordering), root_only=True)
@@ -172,10 +175,91 @@ def bench_baseline(name: str, P: int, M: int, repeats: int, output: Path, comm) 
                                  "factorization": dd.timings["factorization"],
                                  "cpu": dd.timings["factorization_cpu"] + dd.timings["iterations_cpu"],
                                  "error": analysis.compare(dd, reference).energy_error})
+    record["account"] = collective(comm, lambda: phase_account(scene, mesh, systems), root_only=True)
     if comm.rank == 0:
         record["load_after"] = os.getloadavg()[0]
         record["provenance"] = provenance()
         output.write_text(json.dumps(record))
+
+
+#: Phases of :func:`phase_account`: what each side does once the matrices are assembled.
+ACCOUNT_PHASES = ("assembly", "analysis", "numeric factorization", "Schur extraction", "interface solve",
+                  "solves", "rounds, other")
+#: PETSc's events (``-log_view`` names) that time the phases inside the factorizations and solves.
+ACCOUNT_EVENTS = {"analysis": "MatCholFctrSym", "numeric factorization": "MatCholFctrNum", "solves": "MatSolve"}
+#: Phases of the DD that the ranks share (block work); the interface solve runs on rank 0 alone.
+PARALLEL_PHASES = ("assembly", "analysis", "numeric factorization", "Schur extraction", "solves", "rounds, other")
+
+
+def _event_seconds() -> dict[str, float]:
+    """Seconds in each of :data:`ACCOUNT_EVENTS` so far, over every logging stage of this process."""
+    from petsc4py import PETSc
+
+    from ddsolve.solvers.driver import STAGES
+
+    stages = [0, *(PETSc.Log.Stage(name).id for name in STAGES)]
+    return {phase: sum(PETSc.Log.Event(name).getPerfInfo(stage)["time"] for stage in stages)
+            for phase, name in ACCOUNT_EVENTS.items()}
+
+
+def phase_account(scene: scenes.Scene, mesh, systems) -> dict[str, dict[str, float]]:
+    """CPU seconds per phase (:data:`ACCOUNT_PHASES`) of the default method with all four blocks in
+    this process, and of the monolithic AMF solve, one after the other in one process.
+
+    Phases inside MUMPS (:data:`ACCOUNT_EVENTS`) split the CPU seconds of the phase that holds them in
+    proportion of PETSc's event times to the phase's wall time (on a loaded machine wall time is
+    not CPU time).  The DD's ``assembly`` is the block matrices (the monolithic's: the glued matrix,
+    built from them); ``Schur extraction`` the factorization phase beyond MUMPS's analysis and
+    numeric factorization (copying S_b, factoring it for the solves); ``interface solve`` rank 0's
+    dense solve between rounds (the monolithic's: its dense contact problem); ``rounds, other`` the
+    rest of the rounds (messages, traces, checks).
+    """
+    from mpi4py import MPI
+    from petsc4py import PETSc
+
+    from ddsolve.solvers import driver
+
+    def share(cpu: float, wall: float, seconds: float) -> float:
+        return cpu * seconds / wall if wall > 0.0 else 0.0
+
+    PETSc.Log.begin()
+    before = _event_seconds()
+    dd = driver.solve(scene, MPI.COMM_SELF, None, progress=lambda line: None, mesh=mesh)
+    events = {phase: seconds - before[phase] for phase, seconds in _event_seconds().items()}
+    t = dd.timings
+    analysis = share(t["factorization_cpu"], t["factorization"], events["analysis"])
+    numeric = share(t["factorization_cpu"], t["factorization"], events["numeric factorization"])
+    solves = share(t["iterations_cpu"], t["iterations"], events["solves"])
+    interface = share(t["iterations_cpu"], t["iterations"], t["update"])
+    dd_phases = {"assembly": t["assembly_cpu"], "analysis": analysis, "numeric factorization": numeric,
+                 "Schur extraction": max(t["factorization_cpu"] - analysis - numeric, 0.0),
+                 "interface solve": interface, "solves": solves,
+                 "rounds, other": max(t["iterations_cpu"] - interface - solves, 0.0)}
+    options = PETSc.Options()
+    options["reference_mat_mumps_icntl_7"] = MONOLITHIC_ORDERINGS["AMF"]
+    before = _event_seconds()
+    try:
+        _, t = monolithic(scene, mesh, systems)
+    finally:
+        options.delValue("reference_mat_mumps_icntl_7")
+    events = {phase: seconds - before[phase] for phase, seconds in _event_seconds().items()}
+    analysis = share(t["factorization_cpu"], t["factorization"], events["analysis"])
+    numeric = share(t["factorization_cpu"], t["factorization"], events["numeric factorization"])
+    solves = share(t["solve_cpu"], t["solve"], events["solves"])
+    mono_phases = {"assembly": t["merge_cpu"], "analysis": analysis, "numeric factorization": numeric,
+                   "Schur extraction": max(t["factorization_cpu"] - analysis - numeric, 0.0),
+                   "interface solve": max(t["solve_cpu"] - solves, 0.0), "solves": solves, "rounds, other": 0.0}
+    return {"dd": dd_phases, "mono": mono_phases}
+
+
+def structure_bound(account: dict[str, dict[str, float]], ranks: int) -> float:
+    """The largest wall-time ratio monolithic / DD that the DD's measured work allows on ``ranks``
+    ranks: block work (:data:`PARALLEL_PHASES`) shared perfectly, rank 0's interface solve added;
+    solve phases only (no assembly on either side)."""
+    dd, mono = account["dd"], account["mono"]
+    shared = sum(dd[phase] for phase in PARALLEL_PHASES if phase != "assembly")
+    alone = sum(dd[phase] for phase in ACCOUNT_PHASES if phase not in PARALLEL_PHASES)
+    return sum(mono[phase] for phase in ACCOUNT_PHASES if phase != "assembly") / (shared / ranks + alone)
 
 
 def busy_process():
@@ -192,8 +276,10 @@ def default_ranks() -> int:
 
 
 def baseline(meshes=((400, 512), (800, 1024)), names=("linear", "partial-closure"), ranks: int | None = None,
-             repeats: int = 3, busy: bool = False, output: Path = Path("results/bench-baseline.h5")) -> list[dict]:
-    """The default method against the monolithic MUMPS solve, side by side; print the ratios."""
+             repeats: int = 3, busy: bool = False, output: Path = Path("results/bench-baseline.h5"),
+             docs: Path = Path("docs")) -> list[dict]:
+    """The default method against the monolithic MUMPS solve, side by side; print the ratios and the
+    per-phase account, and write it into docs/methods.md (section ``bench-baseline``)."""
     ranks = ranks or default_ranks()
     output.parent.mkdir(parents=True, exist_ok=True)
     records = []
@@ -210,7 +296,9 @@ def baseline(meshes=((400, 512), (800, 1024)), names=("linear", "partial-closure
             record["busy"] = busy
             records.append(record)
             print(baseline_line(record), flush=True)
+            print("\n".join(account_lines(record)), flush=True)
     report.write_records(output, records, records[0]["provenance"])
+    report.section(docs / "methods.md", "bench-baseline", account_table(records))
     return records
 
 
@@ -229,6 +317,52 @@ def baseline_line(record: dict) -> str:
                      f"{ratios[0]:.2f}-{ratios[-1]:.2f}; CPU ratio {cpu:.2f}")
     parts.append(f"DD error {max(d['error'] for d in dd):.1e}; load {record['load']:.1f} -> {record['load_after']:.1f}")
     return "; ".join(parts)
+
+
+def account_lines(record: dict) -> list[str]:
+    """The per-phase account of one case, a line per phase: DD and monolithic CPU seconds."""
+    dd, mono = record["account"]["dd"], record["account"]["mono"]
+    lines = [f"  {'phase (CPU s, one process)':28s} {'DD':>8s} {'monolithic':>11s}"]
+    lines += [f"  {phase:28s} {dd[phase]:8.3f} {mono[phase]:11.3f}" for phase in ACCOUNT_PHASES]
+    solve = {side: sum(v for k, v in phases.items() if k != "assembly") for side, phases in (("dd", dd), ("mono", mono))}
+    lines.append(f"  {'solve phase':28s} {solve['dd']:8.3f} {solve['mono']:11.3f}   DD / monolithic CPU "
+                 f"{solve['dd'] / solve['mono']:.2f}; wall ratio the DD's work allows on {record['ranks']} ranks: "
+                 f"{structure_bound(record['account'], record['ranks']):.2f}")
+    return lines
+
+
+def account_table(records: list[dict]) -> str:
+    """Markdown for docs/methods.md: the side-by-side ratios and the per-phase account of every case."""
+    lines = ["`./run bench baseline` (one launch per scene and mesh on "
+             f"{records[0]['ranks']} ranks, {len(records[0]['dd'])} side-by-side pairs; machine load "
+             f"{min(r['load'] for r in records):.1f}–{max(r['load'] for r in records):.1f}): the default method "
+             "against one MUMPS factorization of the whole glued problem with AMF ordering. Wall: best solve "
+             "phase of each side; ratio: monolithic / DD, median of the pairs; CPU: solve phase, the DD's summed "
+             "over its ranks.", "",
+             "| scene | P | unknowns | DD wall (s) | DD CPU (s) | monolithic wall (s) | monolithic CPU (s) "
+             "| wall ratio | CPU DD / monolithic | ratio the DD's work allows |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for record in records:
+        dd, mono = record["dd"], record["mono AMF"]
+        ratio = np.median([m["solve_phase"] / d["solve_phase"] for m, d in zip(mono, dd)])
+        lines.append(f"| {record['scene']} | {record['P']} | {record['unknowns']:,} "
+                     f"| {min(d['solve_phase'] for d in dd):.3f} | {min(d['cpu'] for d in dd):.2f} "
+                     f"| {min(m['solve_phase'] for m in mono):.3f} | {min(m['cpu'] for m in mono):.2f} | {ratio:.2f} "
+                     f"| {min(d['cpu'] for d in dd) / min(m['cpu'] for m in mono):.2f} "
+                     f"| {structure_bound(record['account'], record['ranks']):.2f} |")
+    lines += ["", "Per phase, CPU seconds in one process (DD: all four blocks; phases inside "
+              "MUMPS: the CPU seconds of the factorization or of the rounds split in proportion of PETSc's event times). "
+              "*Ratio the DD's work allows*: monolithic solve phase / (the DD's block work shared perfectly among "
+              "the ranks + rank 0's interface solve).", "",
+              "| scene | P | side | " + " | ".join(ACCOUNT_PHASES) + " | solve phase |",
+              "|---|---|---|" + "---|" * (len(ACCOUNT_PHASES) + 1)]
+    for record in records:
+        for side, label in (("dd", "DD"), ("mono", "monolithic")):
+            phases = record["account"][side]
+            lines.append(f"| {record['scene']} | {record['P']} | {label} | "
+                         + " | ".join(f"{phases[phase]:.3f}" for phase in ACCOUNT_PHASES)
+                         + f" | {sum(v for k, v in phases.items() if k != 'assembly'):.3f} |")
+    return "\n".join(lines)
 
 
 # --- inside the MPI launch ------------------------------------------------------------------

@@ -54,9 +54,12 @@ def cmd_bench(args, petsc_options) -> int:
         for P, M in meshes(args.meshes or "200:256"):
             bench.factor(P, M)
     elif args.what == "baseline":
+        output = Path(args.output or "results/bench-baseline.h5")
         bench.baseline(meshes(args.meshes or "400:512,800:1024"), ranks=args.ranks, repeats=args.repeats,
-                       busy=args.busy)
+                       busy=args.busy, output=output)
+        print(f"wrote {output}, docs/methods.md (bench-baseline section)")
     else:
+        args.output = args.output or "results/bench-methods.h5"
         bench.methods(meshes(args.meshes), Path(args.output), Path("docs"))
         print(f"wrote {args.output}, docs/results.md (bench-methods section), docs/bench-methods.png")
     return 0
@@ -88,7 +91,8 @@ def parser() -> argparse.ArgumentParser:
                    help="ranks of the DD in `bench baseline` (default: 4, or fewer if there are fewer cores)")
     p.add_argument("--repeats", type=int, default=3, help="side-by-side pairs per case in `bench baseline`")
     p.add_argument("--busy", action="store_true", help="`bench baseline` with a second process keeping a core busy")
-    p.add_argument("-o", dest="output", default="results/bench-methods.h5", help="HDF5 file for `methods`")
+    p.add_argument("-o", dest="output", help="HDF5 file of `methods` (default results/bench-methods.h5) or "
+                   "`baseline` (default results/bench-baseline.h5)")
     listing = [(name, summary) for name, (_, _, summary, _) in EXPERIMENTS.items()] + [("bench", summary)]
     width = max(len(name) for name, _ in listing) + 2
     top.epilog = ("experiments (each reruns its measurements and rewrites its part of docs/ and results/):\n"

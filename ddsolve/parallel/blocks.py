@@ -23,6 +23,9 @@ from ddsolve.fem.assembly import BlockSystem
 
 _FACTOR_TYPES = ("cholesky", "lu")
 _CHUNK = 64  # right-hand sides per multi-column solve when the flexibility is built by solves
+#: How :meth:`Block.schur_complement` gets S, chosen per block by the PETSc option
+#: ``-<block>_schur_complement`` (see :meth:`Block.factor`); the first is the default.
+SCHUR_ROUTES = ("factorization", "inverse", "solves")
 _NONE = np.zeros(0)
 
 
@@ -82,6 +85,7 @@ class Block:
             raise SolverError(message) from None
         self.rhs, self.x = self.matrix.createVecLeft(), self.matrix.createVecRight()
         self._schur: np.ndarray | None = None  # as stored by MUMPS (one triangle valid)
+        self.route = "solves"  # how schur_complement gets S (see factor)
         self._dirichlet = self._dirichlet_matrix = self._work = None  # see factor_dirichlet
         # The trace entries this rank owns: their positions in the trace and their local rows.
         trace = system.trace_dofs
@@ -122,12 +126,24 @@ class Block:
     def factor(self, schur: bool = False) -> None:
         """Set up the solver (factorization for direct solvers).
 
-        With ``schur``, MUMPS and one rank, the Schur complement on the trace dofs is requested from
-        the factorization, so :meth:`schur_complement` costs no extra solves.
+        With ``schur``, the option ``-<block>_schur_complement`` (one of :data:`SCHUR_ROUTES`) says how
+        :meth:`schur_complement` will get S.  ``factorization`` (the default; MUMPS, one rank): MUMPS
+        computes the Schur complement on the trace dofs with the factorization, so
+        :meth:`schur_complement` costs no extra solves (MUMPS then orders by AMD whatever ICNTL(7)
+        asks); ``inverse`` (MUMPS, one rank): a plain factorization (AMF), then :meth:`inverse_entries`;
+        ``solves``: a plain factorization, then :meth:`flexibility`.  Blocks on several ranks, or not
+        factored by MUMPS, use ``solves``.
         """
         pc = self.ksp.getPC()
-        schur = (schur and self.mpi.size == 1 and self.is_direct() and pc.getFactorSolverType() == "mumps"
-                 and _petsc_c() is not None)
+        if schur:
+            prefix = self.ksp.getOptionsPrefix() or ""
+            route = PETSc.Options(prefix).getString("schur_complement", SCHUR_ROUTES[0])
+            if route not in SCHUR_ROUTES:
+                raise SolverError(f"-{prefix}schur_complement {route}: unknown, use one of {', '.join(SCHUR_ROUTES)}")
+            whole_mumps = (self.mpi.size == 1 and self.is_direct() and pc.getFactorSolverType() == "mumps"
+                           and _petsc_c() is not None)
+            self.route = route if whole_mumps else "solves"
+        schur = schur and self.route == "factorization"
         try:
             if schur:
                 pc.setFactorSetUpSolverType()
@@ -287,7 +303,8 @@ class Block:
         triangle of a symmetric Schur complement (which one may depend on the version) and PETSc's
         dense matrix starts zeroed, so the triangle is the one with nonzeros off the diagonal; a
         matrix filled on both sides must be symmetric.  Otherwise (distributed blocks, other
-        packages, or a stored matrix that fits none of these) it is the inverse of :meth:`flexibility`.
+        packages, or a stored matrix that fits none of these) it is the inverse of :meth:`flexibility`
+        (by the route :meth:`factor` chose).
         """
         if self._schur is not None:  # handed over once, filled in place (S is large: (2k)² doubles)
             stored, self._schur = self._schur, None
@@ -302,8 +319,35 @@ class Block:
                 return stored
             if np.abs(stored - stored.T).max() <= 1e-12 * np.abs(stored).max():
                 return 0.5 * (stored + stored.T)
-        flexibility = self.flexibility()
+        flexibility = self.inverse_entries() if self.route == "inverse" else self.flexibility()
         return np.linalg.inv(flexibility) if self.is_leader else None
+
+    def inverse_entries(self) -> np.ndarray:
+        """Dense (2k, 2k) interface flexibility E K⁻¹ Eᵀ of a whole block factored by MUMPS, from
+        MUMPS's computation of selected entries of the inverse (ICNTL(30): sparse right-hand sides,
+        pruned elimination tree), in one call."""
+        trace = self.trace_dofs.astype(PETSc.IntType)
+        k, n = len(trace), self.system.size
+        counts = np.zeros(n, dtype=PETSc.IntType)
+        counts[trace] = k
+        indptr = np.concatenate([[0], np.cumsum(counts)]).astype(PETSc.IntType)
+        order = np.argsort(trace)
+        values = np.zeros(k * k)
+        requested = PETSc.Mat().createAIJWithArrays((n, n), (indptr, np.tile(trace[order], k), values),
+                                                    comm=PETSc.COMM_SELF)
+        wrapped = PETSc.Mat().createTranspose(requested)
+        factor = self.ksp.getPC().getFactorMatrix()
+        try:
+            _call("MatMumpsGetInverse", factor.handle, wrapped.handle)
+        finally:
+            factor.setMumpsIcntl(30, 0)  # later solves are ordinary ones
+            wrapped.destroy()
+        rows = requested.getValuesCSR()[2].reshape(k, k) / self.scale  # rows and columns in sorted order
+        requested.destroy()
+        position = np.empty(k, dtype=np.int64)
+        position[order] = np.arange(k)
+        out = rows[np.ix_(position, position)]
+        return 0.5 * (out + out.T)
 
     def flexibility(self) -> np.ndarray | None:
         """Dense (2k, 2k) interface flexibility E K⁻¹ Eᵀ on the leader, by multi-column solves."""

@@ -94,9 +94,49 @@ def init_petsc(options: list[str]) -> None:
 
     petsc4py.init([sys.argv[0], "-no_signal_handler", *options])
     from petsc4py import PETSc  # noqa: F401 -- PETSc starts here
+    limit_blas_threads()
 
     # A closed pipe on standard output is an error to report in one line (EPIPE), not a death by SIGPIPE.
     signal.signal(signal.SIGPIPE, signal.SIG_IGN)
+
+
+#: Variables by which a user sets the BLAS's threads himself (then :func:`limit_blas_threads` keeps them).
+BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "GOTO_NUM_THREADS")
+#: Variables by which MPI launchers tell a rank how many ranks share its node (Open MPI, MPICH).
+LOCAL_SIZE_VARIABLES = ("OMPI_COMM_WORLD_LOCAL_SIZE", "MPI_LOCALNRANKS")
+
+
+def blas_threads(cores: int, environment: dict[str, str]) -> int | None:
+    """Threads each rank's BLAS should use: the node's cores shared among its ranks (at least one);
+    None when the user chose (a ``BLAS_THREAD_VARIABLES`` entry is set).
+
+    OpenBLAS starts as many threads as there are cores in every process, and its threads spin while
+    they wait: two ranks on two cores then run four threads, and the CPU time of a factorization
+    doubles for the same wall time (measured by ``./run bench baseline``).
+    """
+    if any(environment.get(name) for name in BLAS_THREAD_VARIABLES):
+        return None
+    ranks = next((int(environment[name]) for name in LOCAL_SIZE_VARIABLES
+                  if environment.get(name, "").isdigit()), 1)
+    return max(1, cores // max(ranks, 1))
+
+
+def limit_blas_threads() -> None:
+    """Give OpenBLAS (the BLAS of MUMPS and numpy here) :func:`blas_threads` threads, if it is loaded."""
+    threads = blas_threads(len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1,
+                           dict(os.environ))
+    if threads is None:
+        return
+    import ctypes
+
+    try:
+        with open("/proc/self/maps") as maps:
+            paths = {line.split()[-1] for line in maps if "openblas" in line and ".so" in line}
+    except OSError:
+        return
+    for path in sorted(paths):
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(path).openblas_set_num_threads(threads)
 
 
 class Terminated(KeyboardInterrupt):
