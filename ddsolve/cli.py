@@ -143,8 +143,23 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
         print(f"{result.method}: converged after {result.iterations} iterations, {result.solves} rounds of "
               f"block solves, {result.wall_time:.3f} s on {result.ranks} ranks -> {output}", flush=True)
         print(estimate_line(result), flush=True)
+        _print_refinement(scene, result.mesh)
         _print_fracture(result)
     return 0
+
+
+def _print_refinement(scene, mesh) -> None:
+    """For a mesh made by refining a coarse one: the levels and the fine mesh's real counts."""
+    from ddsolve.mesh import geometry
+    from ddsolve.mesh import mesh as meshes
+
+    coarse, levels = geometry.refinement(scene)
+    if levels:
+        made = (f" (gmsh: sigma_vertices {coarse.mesh.sigma_vertices}, boundary_vertices "
+                f"{coarse.mesh.boundary_vertices})" if coarse.mesh.sigma_vertices is not None else "")
+        angle = min(meshes.statistics(half).min_angle for half in mesh.halves)
+        print(f"mesh: a coarse mesh{made} refined {levels} times: {int(mesh.sigma.corner.sum())} Σ vertices, "
+              f"{meshes.boundary_vertex_count(mesh)} boundary vertices, smallest angle {angle:.1f}°", flush=True)
 
 
 def _print_fracture(result) -> None:
@@ -186,6 +201,7 @@ def cmd_reference(args, petsc_options: list[str]) -> int:
         report_unused_options(None, "reference")
     print(f"reference: {result.iterations} active-set steps, {result.wall_time:.3f} s -> {output}")
     print(estimate_line(result))
+    _print_refinement(scene, result.mesh)
     _print_fracture(result)
     return 0
 

@@ -194,7 +194,7 @@ REFINE_SIGMA_VERTICES = 400
 REFINE_VERTICES = 50000
 #: The automatic choice refines until the coarse mesh has at most this many vertices (both halves; gmsh
 #: makes it in a few hundredths of a second) ...
-COARSE_VERTICES = 12000
+COARSE_VERTICES = 4000
 #: ... while every Σ piece and every side of the box keeps at least this many coarse segments.
 COARSE_SEGMENTS = 2
 

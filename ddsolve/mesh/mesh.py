@@ -325,16 +325,21 @@ def make_mesh(lower: HalfMesh, upper: HalfMesh, origin: str, exact_normals: np.n
             raise MeshError(f"{origin}: the halves have different element degrees")
     scale = max(np.ptp(half.points, axis=0).max() for half in (lower, upper))
     check_resolution(lower, upper, origin)
-    a, b = lower.points[lower.sigma], upper.points[upper.sigma]
-    if len(a) != len(b) or np.abs(a - b).max() > TOL * scale:
-        raise MeshError(f"{origin}: the Σ nodes of the two halves do not match ({len(a)} and {len(b)} nodes)")
+    check_sigma_match(lower, upper, scale, origin)
     _check_only_sigma_is_shared(lower, upper, scale, origin)
-    sigma = _sigma_line(lower, upper, exact_normals)
+    sigma = sigma_line(lower, upper, exact_normals)
     if np.any(sigma.crack & sigma.clamped):
         first = sigma.points[np.flatnonzero(sigma.crack & sigma.clamped)[0]]
         raise MeshError(f"{origin}: a crack reaches the clamped boundary at ({first[0]:.6g}, {first[1]:.6g}); "
                         "the crack must stay off Γ_D")
     return Mesh(lower, upper, sigma, origin)
+
+
+def check_sigma_match(lower: HalfMesh, upper: HalfMesh, scale: float, origin: str) -> None:
+    """The two halves' Σ nodes coincide, in order (within TOL × ``scale``)."""
+    a, b = lower.points[lower.sigma], upper.points[upper.sigma]
+    if len(a) != len(b) or np.abs(a - b).max() > TOL * scale:
+        raise MeshError(f"{origin}: the Σ nodes of the two halves do not match ({len(a)} and {len(b)} nodes)")
 
 
 #: The largest rounding of a node's coordinates (the spacing of doubles at the largest coordinate) that
@@ -374,7 +379,8 @@ def _check_only_sigma_is_shared(lower: HalfMesh, upper: HalfMesh, scale: float, 
                         f"into the lower and the upper half (is part of Σ missing from {SIGMA!r}?)")
 
 
-def _sigma_line(lower: HalfMesh, upper: HalfMesh, exact_normals: np.ndarray | None) -> SigmaLine:
+def sigma_line(lower: HalfMesh, upper: HalfMesh, exact_normals: np.ndarray | None = None) -> SigmaLine:
+    """Σ of two paired halves: its nodes in order, normals (``exact_normals`` where given), weights, roles."""
     degree = lower.degree
     step = degree  # nodes per Σ edge, beyond its first
     order = lower.sigma

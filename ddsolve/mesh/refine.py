@@ -30,7 +30,8 @@ import numpy as np
 
 from ddsolve.errors import MeshError
 from ddsolve.mesh.element import CELL_EDGES
-from ddsolve.mesh.mesh import CLAMPED, CRACK, SIGMA, HalfMesh, Mesh, make_mesh
+from ddsolve.mesh.mesh import (CLAMPED, CRACK, SIGMA, HalfMesh, Mesh, check_resolution, check_sigma_match,
+                               sigma_line)
 
 #: ``project(points (k, 2), names (k,)) -> points (k, 2)``: new boundary nodes put onto their curve.
 Projector = Callable[[np.ndarray, np.ndarray], np.ndarray]
@@ -305,10 +306,19 @@ def refine_half(coarse: HalfMesh, levels: int, degree: int | None = None, projec
 
 
 def refine(mesh: Mesh, levels: int, degree: int | None = None, project: Projector | None = None) -> Mesh:
-    """Both halves of ``mesh`` refined ``levels`` times (element ``degree``, the mesh's by default), paired
-    and checked."""
-    halves = [refine_half(half, levels, degree, project) for half in mesh.halves]
-    return make_mesh(*halves, mesh.origin)
+    """Both halves of ``mesh`` (a checked mesh, from :func:`~ddsolve.mesh.mesh.make_mesh`) refined
+    ``levels`` times (element ``degree``, the mesh's by default) and paired (:func:`pair_refined`)."""
+    return pair_refined(mesh, *(refine_half(half, levels, degree, project) for half in mesh.halves))
+
+
+def pair_refined(coarse: Mesh, lower: HalfMesh, upper: HalfMesh) -> Mesh:
+    """The mesh of the refined halves of ``coarse``.  What :func:`~ddsolve.mesh.mesh.make_mesh` checked on
+    the coarse mesh (boundaries, clamped parts, cracks on Σ, Σ the only contact) holds for its refinement by
+    construction; the fine nodes' positions are checked again (Σ nodes matching, resolution)."""
+    scale = max(np.ptp(half.points, axis=0).max() for half in (lower, upper))
+    check_resolution(lower, upper, coarse.origin)
+    check_sigma_match(lower, upper, scale, coarse.origin)
+    return Mesh(lower, upper, sigma_line(lower, upper), coarse.origin)
 
 
 def shares(grid: Lattice, parts: int) -> np.ndarray:

@@ -126,12 +126,17 @@ def refined_local_mesh(scene: Scene, coarse_scene: Scene, levels: int, comm: MPI
         side = -1 if rank == 0 else 1 if rank == upper_maker else 0
         made = collective(comm, lambda: geometry.generate_half(coarse_scene, side) if side else None)
         coarse = {side: made} if side else {}
+        if rank == upper_maker:
+            comm.send(made, dest=0)
+        elif rank == 0:
+            coarse[1] = comm.recv(source=upper_maker)
+        whole_coarse = collective(comm, lambda: geometry.pair(scene, coarse[-1], coarse[1]), root_only=True)
     else:
         whole_coarse = collective(comm, lambda: geometry.build_coarse(coarse_scene), root_only=True)
         coarse = {-1: whole_coarse.lower, 1: whole_coarse.upper} if rank == 0 else {}
         if upper_maker != 0:
             if rank == 0:
-                comm.send(coarse.pop(1), dest=upper_maker)
+                comm.send(coarse[1], dest=upper_maker)
             elif rank == upper_maker:
                 coarse[1] = comm.recv(source=0)
     end("meshing")
@@ -156,7 +161,7 @@ def refined_local_mesh(scene: Scene, coarse_scene: Scene, levels: int, comm: MPI
             comm.send(upper, dest=0)
         elif rank == 0:
             upper = comm.recv(source=upper_maker)
-    paired = collective(comm, lambda: geometry.pair(scene, fine[-1], upper), root_only=True)
+    paired = collective(comm, lambda: refine.pair_refined(whole_coarse, fine[-1], upper), root_only=True)
     tips = collective(comm, lambda: whole_mesh_checks(scene, paired), root_only=True)
     sizes = (paired.sigma, {half.side: len(half.points) for half in paired.halves},
              {half.side: len(half.cells) for half in paired.halves}, tips) if rank == 0 else None

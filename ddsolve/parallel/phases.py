@@ -71,13 +71,14 @@ class Phases:
 
 def memory_record(ranks: list[tuple[dict, dict, dict]], unknowns: int, whole_mesh_bytes: int) -> dict:
     """The result file's ``/memory``: per rank, the peak resident memory (MB) at the end of every phase,
-    the unknowns it works on, its mesh arrays and its factors (MUMPS's own count, MB); and per phase the
-    largest peak per unknown of a rank (bytes)."""
+    the CPU seconds of every phase, the unknowns it works on, its mesh arrays and its factors (MUMPS's own
+    count, MB); and per phase the largest peak per unknown of a rank (bytes)."""
     record = {"unknowns": unknowns, "whole_mesh_bytes": whole_mesh_bytes}
     for key in ("unknowns", "mesh_bytes", "factor_mb"):
         record[f"rank_{key}"] = np.array([mine[key] for mine, _, _ in ranks])
     for phase in ranks[0][1]:
         peaks = np.array([peak[phase] for _, peak, _ in ranks])
         record[f"peak_mb_{phase}"] = peaks
+        record[f"cpu_s_{phase}"] = np.array([cpu.get(phase, 0.0) for _, _, cpu in ranks])
         record[f"bytes_per_unknown_{phase}"] = float(np.max(peaks * 2 ** 20 / record["rank_unknowns"]))
     return record
