@@ -104,7 +104,7 @@ class Lattice:
         offsets = np.concatenate([[0], np.cumsum(sizes)])
         vertex_id = offsets[vertex_owner] + _rank_within(vertex_owner)
         edge_first = offsets[edge_owner] + owned_vertices[edge_owner] + _rank_within(edge_owner) * (self.n - 1)
-        return {"vertices": vertices, "cells": local, "order": order, "edges": edges,
+        return {"vertices": vertices, "cells": local, "edges": edges,
                 "cell_edges": cell_edge.reshape(-1, 3), "forward": (pairs[:, 0] < pairs[:, 1]).reshape(-1, 3),
                 "offsets": offsets, "vertex_id": vertex_id, "edge_first": edge_first,
                 "vertex_owner": vertex_owner, "edge_owner": edge_owner,
