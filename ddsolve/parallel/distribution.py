@@ -71,7 +71,8 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
     only with one rank (or ``keep_whole``); it gets it back for output (:func:`gather_upper`).
     A mesh made by refinement (:func:`geometry.refinement`) is made by :func:`refined_local_mesh`.
     """
-    coarse_scene, levels = geometry.refinement(scene) if background is None else (scene, 0)
+    coarse_scene, levels = (scene, 0) if background is not None else comm.bcast(
+        collective(comm, lambda: geometry.refinement(scene), root_only=True), root=0)  # rank 0 decides
     if levels:
         return refined_local_mesh(scene, coarse_scene, levels, comm, exchange, phases, keep_whole)
     rank = comm.rank
