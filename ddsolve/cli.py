@@ -158,8 +158,9 @@ def _print_refinement(scene, mesh) -> None:
         made = (f" (gmsh: sigma_vertices {coarse.mesh.sigma_vertices}, boundary_vertices "
                 f"{coarse.mesh.boundary_vertices})" if coarse.mesh.sigma_vertices is not None else "")
         angle = min(meshes.statistics(half).min_angle for half in mesh.halves)
-        print(f"mesh: a coarse mesh{made} refined by {levels} level{'s' if levels > 1 else ''}: {int(mesh.sigma.corner.sum())} Σ vertices, "
-              f"{meshes.boundary_vertex_count(mesh)} boundary vertices, smallest angle {angle:.1f}°", flush=True)
+        print(f"mesh: a coarse mesh{made} refined by {levels} level{'s' if levels > 1 else ''}: "
+              f"{int(mesh.sigma.corner.sum())} Σ vertices, {meshes.boundary_vertex_count(mesh)} boundary vertices, "
+              f"smallest angle {angle:.1f}°", flush=True)
 
 
 def _print_fracture(result) -> None:

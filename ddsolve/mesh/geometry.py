@@ -247,7 +247,8 @@ def coarse_segments(scene: Scene, levels: int) -> int:
     sigma_x = sorted({x0, *(tip for piece in scene.geometry.cracks for tip in piece if x0 < tip < x1), x1})
     sides = [x1 - x0, x1 - x0, ys - y0, ys - y0, y1 - ys, y1 - ys]
     if options.size is None:
-        counts = [*apportion(options.sigma_vertices - 1, np.diff(sigma_x)), *apportion(options.boundary_vertices, sides)]
+        counts = [*apportion(options.sigma_vertices - 1, np.diff(sigma_x)),
+                  *apportion(options.boundary_vertices, sides)]
     else:
         counts = [math.ceil(length / options.size - 1e-9) for length in [*np.diff(sigma_x), *sides]]
     return int(min(counts))
