@@ -144,6 +144,7 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
               f"block solves, {result.wall_time:.3f} s on {result.ranks} ranks -> {output}", flush=True)
         print(estimate_line(result), flush=True)
         print(launch_line(result), flush=True)
+        _print_refinement(scene, result)
         _print_fracture(result)
     return 0
 
@@ -166,6 +167,19 @@ def launch_line(result) -> str:
     ratio = f"{total / solve:.2f} x" if solve > 0 else "n/a:"
     return (f"launch {total:.2f} s = {ratio} the solve phase ({solve:.2f} s): "
             + ", ".join(f"{name} {seconds:.2f}" for name, seconds in phases) + memory)
+
+
+def _print_refinement(scene, result) -> None:
+    """For a mesh made by refining a coarse one: the levels and the fine mesh's real counts."""
+    from ddsolve.mesh import geometry
+
+    coarse, levels = geometry.refinement(scene)
+    if levels and "min_angle" in result.attrs:
+        made = (f" (gmsh: sigma_vertices {coarse.mesh.sigma_vertices}, boundary_vertices "
+                f"{coarse.mesh.boundary_vertices})" if coarse.mesh.sigma_vertices is not None else "")
+        print(f"mesh: a coarse mesh{made} refined by {levels} level{'s' if levels > 1 else ''}: "
+              f"{result.attrs['sigma_vertices']} Σ vertices, {result.attrs['boundary_vertices']} boundary vertices, "
+              f"smallest angle {result.attrs['min_angle']:.1f}°", flush=True)
 
 
 def _print_fracture(result) -> None:
@@ -209,6 +223,7 @@ def cmd_reference(args, petsc_options: list[str]) -> int:
         report_unused_options(None, "reference")
     print(f"reference: {result.iterations} active-set steps, {result.wall_time:.3f} s -> {output}")
     print(estimate_line(result))
+    _print_refinement(scene, result)
     _print_fracture(result)
     return 0
 

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ddsolve.errors import MeshError, SceneError
+from ddsolve.mesh import refine
 from ddsolve.mesh.gmsh_io import GMSH_TRIANGLE, apart, from_gmsh, has_halves, session
 from ddsolve.mesh.mesh import (CLAMPED, CRACK, SIGMA, TOL, HalfMesh, Mesh, elevate, make_half, make_mesh, merge_repeats,
                                oriented)
@@ -38,7 +39,17 @@ FAR_FACTOR = 1.2
 
 
 def build(scene: Scene, background: SizeMap | None = None) -> Mesh:
-    """The scene's mesh, from whichever source it names (sized by ``background`` if given); always checked."""
+    """The scene's mesh, from whichever source it names (sized by ``background`` if given); always checked.
+
+    A coarse mesh refined when :func:`refinement` says so (never with ``background``)."""
+    coarse, levels = refinement(scene) if background is None else (scene, 0)
+    if levels:
+        return refine.refine(build_coarse(coarse), levels, scene.mesh.degree)
+    return build_coarse(scene, background)
+
+
+def build_coarse(scene: Scene, background: SizeMap | None = None) -> Mesh:
+    """The scene's mesh as gmsh makes it or the file holds it, unrefined (sized by ``background`` if given)."""
     options = scene.mesh
     if options.kind == "box":
         return pair(scene, *(generate_half(scene, side, background) for side in (-1, 1)))
@@ -174,6 +185,73 @@ def translated(geometry: Geometry, offset: np.ndarray) -> Geometry:
     x0, x1, y0, y1 = geometry.box
     return replace(geometry, box=(x0 + dx, x1 + dx, y0 + dy, y1 + dy), sigma=geometry.sigma + dy,
                    cracks=tuple((a + dx, b + dx) for a, b in geometry.cracks))
+
+
+#: Paper-family meshes with more Σ vertices than this are a coarse gmsh mesh refined (the paper's Table 1
+#: meshes and P = 400 stay gmsh meshes); so are ``mesh.size`` boxes of more estimated vertices than
+#: REFINE_VERTICES.
+REFINE_SIGMA_VERTICES = 400
+REFINE_VERTICES = 50000
+#: The automatic choice refines until the coarse mesh has at most this many vertices (both halves; gmsh
+#: makes it in a few hundredths of a second) ...
+COARSE_VERTICES = 4000
+#: ... while every Σ piece and every side of the box keeps at least this many coarse segments.
+COARSE_SEGMENTS = 2
+
+
+def refinement(scene: Scene) -> tuple[Scene, int]:
+    """The scene of the coarse mesh and the levels of uniform refinement that make ``scene``'s mesh
+    (0 levels: the scene's own mesh, made by gmsh or read).
+
+    ``mesh.refine = k`` asks for k levels: the paper's family (P, M) is then made from (P_c, M_c) =
+    (round((P − 1)/2^k) + 1, round(M/2^k)), so that the fine mesh has 2^k·(P_c − 1) + 1 Σ vertices, a
+    ``mesh.size`` h from the size 2^k·h, a .geo without a size and a mesh file from their own mesh.  Left
+    unset, a box above REFINE_SIGMA_VERTICES or REFINE_VERTICES without grading or a target error gets the
+    fewest levels that bring the coarse mesh to COARSE_VERTICES, within COARSE_SEGMENTS per Σ piece and side.
+    """
+    options = scene.mesh
+    if options.refine is not None:
+        levels = options.refine
+        if levels and options.kind == "box" and coarse_segments(scene, levels) < COARSE_SEGMENTS:
+            raise SceneError(f"mesh.refine = {levels}: the coarse mesh would have fewer than {COARSE_SEGMENTS} "
+                             "segments on a Σ piece or a side of the box; lower mesh.refine")
+        return (coarsened(scene, levels), levels) if levels else (scene, 0)
+    if options.kind != "box" or options.grading is not None or options.target_error is not None:
+        return scene, 0
+    large = (options.sigma_vertices > REFINE_SIGMA_VERTICES if options.size is None
+             else estimated_vertices(scene) > REFINE_VERTICES)
+    levels = 0
+    while large and coarse_segments(scene, levels + 1) >= COARSE_SEGMENTS:
+        levels += 1
+        if estimated_vertices(coarsened(scene, levels)) <= COARSE_VERTICES:
+            break
+    return (coarsened(scene, levels), levels) if levels else (scene, 0)
+
+
+def coarsened(scene: Scene, levels: int) -> Scene:
+    """The P1 scene whose mesh, refined ``levels`` times, is (about) ``scene``'s (see :func:`refinement`)."""
+    options, factor = scene.mesh, 2 ** levels
+    if options.sigma_vertices is not None:
+        options = replace(options, sigma_vertices=max(2, round((options.sigma_vertices - 1) / factor)) + 1,
+                          boundary_vertices=max(4, round(options.boundary_vertices / factor)))
+    elif options.size is not None:
+        options = replace(options, size=options.size * factor)
+    return replace(scene, mesh=replace(options, degree=1, refine=0))
+
+
+def coarse_segments(scene: Scene, levels: int) -> int:
+    """The fewest segments on a Σ piece or a side of the box in the coarse mesh for ``levels`` levels."""
+    options = coarsened(scene, levels).mesh
+    x0, x1, y0, y1 = scene.geometry.box
+    ys = scene.geometry.sigma
+    sigma_x = sorted({x0, *(tip for piece in scene.geometry.cracks for tip in piece if x0 < tip < x1), x1})
+    sides = [x1 - x0, x1 - x0, ys - y0, ys - y0, y1 - ys, y1 - ys]
+    if options.size is None:
+        counts = [*apportion(options.sigma_vertices - 1, np.diff(sigma_x)),
+                  *apportion(options.boundary_vertices, sides)]
+    else:
+        counts = [math.ceil(length / options.size - 1e-9) for length in [*np.diff(sigma_x), *sides]]
+    return int(min(counts))
 
 
 def estimated_vertices(scene: Scene) -> float | None:

@@ -321,16 +321,21 @@ def make_mesh(lower: HalfMesh, upper: HalfMesh, origin: str, exact_normals: np.n
             raise MeshError(f"{origin}: the halves have different element degrees")
     scale = max(np.ptp(half.points, axis=0).max() for half in (lower, upper))
     check_resolution(lower, upper, origin)
-    a, b = lower.points[lower.sigma], upper.points[upper.sigma]
-    if len(a) != len(b) or np.abs(a - b).max() > TOL * scale:
-        raise MeshError(f"{origin}: the Σ nodes of the two halves do not match ({len(a)} and {len(b)} nodes)")
+    check_sigma_match(lower, upper, scale, origin)
     _check_only_sigma_is_shared(lower, upper, scale, origin)
-    sigma = _sigma_line(lower, upper, exact_normals)
+    sigma = sigma_line(lower, upper, exact_normals)
     if np.any(sigma.crack & sigma.clamped):
         first = sigma.points[np.flatnonzero(sigma.crack & sigma.clamped)[0]]
         raise MeshError(f"{origin}: a crack reaches the clamped boundary at ({first[0]:.6g}, {first[1]:.6g}); "
                         "the crack must stay off Γ_D")
     return Mesh(lower, upper, sigma, origin)
+
+
+def check_sigma_match(lower: HalfMesh, upper: HalfMesh, scale: float, origin: str) -> None:
+    """The two halves' Σ nodes coincide, in order (within TOL × ``scale``)."""
+    a, b = lower.points[lower.sigma], upper.points[upper.sigma]
+    if len(a) != len(b) or np.abs(a - b).max() > TOL * scale:
+        raise MeshError(f"{origin}: the Σ nodes of the two halves do not match ({len(a)} and {len(b)} nodes)")
 
 
 #: The largest rounding of a node's coordinates (the spacing of doubles at the largest coordinate) that
@@ -370,7 +375,8 @@ def _check_only_sigma_is_shared(lower: HalfMesh, upper: HalfMesh, scale: float, 
                         f"into the lower and the upper half (is part of Σ missing from {SIGMA!r}?)")
 
 
-def _sigma_line(lower: HalfMesh, upper: HalfMesh, exact_normals: np.ndarray | None) -> SigmaLine:
+def sigma_line(lower: HalfMesh, upper: HalfMesh, exact_normals: np.ndarray | None = None) -> SigmaLine:
+    """Σ of two paired halves: its nodes in order, normals (``exact_normals`` where given), weights, roles."""
     degree = lower.degree
     step = degree  # nodes per Σ edge, beyond its first
     order = lower.sigma
@@ -468,6 +474,12 @@ def boundary_vertex_count(mesh: Mesh) -> int:
         sigma = np.isin(edge_keys(edges, len(half.points)), edge_keys(half.edges(SIGMA)[:, :2], len(half.points)))
         coordinates.update(map(tuple, half.points[np.unique(edges[~sigma])].round(12).tolist()))
     return len(coordinates)
+
+
+def quality(mesh: Mesh) -> dict:
+    """What a result records of its mesh: the smallest angle (degrees), the vertices on Σ and on ∂Ω."""
+    return {"min_angle": min(statistics(half).min_angle for half in mesh.halves),
+            "sigma_vertices": int(mesh.sigma.corner.sum()), "boundary_vertices": boundary_vertex_count(mesh)}
 
 
 @dataclass(frozen=True)

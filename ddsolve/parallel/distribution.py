@@ -5,14 +5,16 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+import numpy as np
 from mpi4py import MPI
 
 from ddsolve.fem import supports
 from ddsolve.fem.assembly import check_range
 from ddsolve.fem.supports import SigmaSupports
-from ddsolve.mesh import geometry, sizing
+from ddsolve.mesh import geometry, refine, sizing
+from ddsolve.mesh import mesh as meshes
 from ddsolve.mesh.mesh import BLOCKS, U_PLUS, HalfMesh, Mesh, SigmaLine
-from ddsolve.parallel.exchange import Exchange, collective
+from ddsolve.parallel.exchange import Exchange, collective, wait
 from ddsolve.parallel.phases import Phases
 from ddsolve.post import fracture
 from ddsolve.problem.scene import Scene
@@ -29,6 +31,7 @@ class LocalMesh:
     origin: str
     tips: list = dataclasses.field(default_factory=list)  # the crack tips (fracture.Tip)
     supports: SigmaSupports | None = None  # the prescribed trace entries (needs both halves to make)
+    quality: dict = dataclasses.field(default_factory=dict)  # rank 0: the whole mesh's (:func:`quality`)
 
     def half(self, side: int) -> HalfMesh:
         return self.halves[side]
@@ -71,7 +74,12 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
     rank 0 makes the whole mesh.  Rank 0 pairs the halves (checks, Σ, the loads' boundaries), then
     each half goes to the ranks that need it by a broadcast among them.  Rank 0 keeps the upper half
     only with one rank (or ``keep_whole``); it gets it back for output (:func:`gather_upper`).
+    A mesh made by refinement (:func:`geometry.refinement`) is made by :func:`refined_local_mesh`.
     """
+    coarse_scene, levels = (scene, 0) if background is not None else comm.bcast(
+        collective(comm, lambda: geometry.refinement(scene), root_only=True), root=0)  # rank 0 decides
+    if levels:
+        return refined_local_mesh(scene, coarse_scene, levels, comm, exchange, phases, keep_whole)
     rank = comm.rank
     upper_maker = exchange.leader(U_PLUS)
     split = scene.mesh.kind == "box" and comm.size > 1
@@ -104,8 +112,88 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
         group.Free()
     if phases is not None:
         phases.end("distribution")
-    return LocalMesh(halves, sigma, nodes, cells, geometry.origin(scene), tips, table)
+    return LocalMesh(halves, sigma, nodes, cells, geometry.origin(scene), tips, table,
+                     meshes.quality(paired) if rank == 0 else {})
 
+
+def refined_local_mesh(scene: Scene, coarse_scene: Scene, levels: int, comm: MPI.Comm, exchange: Exchange,
+                       phases: Phases | None = None, keep_whole: bool = False) -> LocalMesh:
+    """:func:`local_mesh` for a mesh that is ``coarse_scene``'s refined ``levels`` times.
+
+    The coarse halves are made as a whole mesh is (a box's by the leaders of u⁻ and u⁺ at once, else on
+    rank 0, which sends the upper one to u⁺'s leader); each goes to the ranks of its half, which refine
+    an equal share of its coarse cells each (:class:`~ddsolve.mesh.refine.Lattice`) and exchange the
+    pieces.  Rank 0 then gets the upper half from u⁺'s leader, pairs and checks the whole fine mesh.
+    Phases: ``meshing`` is this rank's own work (gmsh's coarse mesh, its share of the refinement);
+    ``distribution`` the waits and exchanges, the pairing and the checks on rank 0.
+    """
+    rank, upper_maker = comm.rank, exchange.leader(U_PLUS)
+    end = phases.end if phases is not None else (lambda name: None)
+    if scene.mesh.kind == "box" and comm.size > 1:
+        side = -1 if rank == 0 else 1 if rank == upper_maker else 0
+        made = collective(comm, lambda: geometry.generate_half(coarse_scene, side) if side else None)
+        coarse = {side: made} if side else {}
+        if rank == upper_maker:
+            comm.send(made, dest=0)
+        elif rank == 0:
+            coarse[1] = comm.recv(source=upper_maker)
+        whole_coarse = collective(comm, lambda: geometry.pair(scene, coarse[-1], coarse[1]), root_only=True)
+    else:
+        whole_coarse = collective(comm, lambda: geometry.build_coarse(coarse_scene), root_only=True)
+        coarse = {-1: whole_coarse.lower, 1: whole_coarse.upper} if rank == 0 else {}
+        if upper_maker != 0:
+            if rank == 0:
+                comm.send(coarse[1], dest=upper_maker)
+            elif rank == upper_maker:
+                coarse[1] = comm.recv(source=0)
+    end("meshing")
+    needed = sorted({BLOCKS[b].side for b in exchange.local_blocks})
+    group = comm.Split(color=int(needed[0] > 0), key=rank) if comm.size > 1 else comm  # its maker is first
+    fine = {}
+    try:
+        for side in needed:
+            grid = refine.Lattice(group.bcast(coarse.get(side), root=0), levels, scene.mesh.degree)
+            end("distribution")
+            bounds = refine.shares(grid, group.size)
+            first, stop = bounds[group.rank], bounds[group.rank + 1]
+            points, cells = collective(comm, lambda: (grid.fine_points(first, stop), grid.fine_cells(first, stop)))
+            end("meshing")
+            fine[side] = grid.half(*share_pieces(group, grid, bounds, points, cells))
+    finally:
+        if group != comm:
+            group.Free()
+    upper = fine.get(1)
+    if comm.size > 1:
+        if rank == upper_maker:
+            comm.send(upper, dest=0)
+        elif rank == 0:
+            upper = comm.recv(source=upper_maker)
+    paired = collective(comm, lambda: refine.pair_refined(whole_coarse, fine[-1], upper), root_only=True)
+    checked = collective(comm, lambda: whole_mesh_checks(scene, paired), root_only=True)
+    sizes = (paired.sigma, {half.side: len(half.points) for half in paired.halves},
+             {half.side: len(half.cells) for half in paired.halves}, checked) if rank == 0 else None
+    sigma, nodes, cells, (tips, table) = comm.bcast(sizes, root=0)
+    if keep_whole and rank == 0:
+        fine[1] = upper
+    end("distribution")
+    return LocalMesh(fine, sigma, nodes, cells, geometry.origin(scene), tips, table,
+                     meshes.quality(paired) if rank == 0 else {})
+
+
+def share_pieces(group: MPI.Comm, grid: refine.Lattice, bounds, points, cells) -> tuple:
+    """The whole fine half's points and cells on every rank of ``group``, from each rank's piece (the
+    fine nodes and cells of its coarse cells ``bounds[r]:bounds[r + 1]``), placed by one Allgatherv each."""
+    per_cell = grid.cells_per_cell * 3 * grid.degree
+    whole_points = np.empty((grid.node_count, 2))
+    whole_cells = np.empty((grid.cell_count * grid.cells_per_cell, 3 * grid.degree), dtype=np.int64)
+    node_counts = 2 * np.diff(grid.node_offsets[bounds])
+    cell_counts = per_cell * np.diff(bounds)
+    for mine, whole_array, counts, kind in ((points, whole_points, node_counts, MPI.DOUBLE),
+                                            (cells, whole_cells, cell_counts, MPI.INT64_T)):
+        displacements = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        wait(group.Iallgatherv(np.ascontiguousarray(mine), [whole_array, counts.tolist(), displacements.tolist(),
+                                                            kind]))
+    return whole_points, whole_cells
 
 def whole_mesh_checks(scene: Scene, mesh: Mesh) -> tuple[list[fracture.Tip], SigmaSupports]:
     """What needs the whole mesh (rank 0, before it is distributed): the loads' and displacements'

@@ -69,7 +69,8 @@ class MeshOptions:
 
     ``grading`` is the exponent μ of the grading towards the singular points (None: no grading);
     ``target_error`` the relative energy-norm error at which adaptive refinement stops (None: no
-    adaptivity).
+    adaptivity); ``refine`` the levels of uniform refinement of a coarse gmsh mesh that make the mesh
+    (None: chosen by size, see :func:`ddsolve.mesh.geometry.refinement`; 0: gmsh makes the mesh itself).
     """
 
     file: Path | None = None
@@ -79,6 +80,7 @@ class MeshOptions:
     degree: int = 1
     grading: float | None = None
     target_error: float | None = None
+    refine: int | None = None
 
     @property
     def kind(self) -> str:
@@ -424,6 +426,7 @@ SCHEMA: dict[str, Any] = {
         "degree": (_degree, 1),
         "grading": (_grading, None),
         "target_error": (_fraction, None),
+        "refine": (_count(0), None),
     },
     "materials": {
         "model": (_choice(materials.MODELS), "plane_strain"),

@@ -399,7 +399,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
                 history=np.array(outcome.history), timings=timings, message=outcome.message,
                 active_set_changes=np.array(outcome.active_set_changes, dtype=np.int64),
                 memory=memory_record(memory, sum(sizes), whole_bytes),
-                attrs={**launch.provenance(), "stop": scene.solver.stop, "tol": scene.solver.tol,
+                attrs={**launch.provenance(), **local.quality, "stop": scene.solver.stop, "tol": scene.solver.tol,
                        "peak_memory_mb": [max(peak.values()) for _, peak, _ in memory], **outcome.details})
             if distributed:
                 result = Result(scene=scene.text, method=method, mesh=None, solution={},

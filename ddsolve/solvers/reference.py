@@ -17,6 +17,7 @@ from ddsolve.dd.interface import Interface, for_mesh
 from ddsolve.errors import SolverError
 from ddsolve.fem import assembly, supports
 from ddsolve.fem.assembly import BlockSystem, coo_to_csr
+from ddsolve.mesh import mesh as meshes
 from ddsolve.mesh.mesh import Mesh
 from ddsolve.parallel.blocks import Block
 from ddsolve.parallel.launch import provenance
@@ -122,7 +123,7 @@ def solve(scene: Scene, mesh: Mesh) -> Result:
         solves=step, wall_time=elapsed, ranks=1, history=np.array(history),
         active_set_changes=np.array(changes, dtype=np.int64),
         timings={"factorization": factorization, "total": elapsed}, message=message,
-        attrs={**provenance(), "closed_vertices": int(closed.sum()), "energy": float(energy),
+        attrs={**provenance(), **meshes.quality(mesh), "closed_vertices": int(closed.sum()), "energy": float(energy),
                "kkt_tolerance": constraints.kkt_tolerance(None),
                **{f"kkt_{name}": getattr(checked, name) for name in constraints.Constraints.NAMES}})
     estimated = estimate.of_scene(scene, mesh, result.solution, result.multipliers["mu_c"])

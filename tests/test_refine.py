@@ -1,0 +1,191 @@
+"""Uniform refinement of a coarse mesh (ddsolve.mesh.refine): geometry kept, numbering shared by the
+ranks, energies decreasing with the levels, and the parallel path against one rank."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import ddsolve, structured_mesh
+
+from ddsolve.errors import SceneError
+from ddsolve.fem import assembly
+from ddsolve.io import hdf5 as io
+from ddsolve.mesh import geometry, refine
+from ddsolve.mesh.mesh import CLAMPED, CRACK, SIGMA, edge_lengths, make_mesh, statistics
+from ddsolve.problem import scene
+from ddsolve.problem.scene import Geometry
+from ddsolve.solvers import reference
+
+#: The paper's square with its crack (tips at x = ±0.5 are vertices of the structured mesh).
+CRACKED = Geometry()
+
+
+@pytest.fixture(scope="module")
+def coarse():
+    return structured_mesh(8, 4, shear=0.3, geometry=CRACKED)
+
+
+@pytest.mark.parametrize("degree", [1, 2])
+@pytest.mark.parametrize("levels", [0, 1, 2])
+def test_refinement_keeps_area_boundaries_orientation_angles_and_the_crack_tips(coarse, degree, levels):
+    fine = refine.refine(coarse, levels, degree)
+    n = 2 ** levels
+    for old, new in zip(coarse.halves, fine.halves):
+        assert new.degree == degree
+        assert len(new.cells) == n * n * len(old.cells)
+        assert np.all(new.areas() > 0)  # every fine cell counter-clockwise
+        assert new.areas().sum() == pytest.approx(old.areas().sum(), rel=1e-13)
+        assert set(new.boundaries) == set(old.boundaries)
+        for name, edges in old.boundaries.items():
+            assert len(new.edges(name)) == n * len(edges)
+            assert edge_lengths(new.points, new.edges(name)).sum() == pytest.approx(
+                edge_lengths(old.points, edges).sum(), rel=1e-13)
+        assert statistics(new).min_angle == pytest.approx(statistics(old).min_angle, rel=1e-10)
+    corners = fine.sigma.points[fine.sigma.corner]
+    assert len(corners) == n * (int(coarse.sigma.corner.sum()) - 1) + 1
+    np.testing.assert_allclose(fine.lower.points[fine.lower.sigma], fine.upper.points[fine.upper.sigma], atol=1e-15)
+    np.testing.assert_allclose(fine.sigma.points[fine.sigma.tip], coarse.sigma.points[coarse.sigma.tip], atol=1e-15)
+    assert fine.sigma.crack.sum() == (n * degree) * (coarse.sigma.crack.sum() + 1) - 1  # crack nodes between tips
+
+
+def test_the_refined_mesh_passes_every_check_of_a_mesh_and_gives_the_same_sigma(coarse):
+    fine = refine.refine(coarse, 2, 2)
+    checked = make_mesh(fine.lower, fine.upper, "refined")  # all of make_mesh's checks
+    for name in ("points", "normals", "weights", "crack", "tip", "clamped", "corner"):
+        np.testing.assert_allclose(getattr(checked.sigma, name), getattr(fine.sigma, name), atol=1e-14)
+
+
+def test_p2_cells_have_meshio_node_order(coarse):
+    fine = refine.refine(coarse, 1, 2)
+    for half in fine.halves:
+        p = half.points[half.cells]
+        for middle, (a, b) in zip((3, 4, 5), ((0, 1), (1, 2), (2, 0))):
+            np.testing.assert_allclose(p[:, middle], 0.5 * (p[:, a] + p[:, b]), atol=1e-14)
+        for name, edges in half.boundaries.items():
+            np.testing.assert_allclose(half.points[edges[:, 2]], 0.5 * (half.points[edges[:, 0]]
+                                                                       + half.points[edges[:, 1]]), atol=1e-14)
+
+
+@pytest.mark.parametrize("degree", [1, 2])
+def test_pieces_of_any_number_of_parts_assemble_into_the_same_mesh(coarse, degree):
+    grid = refine.Lattice(coarse.lower, 2, degree)
+    whole_points = grid.fine_points(0, grid.cell_count)
+    whole_cells = grid.fine_cells(0, grid.cell_count)
+    for parts in (1, 2, 4, 7):
+        bounds = refine.shares(grid, parts)
+        points = np.full_like(whole_points, np.nan)
+        cells = []
+        for first, stop in zip(bounds[:-1], bounds[1:]):  # each part placed where the numbering says
+            points[grid.node_offsets[first]:grid.node_offsets[stop]] = grid.fine_points(first, stop)
+            cells.append(grid.fine_cells(first, stop))
+        np.testing.assert_array_equal(points, whole_points)
+        np.testing.assert_array_equal(np.concatenate(cells), whole_cells)
+    # every node once, every node used, the same node from all its cells
+    assert np.array_equal(np.unique(whole_cells), np.arange(grid.node_count))
+    assert len(np.unique(np.round(whole_points, 12), axis=0)) == grid.node_count
+
+
+@pytest.mark.parametrize("parts", [2, 4, 8])
+def test_the_ranks_of_a_half_share_the_fine_nodes_evenly(coarse, parts):
+    grid = refine.Lattice(refine.refine_half(coarse.lower, 2), 2, 1)  # 128 coarse cells
+    nodes = np.diff(grid.node_offsets[refine.shares(grid, parts)])
+    largest_cell = np.diff(grid.node_offsets).max()
+    assert nodes.sum() == grid.node_count and nodes.max() <= grid.node_count / parts + largest_cell
+
+
+def test_a_projection_puts_the_new_boundary_nodes_on_their_curve_and_bends_the_cells(coarse):
+    bump = 0.05
+
+    def project(points, names):
+        assert points.shape == (len(names), 2) and set(names) <= {"top", "bottom", "left", "right", SIGMA}
+        moved = points.copy()
+        top = names == "top"
+        moved[top, 1] = 1.0 + bump * np.sin(4 * np.pi * points[top, 0])
+        return moved
+
+    fine = refine.refine(coarse, 2, 1, project)
+    upper = fine.upper
+    on_top = np.unique(upper.edges("top"))
+    np.testing.assert_allclose(upper.points[on_top, 1], 1.0 + bump * np.sin(4 * np.pi * upper.points[on_top, 0]),
+                               atol=1e-14)
+    assert np.all(upper.areas() > 0)
+    straight = refine.refine(coarse, 2, 1)
+    moved = np.flatnonzero(np.any(upper.points != straight.upper.points, axis=1))
+    assert len(np.setdiff1d(moved, on_top)) > 0  # inner nodes of the cells on top bend with them
+    np.testing.assert_array_equal(fine.lower.points, straight.lower.points)
+
+
+def patch_error(half) -> float:
+    """Largest error of the FE solution with a field of the element's space prescribed on the boundary."""
+    rows, cols, values = assembly.stiffness(half.points, half.cells, np.diag([2.0, 2.0, 1.0]))
+    K = np.zeros((2 * len(half.points), 2 * len(half.points)))
+    np.add.at(K, (rows, cols), values)
+    x, y = half.points.T
+    exact = np.column_stack([0.01 + 0.002 * x - 0.003 * y, -0.02 + 0.004 * x + 0.001 * y])
+    if half.degree == 2:
+        exact += 0.005 * np.column_stack([x * x - y * y, -2.0 * x * y])
+    exact = exact.ravel()
+    fixed = assembly.element_dofs(np.unique(half.boundary_edges)[:, None]).ravel()
+    free = np.setdiff1d(np.arange(len(exact)), fixed)
+    u = exact.copy()
+    u[free] = np.linalg.solve(K[np.ix_(free, free)], -K[np.ix_(free, fixed)] @ exact[fixed])
+    return float(np.abs(u - exact).max())
+
+
+@pytest.mark.parametrize("degree", [1, 2])
+def test_patch_test_on_the_refined_mesh(degree):
+    fine = refine.refine(structured_mesh(4, 2, shear=0.3), 1, degree)
+    assert patch_error(fine.lower) < 1e-12
+
+
+def test_energy_decreases_with_the_levels():
+    small = scene.load("partial-closure", ["mesh.sigma_vertices=9", "mesh.boundary_vertices=12"])
+    coarse = geometry.build(small)
+    energies = [reference.solve(small, refine.refine(coarse, levels)).energy for levels in (0, 1, 2)]
+    assert energies[0] > energies[1] > energies[2]
+
+
+def refined(*overrides: str):
+    return geometry.refinement(scene.load("partial-closure", list(overrides)))
+
+
+def test_the_automatic_choice_keeps_the_paper_meshes_and_refines_the_large_ones():
+    for P, M in ((13, 16), (25, 32), (50, 64), (100, 128), (200, 256), (400, 512)):  # Table 1 and P = 400
+        _, levels = refined(f"mesh.sigma_vertices={P}", f"mesh.boundary_vertices={M}")
+        assert levels == 0
+    coarse, levels = refined("mesh.sigma_vertices=801", "mesh.boundary_vertices=1024")
+    assert levels >= 1 and 2 ** levels * (coarse.mesh.sigma_vertices - 1) + 1 == 801
+    assert geometry.estimated_vertices(coarse) <= geometry.COARSE_VERTICES
+    assert geometry.coarse_segments(coarse, 0) >= geometry.COARSE_SEGMENTS
+    assert refined("mesh.sigma_vertices=801", "mesh.boundary_vertices=1024", "mesh.refine=0")[1] == 0
+    coarse, levels = refined("mesh.sigma_vertices=800", "mesh.boundary_vertices=1024", "mesh.refine=2")
+    assert (levels, coarse.mesh.sigma_vertices, coarse.mesh.boundary_vertices, coarse.mesh.degree) == (2, 201, 256, 1)
+    coarse, levels = refined("mesh.size=0.005")
+    assert levels >= 1 and coarse.mesh.size == pytest.approx(0.005 * 2 ** levels)
+    assert refined("mesh.size=0.05")[1] == 0
+
+
+def test_too_many_levels_for_the_geometry_are_refused():
+    with pytest.raises(SceneError, match=r"mesh.refine = 5: the coarse mesh would have fewer than 2 segments"):
+        refined("mesh.sigma_vertices=41", "mesh.boundary_vertices=64", "mesh.refine=5")
+    with pytest.raises(SceneError, match="mesh.refine"):
+        scene.load("partial-closure", ["mesh.refine=-1"])
+
+
+def test_a_refined_mesh_file_is_its_mesh_refined(mesh_file):
+    plain = geometry.build(scene.load("partial-closure", [f'mesh.file="{mesh_file}"']))
+    fine = geometry.build(scene.load("partial-closure", [f'mesh.file="{mesh_file}"', "mesh.refine=1"]))
+    assert len(fine.lower.cells) == 4 * len(plain.lower.cells)
+    assert set(fine.lower.boundaries) == set(plain.lower.boundaries) >= {SIGMA, CRACK, CLAMPED}
+
+
+@pytest.mark.mpi
+@pytest.mark.slow
+def test_p801_refined_gives_the_same_energy_on_1_2_and_4_ranks(tmp_path):
+    options = ["--set", "mesh.sigma_vertices=801", "--set", "mesh.boundary_vertices=1024"]
+    energies = {}
+    for ranks in (1, 2, 4):
+        output = tmp_path / f"r{ranks}.h5"
+        ddsolve("solve", "partial-closure", *options, "-o", str(output), ranks=ranks, timeout=600)
+        energies[ranks] = io.read(output).energy
+    assert energies[2] == pytest.approx(energies[1], rel=1e-10)
+    assert energies[4] == pytest.approx(energies[1], rel=1e-10)
