@@ -142,35 +142,27 @@ def bisect(tri: Triangulation, marked: np.ndarray) -> tuple[Triangulation, np.nd
     times it was bisected (0, 1 or 2).  New vertices are the straight middles of their edges (for an
     original P2 edge: its midpoint); :func:`to_mesh` projects those on boundaries.
     """
-    cells, n = tri.cells, len(tri.points)
-    keys, inverse = np.unique(edge_keys(cells[:, OPPOSITE].reshape(-1, 2), n), return_inverse=True)
-    inverse = inverse.reshape(-1, 3)
-    flagged = np.zeros(len(keys), dtype=bool)
-    flagged[inverse[np.asarray(marked, dtype=bool), 0]] = True
-    while True:  # the closure: a cell with a marked edge has its refinement edge marked
-        pending = flagged[inverse].any(axis=1) & ~flagged[inverse[:, 0]]
-        if not pending.any():
-            break
-        flagged[inverse[pending, 0]] = True
+    n = len(tri.points)
+    active, keys, inverse, flagged = _closure(tri.cells, n, np.asarray(marked, dtype=bool))
     ends = np.column_stack([keys[flagged] // n, keys[flagged] % n])
     points = 0.5 * (tri.points[ends[:, 0]] + tri.points[ends[:, 1]])
-    old, middle = tri.middles
-    if len(old):
-        position = np.searchsorted(keys, edge_keys(old, n))
-        known = (position < len(keys)) & (keys[np.minimum(position, len(keys) - 1)] == edge_keys(old, n))
-        known[known] = flagged[position[known]]
-        new_number = np.cumsum(flagged) - 1
-        points[new_number[position[known]]] = middle[known]
     number = np.full(len(keys), -1, dtype=np.int64)
-    number[flagged] = n + np.arange(int(flagged.sum()))
-    middles = number[inverse]  # (m, 3): the new vertex on each edge of each cell, or −1
-    children, parents, splits = [cells], [np.arange(len(cells))], [np.zeros(len(cells), dtype=np.int64)]
+    number[flagged] = n + np.arange(len(ends))
+    old, middle = tri.middles
+    where = _lookup(keys, edge_keys(old, n))
+    known = where >= 0
+    known[known] = flagged[where[known]]
+    points[number[where[known]] - n] = middle[known]
+    middles = number[inverse]  # (a, 3): the new vertex on each edge of each active cell, or −1
+    cells = tri.cells[active]
     split = middles[:, 0] >= 0
-    children[0], parents[0], splits[0] = cells[~split], parents[0][~split], splits[0][~split]
-    index = np.flatnonzero(split)
+    kept = ~active
+    kept[active] = ~split
+    children, parents, splits = [tri.cells[kept]], [np.flatnonzero(kept)], [np.zeros(int(kept.sum()), dtype=np.int64)]
+    index = np.flatnonzero(active)[split]
     c, m = cells[split], middles[split]
-    halves = [(np.column_stack([m[:, 0], c[:, 0], c[:, 1]]), m[:, 2]), (np.column_stack([m[:, 0], c[:, 2], c[:, 0]]), m[:, 1])]
-    for child, mid in halves:
+    for child, mid in ((np.column_stack([m[:, 0], c[:, 0], c[:, 1]]), m[:, 2]),
+                       (np.column_stack([m[:, 0], c[:, 2], c[:, 0]]), m[:, 1])):
         again = mid >= 0
         children += [child[~again], np.column_stack([mid[again], child[again, 0], child[again, 1]]),
                      np.column_stack([mid[again], child[again, 2], child[again, 0]])]
@@ -178,19 +170,65 @@ def bisect(tri: Triangulation, marked: np.ndarray) -> tuple[Triangulation, np.nd
         splits += [np.ones(int((~again).sum()), dtype=np.int64), *[np.full(int(again.sum()), 2, dtype=np.int64)] * 2]
     parent = np.concatenate(parents)
     order = np.argsort(parent, kind="stable")
-    new_cells = np.concatenate(children)[order]
     names = np.concatenate([tri.names, np.full(len(ends), "", dtype=object)])
     boundaries = {}
     for (side, name), edges in sorted(tri.boundaries.items(), key=lambda item: item[0][1] == SIGMA):
-        mid = number[np.searchsorted(keys, edge_keys(edges, n))]
+        where = _lookup(keys, edge_keys(edges, n))
+        mid = np.where(where >= 0, number[where], -1)
         cut = mid >= 0
         names[mid[cut]] = name
         boundaries[(side, name)] = np.vstack([edges[~cut], np.column_stack([edges[cut, 0], mid[cut]]),
                                               np.column_stack([mid[cut], edges[cut, 1]])])
-    refined = replace(tri, points=np.vstack([tri.points, points]), cells=new_cells, side=tri.side[parent[order]],
-                      boundaries=boundaries, names=names,
+    refined = replace(tri, points=np.vstack([tri.points, points]), cells=np.concatenate(children)[order],
+                      side=tri.side[parent[order]], boundaries=boundaries, names=names,
                       singular=np.concatenate([tri.singular, np.zeros(len(ends), dtype=bool)]))
     return refined, parent[order], np.concatenate(splits)[order]
+
+
+#: Rings of neighbours around the marked cells in which the closure is looked for first (doubled while
+#: it reaches the edge of that region).
+CLOSURE_RINGS = 3
+
+
+def _closure(cells: np.ndarray, n: int, marked: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The edges to bisect: the refinement edges of the marked cells, and of every cell with an edge to
+    bisect, until there is none more.  Looked for among the cells near the marked ones only (the
+    closure of newest-vertex bisection stays close): returns those cells (``(m,)`` bool), their edges'
+    keys, each cell's three edges ``(a, 3)`` (edge j opposite vertex j) and which edges to bisect."""
+    rings = CLOSURE_RINGS
+    while True:
+        active, near = marked.copy(), np.zeros(n, dtype=bool)
+        for _ in range(rings):
+            near[cells[active].ravel()] = True
+            active = near[cells].any(axis=1)
+        keys, inverse, counts = np.unique(edge_keys(cells[active][:, OPPOSITE].reshape(-1, 2), n),
+                                          return_inverse=True, return_counts=True)
+        inverse = inverse.reshape(-1, 3)
+        flagged = np.zeros(len(keys), dtype=bool)
+        flagged[inverse[marked[active], 0]] = True
+        while True:
+            pending = flagged[inverse].any(axis=1) & ~flagged[inverse[:, 0]]
+            if not pending.any():
+                break
+            flagged[inverse[pending, 0]] = True
+        rim = keys[flagged & (counts == 1)]  # bisected edges on the region's outline: inside Ω, the region is too small
+        if active.all() or not len(rim):
+            return active, keys, inverse, flagged
+        on_rim = np.zeros(n, dtype=bool)
+        on_rim[np.concatenate([rim // n, rim % n])] = True
+        outside = cells[~active & (on_rim[cells].sum(axis=1) >= 2)]
+        if not np.isin(edge_keys(outside[:, OPPOSITE].reshape(-1, 2), n), rim).any():
+            return active, keys, inverse, flagged
+        rings *= 2
+
+
+def _lookup(keys: np.ndarray, wanted: np.ndarray) -> np.ndarray:
+    """The position of each of ``wanted`` in the sorted ``keys``, −1 where it is not there."""
+    if len(keys) == 0:
+        return np.full(len(wanted), -1, dtype=np.int64)
+    position = np.minimum(np.searchsorted(keys, wanted), len(keys) - 1)
+    return np.where(keys[position] == wanted, position, -1)
 
 
 def to_mesh(tri: Triangulation, project: Projector | None = None) -> Mesh:
