@@ -8,12 +8,12 @@ and broadcasts it; every level is an ordinary domain-decomposition solve
 
 The marking aims at the target in one step (:func:`plan`): bisecting a cell multiplies its share of η²
 by 2^-p for degree p (each child carries 2^-(p+1): η_K² ∝ h_K^(2p+2) where the solution is smooth), and
-a cell at a singular vertex (crack tips, ends of Σ, clamped meeting free boundary, re-entrant corners)
-by 2^-½ only (η_K² ∝ h_K for an r^½ singularity).  Cells whose predicted η_K² is above a threshold τ² are
-bisected, their children predicted, again, until none is; τ² starts at the target's η² over the cells
-the target needs at the degree's rate (N ∝ (η/target)^(2/p)) and is lowered until the predicted η² is
-below (target / ``SAFETY``)².  The result is a mesh with the error equidistributed, graded towards the
-singular points, that reaches the target in one or two refinements.
+the child that keeps a singular vertex (crack tips, ends of Σ, clamped meeting free boundary, re-entrant
+corners) carries 2^-½ of its parent's (η_K² ∝ h_K for an r^½ singularity).  Cells whose predicted η_K²
+is above a threshold τ² are bisected, their children predicted, again, until none is; τ² starts at the
+target's η² over the present number of cells and is lowered until the predicted η² is below
+(target / ``SAFETY``)².  The result is a mesh with the error equidistributed, graded towards the
+singular points, that reaches the target in one refinement as a rule (two at most).
 
 What cannot finish is not started: after every level the unknowns the target needs are predicted at
 the best rate adaptive meshes reach, error ∝ N^(−degree/2) (:func:`needed_unknowns`); if they exceed
@@ -49,11 +49,12 @@ MAX_UNKNOWNS = 4_000_000
 PREDICTION_MARGIN = 2.0
 #: The refined mesh aims at the target divided by this (the prediction is a model).
 SAFETY = 1.3
-#: The exponent λ of the singular points' r^λ: a bisection of a cell at one multiplies its η_K² by 2^-λ.
+#: The exponent λ of the singular points' r^λ: the child of a bisection that keeps a singular vertex carries
+#: 2^-λ of its parent's η_K² (measured: the other child as if the solution were smooth there).
 SINGULAR_EXPONENT = 0.5
 #: Cells are not marked below this size (square root of the area), relative to the geometry's size: as
 #: small as gmsh's graded meshes go (ddsolve.mesh.sizing.SMALLEST), well above rounding.
-SMALLEST = 1e-6
+SMALLEST = 3e-7
 #: Bisection sweeps of one refinement at most (a cell at a singular vertex needs two per factor 2 of η_K²).
 MAX_SWEEPS = 400
 #: Columns of the level table (``/levels`` in the result file).
@@ -201,9 +202,8 @@ def plan(mesh: Mesh, indicators: dict[str, np.ndarray], estimate: float, target:
                 break
             threshold *= goal / remaining
             continue
-        singular = tri.singular[tri.cells].any(axis=1)
         tri, parent, splits = bisection.bisect(tri, marked)
-        rate = np.where(singular[parent], SINGULAR_EXPONENT, mesh.degree + 1.0)
+        rate = np.where(tri.singular[tri.cells].any(axis=1), SINGULAR_EXPONENT, mesh.degree + 1.0)
         predicted = predicted[parent] * 2.0 ** (-rate * splits)
         area = area[parent] * 2.0 ** -splits
         if planned_unknowns(tri) > limit:
