@@ -129,3 +129,27 @@ def test_the_projector_keeps_points_on_the_arc_of_arc_bond():
     assert np.allclose(np.hypot(moved[:, 0], moved[:, 1] + 2.4), 2.6, atol=1e-12)  # Σ: the circle (0, −2.4), r 2.6
     top = project(np.array([[0.3, 0.99]]), np.array(["top"]))
     assert np.allclose(top, [[0.3, 1.0]], atol=1e-15)  # a straight line: exact
+
+
+SPLINE_GEO = """
+Point(1) = {-1, -1, 0}; Point(2) = {1, -1, 0}; Point(3) = {1, 1, 0}; Point(4) = {-1, 1, 0};
+Point(5) = {-1, 0, 0}; Point(6) = {1, 0, 0}; Point(7) = {-0.3, 0.3, 0}; Point(8) = {0.4, -0.2, 0};
+Line(1) = {1, 2}; Line(2) = {2, 6}; Line(3) = {6, 3}; Line(4) = {3, 4}; Line(5) = {4, 5}; Line(6) = {5, 1};
+BSpline(7) = {5, 7, 8, 6};
+Curve Loop(1) = {1, 2, -7, 6}; Plane Surface(1) = {1};
+Curve Loop(2) = {7, 3, 4, 5}; Plane Surface(2) = {2};
+Physical Surface("lower") = {1}; Physical Surface("upper") = {2};
+Physical Curve("sigma") = {7}; Physical Curve("clamped") = {2, 3, 5, 6};
+"""
+
+
+def test_the_projector_leaves_other_curves_to_gmsh(tmp_path):
+    path = tmp_path / "spline.geo"
+    path.write_text(SPLINE_GEO)
+    project = curves.GeometryProjector(path)
+    points = np.column_stack([np.linspace(-0.8, 0.8, 9), np.zeros(9)])
+    moved = project(points, np.array([SIGMA] * 9))
+    assert np.allclose(project(moved, np.array([SIGMA] * 9)), moved, atol=1e-9)  # on the curve: they stay
+    assert np.all(np.linalg.norm(moved - points, axis=1) < 0.3) and not np.allclose(moved, points)
+    left = project(np.array([[-1.2, 0.5]]), np.array(["clamped"]))
+    assert np.allclose(left, [[-1.0, 0.5]], atol=1e-15)
