@@ -90,8 +90,9 @@ def triangulation(mesh: Mesh, longest_edge: bool = True) -> Triangulation:
                   for half in (lower, upper) for name, edges in half.boundaries.items()}
     middles = (np.zeros((0, 2), dtype=np.int64), np.zeros((0, 2)))
     if mesh.degree == 2:
-        edges = np.vstack([numbers[half.side][half.cells[:, CELL_EDGES[6]].reshape(-1, 3)[:, :2]] for half in (lower, upper)])
-        where = np.vstack([half.points[half.cells[:, CELL_EDGES[6]].reshape(-1, 3)[:, 2]] for half in (lower, upper)])
+        p2_edges = [half.cells[:, CELL_EDGES[6]].reshape(-1, 3) for half in (lower, upper)]  # (a, b, midpoint)
+        edges = np.vstack([numbers[half.side][found[:, :2]] for half, found in zip((lower, upper), p2_edges)])
+        where = np.vstack([half.points[found[:, 2]] for half, found in zip((lower, upper), p2_edges)])
         _, first = np.unique(edge_keys(edges, len(points)), return_index=True)
         middles = (edges[first], where[first])
     tri = Triangulation(points, cells, side, boundaries, np.full(len(points), "", dtype=object),
@@ -158,7 +159,8 @@ def bisect(tri: Triangulation, marked: np.ndarray) -> tuple[Triangulation, np.nd
     split = middles[:, 0] >= 0
     kept = ~active
     kept[active] = ~split
-    children, parents, splits = [tri.cells[kept]], [np.flatnonzero(kept)], [np.zeros(int(kept.sum()), dtype=np.int64)]
+    children, parents = [tri.cells[kept]], [np.flatnonzero(kept)]
+    splits = [np.zeros(int(kept.sum()), dtype=np.int64)]
     index = np.flatnonzero(active)[split]
     c, m = cells[split], middles[split]
     for child, mid in ((np.column_stack([m[:, 0], c[:, 0], c[:, 1]]), m[:, 2]),
@@ -167,7 +169,8 @@ def bisect(tri: Triangulation, marked: np.ndarray) -> tuple[Triangulation, np.nd
         children += [child[~again], np.column_stack([mid[again], child[again, 0], child[again, 1]]),
                      np.column_stack([mid[again], child[again, 2], child[again, 0]])]
         parents += [index[~again], index[again], index[again]]
-        splits += [np.ones(int((~again).sum()), dtype=np.int64), *[np.full(int(again.sum()), 2, dtype=np.int64)] * 2]
+        twice = np.full(int(again.sum()), 2, dtype=np.int64)
+        splits += [np.ones(int((~again).sum()), dtype=np.int64), twice, twice]
     parent = np.concatenate(parents)
     order = np.argsort(parent, kind="stable")
     names = np.concatenate([tri.names, np.full(len(ends), "", dtype=object)])
@@ -212,7 +215,7 @@ def _closure(cells: np.ndarray, n: int, marked: np.ndarray
             if not pending.any():
                 break
             flagged[inverse[pending, 0]] = True
-        rim = keys[flagged & (counts == 1)]  # bisected edges on the region's outline: inside Ω, the region is too small
+        rim = keys[flagged & (counts == 1)]  # bisected edges on the region's outline: the region may be too small
         if active.all() or not len(rim):
             return active, keys, inverse, flagged
         on_rim = np.zeros(n, dtype=bool)

@@ -189,7 +189,7 @@ def plan(mesh: Mesh, indicators: dict[str, np.ndarray], estimate: float, target:
     ``indicators`` (per block) add up to; ``longest_edge`` as in :func:`ddsolve.mesh.bisection.triangulation`."""
     tri = bisection.triangulation(mesh, longest_edge)
     predicted = cell_indicators(mesh, indicators)
-    goal = predicted.sum() * (target / (SAFETY * estimate)) ** 2  # η² of the target: η² / estimate² = ‖u‖² + η²
+    goal = predicted.sum() * (target / (SAFETY * estimate)) ** 2  # the target's η²: η² / estimate² = ‖u‖² + η²
     threshold = goal / len(predicted)
     area = signed_areas(tri.points, tri.cells)
     smallest = (SMALLEST * np.ptp(tri.points, axis=0).max()) ** 2
