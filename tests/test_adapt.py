@@ -1,4 +1,4 @@
-"""Dörfler marking and the size map of the next mesh (serial)."""
+"""The adaptive loop's marking (a refined mesh aimed at the target) and its decisions (serial)."""
 from __future__ import annotations
 
 import numpy as np
@@ -6,11 +6,12 @@ import pytest
 from conftest import structured_mesh
 
 from ddsolve.errors import DDSolveError
-from ddsolve.mesh import sizing
-from ddsolve.mesh.mesh import BLOCKS
+from ddsolve.mesh import bisection
+from ddsolve.mesh.mesh import BLOCKS, Mesh
 from ddsolve.post.result import Result
+from ddsolve.problem import scene
 from ddsolve.problem.scene import Geometry
-from ddsolve.solvers import adapt
+from ddsolve.solvers import adapt, reference
 
 
 def _indicators(mesh, hot):
@@ -20,39 +21,34 @@ def _indicators(mesh, hot):
     return out
 
 
-def test_dorfler_marks_the_fewest_cells_carrying_half_the_estimate_and_halves_them():
-    mesh = structured_mesh(8, 4, degree=2, geometry=Geometry())
-    hot = np.array([0, 5])
-    sizes, growth = adapt.refined_sizes(mesh, _indicators(mesh, hot))
-    lower = mesh.lower
-    corners = lower.points[lower.corners]
-    h = np.linalg.norm(corners - corners[:, [1, 2, 0]], axis=2).mean(axis=1)
-    wanted = sizes.sizes[:len(lower.cells)]
-    for cell in hot:  # the marked cells get half their size at their corners
-        assert np.allclose(wanted[cell], 0.5 * h[cell])
-    far = np.setdiff1d(np.arange(len(lower.cells)), hot)
-    untouched = ~np.isin(lower.corners[far], lower.corners[hot]).any(axis=1)
-    assert np.all(wanted[far[untouched]] > 0.9 * h[far[untouched]].min())  # elsewhere the present size
-    # Four times as many cells where marked: 2 of 128 cells.
-    assert growth == pytest.approx((len(mesh.lower.cells) + len(mesh.upper.cells) + 2 * 3) /
-                                   (len(mesh.lower.cells) + len(mesh.upper.cells)))
-    # Σ vertices have one size, whichever half the map is read from.
-    positions = {tuple(p): s for p, s in zip(sizes.corners.reshape(-1, 2).round(12).tolist(), sizes.sizes.ravel())}
-    lower_sigma = mesh.lower.points[mesh.lower.sigma[mesh.sigma.corner]]
-    for point in lower_sigma.round(12).tolist():
-        values = [s for p, s in zip(sizes.corners.reshape(-1, 2).round(12).tolist(), sizes.sizes.ravel())
-                  if p == point]
-        assert np.ptp(values) == 0.0 and positions[tuple(point)] == values[0]
+def _result(mesh, estimate, indicators):
+    return Result(scene="", method="schur", converged=True, iterations=1, solves=3, wall_time=0.0, ranks=1,
+                  mesh=mesh, solution={}, multipliers={}, history=np.zeros(0),
+                  attrs={"error_estimate": estimate}, indicators=indicators)
+
+
+def test_the_plan_refines_where_the_indicators_are_and_predicts_the_target():
+    mesh = structured_mesh(8, 4, degree=2, geometry=Geometry(cracks=()))
+    hot = np.array([10, 11])
+    indicators = _indicators(mesh, hot)
+    estimate, target = 0.05, 0.005
+    tri = adapt.plan(mesh, indicators, estimate, target, limit=1e7)
+    refined = bisection.to_mesh(tri)
+    centres = refined.lower.points[refined.lower.corners].mean(axis=1)
+    areas, first = refined.lower.areas(), mesh.lower.areas()[0]
+    distance = np.linalg.norm(centres - mesh.lower.points[mesh.lower.corners[hot]].mean(axis=(0, 1)), axis=1)
+    assert np.any(areas < first / 16) and distance[areas < first / 16].max() < 0.35  # the hot cells, bisected
+    assert np.allclose(areas[distance > 0.7], first)  # cold cells far away stay
+    assert adapt.planned_unknowns(tri) == adapt.unknowns(refined)
 
 
 def test_the_loop_stops_at_the_target_the_level_limit_or_the_size_limit(monkeypatch):
     mesh = structured_mesh(8, 4, degree=1, geometry=Geometry())
-    result = Result(scene="", method="schur", converged=True, iterations=1, solves=3, wall_time=0.0, ranks=1,
-                    mesh=mesh, solution={}, multipliers={}, history=np.zeros(0),
-                    attrs={"error_estimate": 0.05}, indicators=_indicators(mesh, np.array([3])))
+    result = _result(mesh, 0.05, _indicators(mesh, np.array([3])))
     assert adapt.next_level(result, 0.1, 0) == (True, None, "")
-    done, sizes, message = adapt.next_level(result, 0.01, 0)
-    assert not done and isinstance(sizes, sizing.SizeMap) and message == ""
+    done, refined, message = adapt.next_level(result, 0.01, 0)
+    assert not done and isinstance(refined, Mesh) and message == ""
+    assert adapt.unknowns(refined) > adapt.unknowns(mesh)
     done, _, message = adapt.next_level(result, 0.01, adapt.MAX_LEVELS - 1)
     assert done and message == (f"mesh.target_error = 0.01 not reached in {adapt.MAX_LEVELS} levels "
                                 "(estimated error 0.05)")
@@ -63,4 +59,28 @@ def test_the_loop_stops_at_the_target_the_level_limit_or_the_size_limit(monkeypa
     assert done and "not reached, and out of reach: it needs about 9e+03 unknowns" in message
     monkeypatch.setattr(adapt, "PREDICTION_MARGIN", 1e6)
     done, _, message = adapt.next_level(result, 0.01, 1)
-    assert done and "the next mesh would have about" in message
+    assert done and "mesh.target_error = 0.01 not reached: the next mesh would have about" in message
+
+
+def test_target_error_alone_chooses_p2_and_grading():
+    assert scene.load("partial-closure", ["mesh.target_error=0.01"]).mesh.degree == 2
+    assert scene.load("partial-closure", ["mesh.target_error=0.01", "mesh.degree=1"]).mesh.degree == 1
+    assert scene.load("partial-closure").mesh.degree == 1
+    graded = scene.load("arc-bond", ["mesh.target_error=0.01"]).mesh
+    assert graded.grading == scene.GRADING[2]
+    assert scene.load("arc-bond", ["mesh.target_error=0.01", "mesh.grading=false"]).mesh.grading is None
+    assert scene.load("partial-closure", ["mesh.target_error=0.01"]).mesh.grading is None  # the paper's family
+
+
+@pytest.mark.parametrize("name", ["partial-closure", "linear"])
+def test_energies_decrease_monotonically_under_refinement(name):
+    source = scene.load(name, ["mesh.target_error=0.01"])
+    mesh = structured_mesh(8, 4, geometry=Geometry())
+    energies = []
+    for round_ in range(4):
+        result = reference.solve(source, mesh)
+        energies.append(float(result.attrs["energy"]))
+        marked = adapt.cell_indicators(mesh, result.indicators)
+        marked = marked > np.quantile(marked, 0.6)
+        mesh = bisection.refine(mesh, marked, longest_edge=round_ == 0)
+    assert all(b < a for a, b in zip(energies, energies[1:])), energies

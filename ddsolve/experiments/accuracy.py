@@ -53,7 +53,7 @@ def _overrides(family: str, degree: int, level) -> list[str]:
         return [f"mesh.sigma_vertices={P}", f"mesh.boundary_vertices={M}", f"mesh.degree={degree}"]
     size, target = (level, None) if family == "graded" else ADAPTIVE[degree]
     return [f"mesh.size={size}", f"mesh.degree={degree}"] + (
-        ["mesh.grading=true"] if family == "graded" else [f"mesh.target_error={target}"])
+        ["mesh.grading=true"] if family == "graded" else [f"mesh.target_error={target}", "mesh.grading=false"])
 
 
 def unknowns(mesh) -> int:

@@ -46,6 +46,9 @@ GEOMETRIC_TOLERANCE = 1e-8
 #: h ∝ r^(1−μ) at distance r from a singular point, with μ below ½/p so that an r^½ singularity costs
 #: no convergence rate (see docs/accuracy.md).
 GRADING = {1: 0.4, 2: 0.2}
+#: The element degree of an adaptive run (``mesh.target_error``) whose scene does not set ``mesh.degree``:
+#: P2 converges as N^-1 on adapted meshes, P1 as N^-½ (docs/accuracy.md).
+ADAPTIVE_DEGREE = 2
 
 
 @dataclass(frozen=True)
@@ -540,6 +543,7 @@ def _cross_checks(data: dict, raw: dict, origin: str) -> None:
                          f"apart, within the meshing tolerance {feature:.2g} ({GEOMETRIC_TOLERANCE:g} × the box "
                          "size): lengthen, move or remove the crack")
     counts = (mesh["sigma_vertices"], mesh["boundary_vertices"])
+    _adaptive_defaults(mesh, set(raw["mesh"]) if isinstance(raw.get("mesh"), dict) else set())
     _mesh_refinement_checks(mesh, origin)
     if mesh["file"] is not None:
         extra = [name for name in ("sigma_vertices", "boundary_vertices") if mesh[name] is not None]
@@ -650,6 +654,17 @@ def _check_conditioning(D, table: dict, model: str, where: str) -> None:
     raise SceneError(f"{where}.nu = {nu!r} is too close to {0.5 if nu > 0 else -1.0:g} for double precision in "
                      f"{model} (the elastic matrix's largest / smallest eigenvalue is {ratio:.2g}, at most "
                      f"{CONDITIONING:.2g}): use nu {limit}")
+
+
+def _adaptive_defaults(mesh: dict, given: set[str]) -> None:
+    """``mesh.target_error`` alone chooses P2 elements and, where a size is given (the box or a .geo
+    file with ``mesh.size``), a graded first mesh; keys the scene writes stay."""
+    if mesh["target_error"] is None:
+        return
+    if "degree" not in given:
+        mesh["degree"] = ADAPTIVE_DEGREE
+    if "grading" not in given and mesh["size"] is not None:
+        mesh["grading"] = True
 
 
 def _mesh_refinement_checks(mesh: dict, origin: str) -> None:

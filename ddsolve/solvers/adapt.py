@@ -1,18 +1,24 @@
-"""Adaptive refinement to a target error (``mesh.target_error``): solve, estimate, mark, re-mesh, repeat.
+"""Adaptive refinement to a target error (``mesh.target_error``): solve, estimate, refine the mesh, solve.
 
-Each level is an ordinary domain-decomposition solve (:func:`ddsolve.solvers.driver.solve`) with its error
-estimate.  While the estimate is above the target, rank 0 marks the cells that carry the largest
-indicators (Dörfler marking: the fewest cells whose η_K² add up to ``DORFLER`` of η²), asks for
-``REFINE`` × their size and the present size elsewhere, and gmsh meshes the geometry again with that
-size field (:class:`ddsolve.mesh.sizing.SizeMap`, the previous mesh with sizes at its vertices; with
-``mesh.grading`` the graded field still applies where it is finer).  The two halves are meshed from
-the same size field, so their Σ nodes match.  What carries over from a level to the next: the scene,
-the geometry's size field and the previous mesh (as the background of the next one).
+Level 0 is the scene's mesh (:func:`ddsolve.parallel.distribution.build_mesh`).  While the estimate is
+above the target, rank 0 refines the present mesh by newest-vertex bisection
+(:mod:`ddsolve.mesh.bisection`, new boundary vertices on the geometry's curves, :mod:`ddsolve.mesh.curves`)
+and broadcasts it; every level is an ordinary domain-decomposition solve
+(:func:`ddsolve.solvers.driver.solve`) with its error estimate.
+
+The marking aims at the target in one step (:func:`plan`): bisecting a cell multiplies its share of η²
+by 2^-p for degree p (each child carries 2^-(p+1): η_K² ∝ h_K^(2p+2) where the solution is smooth), and
+the child that keeps a singular vertex (crack tips, ends of Σ, clamped meeting free boundary, re-entrant
+corners) carries 2^-½ of its parent's (η_K² ∝ h_K for an r^½ singularity).  Cells whose predicted η_K²
+is above a threshold τ² are bisected, their children predicted, again, until none is; τ² starts at the
+target's η² over the present number of cells and is lowered until the predicted η² is below
+(target / ``SAFETY``)².  The result is a mesh with the error equidistributed, graded towards the
+singular points, that reaches the target in one refinement as a rule (two at most).
 
 What cannot finish is not started: after every level the unknowns the target needs are predicted at
 the best rate adaptive meshes reach, error ∝ N^(−degree/2) (:func:`needed_unknowns`); if they exceed
 what a level may have on this machine (:func:`largest_level`), the first level refuses the target at
-once (nothing written) and a later one stops there; no level is built whose mesh would exceed it.
+once (nothing written) and a later one stops there; no level is solved whose mesh would exceed it.
 """
 from __future__ import annotations
 
@@ -24,20 +30,16 @@ from mpi4py import MPI
 
 from ddsolve.errors import DDSolveError, NotConvergedError
 from ddsolve.io import hdf5 as io
-from ddsolve.mesh.mesh import BLOCKS, Mesh
-from ddsolve.mesh.sizing import SizeMap
+from ddsolve.mesh import bisection, curves
+from ddsolve.mesh.mesh import BLOCKS, SIGMA, Mesh, signed_areas
 from ddsolve.parallel import distribution
 from ddsolve.parallel.exchange import collective
 from ddsolve.post.result import Result
 from ddsolve.problem.scene import Scene
 from ddsolve.solvers import driver
 
-#: Dörfler's bulk parameter θ: the marked cells carry at least this fraction of η².
-DORFLER = 0.5
-#: Marked cells are meshed again with this fraction of their size.
-REFINE = 0.5
-#: Levels before giving up.
-MAX_LEVELS = 25
+#: Levels (solves) before giving up; the marking aims at reaching the target within three.
+MAX_LEVELS = 5
 #: Unknowns above which the next level is not attempted (memory; fewer if this machine holds fewer,
 #: see :func:`largest_level`).
 MAX_UNKNOWNS = 4_000_000
@@ -45,6 +47,16 @@ MAX_UNKNOWNS = 4_000_000
 #: the largest level by this factor: before their asymptotic rate, adaptive meshes converge a little
 #: faster (Example 1, P1: N^-0.64 from the first level to the second, N^-0.51 over twelve levels).
 PREDICTION_MARGIN = 2.0
+#: The refined mesh aims at the target divided by this (the prediction is a model).
+SAFETY = 1.3
+#: The exponent λ of the singular points' r^λ: the child of a bisection that keeps a singular vertex carries
+#: 2^-λ of its parent's η_K² (measured: the other child as if the solution were smooth there).
+SINGULAR_EXPONENT = 0.5
+#: Cells are not marked below this size (square root of the area), relative to the geometry's size: as
+#: small as gmsh's graded meshes go (ddsolve.mesh.sizing.SMALLEST), well above rounding.
+SMALLEST = 3e-7
+#: Bisection sweeps of one refinement at most (a cell at a singular vertex needs two per factor 2 of η_K²).
+MAX_SWEEPS = 400
 #: Columns of the level table (``/levels`` in the result file).
 LEVEL_COLUMNS = ("unknowns", "cells", "error_estimate", "energy", "mesh_time", "solve_time", "level_time", "elapsed")
 
@@ -88,23 +100,27 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, lev
     if level is None:
         def level(mesh: Mesh) -> Result | None:
             return driver.solve(scene, comm, None, progress=_silent, mesh=mesh)
+    project = curves.projector(scene)
     started = time.perf_counter()
-    background, rows, result, message = None, [], None, ""
+    refined, rows, result, message, refining = None, [], None, "", 0.0
     for number in range(MAX_LEVELS):
         mark = time.perf_counter()
-        mesh = distribution.build_mesh(scene, comm, background)
-        meshing = time.perf_counter() - mark
+        mesh = distribution.build_mesh(scene, comm) if number == 0 else comm.bcast(refined, root=0)
+        meshing = time.perf_counter() - mark + refining
         result = level(mesh)
         if comm.rank == 0:
             estimate = float(result.attrs["error_estimate"])
             rows.append({"unknowns": unknowns(mesh), "cells": len(mesh.lower.cells) + len(mesh.upper.cells),
                          "error_estimate": estimate, "energy": float(result.attrs.get("energy", np.nan)),
                          "mesh_time": meshing, "solve_time": result.wall_time,
-                         "level_time": time.perf_counter() - mark, "elapsed": time.perf_counter() - started})
+                         "level_time": time.perf_counter() - mark + refining, "elapsed": time.perf_counter() - started})
             progress(f"level {number}: {rows[-1]['unknowns']:,} unknowns, estimated error {100 * estimate:.3g} %, "
                      f"{rows[-1]['level_time']:.2f} s (mesh {meshing:.2f} s, solve {result.wall_time:.2f} s)")
-        decision = collective(comm, lambda: next_level(result, target, number), root_only=True)
-        done, background, message = comm.bcast(decision, root=0)
+        mark = time.perf_counter()
+        decision = collective(comm, lambda: next_level(result, target, number, project), root_only=True)
+        done, message = comm.bcast(decision[0::2] if comm.rank == 0 else None, root=0)
+        refined = decision[1] if comm.rank == 0 else None
+        refining = time.perf_counter() - mark
         if done:
             break
     if comm.rank == 0:
@@ -121,8 +137,9 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, lev
     return result
 
 
-def next_level(result: Result, target: float, level: int) -> tuple[bool, SizeMap | None, str]:
-    """Rank 0's decision after a level: (stop, the next size map, why the target was not reached).
+def next_level(result: Result, target: float, level: int, project: bisection.Projector | None = None
+               ) -> tuple[bool, Mesh | None, str]:
+    """Rank 0's decision after a level: (stop, the next mesh, why the target was not reached).
     Raises DDSolveError after the first level if the target is out of reach."""
     estimate = float(result.attrs["error_estimate"])
     if estimate <= target:
@@ -141,51 +158,54 @@ def next_level(result: Result, target: float, level: int) -> tuple[bool, SizeMap
     if level + 1 == MAX_LEVELS:
         return True, None, (f"mesh.target_error = {target:g} not reached in {MAX_LEVELS} levels "
                             f"(estimated error {estimate:.3g})")
-    sizes, growth = refined_sizes(result.mesh, result.indicators)
-    if count * growth > limit:
+    planned = plan(result.mesh, result.indicators, estimate, target, limit, longest_edge=level == 0)
+    if planned_unknowns(planned) > limit:
         return True, None, (f"mesh.target_error = {target:g} not reached: the next mesh would have about "
-                            f"{count * growth:,.0f} unknowns, more than the {limit:,} a level may have on this "
-                            f"machine (estimated error {estimate:.3g}; raise mesh.degree or mesh.target_error)")
-    return False, sizes, ""
+                            f"{planned_unknowns(planned):,.0f} unknowns, more than the {limit:,} a level may "
+                            f"have on this machine (estimated error {estimate:.3g}; raise mesh.degree or "
+                            "mesh.target_error)")
+    return False, bisection.to_mesh(planned, project), ""
 
 
-def refined_sizes(mesh: Mesh, indicators: dict[str, np.ndarray], theta: float = DORFLER,
-                  factor: float = REFINE) -> tuple[SizeMap, float]:
-    """Dörfler marking on both halves and the size map of the next mesh; also the predicted growth of
-    the number of cells.
+def cell_indicators(mesh: Mesh, indicators: dict[str, np.ndarray]) -> np.ndarray:
+    """η_K² per cell, the lower half's cells then the upper half's (the two blocks of each half added)."""
+    return np.concatenate([sum(indicators[spec.name] ** 2 for spec in BLOCKS if spec.side == half.side)
+                           for half in mesh.halves])
 
-    A cell's size h_K is the mean length of its (corner) edges and its indicator the sum of the two
-    blocks on its half.  A vertex gets the smallest wanted size of its cells where one of them is
-    marked, else the mean size of its cells; a Σ vertex the smaller value of the two halves.
-    """
-    halves = mesh.halves
-    squared = [sum(indicators[spec.name] ** 2 for spec in BLOCKS if spec.side == half.side) for half in halves]
-    every = np.concatenate(squared)
-    order = np.argsort(every)[::-1]
-    marked = np.zeros(len(every), dtype=bool)
-    count = int(np.searchsorted(np.cumsum(every[order]), theta * every.sum())) + 1
-    marked[order[:min(count, len(every))]] = True
-    corners, sizes, growth, start = [], [], 0.0, 0
-    vertex_sizes = []
-    for half in halves:
-        cells = half.corners
-        p = half.points[cells]
-        h = np.linalg.norm(p - p[:, [1, 2, 0]], axis=2).mean(axis=1)
-        mine = marked[start:start + len(cells)]
-        start += len(cells)
-        wanted = np.where(mine, factor * h, h)
-        growth += float(np.sum((h / wanted) ** 2))
-        n = len(half.points)
-        mean = np.bincount(cells.ravel(), np.repeat(h, 3), minlength=n) / np.maximum(
-            np.bincount(cells.ravel(), minlength=n), 1)
-        smallest = np.full(n, np.inf)
-        np.minimum.at(smallest, cells[mine].ravel(), np.repeat(wanted[mine], 3))
-        vertex_sizes.append(np.minimum(mean, smallest))
-    corner = mesh.sigma.corner
-    shared = np.minimum(vertex_sizes[0][mesh.lower.sigma[corner]], vertex_sizes[1][mesh.upper.sigma[corner]])
-    vertex_sizes[0][mesh.lower.sigma[corner]] = shared
-    vertex_sizes[1][mesh.upper.sigma[corner]] = shared
-    for half, size in zip(halves, vertex_sizes):
-        corners.append(half.points[half.corners])
-        sizes.append(size[half.corners])
-    return SizeMap(np.concatenate(corners), np.concatenate(sizes)), growth / len(every)
+
+def planned_unknowns(tri: bisection.Triangulation) -> float:
+    """The unknowns of the mesh :func:`ddsolve.mesh.bisection.to_mesh` makes of ``tri``: four per node of
+    each half, Σ's nodes in both (edges by Euler's formula for a domain without holes, E = V + F − 1)."""
+    sigma = len(tri.boundaries[(-1, SIGMA)])
+    if tri.degree == 1:
+        return 4.0 * (len(tri.points) + sigma + 1)
+    return 4.0 * (2 * len(tri.points) + len(tri.cells) - 1 + 2 * sigma + 1)
+
+
+def plan(mesh: Mesh, indicators: dict[str, np.ndarray], estimate: float, target: float, limit: float,
+         longest_edge: bool = True) -> bisection.Triangulation:
+    """The bisected triangulation whose predicted error is ``target`` / ``SAFETY`` (see the module's
+    docstring), or the first one past ``limit`` unknowns.  ``estimate`` is the relative error the
+    ``indicators`` (per block) add up to; ``longest_edge`` as in :func:`ddsolve.mesh.bisection.triangulation`."""
+    tri = bisection.triangulation(mesh, longest_edge)
+    predicted = cell_indicators(mesh, indicators)
+    goal = predicted.sum() * (target / (SAFETY * estimate)) ** 2  # the target's η²: η² / estimate² = ‖u‖² + η²
+    threshold = goal / len(predicted)
+    area = signed_areas(tri.points, tri.cells)
+    smallest = (SMALLEST * np.ptp(tri.points, axis=0).max()) ** 2
+    for _ in range(MAX_SWEEPS):
+        refinable = area > smallest
+        marked = (predicted > threshold) & refinable
+        if not marked.any():
+            remaining = predicted[refinable].sum()  # the smallest cells' share is beyond refinement
+            if remaining <= goal:
+                break
+            threshold *= goal / remaining
+            continue
+        tri, parent, splits = bisection.bisect(tri, marked)
+        rate = np.where(tri.singular[tri.cells].any(axis=1), SINGULAR_EXPONENT, mesh.degree + 1.0)
+        predicted = predicted[parent] * 2.0 ** (-rate * splits)
+        area = area[parent] * 2.0 ** -splits
+        if planned_unknowns(tri) > limit:
+            break
+    return tri
