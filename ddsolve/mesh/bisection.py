@@ -22,15 +22,13 @@ boundary edges projected.  Pure numpy; no gmsh, PETSc or MPI.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Callable
 
 import numpy as np
 
+from ddsolve.mesh.curves import Projector
 from ddsolve.mesh.element import CELL_EDGES, cell_edges, edge_keys
 from ddsolve.mesh.mesh import CLAMPED, SIGMA, Mesh, elevate, make_half, make_mesh
 
-#: ``project(points (k, 2), names (k,)) -> (k, 2)``: new boundary vertices onto their curves.
-Projector = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 #: Local vertices of the three edges of a cell, edge j opposite vertex j (edge 0 is the refinement edge).
 OPPOSITE = np.array([[1, 2], [2, 0], [0, 1]])

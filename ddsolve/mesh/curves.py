@@ -11,14 +11,18 @@ no curves to follow: no projector.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from ddsolve.mesh.bisection import Projector
 from ddsolve.mesh.gmsh_io import apart, open_file, physical_groups, session
 from ddsolve.problem.scene import Scene
+
+#: ``project(points (k, 2), names (k,)) -> (k, 2)``: new boundary vertices onto their curves (``names``: the
+#: boundary name, ``sigma`` for Σ, of the edge each point lies on).
+Projector = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
 def projector(scene: Scene) -> Projector | None:

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ddsolve.errors import MeshError, SceneError
-from ddsolve.mesh import refine
+from ddsolve.mesh import curves, refine
 from ddsolve.mesh.gmsh_io import GMSH_TRIANGLE, apart, from_gmsh, has_halves, session
 from ddsolve.mesh.mesh import (CLAMPED, CRACK, SIGMA, TOL, HalfMesh, Mesh, elevate, make_half, make_mesh, merge_repeats,
                                oriented)
@@ -44,7 +44,7 @@ def build(scene: Scene, background: SizeMap | None = None) -> Mesh:
     A coarse mesh refined when :func:`refinement` says so (never with ``background``)."""
     coarse, levels = refinement(scene) if background is None else (scene, 0)
     if levels:
-        return refine.refine(build_coarse(coarse), levels, scene.mesh.degree)
+        return refine.refine(build_coarse(coarse), levels, scene.mesh.degree, curves.projector(scene))
     return build_coarse(scene, background)
 
 

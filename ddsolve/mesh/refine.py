@@ -22,19 +22,17 @@ refine their Σ edges alike, so their Σ nodes match.  No gmsh or MPI here.
 """
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
 
 from ddsolve.errors import MeshError
+from ddsolve.mesh.curves import Projector
 from ddsolve.mesh.element import CELL_EDGES
 from ddsolve.mesh.mesh import (CLAMPED, CRACK, SIGMA, HalfMesh, Mesh, check_resolution, check_sigma_match,
                                sigma_line)
 
-#: ``project(points (k, 2), names (k,)) -> points (k, 2)``: new boundary nodes put onto their curve.
-Projector = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 #: Boundary names that only tag edges of other parts: a node is projected on its part's curve.
 _TAGS = (CLAMPED, CRACK)

@@ -11,7 +11,7 @@ from mpi4py import MPI
 from ddsolve.fem import supports
 from ddsolve.fem.assembly import check_range
 from ddsolve.fem.supports import SigmaSupports
-from ddsolve.mesh import geometry, refine, sizing
+from ddsolve.mesh import curves, geometry, refine, sizing
 from ddsolve.mesh import mesh as meshes
 from ddsolve.mesh.mesh import BLOCKS, U_PLUS, HalfMesh, Mesh, SigmaLine
 from ddsolve.parallel.exchange import Exchange, collective, wait
@@ -148,6 +148,7 @@ def refined_local_mesh(scene: Scene, coarse_scene: Scene, levels: int, comm: MPI
                 coarse[1] = comm.recv(source=0)
     end("meshing")
     needed = sorted({BLOCKS[b].side for b in exchange.local_blocks})
+    project = curves.projector(scene)  # new vertices on a .geo's curves
     group = comm.Split(color=int(needed[0] > 0), key=rank) if comm.size > 1 else comm  # its maker is first
     fine = {}
     try:
@@ -156,7 +157,7 @@ def refined_local_mesh(scene: Scene, coarse_scene: Scene, levels: int, comm: MPI
             end("distribution")
             bounds = refine.shares(grid, group.size)
             first, stop = bounds[group.rank], bounds[group.rank + 1]
-            points, cells = collective(comm, lambda: (grid.fine_points(first, stop), grid.fine_cells(first, stop)))
+            points, cells = collective(comm, lambda: (grid.fine_points(first, stop, project), grid.fine_cells(first, stop)))
             end("meshing")
             fine[side] = grid.half(*share_pieces(group, grid, bounds, points, cells))
     finally:
