@@ -28,7 +28,7 @@ from ddsolve.mesh import curves, refine
 from ddsolve.mesh.gmsh_io import GMSH_TRIANGLE, apart, from_gmsh, has_halves, session
 from ddsolve.mesh.mesh import (CLAMPED, CRACK, SIGMA, TOL, HalfMesh, Mesh, elevate, make_half, make_mesh, merge_repeats,
                                oriented)
-from ddsolve.mesh.sizing import SizeMap, box_length, box_singular_points, node_positions, set_size_field
+from ddsolve.mesh.sizing import box_length, box_singular_points, node_positions, set_size_field
 from ddsolve.problem.scene import Geometry, Scene, readable
 
 #: Grading of the paper's mesh family: h(d) = h_Σ + (h_far − h_Σ)(d/H)^GRADING_EXPONENT at distance d
@@ -38,23 +38,22 @@ GRADING_EXPONENT = 0.8
 FAR_FACTOR = 1.2
 
 
-def build(scene: Scene, background: SizeMap | None = None) -> Mesh:
-    """The scene's mesh, from whichever source it names (sized by ``background`` if given); always checked.
-
-    A coarse mesh refined when :func:`refinement` says so (never with ``background``)."""
-    coarse, levels = refinement(scene) if background is None else (scene, 0)
+def build(scene: Scene) -> Mesh:
+    """The scene's mesh, from whichever source it names; always checked.  A coarse mesh refined when
+    :func:`refinement` says so."""
+    coarse, levels = refinement(scene)
     if levels:
         return refine.refine(build_coarse(coarse), levels, scene.mesh.degree, curves.projector(scene))
-    return build_coarse(scene, background)
+    return build_coarse(scene)
 
 
-def build_coarse(scene: Scene, background: SizeMap | None = None) -> Mesh:
-    """The scene's mesh as gmsh makes it or the file holds it, unrefined (sized by ``background`` if given)."""
+def build_coarse(scene: Scene) -> Mesh:
+    """The scene's mesh as gmsh makes it or the file holds it, unrefined."""
     options = scene.mesh
     if options.kind == "box":
-        return pair(scene, *(generate_half(scene, side, background) for side in (-1, 1)))
+        return pair(scene, *(generate_half(scene, side) for side in (-1, 1)))
     if options.kind == "geo" or (options.file.suffix.lower() == ".msh" and has_halves(options.file)):
-        return from_gmsh(scene, background)
+        return from_gmsh(scene)
     return read_box_file(scene)
 
 
@@ -100,28 +99,25 @@ def apportion(total: int, lengths) -> np.ndarray:
     return count
 
 
-def generate_half(scene: Scene, side: int, background: SizeMap | None = None) -> HalfMesh:
+def generate_half(scene: Scene, side: int) -> HalfMesh:
     """One half of the box meshed by gmsh (:func:`_mesh_half`) in a child process (:func:`apart`)."""
-    return apart(_mesh_half, scene, side, background)
+    return apart(_mesh_half, scene, side)
 
 
-def _mesh_half(scene: Scene, side: int, background: SizeMap | None = None) -> HalfMesh:
+def _mesh_half(scene: Scene, side: int) -> HalfMesh:
     """Unstructured triangulation of one half of the box (side −1: lower, +1: upper) with gmsh.
 
     With (P, M): Σ gets P vertices (ends and crack tips included), uniform on each Σ piece; the outer
     boundary gets M vertices in proportion to length; inside, the size grows from the Σ spacing to
     ``FAR_FACTOR`` × the boundary spacing (the paper's family).  With ``mesh.size`` h: every curve is
-    divided into pieces of about h and the size is h throughout.  With ``mesh.grading`` or a
-    ``background`` size map (adaptive refinement), the size field alone (:func:`set_size_field`)
-    sizes every curve and the inside.  One thread, deterministic: a half is the same whether it is
+    divided into pieces of about h and the size is h throughout.  With ``mesh.grading`` the size field
+    alone (:func:`set_size_field`) sizes every curve and the inside.  One thread, deterministic: a half is the same whether it is
     meshed alone in a process or after the other one, and the Σ vertices of both halves come from the
     same curves meshed with the same size field.
     """
     options = scene.mesh
     shift = local_origin(scene.geometry.box)  # gmsh meshes the box about a nearby origin
     geometry = translated(scene.geometry, -shift)
-    if background is not None:
-        background = SizeMap(background.corners - shift, background.sizes)
     x0, x1, y0, y1 = geometry.box
     ys = geometry.sigma
     cracks = [tip for piece in geometry.cracks for tip in piece if x0 < tip < x1]
@@ -152,14 +148,14 @@ def _mesh_half(scene: Scene, side: int, background: SizeMap | None = None) -> Ha
         else:
             surface = geo.addPlaneSurface([geo.addCurveLoop([*sigma, edges[2], top, edges[3]])])
         geo.synchronize()
-        if options.grading is None and background is None:
+        if options.grading is None:
             for curve, count in zip([*sigma, bottom, top, *edges], counts):
                 gmsh.model.mesh.setTransfiniteCurve(curve, int(count) + 1)
             field = gmsh.model.mesh.field.add("MathEval")
             gmsh.model.mesh.field.setString(field, "F", size_field)
             gmsh.model.mesh.field.setAsBackgroundMesh(field)
         else:
-            set_size_field(gmsh, options, box_singular_points(geometry), box_length(geometry), background)
+            set_size_field(gmsh, options, box_singular_points(geometry), box_length(geometry))
         gmsh.model.mesh.generate(2)
         tags, coordinates, _ = gmsh.model.mesh.getNodes()
         points = np.asarray(coordinates, dtype=np.float64).reshape(-1, 3)[:, :2]

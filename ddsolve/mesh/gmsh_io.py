@@ -15,7 +15,7 @@ import numpy as np
 from ddsolve.environment import end_with_parent
 from ddsolve.errors import MeshError
 from ddsolve.mesh.mesh import CLAMPED, CRACK, SIGMA, TOL, Mesh, elevate, make_half, make_mesh, merge_repeats
-from ddsolve.mesh.sizing import SMALLEST, SizeMap, model_singular_points, node_positions, set_size_field
+from ddsolve.mesh.sizing import SMALLEST, model_singular_points, node_positions, set_size_field
 from ddsolve.problem.scene import Scene, readable
 
 T = TypeVar("T")
@@ -130,14 +130,13 @@ def open_file(gmsh, path: Path) -> None:
         raise MeshError(f"{path}: gmsh cannot read it ({' '.join(str(exc).split())})") from None
 
 
-def from_gmsh(scene: Scene, background: SizeMap | None = None) -> Mesh:
+def from_gmsh(scene: Scene) -> Mesh:
     """A .geo meshed or a .msh read by gmsh (:func:`_from_gmsh`) in a child process (:func:`apart`)."""
-    return apart(_from_gmsh, scene, background)
+    return apart(_from_gmsh, scene)
 
 
-def _from_gmsh(scene: Scene, background: SizeMap | None = None) -> Mesh:
-    """Mesh a .geo (honouring ``mesh.size``, ``mesh.grading`` and a ``background`` size map) or read a
-    .msh, both with physical groups."""
+def _from_gmsh(scene: Scene) -> Mesh:
+    """Mesh a .geo (honouring ``mesh.size`` and ``mesh.grading``) or read a .msh, both with physical groups."""
     path, options = scene.mesh.file, scene.mesh
     where = str(path)
     if scene.geometry.given:
@@ -156,9 +155,9 @@ def _from_gmsh(scene: Scene, background: SizeMap | None = None) -> Mesh:
             low, high = np.reshape(gmsh.model.getBoundingBox(-1, -1), (2, 3))
             length = float(np.min((high - low)[:2]))
             _bounded_curves(gmsh, groups, options.degree, length, where)
-            if options.grading is not None or background is not None:
+            if options.grading is not None:
                 singular = model_singular_points(gmsh, groups) if options.grading is not None else None
-                set_size_field(gmsh, options, singular, length, background)
+                set_size_field(gmsh, options, singular, length)
             try:
                 gmsh.model.mesh.generate(2)
                 if options.degree == 2:

@@ -1,15 +1,12 @@
-"""Size fields: meshes graded towards the singular points (crack tips, corners, re-entrant corners),
-and background sizes for adaptive refinement."""
+"""Size fields: meshes graded towards the singular points (crack tips, corners, re-entrant corners)."""
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import numpy as np
 
 from ddsolve.mesh.mesh import CLAMPED, CRACK, SIGMA, TOL
 from ddsolve.problem.scene import Geometry, MeshOptions
 
-# --- size fields: grading towards singular points, and background sizes for adaptive refinement -----
+# --- size fields: grading towards singular points -------------------------------------------------
 #: Radius R of the graded zone around a singular point, as a fraction of the shorter side of the
 #: geometry's bounding box (the error per unknown changes by a few % between 0.07 and 0.2).
 GRADING_RADIUS = 0.14
@@ -29,15 +26,6 @@ RANDOM_FACTOR = 1e-11
 
 #: Interior angles above π(1 + this) are re-entrant corners.
 REENTRANT = 1e-6
-
-
-@dataclass(frozen=True)
-class SizeMap:
-    """A mesh-size field given on triangles covering the geometry (adaptive refinement): the corners
-    ``(t, 3, 2)`` and the wanted mesh size at each ``(t, 3)``, linear in between."""
-
-    corners: np.ndarray
-    sizes: np.ndarray
 
 
 def graded_size(distance: np.ndarray, size: float, mu: float, length: float, smallest: float = 0.0) -> np.ndarray:
@@ -156,11 +144,10 @@ def _point_tags(gmsh, points: np.ndarray) -> list[int]:
             if np.linalg.norm(where - point, axis=1).min() <= TOL * scale]
 
 
-def set_size_field(gmsh, options: MeshOptions, singular: np.ndarray, length: float,
-                   background: SizeMap | None) -> None:
+def set_size_field(gmsh, options: MeshOptions, singular: np.ndarray, length: float) -> None:
     """Make the background mesh size of the current gmsh model: :func:`graded_size` around each
-    singular point when ``options.grading`` (μ) is set, the ``background`` sizes when given, the
-    smaller of the two where both are; nothing else (points, boundaries, curvature) sizes the mesh."""
+    singular point (``options.grading`` = μ), at most ``options.size``; nothing else (points, boundaries,
+    curvature) sizes the mesh."""
     fields = []
     if options.grading is not None and len(singular):
         size, mu, radius = options.size, options.grading, GRADING_RADIUS * length
@@ -174,14 +161,6 @@ def set_size_field(gmsh, options: MeshOptions, singular: np.ndarray, length: flo
     if options.grading is not None:
         field = gmsh.model.mesh.field.add("MathEval")
         gmsh.model.mesh.field.setString(field, "F", f"{options.size:.17g}")
-        fields.append(field)
-    if background is not None:
-        view = gmsh.view.add("sizes")
-        corners, sizes = background.corners, np.maximum(background.sizes, SMALLEST[options.kind] * length)
-        data = np.concatenate([corners[:, :, 0], corners[:, :, 1], np.zeros((len(corners), 3)), sizes], axis=1)
-        gmsh.view.addListData(view, "ST", len(corners), data.ravel())
-        field = gmsh.model.mesh.field.add("PostView")
-        gmsh.model.mesh.field.setNumber(field, "ViewTag", view)
         fields.append(field)
     if len(fields) > 1:
         field = gmsh.model.mesh.field.add("Min")

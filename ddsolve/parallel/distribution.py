@@ -11,7 +11,7 @@ from mpi4py import MPI
 from ddsolve.fem import supports
 from ddsolve.fem.assembly import check_range
 from ddsolve.fem.supports import SigmaSupports
-from ddsolve.mesh import curves, geometry, refine, sizing
+from ddsolve.mesh import curves, geometry, refine
 from ddsolve.mesh import mesh as meshes
 from ddsolve.mesh.mesh import BLOCKS, U_PLUS, HalfMesh, Mesh, SigmaLine
 from ddsolve.parallel.exchange import Exchange, collective, wait
@@ -53,12 +53,11 @@ def whole(mesh: Mesh, tips: list | None = None, table: SigmaSupports | None = No
                      {side: len(half.cells) for side, half in halves.items()}, mesh.origin, tips or [], table)
 
 
-def build_mesh(scene: Scene, comm: MPI.Comm, background: sizing.SizeMap | None = None) -> Mesh:
-    """The scene's whole mesh on every rank (sized by ``background``, the same on every rank, if given),
-    for experiments and adaptive levels that need it everywhere."""
+def build_mesh(scene: Scene, comm: MPI.Comm) -> Mesh:
+    """The scene's whole mesh on every rank, for experiments and adaptive levels that need it everywhere."""
     exchange = Exchange(comm, len(BLOCKS))
     try:
-        mine = local_mesh(scene, comm, exchange, keep_whole=True, background=background)
+        mine = local_mesh(scene, comm, exchange, keep_whole=True)
     finally:
         exchange.free()
     halves = {side: comm.bcast(mine.halves.get(side) if comm.rank == 0 else None, root=0) for side in (-1, 1)}
@@ -66,9 +65,8 @@ def build_mesh(scene: Scene, comm: MPI.Comm, background: sizing.SizeMap | None =
 
 
 def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases | None = None,
-               keep_whole: bool = False, background: sizing.SizeMap | None = None) -> LocalMesh:
-    """Each rank gets the half its blocks live on (both with one rank), Σ, and the crack tips
-    (the mesh sized by ``background``, if given).
+               keep_whole: bool = False) -> LocalMesh:
+    """Each rank gets the half its blocks live on (both with one rank), Σ, and the crack tips.
 
     A box is meshed by the leaders of u⁻ (rank 0, lower half) and u⁺ (upper half) at once, else
     rank 0 makes the whole mesh.  Rank 0 pairs the halves (checks, Σ, the loads' boundaries), then
@@ -76,8 +74,8 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
     only with one rank (or ``keep_whole``); it gets it back for output (:func:`gather_upper`).
     A mesh made by refinement (:func:`geometry.refinement`) is made by :func:`refined_local_mesh`.
     """
-    coarse_scene, levels = (scene, 0) if background is not None else comm.bcast(
-        collective(comm, lambda: geometry.refinement(scene), root_only=True), root=0)  # rank 0 decides
+    coarse_scene, levels = comm.bcast(collective(comm, lambda: geometry.refinement(scene), root_only=True),
+                                      root=0)  # rank 0 decides
     if levels:
         return refined_local_mesh(scene, coarse_scene, levels, comm, exchange, phases, keep_whole)
     rank = comm.rank
@@ -85,13 +83,13 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
     split = scene.mesh.kind == "box" and comm.size > 1
     if split:
         side = -1 if rank == 0 else 1 if rank == upper_maker else 0
-        made = collective(comm, lambda: geometry.generate_half(scene, side, background) if side else None)
+        made = collective(comm, lambda: geometry.generate_half(scene, side) if side else None)
         if rank == upper_maker:
             comm.send(made, dest=0)
         halves = {-1: made, 1: comm.recv(source=upper_maker)} if rank == 0 else {side: made} if side else {}
         paired = collective(comm, lambda: geometry.pair(scene, halves[-1], halves[1]), root_only=True)
     else:
-        paired = collective(comm, lambda: geometry.build(scene, background), root_only=True)
+        paired = collective(comm, lambda: geometry.build(scene), root_only=True)
         halves = {-1: paired.lower, 1: paired.upper} if rank == 0 else {}
     checked = collective(comm, lambda: whole_mesh_checks(scene, paired), root_only=True)
     if phases is not None:
