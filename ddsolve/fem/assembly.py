@@ -354,7 +354,7 @@ def block_system(name: str, half: HalfMesh, sigma: SigmaLine, D: np.ndarray, loa
         data += structure.sum(matrices, cells)
     del matrices
     clamped = np.zeros(n, dtype=bool)
-    clamped[element_dofs(half.clamped()[:, None]).ravel()] = True
+    clamped[2 * half.clamped()] = clamped[2 * half.clamped() + 1] = True
     rhs = np.zeros(n)
     for load in loads:
         rhs += boundary_load(half.points, half.edges(load.boundary), load)

@@ -313,10 +313,6 @@ def make_mesh(lower: HalfMesh, upper: HalfMesh, origin: str, exact_normals: np.n
         where = f"{origin}: {half.name} half"
         if len(half.sigma) == 0:
             raise MeshError(f"{where}: no Σ edges (a boundary part named {SIGMA!r} shared with the other half)")
-        if len(half.edges(CLAMPED)) == 0:
-            blocks = "u_minus and v_minus" if half.side < 0 else "u_plus and v_plus"
-            raise MeshError(f"{where} touches no clamped boundary: the stiffness of blocks {blocks} would be "
-                            "singular (rigid motions); clamp part of its outer boundary")
         crack_edges = half.edges(CRACK)
         if len(crack_edges) and not np.isin(edge_keys(crack_edges, len(half.points)),
                                             edge_keys(half.edges(SIGMA), len(half.points))).all():

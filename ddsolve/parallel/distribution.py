@@ -7,6 +7,8 @@ from dataclasses import dataclass
 
 from mpi4py import MPI
 
+from ddsolve.dd import kernels
+from ddsolve.dd.interface import for_mesh
 from ddsolve.fem.assembly import check_range
 from ddsolve.mesh import geometry, sizing
 from ddsolve.mesh.mesh import BLOCKS, U_PLUS, HalfMesh, Mesh, SigmaLine
@@ -26,6 +28,7 @@ class LocalMesh:
     cells: dict[int, int]  # side -> cells of that half (both sides)
     origin: str
     tips: list = dataclasses.field(default_factory=list)  # the crack tips (fracture.Tip)
+    supports: kernels.Supports | None = None  # the blocks' kernels (rigid motions their supports leave)
 
     def half(self, side: int) -> HalfMesh:
         return self.halves[side]
@@ -40,11 +43,11 @@ class LocalMesh:
         return int(sum(a.nbytes for a in arrays))
 
 
-def whole(mesh: Mesh, tips: list | None = None) -> LocalMesh:
+def whole(mesh: Mesh, tips: list | None = None, supports: kernels.Supports | None = None) -> LocalMesh:
     """The whole mesh as a rank holding both halves sees it."""
     halves = {-1: mesh.lower, 1: mesh.upper}
     return LocalMesh(halves, mesh.sigma, {side: len(half.points) for side, half in halves.items()},
-                     {side: len(half.cells) for side, half in halves.items()}, mesh.origin, tips or [])
+                     {side: len(half.cells) for side, half in halves.items()}, mesh.origin, tips or [], supports)
 
 
 def build_mesh(scene: Scene, comm: MPI.Comm, background: sizing.SizeMap | None = None) -> Mesh:
@@ -82,12 +85,12 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
     else:
         paired = collective(comm, lambda: geometry.build(scene, background), root_only=True)
         halves = {-1: paired.lower, 1: paired.upper} if rank == 0 else {}
-    tips = collective(comm, lambda: whole_mesh_checks(scene, paired), root_only=True)
+    checked = collective(comm, lambda: whole_mesh_checks(scene, paired), root_only=True)
     if phases is not None:
         phases.end("meshing")
-    sigma, nodes, cells, tips = comm.bcast((paired.sigma, {s: len(h.points) for s, h in halves.items()},
-                                            {s: len(h.cells) for s, h in halves.items()}, tips)
-                                           if rank == 0 else None, root=0)
+    sigma, nodes, cells, (tips, supports) = comm.bcast((paired.sigma, {s: len(h.points) for s, h in halves.items()},
+                                                        {s: len(h.cells) for s, h in halves.items()}, checked)
+                                                       if rank == 0 else None, root=0)
     needed = sorted({BLOCKS[b].side for b in exchange.local_blocks})
     if comm.size > 1:
         if not split and upper_maker != 0:  # rank 0 made both halves: the upper one goes to u⁺'s leader
@@ -101,15 +104,17 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
         group.Free()
     if phases is not None:
         phases.end("distribution")
-    return LocalMesh(halves, sigma, nodes, cells, geometry.origin(scene), tips)
+    return LocalMesh(halves, sigma, nodes, cells, geometry.origin(scene), tips, supports)
 
 
-def whole_mesh_checks(scene: Scene, mesh: Mesh) -> list[fracture.Tip]:
+def whole_mesh_checks(scene: Scene, mesh: Mesh) -> tuple[list[fracture.Tip], kernels.Supports]:
     """What needs the whole mesh (rank 0, before it is distributed): the loads' boundaries, the range of
-    the moduli and loads, and the crack tips with their θ radii (which keep clear of the outer boundary)."""
+    the moduli and loads, the supports (a structure that can move rigidly is refused; the blocks' kernels),
+    and the crack tips with their θ radii (which keep clear of the outer boundary)."""
     geometry.check_loads(scene, mesh)
     check_range(scene, mesh)
-    return fracture.find_tips(mesh, scene.fracture.inner, scene.fracture.outer)
+    supports = kernels.supports({-1: mesh.lower, 1: mesh.upper}, mesh.sigma, for_mesh(mesh.sigma, scene.nonpenetration))
+    return fracture.find_tips(mesh, scene.fracture.inner, scene.fracture.outer), supports
 
 
 def gather_upper(mesh: LocalMesh, exchange: Exchange) -> Mesh | None:

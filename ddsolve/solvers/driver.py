@@ -17,9 +17,9 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ddsolve.dd import methods
+from ddsolve.dd import kernels, methods
 from ddsolve.dd.interface import Interface, for_mesh
-from ddsolve.errors import DDSolveError, DivergedError, NotConvergedError
+from ddsolve.errors import DDSolveError, DivergedError, NotConvergedError, SceneError
 from ddsolve.fem import assembly
 from ddsolve.io import hdf5 as io
 from ddsolve.mesh.mesh import BLOCKS, Mesh
@@ -39,6 +39,9 @@ from ddsolve.problem.scene import Scene
 #: the Schur complements (``./run bench factor`` measures both).
 FACTOR_PACKAGE = {"uzawa": "petsc", "fista": "petsc", "mprgp": "petsc", "schur": "mumps", "feti": "mumps"}
 STAGES = ("Setup", "Factorization", "Rounds", "Update", "Output")
+#: The methods that solve floating blocks (a singular stiffness): ``schur`` by their interiors, ``feti`` by
+#: a generalized inverse and the kernels' coarse problem.
+FLOATING_METHODS = ("schur", "feti")
 
 
 
@@ -139,12 +142,19 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
     stages["Setup"].push()
     exchange = Exchange(comm, len(BLOCKS))
     if mesh is not None:
-        tips = comm.bcast(collective(comm, lambda: whole_mesh_checks(scene, mesh), root_only=True), root=0)
-        local = whole(mesh, tips)
+        tips, supports = comm.bcast(collective(comm, lambda: whole_mesh_checks(scene, mesh), root_only=True), root=0)
+        local = whole(mesh, tips, supports)
     else:
         local = local_mesh(scene, comm, exchange, phases)
     scene = resolve(scene, comm.size, local)
     method = scene.solver.method
+    floating = local.supports.floating if local.supports is not None else []
+    if floating and method not in FLOATING_METHODS:
+        error = SceneError(f"solver.method = {method}: blocks {local.supports.names()} are floating (held only "
+                           f"through Σ, their stiffness singular), which {method} cannot solve: use "
+                           f"{' or '.join(FLOATING_METHODS)}")
+        error.collective = True  # every rank knows the supports
+        raise error
     blocks = collective(comm, lambda: make_blocks(scene, local, exchange, FACTOR_PACKAGE[method]))
     interface = for_mesh(local.sigma, scene.nonpenetration)
     stages["Setup"].pop()
@@ -152,15 +162,31 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
 
     stages["Factorization"].push()
     def factor():
-        for block in blocks:
-            block.factor(schur=method == "schur")
-            if method == "feti":
+        for index, block in zip(exchange.local_blocks, blocks):
+            if index in floating:
+                make_floating(block, local, index, fixed=method == "feti")
+            if not (block.floating and method == "schur"):  # schur inverts a floating block's interior only
+                block.factor(schur=method == "schur")
+            if method == "feti" or block.floating:
                 block.factor_dirichlet()
 
     collective(comm, factor)
     stages["Factorization"].pop()
     phases.end("factorization")
     return Setup(local, exchange, blocks, interface, stages, phases, scene)
+
+
+def make_floating(block: Block, mesh: LocalMesh, index: int, fixed: bool) -> None:
+    """Give a floating block its kernel (its rows) and, with ``fixed``, the dofs fixed for FETI's K⁺: m dofs
+    off the trace and the supports where the kernel is independent."""
+    half = mesh.half(BLOCKS[index].side)
+    vectors = kernels.kernel_vectors(half, mesh.sigma, mesh.supports.kernels[index], mesh.supports.frame)
+    first, last = block.system.first, block.system.first + len(block.system.rhs)
+    chosen = None
+    if fixed:
+        excluded = np.concatenate([block.trace_dofs, kernels.constrained_dofs(half)])
+        chosen = kernels.fixing_dofs(vectors, excluded)
+    block.make_floating(vectors[:, first:last], chosen)
 
 
 def resolve(scene: Scene, ranks: int, mesh: LocalMesh) -> Scene:

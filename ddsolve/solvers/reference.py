@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from ddsolve.dd import constraints
+from ddsolve.dd import constraints, kernels
 from ddsolve.dd.interface import Interface, for_mesh
 from ddsolve.errors import SolverError
 from ddsolve.fem import assembly
@@ -70,10 +70,11 @@ def merged_system(systems: list[BlockSystem], numbers: list[np.ndarray]) -> Bloc
 
 def solve(scene: Scene, mesh: Mesh) -> Result:
     """Solve the scene's discrete problem exactly; return it in the result schema."""
+    interface = for_mesh(mesh.sigma, scene.nonpenetration)
+    kernels.supports({-1: mesh.lower, 1: mesh.upper}, mesh.sigma, interface)  # refuses a structure that can move
     tips = fracture.find_tips(mesh, scene.fracture.inner, scene.fracture.outer)
     systems = assembly.block_systems(scene, mesh)
     started = time.perf_counter()  # the solve phase: merging, factorizations, active-set steps
-    interface = for_mesh(mesh.sigma, scene.nonpenetration)
     contact_rows = interface.slices["mu_c"]
     closed = np.zeros(contact_rows.stop - contact_rows.start, dtype=bool)
     history, changes = [], []
