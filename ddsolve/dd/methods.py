@@ -217,9 +217,8 @@ class DualProblem:
         self.sqrt_w = np.sqrt(interface.row_weights)
         if initial is None:
             initial, _ = rounds.solve(interface.loads(np.zeros(interface.size)), full=True)
-        traces = initial
-        self.initial_traces = traces  # of the uncoupled blocks (λ = 0; given: a model of them)
-        self.b = self.sqrt_w * interface.gap(traces)
+        self.initial_traces = initial  # of the uncoupled blocks (λ = 0), or a model of them when given
+        self.b = self.sqrt_w * interface.gap(initial)
         lower, upper = interface.bounds(solver.p)
         self.lower, self.upper = lower * self.sqrt_w, upper * self.sqrt_w
         self.scale = float(np.linalg.norm(self.b))
