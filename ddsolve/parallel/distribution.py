@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 from mpi4py import MPI
 
+from ddsolve.dd import kernels
 from ddsolve.fem import supports
 from ddsolve.fem.assembly import check_range
 from ddsolve.fem.supports import SigmaSupports
@@ -28,7 +29,8 @@ class LocalMesh:
     cells: dict[int, int]  # side -> cells of that half (both sides)
     origin: str
     tips: list = dataclasses.field(default_factory=list)  # the crack tips (fracture.Tip)
-    supports: SigmaSupports | None = None  # the prescribed trace entries (needs both halves to make)
+    sigma_supports: SigmaSupports | None = None  # the prescribed trace entries (needs both halves to make)
+    kernels: kernels.Kernels | None = None  # the blocks' kernels (rigid motions their supports leave)
 
     def half(self, side: int) -> HalfMesh:
         return self.halves[side]
@@ -43,11 +45,13 @@ class LocalMesh:
         return int(sum(a.nbytes for a in arrays))
 
 
-def whole(mesh: Mesh, tips: list | None = None, table: SigmaSupports | None = None) -> LocalMesh:
+def whole(mesh: Mesh, tips: list | None = None, table: SigmaSupports | None = None,
+          block_kernels: kernels.Kernels | None = None) -> LocalMesh:
     """The whole mesh as a rank holding both halves sees it."""
     halves = {-1: mesh.lower, 1: mesh.upper}
     return LocalMesh(halves, mesh.sigma, {side: len(half.points) for side, half in halves.items()},
-                     {side: len(half.cells) for side, half in halves.items()}, mesh.origin, tips or [], table)
+                     {side: len(half.cells) for side, half in halves.items()}, mesh.origin, tips or [], table,
+                     block_kernels)
 
 
 def build_mesh(scene: Scene, comm: MPI.Comm, background: sizing.SizeMap | None = None) -> Mesh:
@@ -88,9 +92,9 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
     checked = collective(comm, lambda: whole_mesh_checks(scene, paired), root_only=True)
     if phases is not None:
         phases.end("meshing")
-    sigma, nodes, cells, (tips, table) = comm.bcast((paired.sigma, {s: len(h.points) for s, h in halves.items()},
-                                                     {s: len(h.cells) for s, h in halves.items()}, checked)
-                                                    if rank == 0 else None, root=0)
+    sigma, nodes, cells, (tips, table, block_kernels) = comm.bcast(
+        (paired.sigma, {s: len(h.points) for s, h in halves.items()}, {s: len(h.cells) for s, h in halves.items()},
+         checked) if rank == 0 else None, root=0)
     needed = sorted({BLOCKS[b].side for b in exchange.local_blocks})
     if comm.size > 1:
         if not split and upper_maker != 0:  # rank 0 made both halves: the upper one goes to u⁺'s leader
@@ -104,17 +108,19 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
         group.Free()
     if phases is not None:
         phases.end("distribution")
-    return LocalMesh(halves, sigma, nodes, cells, geometry.origin(scene), tips, table)
+    return LocalMesh(halves, sigma, nodes, cells, geometry.origin(scene), tips, table, block_kernels)
 
 
-def whole_mesh_checks(scene: Scene, mesh: Mesh) -> tuple[list[fracture.Tip], SigmaSupports]:
+def whole_mesh_checks(scene: Scene, mesh: Mesh) -> tuple[list[fracture.Tip], SigmaSupports, kernels.Kernels]:
     """What needs the whole mesh (rank 0, before it is distributed): the loads' and displacements'
-    boundaries, the supports of every block, the range of the moduli and loads; the crack tips with their
-    θ radii (which keep clear of the outer boundary) and the Σ supports."""
+    boundaries, the range of the moduli and loads, the supports (a structure that can move rigidly is
+    refused); the crack tips with their θ radii (which keep clear of the outer boundary), the Σ supports
+    and the blocks' kernels."""
     geometry.check_loads(scene, mesh)
     table = supports.check(scene, mesh)
     check_range(scene, mesh)
-    return fracture.find_tips(mesh, scene.fracture.inner, scene.fracture.outer), table
+    block_kernels = kernels.of_scene(scene, mesh, table)
+    return fracture.find_tips(mesh, scene.fracture.inner, scene.fracture.outer), table, block_kernels
 
 
 def gather_upper(mesh: LocalMesh, exchange: Exchange) -> Mesh | None:

@@ -57,7 +57,8 @@ def reactions(scene: Scene, mesh: Mesh, solution: dict[str, np.ndarray],
         own, _ = supports.own_supports(scene, half, sigma, spec.layer)
         frames = supports.node_frames(half, sigma)
         held = np.flatnonzero(fixed.any(axis=1))
-        r = residual(scene, mesh, b, solution[spec.name], held)
+        # a block with no prescribed dof (held only through Σ) has no reaction
+        r = residual(scene, mesh, b, solution[spec.name], held) if len(held) else np.zeros(fixed.shape)
         local = np.einsum("nab,nb->na", frames, r) * fixed  # on the prescribed directions only
         forces.append(local)
         owned.append(own & fixed)
