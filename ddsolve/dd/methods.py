@@ -35,12 +35,16 @@ class Rounds(Protocol):
     count: int  # rounds of block solves so far
     residuals: np.ndarray  # (4,) the blocks' relative residuals ‖K x − b‖ in the last full solve
     largest: float  # the largest nodal displacement |x| in the last full solve
+    floating: list[int]  # the blocks whose stiffness is singular (held only through Σ)
+    kernel_traces: list[np.ndarray]  # per block the traces (2k, m_b) of its kernel R_b (m_b = 0: invertible)
 
-    def solve(self, loads: np.ndarray, full: bool) -> tuple[np.ndarray, np.ndarray]:
+    def solve(self, loads: np.ndarray, full: bool, held: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Solve every block with trace loads ``(4, 2k)`` (plus the body load if ``full``).
 
         Returns the traces ``(4, 2k)`` and the energies x_bᵀ K_b x_b ``(4,)`` of the solutions.
-        With ``full`` the blocks keep their solutions for output.
+        With ``full`` the blocks keep their solutions for output.  A floating block applies a generalized
+        inverse K_b⁺ (``feti``); in a full solve with ``held`` traces ``(4, 2k)`` it takes its trace from
+        them instead and solves its interior, x_I = K_II⁻¹(f_I − K_IΣ t_b).
         """
 
     def schur_complements(self) -> np.ndarray:
@@ -51,6 +55,13 @@ class Rounds(Protocol):
 
     def trace_diagonals(self) -> np.ndarray:
         """The diagonals of the blocks' stiffness matrices at their traces, ``(4, 2k)``."""
+
+    def condensed_loads(self, schur_complements: np.ndarray) -> np.ndarray:
+        """The body loads condensed on the traces, g_b = f_Σ − K_ΣI K_II⁻¹ f_I ``(4, 2k)`` (S_b t⁰_b for
+        an invertible block, with ``schur_complements`` S_b)."""
+
+    def kernel_work(self) -> list[np.ndarray]:
+        """Per block R_bᵀ f_b ``(m_b,)``: the work of its body loads in its rigid motions."""
 
 
 @dataclass
@@ -65,6 +76,7 @@ class Outcome:
     details: dict = field(default_factory=dict)  # method-specific numbers for the result file
     # (traces of a full solve, whether the check failed) -> a better λ, or None when it cannot be bettered
     refine: Callable[[np.ndarray, bool], np.ndarray | None] | None = None
+    held: np.ndarray | None = None  # (4, 2k) the traces floating blocks take in the final solve
 
 
 class Progress:
@@ -200,12 +212,13 @@ def kkt_criterion(y, gradient, lower, upper, scale: float) -> float:
 class DualProblem:
     """The W-scaled dual QP (see the module docstring); ``apply`` costs one round of block solves."""
 
-    def __init__(self, rounds: Rounds, interface: Interface, solver: Solver):
+    def __init__(self, rounds: Rounds, interface: Interface, solver: Solver, initial: np.ndarray | None = None):
         self.rounds, self.interface, self.solver = rounds, interface, solver
         self.sqrt_w = np.sqrt(interface.row_weights)
-        traces, _ = rounds.solve(interface.loads(np.zeros(interface.size)), full=True)
-        self.initial_traces = traces  # of the uncoupled blocks (λ = 0)
-        self.b = self.sqrt_w * interface.gap(traces)
+        if initial is None:
+            initial, _ = rounds.solve(interface.loads(np.zeros(interface.size)), full=True)
+        self.initial_traces = initial  # of the uncoupled blocks (λ = 0), or a model of them when given
+        self.b = self.sqrt_w * interface.gap(initial)
         lower, upper = interface.bounds(solver.p)
         self.lower, self.upper = lower * self.sqrt_w, upper * self.sqrt_w
         self.scale = float(np.linalg.norm(self.b))
@@ -434,7 +447,13 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
     solved and the predicted traces, cumulatively (iterative refinement: the error of S_b enters squared).
     """
     schur_complements = rounds.schur_complements()
-    problem = DualProblem(rounds, interface, solver)
+    if rounds.floating:  # no K_b⁻¹ f_b for a floating block: its condensed load g_b, by its interior
+        condensed = rounds.condensed_loads(schur_complements)
+        least = [np.linalg.lstsq(S_b, g_b, rcond=None)[0] for S_b, g_b in zip(schur_complements, condensed)]
+        problem = DualProblem(rounds, interface, solver, initial=np.array(least))  # t⁰ for the criterion's scale
+    else:
+        problem = DualProblem(rounds, interface, solver)
+        condensed = np.einsum("bij,bj->bi", schur_complements, problem.initial_traces)
     started = time.perf_counter()
     unknowns = interface.trace_unknowns()
     size = int(unknowns.max()) + 1
@@ -457,8 +476,8 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
     try:
         L = np.linalg.cholesky(stiffness)
     except np.linalg.LinAlgError:
-        raise SolverError("schur: the interface stiffness is not positive definite (a block without clamped "
-                          "boundary?)") from None
+        raise SolverError("schur: the interface stiffness is not positive definite (a structure that can move "
+                          "rigidly?)") from None
     del stiffness
     forces = np.linalg.solve(L[first:, first:], jump) if len(faces) else np.zeros((0, 0))  # L_cc⁻¹ B_cᵀ
     dual = forces.T @ forces
@@ -466,12 +485,12 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
     changes: list[int] = []
     lower_c, upper_c = problem.lower[contact], problem.upper[contact]
 
-    def exact(initial: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    def exact(initial: np.ndarray, condensed: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
         """The scaled multipliers, their predicted traces and the active-set steps for uncoupled
-        traces ``initial``."""
+        traces ``initial`` and condensed loads ``condensed`` = S_b t⁰_b (only these with floating blocks)."""
         body = np.zeros(size)
-        for S_b, numbers, t0 in zip(schur_complements, unknowns, initial):
-            body[numbers] += S_b @ t0
+        for g_b, numbers in zip(condensed, unknowns):
+            body[numbers] += g_b
         loaded = triangular_solve(L, body)  # L⁻¹ body
 
         def contact_step(y_c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -479,7 +498,7 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
             rhs = loaded.copy()
             rhs[first:] -= forces @ y_c
             traces = triangular_solve(L, rhs, transpose=True)[unknowns]
-            loads = np.einsum("bij,bj->bi", schur_complements, traces - initial)
+            loads = np.einsum("bij,bj->bi", schur_complements, traces) - condensed  # ℓ_b = S_b t_b − g_b
             y = problem.sqrt_w * interface.multipliers(loads)
             y[contact] = y_c
             return y, traces
@@ -495,6 +514,10 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
                                                                 changed))
         y, traces = contact_step(y_c)
         if np.any(y < problem.lower) or np.any(y > problem.upper):  # a bound ±p is active: all bounds
+            if rounds.floating:
+                raise SolverError(f"schur: a multiplier bound solver.p = {solver.p:g} is active, and its exact solve "
+                                  "needs every block invertible, which floating blocks are not: use solver.method = "
+                                  "\"feti\" or a larger solver.p")
             flexibilities = np.linalg.inv(schur_complements)
             A = interface.dual_matrix(flexibilities) / np.outer(problem.sqrt_w, problem.sqrt_w)
             b = problem.sqrt_w * interface.gap(initial)
@@ -510,20 +533,23 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
         return y, traces, steps
 
     uncoupled = problem.initial_traces  # t⁰ of rank 0's model, corrected by each refinement
-    y, predicted, steps = exact(uncoupled)
+    y, predicted, steps = exact(uncoupled, condensed)
     progress(steps, history[-1] if history else 0.0, final=True)
     outcome = Outcome(problem.multipliers(y), converged=True, iterations=steps, history=history,
                       active_set_changes=changes,
-                      details={"rank0_solve_time": time.perf_counter() - started, "interface_unknowns": size})
+                      details={"rank0_solve_time": time.perf_counter() - started, "interface_unknowns": size},
+                      held=predicted)
 
     def refine(solved_traces: np.ndarray, required: bool) -> np.ndarray | None:
-        nonlocal predicted, uncoupled
+        nonlocal predicted, uncoupled, condensed
         mismatch = np.abs(solved_traces - predicted).max(initial=0.0)
         if not required and mismatch <= PREDICTION_TOLERANCE * np.abs(solved_traces).max(initial=0.0):
             return None
         mark = time.perf_counter()
         uncoupled = uncoupled + (solved_traces - predicted)  # the model now agrees with the blocks at this λ
-        y, predicted, more = exact(uncoupled)
+        condensed = condensed + np.einsum("bij,bj->bi", schur_complements, solved_traces - predicted)
+        y, predicted, more = exact(uncoupled, condensed)
+        outcome.held = predicted
         outcome.iterations += more
         outcome.details["rank0_solve_time"] += time.perf_counter() - mark
         return problem.multipliers(y)
@@ -542,7 +568,7 @@ def final_solve(rounds: Rounds, interface: Interface, solver: Solver, outcome: O
     tolerance = kkt_tolerance(solver)
 
     def solve() -> tuple[Constraints, np.ndarray, np.ndarray]:
-        traces, energies = rounds.solve(interface.loads(outcome.lam), full=True)
+        traces, energies = rounds.solve(interface.loads(outcome.lam), full=True, held=outcome.held)
         return kkt(interface, traces, outcome.lam, solver.p, rounds.residuals, rounds.largest), traces, energies
 
     residuals, traces, energies = solve()
@@ -620,6 +646,65 @@ class DirichletPreconditioner:
         return Y[self.index, self.slot]
 
 
+class Coarse:
+    """FETI's natural coarse space for floating blocks (TFETI): with K_b⁺ a generalized inverse and R_b the
+    kernel, block b is solvable when R_bᵀ(f_b − B_bᵀ y) = 0, i.e. Gᵀ y = e with G = B R (a column per rigid
+    motion, B = W^½ C) and e = Rᵀ f; then u_b = K_b⁺(f_b − B_bᵀ y) + R_b α_b.  On the rows left free by an
+    active set, :meth:`feasible` moves y onto Gᵀ y = e, :meth:`project` applies P = I − G(GᵀG)⁻¹Gᵀ, and
+    :meth:`residual` is the gradient less its part in range G (the gap of the u_b), whose coefficients are the
+    amplitudes α.  Without floating blocks G has no columns and every map is the identity.
+    """
+
+    def __init__(self, rounds: Rounds, interface: Interface, sqrt_w: np.ndarray):
+        columns = []
+        for block in rounds.floating:
+            coupling, kernel = interface.couplings[block], rounds.kernel_traces[block]
+            column = np.zeros((interface.size, kernel.shape[1]))
+            column[coupling.rows] = (sqrt_w[coupling.rows] * coupling.sign)[:, None] * kernel[coupling.trace]
+            columns.append(column)
+        self.rounds = rounds
+        self.G = np.hstack(columns) if columns else np.zeros((interface.size, 0))
+        work = rounds.kernel_work() if columns else []
+        self.e = np.concatenate([work[block] for block in rounds.floating]) if columns else np.zeros(0)
+
+    def _amplitudes(self, v: np.ndarray, free: np.ndarray) -> np.ndarray:
+        """(G_fᵀG_f)⁻¹ G_fᵀ v with G_f the free rows of G (least squares: a bound may take a row G needs)."""
+        G = self.G[free]
+        return np.linalg.lstsq(G.T @ G, G.T @ v[free], rcond=None)[0]
+
+    def feasible(self, y: np.ndarray, free: np.ndarray) -> np.ndarray:
+        if not self.G.shape[1]:
+            return y
+        G = self.G[free]
+        step = np.zeros_like(y)
+        step[free] = G @ np.linalg.lstsq(G.T @ G, self.e - self.G.T @ y, rcond=None)[0]
+        return y + step
+
+    def project(self, v: np.ndarray, free: np.ndarray) -> np.ndarray:
+        if not self.G.shape[1]:
+            return v
+        out = v.copy()
+        out[free] -= self.G[free] @ self._amplitudes(v, free)
+        return out
+
+    def residual(self, g: np.ndarray, free: np.ndarray) -> np.ndarray:
+        return g - self.G @ self._amplitudes(g, free) if self.G.shape[1] else g
+
+    def held(self, interface: Interface, lam: np.ndarray, sqrt_w: np.ndarray, free: np.ndarray) -> np.ndarray | None:
+        """The traces of u_b = K_b⁺(f_b − B_bᵀ y) + R_b α_b for the multipliers ``lam`` (one round), for the
+        final solve (None without floating blocks)."""
+        if not self.G.shape[1]:
+            return None
+        traces, _ = self.rounds.solve(interface.loads(lam), full=True)
+        alpha = self._amplitudes(-sqrt_w * interface.gap(traces), free)
+        start = 0
+        for block in self.rounds.floating:
+            kernel = self.rounds.kernel_traces[block]
+            traces[block] += kernel @ alpha[start:start + kernel.shape[1]]
+            start += kernel.shape[1]
+        return traces
+
+
 def feti(rounds: Rounds, interface: Interface, solver: Solver, progress: Progress) -> Outcome:
     """The dual problem by a primal-dual active set method whose steps are solved by conjugate
     gradients on the free multipliers, preconditioned by FETI's Dirichlet preconditioner.
@@ -635,30 +720,31 @@ def feti(rounds: Rounds, interface: Interface, solver: Solver, progress: Progres
     """
     problem = DualProblem(rounds, interface, solver)
     precondition = DirichletPreconditioner(rounds, interface, problem.sqrt_w)
+    coarse = Coarse(rounds, interface, problem.sqrt_w)  # floating blocks: y on Gᵀy = e, steps projected
     lower, upper, scale = problem.lower, problem.upper, max(problem.scale, np.finfo(float).tiny)
-    y = np.zeros(interface.size)
-    g = -problem.b  # A y − b
+    y = coarse.feasible(np.zeros(interface.size), np.ones(interface.size, dtype=bool))  # λ₀ = G(GᵀG)⁻¹e
+    g = problem.apply(y) - problem.b if np.any(y) else -problem.b  # A y − b
     at_lower, at_upper = (y <= lower) & (g >= 0), (y >= upper) & (g <= 0)
     outcome = Outcome(y, converged=False, iterations=0)
     settled, steps = False, 0
     while outcome.iterations < solver.max_iterations:
         steps += 1
         free = ~(at_lower | at_upper)
-        target = np.where(at_lower, lower, np.where(at_upper, upper, y))
+        target = coarse.feasible(np.where(at_lower, lower, np.where(at_upper, upper, y)), free)
         if np.any(target != y):  # the fixed multipliers go to their bounds
             g = g + problem.apply(target - y)
             y = target
-        r = -np.where(free, g, 0.0)
+        r = -coarse.project(np.where(free, g, 0.0), free)
         goal = solver.tol * scale if settled else max(solver.tol * scale, 1e-1 * np.linalg.norm(r))
-        z = np.where(free, precondition(r), 0.0) if np.linalg.norm(r) > goal else r
+        z = coarse.project(np.where(free, precondition(r), 0.0), free) if np.linalg.norm(r) > goal else r
         p, rz = z, r @ z
         while np.linalg.norm(r) > goal and outcome.iterations < solver.max_iterations:
             q = problem.apply(p)
             alpha = rz / (p @ q)
             y, g = y + alpha * p, g + alpha * q
-            r = -np.where(free, g, 0.0)
+            r = -coarse.project(np.where(free, g, 0.0), free)
             outcome.iterations += 1
-            outcome.history.append(problem.criterion(np.clip(y, lower, upper), g))
+            outcome.history.append(problem.criterion(np.clip(y, lower, upper), coarse.residual(g, free)))
             progress(outcome.iterations, outcome.history[-1])
             if not np.isfinite(outcome.history[-1]):
                 outcome.message, outcome.diverged = f"feti broke down at iteration {outcome.iterations}", True
@@ -666,13 +752,14 @@ def feti(rounds: Rounds, interface: Interface, solver: Solver, progress: Progres
                 return outcome
             if np.linalg.norm(r) <= goal:
                 break
-            z = np.where(free, precondition(r), 0.0)
+            z = coarse.project(np.where(free, precondition(r), 0.0), free)
             rz, previous = r @ z, rz
             p = z + (rz / previous) * p
-        new_lower = (at_lower & (g >= 0)) | (free & (y < lower))
-        new_upper = (at_upper & (g <= 0)) | (free & (y > upper))
+        gradient = coarse.residual(g, free)  # the Lagrangian's: g less its part carried by the rigid motions
+        new_lower = (at_lower & (gradient >= 0)) | (free & (y < lower))
+        new_upper = (at_upper & (gradient <= 0)) | (free & (y > upper))
         if np.array_equal(new_lower, at_lower) and np.array_equal(new_upper, at_upper):
-            criterion = problem.criterion(y, g)
+            criterion = problem.criterion(y, gradient)
             if settled and criterion < solver.tol:
                 outcome.converged = True
                 break
@@ -685,6 +772,7 @@ def feti(rounds: Rounds, interface: Interface, solver: Solver, progress: Progres
     progress(outcome.iterations, outcome.history[-1] if outcome.history else 0.0, final=True)
     outcome.lam = problem.multipliers(y)
     outcome.details["active_set_steps"] = steps
+    outcome.held = coarse.held(interface, outcome.lam, problem.sqrt_w, ~(at_lower | at_upper))
     return outcome
 
 

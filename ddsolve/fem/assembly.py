@@ -38,7 +38,7 @@ def strain_operator(gradients: np.ndarray) -> np.ndarray:
 
 def element_dofs(cells: np.ndarray) -> np.ndarray:
     """``(m, 2c)`` dofs of each row of c nodes, in the order (v0x, v0y, v1x, v1y, ...)."""
-    return np.stack([2 * cells, 2 * cells + 1], axis=2).reshape(len(cells), -1)
+    return np.stack([2 * cells, 2 * cells + 1], axis=2).reshape(len(cells), 2 * cells.shape[1])
 
 
 def element_stiffness(points: np.ndarray, cells: np.ndarray, D: np.ndarray) -> np.ndarray:

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ddsolve.errors import MeshError, SceneError
+from ddsolve.errors import SceneError
 from ddsolve.mesh.mesh import BLOCKS, CLAMPED, CRACK, SIGMA, HalfMesh, Mesh, SigmaLine
 from ddsolve.problem.scene import Scene
 
@@ -187,42 +187,11 @@ def block_supports(scene: Scene, half: HalfMesh, sigma: SigmaLine, layer: str, b
 
 
 def check(scene: Scene, mesh: Mesh) -> SigmaSupports:
-    """Every displacement names a boundary of the mesh, and every block is held by its supports (the
-    rigid motions of its half fixed); returns the Σ table (:func:`sigma_supports`)."""
+    """Every displacement names a boundary of the mesh; returns the Σ table (:func:`sigma_supports`).
+    Whether the supports hold the structure is :func:`ddsolve.dd.kernels.of_scene`'s question."""
     names = mesh.boundary_names()
     for (_, name), displacement in scene.displacements.items():
         if name not in names or name in (CLAMPED, SIGMA, CRACK):
             raise SceneError(f"{displacement.key}: no boundary named {name!r} in {mesh.origin} "
                              f"(boundaries: {', '.join(n for n in names if n != CLAMPED)})")
-    table = sigma_supports(scene, mesh)
-    for b, spec in enumerate(BLOCKS):
-        half = mesh.half(spec.side)
-        fixed, _ = block_supports(scene, half, mesh.sigma, spec.layer, b, table)
-        motion = free_motion(half.points, fixed, node_frames(half, mesh.sigma))
-        if motion is not None:
-            blocks = "u_minus and v_minus" if half.side < 0 else "u_plus and v_plus"
-            if not scene.displacements:
-                raise MeshError(f"{mesh.origin}: {half.name} half touches no clamped boundary: the stiffness of "
-                                f"blocks {blocks} would be singular (rigid motions); clamp part of its outer boundary")
-            raise SceneError(f"block {spec.name} ({half.name} half of {spec.layer}) can {motion} under its supports "
-                             "(a block held only through Σ is not solved yet): clamp or support more of its boundary")
-    return table
-
-
-def free_motion(points: np.ndarray, fixed: np.ndarray, frames: np.ndarray) -> str | None:
-    """A rigid motion of the nodes that the prescribed dofs leave free, described, or None."""
-    nodes, axis = np.nonzero(fixed)
-    if len(nodes) == 0:
-        return "move rigidly"
-    direction = frames[nodes, axis]  # the fixed dof's direction in x, y
-    centre = points.mean(axis=0)
-    size = max(float(np.ptp(points, axis=0).max()), 1e-300)
-    arm = (points[nodes] - centre) / size
-    rows = np.column_stack([direction, direction[:, 1] * arm[:, 0] - direction[:, 0] * arm[:, 1]])
-    _, singular, vt = np.linalg.svd(rows, full_matrices=True)
-    if len(singular) == 3 and singular[-1] > 1e-10 * singular[0]:
-        return None
-    v = vt[-1]
-    if abs(v[2]) > 1e-6:
-        return "rotate"
-    return f"translate along ({v[0]:.3g}, {v[1]:.3g})"
+    return sigma_supports(scene, mesh)

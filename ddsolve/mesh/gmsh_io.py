@@ -14,7 +14,7 @@ import numpy as np
 
 from ddsolve.environment import end_with_parent
 from ddsolve.errors import MeshError
-from ddsolve.mesh.mesh import CLAMPED, CRACK, SIGMA, TOL, Mesh, elevate, make_half, make_mesh, merge_repeats
+from ddsolve.mesh.mesh import CRACK, SIGMA, TOL, Mesh, elevate, make_half, make_mesh, merge_repeats
 from ddsolve.mesh.sizing import SMALLEST, model_singular_points, node_positions, set_size_field
 from ddsolve.problem.scene import Scene, readable
 
@@ -22,7 +22,7 @@ T = TypeVar("T")
 
 
 #: Physical groups a gmsh geometry must have.
-REQUIRED_GROUPS = {2: ("lower", "upper"), 1: (SIGMA, CLAMPED)}
+REQUIRED_GROUPS = {2: ("lower", "upper"), 1: (SIGMA,)}
 
 
 #: gmsh element types: triangle, 6-node triangle, line, 3-node line.
@@ -259,7 +259,7 @@ def physical_groups(gmsh, where: str) -> dict[tuple[int, str], list[int]]:
             if (dim, name) not in groups:
                 kind = "surface" if dim == 2 else "curve"
                 raise MeshError(f"{where}: missing physical {kind} {name!r} (required: surfaces lower, upper; "
-                                "curves sigma, clamped; optional: crack and names for loads)")
+                                "curve sigma; optional: clamped, crack and names for loads and displacements)")
     return groups
 
 

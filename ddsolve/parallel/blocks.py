@@ -87,6 +87,9 @@ class Block:
         self._schur: np.ndarray | None = None  # as stored by MUMPS (one triangle valid)
         self.route = "solves"  # how schur_complement gets S (see factor)
         self._dirichlet = self._dirichlet_matrix = self._work = None  # see factor_dirichlet
+        self.kernel: np.ndarray | None = None  # a floating block's rigid motions (m, local rows), see make_floating
+        self._fixed_rows = np.zeros(0, dtype=np.int64)
+        self._fixed_matrix = None
         # The trace entries this rank owns: their positions in the trace and their local rows.
         trace = system.trace_dofs
         mine = (trace >= system.first) & (trace < system.first + local)
@@ -226,6 +229,7 @@ class Block:
         b = self.rhs.getArray()
         b[:] = self.system.rhs if body else 0.0
         b[self.trace_rows] += load[self.trace_positions]
+        b[self._fixed_rows] = 0.0  # a floating block's fixed dofs (none otherwise): K⁺ b, see make_floating
         b /= self.scale
         try:
             self.ksp.solve(self.rhs, self.x)
@@ -384,9 +388,84 @@ class Block:
         return 0.5 * (out + out.T) if self.is_leader else None
 
     def destroy(self) -> None:
-        for obj in (self.ksp, self.matrix, self.rhs, self.x, self._dirichlet, self._dirichlet_matrix, self._work):
+        for obj in (self.ksp, self.matrix, self.rhs, self.x, self._dirichlet, self._dirichlet_matrix, self._work,
+                    self._fixed_matrix):
             if obj is not None:
                 obj.destroy()
+
+    # --- floating blocks: K singular, its kernel the rigid motions its supports leave -----------------
+    @property
+    def floating(self) -> bool:
+        return self.kernel is not None
+
+    def make_floating(self, kernel: np.ndarray, fixed: np.ndarray | None = None) -> None:
+        """Mark the block floating with its kernel ``(m, local rows)``.  With ``fixed`` (m global dofs where
+        the kernel is independent, off the trace), the KSP gets K with those dofs held at zero, so that
+        :meth:`solve` applies a generalized inverse K⁺ (FETI's); call before :meth:`factor`."""
+        self.kernel = np.array(kernel, dtype=np.float64)
+        if fixed is None:
+            return
+        first = self.system.first
+        mine = (fixed >= first) & (fixed < first + len(self.system.rhs))
+        self._fixed_rows = np.asarray(fixed[mine], dtype=np.int64) - first
+        self._fixed_matrix = self.matrix.duplicate(copy=True)
+        self._fixed_matrix.zeroRowsColumns(np.asarray(fixed, dtype=PETSc.IntType)[mine], diag=1.0)
+        self._fixed_matrix.setOption(PETSc.Mat.Option.SPD, True)
+        self.ksp.setOperators(self._fixed_matrix)
+
+    def interface_stiffness(self) -> np.ndarray | None:
+        """S = K_ΣΣ − K_ΣI K_II⁻¹ K_IΣ on the leader, one Dirichlet solve per trace entry (only K_II is
+        inverted: a floating block's S, singular on its kernel)."""
+        k = len(self.trace_dofs)
+        unit = np.zeros(k)
+        columns = []
+        for column in range(k):
+            unit[column] = 1.0
+            columns.append(self.dirichlet(unit))
+            unit[column] = 0.0
+        if not self.is_leader:
+            return None
+        out = np.column_stack(columns)
+        return 0.5 * (out + out.T)
+
+    def _held_solve(self, trace: np.ndarray) -> None:
+        """self.x = (K_II⁻¹(f_I − K_IΣ t), t) for trace displacements ``t`` (on every rank of the block)."""
+        held = self._work
+        values = held.getArray()
+        values[:] = 0.0
+        values[self.trace_rows] = trace[self.trace_positions]
+        self.matrix.mult(held, self.rhs)  # (K/s) t
+        b = self.rhs.getArray()
+        b[:] = self.system.rhs / self.scale - b
+        b[self.trace_rows] = trace[self.trace_positions]
+        try:
+            self._dirichlet.solve(self.rhs, self.x)
+        except PETSc.Error as exc:
+            raise SolverError(f"block {self.name}: Dirichlet solve failed (PETSc error {exc.ierr})") from None
+
+    def condensed_load(self) -> np.ndarray | None:
+        """g = f_Σ − K_ΣI K_II⁻¹ f_I on the leader (= S t⁰ for an invertible block): one Dirichlet solve."""
+        self._held_solve(np.zeros(len(self.trace_dofs)))
+        forces = self._work
+        self.matrix.mult(self.x, forces)
+        g = (self.system.rhs[self.trace_rows] - forces.getArray(readonly=True)[self.trace_rows] * self.scale)
+        return self._gather_trace(g)
+
+    def expand(self, trace: np.ndarray, load: np.ndarray) -> np.ndarray:
+        """This rank's rows of the solution with trace displacements ``trace`` and no other interface
+        condition inside, x = (K_II⁻¹(f_I − K_IΣ t), t); the right-hand side kept is f + E load, so that
+        :meth:`residual` measures the equilibrium with the interface loads ``load`` (both on every rank)."""
+        self._held_solve(trace)
+        b = self.rhs.getArray()
+        b[:] = self.system.rhs
+        b[self.trace_rows] += load[self.trace_positions]
+        b /= self.scale
+        return self.x.getArray(readonly=True)
+
+    def kernel_work(self) -> np.ndarray | None:
+        """Rᵀ f on the leader: the work of the body loads in the block's rigid motions ``(m,)``."""
+        local = self.kernel @ self.system.rhs
+        return self.mpi.reduce(local, root=0) if self.mpi.size > 1 else local
 
 
 def diagonal_scale(system: BlockSystem, comm) -> float:

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
+from ddsolve.dd import kernels
 from ddsolve.fem import supports
 from ddsolve.fem.assembly import check_range
 from ddsolve.fem.supports import SigmaSupports
@@ -30,8 +31,9 @@ class LocalMesh:
     cells: dict[int, int]  # side -> cells of that half (both sides)
     origin: str
     tips: list = dataclasses.field(default_factory=list)  # the crack tips (fracture.Tip)
-    supports: SigmaSupports | None = None  # the prescribed trace entries (needs both halves to make)
-    quality: dict = dataclasses.field(default_factory=dict)  # rank 0: the whole mesh's (:func:`quality`)
+    sigma_supports: SigmaSupports | None = None  # the prescribed trace entries (needs both halves to make)
+    kernels: kernels.Kernels | None = None  # the blocks' kernels (rigid motions their supports leave)
+    quality: dict = dataclasses.field(default_factory=dict)  # rank 0: the whole mesh's (meshes.quality)
 
     def half(self, side: int) -> HalfMesh:
         return self.halves[side]
@@ -46,11 +48,13 @@ class LocalMesh:
         return int(sum(a.nbytes for a in arrays))
 
 
-def whole(mesh: Mesh, tips: list | None = None, table: SigmaSupports | None = None) -> LocalMesh:
+def whole(mesh: Mesh, tips: list | None = None, table: SigmaSupports | None = None,
+          block_kernels: kernels.Kernels | None = None) -> LocalMesh:
     """The whole mesh as a rank holding both halves sees it."""
     halves = {-1: mesh.lower, 1: mesh.upper}
     return LocalMesh(halves, mesh.sigma, {side: len(half.points) for side, half in halves.items()},
-                     {side: len(half.cells) for side, half in halves.items()}, mesh.origin, tips or [], table)
+                     {side: len(half.cells) for side, half in halves.items()}, mesh.origin, tips or [], table,
+                     block_kernels)
 
 
 def build_mesh(scene: Scene, comm: MPI.Comm) -> Mesh:
@@ -94,9 +98,9 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
     checked = collective(comm, lambda: whole_mesh_checks(scene, paired), root_only=True)
     if phases is not None:
         phases.end("meshing")
-    sigma, nodes, cells, (tips, table) = comm.bcast((paired.sigma, {s: len(h.points) for s, h in halves.items()},
-                                                     {s: len(h.cells) for s, h in halves.items()}, checked)
-                                                    if rank == 0 else None, root=0)
+    sigma, nodes, cells, (tips, table, block_kernels) = comm.bcast(
+        (paired.sigma, {s: len(h.points) for s, h in halves.items()}, {s: len(h.cells) for s, h in halves.items()},
+         checked) if rank == 0 else None, root=0)
     needed = sorted({BLOCKS[b].side for b in exchange.local_blocks})
     if comm.size > 1:
         if not split and upper_maker != 0:  # rank 0 made both halves: the upper one goes to u⁺'s leader
@@ -110,7 +114,7 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
         group.Free()
     if phases is not None:
         phases.end("distribution")
-    return LocalMesh(halves, sigma, nodes, cells, geometry.origin(scene), tips, table,
+    return LocalMesh(halves, sigma, nodes, cells, geometry.origin(scene), tips, table, block_kernels,
                      meshes.quality(paired) if rank == 0 else {})
 
 
@@ -171,11 +175,11 @@ def refined_local_mesh(scene: Scene, coarse_scene: Scene, levels: int, comm: MPI
     checked = collective(comm, lambda: whole_mesh_checks(scene, paired), root_only=True)
     sizes = (paired.sigma, {half.side: len(half.points) for half in paired.halves},
              {half.side: len(half.cells) for half in paired.halves}, checked) if rank == 0 else None
-    sigma, nodes, cells, (tips, table) = comm.bcast(sizes, root=0)
+    sigma, nodes, cells, (tips, table, block_kernels) = comm.bcast(sizes, root=0)
     if keep_whole and rank == 0:
         fine[1] = upper
     end("distribution")
-    return LocalMesh(fine, sigma, nodes, cells, geometry.origin(scene), tips, table,
+    return LocalMesh(fine, sigma, nodes, cells, geometry.origin(scene), tips, table, block_kernels,
                      meshes.quality(paired) if rank == 0 else {})
 
 
@@ -194,14 +198,17 @@ def share_pieces(group: MPI.Comm, grid: refine.Lattice, bounds, points, cells) -
                                                             kind]))
     return whole_points, whole_cells
 
-def whole_mesh_checks(scene: Scene, mesh: Mesh) -> tuple[list[fracture.Tip], SigmaSupports]:
+
+def whole_mesh_checks(scene: Scene, mesh: Mesh) -> tuple[list[fracture.Tip], SigmaSupports, kernels.Kernels]:
     """What needs the whole mesh (rank 0, before it is distributed): the loads' and displacements'
-    boundaries, the supports of every block, the range of the moduli and loads; the crack tips with their
-    θ radii (which keep clear of the outer boundary) and the Σ supports."""
+    boundaries, the range of the moduli and loads, the supports (a structure that can move rigidly is
+    refused); the crack tips with their θ radii (which keep clear of the outer boundary), the Σ supports
+    and the blocks' kernels."""
     geometry.check_loads(scene, mesh)
     table = supports.check(scene, mesh)
     check_range(scene, mesh)
-    return fracture.find_tips(mesh, scene.fracture.inner, scene.fracture.outer), table
+    block_kernels = kernels.of_scene(scene, mesh, table)
+    return fracture.find_tips(mesh, scene.fracture.inner, scene.fracture.outer), table, block_kernels
 
 
 def gather_upper(mesh: LocalMesh, exchange: Exchange) -> Mesh | None:

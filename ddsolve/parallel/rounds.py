@@ -7,16 +7,17 @@ import time
 import numpy as np
 from mpi4py import MPI
 
+from ddsolve.dd import kernels
 from ddsolve.errors import DDSolveError, SolverError
 from ddsolve.mesh.mesh import BLOCKS
 from ddsolve.parallel.blocks import Block
 from ddsolve.parallel.exchange import Exchange
 
-STOP, SOLVE_LOAD, SOLVE_FULL, SCHUR, REPORT_ERROR, DIRICHLET, DIAGONAL = range(7)
+STOP, SOLVE_LOAD, SOLVE_FULL, SCHUR, REPORT_ERROR, DIRICHLET, DIAGONAL, CONDENSED, KERNEL_WORK, SOLVE_HELD = range(10)
 
 
-#: Commands whose round sends a trace vector to every block.
-WITH_LOADS = (SOLVE_LOAD, SOLVE_FULL, DIRICHLET)
+#: Commands whose round sends a trace vector to every block (SOLVE_HELD: two, loads and held traces).
+WITH_LOADS = (SOLVE_LOAD, SOLVE_FULL, DIRICHLET, SOLVE_HELD)
 
 
 def result_width(command: int, trace_size: int) -> int:
@@ -24,6 +25,11 @@ def result_width(command: int, trace_size: int) -> int:
     the energy xᵀ K x, the work of the body loads, and (full solves) the relative residual and the
     largest nodal |x|."""
     return trace_size ** 2 if command == SCHUR else trace_size + 4
+
+
+def load_width(command: int, trace_size: int) -> int:
+    """Values per block a round sends."""
+    return 2 * trace_size if command == SOLVE_HELD else trace_size
 
 
 class BlockServer:
@@ -40,10 +46,14 @@ class BlockServer:
         try:
             for i, (index, block) in enumerate(zip(self.exchange.local_blocks, self.blocks)):
                 if command == SCHUR:
-                    value = block.schur_complement()
-                elif command in (DIRICHLET, DIAGONAL):
-                    trace = block.dirichlet(loads[i]) if command == DIRICHLET else block.trace_diagonal()
+                    value = block.interface_stiffness() if block.floating else block.schur_complement()
+                elif command in (DIRICHLET, DIAGONAL, CONDENSED, KERNEL_WORK):
+                    trace = (block.dirichlet(loads[i]) if command == DIRICHLET else block.trace_diagonal()
+                             if command == DIAGONAL else self._floating_value(block, command))
                     value = np.concatenate([trace, np.zeros(width - len(trace))]) if block.is_leader else None
+                elif command == SOLVE_HELD:
+                    value = self._solve(index, block, loads[i][:len(loads[i]) // 2], full=True,
+                                        held=loads[i][len(loads[i]) // 2:] if block.floating else None)
                 else:
                     value = self._solve(index, block, loads[i], full=command == SOLVE_FULL)
                 if block.is_leader:
@@ -61,8 +71,17 @@ class BlockServer:
                 out[i, :-1] = rows[index].ravel()
         return out
 
-    def _solve(self, index: int, block: Block, load: np.ndarray, full: bool) -> np.ndarray | None:
-        x = block.solve(load, body=full)
+    @staticmethod
+    def _floating_value(block: Block, command: int) -> np.ndarray | None:
+        """CONDENSED: g = f_Σ − K_ΣI K_II⁻¹ f_I of a floating block, the uncoupled trace of K⁻¹ f of another
+        (rank 0 multiplies it by S); KERNEL_WORK: Rᵀ f of a floating block, nothing of another."""
+        if command == CONDENSED:
+            return block.condensed_load() if block.floating else block.trace(block.solve(np.zeros(len(block.trace_dofs)), body=True))
+        return block.kernel_work() if block.floating else np.zeros(0)
+
+    def _solve(self, index: int, block: Block, load: np.ndarray, full: bool,
+               held: np.ndarray | None = None) -> np.ndarray | None:
+        x = block.solve(load, body=full) if held is None else block.expand(held, load)
         trace, energies = block.trace(x), block.energies()
         checks = np.zeros(2)
         if full:
@@ -80,8 +99,12 @@ class ParallelRounds:
     ``Update``, the rounds themselves in ``Rounds``.
     """
 
-    def __init__(self, exchange: Exchange, server: BlockServer, trace_size: int, stages: dict):
+    def __init__(self, exchange: Exchange, server: BlockServer, trace_size: int, stages: dict,
+                 kernel_traces: list[np.ndarray] | None = None):
         self.exchange, self.server, self.trace_size, self.stages = exchange, server, trace_size, stages
+        # the traces (2k, m_b) of the blocks' kernels (m_b = 0: invertible)
+        self.kernel_traces = kernel_traces or [np.zeros((trace_size, 0))] * len(BLOCKS)
+        self.floating = [b for b, kernel in enumerate(self.kernel_traces) if kernel.shape[1]]
         self.count = 0
         self.elapsed = 0.0  # seconds inside rounds
         self.work = np.zeros(len(BLOCKS))  # work of the body loads less the energy offsets, last solve
@@ -95,7 +118,7 @@ class ParallelRounds:
         self.exchange.command(command)
         local = None
         if loads is not None:
-            local = self.exchange.scatter(loads, self.trace_size)
+            local = self.exchange.scatter(loads, load_width(command, self.trace_size))
         width = result_width(command, self.trace_size)
         results = self.exchange.gather(self.server.run(command, local, width), width + 1)
         self.count += 1
@@ -108,8 +131,11 @@ class ParallelRounds:
         self.stages["Update"].push()
         return results[:, :-1]
 
-    def solve(self, loads: np.ndarray, full: bool) -> tuple[np.ndarray, np.ndarray]:
-        results = self._round(SOLVE_FULL if full else SOLVE_LOAD, loads)
+    def solve(self, loads: np.ndarray, full: bool, held: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        if held is not None and self.floating:  # floating blocks take their traces, the others their loads
+            results = self._round(SOLVE_HELD, np.hstack([loads, held]))
+        else:
+            results = self._round(SOLVE_FULL if full else SOLVE_LOAD, loads)
         trace = self.trace_size
         self.work = results[:, trace + 1]
         if full:
@@ -130,6 +156,16 @@ class ParallelRounds:
     def trace_diagonals(self) -> np.ndarray:
         return self._round(DIAGONAL, None)[:, :self.trace_size]
 
+    def condensed_loads(self, schur_complements: np.ndarray) -> np.ndarray:
+        uncoupled = self._round(CONDENSED, None)[:, :self.trace_size]
+        invertible = [b for b in range(len(BLOCKS)) if b not in self.floating]
+        uncoupled[invertible] = np.einsum("bij,bj->bi", schur_complements[invertible], uncoupled[invertible])
+        return uncoupled
+
+    def kernel_work(self) -> list[np.ndarray]:
+        work = self._round(KERNEL_WORK, None)
+        return [row[:kernel.shape[1]] for row, kernel in zip(work, self.kernel_traces)]
+
     def stop(self) -> None:
         self.exchange.command(STOP)
 
@@ -144,10 +180,19 @@ def serve(exchange: Exchange, server: BlockServer, trace_size: int, stages: dict
         if command == REPORT_ERROR:
             exchange.comm.gather(server.error, root=0)
             continue
-        local = exchange.scatter(None, trace_size) if command in WITH_LOADS else None
+        local = exchange.scatter(None, load_width(command, trace_size)) if command in WITH_LOADS else None
         width = result_width(command, trace_size)
         exchange.gather(server.run(command, local, width), width + 1)
     stages["Rounds"].pop()
+
+
+def kernel_traces(mesh) -> list[np.ndarray] | None:
+    """The traces of the blocks' kernels of a :class:`~ddsolve.parallel.distribution.LocalMesh` (None
+    when they are unknown)."""
+    if mesh.kernels is None:
+        return None
+    modes = kernels.trace_modes(mesh.sigma, mesh.kernels.frame)
+    return [modes @ kernel for kernel in mesh.kernels.kernels]
 
 
 def drive(setup, server: BlockServer, work) -> tuple[object, ParallelRounds | None, DDSolveError | None]:
@@ -158,7 +203,7 @@ def drive(setup, server: BlockServer, work) -> tuple[object, ParallelRounds | No
     if not exchange.is_root:
         serve(exchange, server, setup.interface.trace_size, stages)
         return None, None, None
-    rounds = ParallelRounds(exchange, server, setup.interface.trace_size, stages)
+    rounds = ParallelRounds(exchange, server, setup.interface.trace_size, stages, kernel_traces(setup.mesh))
     value, failure = None, None
     stages["Update"].push()
     try:

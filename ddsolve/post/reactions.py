@@ -48,7 +48,9 @@ def block_forces(scene: Scene, half: HalfMesh, sigma: SigmaLine, block: int, u: 
     layer = BLOCKS[block].layer
     fixed, _ = supports.block_supports(scene, half, sigma, layer, block, table)
     own, _ = supports.own_supports(scene, half, sigma, layer)
-    r = residual(scene, half, layer, u, np.flatnonzero(fixed.any(axis=1)))
+    held = np.flatnonzero(fixed.any(axis=1))
+    # a block with no prescribed dof (held only through Σ) has no reaction
+    r = residual(scene, half, layer, u, held) if len(held) else np.zeros(fixed.shape)
     return np.einsum("nab,nb->na", supports.node_frames(half, sigma), r) * fixed, own & fixed
 
 

@@ -18,10 +18,10 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ddsolve.dd import methods
+from ddsolve.dd import kernels, methods
 from ddsolve.dd.interface import Interface, for_mesh
-from ddsolve.errors import DDSolveError, DivergedError, NotConvergedError
-from ddsolve.fem import assembly
+from ddsolve.errors import DDSolveError, DivergedError, NotConvergedError, SceneError
+from ddsolve.fem import assembly, supports
 from ddsolve.io import hdf5 as io
 from ddsolve.mesh.mesh import BLOCKS, U_PLUS, Mesh
 from ddsolve.parallel import launch
@@ -41,6 +41,9 @@ from ddsolve.problem.scene import Scene
 #: the Schur complements (``./run bench factor`` measures both).
 FACTOR_PACKAGE = {"uzawa": "petsc", "fista": "petsc", "mprgp": "petsc", "schur": "mumps", "feti": "mumps"}
 STAGES = ("Setup", "Factorization", "Rounds", "Update", "Output")
+#: The methods that solve floating blocks (a singular stiffness): ``schur`` by their interiors, ``feti`` by
+#: a generalized inverse and the kernels' coarse problem.
+FLOATING_METHODS = ("schur", "feti")
 
 
 
@@ -149,7 +152,7 @@ class OnRanks:
             half = local.half(BLOCKS[b].side)
             positions[b] = half.sigma[sigma.multiplier_nodes]
             forces[b], own[b] = reactions.block_forces(scene, half, sigma, b, self.solutions[BLOCKS[b].name],
-                                                       local.supports)
+                                                       local.sigma_supports)
         entries = exchange.gather_varying([np.concatenate([forces[b][positions[b]].ravel(), own[b][positions[b]].ravel()])
                                            for b in exchange.led_blocks], [2 * count] * len(BLOCKS))
         tied = None
@@ -241,7 +244,7 @@ def local_systems(scene: Scene, mesh: LocalMesh | Mesh, exchange: Exchange) -> l
     if group.size > 1:
         half = mesh.half(BLOCKS[exchange.local_blocks[0]].side)
         rows = assembly.row_ranges(len(half.points), group.size)[group.rank]
-    return assembly.block_systems(scene, mesh, exchange.local_blocks, rows, getattr(mesh, "supports", None))
+    return assembly.block_systems(scene, mesh, exchange.local_blocks, rows, getattr(mesh, "sigma_supports", None))
 
 
 def make_blocks(scene: Scene, mesh: LocalMesh | Mesh, exchange: Exchange, package: str) -> list[Block]:
@@ -275,28 +278,54 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
     stages["Setup"].push()
     exchange = Exchange(comm, len(BLOCKS))
     if mesh is not None:
-        tips, table = comm.bcast(collective(comm, lambda: whole_mesh_checks(scene, mesh), root_only=True), root=0)
-        local = whole(mesh, tips, table)
+        tips, table, block_kernels = comm.bcast(collective(comm, lambda: whole_mesh_checks(scene, mesh),
+                                                           root_only=True), root=0)
+        local = whole(mesh, tips, table, block_kernels)
     else:
         local = local_mesh(scene, comm, exchange, phases)
     scene = resolve(scene, comm.size, local)
     method = scene.solver.method
+    floating = local.kernels.floating
+    if floating and method not in FLOATING_METHODS:
+        error = SceneError(f"solver.method = {method}: blocks {local.kernels.names()} are floating (held only "
+                           f"through Σ, their stiffness singular), which {method} cannot solve: use "
+                           f"{' or '.join(FLOATING_METHODS)}")
+        error.collective = True  # every rank knows the supports
+        raise error
     blocks = collective(comm, lambda: make_blocks(scene, local, exchange, FACTOR_PACKAGE[method]))
-    interface = for_mesh(local.sigma, scene.nonpenetration, local.supports.fixed)
+    interface = for_mesh(local.sigma, scene.nonpenetration, local.sigma_supports.fixed)
     stages["Setup"].pop()
     phases.end("assembly")
 
     stages["Factorization"].push()
     def factor():
-        for block in blocks:
-            block.factor(schur=method == "schur")
-            if method == "feti":
+        for index, block in zip(exchange.local_blocks, blocks):
+            if index in floating:
+                make_floating(block, scene, local, index, fixed=method == "feti")
+            if not (block.floating and method == "schur"):  # schur inverts a floating block's interior only
+                block.factor(schur=method == "schur")
+            if method == "feti" or block.floating:
                 block.factor_dirichlet()
 
     collective(comm, factor)
     stages["Factorization"].pop()
     phases.end("factorization")
     return Setup(local, exchange, blocks, interface, stages, phases, scene)
+
+
+def make_floating(block: Block, scene: Scene, mesh: LocalMesh, index: int, fixed: bool) -> None:
+    """Give a floating block its kernel (its rows) and, with ``fixed``, the dofs fixed for FETI's K⁺: m dofs
+    off the trace and the prescribed dofs where the kernel is independent."""
+    spec = BLOCKS[index]
+    half = mesh.half(spec.side)
+    vectors = kernels.kernel_vectors(half, mesh.sigma, mesh.kernels.kernels[index], mesh.kernels.frame)
+    first, last = block.system.first, block.system.first + len(block.system.rhs)
+    chosen = None
+    if fixed:
+        prescribed, _ = supports.block_supports(scene, half, mesh.sigma, spec.layer, index, mesh.sigma_supports)
+        excluded = np.concatenate([block.trace_dofs, np.flatnonzero(prescribed)])
+        chosen = kernels.fixing_dofs(vectors, excluded)
+    block.make_floating(vectors[:, first:last], chosen)
 
 
 def resolve(scene: Scene, ranks: int, mesh: LocalMesh) -> Scene:
@@ -412,7 +441,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
                 result.attrs["error_estimate"], result.indicators = estimated.relative, estimated.indicators
                 result.fracture = fracture.finish(local.tips, volume, result.on_sigma,
                                                   fracture.mode_split(local.tips, result))
-                result.reactions = reactions.of_result(result, local.supports)
+                result.reactions = reactions.of_result(result, local.sigma_supports)
         if distributed:
             split = shares.mode_split(result)  # collective: the parts around the tips go to rank 0
             if exchange.is_root:

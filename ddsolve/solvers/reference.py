@@ -15,11 +15,12 @@ import numpy as np
 from ddsolve.dd import constraints
 from ddsolve.dd.interface import Interface, for_mesh
 from ddsolve.errors import SolverError
-from ddsolve.fem import assembly, supports
+from ddsolve.fem import assembly
 from ddsolve.fem.assembly import BlockSystem, coo_to_csr
 from ddsolve.mesh import mesh as meshes
 from ddsolve.mesh.mesh import Mesh
 from ddsolve.parallel.blocks import Block
+from ddsolve.parallel.distribution import whole_mesh_checks
 from ddsolve.parallel.launch import provenance
 from ddsolve.post import analysis, estimate, fracture, reactions
 from ddsolve.post.result import Result
@@ -71,8 +72,7 @@ def merged_system(systems: list[BlockSystem], numbers: list[np.ndarray]) -> Bloc
 
 def solve(scene: Scene, mesh: Mesh) -> Result:
     """Solve the scene's discrete problem exactly; return it in the result schema."""
-    tips = fracture.find_tips(mesh, scene.fracture.inner, scene.fracture.outer)
-    table = supports.check(scene, mesh)
+    tips, table, _ = whole_mesh_checks(scene, mesh)  # the solver's checks: a structure that can move is refused
     systems = assembly.block_systems(scene, mesh, table=table)
     started = time.perf_counter()  # the solve phase: merging, factorizations, active-set steps
     interface = for_mesh(mesh.sigma, scene.nonpenetration, table.fixed)

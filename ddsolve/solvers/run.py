@@ -7,7 +7,6 @@ from pathlib import Path
 from typing import Callable
 
 from ddsolve.errors import NotConvergedError
-from ddsolve.fem.assembly import check_range
 from ddsolve.io import hdf5
 from ddsolve.mesh import geometry
 from ddsolve.parallel.exchange import collective
@@ -39,10 +38,7 @@ def reference(scene: Scene, output: Path | None = None, progress: Callable[[str]
         result = adapt.solve(scene, MPI.COMM_SELF, output, progress=progress,
                              level=lambda mesh: monolithic.solve(scene, mesh))
     else:
-        mesh = geometry.build(scene)
-        geometry.check_loads(scene, mesh)
-        check_range(scene, mesh)
-        result = monolithic.solve(scene, mesh)
+        result = monolithic.solve(scene, geometry.build(scene))
         if output is not None:
             hdf5.write(output, result, final=True)
     if not result.converged:

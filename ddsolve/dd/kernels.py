@@ -1,0 +1,214 @@
+"""Rigid-body motions the supports do not remove: the kernels of the blocks and of the glued structure.
+
+A block's stiffness K_b is singular exactly when one of the plane rigid motions (translations in x
+and y, the rotation; :func:`ddsolve.fem.assembly.rigid_body_modes`) satisfies all of its Dirichlet
+conditions: its *kernel* is the span of those motions, a basis of coefficients ``(3, m)`` for the modes
+about a common centre.  A block with a kernel is *floating*: its supports leave it rigid motions that
+only Σ holds (no support at all, a single pin, rollers in one direction).  The structure
+as a whole is supported when no combination of the four blocks' motions satisfies every support and
+every gluing equality on Σ (the contact inequality on the crack faces holds nothing: the faces may part).
+
+Constraints are nodal: dof indices ``2·node + component`` (x = 0, y = 1), and constrained directions (a
+node and a unit vector d: d·u = 0, e.g. a roller, or a prescribed component of a Σ node's frame).  A
+scene's constraints are the blocks' prescribed dofs (:mod:`ddsolve.fem.supports`: Γ_D, every
+``[displacements.LAYER.NAME]`` component, the Σ ties) whatever their values: a kernel is a motion of the
+homogeneous problem, and nonzero values are lifted into the loads.  No PETSc or MPI here.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ddsolve.dd.interface import Interface, for_mesh
+from ddsolve.errors import SceneError
+from ddsolve.fem import supports
+from ddsolve.fem.assembly import rigid_body_modes, rotate_vector
+from ddsolve.fem.supports import SigmaSupports
+from ddsolve.mesh.mesh import BLOCKS, HalfMesh, Mesh, SigmaLine
+from ddsolve.problem.scene import Scene
+
+#: A singular value of the (scaled) constraint matrix below this fraction of the largest one is a free motion.
+KERNEL_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class Frame:
+    """The common reference of the rigid modes: ``centre`` (rotations about it) and ``length`` (the
+    rotation mode scaled by 1/length, so that the three modes have comparable sizes)."""
+
+    centre: np.ndarray
+    length: float
+
+    def modes(self, points: np.ndarray) -> np.ndarray:
+        """``(3, 2n)`` modes at ``points``: translations in x and y, rotation (scaled) about the centre."""
+        modes = rigid_body_modes(points, centre=self.centre)
+        modes[2] /= self.length
+        return modes
+
+
+def frame_of(points: np.ndarray) -> Frame:
+    """The frame of a structure whose nodes are ``points``: its bounding-box centre and largest side."""
+    low, high = points.min(axis=0), points.max(axis=0)
+    return Frame(0.5 * (low + high), float(max(np.max(high - low), np.finfo(float).tiny)))
+
+
+def constraint_rows(modes: np.ndarray, dofs: np.ndarray,
+                    directions: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """The values ``(c, 3)`` of the modes ``(3, 2n)`` at the constrained ``dofs``, and d·mode at the
+    constrained ``directions`` (nodes ``(d,)``, unit vectors ``(d, 2)``)."""
+    rows = [modes[:, np.asarray(dofs, dtype=np.int64)].T]
+    if directions is not None:
+        nodes, vectors = directions
+        pairs = modes.reshape(3, -1, 2)[:, np.asarray(nodes, dtype=np.int64)]  # (3, d, 2)
+        rows.append(np.einsum("mdc,dc->dm", pairs, np.asarray(vectors, dtype=np.float64)))
+    return np.concatenate(rows, axis=0)
+
+
+def null_space(matrix: np.ndarray, columns: int) -> np.ndarray:
+    """Orthonormal basis ``(columns, m)`` of the null space of ``matrix`` ``(r, columns)`` (r may be 0),
+    whose entries are of order one at most (values of the modes of a :class:`Frame`)."""
+    if len(matrix) == 0:
+        return np.eye(columns)
+    _, values, vt = np.linalg.svd(matrix, full_matrices=True)
+    # entries are mode values, of order one at most: a floor of one keeps round-off out of the rank
+    rank = int(np.sum(values > KERNEL_TOLERANCE * max(values.max(initial=0.0), 1.0)))
+    return vt[rank:].T
+
+
+def block_kernel(points: np.ndarray, dofs: np.ndarray, frame: Frame,
+                 directions: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """Coefficients ``(3, m)`` (modes of ``frame``) of the rigid motions of a block with nodes ``points``
+    that its constrained ``dofs`` and ``directions`` do not remove: its kernel (m = 0: invertible)."""
+    return null_space(constraint_rows(frame.modes(points), dofs, directions), 3)
+
+
+def prescribed_directions(fixed: np.ndarray, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A block's prescribed dofs ``fixed`` ``(n, 2)`` in its dof ``frames`` ``(n, 2, 2)`` as constrained
+    directions: nodes ``(d,)`` and unit vectors ``(d, 2)`` in x, y (:func:`constraint_rows`)."""
+    nodes, axis = np.nonzero(fixed)
+    return nodes, frames[nodes, axis]
+
+
+def kernel_vectors(half: HalfMesh, sigma: SigmaLine, coefficients: np.ndarray, frame: Frame) -> np.ndarray:
+    """The kernel ``(m, 2n)`` of a block on ``half`` in its own dofs: the modes combined by ``coefficients``,
+    rotated into the local frames at its trace nodes (as :func:`ddsolve.fem.assembly.block_system` numbers them)."""
+    vectors = (frame.modes(half.points).T @ coefficients).T
+    nodes = sigma.multiplier_nodes
+    return np.array([rotate_vector(v, half.sigma[nodes], sigma.frames[nodes]) for v in vectors]).reshape(len(vectors), -1)
+
+
+def trace_modes(sigma: SigmaLine, frame: Frame) -> np.ndarray:
+    """``(2k, 3)``: the traces of the three modes (the same for every block), in the nodes' local frames."""
+    nodes = sigma.multiplier_nodes
+    modes = frame.modes(sigma.points[nodes])
+    return np.array([rotate_vector(mode, np.arange(len(nodes)), sigma.frames[nodes]) for mode in modes]).T
+
+
+def gluing_rows(interface: Interface, traces: np.ndarray) -> np.ndarray:
+    """``(equalities, 4·3)``: the gluing gaps (every multiplier row but the contact ones) of rigid motions of
+    the four blocks with mode traces ``traces`` ``(2k, 3)``, per block coefficient."""
+    rows = np.zeros((interface.size, len(BLOCKS), 3))
+    for block, coupling in enumerate(interface.couplings):
+        rows[coupling.rows, block] += coupling.sign[:, None] * traces[coupling.trace]
+    return rows[~interface.is_contact].reshape(-1, 3 * len(BLOCKS))
+
+
+def structure_kernel(blocks: list[np.ndarray], interface: Interface, sigma: SigmaLine, frame: Frame) -> np.ndarray:
+    """``(4·3, m)``: the rigid motions of the four blocks (coefficients per block, in ``frame``) that satisfy
+    every support (``blocks``: each block's constraint rows ``(c, 3)``, :func:`constraint_rows`) and every
+    gluing equality: the free motions of the structure."""
+    count = len(BLOCKS)
+    supports = np.zeros((sum(len(rows) for rows in blocks), 3 * count))
+    start = 0
+    for block, rows in enumerate(blocks):
+        supports[start:start + len(rows), 3 * block:3 * block + 3] = rows
+        start += len(rows)
+    return null_space(np.vstack([supports, gluing_rows(interface, trace_modes(sigma, frame))]), 3 * count)
+
+
+def describe(kernel: np.ndarray, frame: Frame) -> str:
+    """What a nonzero structure kernel ``(12, m)`` lets move, in words: a rigid motion of the whole
+    structure if there is one (translations first), else the blocks that move relative to the rest."""
+    count = len(BLOCKS)
+    together = np.tile(np.eye(3), (count, 1))  # (12, 3): one rigid motion of every block
+    projector = np.eye(3 * count) - kernel @ kernel.T
+    common = null_space(projector @ together, 3)  # (3, g): motions of the whole structure in the kernel
+    if common.shape[1]:
+        for axis, name in ((0, "x"), (1, "y")):
+            unit = np.eye(3)[axis]
+            if np.linalg.norm(unit - common @ (common.T @ unit)) < 1e-6:
+                return f"the structure can translate in {name}"
+        motion = common[:, 0]
+        return "the structure can " + _motion(motion, frame)
+    motion = kernel[:, 0].reshape(count, 3)
+    moving = [spec.name for spec, part in zip(BLOCKS, motion) if np.linalg.norm(part) > 1e-6]
+    first = motion[[spec.name for spec in BLOCKS].index(moving[0])]
+    return f"blocks {', '.join(moving)} can {_motion(first, frame)} relative to the rest"
+
+
+def _motion(coefficients: np.ndarray, frame: Frame) -> str:
+    """A rigid motion (tx, ty, ω/length about the centre) in words."""
+    tx, ty, omega = coefficients
+    omega = omega / frame.length
+    if abs(omega) * frame.length < 1e-6 * max(abs(tx), abs(ty)):
+        direction = np.array([tx, ty]) / np.hypot(tx, ty)
+        return f"translate along ({direction[0]:.3g}, {direction[1]:.3g})"
+    # velocity (tx − ω(y − cy), ty + ω(x − cx)) vanishes at the centre of rotation
+    x, y = frame.centre[0] - ty / omega, frame.centre[1] + tx / omega
+    return f"rotate about ({x + 0.0:.6g}, {y + 0.0:.6g})"
+
+
+@dataclass(frozen=True)
+class Kernels:
+    """The kernels of the four blocks, ``(3, m_b)`` coefficients in ``frame`` (m_b = 0: invertible)."""
+
+    kernels: list[np.ndarray]
+    frame: Frame
+
+    @property
+    def floating(self) -> list[int]:
+        """The blocks with a kernel."""
+        return [block for block, kernel in enumerate(self.kernels) if kernel.shape[1]]
+
+    def names(self) -> str:
+        return ", ".join(BLOCKS[block].name for block in self.floating)
+
+
+def block_kernels(halves: dict[int, HalfMesh], sigma: SigmaLine, interface: Interface,
+                  constraints: list[tuple[np.ndarray, np.ndarray]]) -> Kernels:
+    """The blocks' kernels under their ``constraints`` (per block of ``BLOCKS``, the constrained directions
+    of :func:`prescribed_directions`); a SceneError naming the free motion when the structure as a whole
+    is not supported (its rigid motions are not all removed by the supports and the gluing together)."""
+    frame = frame_of(np.vstack([half.points for half in halves.values()]))
+    rows = [constraint_rows(frame.modes(halves[spec.side].points), np.zeros(0, dtype=np.int64), directions)
+            for spec, directions in zip(BLOCKS, constraints)]
+    kernel = structure_kernel(rows, interface, sigma, frame)
+    if kernel.shape[1]:
+        raise SceneError(f"{describe(kernel, frame)}: add a support (geometry.clamped, a clamped boundary in "
+                         "the mesh, or [displacements.LAYER.NAME])")
+    return Kernels([null_space(block_rows, 3) for block_rows in rows], frame)
+
+
+def of_scene(scene: Scene, mesh: Mesh, table: SigmaSupports) -> Kernels:
+    """The blocks' kernels under the scene's supports (each block's prescribed dofs, with the Σ ties of
+    ``table``, :func:`ddsolve.fem.supports.block_supports`); refuses a structure that can move rigidly."""
+    constraints = []
+    for block, spec in enumerate(BLOCKS):
+        half = mesh.half(spec.side)
+        fixed, _ = supports.block_supports(scene, half, mesh.sigma, spec.layer, block, table)
+        constraints.append(prescribed_directions(fixed, supports.node_frames(half, mesh.sigma)))
+    interface = for_mesh(mesh.sigma, scene.nonpenetration, table.fixed)
+    return block_kernels({-1: mesh.lower, 1: mesh.upper}, mesh.sigma, interface, constraints)
+
+
+def fixing_dofs(vectors: np.ndarray, excluded: np.ndarray) -> np.ndarray:
+    """m dofs of a floating block (not ``excluded``) at which its kernel ``vectors`` ``(m, 2n)`` are
+    independent, chosen far apart (QR with column pivoting): fixing them leaves an invertible matrix."""
+    import scipy.linalg
+
+    allowed = np.ones(vectors.shape[1], dtype=bool)
+    allowed[np.asarray(excluded, dtype=np.int64)] = False
+    candidates = np.flatnonzero(allowed)
+    _, _, pivots = scipy.linalg.qr(vectors[:, candidates], pivoting=True, mode="economic")
+    return np.sort(candidates[pivots[:len(vectors)]])

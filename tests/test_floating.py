@@ -1,0 +1,161 @@
+"""Floating blocks (issue 18): halves held only through Σ, solved by schur and feti on 1 to 8 ranks
+against the reference; a structure that can move rigidly, and methods that cannot solve floating
+blocks, are refused in one line."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import MATERIALS, ddsolve, refused
+
+from ddsolve.io import hdf5 as io
+from ddsolve.post import analysis
+
+#: A strip clamped on its bottom side only: the upper half (u_plus, v_plus) touches no support and is
+#: held by the glue; pulled and sheared on top, with a crack whose faces close partly.
+STRIP = """
+[geometry]
+box = [0.0, 4.0, -0.5, 0.5]
+cracks = [[1.0, 2.0]]
+clamped = [{clamped}]
+[mesh]
+sigma_vertices = 9
+boundary_vertices = 24
+[loads.layer1.top]
+y = "-1e-3*x"
+x = 2e-3
+""" + MATERIALS
+
+
+def strip(folder, clamped: str = '"bottom"'):
+    path = folder / "strip.toml"
+    path.write_text(STRIP.format(clamped=clamped))
+    return path
+
+
+@pytest.fixture(scope="module")
+def floating_reference(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("floating")
+    scene = strip(folder)
+    ddsolve("reference", str(scene), "-o", str(folder / "reference.h5"))
+    return scene, io.read(folder / "reference.h5")
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("method", ["schur", "feti"])
+def test_floating_halves_equal_the_reference_on_every_rank_count(tmp_path, floating_reference, method):
+    scene, reference = floating_reference
+    assert reference.attrs["closed_vertices"] > 0  # contact on part of the crack
+    for ranks in (1, 2, 4, 8):
+        output = tmp_path / f"n{ranks}.h5"
+        ddsolve("solve", str(scene), "--set", f"solver.method={method}", "--set", "solver.tol=1e-12", "-o",
+                str(output), ranks=ranks)
+        result = io.read(output)
+        assert result.converged and result.ranks == ranks
+        assert analysis.compare(result, reference).energy_error < 1e-10, ranks
+        assert abs(result.attrs["energy"] - reference.attrs["energy"]) <= 1e-10 * abs(reference.attrs["energy"])
+        if method == "schur":
+            assert result.solves == 3
+
+
+@pytest.mark.mpi
+def test_a_structure_without_supports_is_refused_naming_the_motion(tmp_path):
+    scene = strip(tmp_path, clamped="")
+    for command, ranks in (("solve", 2), ("reference", None)):
+        completed = ddsolve(command, str(scene), "-o", str(tmp_path / "x.h5"), ranks=ranks, check=False)
+        refused(completed, 1, "the structure can translate in x: add a support")
+    assert not (tmp_path / "x.h5").exists()
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("method", ["uzawa", "mprgp", "fista"])
+def test_methods_that_need_every_block_invertible_refuse_floating_blocks(tmp_path, method):
+    theta = ["--set", "solver.theta=auto"] if method == "uzawa" else []
+    completed = ddsolve("solve", str(strip(tmp_path)), "--set", f"solver.method={method}", *theta, "-o",
+                        str(tmp_path / "x.h5"), ranks=2, check=False)
+    refused(completed, 1, f"solver.method = {method}: blocks u_plus, v_plus are floating", "use schur or feti")
+
+
+#: A strip 10 × 2, Σ the mid-plane, an edge crack (0, 3) along it; named curves for short supports at
+#: the ends of the bottom (support_left, support_right, 0.5 long) and a loading segment in the middle of
+#: the top (load); no clamped curve.
+STRIP_GEO = """
+lc = 1.0;
+Point(1) = {0, -1, 0, lc}; Point(2) = {0.5, -1, 0, lc}; Point(3) = {9.5, -1, 0, lc}; Point(4) = {10, -1, 0, lc};
+Point(5) = {10, 0, 0, lc}; Point(6) = {10, 1, 0, lc}; Point(7) = {5.5, 1, 0, lc}; Point(8) = {4.5, 1, 0, lc};
+Point(9) = {0, 1, 0, lc}; Point(10) = {0, 0, 0, lc}; Point(11) = {3, 0, 0, lc};
+Line(1) = {1, 2}; Line(2) = {2, 3}; Line(3) = {3, 4}; Line(4) = {4, 5}; Line(5) = {5, 6}; Line(6) = {6, 7};
+Line(7) = {7, 8}; Line(8) = {8, 9}; Line(9) = {9, 10}; Line(10) = {10, 1}; Line(11) = {10, 11}; Line(12) = {11, 5};
+Curve Loop(1) = {1, 2, 3, 4, -12, -11, 10}; Plane Surface(1) = {1};
+Curve Loop(2) = {11, 12, 5, 6, 7, 8, 9}; Plane Surface(2) = {2};
+Physical Surface("lower") = {1};
+Physical Surface("upper") = {2};
+Physical Curve("sigma") = {11, 12};
+Physical Curve("crack") = {11};
+Physical Curve("support_left") = {1};
+Physical Curve("support_right") = {3};
+Physical Curve("load") = {7};
+"""
+
+SUPPORTED = """
+[mesh]
+file = "strip.geo"
+size = 0.6
+""" + MATERIALS
+
+
+def both_layers(name: str, body: str) -> str:
+    return "".join(f"[displacements.{layer}.{name}]\n{body}\n" for layer in ("layer1", "layer2"))
+
+
+#: ENF-like three-point bending under displacement control: a pin and a roller under the ends, the middle
+#: of the top pushed down. The upper half is held by Σ and the loading segment only: its blocks can
+#: translate in x (floating, with prescribed nonzero values: lifted).
+ENF = SUPPORTED + both_layers("support_left", "x = 0.0\ny = 0.0") + both_layers("support_right", "y = 0.0") \
+    + both_layers("load", "y = -0.01")
+#: The strip on a pin and a roller, loaded by a traction in the middle of the top: the upper half has
+#: no support at all (its blocks have the three rigid motions).
+PIN_AND_ROLLER = SUPPORTED + both_layers("support_left", "x = 0.0\ny = 0.0") \
+    + both_layers("support_right", "y = 0.0") + "[loads.layer1.load]\ny = -0.05\n"
+#: Two rollers only: the structure can translate in x.
+TWO_ROLLERS = SUPPORTED + both_layers("support_left", "y = 0.0") + both_layers("support_right", "y = 0.0") \
+    + "[loads.layer1.load]\ny = -0.05\n"
+
+
+def supported_strip(folder, text: str):
+    (folder / "strip.geo").write_text(STRIP_GEO)
+    path = folder / "scene.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("text, applied", [(ENF, 0.0), (PIN_AND_ROLLER, -0.05)], ids=["enf", "pin-and-roller"])
+def test_supported_strips_with_floating_halves_equal_the_reference(tmp_path, text, applied):
+    """ENF (the upper arm unsupported) and a strip on a pin and a roller: schur and feti on 1, 2, 4 and 8
+    ranks give the reference's solution to 1e-10, and the reactions balance the load."""
+    scene = supported_strip(tmp_path, text)
+    ddsolve("reference", str(scene), "-o", str(tmp_path / "reference.h5"))
+    reference = io.read(tmp_path / "reference.h5")
+    assert reference.converged
+    for method in ("schur", "feti"):
+        for ranks in (1, 2, 4, 8):
+            output = tmp_path / f"{method}{ranks}.h5"
+            completed = ddsolve("solve", str(scene), "--set", f"solver.method={method}", "--set", "solver.tol=1e-12",
+                                "-o", str(output), ranks=ranks)
+            result = io.read(output)
+            comparison = analysis.compare(result, reference)
+            assert result.converged and comparison.energy_error < 1e-10, (method, ranks)
+            assert comparison.max_difference <= 1e-10 * comparison.max_displacement, (method, ranks)
+            assert "reaction on layer1 at support_right: " in completed.stdout
+    reactions = [force for named in reference.reactions.values() for force in named.values()]
+    largest = max(np.abs(force).max() for force in reactions)
+    assert largest > 0 and np.abs(sum(reactions) + [0.0, applied]).max() <= 1e-10 * largest
+
+
+@pytest.mark.mpi
+def test_a_structure_on_two_rollers_is_refused_naming_the_free_motion(tmp_path):
+    scene = supported_strip(tmp_path, TWO_ROLLERS)
+    for command, ranks in (("solve", 2), ("reference", None)):
+        completed = ddsolve(command, str(scene), "-o", str(tmp_path / "x.h5"), ranks=ranks, check=False)
+        refused(completed, 1, "the structure can translate in x: add a support")
+    assert not (tmp_path / "x.h5").exists()
