@@ -440,17 +440,24 @@ def text(record: dict, model: CostModel) -> str:
         "## How the work is distributed",
         "",
         "The leaders of u⁻ (rank 0) and u⁺ mesh the two halves at once (gmsh in a child process, so a signal ends "
-        "the job at once); rank 0 pairs them (checks, Σ), and each half goes only to the ranks whose blocks live on "
-        "it, Σ to all: every rank holds one half (both with one rank), rank 0 gets the upper half back for output. "
+        "the job at once). Above P = 400 (and for large `mesh.size` boxes) gmsh makes only a coarse mesh of "
+        "about 4,000 vertices with the same sizes and grading, and the ranks of each half refine it uniformly "
+        "(`mesh.refine`, ddsolve/mesh/refine.py): every rank of a half makes the fine cells of an equal share of "
+        "the coarse cells, numbered from the coarse mesh alone, and one Allgatherv places the pieces. Rank 0 pairs "
+        "and checks the halves (Σ, the loads' boundaries, the supports), and each half goes only to the ranks whose "
+        "blocks live on it, Σ to all: every rank holds one half (both with one rank). "
         "With 1, 2 or 4 ranks, rank r owns the blocks b ≡ r (mod N): with two ranks u⁻, v⁻ on rank 0 and u⁺, v⁺ on "
         "rank 1, so both blocks of a rank share one half and its sparsity pattern. With 4k ranks the world "
         "communicator splits into four block communicators of k ranks (block b on ranks b·k … (b+1)·k − 1); each "
-        "rank assembles only its rows (vertices are numbered in x-slabs, so a contiguous row range is a compact "
-        "piece of the half) into an MPIAIJ matrix with block size 2 and the rigid-body near-null space, factored by "
-        "parallel MUMPS. Assembly builds the CSR pattern once per half (one sort of the cells' node pairs) and sums "
-        "the element matrices by a precomputed scatter. A round scatters the interface loads from rank 0 to the "
-        "block leaders, which broadcast them in their block; the traces come back the same way. Waiting ranks "
-        "sleep instead of spinning.",
+        "rank assembles only its rows (a contiguous row range is a compact piece of the half) into an MPIAIJ "
+        "matrix with block size 2 and the rigid-body near-null space, factored by parallel MUMPS. Assembly builds "
+        "the CSR pattern once per half (one sort of the cells' node pairs) and sums the element matrices by a "
+        "precomputed scatter. A round scatters the interface loads from rank 0 to the block leaders, which "
+        "broadcast them in their block; the traces come back the same way. Waiting ranks sleep instead of "
+        "spinning. After the rounds the factors are freed; each block's leader computes its error indicators, "
+        "cell fields, reactions and its share of G, and, with parallel HDF5 (`python3-h5py-mpi`), every leader "
+        "writes its half and its block into the one result file and the viewer files: rank 0 gathers only Σ-sized "
+        "data and sums.",
         "",
         "## Measured (`schur`, `mprgp`, `feti`)",
         "",

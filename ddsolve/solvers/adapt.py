@@ -34,6 +34,7 @@ from ddsolve.mesh import bisection, curves
 from ddsolve.mesh.mesh import BLOCKS, SIGMA, Mesh, signed_areas
 from ddsolve.parallel import distribution
 from ddsolve.parallel.exchange import collective
+from ddsolve.parallel.phases import launch_age
 from ddsolve.post.result import Result
 from ddsolve.problem.scene import Scene
 from ddsolve.solvers import driver
@@ -101,7 +102,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, lev
         def level(mesh: Mesh) -> Result | None:
             return driver.solve(scene, comm, None, progress=_silent, mesh=mesh)
     project = curves.projector(scene)
-    started = time.perf_counter()
+    startup, started = launch_age(), time.perf_counter()
     refined, rows, result, message, refining = None, [], None, "", 0.0
     for number in range(MAX_LEVELS):
         mark = time.perf_counter()
@@ -127,6 +128,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, lev
         result.levels = {column: np.array([row[column] for row in rows]) for column in LEVEL_COLUMNS}
         result.attrs.update({"target_error": target, "levels": len(rows)})
         result.timings["adaptive"] = time.perf_counter() - started
+        result.timings["startup"] = startup  # the levels' own phases start at 0
     if output is not None:
         collective(comm, lambda: io.write(output, result, final=True), root_only=True)
     if message:
