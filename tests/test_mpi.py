@@ -148,7 +148,8 @@ def test_an_active_multiplier_bound_p_is_honoured_by_schur_and_mprgp(tmp_path):
 @pytest.mark.mpi
 def test_the_launch_is_printed_phase_by_phase_and_every_rank_times_its_phases(tmp_path):
     output = tmp_path / "run.h5"
-    completed = ddsolve("solve", "partial-closure", *SMALL, "-o", str(output), ranks=2)
+    completed = ddsolve("solve", "partial-closure", "--set", "mesh.sigma_vertices=100", "--set",
+                        "mesh.boundary_vertices=128", "-o", str(output), ranks=2)  # MUMPS counts its factors in MB
     line = next(line for line in completed.stdout.splitlines() if line.startswith("launch "))
     result = io.read(output)
     phases = [name for name in PHASES if name in result.timings and name != "write"]
@@ -159,6 +160,12 @@ def test_the_launch_is_printed_phase_by_phase_and_every_rank_times_its_phases(tm
         cpu = result.memory[f"cpu_s_{name}"]
         assert len(cpu) == 2 and np.all(cpu >= 0.0)
     assert np.isclose(result.memory["cpu_s_assembly"].sum(), result.timings["assembly_cpu"])
+    held = {phase: dict(zip(result.memory["held"], result.memory[f"held_mb_{phase}"].T))
+            for phase in ("assembly", "factorization", "iterations", "estimate", "output")}
+    assert np.all(held["assembly"]["mesh"] > 0) and np.all(held["assembly"]["matrices"] > 0)
+    assert np.all(held["factorization"]["factors"] > 0) and np.all(held["iterations"]["factors"] > 0)
+    assert np.all(held["estimate"]["factors"] == 0) and np.all(held["estimate"]["matrices"] == 0)  # dropped
+    assert held["iterations"]["schur complements"][0] > held["iterations"]["schur complements"][1]  # rank 0's
 
 
 @pytest.mark.mpi

@@ -421,6 +421,19 @@ def _memory_rows(runs: list[dict]) -> list[str]:
     return rows
 
 
+def _account_rows(runs: list[dict]) -> list[str]:
+    """What rank 0 and the largest other rank held per phase (``/memory`` ``held_mb_<phase>``), MB."""
+    rows = []
+    for r in (r for r in runs if r["kind"] == "launch" and "adaptive" not in r):
+        m = r["memory"]
+        for phase in ("assembly", "factorization", "iterations", "estimate", "output"):
+            held = np.asarray(m[f"held_mb_{phase}"])
+            others = held[1:].max(axis=0) if len(held) > 1 else np.full(held.shape[1], np.nan)
+            rows.append(f"| {r['label']} | {phase} | " + " | ".join(f"{a:.0f} / {b:.0f}" for a, b in zip(held[0], others))
+                        + f" | {m[f'peak_mb_{phase}'][0]:.0f} / {max(m[f'peak_mb_{phase}'][1:], default=float('nan')):.0f} |")
+    return rows
+
+
 def _rounds_rows(runs: list[dict]) -> list[str]:
     table = {}
     for r in runs:
@@ -556,6 +569,15 @@ def text(record: dict, model: CostModel) -> str:
         "| iterations | estimate | output |",
         "|---|---|---|---|---|---|---|---|---|---|---|",
         *_memory_rows(runs),
+        "",
+        "What the ranks hold, phase by phase (the account in `/memory` `held_mb_<phase>`: the most MB of each "
+        "kind a rank held during the phase; rank 0 / the largest other rank) against the peak resident memory at "
+        "the phase's end. The factors and matrices are dropped after the last round; the estimate and the "
+        "output run in the memory they held:",
+        "",
+        "| case | phase | mesh | matrices | factors | Schur complements | solutions | peak resident |",
+        "|---|---|---|---|---|---|---|---|",
+        *_account_rows(runs),
         "",
         "## The monolithic baseline",
         "",

@@ -66,6 +66,7 @@ class Block:
         self.matrix.setOption(PETSc.Mat.Option.SPD, True)
         if system.modes is not None:
             self._set_near_null_space(system.modes, comm)
+        self.matrix_bytes = sum(a.nbytes for a in csr)  # the CSR arrays PETSc holds
         del csr
         # What the block needs later; the CSR arrays belong to the matrix now (or were copied into it).
         self.system = dataclasses.replace(system, indptr=_NONE, indices=_NONE, data=_NONE, modes=None)
@@ -210,6 +211,14 @@ class Block:
     def trace_diagonal(self) -> np.ndarray | None:
         """The diagonal of K at the trace dofs, on the leader (the stiffness scaling of the preconditioner)."""
         return self._gather_trace(self.matrix.getDiagonal().getArray(readonly=True)[self.trace_rows] * self.scale)
+
+    def held_bytes(self, factored: bool = True) -> dict[str, float]:
+        """What the block holds, by kind of :data:`ddsolve.parallel.phases.HELD`: its matrices (with the
+        Dirichlet copy), its factors (MUMPS's count, once ``factored``), the Schur complement kept from the
+        factorization."""
+        copies = 2 if self._dirichlet_matrix is not None else 1
+        return {"matrices": copies * self.matrix_bytes, "factors": self.factor_megabytes() * 2 ** 20 if factored else 0.0,
+                "schur complements": self._schur.nbytes if self._schur is not None else 0}
 
     def factor_megabytes(self) -> float:
         """Memory MUMPS reports for this rank's part of the factorization (INFO(16), MB); 0 for other solvers."""

@@ -46,20 +46,35 @@ def cpu_seconds() -> float:
     return times.user + times.system + times.children_user + times.children_system
 
 
+#: What the memory account of a launch counts (bytes a rank holds), in the order of ``/memory``'s columns.
+HELD = ("mesh", "matrices", "factors", "schur complements", "solutions")
+
+
 class Phases:
-    """Wall seconds (this rank's clock), CPU seconds and peak memory at the end of each phase."""
+    """Wall seconds (this rank's clock), CPU seconds and peak memory at the end of each phase, and the
+    account of what the rank held: per phase the most bytes of each of :data:`HELD` (:meth:`hold`)."""
 
     def __init__(self, startup: float = 0.0):
         self.wall = {"startup": startup}
         self.cpu = {"startup": cpu_seconds()}
         self.peak = {"startup": peak_memory_mb()}
+        self.held: dict[str, dict[str, float]] = {}
+        self._holding = dict.fromkeys(HELD, 0.0)
+        self._most = dict(self._holding)
         self._wall, self._cpu = time.perf_counter(), cpu_seconds()
+
+    def hold(self, what: str, nbytes: float) -> None:
+        """This rank now holds ``nbytes`` of ``what`` (one of :data:`HELD`; 0 once dropped)."""
+        self._holding[what] = float(nbytes)
+        self._most[what] = max(self._most[what], float(nbytes))
 
     def end(self, name: str) -> None:
         wall, cpu = time.perf_counter(), cpu_seconds()
         self.wall[name] = self.wall.get(name, 0.0) + wall - self._wall
         self.cpu[name] = self.cpu.get(name, 0.0) + cpu - self._cpu
         self.peak[name] = peak_memory_mb()
+        self.held[name] = dict(self._most)
+        self._most = dict(self._holding)
         self._wall, self._cpu = wall, cpu
 
     def skip(self, name: str) -> None:
@@ -69,19 +84,24 @@ class Phases:
         self.peak[name] = peak_memory_mb()
 
 
-def memory_record(ranks: list[tuple[dict, dict, dict]], unknowns: int, whole_mesh_bytes: int) -> dict:
-    """The result file's ``/memory``: per rank, the peak resident memory (MB) and the CPU seconds of every
-    phase, the unknowns it works on, its mesh arrays, its factors (MUMPS's own count, MB) and the mesh and
-    solution arrays it holds at output (``rank_held_bytes``, against ``whole_held_bytes``: the whole mesh
-    and the four solutions); and per phase the largest peak per unknown of a rank (bytes)."""
+def memory_record(ranks: list[tuple[dict, Phases]], unknowns: int, whole_mesh_bytes: int) -> dict:
+    """The result file's ``/memory`` from every rank's (numbers, :class:`Phases`): per rank, the peak resident
+    memory (MB) and the CPU seconds of every phase, the unknowns it works on, its mesh arrays, its factors
+    (MUMPS's own count, MB) and the mesh and solution arrays it holds at output (``rank_held_bytes``, against
+    ``whole_held_bytes``: the whole mesh and the four solutions); per phase the largest peak per unknown of
+    a rank (bytes); and the account ``held_mb_<phase>`` ``(ranks, len(HELD))``: the most MB of each of
+    :data:`HELD` (``held``) the rank held during the phase."""
     record = {"unknowns": unknowns, "whole_mesh_bytes": whole_mesh_bytes,
-              "whole_held_bytes": whole_mesh_bytes + 8 * unknowns}
+              "whole_held_bytes": whole_mesh_bytes + 8 * unknowns, "held": list(HELD)}
     for key in ("unknowns", "mesh_bytes", "factor_mb", "held_bytes"):
-        if all(key in mine for mine, _, _ in ranks):
-            record[f"rank_{key}"] = np.array([mine[key] for mine, _, _ in ranks])
-    for phase in ranks[0][1]:
-        peaks = np.array([peak[phase] for _, peak, _ in ranks])
-        record[f"cpu_s_{phase}"] = np.array([cpu.get(phase, 0.0) for _, _, cpu in ranks])
+        if all(key in mine for mine, _ in ranks):
+            record[f"rank_{key}"] = np.array([mine[key] for mine, _ in ranks])
+    for phase in ranks[0][1].peak:
+        peaks = np.array([phases.peak[phase] for _, phases in ranks])
+        record[f"cpu_s_{phase}"] = np.array([phases.cpu.get(phase, 0.0) for _, phases in ranks])
         record[f"peak_mb_{phase}"] = peaks
+        if phase in ranks[0][1].held:
+            record[f"held_mb_{phase}"] = np.array([[phases.held[phase][what] / 2 ** 20 for what in HELD]
+                                                   for _, phases in ranks])
         record[f"bytes_per_unknown_{phase}"] = float(np.max(peaks * 2 ** 20 / record["rank_unknowns"]))
     return record

@@ -106,6 +106,7 @@ class ParallelRounds:
         self.kernel_traces = kernel_traces or [np.zeros((trace_size, 0))] * len(BLOCKS)
         self.floating = [b for b, kernel in enumerate(self.kernel_traces) if kernel.shape[1]]
         self.count = 0
+        self.schur_bytes = 0  # the blocks' Schur complements gathered here (bytes)
         self.elapsed = 0.0  # seconds inside rounds
         self.work = np.zeros(len(BLOCKS))  # work of the body loads less the energy offsets, last solve
         self.residuals = np.zeros(len(BLOCKS))  # relative residuals of the last full solve
@@ -148,7 +149,9 @@ class ParallelRounds:
         return float(0.5 * energies.sum() - self.work.sum())
 
     def schur_complements(self) -> np.ndarray:
-        return self._round(SCHUR, None).reshape(-1, self.trace_size, self.trace_size)
+        complements = self._round(SCHUR, None).reshape(-1, self.trace_size, self.trace_size)
+        self.schur_bytes = complements.nbytes
+        return complements
 
     def dirichlet(self, traces: np.ndarray) -> np.ndarray:
         return self._round(DIRICHLET, traces)[:, :self.trace_size]

@@ -236,6 +236,13 @@ class Setup:
 
 
 
+def hold_blocks(phases: Phases, blocks: list[Block], factored: bool = True) -> None:
+    """Account what ``blocks`` hold now (:meth:`Block.held_bytes`) in ``phases``."""
+    held = [block.held_bytes(factored) for block in blocks]
+    for what in ("matrices", "factors", "schur complements"):
+        phases.hold(what, sum(kinds[what] for kinds in held))
+
+
 def local_systems(scene: Scene, mesh: LocalMesh | Mesh, exchange: Exchange) -> list[assembly.BlockSystem]:
     """Assemble this rank's blocks (or its rows of the one it shares); blocks of one half share its
     sparsity pattern."""
@@ -285,6 +292,7 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
         local = local_mesh(scene, comm, exchange, phases)
     scene = resolve(scene, comm.size, local)
     method = scene.solver.method
+    phases.hold("mesh", local.nbytes)
     floating = local.kernels.floating
     if floating and method not in FLOATING_METHODS:
         error = SceneError(f"solver.method = {method}: blocks {local.kernels.names()} are floating (held only "
@@ -294,6 +302,7 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
         raise error
     blocks = collective(comm, lambda: make_blocks(scene, local, exchange, FACTOR_PACKAGE[method]))
     interface = for_mesh(local.sigma, scene.nonpenetration, local.sigma_supports.fixed)
+    hold_blocks(phases, blocks, factored=False)
     stages["Setup"].pop()
     phases.end("assembly")
 
@@ -308,6 +317,7 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
                 block.factor_dirichlet()
 
     collective(comm, factor)
+    hold_blocks(phases, blocks)
     stages["Factorization"].pop()
     phases.end("factorization")
     return Setup(local, exchange, blocks, interface, stages, phases, scene)
@@ -386,14 +396,17 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
         failure = comm.bcast(failure, root=0)
         if failure is not None:
             failure.collective = True
-        phases.end("iterations")
-        if failure is not None and not isinstance(failure, NotConvergedError):
-            raise failure
+        phases.hold("schur complements", rounds.schur_bytes if rounds is not None else 0)  # rank 0's, during the method
+        phases.hold("solutions", sum(u.nbytes for u in server.solutions.values()))
         mine = {"mesh_bytes": local.nbytes, "unknowns": sum(len(b.system.rhs) for b in setup.blocks),
                 "factor_mb": sum(b.factor_megabytes() for b in setup.blocks)}
         if own:  # the factors are done with: the estimate and the output run in the memory they held
             for block in setup.blocks:
                 block.destroy()
+            hold_blocks(phases, [])
+        phases.end("iterations")
+        if failure is not None and not isinstance(failure, NotConvergedError):
+            raise failure
 
         distributed = output is not None and not gather and io.parallel_available(comm)
         if distributed:  # the estimate on the blocks' leaders
@@ -413,15 +426,18 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
             mesh = gather_upper(local, exchange)
             mine["held_bytes"] = (whole_bytes + 8 * sum(sizes) if exchange.is_root else
                                   local.nbytes + sum(8 * sizes[b] for b in exchange.led_blocks))
+        gathered = not distributed and exchange.is_root  # the whole mesh and every solution
+        phases.hold("mesh", whole_bytes if gathered else local.nbytes)
+        phases.hold("solutions", mine["held_bytes"] - (whole_bytes if gathered else local.nbytes))
         phases.end("output")
-        memory = comm.gather((mine, phases.peak, phases.cpu), root=0)
+        memory = comm.gather((mine, phases), root=0)
         result = None
         if exchange.is_root:
             timings = dict(phases.wall)
             timings["update"] = timings["iterations"] - rounds.elapsed
             timings["setup"] = sum(timings.get(name, 0.0) for name in ("meshing", "distribution", "assembly"))
             for name in phases.cpu:  # CPU seconds of every rank together
-                timings[f"{name}_cpu"] = sum(cpu[name] for _, _, cpu in memory)
+                timings[f"{name}_cpu"] = sum(ranked.cpu[name] for _, ranked in memory)
             record = dict(
                 converged=outcome.converged, iterations=outcome.iterations, solves=rounds.count,
                 wall_time=timings["factorization"] + timings["iterations"], ranks=comm.size,
@@ -429,7 +445,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
                 active_set_changes=np.array(outcome.active_set_changes, dtype=np.int64),
                 memory=memory_record(memory, sum(sizes), whole_bytes),
                 attrs={**launch.provenance(), **local.quality, "stop": scene.solver.stop, "tol": scene.solver.tol,
-                       "peak_memory_mb": [max(peak.values()) for _, peak, _ in memory], **outcome.details})
+                       "peak_memory_mb": [max(ranked.peak.values()) for _, ranked in memory], **outcome.details})
             if distributed:
                 result = Result(scene=scene.text, method=method, mesh=None, solution={},
                                 multipliers=shares.on.multipliers, held=shares.on, **record)
