@@ -159,3 +159,27 @@ def test_a_structure_on_two_rollers_is_refused_naming_the_free_motion(tmp_path):
         completed = ddsolve(command, str(scene), "-o", str(tmp_path / "x.h5"), ranks=ranks, check=False)
         refused(completed, 1, "the structure can translate in x: add a support")
     assert not (tmp_path / "x.h5").exists()
+
+
+@pytest.mark.mpi
+def test_free_thermal_expansion_on_short_supports_carries_no_stress(tmp_path):
+    """Two identical layers (the same α) under a uniform ΔT, free to expand: held at the lower half only, by
+    rollers on a short vertical segment (x = 0: the lower part of the left side) and on the two bottom
+    segments (y = 0), so the upper half floats, held through Σ: no stress (1e-12 of EαΔT) and G = 0, with
+    schur, feti and the reference.  (A segment fixed in both directions would hold the expansion along it.)"""
+    (tmp_path / "strip.geo").write_text(STRIP_GEO + 'Physical Curve("left_lower") = {10};\n')
+    scene = tmp_path / "scene.toml"
+    scene.write_text(SUPPORTED + both_layers("left_lower", "x = 0.0") + both_layers("support_left", "y = 0.0")
+                     + both_layers("support_right", "y = 0.0"))
+    alpha, rise = 1.0e-5, 50.0
+    heated = ["--set", "materials.layer2.E=200.0", "--set", "materials.layer2.nu=0.28",  # identical layers
+              "--set", f"materials.layer1.alpha={alpha}", "--set", f"materials.layer2.alpha={alpha}",
+              "--set", f"temperature.layer1={rise}", "--set", f"temperature.layer2={rise}"]
+    for command, options, ranks in (("reference", [], None), ("solve", ["--set", "solver.method=schur"], 2),
+                                     ("solve", ["--set", "solver.method=feti", "--set", "solver.tol=1e-12"], 4)):
+        output = tmp_path / f"{command}{ranks}.h5"
+        ddsolve(command, str(scene), *heated, *options, "-o", str(output), ranks=ranks)
+        result = io.read(output)
+        largest = max(np.abs(fields.stress).max() for fields in analysis.cell_fields(result).values())
+        assert result.converged and largest <= 1e-12 * 200.0 * alpha * rise, (command, ranks, largest)
+        assert np.abs(result.G).max() <= 1e-12 * 200.0 * (alpha * rise) ** 2, (command, ranks)

@@ -60,6 +60,11 @@ class Constraints:
         return "   ".join(f"{labels.get(name, name.replace('_', ' '))} {getattr(self, name):.3e}" for name in self.NAMES)
 
 
+#: The smallest traction scale of the KKT check, as a fraction of the stress scale modulus × max|u| / |Σ|:
+#: below it multipliers are round-off (a structure that expands freely carries no stress at all).
+STRESS_FLOOR = 1e-6
+
+
 def scale_free_ratio(value: float, scale: float) -> float:
     """value / scale, 0 when the value is 0 (nothing to compare), NaN-propagating."""
     if value == 0.0:
@@ -73,6 +78,12 @@ def kkt(interface: Interface, traces: np.ndarray, lam: np.ndarray, p: float | No
     ``lam`` (bound ``p``), their equilibrium residuals and the largest nodal displacement."""
     gap = interface.gap(traces)
     lower, upper = interface.bounds(p)
+    # Multipliers are tractions on Σ: measured against the largest of them, or, when the structure carries
+    # (almost) no stress and they are all round-off, against STRESS_FLOOR × the stress its displacements
+    # would make (modulus × max|u| / Σ's length).
+    length = float(interface.weights.sum())
+    traction = max(float(np.abs(lam).max(initial=0.0)),
+                   STRESS_FLOOR * interface.modulus * largest / length if length > 0 else 0.0)
     slack = 1e-9 * np.abs(upper[np.isfinite(upper)]).max(initial=0.0)
     at_lower, at_upper = lam <= lower + slack, lam >= upper - slack
     violated = np.where(at_upper, np.maximum(-gap, 0.0), np.where(at_lower, np.maximum(gap, 0.0), np.abs(gap)))
@@ -86,8 +97,8 @@ def kkt(interface: Interface, traces: np.ndarray, lam: np.ndarray, p: float | No
         if finite else nan,
         gluing_gap=scale_free_ratio(float(violated[~contact].max(initial=0.0)), largest) if finite else nan,
         complementarity=scale_free_ratio(float(np.abs(np.where(at_upper, 0.0, lam * gap)[contact]).max(initial=0.0)),
-                               float(np.abs(lam).max(initial=0.0)) * largest) if finite else nan,
-        multiplier_bounds=scale_free_ratio(max(bounds, 0.0), float(np.abs(lam).max(initial=0.0))) if finite else nan,
+                                         traction * largest) if finite else nan,
+        multiplier_bounds=scale_free_ratio(max(bounds, 0.0), traction) if finite else nan,
         equilibrium=float(np.max(equilibrium, initial=0.0)),
         min_mu_c=float(mu_c.min(initial=0.0)),
         max_displacement=float(largest),

@@ -483,6 +483,11 @@ def rigid_body_modes(points: np.ndarray, centre: np.ndarray | None = None) -> np
     return modes.reshape(3, -1)
 
 
+def modulus(scene: Scene) -> float:
+    """The largest entry of the layers' elastic matrices: the scale of the stress a strain makes."""
+    return max(float(np.abs(elasticity(scene, layer)[0]).max()) for layer in LAYERS)
+
+
 def elasticity(scene: Scene, layer: str) -> tuple[np.ndarray, np.ndarray]:
     """(D, c) of a layer under the scene's plane model (see :func:`ddsolve.problem.materials.elasticity`)."""
     return materials.elasticity(scene.materials[layer], scene.model)

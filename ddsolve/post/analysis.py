@@ -126,7 +126,7 @@ def constraints(result: Result, equilibrium: np.ndarray | None = None) -> Constr
     and multipliers, each block's equilibrium from assembling the blocks again (unless given)."""
     scene = result.parsed_scene
     interface = for_mesh(result.mesh.sigma, scene.nonpenetration,
-                         supports.sigma_supports(scene, result.mesh).fixed)
+                         supports.sigma_supports(scene, result.mesh).fixed, assembly.modulus(scene))
     frames = result.mesh.sigma.frames[result.multiplier_nodes]
     lam = multiplier_vector(interface, result.multipliers, frames)
     if equilibrium is None:

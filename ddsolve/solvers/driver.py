@@ -301,7 +301,7 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
         error.collective = True  # every rank knows the supports
         raise error
     blocks = collective(comm, lambda: make_blocks(scene, local, exchange, FACTOR_PACKAGE[method]))
-    interface = for_mesh(local.sigma, scene.nonpenetration, local.sigma_supports.fixed)
+    interface = for_mesh(local.sigma, scene.nonpenetration, local.sigma_supports.fixed, assembly.modulus(scene))
     hold_blocks(phases, blocks, factored=False)
     stages["Setup"].pop()
     phases.end("assembly")

@@ -75,7 +75,7 @@ def solve(scene: Scene, mesh: Mesh) -> Result:
     tips, table, _ = whole_mesh_checks(scene, mesh)  # the solver's checks: a structure that can move is refused
     systems = assembly.block_systems(scene, mesh, table=table)
     started = time.perf_counter()  # the solve phase: merging, factorizations, active-set steps
-    interface = for_mesh(mesh.sigma, scene.nonpenetration, table.fixed)
+    interface = for_mesh(mesh.sigma, scene.nonpenetration, table.fixed, assembly.modulus(scene))
     contact_rows = interface.slices["mu_c"]
     closed = np.zeros(contact_rows.stop - contact_rows.start, dtype=bool)
     history, changes = [], []
