@@ -21,17 +21,18 @@ SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"
 #: phase -> (arguments of a run that has it, what shows that it has begun).
 PHASES = {
     "meshing": (["solve", "-n", "4", "partial-closure", "--set", "mesh.sigma_vertices=1600",
-                 "--set", "mesh.boundary_vertices=2048", "-o", "out.h5"], "gmsh"),
+                 "--set", "mesh.boundary_vertices=2048", "--set", "mesh.refine=0", "-o", "out.h5"], "gmsh"),
     "levels": (["solve", "-n", "4", "partial-closure", *SMALL, "--set", "mesh.degree=2",
-                "--set", "mesh.target_error=0.002", "-o", "out.h5"], "level 1:"),
+                "--set", "mesh.target_error=0.001", "-o", "out.h5"], "level 0:"),
     "factorization": (["solve", "-n", "4", "partial-closure", "--set", "mesh.sigma_vertices=200",
                        "--set", "mesh.boundary_vertices=256", "--set", "mesh.degree=2", "-o", "out.h5"], "meshed"),
     "write": (["solve", "-n", "4", "partial-closure", "--set", "mesh.sigma_vertices=200",
                "--set", "mesh.boundary_vertices=256", "--set", "mesh.degree=2", "-o", "out.h5"], "scratch"),
     "meshing on one rank": (["solve", "-n", "1", "partial-closure", "--set", "mesh.sigma_vertices=1600",
-                             "--set", "mesh.boundary_vertices=2048", "-o", "out.h5"], "gmsh"),
+                             "--set", "mesh.boundary_vertices=2048", "--set", "mesh.refine=0", "-o", "out.h5"],
+                            "gmsh"),
     "one process, meshing": (["mesh", "partial-closure", "--set", "mesh.sigma_vertices=1600",
-                              "--set", "mesh.boundary_vertices=2048"], "gmsh"),
+                              "--set", "mesh.boundary_vertices=2048", "--set", "mesh.refine=0"], "gmsh"),
 }
 #: Seconds after the launcher's end at which no process of the run may be alive.
 AFTER = 5.0

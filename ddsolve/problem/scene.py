@@ -640,6 +640,9 @@ def _check_conditioning(D, table: dict, model: str, where: str) -> None:
     cannot be factored in double precision, naming the key and its usable range."""
     import numpy as np
 
+    if not np.all(np.isfinite(D)):
+        raise SceneError(f"{where}: the elastic matrix overflows a double (entries beyond 1.8e308): change the "
+                         "unit of stress")
     eigenvalues = np.linalg.eigvalsh(D)
     ratio = float(eigenvalues[-1] / eigenvalues[0])
     if ratio <= CONDITIONING:
