@@ -27,6 +27,8 @@ EXPERIMENTS = {
                 "docs/gallery.md, docs/gallery-*.png, results/gallery/"),
     "fracture": ("fracture", "fracture", "G at the crack tips: finite differences, radii, a plate; G against "
                  "crack length and E2/E1", "docs/fracture.md, docs/fracture-*.png, results/fracture-*"),
+    "delamination": ("delamination", "delamination", "DCB, ELS, ENF, MMB and a thermal mismatch against beam "
+                     "theory", "docs/delamination.md, docs/delamination-*.png, results/delamination*"),
     "architecture": ("architecture", "architecture", "the package's stages and the imports between them, read "
                      "from the source", "docs/architecture.png"),
 }
