@@ -7,6 +7,7 @@ from __future__ import annotations
 import h5py
 import numpy as np
 import pytest
+from conftest import ddsolve
 
 from ddsolve.io import hdf5 as io
 from ddsolve.mesh import geometry
@@ -147,3 +148,18 @@ def test_written_read_and_printed(tmp_path):
     assert np.isnan(old.G_I).all() and np.isnan(old.phase).all() and not old.symmetric.any()
     line = result.fracture.lines()[0]
     assert "G_I" in line and "G_II" in line and "ψ = " in line
+
+
+@pytest.mark.mpi
+def test_the_ranks_split_the_modes_as_one_process_does(tmp_path):
+    """With the result written by the ranks, rank 0 splits the modes from the parts of the halves around
+    the tips (post.fracture.disc_part): the same split, by the same method, as from the whole mesh."""
+    split = {}
+    for ranks in (1, 4):
+        output = tmp_path / f"n{ranks}.h5"
+        ddsolve("solve", "partial-closure", "--set", "mesh.size=0.1", "--set", "mesh.degree=2", "--set",
+                "mesh.grading=true", "-o", str(output), ranks=ranks)
+        split[ranks] = io.read(output).fracture
+    assert np.array_equal(split[4].symmetric, split[1].symmetric) and split[1].symmetric.all()
+    for key in ("G", "G_I", "G_II"):
+        assert np.allclose(getattr(split[4], key), getattr(split[1], key), rtol=1e-8, atol=1e-12 * split[1].G.max())

@@ -70,7 +70,9 @@ def null_space(matrix: np.ndarray, columns: int) -> np.ndarray:
     whose entries are of order one at most (values of the modes of a :class:`Frame`)."""
     if len(matrix) == 0:
         return np.eye(columns)
-    _, values, vt = np.linalg.svd(matrix, full_matrices=True)
+    # R of a QR factorization has the singular values and right singular vectors of the tall matrix, at a
+    # cost linear in its rows (the full SVD of the tall matrix would make an r × r factor)
+    _, values, vt = np.linalg.svd(np.linalg.qr(matrix, mode="r"), full_matrices=True)
     # entries are mode values, of order one at most: a floor of one keeps round-off out of the rank
     rank = int(np.sum(values > KERNEL_TOLERANCE * max(values.max(initial=0.0), 1.0)))
     return vt[rank:].T

@@ -456,29 +456,38 @@ class MeshStats:
 
 
 def statistics(half: HalfMesh) -> MeshStats:
+    sides, edges = _sides(half)
+    circumdiameters = edges.prod(axis=1) / (2.0 * np.abs(half.areas()))
+    return MeshStats(float(circumdiameters.min()), float(circumdiameters.max()), half.vertex_count,
+                     len(half.cells), _smallest_angle(sides, edges))
+
+
+def _sides(half: HalfMesh) -> tuple[np.ndarray, np.ndarray]:
+    """The triangles' side vectors ``(m, 3, 2)`` (from each corner to the next) and their lengths."""
     p = half.points[half.corners]
     sides = p[:, [1, 2, 0]] - p
-    edges = np.linalg.norm(sides, axis=2)
-    circumdiameters = edges.prod(axis=1) / (2.0 * np.abs(half.areas()))
+    return sides, np.linalg.norm(sides, axis=2)
+
+
+def _smallest_angle(sides: np.ndarray, edges: np.ndarray) -> float:
+    """The smallest interior angle of the triangles (degrees): that of the largest cosine."""
     cosines = -np.einsum("mkd,mkd->mk", sides, sides[:, [2, 0, 1]]) / (edges * edges[:, [2, 0, 1]])
-    angle = np.degrees(np.arccos(np.clip(cosines, -1.0, 1.0))).min()
-    return MeshStats(float(circumdiameters.min()), float(circumdiameters.max()), half.vertex_count,
-                     len(half.cells), float(angle))
+    return float(np.degrees(np.arccos(np.clip(cosines.max(initial=-1.0), -1.0, 1.0))))
 
 
 def boundary_vertex_count(mesh: Mesh) -> int:
     """M: triangle vertices on ∂Ω (the boundary of the halves without Σ), shared ones counted once."""
-    coordinates = set()
+    coordinates = []
     for half in mesh.halves:
         edges = half.boundary_edges[:, :2]
         sigma = np.isin(edge_keys(edges, len(half.points)), edge_keys(half.edges(SIGMA)[:, :2], len(half.points)))
-        coordinates.update(map(tuple, half.points[np.unique(edges[~sigma])].round(12).tolist()))
-    return len(coordinates)
+        coordinates.append(half.points[np.unique(edges[~sigma])].round(12))
+    return len(np.unique(np.vstack(coordinates), axis=0))
 
 
 def quality(mesh: Mesh) -> dict:
     """What a result records of its mesh: the smallest angle (degrees), the vertices on Σ and on ∂Ω."""
-    return {"min_angle": min(statistics(half).min_angle for half in mesh.halves),
+    return {"min_angle": min(_smallest_angle(*_sides(half)) for half in mesh.halves),
             "sigma_vertices": int(mesh.sigma.corner.sum()), "boundary_vertices": boundary_vertex_count(mesh)}
 
 

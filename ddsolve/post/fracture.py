@@ -441,14 +441,16 @@ def mirrored_temperature(thermal: tuple[np.ndarray, object], points: np.ndarray,
 
 def disc_part(half: HalfMesh, tips: list[Tip]) -> tuple[HalfMesh, np.ndarray]:
     """What the split into modes reads of ``half``: the cells whose bounding box reaches into a tip's θ
-    disc (which hold the disc and, Σ being straight there, its mirror image) and every Σ node; with the
-    indices of the nodes kept (the part's nodes in order)."""
+    disc widened by twice the size of the disc's cells (which hold the disc's nodes and, Σ being straight
+    there, their mirror images) and every Σ node; with the indices of the nodes kept (in order)."""
     corners = half.points[half.cells]
     low, high = corners.min(axis=1), corners.max(axis=1)
     near = np.zeros(len(half.cells), dtype=bool)
     for tip in tips:
-        gap = np.maximum(np.maximum(low - tip.point, tip.point - high), 0.0)
-        near |= np.hypot(gap[:, 0], gap[:, 1]) <= tip.outer
+        gap = np.hypot(*np.maximum(np.maximum(low - tip.point, tip.point - high), 0.0).T)
+        # the disc's cells reach beyond it by their size: their nodes' images lie within that reach
+        reach = tip.outer + float(np.max(high[gap <= tip.outer] - low[gap <= tip.outer], initial=0.0))
+        near |= gap <= 2.0 * reach - tip.outer
     kept = np.union1d(np.unique(half.cells[near]), half.sigma)
     position = np.full(len(half.points), -1, dtype=np.int64)
     position[kept] = np.arange(len(kept))
