@@ -160,8 +160,9 @@ def launch_line(result) -> str:
     solve = result.wall_time
     if "adaptive" in timings:  # every level; the phases are the last level's
         levels = result.levels.get("solve_time", [solve]) if result.levels else [solve]
-        total, solve = timings.get("startup", 0.0) + timings["adaptive"], float(sum(levels))
-        phases = [("startup", timings.get("startup", 0.0)), (f"{len(levels)} levels", timings["adaptive"])]
+        phases = [("startup", timings.get("startup", 0.0)), (f"{len(levels)} levels", timings["adaptive"]),
+                  *([("write", timings["write"])] if "write" in timings else [])]
+        total, solve = sum(seconds for _, seconds in phases), float(sum(levels))
     peaks = result.attrs.get("peak_memory_mb")
     memory = f"; peak memory {max(peaks):.0f} MB (largest rank)" if peaks is not None and len(peaks) else ""
     ratio = f"{total / solve:.2f} x" if solve > 0 else "n/a:"

@@ -244,7 +244,8 @@ def scaling() -> dict:
 def render(record: dict) -> None:
     """Fit the model to a record of measurements; write results/scaling.h5, the plots and docs/scaling.md."""
     runs = record["runs"]
-    model = CostModel(record["calibration"], record["network"], runs)
+    model = CostModel(record["calibration"], record["network"],  # fitted to the method measurements
+                      [r for r in runs if r["kind"] in ("strong", "weak", "rounds")])
     for run in runs:
         run["predicted"] = model.phases(run["method"], run["ranks"], run["unknowns"], run["trace"],
                                         run["interface_unknowns"], run["rounds"], run["multipliers"],
@@ -437,7 +438,7 @@ def _account_rows(runs: list[dict]) -> list[str]:
 def _rounds_rows(runs: list[dict]) -> list[str]:
     table = {}
     for r in runs:
-        if r["ranks"] == 4 or r["kind"] == "rounds":
+        if (r["ranks"] == 4 and r["kind"] in ("strong", "weak")) or r["kind"] == "rounds":
             table.setdefault(r["method"], {})[r["P"]] = r["rounds"]
     sizes = sorted({P for rounds in table.values() for P in rounds})
     rows = ["| method | " + " | ".join(f"P = {P}" for P in sizes) + " |", "|---|" + "---|" * len(sizes)]

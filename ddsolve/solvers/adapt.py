@@ -130,7 +130,10 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, lev
         result.timings["adaptive"] = time.perf_counter() - started
         result.timings["startup"] = startup  # the levels' own phases start at 0
     if output is not None:
+        written = time.perf_counter()
         collective(comm, lambda: io.write(output, result, final=True), root_only=True)
+        if result is not None:
+            result.timings["write"] = time.perf_counter() - written
     if message:
         error = NotConvergedError(message)
         error.collective = True

@@ -11,6 +11,7 @@ memory (:class:`Phases`); the result file has them in ``/timings`` and ``/memory
 from __future__ import annotations
 
 import dataclasses
+import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -463,9 +464,13 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
             if exchange.is_root:
                 result.fracture = fracture.finish(local.tips, volume, shares.on, split)
             part, viewer = shares.files(result, output)
+            written = time.perf_counter()
             io.write_distributed(output, part, viewer, comm, final=True)
         elif output is not None:
+            written = time.perf_counter()
             collective(comm, lambda: io.write(output, result, final=True), root_only=True)
+        if output is not None and result is not None:  # the launch's last phase, for whoever reports it
+            result.timings["write"] = time.perf_counter() - written
         stages["Output"].pop()
         if failure is not None:  # not converged: the result is written with converged = false
             failure.result = result
