@@ -651,8 +651,9 @@ def text(record: dict, model: CostModel) -> str:
     lines += [f"The launch around the solve phase (*launch* above) is fitted to the whole launches measured here: "
               f"{launch.constant:.2f} s for the start-up, the meshing (a coarse gmsh mesh and a refinement share) "
               f"and the distribution, and per unknown of the busiest rank {rates} (CPU seconds of one rank; the "
-              "write assumes a file system whose bandwidth grows with the writers). With the parallel meshing and "
-              "write nothing around the solve stays serial, so the launch shrinks with the solve.", ""]
+              "write assumes a file system whose bandwidth grows with the writers). The per-unknown phases shrink with "
+              "the ranks; the constant does not (the start-up of Python, MPI and PETSc, gmsh's coarse mesh, rank "
+              "0's checks of the whole mesh), and on many cores it is most of the launch.", ""]
     crossover = next((r["ranks"] for r in weak if r["rank0"] > r["factorization"] + r["interface"]), None)
     lines += [
         "**Where the design stops scaling, and what the default does.** With distributed blocks `schur` needs "
