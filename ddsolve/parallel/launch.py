@@ -49,6 +49,19 @@ def mpiexec_command(ranks: int, arguments: list[str], module: str = "ddsolve") -
 
 
 
+def end_session(session: int) -> None:
+    """SIGKILL every process still in the session ``session`` (mpiexec's: the ranks it started and their
+    gmsh children, each in a process group of its own), mpiexec included."""
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit() or int(entry) == os.getpid():
+            continue
+        try:
+            if os.getsid(int(entry)) == session:
+                os.kill(int(entry), signal.SIGKILL)
+        except OSError:  # ended meanwhile
+            continue
+
+
 def end_with_launcher(parent: int) -> None:
     """A rank that mpiexec (or its daemon, the rank's parent ``parent``) started ends when mpiexec ends,
     however it ends: ranks would otherwise outlive a killed launcher, reparented to init."""
@@ -118,7 +131,11 @@ def supervise(command: list[str], env: dict, outputs: list[Path]) -> int:
 
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, forward)
-    status = job.wait()
+    try:
+        status = job.wait()
+    finally:
+        if received:  # what the signal left of the job ends with it, before the result set is repaired
+            end_session(job.pid)
     safe.recover(outputs)
     if received:
         return 0 if identity(outputs[0]) != before else (143 if received[0] == signal.SIGTERM else 130)
