@@ -31,6 +31,11 @@ nu = 0.32
 """
 
 
+def both_layers(name: str, body: str) -> str:
+    """``[displacements.LAYER.NAME]`` with ``body`` for both layers, as scene text."""
+    return "".join(f"[displacements.{layer}.{name}]\n{body}\n" for layer in ("layer1", "layer2"))
+
+
 #: Programs whose start makes a test an end-to-end (``mpi``) test.
 RUNNERS = ("python", "mpiexec", "mpirun", "pvpython", "xvfb-run", "run", "bash", "sh", "timeout")
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import MATERIALS, ddsolve, refused
+from conftest import MATERIALS, both_layers, ddsolve, refused
 
 from ddsolve.io import hdf5 as io
 from ddsolve.post import analysis
@@ -101,10 +101,6 @@ SUPPORTED = """
 file = "strip.geo"
 size = 0.6
 """ + MATERIALS
-
-
-def both_layers(name: str, body: str) -> str:
-    return "".join(f"[displacements.{layer}.{name}]\n{body}\n" for layer in ("layer1", "layer2"))
 
 
 #: ENF-like three-point bending under displacement control: a pin and a roller under the ends, the middle

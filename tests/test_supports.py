@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import ddsolve
+from conftest import both_layers, ddsolve
 
 from ddsolve.errors import DDSolveError
 from ddsolve.fem import assembly
@@ -102,20 +102,8 @@ def test_free_expansion_carries_no_stress():
     (u_y = 0) hold both halves' rigid motions with the top displaced by the free expansion: zero stress
     (1e-12 of EαΔT) G = 0 and Π = 0."""
     strain = (1 + NU) * ALPHA * DT  # plane strain
-    text = SQUARE % ("[]", "plane_strain", ALPHA) + f"""
-[displacements.layer1.left]
-x = 0.0
-[displacements.layer2.left]
-x = 0.0
-[displacements.layer1.bottom]
-y = 0.0
-[displacements.layer2.bottom]
-y = 0.0
-[displacements.layer1.top]
-y = {2 * strain!r}
-[displacements.layer2.top]
-y = {2 * strain!r}
-"""
+    text = (SQUARE % ("[]", "plane_strain", ALPHA) + "\n" + both_layers("left", "x = 0.0")
+            + both_layers("bottom", "y = 0.0") + both_layers("top", f"y = {2 * strain!r}"))
     result = solved(scene.loads(text))
     for fields in analysis.cell_fields(result).values():
         assert np.abs(fields.stress).max() <= 1e-12 * E * ALPHA * DT
@@ -176,20 +164,12 @@ def reaction_traction(result) -> str:
 
 #: Rollers (the left side in x, the bottom in y: Σ's end on the left is a roller node), the top displaced,
 #: and a thermal mismatch: the crack opens and closes, every multiplier family works.
-ROLLERS = SQUARE % ("[]", "plane_strain", 3e-5) + """
-[displacements.layer1.left]
-x = 0.0
-[displacements.layer2.left]
-x = 0.0
-[displacements.layer1.bottom]
-y = 0.0
-[displacements.layer2.bottom]
-y = 0.0
-[displacements.layer1.top]
+ROLLERS = (SQUARE % ("[]", "plane_strain", 3e-5) + "\n" + both_layers("left", "x = 0.0")
+           + both_layers("bottom", "y = 0.0") + """[displacements.layer1.top]
 y = "0.001 * x"
 [displacements.layer2.top]
 normal = 0.002
-"""
+""")
 
 
 #: No load: the right side clamped, both layers' left side displaced by one vector G_LEFT (Σ's left end, a
