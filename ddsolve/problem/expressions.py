@@ -116,6 +116,13 @@ def constant(value: float) -> Expression:
     return polynomial_in_x((float(value),))
 
 
+def scaled(expression: Expression, factor: float) -> Expression:
+    """``factor`` times ``expression`` (same degree; a polynomial keeps its coefficients, scaled)."""
+    factor = float(factor)
+    coefficients = None if expression.coefficients is None else tuple(factor * c for c in expression.coefficients)
+    return Expression(f"{factor!r}*({expression.text})", ("*", factor, expression.tree), coefficients)
+
+
 def _tokenize(text: str) -> list[tuple[str, str, int]]:
     tokens, position = [], 0
     while position < len(text):

@@ -7,6 +7,7 @@ before validation, so they are checked exactly like the file.
 """
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import math
 import os
@@ -178,6 +179,20 @@ class Scene:
         ``scene.with_({"materials.layer2.E": 20.0})`` or ``scene.with_(**{"solver.tol": 1e-10})``."""
         items = override_items(overrides) + override_items(more)
         return loads(self.text, items, origin=self.origin, base=self.base)
+
+    def scaled(self, factor: float) -> Scene:
+        """This scene with every mechanical load (tractions, pressures, prescribed displacements) times
+        ``factor``; the temperature change is kept.  The contact problem is positively homogeneous, so
+        without a temperature change the solution scales by ``factor`` and G by its square.  ``text`` is
+        the unscaled scene's: a scaled scene is solved, not saved."""
+        def times(table, fields):
+            return {key: dataclasses.replace(item, **{name: None if getattr(item, name) is None else
+                                                      expressions.scaled(getattr(item, name), factor)
+                                                      for name in fields})
+                    for key, item in table.items()}
+
+        return dataclasses.replace(self, loads=times(self.loads, ("x", "y", "pressure")),
+                                   displacements=times(self.displacements, ("x", "y", "normal")))
 
 
 # ---------------------------------------------------------------------------------------------
