@@ -20,7 +20,7 @@ def derivative(compliance, a: float, step: float = 1e-4) -> float:
     return (compliance(a + step) - compliance(a - step)) / (2.0 * step)
 
 
-@pytest.mark.parametrize("chi", [0.0, d.CHI_I])
+@pytest.mark.parametrize("chi", [0.0, d.CHI_I, d.CHI_II])
 def test_beam_theory_is_half_p_squared_times_the_compliance_derivative(chi):
     """G = P²/2 dC/da with the beams' compliances: DCB 8(a + χh)³/(E′h³) (both arms), ELS
     (3(a + χh)³ + ℓ³)/(2E′h³), ENF (3(a + χh)³ + 2L³)/(8E′h³); the opening form from the DCB compliance."""
@@ -49,24 +49,60 @@ def test_two_identical_layers_are_twice_one_layer_at_half_the_load():
     summed = d.summed_modulus([(E, NU), (E, NU)])
     assert summed == pytest.approx(2.0 * E / (1.0 - NU ** 2))
     assert d.dcb(P, 6.0, H, summed, d.CHI_I) == pytest.approx(2.0 * d.dcb(P / 2, 6.0, H, modulus, d.CHI_I))
-    # the DCB of docs/fracture.md: 20 × 2, a = 6, t_y = 2e-3·y per layer (1e-3 per arm and layer), G = 4.9247e-6
-    assert 4.9247e-6 / d.dcb(2e-3, 6.0, H, summed, d.CHI_I) - 1 == pytest.approx(0.010, abs=5e-4)
+    # the DCB of docs/fracture.md: 20 × 2, a = 6, t_y = 2e-3·y per layer (1e-3 per arm and layer), G = 4.9247e-6:
+    # 0.12 % below corrected beam theory with the isotropic correction 0.677h
+    assert 4.9247e-6 / d.dcb(2e-3, 6.0, H, summed, d.CHI_I) - 1 == pytest.approx(-0.0012, abs=5e-4)
 
 
 def test_mmb_loads_are_the_levers_forces_and_the_mode_ratio_is_reeder_crews():
     """P_I, P_II put back the lever's pull P c/L on the upper arm and the lower support's reaction
     P(L − c)/(2L) (each arm carries ±P_I + P_II/4); c = L/3 is pure mode II; beam theory's ratio is
-    (4/3)((3c − L)/(c + L))²; Kanninen's χ_I is 6^(−1/4)."""
+    (4/3)((3c − L)/(c + L))²."""
     L = 20.0
     for c in (0.6 * L, L, 2.0 * L):
         P_I, P_II = d.mmb_loads(P, c, L)
         pull, push = d.mmb_lever_forces(P, c, L)
         assert P_I + P_II / 4 == pytest.approx(pull) and push == pytest.approx(P_II)
         assert -P_I + P_II / 4 == pytest.approx(P * (L - c) / (2 * L))
-        G_I, G_II = d.mmb(P, c, L, 6.0, H, 1.0, corrected=False)
+        G_I, G_II = d.mmb(P, c, L, 6.0, H, 1.0)
         assert G_I / G_II == pytest.approx(4.0 / 3.0 * ((3 * c - L) / (c + L)) ** 2)
     assert d.mmb_loads(P, L / 3, L)[0] == pytest.approx(0.0, abs=1e-18)
-    assert d.CHI_I == pytest.approx(0.6389, abs=1e-4) and d.CHI_I ** 4 == pytest.approx(1 / 6)
+
+
+@pytest.mark.parametrize("formula", ["corrected", "wang_williams"])
+def test_corrected_mmb_is_the_corrected_dcb_and_enf(formula):
+    """The MMB's corrected G_I is the DCB's under P_I with the mode I correction, its G_II the ENF's under
+    P_II with the mode II one, and their ratio (4/3)((3c − L)/(c + L))² ((a + χ_I h)/(a + χ_II h))²; with
+    χ = 0 both are beam theory's."""
+    chi, L, a, modulus = d.CORRECTIONS[formula], 20.0, 6.0, d.plane_strain_modulus(E, NU)
+    for c in (0.6 * L, L, 2.0 * L):
+        P_I, P_II = d.mmb_loads(P, c, L)
+        G_I, G_II = d.mmb(P, c, L, a, H, modulus, chi["DCB"], chi["ENF"])
+        assert G_I == pytest.approx(d.dcb(P_I, a, H, modulus, chi["DCB"]), rel=1e-14)
+        assert G_II == pytest.approx(d.enf(P_II, a, H, modulus, chi["ENF"]), rel=1e-14)
+        assert G_I / G_II == pytest.approx(4.0 / 3.0 * ((3 * c - L) / (c + L)) ** 2
+                                           * ((a + chi["DCB"] * H) / (a + chi["ENF"] * H)) ** 2, rel=1e-12)
+        assert d.mmb(P, c, L, a, H, modulus, 0.0, 0.0) == pytest.approx(d.mmb(P, c, L, a, H, modulus))
+
+
+def test_the_corrections_of_each_beam_theory():
+    """Beam theory has no tip correction; corrected beam theory for isotropic arms takes Bao et al.'s
+    0.677h (mode I) and 0.206h (mode II); the composite one Kanninen's 6^(−1/4)h with Wang and Williams'
+    0.49 (ELS) and 0.42 (ENF); every case's theory is its formula with these corrections."""
+    assert set(d.CORRECTIONS["simple"].values()) == {0.0}
+    assert d.CORRECTIONS["corrected"] == {"DCB": 0.677, "ELS": 0.206, "ENF": 0.206}
+    composite = d.CORRECTIONS["wang_williams"]
+    assert composite["DCB"] ** 4 == pytest.approx(1 / 6) and composite["DCB"] == pytest.approx(0.6389, abs=1e-4)
+    assert composite["ELS"] == pytest.approx(0.49 * composite["DCB"]) and \
+        composite["ENF"] == pytest.approx(0.42 * composite["DCB"])
+    modulus = d.summed_modulus(d.LAYERS["identical"])
+    for specimen, formula in (("DCB", d.dcb), ("ELS", d.els), ("ENF", d.enf)):
+        theory = d.Case(specimen, "identical", 8.0).theory()
+        for name, chi in d.CORRECTIONS.items():
+            assert theory[name] == pytest.approx(formula(d.LOAD, 8.0, H, modulus, chi[specimen]), rel=1e-14)
+    theory = d.Case("DCB-displacement", "identical", 6.0).theory(2e-3)
+    assert theory["corrected"] == pytest.approx(d.dcb_opening(d.OPENING, 6.0, H, modulus, d.CHI_I), rel=1e-14)
+    assert theory["from_reaction"] == pytest.approx(d.dcb(2e-3, 6.0, H, modulus, d.CHI_I), rel=1e-14)
 
 
 def test_mismatch_stress_makes_the_layers_strain_alike():
@@ -92,8 +128,8 @@ def small(case: d.Case, tmp_path):
 
 
 def test_dcb_is_mode_one_near_corrected_beam_theory(tmp_path):
-    """DCB, a/h = 6, identical layers, size 0.2: G within 2 % of corrected beam theory (measured +0.8 %; +1.0 %
-    at size 0.1), G_II/G ≤ 0.5 %, G_I + G_II within 0.5 % of G."""
+    """DCB, a/h = 6, identical layers, size 0.2: G within 2 % of corrected beam theory with the isotropic
+    correction 0.677h (measured −0.3 %), G_II/G ≤ 0.5 %, G_I + G_II within 0.5 % of G."""
     row = small(d.Case("DCB", "identical", 6.0), tmp_path)
     assert row["G"] == pytest.approx(row["corrected"], rel=2e-2)
     assert abs(row["G_II"]) <= 5e-3 * row["G"]
@@ -102,22 +138,25 @@ def test_dcb_is_mode_one_near_corrected_beam_theory(tmp_path):
 
 def test_enf_is_mode_two_with_the_faces_in_contact(tmp_path):
     """ENF, a/h = 6, identical layers (the upper half floating), size 0.2: G_I/G ≤ 0.5 %, G_I + G_II within
-    0.5 % of G, no penetration beyond 1e-10·max|u|, faces in contact; G between beam theory and Wang and
-    Williams' corrected beam theory (which it misses by 2-4 %, docs/delamination.md)."""
+    0.5 % of G, no penetration beyond 1e-10·max|u|, faces in contact; G above beam theory and within 2 % of
+    corrected beam theory with the isotropic correction 0.206h (measured −1.2 %; −3.1 % from Wang and
+    Williams' composite correction)."""
     row = small(d.Case("ENF", "identical", 6.0), tmp_path)
     assert abs(row["G_I"]) <= 5e-3 * row["G"]
     assert row["G_I"] + row["G_II"] == pytest.approx(row["G"], rel=5e-3)
     assert row["penetration"] <= 1e-10 and row["contact_zones"] > 0
-    assert row["simple"] < row["G"] < row["corrected"]
+    assert row["simple"] < row["G"]
+    assert row["G"] == pytest.approx(row["corrected"], rel=2e-2)
 
 
 def test_mmb_mode_ratio_at_one_lever_length(tmp_path):
-    """MMB, c = L, a/h = 6, identical layers, size 0.2: G_I/G_II within 8 % of corrected beam theory (measured
-    +6.2 % on this mesh, +3.7 % at size 0.1: Wang and Williams' ENF correction is too large for isotropic
-    layers, docs/delamination.md), above simple beam theory's; G_I + G_II within 0.5 % of G."""
+    """MMB, c = L, a/h = 6, identical layers, size 0.2: G_I/G_II within 4 % of corrected beam theory,
+    (4/3)((3c − L)/(c + L))² ((a + 0.677h)/(a + 0.206h))² (measured +2.9 % on this coarse mesh; the
+    acceptance's 3 % is checked at size 0.1 in docs/delamination.md), above simple beam theory's; G_I + G_II
+    within 0.5 % of G."""
     case = d.Case("MMB", "identical", d.MMB_CRACK, 0.5 * d.SPAN)
     row = small(case, tmp_path)
-    assert row["G_I"] / row["G_II"] == pytest.approx(row["corrected_I"] / row["corrected_II"], rel=8e-2)
+    assert row["G_I"] / row["G_II"] == pytest.approx(row["corrected_I"] / row["corrected_II"], rel=4e-2)
     assert row["G_I"] / row["G_II"] > row["simple_I"] / row["simple_II"]
     assert row["G_I"] + row["G_II"] == pytest.approx(row["G"], rel=5e-3)
 

@@ -43,10 +43,22 @@ LAYERS = {"identical": ((200.0, 0.28), (200.0, 0.28)), "different": ((200.0, 0.2
 #: Crack lengths a (a/h ≥ 5) per specimen; MMB at a = 6 for three lever lengths c/L.
 CRACKS = {"DCB": (5.0, 6.0, 8.0, 10.0, 12.0), "ELS": (5.0, 6.0, 8.0, 10.0, 12.0), "ENF": (5.0, 6.0, 8.0, 10.0, 12.0)}
 MMB_CRACK, LEVERS = 6.0, (0.6, 1.0, 2.0)
-#: Kanninen's root-rotation correction of the DCB (beam on a Winkler foundation of stiffness 2E/h):
-#: χ_I = 6^(−1/4) = 0.639; Wang and Williams' mode II corrections 0.42 χ_I (ENF) and 0.49 χ_I (ELS).
-CHI_I = 6.0 ** -0.25
-CHI_ENF, CHI_ELS = 0.42 * CHI_I, 0.49 * CHI_I
+#: Corrected beam theory for isotropic arms: the crack-tip (root rotation) corrections a + Yh of the
+#: elasticity solution of a semi-infinite crack between two isotropic strips, Y_I = 0.677 (mode I: DCB) and
+#: Y_II = 0.206 (mode II: ELS, ENF), at ρ = 1 (isotropic layers, any ν): Bao, Ho, Suo and Fan, Int. J.
+#: Solids Struct. 29 (1992) 1105; Suo, Bao, Fan and Wang, Int. J. Solids Struct. 28 (1991) 235.
+CHI_I, CHI_II = 0.677, 0.206
+#: The composite corrections, for E11/G13 ≫ 1, kept as a second comparison: Kanninen's χ = 6^(−1/4) = 0.639
+#: (a beam on a Winkler foundation of stiffness 2E/h), with Wang and Williams' mode II factors 0.42χ (ENF)
+#: and 0.49χ (ELS).
+CHI_KANNINEN = 6.0 ** -0.25
+CHI_WW_ENF, CHI_WW_ELS = 0.42 * CHI_KANNINEN, 0.49 * CHI_KANNINEN
+#: The tip correction χ (in units of h) of each specimen in each formula: beam theory ("simple") has none,
+#: "corrected" the isotropic elasticity corrections, "wang_williams" the composite ones (the MMB takes the
+#: DCB's for its mode I part and the ENF's for its mode II part).
+CORRECTIONS = {"simple": {"DCB": 0.0, "ELS": 0.0, "ENF": 0.0},
+               "corrected": {"DCB": CHI_I, "ELS": CHI_II, "ENF": CHI_II},
+               "wang_williams": {"DCB": CHI_KANNINEN, "ELS": CHI_WW_ELS, "ENF": CHI_WW_ENF}}
 #: Thermal strip: expansion coefficients of the two layers, temperature change, an interior crack.
 THERMAL = {"alpha": (2e-5, 1e-5), "dT": 100.0, "crack": (8.0, 12.0), "steps": (1e-4,)}
 
@@ -63,7 +75,7 @@ def summed_modulus(layers) -> float:
 
 
 def dcb(P: float, a: float, h: float, modulus: float, chi: float = 0.0) -> float:
-    """DCB: G = 12 P² (a + χh)² / (E′ h³), P the force on each arm (ASTM D5528; χ = CHI_I: Kanninen)."""
+    """DCB: G = 12 P² (a + χh)² / (E′ h³), P the force on each arm (ASTM D5528; corrected: χ = CHI_I)."""
     return 12.0 * P * P * (a + chi * h) ** 2 / (modulus * h ** 3)
 
 
@@ -74,12 +86,12 @@ def dcb_opening(delta: float, a: float, h: float, modulus: float, chi: float = 0
 
 
 def els(P: float, a: float, h: float, modulus: float, chi: float = 0.0) -> float:
-    """ELS: G = 9 P² (a + χh)² / (4 E′ h³) (corrected: χ = CHI_ELS, Wang and Williams)."""
+    """ELS: G = 9 P² (a + χh)² / (4 E′ h³) (corrected: χ = CHI_II)."""
     return 9.0 * P * P * (a + chi * h) ** 2 / (4.0 * modulus * h ** 3)
 
 
 def enf(P: float, a: float, h: float, modulus: float, chi: float = 0.0) -> float:
-    """ENF: G = 9 P² (a + χh)² / (16 E′ h³), P the midspan load (ASTM D7905; χ = CHI_ENF, Wang and Williams)."""
+    """ENF: G = 9 P² (a + χh)² / (16 E′ h³), P the midspan load (ASTM D7905; corrected: χ = CHI_II)."""
     return 9.0 * P * P * (a + chi * h) ** 2 / (16.0 * modulus * h ** 3)
 
 
@@ -95,11 +107,12 @@ def mmb_lever_forces(P: float, c: float, L: float) -> tuple[float, float]:
     return P * c / L, P * (c + L) / L
 
 
-def mmb(P: float, c: float, L: float, a: float, h: float, modulus: float, corrected: bool) -> tuple[float, float]:
-    """(G_I, G_II) of the MMB: DCB with P_I and ENF with P_II."""
+def mmb(P: float, c: float, L: float, a: float, h: float, modulus: float, chi_I: float = 0.0,
+        chi_II: float = 0.0) -> tuple[float, float]:
+    """(G_I, G_II) of the MMB: DCB with P_I and tip correction χ_I, ENF with P_II and χ_II.  Their ratio is
+    (4/3)((3c − L)/(c + L))² ((a + χ_I h)/(a + χ_II h))²."""
     P_I, P_II = mmb_loads(P, c, L)
-    return (dcb(P_I, a, h, modulus, CHI_I if corrected else 0.0),
-            enf(P_II, a, h, modulus, CHI_ENF if corrected else 0.0))
+    return dcb(P_I, a, h, modulus, chi_I), enf(P_II, a, h, modulus, chi_II)
 
 
 def mismatch_stress(layers, alphas, dT: float) -> float:
@@ -243,22 +256,23 @@ class Case:
         return scene.loads(self.text(f"{name}.geo"), origin=name, base=folder)
 
     def theory(self, reaction: float | None = None) -> dict:
-        """Beam theory (simple) and corrected beam theory for this case."""
+        """Beam theory ("simple"), corrected beam theory with the isotropic elasticity corrections
+        ("corrected") and with the composite ones ("wang_williams") for this case (the MMB's modes as
+        NAME_I, NAME_II; the displacement-controlled DCB's G at the measured reaction, "from_reaction")."""
         modulus = summed_modulus(LAYERS[self.layers])
-        if self.specimen == "DCB":
-            return {"simple": dcb(LOAD, self.a, ARM, modulus), "corrected": dcb(LOAD, self.a, ARM, modulus, CHI_I)}
+        out = {}
+        for name, chi in CORRECTIONS.items():
+            if self.specimen == "MMB":
+                G_I, G_II = mmb(LOAD, self.c, self.half_span, self.a, ARM, modulus, chi["DCB"], chi["ENF"])
+                out.update({name: G_I + G_II, f"{name}_I": G_I, f"{name}_II": G_II})
+            elif self.specimen == "DCB-displacement":
+                out[name] = dcb_opening(OPENING, self.a, ARM, modulus, chi["DCB"])
+            else:
+                formula = {"DCB": dcb, "ELS": els, "ENF": enf}[self.specimen]
+                out[name] = formula(LOAD, self.a, ARM, modulus, chi[self.specimen])
         if self.specimen == "DCB-displacement":
-            return {"simple": dcb_opening(OPENING, self.a, ARM, modulus),
-                    "corrected": dcb_opening(OPENING, self.a, ARM, modulus, CHI_I),
-                    "from_reaction": dcb(reaction, self.a, ARM, modulus, CHI_I)}
-        if self.specimen == "ELS":
-            return {"simple": els(LOAD, self.a, ARM, modulus), "corrected": els(LOAD, self.a, ARM, modulus, CHI_ELS)}
-        if self.specimen == "ENF":
-            return {"simple": enf(LOAD, self.a, ARM, modulus), "corrected": enf(LOAD, self.a, ARM, modulus, CHI_ENF)}
-        simple = mmb(LOAD, self.c, self.half_span, self.a, ARM, modulus, corrected=False)
-        corrected = mmb(LOAD, self.c, self.half_span, self.a, ARM, modulus, corrected=True)
-        return {"simple": sum(simple), "corrected": sum(corrected), "simple_I": simple[0], "simple_II": simple[1],
-                "corrected_I": corrected[0], "corrected_II": corrected[1]}
+            out["from_reaction"] = dcb(reaction, self.a, ARM, modulus, CHI_I)
+        return out
 
 
 def cases() -> list[Case]:
@@ -431,7 +445,7 @@ def measurements() -> dict:
     folder = Path(tempfile.mkdtemp(prefix="ddsolve-delamination-"))
     record = {"cases": [], "setup": {"length": LENGTH, "arm": ARM, "load": LOAD, "opening": OPENING,
                                      "pin": PIN, "load_width": LOAD_WIDTH, "layers": LAYERS,
-                                     "chi": {"I": CHI_I, "ENF": CHI_ENF, "ELS": CHI_ELS}}}
+                                     "chi": CORRECTIONS}}
     try:
         for index, case in enumerate(cases()):
             started = time.perf_counter()
@@ -494,6 +508,11 @@ def rows(record: dict, specimen: str, layers: str, size: float = SIZE) -> list[d
             and row["size"] == size]
 
 
+#: The beam theories drawn: CORRECTIONS key, line style, legend.
+CURVES = (("simple", "k:", "beam theory"), ("corrected", "k-", "corrected, isotropic (Bao et al.)"),
+          ("wang_williams", "k--", "corrected, Wang–Williams"))
+
+
 def shapes_plot(results: dict) -> None:
     """Layer 1 of DCB, ELS, ENF and MMB deformed (magnified), coloured by von Mises stress."""
     from ddsolve.post import analysis, plots
@@ -518,7 +537,7 @@ def shapes_plot(results: dict) -> None:
 
 
 def length_plot(record: dict) -> None:
-    """G, G_I and G_II against a for DCB, ELS and ENF, with beam theory and corrected beam theory."""
+    """G, G_I and G_II against a for DCB, ELS and ENF, with beam theory and both corrected beam theories."""
     plt = _pyplot()
     fig, axes = plt.subplots(2, 3, figsize=(13, 7.5), constrained_layout=True)
     for row_axes, layers in zip(axes, LAYERS):
@@ -529,10 +548,11 @@ def length_plot(record: dict) -> None:
                 ax.plot(a, [row[key] for row in data], marker, label=label, markersize=6, fillstyle="none")
             fine = np.linspace(a.min(), a.max(), 50)
             modulus = summed_modulus(LAYERS[layers])
-            formula = {"DCB": (dcb, CHI_I), "ELS": (els, CHI_ELS), "ENF": (enf, CHI_ENF)}[specimen]
-            ax.plot(fine, formula[0](LOAD, fine, ARM, modulus), "k:", label="beam theory")
-            ax.plot(fine, formula[0](LOAD, fine, ARM, modulus, formula[1]), "k-",
-                    label=f"corrected beam theory (χh = {formula[1]:.3f}h)")
+            formula = {"DCB": dcb, "ELS": els, "ENF": enf}[specimen]
+            for name, style, label in CURVES:
+                chi = CORRECTIONS[name][specimen]
+                ax.plot(fine, formula(LOAD, fine, ARM, modulus, chi), style,
+                        label=f"{label} (χ = {chi:.3f})" if chi else label)
             ax.set_yscale("log")
             ax.set_xlabel("crack length a (h = 1)")
             ax.set_ylabel("G")
@@ -544,7 +564,7 @@ def length_plot(record: dict) -> None:
 
 
 def mmb_plot(record: dict) -> None:
-    """G_I/G_II against the lever length c/L: the computed ratio, beam theory and corrected beam theory."""
+    """G_I/G_II against the lever length c/L: the computed ratio, beam theory and both corrected beam theories."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(6.5, 4.5), constrained_layout=True)
     L = 0.5 * SPAN
@@ -553,9 +573,10 @@ def mmb_plot(record: dict) -> None:
         data = rows(record, "MMB", layers)
         ax.plot([row["c"] / L for row in data], [row["G_I"] / row["G_II"] for row in data], marker,
                 fillstyle="none", markersize=8, label=f"computed, {layers} layers")
-    for corrected, style in ((False, "k:"), (True, "k-")):
-        ratio = [np.divide(*mmb(LOAD, c, L, MMB_CRACK, ARM, 1.0, corrected)) for c in fine]
-        ax.plot(fine / L, ratio, style, label="corrected beam theory" if corrected else "beam theory")
+    for name, style, label in CURVES:
+        chi = CORRECTIONS[name]
+        ratio = [np.divide(*mmb(LOAD, c, L, MMB_CRACK, ARM, 1.0, chi["DCB"], chi["ENF"])) for c in fine]
+        ax.plot(fine / L, ratio, style, label=label)
     ax.set_yscale("log")
     ax.set_xlabel("lever length c / L")
     ax.set_ylabel("G_I / G_II")
@@ -611,14 +632,19 @@ def text(record: dict) -> str:
            f"arm thickness h = {ARM:g} (the strip 2h high, Σ its mid-plane, an edge crack (0, a) on Σ), graded P2 "
            f"meshes (`mesh.size = {SIZE:g}`, `mesh.degree = 2`, `mesh.grading = true`), plane strain; P = {LOAD:g} "
            "summed over both layers (each layer carries half). Solved with the monolithic reference in one "
-           "process (the DD methods converge to it; one floating case is checked on 2 ranks below).", ""]
+           "process (the DD methods converge to it; one floating case is checked on 2 ranks below).", "",
+           f"'corrected': corrected beam theory with the isotropic elasticity corrections a + χh, χ = {CHI_I:g} "
+           f"(mode I: DCB, the MMB's G_I) and {CHI_II:g} (mode II: ELS, ENF, the MMB's G_II) (Bao et al. 1992); "
+           f"'Wang–Williams': with the composite corrections χ = 6^(−1/4) = {CHI_KANNINEN:.3f} (DCB), "
+           f"0.49·{CHI_KANNINEN:.3f} = {CHI_WW_ELS:.3f} (ELS), 0.42·{CHI_KANNINEN:.3f} = {CHI_WW_ENF:.3f} (ENF); "
+           "'implied χh': the correction that makes beam theory give the computed G.", ""]
     for layers in LAYERS:
         (E1, nu1), (E2, nu2) = LAYERS[layers]
         out += [f"### {layers.capitalize()} layers (E1 = {E1:g}, ν1 = {nu1:g}; E2 = {E2:g}, ν2 = {nu2:g}; "
                 f"E₁′ + E₂′ = {summed_modulus(LAYERS[layers]):.4g})", "",
                 "| specimen | a/h | G | G_I / G | G_II / G | (G_I + G_II)/G − 1 | beam theory | corrected | "
-                "G / corrected − 1 | implied χh | penetration / max\\|u\\| |",
-                "|---|---|---|---|---|---|---|---|---|---|---|"]
+                "G / corrected − 1 | G / Wang–Williams − 1 | implied χh | penetration / max\\|u\\| |",
+                "|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for specimen in ("DCB", "DCB-displacement", "ELS", "ENF", "MMB"):
             for row in rows(record, specimen, layers):
                 label = specimen if specimen != "MMB" else f"MMB, c/L = {row['c'] / row['L']:g}"
@@ -626,26 +652,32 @@ def text(record: dict) -> str:
                 out.append(f"| {label} | {row['a'] / ARM:g} | {row['G']:.6e} | {row['G_I'] / row['G']:.2e} | "
                            f"{row['G_II'] / row['G']:.2e} | {(row['G_I'] + row['G_II']) / row['G'] - 1:+.1e} | "
                            f"{row['simple']:.4e} | {row['corrected']:.4e} | "
-                           f"{_percent(row['G'] / row['corrected'] - 1)} | {implied} | {row['penetration']:.1e} |")
+                           f"{_percent(row['G'] / row['corrected'] - 1)} | "
+                           f"{_percent(row['G'] / row['wang_williams'] - 1)} | {implied} | {row['penetration']:.1e} |")
         displaced = rows(record, "DCB-displacement", layers)[0]
         out += ["", f"DCB under a prescribed opening δ = {OPENING:g} of the arms' end faces: the reaction "
-                f"P = {displaced['reaction']:.6e} in corrected beam theory gives {displaced['from_reaction']:.6e} "
+                f"P = {displaced['reaction']:.6e} in corrected beam theory (χ = {CHI_I:g}) gives "
+                f"{displaced['from_reaction']:.6e} "
                 f"(G {_percent(displaced['G'] / displaced['from_reaction'] - 1)} of it); the table's 'corrected' "
                 "is the opening form 3δ²E′h³/(16(a + χh)⁴), which also carries the compliance beam theory "
                 "leaves out (shear, the clamp).", ""]
     out += ["### MMB: the mode ratio at three lever lengths", "",
             f"a = {MMB_CRACK:g}, L = {0.5 * SPAN:g}: G_I/G_II computed, and from P_I = P(3c − L)/(4L), "
             "P_II = P(c + L)/L in beam theory, (4/3)((3c − L)/(c + L))², and in corrected beam theory, times "
-            "((a + χ_I h)/(a + 0.42χ_I h))².", "",
-            "| layers | c/L | G_I | G_II | G_I/G_II | beam theory | corrected | computed / corrected − 1 | ψ |",
-            "|---|---|---|---|---|---|---|---|---|"]
+            f"((a + {CHI_I:g}h)/(a + {CHI_II:g}h))² (isotropic) or ((a + {CHI_KANNINEN:.3f}h)/(a + "
+            f"{CHI_WW_ENF:.3f}h))² (Wang–Williams).", "",
+            "| layers | c/L | G_I | G_II | G_I/G_II | beam theory | corrected | computed / corrected − 1 | "
+            "Wang–Williams | computed / Wang–Williams − 1 | ψ |",
+            "|---|---|---|---|---|---|---|---|---|---|---|"]
     for layers in LAYERS:
         for row in rows(record, "MMB", layers):
             ratio = row["G_I"] / row["G_II"]
             corrected = row["corrected_I"] / row["corrected_II"]
+            composite = row["wang_williams_I"] / row["wang_williams_II"]
             out.append(f"| {layers} | {row['c'] / row['L']:g} | {row['G_I']:.4e} | {row['G_II']:.4e} | {ratio:.4f} | "
                        f"{row['simple_I'] / row['simple_II']:.4f} | {corrected:.4f} | "
-                       f"{_percent(ratio / corrected - 1)} | {row['phase']:.1f}° |")
+                       f"{_percent(ratio / corrected - 1)} | {composite:.4f} | {_percent(ratio / composite - 1)} | "
+                       f"{row['phase']:.1f}° |")
     out += ["", "### Mesh convergence", "",
             f"The a = 6 cases of identical layers at `mesh.size = {SIZE:g}` and {FINE_SIZE:g}:", "",
             f"| specimen | G, size {SIZE:g} | G, size {FINE_SIZE:g} | change | unknowns | (G_I + G_II)/G − 1, "
