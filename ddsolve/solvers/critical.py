@@ -42,9 +42,12 @@ def needed(scene: Scene) -> bool:
 
 def excess(scene: Scene, fracture: Fracture) -> np.ndarray:
     """G/G_c − 1 at every tip of ``fracture`` (−1 where G ≤ 0: the tip is not loaded towards growth)."""
-    G_c = toughness.resistance(scene, fracture)
-    positive = fracture.G > 0
-    return np.where(positive, fracture.G / np.where(positive, G_c, 1.0) - 1.0, -1.0)
+    return _excess(fracture.G, toughness.resistance(scene, fracture))
+
+
+def _excess(G: np.ndarray, G_c: np.ndarray) -> np.ndarray:
+    positive = G > 0
+    return np.where(positive, G / np.where(positive, G_c, 1.0) - 1.0, -1.0)
 
 
 def search(scene: Scene, evaluate: Callable[[float], Fracture], progress: Callable[[str], None] | None = None
@@ -81,9 +84,7 @@ def _model(scene: Scene, tip: int, points: list[tuple[float, Fracture]]) -> Call
     def modelled(values: np.ndarray) -> np.ndarray:
         G, G_I, G_II = (fits[name](values) for name in ("G", "G_I", "G_II"))
         phase = np.degrees(np.arctan2(np.sqrt(np.maximum(G_II, 0.0)), np.sqrt(np.maximum(G_I, 0.0))))
-        G_c = toughness.law(scene.fracture, np.full(np.shape(values), crack), G, G_II, phase)
-        positive = G > 0
-        return np.where(positive, G / np.where(positive, G_c, 1.0) - 1.0, -1.0)
+        return _excess(G, toughness.law(scene.fracture, np.full(np.shape(values), crack), G, G_II, phase))
 
     return modelled
 
