@@ -18,13 +18,17 @@ WRITE_TIMES = {("timings", "write")}
 
 
 def listing(path) -> dict[str, tuple]:
-    """Every group and dataset of an HDF5 file: shape, type, attributes with their values."""
+    """Every group and dataset of an HDF5 file: shape, type, attributes with their values (float datasets
+    by their bytes, so that NaN, as in /fracture/toughness without a toughness, compares equal)."""
     out = {}
     with h5py.File(path, "r") as f:
         def visit(name, item):
             attrs = {key: np.asarray(value).tolist() for key, value in item.attrs.items()
                      if (name, key) not in WRITE_TIMES}
-            values = np.asarray(item[()]).tolist() if isinstance(item, h5py.Dataset) else None
+            values = None
+            if isinstance(item, h5py.Dataset):
+                data = np.asarray(item[()])
+                values = data.tobytes() if data.dtype.kind == "f" else data.tolist()
             out[name] = (getattr(item, "shape", None), str(getattr(item, "dtype", "")), attrs, values)
         f.visititems(visit)
         visit("/", f)

@@ -87,7 +87,13 @@ def cases(folder: Path) -> list[tuple[str, list[str], list[str]]]:
             ("solver.stop", uzawa, ['solver.stop="relative"']),
             ("solver.max_iterations", uzawa, ["solver.max_iterations=5"]),
             ("fracture.inner", [], ["fracture.inner=0.1"]),
-            ("fracture.outer", [], ["fracture.outer=0.3"])]
+            ("fracture.outer", [], ["fracture.outer=0.3"]),
+            ("fracture.toughness", [], ["fracture.toughness=1e-4"])]
+    kenane = ['fracture.law="benzeggagh-kenane"', "fracture.G_Ic=1e-4", "fracture.G_IIc=3e-4", "fracture.eta=1.0"]
+    suo = ['fracture.law="hutchinson-suo"', "fracture.G_Ic=1e-4", "fracture.lambda=0.3"]
+    out += [("fracture.law", [], kenane), ("fracture.G_Ic", kenane, ["fracture.G_Ic=2e-4"]),
+            ("fracture.G_IIc", kenane, ["fracture.G_IIc=5e-4"]), ("fracture.eta", kenane, ["fracture.eta=2.0"]),
+            ("fracture.lambda", suo, ["fracture.lambda=0.6"])]
     return out
 
 
@@ -138,8 +144,8 @@ def observe(command: str, output: Path, stdout: str) -> dict:
             "energy": _digest(result.attrs.get("energy", np.nan)), "kkt_tolerance": float(result.attrs.get("kkt_tolerance", 0)),
             "solution": _digest(*result.solution.values(), *result.multipliers.values()),
             "fields": _digest(*(np.r_[f.strain_zz, f.stress_zz] for f in fields.values())),
-            "G": _digest(*(result.fracture.G, result.fracture.inner, result.fracture.outer)
-                         if result.fracture is not None else [])}
+            "G": _digest(*(result.fracture.G, result.fracture.inner, result.fracture.outer, result.fracture.toughness,
+                           result.fracture.critical_factor) if result.fracture is not None else [])}
 
 
 def run_command(command: str, overrides: list[str], folder: Path, name: str) -> dict:

@@ -126,7 +126,8 @@ def sigma_datasets(on: OnSigma, history: np.ndarray, active_set_changes: np.ndar
     out.update({f"reactions/{layer}/{name}": np.asarray(force, dtype=np.float64)
                 for layer, named in reactions.items() for name, force in named.items()})
     if fracture is not None:
-        out.update({f"fracture/{key}": getattr(fracture, key) for key in FRACTURE_FIELDS + MODE_FIELDS})
+        out.update({f"fracture/{key}": getattr(fracture, key) for key in FRACTURE_FIELDS + MODE_FIELDS
+                    + TOUGHNESS_FIELDS})
         out.update({"fracture/arclength": sigma.arclength[nodes], "fracture/opening": on.opening,
                     "fracture/pressure": on.multipliers["mu_c"]})
     return out
@@ -298,6 +299,8 @@ FRACTURE_FIELDS = ("points", "directions", "crack", "inner", "outer", "spacing",
                    "zone_crack")
 #: Per-tip datasets added later (the split into modes I and II): absent from older files, read as NaN.
 MODE_FIELDS = ("G_I", "G_II", "phase", "symmetric")
+#: Per-tip datasets added with the toughness (G_c and the critical load factor): absent from older files, read as NaN.
+TOUGHNESS_FIELDS = ("toughness", "critical_factor")
 
 
 def _read_fracture(f):
@@ -306,4 +309,5 @@ def _read_fracture(f):
     if "fracture" not in f:
         return None
     return Fracture(**{key: _dataset(f, f"fracture/{key}")[()] for key in FRACTURE_FIELDS},
-                    **{key: _dataset(f, f"fracture/{key}")[()] for key in MODE_FIELDS if f"fracture/{key}" in f})
+                    **{key: _dataset(f, f"fracture/{key}")[()] for key in MODE_FIELDS + TOUGHNESS_FIELDS
+                       if f"fracture/{key}" in f})

@@ -17,7 +17,7 @@ from ddsolve.mesh import mesh as meshes
 from ddsolve.mesh.mesh import BLOCKS, U_PLUS, HalfMesh, Mesh, SigmaLine
 from ddsolve.parallel.exchange import Exchange, collective, wait
 from ddsolve.parallel.phases import Phases
-from ddsolve.post import fracture
+from ddsolve.post import fracture, toughness
 from ddsolve.problem.scene import Scene
 
 
@@ -208,6 +208,7 @@ def whole_mesh_checks(scene: Scene, mesh: Mesh) -> tuple[list[fracture.Tip], Sig
     table = supports.check(scene, mesh)
     check_range(scene, mesh)
     block_kernels = kernels.of_scene(scene, mesh, table)
+    toughness.check_cracks(scene, len(mesh.sigma.pieces(mesh.sigma.crack)))
     return fracture.find_tips(mesh, scene.fracture.inner, scene.fracture.outer), table, block_kernels
 
 

@@ -40,6 +40,7 @@ from ddsolve.fem import assembly
 from ddsolve.mesh import element
 from ddsolve.mesh.mesh import BLOCKS, SIGMA, HalfMesh, Mesh, SigmaLine
 from ddsolve.post.result import Fracture, OnSigma
+from ddsolve.post.toughness import judge
 
 #: Σ turns by more than this between two edges at a kink (a smooth curve turns by h·κ per edge).
 KINK_DEGREES = 10.0
@@ -266,11 +267,12 @@ def contact_terms(tips: list[Tip], on: OnSigma) -> np.ndarray:
     return out
 
 
-def finish(tips: list[Tip], volume: np.ndarray, on: OnSigma, split: dict[str, np.ndarray] | None = None
-           ) -> Fracture:
+def finish(tips: list[Tip], volume: np.ndarray, on: OnSigma, split: dict[str, np.ndarray] | None = None,
+           scene=None, factors: np.ndarray | None = None) -> Fracture:
     """G = volume terms − contact terms, and the contact zones, from the Σ data ``on`` of a result
     (:attr:`ddsolve.post.result.Result.on_sigma`); ``split``: G's split into modes I and II
-    (:func:`mode_split`), or none."""
+    (:func:`mode_split`), or none; with the ``scene``, its toughness and the critical load factors
+    (``factors`` where a root solve found them: :func:`ddsolve.post.toughness.judge`)."""
     from ddsolve.post.analysis import contact_zones
 
     contact = contact_terms(tips, on)
@@ -282,7 +284,7 @@ def finish(tips: list[Tip], volume: np.ndarray, on: OnSigma, split: dict[str, np
     runs = np.array(contact_zones(on), dtype=np.int64).reshape(-1, 2)
     arc = sigma.arclength[nodes]
     G = np.asarray(volume, dtype=np.float64) - contact
-    return Fracture(
+    out = Fracture(
         points=np.array([tip.point for tip in tips]).reshape(-1, 2),
         directions=np.array([tip.direction for tip in tips]).reshape(-1, 2),
         crack=np.array([tip.crack for tip in tips], dtype=np.int64),
@@ -291,10 +293,12 @@ def finish(tips: list[Tip], volume: np.ndarray, on: OnSigma, split: dict[str, np
         zones=arc[runs].reshape(-1, 2), zone_crack=crack_of[nodes[runs[:, 0]]] if len(runs) else np.zeros(0, np.int64),
         **(split or {}),
     )
+    return out if scene is None else judge(out, scene, factors)
 
 
-def of_result(result, tips: list[Tip]) -> Fracture:
-    """G at ``tips`` from a result's four blocks (one process)."""
+def of_result(result, tips: list[Tip], factors: np.ndarray | None = None) -> Fracture:
+    """G at ``tips`` from a result's four blocks (one process), with the toughness and the critical load
+    factors (``factors``: see :func:`finish`)."""
     scene = result.parsed_scene
     volume = np.zeros(len(tips))
     for spec in BLOCKS:
@@ -302,7 +306,7 @@ def of_result(result, tips: list[Tip]) -> Fracture:
         D, _ = assembly.elasticity(scene, spec.layer)
         fields = [theta(tip, result.mesh.sigma, half.points) for tip in tips]
         volume += volume_terms(half, D, result.solution[spec.name], fields, assembly.thermal_of(scene, spec.layer))
-    return finish(tips, volume, result.on_sigma, mode_split(tips, result))
+    return finish(tips, volume, result.on_sigma, mode_split(tips, result), scene, factors)
 
 
 def evaluate(result, inner: float | None = None, outer: float | None = None) -> Fracture:

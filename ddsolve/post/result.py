@@ -187,6 +187,9 @@ class Fracture:
     sliding ``G_II``, the phase angle ``phase`` ψ = atan(√(G_II/G_I)) in degrees, signed as K_II/K_I,
     and ``symmetric``: split by the mirror symmetry about Σ (else by virtual crack closure; see
     :func:`ddsolve.post.fracture.mode_split`).  Results written before the split have NaN there.
+    ``toughness``: G_c at every tip, and ``critical_factor``: the load factor at which the tip starts to
+    grow (inf: never), both NaN without a toughness or in files written before them
+    (:mod:`ddsolve.post.toughness`).
     Contact zones: ``zones`` ``(z, 2)`` as arc length along Σ from its first node (first and last
     touching node), ``zone_crack`` the crack of each.
     """
@@ -205,10 +208,12 @@ class Fracture:
     G_II: np.ndarray | None = None
     phase: np.ndarray | None = None
     symmetric: np.ndarray | None = None
+    toughness: np.ndarray | None = None
+    critical_factor: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         count = len(self.G)
-        for name in ("G_I", "G_II", "phase"):
+        for name in ("G_I", "G_II", "phase", "toughness", "critical_factor"):
             if getattr(self, name) is None:
                 setattr(self, name, np.full(count, np.nan))
         if self.symmetric is None:
@@ -221,14 +226,26 @@ class Fracture:
                 f"(G_I {g1:.3e}, G_II {g2:.3e}, ψ = {psi:.1f}°{'' if by_symmetry else ', by crack closure'})"
                 for g1, g2, psi, by_symmetry in zip(self.G_I, self.G_II, self.phase, self.symmetric)]
 
+    def growth(self) -> list[str]:
+        """Per tip: «G/G_c = ..., grows at λ = ...» (the critical load factor; «does not grow at any λ» where
+        it is inf); each part left out where it is NaN: empty where no toughness is given."""
+        def parts(g: float, toughness: float, factor: float) -> str:
+            ratio = [] if np.isnan(toughness) else [f"G/G_c = {g / toughness:.6g}"]
+            grows = [] if np.isnan(factor) else [f"grows at λ = {factor:.6g}" if np.isfinite(factor) else
+                                                 "does not grow at any λ"]
+            return ", ".join(ratio + grows)
+
+        return [parts(*values) for values in zip(self.G, self.toughness, self.critical_factor)]
+
     def lines(self) -> list[str]:
         """One line per tip and one for the contact zones, as printed after a solve."""
         lines = []
-        for (x, y), c, g, a, b, h, modes in zip(self.points, self.crack, self.G, self.inner, self.outer, self.spacing,
-                                                 self.modes()):
+        for (x, y), c, g, a, b, h, modes, growth in zip(self.points, self.crack, self.G, self.inner, self.outer,
+                                                         self.spacing, self.modes(), self.growth()):
             note = f"; only {a / h:.1f} elements within the inner radius: refine near this tip" \
                 if a < FEW_ELEMENTS * h else ""
-            lines.append(f"G at tip ({x:.6g}, {y:.6g}) of crack {c}: {g:.6e}{' ' * bool(modes)}{modes}   (θ radii {a:.4g}, {b:.4g}{note})")
+            lines.append(f"G at tip ({x:.6g}, {y:.6g}) of crack {c}: {g:.6e}{' ' * bool(modes)}{modes}"
+                         f"{'; ' * bool(growth)}{growth}   (θ radii {a:.4g}, {b:.4g}{note})")
         if np.size(self.zone_crack):
             lines.append("crack faces in contact (arc length along Σ): " + ", ".join(
                 f"[{a:.4g}, {b:.4g}] on crack {c}" for (a, b), c in zip(self.zones, self.zone_crack)))

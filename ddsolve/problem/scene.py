@@ -50,6 +50,8 @@ GRADING = {1: 0.4, 2: 0.2}
 #: The element degree of an adaptive run (``mesh.target_error``) whose scene does not set ``mesh.degree``:
 #: P2 converges as N^-1 on adapted meshes, P1 as N^-½ (docs/accuracy.md).
 ADAPTIVE_DEGREE = 2
+#: The mode-dependent toughness laws (``fracture.law``) and the keys each needs (docs/fracture.md).
+LAWS = {"benzeggagh-kenane": ("G_Ic", "G_IIc", "eta"), "hutchinson-suo": ("G_Ic", "lambda")}
 
 
 @dataclass(frozen=True)
@@ -142,10 +144,19 @@ class Solver:
 
 @dataclass(frozen=True)
 class FractureOptions:
-    """Radii of the θ field of the energy release rate (None: from the geometry, see ddsolve.post.fracture)."""
+    """Radii of the θ field of the energy release rate (None: from the geometry, see ddsolve.post.fracture),
+    and the toughness G_c (see :mod:`ddsolve.post.toughness`): ``toughness`` one value for every tip or one
+    per crack in order along Σ, or a mode-dependent ``law`` (:data:`LAWS`) with its constants ``G_Ic``,
+    ``G_IIc``, ``eta`` (Benzeggagh–Kenane) or ``G_Ic``, ``lambda_`` (Hutchinson–Suo; the key ``lambda``)."""
 
     inner: float | None = None
     outer: float | None = None
+    toughness: float | tuple[float, ...] | None = None
+    law: str | None = None
+    G_Ic: float | None = None
+    G_IIc: float | None = None
+    eta: float | None = None
+    lambda_: float | None = None
 
 
 @dataclass(frozen=True)
@@ -370,6 +381,21 @@ def _grading(value: Any) -> bool | float:
     return value
 
 
+def _toughness(value: Any) -> float | tuple[float, ...]:
+    """G_c > 0 for every tip, or a list of them, one per crack."""
+    try:
+        return _positive(_number)(value) if not isinstance(value, list) else tuple(_positive(_number)(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError("a number > 0 (every tip) or a list of numbers > 0 (one per crack)") from None
+
+
+def _unit(value: Any) -> float:
+    value = _number(value)
+    if not 0.0 <= value <= 1.0:
+        raise ValueError("in [0, 1]")
+    return value
+
+
 #: The largest fibre angle in degrees (a double places it within 1e-10 degree; beyond, the angle loses meaning).
 MAX_ANGLE = 1e6
 
@@ -462,7 +488,10 @@ SCHEMA: dict[str, Any] = {
         "stop": (_choice(STOP_RULES), None),
         "max_iterations": (_count(1), 20000),
     },
-    "fracture": {"inner": (_positive(_number), None), "outer": (_positive(_number), None)},
+    "fracture": {"inner": (_positive(_number), None), "outer": (_positive(_number), None),
+                 "toughness": (_toughness, None), "law": (_choice(tuple(LAWS)), None),
+                 "G_Ic": (_positive(_number), None), "G_IIc": (_positive(_number), None),
+                 "eta": (_positive(_number), None), "lambda": (_unit, None)},
 }
 # Tables that exist only when the scene writes them (a boundary without a load is not integrated).
 OPTIONAL_TABLES = {("loads",), *(("loads", layer) for layer in LAYERS), ("displacements",),
@@ -608,9 +637,39 @@ def _cross_checks(data: dict, raw: dict, origin: str) -> None:
     if solver["tol"] is None:
         solver["tol"] = DEFAULT_TOL[solver["stop"]]
     radii = data["fracture"]
-    if None not in radii.values() and radii["inner"] >= radii["outer"]:
+    if None not in (radii["inner"], radii["outer"]) and radii["inner"] >= radii["outer"]:
         raise SceneError(f"{origin}: fracture.inner = {radii['inner']:g} must be below fracture.outer = "
                          f"{radii['outer']:g}")
+    _toughness_checks(data, origin)
+
+
+def _toughness_checks(data: dict, origin: str) -> None:
+    """``fracture.toughness`` and ``fracture.law`` exclude each other; a law has its keys and no other; a
+    per-crack toughness has one value per crack of a box (a mesh file's cracks are counted on its mesh)."""
+    options = data["fracture"]
+    constants = sorted({key for keys in LAWS.values() for key in keys})
+    given = [key for key in constants if options[key] is not None]
+    law = options["law"]
+    if options["toughness"] is not None and law is not None:
+        raise SceneError(f"{origin}: fracture.toughness and fracture.law exclude each other (one G_c, or a "
+                         "mode-dependent law)")
+    if law is None:
+        if given:
+            raise SceneError(f"{origin}: fracture.{given[0]} needs fracture.law (" + " or ".join(LAWS) + ")")
+    else:
+        missing = [key for key in LAWS[law] if options[key] is None]
+        if missing:
+            raise SceneError(f"{origin}: fracture.law = {law} needs fracture.{missing[0]} ("
+                             + ", ".join(f"fracture.{key}" for key in LAWS[law]) + ")")
+        extra = [key for key in given if key not in LAWS[law]]
+        if extra:
+            raise SceneError(f"{origin}: fracture.{extra[0]} does not apply to fracture.law = {law} (it takes "
+                             + ", ".join(f"fracture.{key}" for key in LAWS[law]) + ")")
+    values = options["toughness"]
+    cracks = len(data["geometry"]["cracks"])
+    if isinstance(values, tuple) and data["mesh"]["file"] is None and len(values) != cracks:
+        raise SceneError(f"{origin}: fracture.toughness lists {len(values)} values for the {cracks} crack"
+                         f"{'' if cracks == 1 else 's'} of geometry.cracks (one per crack, in order along Σ)")
 
 
 #: Components of a load and of a displacement on one boundary that act in the same direction.
@@ -740,7 +799,8 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str) 
         loads=loads,
         nonpenetration=data["contact"]["nonpenetration"],
         solver=Solver(**data["solver"]),
-        fracture=FractureOptions(**data["fracture"]),
+        fracture=FractureOptions(**{"lambda_" if key == "lambda" else key: value
+                                    for key, value in data["fracture"].items()}),
         displacements=displacements,
         temperature=temperature,
         text=text,

@@ -35,9 +35,10 @@ from ddsolve.mesh.mesh import BLOCKS, SIGMA, Mesh, signed_areas
 from ddsolve.parallel import distribution
 from ddsolve.parallel.exchange import collective
 from ddsolve.parallel.phases import launch_age
+from ddsolve.post import toughness
 from ddsolve.post.result import Result
 from ddsolve.problem.scene import Scene
-from ddsolve.solvers import driver
+from ddsolve.solvers import critical, driver
 
 #: Levels (solves) before giving up; the marking aims at reaching the target within three.
 MAX_LEVELS = 5
@@ -88,9 +89,11 @@ def _silent(_line: str) -> None:
 def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, level=None) -> Result | None:
     """Refine until the estimated relative energy-norm error is at most ``scene.mesh.target_error``.
 
-    ``level(mesh)`` solves one level (on every rank; the result on rank 0): by default the domain
+    ``level(mesh, scene)`` solves one level (on every rank; the result on rank 0): by default the domain
     decomposition (:func:`ddsolve.solvers.driver.solve`); ``reference`` passes the monolithic solve.  Prints a
-    line per level on rank 0 (via ``progress``); writes the last level's result with the level table.
+    line per level on rank 0 (via ``progress``); writes the last level's result with the level table and, for
+    a scene with a toughness and a temperature change, the critical load factors found on the last mesh
+    by solves of the scaled scene (:func:`ddsolve.solvers.critical.roots`).
     Returns the result on rank 0 (None elsewhere).  Raises DDSolveError on every rank after the first
     level, nothing written, if the target needs more unknowns than a level may have
     (:func:`largest_level`); NotConvergedError on every rank (after writing the last result) if it is
@@ -99,8 +102,8 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, lev
     """
     target = scene.mesh.target_error
     if level is None:
-        def level(mesh: Mesh) -> Result | None:
-            return driver.solve(scene, comm, None, progress=_silent, mesh=mesh)
+        def level(mesh: Mesh, solved: Scene = scene) -> Result | None:
+            return driver.solve(solved, comm, None, progress=_silent, mesh=mesh)
     project = curves.projector(scene)
     startup, started = launch_age(), time.perf_counter()
     refined, rows, result, message, refining = None, [], None, "", 0.0
@@ -124,6 +127,10 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, lev
         refining = time.perf_counter() - mark
         if done:
             break
+    if critical.needed(scene):
+        found = critical.roots(scene, comm, lambda scaled: level(mesh, scaled), progress)
+        if comm.rank == 0 and result.fracture is not None:
+            toughness.judge(result.fracture, scene, found)
     if comm.rank == 0:
         result.levels = {column: np.array([row[column] for row in rows]) for column in LEVEL_COLUMNS}
         result.attrs.update({"target_error": target, "levels": len(rows)})

@@ -367,7 +367,7 @@ def bound(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, iterations: in
 
 
 def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mesh: Mesh | None = None,
-          setup: Setup | None = None, gather: bool = True) -> Result | None:
+          setup: Setup | None = None, gather: bool = True, factors: np.ndarray | None = None) -> Result | None:
     """Run the domain decomposition for ``scene`` on ``comm``; write ``output``.
 
     Not ``gather`` (the command line), with ``output`` on more than one rank and h5py built with MPI:
@@ -379,6 +379,9 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
     result with converged = false and then raises NotConvergedError on every rank (the error holds
     the result as ``result``).  ``mesh`` (on every rank) skips building it; ``setup`` (from
     :func:`prepare`, loads from :func:`reload`) skips assembly and factorization and is kept.
+    ``factors`` (rank 0): the critical load factors of the tips where a root solve found them (a scene with
+    a temperature change, :func:`ddsolve.solvers.critical.factors`); else √(G_c/G) or NaN
+    (:func:`ddsolve.post.toughness.judge`).
     """
     own = setup is None
     if own:
@@ -457,12 +460,12 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
                 estimated = estimate.combine(mesh, parts, result.solution, result.multipliers["mu_c"])
                 result.attrs["error_estimate"], result.indicators = estimated.relative, estimated.indicators
                 result.fracture = fracture.finish(local.tips, volume, result.on_sigma,
-                                                  fracture.mode_split(local.tips, result))
+                                                  fracture.mode_split(local.tips, result), scene, factors)
                 result.reactions = reactions.of_result(result, local.sigma_supports)
         if distributed:
             split = shares.mode_split(result)  # collective: the parts around the tips go to rank 0
             if exchange.is_root:
-                result.fracture = fracture.finish(local.tips, volume, shares.on, split)
+                result.fracture = fracture.finish(local.tips, volume, shares.on, split, scene, factors)
             part, viewer = shares.files(result, output)
             written = time.perf_counter()
             io.write_distributed(output, part, viewer, comm, final=True)

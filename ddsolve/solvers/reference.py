@@ -70,8 +70,9 @@ def merged_system(systems: list[BlockSystem], numbers: list[np.ndarray]) -> Bloc
     return BlockSystem("reference", indptr, indices, data, rhs, np.zeros(0, dtype=np.int64), size, block_size=1)
 
 
-def solve(scene: Scene, mesh: Mesh) -> Result:
-    """Solve the scene's discrete problem exactly; return it in the result schema."""
+def solve(scene: Scene, mesh: Mesh, factors: np.ndarray | None = None) -> Result:
+    """Solve the scene's discrete problem exactly; return it in the result schema (``factors``: the tips'
+    critical load factors where a root solve found them, see :func:`ddsolve.post.toughness.judge`)."""
     tips, table, _ = whole_mesh_checks(scene, mesh)  # the solver's checks: a structure that can move is refused
     systems = assembly.block_systems(scene, mesh, table=table)
     started = time.perf_counter()  # the solve phase: merging, factorizations, active-set steps
@@ -128,6 +129,6 @@ def solve(scene: Scene, mesh: Mesh) -> Result:
                **{f"kkt_{name}": getattr(checked, name) for name in constraints.Constraints.NAMES}})
     estimated = estimate.of_scene(scene, mesh, result.solution, result.multipliers["mu_c"])
     result.attrs["error_estimate"], result.indicators = estimated.relative, estimated.indicators
-    result.fracture = fracture.of_result(result, tips)
+    result.fracture = fracture.of_result(result, tips, factors)
     result.reactions = reactions.of_result(result, table)
     return result

@@ -9,10 +9,11 @@ from typing import Callable
 from ddsolve.errors import NotConvergedError
 from ddsolve.io import hdf5
 from ddsolve.mesh import geometry
+from ddsolve.parallel.distribution import build_mesh
 from ddsolve.parallel.exchange import collective
 from ddsolve.post.result import Result
 from ddsolve.problem.scene import Scene
-from ddsolve.solvers import adapt, checks, driver
+from ddsolve.solvers import adapt, checks, critical, driver
 from ddsolve.solvers import reference as monolithic
 
 
@@ -21,24 +22,34 @@ def solve(scene: Scene, comm, output: Path | None, progress: Callable[[str], Non
     """The domain decomposition of ``scene`` on every rank of ``comm``, adaptive when the scene asks;
     ``output`` written.  The result on rank 0, None elsewhere; not ``gather``: the ranks write their
     parts of ``output`` and rank 0's result holds only Σ, the scalars and G (see
-    :func:`ddsolve.solvers.driver.solve`)."""
+    :func:`ddsolve.solvers.driver.solve`).  A scene with a toughness and a temperature change has its
+    critical load factors found first, by solves of the scaled scene on the same mesh
+    (:func:`ddsolve.solvers.critical.factors`), so that the file written holds them."""
     collective(comm, lambda: checks.check_size(scene, comm.size), root_only=True)
     if scene.mesh.target_error is not None:
         return adapt.solve(scene, comm, output, progress=progress)
-    return driver.solve(scene, comm, output, progress=progress, gather=gather)
+    if not critical.needed(scene):
+        return driver.solve(scene, comm, output, progress=progress, gather=gather)
+    mesh = build_mesh(scene, comm)
+    found = critical.factors(scene, comm, mesh, progress)
+    return driver.solve(scene, comm, output, progress=progress, gather=gather, mesh=mesh, factors=found)
 
 
 def reference(scene: Scene, output: Path | None = None, progress: Callable[[str], None] = print) -> Result:
     """The monolithic reference of ``scene`` on this process (adaptive when the scene asks); raises
-    NotConvergedError, with the result, when its final check fails."""
+    NotConvergedError, with the result, when its final check fails.  The critical load factors of a scene
+    with a toughness and a temperature change come from reference solves of the scaled scene."""
     checks.check_size(scene)
     if scene.mesh.target_error is not None:  # adaptive, every level solved by the reference
         from mpi4py import MPI
 
         result = adapt.solve(scene, MPI.COMM_SELF, output, progress=progress,
-                             level=lambda mesh: monolithic.solve(scene, mesh))
+                             level=lambda mesh, solved=scene: monolithic.solve(solved, mesh))
     else:
-        result = monolithic.solve(scene, geometry.build(scene))
+        mesh = geometry.build(scene)
+        found = critical.search(scene, lambda lam: monolithic.solve(scene.scaled(lam), mesh).fracture, progress) \
+            if critical.needed(scene) else None
+        result = monolithic.solve(scene, mesh, found)
         if output is not None:
             hdf5.write(output, result, final=True)
     if not result.converged:

@@ -25,8 +25,10 @@ T the most tips of a run, padded with NaN or −1):
   ``factors_reused``, ``time`` (the whole run), ``setup_time``, ``factorization_time``,
   ``solve_time`` (R,), ``message`` (R,) strings (empty when the run succeeded);
 - ``tips/G``, ``tips/G_I``, ``tips/G_II``, ``tips/phase``, ``tips/contact``, ``tips/inner``, ``tips/outer``,
-  ``tips/spacing``, ``tips/crack`` (R, T),
-  ``tips/points``, ``tips/directions`` (R, T, 2): G at every crack tip (see ddsolve.post.fracture);
+  ``tips/spacing``, ``tips/crack``, ``tips/toughness``, ``tips/critical_factor`` (R, T),
+  ``tips/points``, ``tips/directions`` (R, T, 2): G at every crack tip (see ddsolve.post.fracture), G_c and
+  the critical load factor (ddsolve.post.toughness; NaN without a toughness, and for a scene with a
+  temperature change, whose factors need a root solve per run);
 - ``contact_zones/run``, ``start``, ``end``, ``crack`` (Z,): every contact zone of every run, as arc
   length along Σ.
 """
@@ -361,7 +363,7 @@ def _line(number: int, total: int, record: dict) -> str:
 SCALARS = ("energy", "converged", "iterations", "rounds", "unknowns", "mesh_reused", "factors_reused", "time",
            "setup_time", "factorization_time", "solve_time", "kkt_tolerance")
 TIP_FIELDS = {"G": np.nan, "contact": np.nan, "inner": np.nan, "outer": np.nan, "spacing": np.nan, "crack": -1,
-              "G_I": np.nan, "G_II": np.nan, "phase": np.nan}
+              "G_I": np.nan, "G_II": np.nan, "phase": np.nan, "toughness": np.nan, "critical_factor": np.nan}
 
 
 def _write(path: Path, header: dict, records: list[dict]) -> None:
