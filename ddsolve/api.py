@@ -91,3 +91,20 @@ def sweep(scene: Scene | str | Path, parameters: dict[str, Sequence], paired: bo
     records = sweeps.sweep(_scene(scene), [], paired, Path(output) if output is not None else None, comm,
                            progress or _silent, values=parameters)
     return comm.bcast(records, root=0)
+
+
+def grow(scene: Scene | str | Path, limit: float, steps: int = 20, tolerance: float = 1e-4,
+         output: str | Path | None = None, comm=None, progress: Callable[[str], None] | None = None) -> list:
+    """Grow the cracks of ``scene`` along Σ (Griffith, the scene's ``[fracture]`` toughness) as a factor on
+    its loads or prescribed displacements rises to ``limit`` in ``steps`` steps (docs/growth.md).
+
+    Returns the steps (:class:`ddsolve.solvers.grow.Step`: ``state`` with control, load, displacement,
+    cracks, G per tip; ``unstable``; ``events``) on every rank; ``output`` writes them to one HDF5 file
+    (the layout of ``ddsolve grow``).
+    """
+    from ddsolve.solvers import grow as growth
+
+    comm = _comm(comm)
+    done = growth.grow(_scene(scene), comm, limit, steps, tolerance, progress=progress or _silent,
+                         output=Path(output) if output is not None else None)
+    return comm.bcast(done, root=0)

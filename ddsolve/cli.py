@@ -27,10 +27,10 @@ from ddsolve.parallel.runtime import Parser, guarded, init_petsc, is_number
 from ddsolve.solvers.checks import check_ranks, check_read, check_size
 
 #: ddsolve's commands that hand options to PETSc.
-PETSC_COMMANDS = ("solve", "sweep", "reference", "version")
+PETSC_COMMANDS = ("solve", "sweep", "grow", "reference", "version")
 #: Options-prefixes of the KSPs (what a misspelt option is compared with).
 PREFIXES = {"solve": tuple(f"{spec.name}_" for spec in BLOCKS), "reference": ("reference_",)}
-PREFIXES["sweep"] = PREFIXES["solve"]
+PREFIXES["sweep"] = PREFIXES["grow"] = PREFIXES["solve"]
 #: Suffix of the files ``mesh -o`` writes (gmsh chooses the format by the suffix).
 MESH_SUFFIX = ".msh"
 
@@ -110,7 +110,7 @@ def _launch(args, petsc_options: list[str], scene_checks: bool) -> None:
         output = check_outputs(args, scene)
         outputs = [output, *export.viewer_paths(output.parent, output.stem)]
     else:
-        outputs = [_sweep_output(args)]
+        outputs = [_grow_output(args)] if args.command == "grow" else [_sweep_output(args)]
     forwarded = [arg for i, arg in enumerate(args.own) if i not in args.ranks_at]
     command = mpiexec_command(args.ranks, forwarded + (["--", *petsc_options] if petsc_options else []))
     sys.exit(supervise(command, {**os.environ, "DDSOLVE_LAUNCHED": repr(time.time())}, outputs))  # start-up timing
@@ -118,6 +118,10 @@ def _launch(args, petsc_options: list[str], scene_checks: bool) -> None:
 
 def _sweep_output(args) -> Path:
     return Path(args.output) if args.output else Path(Path(args.scene).stem + "-sweep.h5")
+
+
+def _grow_output(args) -> Path:
+    return Path(args.output) if args.output else Path(Path(args.scene).stem + "-growth.h5")
 
 
 
@@ -209,6 +213,35 @@ def cmd_sweep(args, petsc_options: list[str]) -> int:
         factored = sum(not r["factors_reused"] for r in records)
         print(f"sweep: {len(records)} runs ({converged} converged), {meshes} meshes, {factored} factorizations, "
               f"{time.perf_counter() - started:.1f} s on {MPI.COMM_WORLD.size} ranks -> {output}", flush=True)
+    return 0
+
+
+def cmd_grow(args, petsc_options: list[str]) -> int:
+    _launch(args, petsc_options, scene_checks=False)
+    init_petsc(petsc_options)
+    import time
+
+    from mpi4py import MPI
+
+    from ddsolve.io.hdf5 import check_result
+    from ddsolve.parallel.exchange import collective
+    from ddsolve.post import plots
+    from ddsolve.solvers import grow
+
+    comm = MPI.COMM_WORLD
+    started = time.perf_counter()
+    scene = comm.bcast(collective(comm, lambda: _load_scene(args, comm.size), root_only=True), root=0)
+    output = _grow_output(args)
+    picture = output.with_suffix(".png")
+    collective(comm, lambda: check_result(output, _inputs(args, scene), viewer=False), root_only=True)
+    steps = grow.grow(scene, comm, args.limit, args.steps, args.tolerance, progress=_root_print, output=output,
+                      pictures=args.pictures)
+    if steps is not None:
+        plots.growth_curves(grow.read(output), picture)
+        unstable = sum(step.unstable for step in steps)
+        print(f"grow: {len(steps) - 1} steps, {sum(step.solves for step in steps)} solves"
+              + (f", unstable growth at {unstable} steps" if unstable else ", stable growth") +
+              f", {time.perf_counter() - started:.1f} s on {comm.size} ranks -> {output}, {picture}", flush=True)
     return 0
 
 
@@ -410,6 +443,18 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("-o", dest="output", help="HDF5 file of every run (default: SCENE-sweep.h5)")
     p.add_argument("--zip", action="store_true",
                    help="take the ranges side by side (same COUNT) instead of every combination")
+    p = scene_command("grow", "quasi-static growth of the cracks along Σ (Griffith) as a load or displacement "
+                      "factor rises; one HDF5 file and a PNG of the curves", cmd_grow)
+    p.add_argument("-n", dest="ranks", type=int, metavar="N", help="launch N ranks with mpiexec (as for solve)")
+    p.add_argument("-o", dest="output", help="HDF5 file of every step (default: SCENE-growth.h5; the curves "
+                   "go to the same name with .png)")
+    p.add_argument("--to", dest="limit", type=float, required=True, metavar="FACTOR",
+                   help="the control factor's last value (it multiplies the scene's loads or displacements)")
+    p.add_argument("--steps", type=int, default=20, help="equal control steps up to --to (default 20; the "
+                   "initiation factor is added)")
+    p.add_argument("--tolerance", type=float, default=1e-4, help="|G/G_c − 1| at a growing tip (default 1e-4)")
+    p.add_argument("--pictures", type=int, default=3, metavar="K", help="pictures of the deformed structure at K "
+                   "steps spread over the run, the last included (OUT-step<k>.png; default 3, 0 for none)")
     p = scene_command("reference", "monolithic reference solve (one process)", cmd_reference)
     p.add_argument("-o", dest="output", help="result file (default: SCENE.h5)")
     p = scene_command("mesh", "mesh statistics per half (as the paper's Table 1); -o writes the mesh as gmsh .msh",

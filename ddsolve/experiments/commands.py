@@ -29,6 +29,8 @@ EXPERIMENTS = {
                  "crack length and E2/E1", "docs/fracture.md, docs/fracture-*.png, results/fracture-*"),
     "delamination": ("delamination", "delamination", "DCB, ELS, ENF, MMB and a thermal mismatch against beam "
                      "theory", "docs/delamination.md, docs/delamination-*.png, results/delamination*"),
+    "growth": ("growth", "growth", "crack growth along Σ: DCB and ENF against corrected beam theory, Example 1, "
+               "the strip's disbonds", "docs/growth.md, docs/growth-*.png, results/growth/"),
     "architecture": ("architecture", "architecture", "the package's stages and the imports between them, read "
                      "from the source", "docs/architecture.png"),
 }

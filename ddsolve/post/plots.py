@@ -248,3 +248,45 @@ def convergence(results: list[tuple[str, Result]], path: Path) -> list[Curve]:
     fig.savefig(path, dpi=130)
     plt.close(fig)
     return curves
+
+
+def growth_curves(growth: dict, path: Path) -> None:
+    """The curves of a growth file (:func:`ddsolve.solvers.grow.read`): load against displacement, every
+    crack's length against the load, and G/G_c at the tips against their crack's length (the R-curve);
+    unstable steps are marked.  The title gives the tolerance every growing tip meets."""
+    plt = _pyplot()
+    load, displacement, cracks = growth["load"], growth["displacement"], growth["cracks"]
+    lengths = cracks[:, :, 1] - cracks[:, :, 0]
+    unstable = growth["unstable"].astype(bool)
+    fig, axes = plt.subplots(1, 3, figsize=(14, 4.3), constrained_layout=True)
+    ax = axes[0]
+    ax.plot(displacement, load, marker="o", markersize=3)
+    if unstable.any():
+        ax.plot(displacement[unstable], load[unstable], "rx", label="unstable growth at this step")
+    ax.set_xlabel("displacement (work conjugate of the load)" if growth["attrs"]["control_kind"] == "load"
+                  else "prescribed displacement factor")
+    ax.set_ylabel("load factor" if growth["attrs"]["control_kind"] == "load" else "load (work conjugate of the factor)")
+    ax = axes[1]
+    for c in range(lengths.shape[1]):
+        ax.plot(load, lengths[:, c], marker="o", markersize=3, label=f"crack {c + 1}")
+    ax.set_xlabel("load")
+    ax.set_ylabel(f"crack length ({LENGTH})")
+    ax = axes[2]
+    ratio = growth["G"] / growth["G_c"]
+    tips = growth["tips"]
+    for t in range(ratio.shape[1]):
+        crack = np.array([np.flatnonzero((row[:, 0] <= s + 1e-9) & (s - 1e-9 <= row[:, 1]))[:1] for row, s in
+                          zip(cracks, tips[:, t])], dtype=object)
+        length = np.array([lengths[i, k[0]] if len(k) else np.nan for i, k in enumerate(crack)])
+        ax.plot(length, ratio[:, t], marker="o", markersize=3, linestyle="none", label=f"tip {t + 1}")
+    ax.axhline(1.0, color="k", linewidth=0.8)
+    ax.set_xlabel(f"crack length ({LENGTH})")
+    ax.set_ylabel("G / G_c")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend()
+    fig.suptitle(f"growth of {growth['attrs']['scene']}: {growth['attrs']['control_kind']} control, "
+                 f"|G/G_c − 1| ≤ {growth['attrs']['tolerance']:g} at every growing tip", **PLAIN_TEXT)
+    fig.savefig(path, dpi=130)
+    plt.close(fig)

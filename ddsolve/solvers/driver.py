@@ -265,7 +265,17 @@ def make_blocks(scene: Scene, mesh: LocalMesh | Mesh, exchange: Exchange, packag
 
 
 def reload(setup: "Setup", scene: Scene) -> None:
-    """Give the factored blocks of ``setup`` the loads of ``scene`` (same mesh, materials, method)."""
+    """Give the factored blocks of ``setup`` the loads of ``scene`` (same mesh, materials, method, and the
+    same prescribed entries: new prescribed values, as a scaled scene has, need both halves on every rank,
+    as a setup made from a whole mesh has)."""
+    local = setup.mesh
+    if scene.displacements != setup.scene.displacements:  # the Σ entries' values follow the scene's
+        if len(local.halves) < 2:
+            error = DDSolveError("reload: new prescribed displacement values need the whole mesh on every rank")
+            error.collective = True
+            raise error
+        whole_mesh = Mesh(local.half(-1), local.half(1), local.sigma, local.origin)
+        setup.mesh = replace(local, sigma_supports=supports.sigma_supports(scene, whole_mesh))
     systems = collective(setup.exchange.comm, lambda: local_systems(scene, setup.mesh, setup.exchange))
     for block, system in zip(setup.blocks, systems):
         block.system = replace(block.system, rhs=system.rhs)
@@ -461,7 +471,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
                 result.attrs["error_estimate"], result.indicators = estimated.relative, estimated.indicators
                 result.fracture = fracture.finish(local.tips, volume, result.on_sigma,
                                                   fracture.mode_split(local.tips, result), scene, factors)
-                result.reactions = reactions.of_result(result, local.sigma_supports)
+                result.reactions = reactions.reactions(scene, mesh, result.solution, local.sigma_supports)
         if distributed:
             split = shares.mode_split(result)  # collective: the parts around the tips go to rank 0
             if exchange.is_root:

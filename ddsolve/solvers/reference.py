@@ -130,5 +130,5 @@ def solve(scene: Scene, mesh: Mesh, factors: np.ndarray | None = None) -> Result
     estimated = estimate.of_scene(scene, mesh, result.solution, result.multipliers["mu_c"])
     result.attrs["error_estimate"], result.indicators = estimated.relative, estimated.indicators
     result.fracture = fracture.of_result(result, tips, factors)
-    result.reactions = reactions.of_result(result, table)
+    result.reactions = reactions.reactions(scene, mesh, result.solution, table)
     return result

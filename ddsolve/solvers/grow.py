@@ -1,0 +1,498 @@
+"""Quasi-static growth of the cracks along Σ by Griffith's criterion (``ddsolve grow``).
+
+A control factor λ multiplies every mechanical load of the scene (:meth:`ddsolve.problem.scene.Scene.scaled`:
+tractions, pressures and prescribed displacements; a temperature change stays as given).  It rises in
+``steps`` equal steps to ``limit``, with the initiation factor (the smallest critical factor of the
+tips, :func:`ddsolve.post.toughness.critical_factor`) inserted as a step of its own.  At every step each
+tip with G ≥ G_c (the scene's ``[fracture]`` toughness, mode-dependent if it says so) advances along Σ
+until G = G_c again: a root solve in the tip's position, all growing tips at once (one solve per
+iteration), bracketed by doubling the advance and closed by regula falsi (Illinois), to
+``|G/G_c − 1| ≤ tolerance``.  Where G rises as the tip advances at a fixed control the growth is
+unstable (a snap-through under load control, a jump under displacement control): the step says so
+and the tip jumps to where G falls back to G_c (crack arrest), or to what stops it.  A tip stops one Σ
+edge before a clamped Σ node or Σ's end; two tips that meet merge their cracks.  Under displacement
+control the stable branch is thereby followed step by step.
+
+The contact problem is positively homogeneous: without a temperature change the fields at λ are λ
+times those at 1 and G is λ²G(1), so one solve per crack configuration serves every control (nothing
+is solved before initiation).  The mesh is made once (the scene's mesh settings); each configuration
+moves the nearest Σ vertex onto each new tip (:func:`ddsolve.mesh.cracks.with_cracks`), so the mesh
+follows the tips without re-meshing.
+
+The control is a load factor when the scene has loads, a displacement factor when it prescribes
+non-zero displacements (not both).  ``load`` and ``displacement`` of a step are the control and its work
+conjugate: under load control the displacement Δ = ∫ t₁·u ds over the loaded boundaries (t₁ the
+scene's tractions at λ = 1), under displacement control the load F = Σ R·ū₁ over the displaced
+boundaries (R the reactions, ū₁ the scene's constant prescribed displacements), so that the work done
+is ∫ load d(displacement) either way.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ddsolve.errors import DDSolveError, SceneError
+from ddsolve.fem import assembly, supports
+from ddsolve.mesh import cracks as crack_mesh
+from ddsolve.mesh.mesh import BLOCKS, Mesh
+from ddsolve.parallel import distribution
+from ddsolve.parallel.exchange import collective
+from ddsolve.post import toughness
+from ddsolve.problem.scene import Scene
+
+#: The most root-solve iterations of one step, and of rounds of steps at one control (growth of one tip
+#: changing the G of another).
+MAX_ITERATIONS = 60
+MAX_ROUNDS = 10
+#: A bracket narrower than this (in Σ edges at the tip) ends the root solve on its side below G_c.
+SMALLEST_MOVE = 1e-6
+#: The first trial advance of a growing tip, in Σ edges at the tip.
+FIRST_ADVANCE = 2.0
+
+
+@dataclass
+class State:
+    """One crack configuration at one control: what a step records (on every rank)."""
+
+    cracks: tuple[tuple[float, float], ...]
+    control: float
+    tips: np.ndarray  # arc length of every tip along Σ
+    heading: np.ndarray  # +1: the tip grows towards larger arc length, −1 towards smaller
+    spacing: np.ndarray  # Σ edge length at each tip
+    G: np.ndarray
+    G_I: np.ndarray
+    G_II: np.ndarray
+    G_c: np.ndarray
+    energy: float
+    load: float
+    displacement: float
+
+    @property
+    def ratio(self) -> np.ndarray:
+        """G/G_c at every tip."""
+        return self.G / self.G_c
+
+
+@dataclass
+class Step:
+    """A recorded step: the state, what happened, and the solves it took."""
+
+    state: State
+    unstable: bool = False
+    events: list[str] = field(default_factory=list)
+    solves: int = 0
+
+
+def control_kind(scene: Scene) -> str:
+    """``load`` or ``displacement``: which mechanical action the control factor scales."""
+    moving = [d.key for d in scene.displacements.values()
+              if any(part is not None and not (part.constant and float(part(0.0, 0.0)) == 0.0)
+                     for part in (d.x, d.y, d.normal))]
+    if scene.loads and moving:
+        raise SceneError(f"grow: the scene has loads ({next(iter(scene.loads.values())).key}) and non-zero "
+                         f"prescribed displacements ({moving[0]}); the control scales one kind: keep one")
+    if not scene.loads and not moving:
+        raise SceneError("grow: the scene has no load and no non-zero prescribed displacement to scale")
+    if moving:
+        for d in scene.displacements.values():
+            for name in ("x", "y", "normal"):
+                part = getattr(d, name)
+                if part is not None and not part.constant:
+                    raise SceneError(f"grow: {d.key}.{name} varies along the boundary; displacement control needs "
+                                     "constant prescribed displacements (their work conjugate is R·ū)")
+    return "displacement" if moving else "load"
+
+
+def conjugate(scene: Scene, kind: str, mesh: Mesh, solution: dict[str, np.ndarray],
+              forces: dict[str, dict[str, np.ndarray]]) -> float:
+    """The control's work conjugate for a solution (``scene`` unscaled; see the module's docstring)."""
+    if kind == "load":
+        work = 0.0
+        for (layer, name), load in scene.loads.items():
+            for spec in BLOCKS:
+                half = mesh.half(spec.side)
+                if spec.layer == layer and name in half.boundaries:
+                    work += float(assembly.boundary_load(half.points, half.edges(name), load) @ solution[spec.name].ravel())
+        return work
+    work = 0.0
+    for (layer, name), prescribed in scene.displacements.items():
+        reaction = forces.get(layer, {}).get(name)
+        if reaction is None:
+            continue
+        if prescribed.normal is not None:
+            raise SceneError(f"grow: {prescribed.key}.normal: displacement control takes x and y components")
+        values = [0.0 if part is None else float(part(0.0, 0.0)) for part in (prescribed.x, prescribed.y)]
+        work += float(np.dot(reaction, values))
+    return work
+
+
+class Growth:
+    """The crack configurations of one scene on one mesh, solved on ``comm`` (every rank)."""
+
+    def __init__(self, scene: Scene, comm):
+        self.scene, self.comm = scene, comm
+        self.kind = collective(comm, lambda: control_kind(scene))
+        if not toughness.given(scene):
+            error = SceneError("grow: the scene has no toughness: give [fracture] toughness = G_c (or a law)")
+            error.collective = True
+            raise error
+        if scene.mesh.target_error is not None:
+            error = SceneError("grow: mesh.target_error: growth moves the tips on one mesh; give mesh.size "
+                               "(and mesh.degree) instead")
+            error.collective = True
+            raise error
+        self.thermal = bool(scene.temperature)
+        self.base = distribution.build_mesh(scene, comm)
+        self.length = float(self.base.sigma.arclength[-1])
+        self.stops = collective(comm, lambda: stops(scene, self.base))
+        self.cache: dict[tuple, State] = {}
+        self.solves = 0
+
+    # --- one configuration --------------------------------------------------------------------------
+    def mesh_for(self, cracks) -> Mesh:
+        return crack_mesh.with_cracks(self.base, cracks)
+
+    def state(self, cracks: tuple, control: float) -> State:
+        """The state of ``cracks`` at ``control`` (one solve per configuration without a temperature
+        change, scaled to the control; else a solve at the control)."""
+        key = (cracks, 1.0 if not self.thermal else control)
+        if key not in self.cache:
+            self.cache[key] = self.solve(cracks, key[1])
+        unit = self.cache[key]
+        if self.thermal:
+            return unit
+        factor = control / unit.control
+        return replace(unit, control=control, G=unit.G * factor ** 2, G_I=unit.G_I * factor ** 2,
+                       G_II=unit.G_II * factor ** 2, energy=unit.energy * factor ** 2, load=unit.load * factor,
+                       displacement=unit.displacement * factor)
+
+    def result(self, cracks: tuple, control: float):
+        """The whole result of ``cracks`` at ``control`` (rank 0; None elsewhere)."""
+        from ddsolve.solvers import driver
+
+        result = driver.solve(self.scene.scaled(control), self.comm, None, progress=lambda line: None,
+                              mesh=self.mesh_for(cracks))
+        self.solves += 1
+        return result
+
+    def solve(self, cracks: tuple, control: float) -> State:
+        """A solve of ``cracks`` at ``control``, its numbers on every rank."""
+        mesh = self.mesh_for(cracks)
+        result = self.result(cracks, control)
+        state = collective(self.comm, lambda: self.numbers(mesh, cracks, control, result), root_only=True)
+        return self.comm.bcast(state, root=0)
+
+    def numbers(self, mesh: Mesh, cracks: tuple, control: float, result) -> State:
+        """The state from a result (rank 0)."""
+        if not result.converged:
+            raise DDSolveError(f"grow: the solve with cracks {describe(cracks)} did not converge: {result.message}")
+        fracture = result.fracture
+        arc = mesh.sigma.arclength
+        nearest = np.argmin(np.linalg.norm(mesh.sigma.points[None, :, :] - fracture.points[:, None, :], axis=2),
+                            axis=1) if len(fracture.G) else np.zeros(0, dtype=np.int64)
+        tangent = np.gradient(mesh.sigma.points, arc, axis=0)[nearest] if len(nearest) else np.zeros((0, 2))
+        work = conjugate(self.scene, self.kind, mesh, result.solution, result.reactions)
+        load, displacement = (control, work) if self.kind == "load" else (work, control)
+        return State(cracks=cracks, control=control, tips=arc[nearest],
+                     heading=np.sign(np.einsum("ij,ij->i", fracture.directions, tangent)),
+                     spacing=np.asarray(fracture.spacing), G=np.asarray(fracture.G), G_I=np.asarray(fracture.G_I),
+                     G_II=np.asarray(fracture.G_II), G_c=np.asarray(fracture.toughness),
+                     energy=float(result.attrs["energy"]), load=load, displacement=displacement)
+
+    # --- growth -------------------------------------------------------------------------------------
+    def initiation(self, cracks: tuple) -> float:
+        """The smallest control at which a tip of ``cracks`` starts to grow (inf if none does)."""
+        if not self.thermal:
+            unit = self.state(cracks, 1.0)
+            factors = toughness.critical_factor(unit.G, unit.G_c)
+        else:
+            from ddsolve.solvers import critical
+
+            factors = critical.factors(self.scene, self.comm, self.mesh_for(cracks))
+        return float(np.min(factors, initial=math.inf))
+
+    def limit_of(self, state: State, tip: int) -> tuple[float, str]:
+        """How far tip ``tip`` may advance, and what is there: one Σ edge before a support or Σ's end, or
+        up to another crack's tip (where the two merge)."""
+        position, heading, edge = state.tips[tip], state.heading[tip], state.spacing[tip]
+        ahead = [(abs(s - position) - edge, f"{what} at arc length {s:.6g}") for s, what in self.stops
+                 if (s - position) * heading > 0]
+        ahead += [(abs(s - position), f"the tip at arc length {s:.6g}") for s in np.delete(state.tips, tip)
+                  if (s - position) * heading > 0]
+        room, what = min(ahead)
+        return max(room, 0.0), what
+
+    def advanced(self, cracks: tuple, state: State, moves: dict[int, float]) -> tuple:
+        """``cracks`` with tip i moved by ``moves[i]`` along its heading; cracks that meet are merged."""
+        ends = [list(piece) for piece in cracks]
+        for tip, distance in moves.items():
+            position = state.tips[tip]
+            piece, end = min(((i, j) for i in range(len(ends)) for j in range(2)),
+                             key=lambda ij: abs(ends[ij[0]][ij[1]] - position))
+            ends[piece][end] = position + state.heading[tip] * distance
+        ends.sort()
+        merged: list[list[float]] = []
+        for a, b in ends:
+            if merged and a <= merged[-1][1] + 1e-12 * self.length:
+                merged[-1][1] = max(merged[-1][1], b)
+            else:
+                merged.append([a, b])
+        return tuple((float(a), float(b)) for a, b in merged)
+
+    def at_control(self, cracks: tuple, control: float, tolerance: float, probe: bool = False
+                   ) -> tuple[tuple, Step]:
+        """Grow every critical tip at ``control`` until G ≤ G_c everywhere (to ``tolerance``).  With
+        ``probe`` (the initiation step) a tip at G = G_c is advanced by a trial step: if G rises there the
+        growth is unstable and goes on at this control."""
+        solves = self.solves
+        step = Step(self.state(cracks, control))
+        if probe:
+            critical = [int(i) for i in np.flatnonzero(np.abs(step.state.ratio - 1.0) <= tolerance)]
+            if critical:
+                cracks, step = self.advance(cracks, step.state, critical, control, tolerance, step, probe=True)
+        for _ in range(MAX_ROUNDS):
+            if any(event.startswith("end") for event in step.events):
+                break
+            growing = [int(i) for i in np.flatnonzero(step.state.ratio - 1.0 > tolerance)]
+            if not growing:
+                break
+            cracks, step = self.advance(cracks, step.state, growing, control, tolerance, step)
+        step.solves = self.solves - solves
+        return cracks, step
+
+    def advance(self, cracks: tuple, start: State, growing: list[int], control: float, tolerance: float,
+                step: Step, probe: bool = False) -> tuple[tuple, Step]:
+        """The root solve: the growing tips' advances x with G/G_c − 1 = f(x) = 0, bracketed by doubling x
+        from two Σ edges, closed by regula falsi (Illinois); all tips at once, one solve per iteration.
+        Rank 0 proposes every trial and broadcasts it.  f rising with x (at a fixed control) is unstable
+        growth; with ``probe`` a tip whose f does not rise stays where it is."""
+        limits = {i: self.limit_of(start, i) for i in growing}
+        low = {i: 0.0 for i in growing}
+        f_low = {i: float(start.ratio[i] - 1.0) for i in growing}
+        bracket: dict[int, tuple[float, float]] = {}  # tip -> (x, f) with f < 0
+        trial = {i: min(FIRST_ADVANCE * start.spacing[i], limits[i][0]) for i in growing}
+        last = {i: 0 for i in growing}  # the side regula falsi moved last (Illinois halves the other's f)
+        settled: dict[int, float] = {}
+        state = start
+        for iteration in range(MAX_ITERATIONS):
+            proposal = self.comm.bcast({**trial, **settled} if self.comm.rank == 0 else None, root=0)
+            trial_cracks = self.advanced(cracks, start, proposal)
+            state = self.state(trial_cracks, control)
+            if len(trial_cracks) < len(cracks):  # two cracks met
+                step.state = state
+                step.events.append(f"cracks merge: {describe(trial_cracks)}")
+                return trial_cracks, step
+            values = self.match(start, state, proposal)
+            if iteration == 0 and any(values[i] > f_low[i] for i in trial):
+                step.unstable = True
+            if probe and iteration == 0:
+                stable = [i for i in trial if values[i] <= f_low[i]]
+                if len(stable) == len(trial):
+                    step.state = start
+                    return cracks, step
+                settled.update({i: 0.0 for i in stable})
+                for i in stable:
+                    del trial[i]
+            for i in list(trial):
+                x, f = proposal[i], values[i]
+                if abs(f) <= tolerance:
+                    settled[i] = x
+                    del trial[i]
+                    continue
+                if f > 0.0:
+                    if i not in bracket:  # still bracketing: G rising with the advance is unstable growth
+                        step.unstable |= f > f_low[i]
+                        if x >= limits[i][0] * (1.0 - 1e-12):
+                            step.state = state
+                            step.events.append(f"end: a tip reached {limits[i][1]}")
+                            return trial_cracks, step
+                        low[i], f_low[i] = x, f
+                        trial[i] = min(2.0 * x, limits[i][0])
+                        continue
+                    low[i], f_low[i] = x, f
+                    if last[i] > 0:
+                        bracket[i] = (bracket[i][0], 0.5 * bracket[i][1])
+                    last[i] = 1
+                else:
+                    if i in bracket and last[i] < 0:
+                        f_low[i] *= 0.5
+                    bracket[i] = (x, f)
+                    last[i] = -1
+                high, f_high = bracket[i]
+                if high - low[i] <= SMALLEST_MOVE * start.spacing[i]:  # G jumps here (a mesh effect): stay below G_c
+                    settled[i] = high
+                    del trial[i]
+                    continue
+                trial[i] = low[i] + (high - low[i]) * f_low[i] / (f_low[i] - f_high)
+            if not trial:
+                break
+        else:
+            error = DDSolveError(f"grow: the root solve at control {control:.6g} did not reach |G/G_c − 1| ≤ "
+                                 f"{tolerance:g} in {MAX_ITERATIONS} solves")
+            error.collective = True
+            raise error
+        moved = ", ".join(f"tip {start.tips[i]:.6g} → {start.tips[i] + start.heading[i] * x:.6g}"
+                          for i, x in settled.items() if x > 0.0)
+        if moved:
+            step.events.append(("unstable: " if step.unstable else "") + moved)
+        step.state = state
+        return trial_cracks, step
+
+    def match(self, start: State, state: State, moves: dict[int, float]) -> dict[int, float]:
+        """G/G_c − 1 at the new position of every moved tip (the tip of ``state`` nearest to it with the
+        same heading)."""
+        out = {}
+        for i, x in moves.items():
+            target = start.tips[i] + start.heading[i] * x
+            same = np.flatnonzero(state.heading == start.heading[i])
+            nearest = same[np.argmin(np.abs(state.tips[same] - target))]
+            out[i] = float(state.ratio[nearest] - 1.0)
+        return out
+
+
+def stops(scene: Scene, mesh: Mesh) -> list[tuple[float, str]]:
+    """Where growing tips stop (arc length along Σ, what is there): Σ's ends and the ends of every run of
+    Σ nodes that are clamped or have a prescribed displacement."""
+    sigma = mesh.sigma
+    table = supports.sigma_supports(scene, mesh)
+    held = np.zeros(len(sigma.points), dtype=bool)
+    held[sigma.multiplier_nodes] = table.fixed.reshape(len(BLOCKS), -1, 2).any(axis=(0, 2))
+    supported = sigma.clamped | held
+    arc = sigma.arclength
+    return [(float(s), "a support" if supported[np.argmin(np.abs(arc - s))] else "the end of Σ")
+            for s in crack_mesh.stops(mesh, held)]
+
+
+def describe(cracks) -> str:
+    return ", ".join(f"({a:.6g}, {b:.6g})" for a, b in cracks) or "none"
+
+
+def grow(scene: Scene, comm, limit: float, steps: int, tolerance: float = 1e-4,
+         progress: Callable[[str], None] = print, output: Path | None = None, pictures: int = 0
+         ) -> list[Step] | None:
+    """Grow the cracks of ``scene`` as the control rises to ``limit`` in ``steps`` steps (every rank);
+    writes ``output`` (rank 0) and, with ``pictures``, that many pictures of the deformed structure at
+    steps spread over the run (``OUTPUT-step<k>.png``).  Returns the steps on rank 0, None elsewhere."""
+    if not (math.isfinite(limit) and limit > 0.0):
+        raise SceneError(f"grow: --to {limit:g}: the control's limit must be a positive number")
+    if steps < 1:
+        raise SceneError(f"grow: --steps {steps}: at least one step")
+    if not 0.0 < tolerance < 1.0:
+        raise SceneError(f"grow: --tolerance {tolerance:g}: between 0 and 1")
+    if pictures < 0:
+        raise SceneError(f"grow: --pictures {pictures}: a number of pictures, 0 or more")
+    growth = Growth(scene, comm)
+    cracks = tuple(tuple(piece) for piece in crack_mesh.intervals(growth.base))
+    initiation = growth.initiation(cracks)
+    controls = [limit * k / steps for k in range(1, steps + 1)]
+    if initiation < limit:  # a step of its own (one that falls within 1e-9 of it becomes it)
+        controls = sorted([c for c in controls if abs(c - initiation) > 1e-9 * limit] + [initiation])
+    if comm.rank == 0:
+        progress(f"grow: {growth.kind} control to {limit:g} in {len(controls)} steps; cracks {describe(cracks)}; "
+                 f"initiation at {initiation:.6g}")
+    records = [] if initiation == 0.0 else [Step(growth.state(cracks, 0.0))]  # 0: the temperature alone grows it
+    for number, control in enumerate(controls, 1):
+        before = len(records)
+        if control == initiation:  # the state at initiation, before any growth, is a step of its own
+            records.append(Step(growth.state(cracks, control), events=["initiation"]))
+        cracks, step = growth.at_control(cracks, control, tolerance, probe=control == initiation)
+        if control == initiation and step.unstable:
+            records[-1].unstable = True
+            records[-1].events = ["initiation (unstable)"]
+        if control != initiation or step.events:
+            records.append(step)
+        if comm.rank == 0:
+            for record in records[before:]:
+                progress(line(number, len(controls), growth.kind, record))
+        if any(event.startswith("end") for event in step.events):
+            break
+    if output is not None:
+        collective(comm, lambda: write(output, scene, growth.kind, limit, tolerance, records), root_only=True)
+        draw(growth, records, output, pictures)
+    return records if comm.rank == 0 else None
+
+
+def draw(growth: Growth, records: list[Step], output: Path, pictures: int) -> None:
+    """The deformed structure at ``pictures`` steps spread over the run (the last included), each solved
+    again, at one magnification (the last step's)."""
+    from ddsolve.post import plots
+
+    chosen = sorted({int(round(k)) for k in np.linspace(len(records) - 1, 0, pictures, endpoint=False)})
+    scale = None
+    for index in reversed(chosen):
+        state = records[index].state
+        result = growth.result(state.cracks, state.control)
+        path = output.with_name(f"{output.stem}-step{index}.png")
+        scale = collective(growth.comm, lambda: plots.deformed_layers(result, path, scale), root_only=True)
+        scale = growth.comm.bcast(scale, root=0)
+
+
+def line(number: int, total: int, kind: str, step: Step) -> str:
+    state = step.state
+    ratios = ", ".join(f"{g:.4e} ({r:.3f} G_c)" for g, r in zip(state.G, state.ratio))
+    what = "; ".join(step.events)
+    return (f"grow {number}/{total}: {kind} factor {state.control:.6g}, load {state.load:.6e}, displacement "
+            f"{state.displacement:.6e}; cracks {describe(state.cracks)}; G {ratios or 'none'}"
+            + (f"; {what}" if what else "") + f"; {step.solves} solves")
+
+
+def write(path: Path, scene: Scene, kind: str, limit: float, tolerance: float, steps: list[Step]) -> None:
+    """One HDF5 file with every step (``/growth/...``, see docs/growth.md)."""
+    import h5py
+
+    from ddsolve.io.safe import atomic
+    from ddsolve.parallel.launch import provenance
+
+    count = len(steps)
+    cracks = max(len(s.state.cracks) for s in steps)
+    tips = max(len(s.state.G) for s in steps)
+
+    def per_tip(name: str) -> np.ndarray:
+        out = np.full((count, tips), np.nan)
+        for i, s in enumerate(steps):
+            values = getattr(s.state, name)
+            out[i, :len(values)] = values
+        return out
+
+    def body(name: str) -> None:
+        with h5py.File(name, "w") as f:
+            for key, value in {**provenance(), "scene": scene.origin, "scene_text": scene.text, "control_kind": kind,
+                               "limit": limit, "tolerance": tolerance, "steps": count}.items():
+                f.attrs[key] = value
+            g = f.create_group("growth")
+            g["control"] = np.array([s.state.control for s in steps])
+            g["load"] = np.array([s.state.load for s in steps])
+            g["displacement"] = np.array([s.state.displacement for s in steps])
+            g["energy"] = np.array([s.state.energy for s in steps])
+            table = np.full((count, cracks, 2), np.nan)
+            for i, s in enumerate(steps):
+                table[i, :len(s.state.cracks)] = s.state.cracks
+            g["cracks"] = table
+            for name in ("G", "G_I", "G_II", "G_c", "tips"):
+                g[name] = per_tip(name)
+            g["unstable"] = np.array([s.unstable for s in steps])
+            g["solves"] = np.array([s.solves for s in steps], dtype=np.int64)
+            g["events"] = np.array(["; ".join(s.events) for s in steps], dtype=h5py.string_dtype())
+
+    atomic(path, body, final=True)
+
+
+def read(path: Path) -> dict:
+    """A growth file as a dict: ``attrs`` and the ``/growth`` datasets by name."""
+    import h5py
+
+    from ddsolve.problem.scene import readable
+
+    path = readable(path, "growth file")
+    try:
+        with h5py.File(path, "r") as f:
+            out = {name: f["growth"][name][()] for name in f["growth"]}
+            out["attrs"] = dict(f.attrs)
+    except (OSError, KeyError) as exc:
+        raise DDSolveError(f"{path}: not a growth file ({exc})") from None
+    out["events"] = np.array([e.decode() if isinstance(e, bytes) else e for e in out["events"]])
+    return out

@@ -1,0 +1,170 @@
+"""Crack growth along Σ (ddsolve.solvers.grow): DCB and ENF against corrected beam theory, stability,
+the step size, merging cracks, the file, bad input, and the command on two ranks."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from conftest import MATERIALS, ddsolve, refused
+
+from ddsolve.errors import SceneError
+from ddsolve.experiments import delamination as beams
+from ddsolve.experiments import growth as experiment
+from ddsolve.post import toughness
+from ddsolve.problem import expressions
+from ddsolve.problem.scene import Scene
+from ddsolve.solvers import grow
+
+#: Coarse P2 strips: the DCB's stable branch still follows corrected beam theory to well under 1 %.
+SIZE = 0.25
+MODULUS = beams.summed_modulus(beams.LAYERS["identical"])
+
+
+def comm():
+    from mpi4py import MPI
+
+    return MPI.COMM_SELF
+
+
+def quiet(_line: str) -> None:
+    pass
+
+
+def test_scaled_scene_scales_every_mechanical_action():
+    scene = Scene.load("partial-closure", ["mesh.sigma_vertices=13", "mesh.boundary_vertices=16"])
+    scaled = scene.scaled(2.5)
+    x, y = np.linspace(-1, 1, 7), np.linspace(-1, 1, 7)
+    for key, load in scene.loads.items():
+        for name in ("x", "y", "pressure"):
+            part = getattr(load, name)
+            if part is not None:
+                assert np.allclose(getattr(scaled.loads[key], name)(x, y), 2.5 * part(x, y), rtol=1e-15)
+    assert expressions.scaled(expressions.parse("x^2 + y"), 3.0).degree == 2
+
+
+def test_dcb_opening_grows_stably_on_corrected_beam_theory(tmp_path):
+    scene = experiment.dcb(tmp_path, SIZE, "displacement")
+    limit = experiment.dcb_opening(9.0, MODULUS, experiment.G_IC)
+    steps = grow.grow(scene, comm(), limit, 6, 1e-4, progress=quiet, output=tmp_path / "dcb.h5")
+    grown = [s for s in steps if s.state.cracks[0][1] > experiment.DCB_CRACK + 1e-9]
+    assert len(grown) >= 3 and not any(s.unstable for s in steps)
+    for s in grown:
+        a = s.state.cracks[0][1]
+        assert abs(s.state.G[0] / experiment.G_IC - 1) <= 1e-4
+        assert abs(s.state.load / experiment.dcb_load(a, MODULUS, experiment.G_IC) - 1) < 0.01
+        assert abs(a / experiment.dcb_length(s.state.displacement, MODULUS, experiment.G_IC) - 1) < 0.01
+    # the initiation step equals the critical factor a plain solve gives
+    from ddsolve.solvers import driver
+
+    result = driver.solve(scene, comm(), None, progress=quiet)
+    factor = toughness.critical_factor(result.fracture.G, toughness.resistance(scene, result.fracture))
+    initiation = next(s for s in steps if s.events and s.events[0].startswith("initiation"))
+    assert initiation.state.control == pytest.approx(float(factor.min()), rel=1e-6)
+    data = grow.read(tmp_path / "dcb.h5")
+    count = len(steps)
+    assert data["control"].shape == data["load"].shape == data["energy"].shape == (count,)
+    assert data["cracks"].shape == (count, 1, 2) and data["G"].shape == (count, 1)
+    assert data["attrs"]["control_kind"] == "displacement"
+    # work: the energy is ½ load·displacement (Clapeyron, displacement control: Π = U)
+    assert np.allclose(data["energy"], 0.5 * data["load"] * data["displacement"], rtol=1e-6, atol=0.0)
+
+
+def test_dcb_under_load_runs_away_at_initiation(tmp_path):
+    scene = experiment.dcb(tmp_path, SIZE, "load")
+    limit = 1.5 * experiment.dcb_load(experiment.DCB_CRACK, MODULUS, experiment.G_IC)
+    steps = grow.grow(scene, comm(), limit, 3, 1e-4, progress=quiet)
+    initiation = next(s for s in steps if s.events and s.events[0].startswith("initiation"))
+    assert initiation.unstable and initiation.events == ["initiation (unstable)"]
+    assert initiation.state.load == pytest.approx(experiment.dcb_load(experiment.DCB_CRACK, MODULUS,
+                                                                       experiment.G_IC), rel=0.01)
+    assert "a support at arc length 20" in steps[-1].events[-1]
+
+
+def test_the_step_size_does_not_move_the_branch(tmp_path):
+    scene = experiment.dcb(tmp_path, SIZE, "displacement")
+    limit = experiment.dcb_opening(8.0, MODULUS, experiment.G_IC)
+    ends = [grow.grow(scene, comm(), limit, steps, 1e-5, progress=quiet)[-1].state for steps in (2, 5)]
+    assert ends[0].control == ends[1].control
+    assert ends[0].cracks[0][1] == pytest.approx(ends[1].cracks[0][1], rel=1e-4)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("ratio, unstable", [(0.5, True), (0.8, False)])
+def test_enf_is_unstable_below_a_over_L_0_7(tmp_path, ratio, unstable):
+    scene = experiment.enf(tmp_path, ratio, SIZE)
+    a = ratio * 0.5 * beams.SPAN
+    limit = 1.2 * experiment.enf_deflection_guess(a, MODULUS)
+    steps = grow.grow(scene, comm(), limit, 2, 1e-4, progress=quiet)
+    initiation = next(s for s in steps if s.events and s.events[0].startswith("initiation"))
+    assert initiation.unstable == unstable
+    assert steps[-1].state.cracks[0][1] > a
+    assert abs(initiation.state.G_I[0]) <= 1e-3 * initiation.state.G[0]  # mode II, faces in contact
+
+
+def test_two_disbonds_merge(tmp_path):
+    text = """
+[geometry]
+box = [0.0, 6.0, -0.5, 0.5]
+cracks = [[0.5, 2.8], [3.2, 5.5]]
+clamped = ["left", "right"]
+[mesh]
+size = 0.1
+""" + MATERIALS + """
+[loads.layer1.top]
+pressure = "-1e-3*exp(-20*(x - 3)^2)"
+[loads.layer2.top]
+pressure = "-1e-3*exp(-20*(x - 3)^2)"
+[fracture]
+toughness = 1e-9
+"""
+    (tmp_path / "disbonds.toml").write_text(text)
+    scene = Scene.load(tmp_path / "disbonds.toml")
+    steps = grow.grow(scene, comm(), 1.0, 2, 1e-3, progress=quiet)
+    assert any("merge" in event for s in steps for event in s.events)
+    assert len(steps[-1].state.cracks) == 1
+
+
+def test_bad_input_is_one_line(tmp_path):
+    scene = experiment.dcb(tmp_path, SIZE, "displacement")
+    for limit, steps, tolerance, fragment in ((0.0, 4, 1e-4, "--to"), (math.nan, 4, 1e-4, "--to"),
+                                              (1.0, 0, 1e-4, "--steps"), (1.0, 4, 2.0, "--tolerance")):
+        with pytest.raises(SceneError, match=fragment):
+            grow.grow(scene, comm(), limit, steps, tolerance, progress=quiet)
+    with pytest.raises(SceneError, match="no toughness"):
+        grow.Growth(Scene.load("partial-closure", ["mesh.sigma_vertices=13", "mesh.boundary_vertices=16"]),
+                    comm())
+    mixed = Scene.load(tmp_path / "dcb-displacement-0.25.toml",
+                       ["loads.layer1.top.y=1.0"])
+    with pytest.raises(SceneError, match="loads.layer1.top.*displacements"):
+        grow.control_kind(mixed)
+
+
+@pytest.mark.mpi
+def test_grow_command_on_two_ranks(tmp_path):
+    experiment.dcb(tmp_path, SIZE, "displacement")  # writes the scene and its .geo
+    limit = experiment.dcb_opening(7.5, MODULUS, experiment.G_IC)
+    output = tmp_path / "dcb.h5"
+    completed = ddsolve("grow", "-n", "2", str(tmp_path / "dcb-displacement-0.25.toml"), "--to", repr(limit),
+                        "--steps", "3", "--pictures", "2", "-o", str(output))
+    assert "initiation" in completed.stdout and "stable growth" in completed.stdout
+    assert output.with_suffix(".png").stat().st_size > 0
+    assert len(list(tmp_path.glob("dcb-step*.png"))) == 2
+    data = grow.read(output)
+    assert data["cracks"][-1, 0, 1] > experiment.DCB_CRACK
+    bad = ddsolve("grow", str(tmp_path / "dcb-displacement-0.25.toml"), "--to", "-1", check=False)
+    refused(bad, 1, "--to")
+
+
+def test_a_temperature_change_is_kept_while_the_opening_rises(tmp_path):
+    """With a fixed temperature change the initiation factor comes from the root solve over scaled scenes
+    (the prescribed opening's Σ values scaled with it); a fresh solve there is critical, and growth follows."""
+    experiment.dcb(tmp_path, SIZE, "displacement")
+    text = (tmp_path / "dcb-displacement-0.25.toml").read_text()
+    text = text.replace("nu = 0.28\n", "nu = 0.28\nalpha = 1e-5\n", 1) + "[temperature]\nlayer1 = 2.0\nlayer2 = 0.0\n"
+    (tmp_path / "thermal.toml").write_text(text)
+    scene = Scene.load(tmp_path / "thermal.toml")
+    steps = grow.grow(scene, comm(), experiment.dcb_opening(7.0, MODULUS, experiment.G_IC), 2, 1e-4, progress=quiet)
+    initiation = next(s for s in steps if s.events and s.events[0].startswith("initiation"))
+    assert 0.0 < initiation.state.control and abs(initiation.state.ratio[0] - 1.0) <= 1e-6
+    assert steps[-1].state.cracks[0][1] > experiment.DCB_CRACK
