@@ -405,6 +405,8 @@ def grow(scene: Scene, comm, limit: float, steps: int, tolerance: float = 1e-4,
             records[-1].events = ["initiation (unstable)"]
         if control != initiation or step.events:
             records.append(step)
+        else:  # a stable initiation: its trial advance's solve counts with it
+            records[-1].solves += step.solves
         if comm.rank == 0:
             for record in records[before:]:
                 progress(line(number, len(controls), growth.kind, record))
