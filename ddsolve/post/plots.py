@@ -274,11 +274,13 @@ def growth_curves(growth: dict, path: Path) -> None:
     ax = axes[2]
     ratio = growth["G"] / growth["G_c"]
     tips = growth["tips"]
+    # the length of the crack each tip ends (steps, tips, cracks: the tip within the crack's interval)
+    inside = (cracks[:, None, :, 0] <= tips[:, :, None] + 1e-9) & (tips[:, :, None] - 1e-9 <= cracks[:, None, :, 1])
+    owner = np.broadcast_to(lengths[:, None, :], inside.shape)
+    tip_lengths = np.where(inside.any(axis=2),
+                           np.take_along_axis(owner, inside.argmax(axis=2)[..., None], axis=2)[..., 0], np.nan)
     for t in range(ratio.shape[1]):
-        crack = np.array([np.flatnonzero((row[:, 0] <= s + 1e-9) & (s - 1e-9 <= row[:, 1]))[:1] for row, s in
-                          zip(cracks, tips[:, t])], dtype=object)
-        length = np.array([lengths[i, k[0]] if len(k) else np.nan for i, k in enumerate(crack)])
-        ax.plot(length, ratio[:, t], marker="o", markersize=3, linestyle="none", label=f"tip {t + 1}")
+        ax.plot(tip_lengths[:, t], ratio[:, t], marker="o", markersize=3, linestyle="none", label=f"tip {t + 1}")
     ax.axhline(1.0, color="k", linewidth=0.8)
     ax.set_xlabel(f"crack length ({LENGTH})")
     ax.set_ylabel("G / G_c")

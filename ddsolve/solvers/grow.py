@@ -99,6 +99,8 @@ def control_kind(scene: Scene) -> str:
         raise SceneError("grow: the scene has no load and no non-zero prescribed displacement to scale")
     if moving:
         for d in scene.displacements.values():
+            if d.normal is not None and d.key in moving:
+                raise SceneError(f"grow: {d.key}.normal: displacement control takes x and y components")
             for name in ("x", "y", "normal"):
                 part = getattr(d, name)
                 if part is not None and not part.constant:
@@ -121,10 +123,8 @@ def conjugate(scene: Scene, kind: str, mesh: Mesh, solution: dict[str, np.ndarra
     work = 0.0
     for (layer, name), prescribed in scene.displacements.items():
         reaction = forces.get(layer, {}).get(name)
-        if reaction is None:
+        if reaction is None or prescribed.normal is not None:  # a zero normal component does no work
             continue
-        if prescribed.normal is not None:
-            raise SceneError(f"grow: {prescribed.key}.normal: displacement control takes x and y components")
         values = [0.0 if part is None else float(part(0.0, 0.0)) for part in (prescribed.x, prescribed.y)]
         work += float(np.dot(reaction, values))
     return work
@@ -170,19 +170,18 @@ class Growth:
                        G_II=unit.G_II * factor ** 2, energy=unit.energy * factor ** 2, load=unit.load * factor,
                        displacement=unit.displacement * factor)
 
-    def result(self, cracks: tuple, control: float):
-        """The whole result of ``cracks`` at ``control`` (rank 0; None elsewhere)."""
+    def result(self, mesh: Mesh, control: float):
+        """The whole result on ``mesh`` (from :meth:`mesh_for`) at ``control`` (rank 0; None elsewhere)."""
         from ddsolve.solvers import driver
 
-        result = driver.solve(self.scene.scaled(control), self.comm, None, progress=lambda line: None,
-                              mesh=self.mesh_for(cracks))
+        result = driver.solve(self.scene.scaled(control), self.comm, None, progress=lambda line: None, mesh=mesh)
         self.solves += 1
         return result
 
     def solve(self, cracks: tuple, control: float) -> State:
         """A solve of ``cracks`` at ``control``, its numbers on every rank."""
         mesh = self.mesh_for(cracks)
-        result = self.result(cracks, control)
+        result = self.result(mesh, control)
         state = collective(self.comm, lambda: self.numbers(mesh, cracks, control, result), root_only=True)
         return self.comm.bcast(state, root=0)
 
@@ -277,7 +276,6 @@ class Growth:
         trial = {i: min(FIRST_ADVANCE * start.spacing[i], limits[i][0]) for i in growing}
         last = {i: 0 for i in growing}  # the side regula falsi moved last (Illinois halves the other's f)
         settled: dict[int, float] = {}
-        state = start
         for iteration in range(MAX_ITERATIONS):
             proposal = self.comm.bcast({**trial, **settled} if self.comm.rank == 0 else None, root=0)
             trial_cracks = self.advanced(cracks, start, proposal)
@@ -287,8 +285,8 @@ class Growth:
                 step.events.append(f"cracks merge: {describe(trial_cracks)}")
                 return trial_cracks, step
             values = self.match(start, state, proposal)
-            if iteration == 0 and any(values[i] > f_low[i] for i in trial):
-                step.unstable = True
+            # while bracketing, G rising with the advance at this control is unstable growth
+            step.unstable |= any(i not in bracket and values[i] > f_low[i] for i in trial)
             if probe and iteration == 0:
                 stable = [i for i in trial if values[i] <= f_low[i]]
                 if len(stable) == len(trial):
@@ -304,8 +302,7 @@ class Growth:
                     del trial[i]
                     continue
                 if f > 0.0:
-                    if i not in bracket:  # still bracketing: G rising with the advance is unstable growth
-                        step.unstable |= f > f_low[i]
+                    if i not in bracket:  # still bracketing
                         if x >= limits[i][0] * (1.0 - 1e-12):
                             step.state = state
                             step.events.append(f"end: a tip reached {limits[i][1]}")
@@ -427,7 +424,7 @@ def draw(growth: Growth, records: list[Step], output: Path, pictures: int) -> No
     scale = None
     for index in reversed(chosen):
         state = records[index].state
-        result = growth.result(state.cracks, state.control)
+        result = growth.result(growth.mesh_for(state.cracks), state.control)
         path = output.with_name(f"{output.stem}-step{index}.png")
         scale = collective(growth.comm, lambda: plots.deformed_layers(result, path, scale), root_only=True)
         scale = growth.comm.bcast(scale, root=0)
