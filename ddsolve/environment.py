@@ -35,6 +35,7 @@ PACKAGES = {
     "numpy": ("python3-numpy", "numpy"),
     "meshio": ("python3-meshio", "meshio"),
     "matplotlib": ("python3-matplotlib", "matplotlib"),
+    "scipy": ("python3-scipy", "scipy"),
     "tomli": ("python3-tomli", "tomli"),
 }
 

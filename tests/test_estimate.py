@@ -134,3 +134,36 @@ def test_compare_on_different_meshes_interpolates_the_coarse_solution(degree):
     distance = analysis.compare(coarse, fine).energy_error
     expected = np.sqrt(coarse.attrs["error_estimate"] ** 2 - fine.attrs["error_estimate"] ** 2)
     assert 0.7 < distance / expected < 1.4
+
+
+def test_locate_agrees_with_a_trapezoid_map_on_a_graded_mesh_with_a_hole():
+    """Point location by the nearest cells: same inside/outside verdicts as matplotlib's exact trapezoid
+    map, each found cell holds its point, on a strongly graded mesh with a hole and points off the mesh."""
+    from types import SimpleNamespace
+
+    from matplotlib.tri import Triangulation
+
+    t = np.linspace(0.0, 1.0, 41) ** 3  # spacing from 1.6e-5 to 0.07
+    x, y = np.meshgrid(t, t)
+    index = np.arange(41 * 41).reshape(41, 41)
+    a, b, c, d = index[:-1, :-1].ravel(), index[:-1, 1:].ravel(), index[1:, :-1].ravel(), index[1:, 1:].ravel()
+    corners = np.concatenate([np.column_stack([a, b, d]), np.column_stack([a, d, c])])
+    points = np.column_stack([x.ravel(), y.ravel()])
+    centre = points[corners].mean(axis=1)
+    corners = corners[np.hypot(*(centre - 0.6).T) > 0.2]  # the hole
+    rng = np.random.default_rng(3)
+    queries = np.concatenate([rng.uniform(-0.1, 1.1, (3000, 2)), rng.uniform(0.0, 0.01, (2000, 2)), points])
+    half = SimpleNamespace(points=points, corners=corners)
+    cell, outside = analysis.locate(half, queries)
+    exact = Triangulation(points[:, 0], points[:, 1], corners).get_trifinder()(queries[:, 0], queries[:, 1])
+    found = exact >= 0
+    assert np.all(outside[found] == False) and np.count_nonzero(~found) > 500  # noqa: E712
+    triangles = points[corners[cell[found]]]
+    first, second, offset = (triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0],
+                             queries[found] - triangles[:, 0])
+    det = first[:, 0] * second[:, 1] - first[:, 1] * second[:, 0]
+    s = (offset[:, 0] * second[:, 1] - offset[:, 1] * second[:, 0]) / det
+    r = (first[:, 0] * offset[:, 1] - first[:, 1] * offset[:, 0]) / det
+    assert min(s.min(), r.min(), (1.0 - s - r).min()) > -1e-9
+    far = ~found & ((queries < -0.01) | (queries > 1.01)).any(axis=1)
+    assert np.all(outside[far])

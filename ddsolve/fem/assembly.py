@@ -17,8 +17,8 @@ import numpy as np
 
 from ddsolve.errors import SceneError
 from ddsolve.fem import supports
-from ddsolve.mesh.element import (TRIANGLE_RULES, edge_points, edge_shapes, element_geometry, gauss_interval,
-                                  shape_functions)
+from ddsolve.mesh.element import (TRIANGLE_RULES, edge_points, edge_shapes, element_geometry, field_gradients,
+                                  gauss_interval, shape_functions)
 from ddsolve.mesh.mesh import BLOCKS, HalfMesh, Mesh, SigmaLine
 from ddsolve.problem import materials
 from ddsolve.problem.expressions import Expression
@@ -526,14 +526,23 @@ def csr_matvec(system: BlockSystem, x: np.ndarray) -> np.ndarray:
 
 
 # --- fields of a solution ---------------------------------------------------------------------------
-def cell_strains(points: np.ndarray, cells: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per cell: area ``(m,)`` and mean strain (εxx, εyy, γxy) ``(m, 3)`` of the field u ``(n, 2)``."""
+def voigt_strain(grad_u: np.ndarray) -> np.ndarray:
+    """(εxx, εyy, γxy) ``(..., 3)`` from the displacement gradient ``(..., 2, 2)`` (u_d,e)."""
+    return np.stack([grad_u[..., 0, 0], grad_u[..., 1, 1], grad_u[..., 0, 1] + grad_u[..., 1, 0]], axis=-1)
+
+
+def quadrature_strains(points: np.ndarray, cells: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """det J × weight ``(m, q)`` and the strain ``(m, q, 3)`` of the field u ``(n, 2)`` at the element rule's points."""
     xi, weights = TRIANGLE_RULES[cells.shape[1]]
     det, gradients = element_geometry(points, cells, xi)
-    local = u.reshape(-1)[element_dofs(cells)]
-    strain = np.einsum("mqij,mj->mqi", strain_operator(gradients), local)
-    area = det @ weights
-    return area, np.einsum("mq,q,mqi->mi", det, weights, strain) / area[:, None]
+    return det * weights, voigt_strain(field_gradients(u[cells], gradients))
+
+
+def cell_strains(points: np.ndarray, cells: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per cell: area ``(m,)`` and mean strain (εxx, εyy, γxy) ``(m, 3)`` of the field u ``(n, 2)``."""
+    volume, strain = quadrature_strains(points, cells, u)
+    area = volume.sum(axis=1)
+    return area, np.einsum("mq,mqi->mi", volume, strain) / area[:, None]
 
 
 def energy(points: np.ndarray, cells: np.ndarray, D: np.ndarray, u: np.ndarray) -> float:
@@ -543,10 +552,8 @@ def energy(points: np.ndarray, cells: np.ndarray, D: np.ndarray, u: np.ndarray) 
 
 def cell_energies(points: np.ndarray, cells: np.ndarray, D: np.ndarray, u: np.ndarray) -> np.ndarray:
     """Per cell ∫ ε(u)ᵀ D ε(u) (twice the strain energy of the cell)."""
-    xi, weights = TRIANGLE_RULES[cells.shape[1]]
-    det, gradients = element_geometry(points, cells, xi)
-    strain = np.einsum("mqij,mj->mqi", strain_operator(gradients), u.reshape(-1)[element_dofs(cells)])
-    return np.einsum("mq,q,mqi,ij,mqj->m", det, weights, strain, D, strain)
+    volume, strain = quadrature_strains(points, cells, u)
+    return np.einsum("mq,mqi->m", volume, (strain @ D) * strain)
 
 
 def cell_stresses(D: np.ndarray, c: np.ndarray, strain: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -87,8 +87,16 @@ def element_geometry(points: np.ndarray, cells: np.ndarray, xi: np.ndarray) -> t
     """At reference points ``xi``: det J ``(m, q)`` and physical gradients ``(m, q, k, 2)``."""
     _, reference = shape_functions(cells.shape[1], xi)
     nodes = points[cells]  # (m, k, 2)
-    jacobian = np.einsum("mkd,qke->mqde", nodes, reference)  # dx_d/dξ_e
+    jacobian = np.matmul(nodes.transpose(0, 2, 1)[:, None], reference)  # (m, q, d, e) = dx_d/dξ_e
     det = jacobian[..., 0, 0] * jacobian[..., 1, 1] - jacobian[..., 0, 1] * jacobian[..., 1, 0]
-    inverse = np.stack([np.stack([jacobian[..., 1, 1], -jacobian[..., 0, 1]], -1),
-                        np.stack([-jacobian[..., 1, 0], jacobian[..., 0, 0]], -1)], -2) / det[..., None, None]
-    return det, np.einsum("qke,mqed->mqkd", reference, inverse)
+    inverse = np.empty_like(jacobian)  # (m, q, e, d) = dξ_e/dx_d
+    inverse[..., 0, 0], inverse[..., 1, 1] = jacobian[..., 1, 1], jacobian[..., 0, 0]
+    inverse[..., 0, 1], inverse[..., 1, 0] = -jacobian[..., 0, 1], -jacobian[..., 1, 0]
+    inverse /= det[..., None, None]
+    return det, np.matmul(reference, inverse)  # (m, q, k, d)
+
+
+def field_gradients(values: np.ndarray, gradients: np.ndarray) -> np.ndarray:
+    """``(m, q, c, 2)``: ∂v_c/∂x_d at the points of :func:`element_geometry`'s physical ``gradients``
+    ``(m, q, k, 2)`` for the nodal values ``(m, k, c)`` of each cell."""
+    return np.matmul(values.transpose(0, 2, 1)[:, None], gradients)

@@ -150,29 +150,87 @@ def tolerance_of(result: Result) -> float:
 ON_BOUNDARY = 0.1
 
 
+#: Nearest cell centroids tried for a point, growing by 4× up to the last: a point of a graded mesh is
+#: almost always in one of the first few; the rest go to an exact trapezoid map.
+CANDIDATES = (8, 32, 128)
+
+
+def _containing_cells(points: np.ndarray, corners: np.ndarray, queries: np.ndarray) -> np.ndarray:
+    """The cell (straight triangle ``corners``) holding each of ``queries`` (q, 2), −1 for none: the
+    cells of the nearest centroids (a k-d tree) are tested by barycentric coordinates, the few points
+    they miss by matplotlib's trapezoid map (building that map costs 30× the tree on a large mesh)."""
+    from scipy.spatial import cKDTree
+
+    triangles = points[corners]  # (m, 3, 2)
+    origin = triangles[:, 0]
+    first, second = triangles[:, 1] - origin, triangles[:, 2] - origin
+    det = first[:, 0] * second[:, 1] - first[:, 1] * second[:, 0]
+    tree = cKDTree(triangles.mean(axis=1))
+    cell = np.full(len(queries), -1, dtype=np.int64)
+    todo = np.arange(len(queries))
+    for k in CANDIDATES:
+        if not len(todo):
+            break
+        k = min(k, len(corners))
+        candidates = tree.query(queries[todo], k=k)[1].reshape(len(todo), k)  # (t, k)
+        offset = queries[todo, None, :] - origin[candidates]
+        s = (offset[..., 0] * second[candidates, 1] - offset[..., 1] * second[candidates, 0]) / det[candidates]
+        t = (first[candidates, 0] * offset[..., 1] - first[candidates, 1] * offset[..., 0]) / det[candidates]
+        slack = -1e-12  # a point on an edge (a mirrored Σ node) belongs to either cell
+        inside = (s >= slack) & (t >= slack) & (s + t <= 1.0 - slack)
+        hit = inside.any(axis=1)
+        cell[todo[hit]] = candidates[hit, inside[hit].argmax(axis=1)]
+        todo = todo[~hit]
+    todo = todo[_in_polygon(queries[todo], points, boundary_edges(corners)[0])] if len(todo) else todo
+    if len(todo):  # inside the domain, yet in none of the nearest cells: a badly shaped mesh
+        from matplotlib.tri import Triangulation
+
+        finder = Triangulation(points[:, 0], points[:, 1], corners).get_trifinder()
+        cell[todo] = finder(queries[todo, 0], queries[todo, 1])
+    return cell
+
+
+def boundary_edges(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The edges ``(e, 2)`` of the triangles ``corners`` that belong to one triangle only (oriented as in
+    it) and that triangle ``(e,)``."""
+    edges = np.concatenate([corners[:, [0, 1]], corners[:, [1, 2]], corners[:, [2, 0]]])
+    _, first, count = np.unique(np.sort(edges, axis=1), axis=0, return_index=True, return_counts=True)
+    boundary = first[count == 1]
+    return edges[boundary], boundary % len(corners)
+
+
+def _in_polygon(queries: np.ndarray, points: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """Whether each of ``queries`` lies inside the region bounded by ``edges`` (even-odd rule, holes too)."""
+    start, end = points[edges[:, 0]], points[edges[:, 1]]
+    inside = np.zeros(len(queries), dtype=bool)
+    for chunk in np.array_split(np.arange(len(queries)), max(1, len(queries) * len(edges) // 1_000_000)):
+        x, y = queries[chunk, 0, None], queries[chunk, 1, None]
+        crosses = (start[:, 1] > y) != (end[:, 1] > y)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            at = start[:, 0] + (y - start[:, 1]) * (end[:, 0] - start[:, 0]) / (end[:, 1] - start[:, 1])
+        inside[chunk] = np.count_nonzero(crosses & (x < at), axis=1) % 2 == 1
+    return inside
+
+
 def locate(half, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The cell of ``half`` (straight triangles of its corners) holding each of ``points`` (q, 2) --
     for a point just outside it (within ON_BOUNDARY of the nearest boundary edge's length), the cell
     of that edge -- and whether each point lies outside the half's domain."""
-    from matplotlib.tri import Triangulation
-
     corners = half.corners
-    cell = Triangulation(half.points[:, 0], half.points[:, 1], corners).get_trifinder()(points[:, 0], points[:, 1])
+    cell = _containing_cells(half.points, corners, points)
     missed = np.flatnonzero(cell < 0)
     outside = np.zeros(len(points), dtype=bool)
     if len(missed):
-        edges = np.concatenate([corners[:, [0, 1]], corners[:, [1, 2]], corners[:, [2, 0]]])
-        _, first, count = np.unique(np.sort(edges, axis=1), axis=0, return_index=True, return_counts=True)
-        boundary = first[count == 1]  # edges of one cell only
-        start = half.points[edges[boundary, 0]]
-        along = half.points[edges[boundary, 1]] - start
+        edges, edge_cells = boundary_edges(corners)
+        start = half.points[edges[:, 0]]
+        along = half.points[edges[:, 1]] - start
         length = np.hypot(along[:, 0], along[:, 1])
-        for chunk in np.array_split(missed, max(1, len(missed) * len(boundary) // 1_000_000)):
+        for chunk in np.array_split(missed, max(1, len(missed) * len(edges) // 1_000_000)):
             offset = points[chunk, None, :] - start  # (q, e, 2)
             t = np.clip(np.einsum("qed,ed->qe", offset, along) / length ** 2, 0.0, 1.0)
             distance = np.linalg.norm(offset - t[..., None] * along, axis=2)
             nearest = np.argmin(distance, axis=1)
-            cell[chunk] = boundary[nearest] % len(corners)
+            cell[chunk] = edge_cells[nearest]
             outside[chunk] = distance[np.arange(len(chunk)), nearest] > ON_BOUNDARY * length[nearest]
     return cell, outside
 

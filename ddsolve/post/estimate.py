@@ -25,9 +25,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ddsolve.fem.assembly import elasticity, to_global, trace_nodes
-from ddsolve.mesh.element import (CELL_EDGES, cell_edges, edge_keys, edge_points, edge_shapes, gauss_interval,
-                                  shape_functions)
+from ddsolve.fem.assembly import elasticity, to_global, trace_nodes, voigt_strain
+from ddsolve.mesh.element import (CELL_EDGES, cell_edges, edge_keys, edge_points, edge_shapes, element_geometry,
+                                  field_gradients, gauss_interval, shape_functions)
 from ddsolve.mesh.mesh import BLOCKS, CRACK, HalfMesh, Mesh, SigmaLine
 from ddsolve.problem.scene import Scene
 
@@ -61,21 +61,10 @@ def _monomials(local: np.ndarray, degree: int) -> np.ndarray:
 
 def _strains_at(points: np.ndarray, cells: np.ndarray, u: np.ndarray, xi: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """At reference points ``xi``: positions ``(m, q, 2)``, det J ``(m, q)``, strains ``(m, q, 3)``.
-
-    The same isoparametric map as :func:`ddsolve.mesh.element.element_geometry`, written with matrix
-    products (this runs on every cell of every block after every solve)."""
-    values, reference = shape_functions(cells.shape[1], xi)  # (q, k), (q, k, 2)
-    nodes = points[cells]  # (m, k, 2)
-    jacobian = np.tensordot(nodes, reference, axes=([1], [1]))  # (m, d, q, e) = ∂x_d/∂ξ_e
-    derivative = np.tensordot(u[cells], reference, axes=([1], [1]))  # (m, i, q, e) = ∂u_i/∂ξ_e
-    a, b, c, d = jacobian[:, 0, :, 0], jacobian[:, 0, :, 1], jacobian[:, 1, :, 0], jacobian[:, 1, :, 1]
-    det = a * d - b * c  # (m, q)
-    # ∂u_i/∂x = (∂u_i/∂ξ d − ∂u_i/∂η c) / det, ∂u_i/∂y = (−∂u_i/∂ξ b + ∂u_i/∂η a) / det
-    dx = (derivative[..., 0] * d[:, None] - derivative[..., 1] * c[:, None]) / det[:, None]  # (m, i, q)
-    dy = (derivative[..., 1] * a[:, None] - derivative[..., 0] * b[:, None]) / det[:, None]
-    strain = np.stack([dx[:, 0], dy[:, 1], dy[:, 0] + dx[:, 1]], axis=-1)  # (m, q, 3)
-    return np.tensordot(nodes, values, axes=([1], [1])).transpose(0, 2, 1), det, strain
+    """At reference points ``xi``: positions ``(m, q, 2)``, det J ``(m, q)``, strains ``(m, q, 3)``."""
+    values, _ = shape_functions(cells.shape[1], xi)  # (q, k)
+    det, gradients = element_geometry(points, cells, xi)
+    return np.matmul(values, points[cells]), det, voigt_strain(field_gradients(u[cells], gradients))
 
 
 def _solve_spd(A: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -31,6 +31,7 @@ the tip's gluing forces (docs/fracture.md, "Modes I and II").  No PETSc or MPI h
 from __future__ import annotations
 
 import math
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -200,19 +201,19 @@ def volume_terms(half: HalfMesh, D: np.ndarray, u: np.ndarray, fields: list[np.n
         return out
     xi, weights = element.quadrature(cells.shape[1])
     det, gradients = element.element_geometry(half.points, cells, xi)
-    grad_u = np.einsum("mkd,mqke->mqde", u[cells], gradients)  # u_d,e
-    strain = np.stack([grad_u[..., 0, 0], grad_u[..., 1, 1], grad_u[..., 0, 1] + grad_u[..., 1, 0]], axis=-1)
+    grad_u = element.field_gradients(u[cells], gradients)  # u_d,e
+    strain = assembly.voigt_strain(grad_u)
     if thermal is not None:
         strain = strain - assembly.cell_temperatures(half.points, cells, thermal[1], xi)[..., None] * thermal[0]
     s = strain @ D.T
     stress = np.stack([np.stack([s[..., 0], s[..., 2]], -1), np.stack([s[..., 2], s[..., 1]], -1)], -2)
     density = 0.5 * np.sum(s * strain, axis=-1)
-    momentum = np.einsum("mqij,mqik->mqkj", stress, grad_u)  # σ_ij u_i,k
+    momentum = np.matmul(grad_u.swapaxes(-1, -2), stress)  # σ_ij u_i,k as (k, j)
     volume = det * weights
     for i, field in enumerate(fields):
-        grad_theta = np.einsum("mkd,mqke->mqde", field[cells], gradients)  # θ_k,j
-        integrand = np.einsum("mqkj,mqkj->mq", momentum, grad_theta) - density * (grad_theta[..., 0, 0]
-                                                                                   + grad_theta[..., 1, 1])
+        grad_theta = element.field_gradients(field[cells], gradients)  # θ_k,j
+        integrand = (momentum * grad_theta).sum(axis=(-1, -2)) - density * (grad_theta[..., 0, 0]
+                                                                           + grad_theta[..., 1, 1])
         if thermal is not None:
             integrand = integrand + eigenstrain_term(half, cells, xi, gradients, s, field, thermal)
         out[i] = float(np.sum(volume * integrand))
@@ -337,6 +338,7 @@ def mode_split(tips: list[Tip], result) -> dict[str, np.ndarray]:
     count = len(tips)
     out = {"G_I": np.full(count, np.nan), "G_II": np.full(count, np.nan), "phase": np.full(count, np.nan),
            "symmetric": np.zeros(count, dtype=bool)}
+    result = disc_result(result, tips)
     for i, tip in enumerate(tips):
         parts = mirror_split(tip, result)
         out["symmetric"][i] = parts is not None
@@ -459,6 +461,14 @@ def disc_part(half: HalfMesh, tips: list[Tip]) -> tuple[HalfMesh, np.ndarray]:
     position = np.full(len(half.points), -1, dtype=np.int64)
     position[kept] = np.arange(len(kept))
     return HalfMesh(half.points[kept], position[half.cells[near]], half.side, position[half.sigma]), kept
+
+
+def disc_result(result, tips: list[Tip]):
+    """``result`` on the :func:`disc_part` of each half: all the split into modes reads."""
+    parts = {half.side: disc_part(half, tips) for half in result.mesh.halves}
+    mesh = Mesh(parts[-1][0], parts[1][0], result.mesh.sigma, result.mesh.origin)
+    solution = {spec.name: result.solution[spec.name][parts[spec.side][1]] for spec in BLOCKS}
+    return dataclasses.replace(result, mesh=mesh, solution=solution, held=None)
 
 
 def mirrored_law(D: np.ndarray, reflection: np.ndarray) -> bool:

@@ -175,7 +175,8 @@ class OnRanks:
         return self.local.nbytes + sum(u.nbytes for u in self.solutions.values())
 
     def files(self, result: Result | None, output: Path) -> tuple[io.Part, viewer.Distributed]:
-        """This rank's part of the result file and of the viewer files (``result``: rank 0's)."""
+        """This rank's datasets of the result file and its share of the viewer files (``result``: rank 0's);
+        rank 0 adds the attributes once the launch's timings are complete."""
         local, exchange, comm = self.local, self.exchange, self.exchange.comm
         sigma, nodes = local.sigma, local.sigma.multiplier_nodes
         written = {side: min(b for b in exchange.led_blocks if BLOCKS[b].side == side)
@@ -211,7 +212,7 @@ class OnRanks:
                                             ceilings, plots.scale_for(float((high - low).max()), self.on.largest),
                                             plots.one_above_the_other(np.array([low, high])),
                                             analysis.sigma_is_graph(self.on))
-        return io.Part(datasets, io.attributes(result) if exchange.is_root else {}), viewer.Distributed(shares, script)
+        return io.Part(datasets), viewer.Distributed(shares, script)
 
 
 @dataclass
@@ -443,23 +444,15 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
         gathered = not distributed and exchange.is_root  # the whole mesh and every solution
         phases.hold("mesh", whole_bytes if gathered else local.nbytes)
         phases.hold("solutions", mine["held_bytes"] - (whole_bytes if gathered else local.nbytes))
-        phases.end("output")
-        memory = comm.gather((mine, phases), root=0)
         result = None
         if exchange.is_root:
-            timings = dict(phases.wall)
-            timings["update"] = timings["iterations"] - rounds.elapsed
-            timings["setup"] = sum(timings.get(name, 0.0) for name in ("meshing", "distribution", "assembly"))
-            for name in phases.cpu:  # CPU seconds of every rank together
-                timings[f"{name}_cpu"] = sum(ranked.cpu[name] for _, ranked in memory)
             record = dict(
                 converged=outcome.converged, iterations=outcome.iterations, solves=rounds.count,
-                wall_time=timings["factorization"] + timings["iterations"], ranks=comm.size,
-                history=np.array(outcome.history), timings=timings, message=outcome.message,
+                wall_time=phases.wall["factorization"] + phases.wall["iterations"], ranks=comm.size,
+                history=np.array(outcome.history), message=outcome.message,
                 active_set_changes=np.array(outcome.active_set_changes, dtype=np.int64),
-                memory=memory_record(memory, sum(sizes), whole_bytes),
                 attrs={**launch.provenance(), **local.quality, "stop": scene.solver.stop, "tol": scene.solver.tol,
-                       "peak_memory_mb": [max(ranked.peak.values()) for _, ranked in memory], **outcome.details})
+                       **outcome.details})
             if distributed:
                 result = Result(scene=scene.text, method=method, mesh=None, solution={},
                                 multipliers=shares.on.multipliers, held=shares.on, **record)
@@ -477,6 +470,19 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
             if exchange.is_root:
                 result.fracture = fracture.finish(local.tips, volume, shares.on, split, scene, factors)
             part, viewer = shares.files(result, output)
+        phases.end("output")  # G, its modes, the reactions and the files' contents included
+        memory = comm.gather((mine, phases), root=0)
+        if exchange.is_root:
+            timings = dict(phases.wall)
+            timings["update"] = timings["iterations"] - rounds.elapsed
+            timings["setup"] = sum(timings.get(name, 0.0) for name in ("meshing", "distribution", "assembly"))
+            for name in phases.cpu:  # CPU seconds of every rank together
+                timings[f"{name}_cpu"] = sum(ranked.cpu[name] for _, ranked in memory)
+            result.timings, result.memory = timings, memory_record(memory, sum(sizes), whole_bytes)
+            result.attrs["peak_memory_mb"] = [max(ranked.peak.values()) for _, ranked in memory]
+        if distributed:
+            if exchange.is_root:
+                part.attrs = io.attributes(result)
             written = time.perf_counter()
             io.write_distributed(output, part, viewer, comm, final=True)
         elif output is not None:
