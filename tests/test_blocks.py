@@ -151,3 +151,25 @@ def test_power_iteration_bound_is_the_largest_eigenvalue_of_the_dual_operator():
     dense = interface.dual_matrix(np.array(flexibilities)) / np.outer(sqrt_w, sqrt_w)
     expected = np.linalg.eigvalsh(dense).max()
     assert driver.bound(s, MPI.COMM_WORLD, mesh) == pytest.approx(expected, rel=1e-6)
+
+
+@pytest.mark.skipif(default_factor_package("mumps") != "mumps", reason="PETSc without MUMPS")
+@pytest.mark.parametrize("schur", [False, True], ids=["plain", "schur"])
+def test_out_of_core_factors_give_the_in_core_answers_and_leave_no_files(system, schur, tmp_path, monkeypatch):
+    """``out_of_core``: MUMPS writes the factors into MUMPS_OOC_TMPDIR, solves the same, and removes its
+    files when the block is destroyed; the code default leaves PETSc's option database as it was."""
+    monkeypatch.setenv("MUMPS_OOC_TMPDIR", str(tmp_path))
+    answers = []
+    for out_of_core in (False, True):
+        block = Block(system, factor_package="mumps")
+        block.factor(schur=schur, out_of_core=out_of_core)
+        if out_of_core:
+            assert any(tmp_path.iterdir())  # the factors are on disk while the block lives
+        x = block.solve(np.linspace(-1.0, 1.0, len(system.trace_dofs)), body=True).copy()
+        answers.append((x, block.schur_complement() if schur else None))
+        block.destroy()
+    assert not any(tmp_path.iterdir())
+    assert not PETSc.Options().hasName("u_minus_mat_mumps_icntl_22")
+    assert np.allclose(answers[1][0], answers[0][0], rtol=1e-12, atol=1e-15 * np.abs(answers[0][0]).max())
+    if schur:
+        assert np.allclose(answers[1][1], answers[0][1], rtol=1e-12, atol=1e-12 * np.abs(answers[0][1]).max())

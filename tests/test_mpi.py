@@ -190,3 +190,16 @@ def test_every_schur_complement_route_gives_the_same_answer(tmp_path):
         assert results[route].attrs["energy"] == pytest.approx(results["factorization"].attrs["energy"], rel=1e-10)
     refused(ddsolve("solve", "partial-closure", *SMALL, "-v_plus_schur_complement", "lu", "-o", str(tmp_path / "x.h5"),
                     ranks=2, check=False), 1, "-v_plus_schur_complement lu: unknown, use one of factorization")
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("method", ["schur", "feti"])
+def test_out_of_core_factors_solve_the_reference_problem(tmp_path, references, method):
+    """``solver.out_of_core = true`` on 4 ranks (and 8 for feti, whose blocks are then distributed): the
+    reference's answer, as in core."""
+    output = tmp_path / "ooc.h5"
+    ddsolve("solve", "partial-closure", *SMALL, *TIGHT[method], "--set", "solver.out_of_core=true", "-o", str(output),
+            ranks=8 if method == "feti" else 4)
+    result = io.read(output)
+    assert result.converged and result.parsed_scene.solver.out_of_core
+    assert analysis.compare(result, io.read(references["partial-closure"])).energy_error < 1e-8

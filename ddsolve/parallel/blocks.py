@@ -127,8 +127,9 @@ class Block:
     def is_direct(self) -> bool:
         return self.ksp.getType() == PETSc.KSP.Type.PREONLY and self.ksp.getPC().getType() in _FACTOR_TYPES
 
-    def factor(self, schur: bool = False) -> None:
-        """Set up the solver (factorization for direct solvers).
+    def factor(self, schur: bool = False, out_of_core: bool = False) -> None:
+        """Set up the solver (factorization for direct solvers); with ``out_of_core`` MUMPS keeps the factors
+        on disk (:data:`MUMPS_OUT_OF_CORE`).
 
         With ``schur``, the option ``-<block>_schur_complement`` (one of :data:`SCHUR_ROUTES`) says how
         :meth:`schur_complement` will get S.  ``factorization`` (the default; MUMPS, one rank): MUMPS
@@ -148,16 +149,17 @@ class Block:
                            and _petsc_c() is not None)
             self.route = route if whole_mumps else "solves"
         schur = schur and self.route == "factorization"
+        controls = {MUMPS_OUT_OF_CORE: 1} if out_of_core else {}
         try:
             if schur:
                 pc.setFactorSetUpSolverType()
                 trace = PETSc.IS().createGeneral(self.trace_dofs.astype(PETSc.IntType), comm=PETSc.COMM_SELF)
                 _call("MatFactorSetSchurIS", pc.getFactorMatrix().handle, trace.handle)
                 trace.destroy()
-                self.ksp.setUp()
             else:
-                with _default_ordering(self.ksp):
-                    self.ksp.setUp()
+                controls[MUMPS_ORDERING_CONTROL] = MUMPS_ORDERING
+            with _mumps_defaults(self.ksp, controls):
+                self.ksp.setUp()
             if schur:
                 # Copy S now: solves factor the stored Schur complement in place.  Factor it once here,
                 # otherwise every later solve factors it again.
@@ -168,9 +170,10 @@ class Block:
             raise SolverError(f"block {self.name}: solver setup failed: "
                               f"{petsc_failure(exc, self.ksp.getOptionsPrefix())}") from None
 
-    def factor_dirichlet(self) -> None:
+    def factor_dirichlet(self, out_of_core: bool = False) -> None:
         """Set up the Dirichlet problem: K with the trace dofs held (their rows and columns replaced by
-        the identity), KSP prefix ``<name>_dirichlet_``, for :meth:`dirichlet` (the FETI preconditioner)."""
+        the identity), KSP prefix ``<name>_dirichlet_``, for :meth:`dirichlet` (the FETI preconditioner);
+        ``out_of_core`` as for :meth:`factor`."""
         self._dirichlet_matrix = self.matrix.duplicate(copy=True)
         rows = (self.trace_rows + self.system.first).astype(PETSc.IntType)
         self._dirichlet_matrix.zeroRowsColumns(rows, diag=1.0)
@@ -184,7 +187,8 @@ class Block:
         self._dirichlet = ksp  # destroyed with the block, whatever happens below
         try:
             ksp.setFromOptions()
-            with _default_ordering(ksp):
+            with _mumps_defaults(ksp, {MUMPS_ORDERING_CONTROL: MUMPS_ORDERING,
+                                       **({MUMPS_OUT_OF_CORE: 1} if out_of_core else {})}):
                 ksp.setUp()
         except PETSc.Error as exc:
             raise SolverError(f"block {self.name}: Dirichlet problem setup failed (PETSc error {exc.ierr})") from None
@@ -543,24 +547,30 @@ def _petsc_c():
 #: several times faster than METIS's or PORD's (what MUMPS picks by itself) for the same fill: the
 #: whole factorization takes half the time (``./run bench factor``).  With a Schur complement
 #: MUMPS orders by AMD whatever is asked.  ``-<block>_mat_mumps_icntl_7`` overrides it.
-MUMPS_ORDERING = 2
+MUMPS_ORDERING_CONTROL, MUMPS_ORDERING = 7, 2
+
+
+#: MUMPS's out-of-core control: 1 keeps the factors in files (in ``MUMPS_OOC_TMPDIR``, else the system's
+#: temporary directory) and reads them back at every solve, so a rank holds about a third of the memory.
+MUMPS_OUT_OF_CORE = 22
 
 
 @contextlib.contextmanager
-def _default_ordering(ksp: PETSc.KSP):
-    """While the block is factored, ask MUMPS (if it factors this KSP's matrix) for :data:`MUMPS_ORDERING`
+def _mumps_defaults(ksp: PETSc.KSP, controls: dict[int, int]):
+    """While the block is factored, give MUMPS (if it factors this KSP's matrix) the ICNTL ``controls``
     unless the options say otherwise (MUMPS reads its controls from the options when it starts, at the
-    factorization); the option is removed from PETSc's database again afterwards."""
+    factorization); they are removed from PETSc's database again afterwards."""
     pc = ksp.getPC()
-    options, key = PETSc.Options(), f"{ksp.getOptionsPrefix() or ''}mat_mumps_icntl_7"
-    ours = (ksp.getType() == PETSc.KSP.Type.PREONLY and pc.getType() in _FACTOR_TYPES
-            and pc.getFactorSolverType() == "mumps" and not options.hasName(key))
-    if ours:
-        options[key] = MUMPS_ORDERING
+    options, prefix = PETSc.Options(), f"{ksp.getOptionsPrefix() or ''}mat_mumps_icntl_"
+    mumps = (ksp.getType() == PETSc.KSP.Type.PREONLY and pc.getType() in _FACTOR_TYPES
+             and pc.getFactorSolverType() == "mumps")
+    ours = [f"{prefix}{control}" for control in controls if mumps and not options.hasName(f"{prefix}{control}")]
+    for key in ours:
+        options[key] = controls[int(key[len(prefix):])]
     try:
         yield
     finally:
-        if ours:
+        for key in ours:
             options.delValue(key)
 
 

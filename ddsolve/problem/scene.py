@@ -140,6 +140,7 @@ class Solver:
     tol: float
     stop: str
     max_iterations: int
+    out_of_core: bool = False  # MUMPS keeps the blocks' factors on disk
 
 
 @dataclass(frozen=True)
@@ -487,6 +488,7 @@ SCHEMA: dict[str, Any] = {
         "tol": (_positive(_number), None),
         "stop": (_choice(STOP_RULES), None),
         "max_iterations": (_count(1), 20000),
+        "out_of_core": (_boolean, False),
     },
     "fracture": {"inner": (_positive(_number), None), "outer": (_positive(_number), None),
                  "toughness": (_toughness, None), "law": (_choice(tuple(LAWS)), None),

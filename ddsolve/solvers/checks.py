@@ -56,7 +56,7 @@ def unread(command: str, path: list[str], scene, ranks: int) -> str | None:
         if section in NOT_MESHING or path[:2] == ["mesh", "target_error"]:
             return "mesh makes the starting mesh only (solve, reference and sweep read the key)"
         return None
-    if section == "solver" and command == "reference":
+    if section == "solver" and command == "reference" and path[1:] != ["out_of_core"]:
         return ("it sets how solve and sweep iterate and bound their multipliers, and reference solves the discrete "
                 "problem exactly, without a bound")
     if section == "materials" and leaf == ["Dzz"] and scene.model == "plane_stress":

@@ -324,9 +324,9 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
             if index in floating:
                 make_floating(block, scene, local, index, fixed=method == "feti")
             if not (block.floating and method == "schur"):  # schur inverts a floating block's interior only
-                block.factor(schur=method == "schur")
+                block.factor(schur=method == "schur", out_of_core=scene.solver.out_of_core)
             if method == "feti" or block.floating:
-                block.factor_dirichlet()
+                block.factor_dirichlet(out_of_core=scene.solver.out_of_core)
 
     collective(comm, factor)
     hold_blocks(phases, blocks)

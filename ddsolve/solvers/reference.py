@@ -85,7 +85,7 @@ def solve(scene: Scene, mesh: Mesh, factors: np.ndarray | None = None) -> Result
         numbers = numbering(systems, interface, closed)
         block = Block(merged_system(systems, numbers))
         mark = time.perf_counter()
-        block.factor()
+        block.factor(out_of_core=scene.solver.out_of_core)
         factorization += time.perf_counter() - mark
         x = block.solve(np.zeros(0), body=True).copy()
         block.destroy()
