@@ -286,8 +286,9 @@ def index_type(largest: int):
 
 
 def pattern(half: HalfMesh, rows: tuple[int, int] | None = None) -> Pattern:
-    """The sparsity pattern of the half's blocks (or their ``rows``) from its node graph: one sort of
-    the cells' node pairs, expanded to 2×2 dof blocks without another sort."""
+    """The sparsity pattern of the half's blocks (or their ``rows``) from its node graph: one sort of the
+    cells' node pairs gives the graph's edges, which lie in their rows in order (row a: the edges (c, a),
+    c < a, by c; the diagonal; the edges (a, c), c > a, by c); expanded to 2×2 dof blocks."""
     n_nodes = len(half.points)
     first, last = rows if rows is not None else (0, 2 * n_nodes)
     first_node, last_node = first // 2, last // 2
@@ -296,44 +297,69 @@ def pattern(half: HalfMesh, rows: tuple[int, int] | None = None) -> Pattern:
         owned = np.zeros(n_nodes, dtype=bool)
         owned[first_node:last_node] = True
         cells = cells[owned[cells].any(axis=1)]
-    k = cells.shape[1]
+    m, k = cells.shape
     clamped = np.zeros(n_nodes, dtype=bool)
     clamped[half.clamped()] = True
-    a = np.repeat(cells, k, axis=1)  # (m, k²): row node of entry (α, β) = cells[α]
-    b = np.tile(cells, (1, k))  # column node = cells[β]
-    keep = (a >= first_node) & (a < last_node) & ((a == b) | ~(clamped[a] | clamped[b]))
-    keys = a[keep].astype(np.int64) * n_nodes + b[keep]
-    del b
-    unique, inverse = np.unique(keys, return_inverse=True)
-    del keys
-    node_position = np.full(a.shape, -1, dtype=np.int64)
-    node_position[keep] = inverse
-    del inverse, a
-    row, column = unique // n_nodes - first_node, unique % n_nodes
-    per_row = np.bincount(row, minlength=last_node - first_node)
-    row_start = np.concatenate([[0], np.cumsum(per_row)])  # node rows
+    alpha, beta = np.triu_indices(k, 1)  # the cell's node pairs α < β
+    a, b = cells[:, alpha], cells[:, beta]
+    keep = ~(clamped[a] | clamped[b])  # a clamped node keeps its own 2×2 block only
+    low, high = np.minimum(a, b)[keep].astype(np.int64), np.maximum(a, b)[keep]
+    edges, edge_of = np.unique(low * n_nodes + high, return_inverse=True)
+    del low, high
+    low, high = edges // n_nodes, edges % n_nodes  # sorted by (low, high)
+    below, above = np.bincount(high, minlength=n_nodes), np.bincount(low, minlength=n_nodes)
+    per_row = (below + 1 + above)[first_node:last_node]  # node entries per row
+    row_start = np.zeros(n_nodes + 1, dtype=np.int64)  # node entry of each row's first, rows in range
+    row_start[first_node + 1:last_node + 1] = np.cumsum(per_row)
+    row_start[last_node + 1:] = row_start[last_node]
+    first_above = np.concatenate([[0], np.cumsum(above)])
+    by_high = np.argsort(high, kind="stable")  # the entries (high, low) in their rows' order
+    first_below = np.concatenate([[0], np.cumsum(below)])
+    in_range = lambda r: (r >= first_node) & (r < last_node)  # noqa: E731
+    upper = np.where(in_range(low), row_start[low] + below[low] + 1 + np.arange(len(edges)) - first_above[low], -1)
+    lower = np.empty(len(edges), dtype=np.int64)
+    lower[by_high] = np.arange(len(edges)) - first_below[high[by_high]]
+    lower = np.where(in_range(high), row_start[high] + lower, -1)
+    nodes = np.arange(first_node, last_node)
+    diagonal = row_start[nodes] + below[nodes]
+    # node entry (row, column) of every element entry (α, β); -1 where it is dropped
+    node_position = np.full((m, k, k), -1, dtype=np.int64)
+    local = np.where(in_range(cells), cells, first_node)
+    node_position[:, np.arange(k), np.arange(k)] = np.where(in_range(cells), diagonal[local - first_node], -1)
+    forward = np.full(a.shape, -1, dtype=np.int64)  # entry (α, β), α < β: row a
+    backward = np.full(a.shape, -1, dtype=np.int64)  # entry (β, α): row b
+    ascending = (a < b)[keep]
+    forward[keep] = np.where(ascending, upper[edge_of], lower[edge_of])
+    backward[keep] = np.where(ascending, lower[edge_of], upper[edge_of])
+    node_position[:, alpha, beta], node_position[:, beta, alpha] = forward, backward
+    del forward, backward, edge_of, a, b
+    count = int(row_start[last_node] - row_start[first_node])
+    row = np.repeat(np.arange(last_node - first_node), per_row)
+    column = np.empty(count, dtype=np.int64)
+    base = row_start[first_node]
+    mine = upper >= 0
+    column[upper[mine] - base] = high[mine]
+    mine = lower >= 0
+    column[lower[mine] - base] = low[mine]
+    column[diagonal - base] = nodes
     indptr = np.concatenate([[0], np.cumsum(np.repeat(2 * per_row, 2))])  # dof rows: 2 entries per node entry
-    offset = 2 * (np.arange(len(unique)) - row_start[row])
+    offset = 2 * (np.arange(count) - (row_start[first_node:last_node] - base)[row])
     itype = index_type(max(2 * n_nodes, indptr[-1] + 1))
     indices = np.empty(indptr[-1], dtype=itype)
     for i in (0, 1):
         for j in (0, 1):
             indices[indptr[2 * row + i] + offset + j] = 2 * column + j
-    del unique, row, column, offset
+    del row, column, offset
     # Element entry (2α + i, 2β + j) -> indptr[2(a − first) + i] + 2·(node entry − row start) + j.
-    m = len(cells)
-    local = cells - first_node  # (m, k); rows outside the range are dropped
-    inside = (local >= 0) & (local < last_node - first_node)
-    local = np.where(inside, local, 0)
-    within = node_position.reshape(m, k, k) - row_start[local][:, :, None]  # (m, α, β)
-    row_first = indptr[2 * local][:, :, None]  # (m, α, 1): dof row 2a
-    row_length = (2 * per_row[local])[:, :, None]  # dof row 2a + 1 starts this much later
+    dropped = node_position < 0
+    local = local - first_node
+    # (m, α, β): dof row 2a's first entry + 2·(node entry − row start)
+    start = (indptr[2 * local][:, :, None] + 2 * (node_position - row_start[local + first_node][:, :, None])).astype(itype)
+    row_length = (2 * per_row[local])[:, :, None].astype(itype)  # dof row 2a + 1 starts this much later
     positions = np.empty((m, k, 2, k, 2), dtype=itype)
     for i in (0, 1):
         for j in (0, 1):
-            positions[:, :, i, :, j] = row_first + i * row_length + 2 * within + j
-    dropped = (node_position.reshape(m, k, k) < 0)
-    positions[np.broadcast_to(dropped[:, :, None, :, None], positions.shape)] = len(indices)
+            positions[:, :, i, :, j] = np.where(dropped, len(indices), start + (i * row_length + j))
     diagonal = clamped[cells]  # a clamped node's own block keeps its diagonal only
     off = np.zeros((m, k, 2, k, 2), dtype=bool)
     off[:, np.arange(k), 0, np.arange(k), 1] = diagonal

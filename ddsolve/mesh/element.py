@@ -84,7 +84,12 @@ def shape_functions(nodes: int, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 
 
 def element_geometry(points: np.ndarray, cells: np.ndarray, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """At reference points ``xi``: det J ``(m, q)`` and physical gradients ``(m, q, k, 2)``."""
+    """At reference points ``xi``: det J ``(m, q)`` and physical gradients ``(m, q, k, 2)`` (read-only views
+    for P1 cells, whose map is affine)."""
+    if cells.shape[1] == 3 and len(xi) > 1:  # straight P1 cells: one Jacobian per cell, the same at every point
+        det, gradients = element_geometry(points, cells, xi[:1])
+        return (np.broadcast_to(det, (len(cells), len(xi))),
+                np.broadcast_to(gradients, (len(cells), len(xi)) + gradients.shape[2:]))
     _, reference = shape_functions(cells.shape[1], xi)
     nodes = points[cells]  # (m, k, 2)
     jacobian = np.matmul(nodes.transpose(0, 2, 1)[:, None], reference)  # (m, q, d, e) = dx_d/dξ_e

@@ -110,6 +110,21 @@ def _chunks(count: int, size: int = CHUNK_CELLS):
     return (slice(start, min(start + size, count)) for start in range(0, count, size))
 
 
+def _add_counts(totals: np.ndarray, nodes: np.ndarray, weights: np.ndarray | None = None) -> None:
+    """``totals[..., v] += Σ weights[i]`` over the i with ``nodes[i]`` = v (or the count); ``weights`` ``(i,)``
+    or ``(c, i)`` for c rows of ``totals``.  Counted over the range of ``nodes`` only: a chunk of cells of a
+    mesh numbered by position touches a narrow range of nodes, and the whole length would cost O(n) per chunk."""
+    low, high = int(nodes.min(initial=0)), int(nodes.max(initial=-1)) + 1
+    if high <= low:
+        return
+    shifted = nodes - low
+    if weights is None or weights.ndim == 1:
+        totals[..., low:high] += np.bincount(shifted, weights, minlength=high - low)
+        return
+    for row, values in zip(totals, weights):
+        row[low:high] += np.bincount(shifted, values, minlength=high - low)
+
+
 def _sampled_strains(points: np.ndarray, cells: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Positions ``(m, s, 2)`` and strains ``(m, s, 3)`` at the sampling points of every cell."""
     xi = _SAMPLES[cells.shape[1]]
@@ -127,10 +142,12 @@ def _recover(points: np.ndarray, cells: np.ndarray, where: np.ndarray, strain: n
     b = 3 if degree == 1 else 6
     n = len(points)
     corners = cells[:, :3]
-    scale = np.zeros(n)
+    # The size of each vertex's patch: the root mean square over its cells of the farthest sampling point.
+    squares, cells_at = np.zeros(n), np.bincount(corners.ravel(), minlength=n)
     for chunk in _chunks(len(cells)):
         offsets = where[chunk, None, :, :] - points[corners[chunk]][:, :, None, :]  # (c, 3, s, 2)
-        np.maximum.at(scale, corners[chunk].ravel(), np.abs(offsets).max(axis=(2, 3)).ravel())
+        _add_counts(squares, corners[chunk].ravel(), (offsets ** 2).sum(axis=3).max(axis=2).ravel())
+    scale = np.sqrt(squares / np.maximum(cells_at, 1))
     # The patch normal equations Σ PPᵀ a = Σ P ε, summed per vertex (upper triangle of the symmetric part).
     upper = np.triu_indices(b)
     normal, moments = np.zeros((len(upper[0]), n)), np.zeros((3 * b, n))
@@ -141,11 +158,8 @@ def _recover(points: np.ndarray, cells: np.ndarray, where: np.ndarray, strain: n
         transposed = basis.transpose(0, 2, 1)
         pairs = (transposed @ basis)[:, upper[0], upper[1]]  # (3c, b(b+1)/2)
         products = (transposed @ strain[cell]).reshape(len(vertex), -1)  # (3c, 3b)
-        for j in range(len(normal)):
-            normal[j] += np.bincount(vertex, pairs[:, j], minlength=n)
-        for j in range(len(moments)):
-            moments[j] += np.bincount(vertex, products[:, j], minlength=n)
-    cells_at = np.bincount(corners.ravel(), minlength=n)
+        _add_counts(normal, vertex, pairs.T)
+        _add_counts(moments, vertex, products.T)
     patches = np.flatnonzero(cells_at)
     A = np.zeros((len(patches), b, b))
     for j, (row, column) in enumerate(zip(*upper)):
@@ -193,9 +207,8 @@ def _patch_means(points: np.ndarray, cells: np.ndarray, nodes, scale: np.ndarray
         local = (points[at] - points[vertex][:, None, :]) / scale[vertex][:, None, None]
         values = _monomials(local, degree) @ coefficients[vertex]  # (p, r, 3)
         flat = at.ravel()
-        count += np.bincount(flat, minlength=n)
-        for c in range(3):
-            sums[c] += np.bincount(flat, values[..., c].ravel(), minlength=n)
+        _add_counts(count, flat)
+        _add_counts(sums, flat, values.reshape(-1, 3).T)
     found = count > 0
     sums[:, found] /= count[found]
     return sums.T.copy(), found
