@@ -247,6 +247,8 @@ def test_the_pattern_scatter_sums_rotated_element_matrices_and_splits_into_row_r
     whole = assembly.block_system("u_minus", half, sigma, D_STEEL, [])
     assert np.abs(csr_dense(whole) - expected).max() < 1e-12 * np.abs(expected).max()
     assert np.all(np.diff(whole.indptr) > 0) and whole.indices.dtype == np.int32
+    row = np.repeat(np.arange(len(whole.indptr) - 1), np.diff(whole.indptr))
+    assert np.all((np.diff(whole.indices) > 0) | (np.diff(row) > 0))  # columns increase in every row (PETSc's AIJ)
     parts = [assembly.block_system("u_minus", half, sigma, D_STEEL, [], rows)
              for rows in assembly.row_ranges(len(half.points), 3)]
     assert np.array_equal(np.vstack([csr_dense(part) for part in parts]), csr_dense(whole))

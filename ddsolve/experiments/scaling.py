@@ -29,6 +29,7 @@ WEAK_MESHES = {1: (100, 128), 2: (141, 181), 4: (200, 256), 8: (283, 362)}
 LAUNCH_CASES = {
     "P = 800": ("mesh.sigma_vertices=800", "mesh.boundary_vertices=1024"),
     "P = 1600": ("mesh.sigma_vertices=1600", "mesh.boundary_vertices=2048"),
+    "P = 1600, out of core": ("mesh.sigma_vertices=1600", "mesh.boundary_vertices=2048", "solver.out_of_core=true"),
     "0.1 %, graded P2": ("mesh.size=0.02458", "mesh.degree=2", "mesh.grading=true"),
     "target 0.1 %": ("mesh.target_error=0.001",),
     "target 1 %": ("mesh.target_error=0.01",),
@@ -494,13 +495,16 @@ def text(record: dict, model: CostModel) -> str:
         "communicator splits into four block communicators of k ranks (block b on ranks b·k … (b+1)·k − 1); each "
         "rank assembles only its rows (a contiguous row range is a compact piece of the half) into an MPIAIJ "
         "matrix with block size 2 and the rigid-body near-null space, factored by parallel MUMPS. Assembly builds "
-        "the CSR pattern once per half (one sort of the cells' node pairs) and sums the element matrices by a "
-        "precomputed scatter. A round scatters the interface loads from rank 0 to the block leaders, which "
+        "the CSR pattern once per half (one sort of the cells' node pairs, which gives the graph's edges in their "
+        "rows' order) and sums the element matrices by a precomputed scatter. A round scatters the interface loads from rank 0 to the block leaders, which "
         "broadcast them in their block; the traces come back the same way. Waiting ranks sleep instead of "
         "spinning. After the rounds the factors are freed; each block's leader computes its error indicators, "
         "cell fields, reactions and its share of G, and, with parallel HDF5 (`python3-h5py-mpi`), every leader "
         "writes its half and its block into the one result file and the viewer files: rank 0 gathers only Σ-sized "
-        "data and sums.",
+        "data, sums, and the parts of the halves around the tips for the split of G into modes I and II (the "
+        "*output* phase counts all of it). With `solver.out_of_core = true` MUMPS keeps the factors on disk "
+        "(`MUMPS_OOC_TMPDIR`) and reads them back at every solve; rank 0 factors the dense interface stiffness in "
+        "place.",
         "",
         "## Measured (`schur`, `mprgp`, `feti`)",
         "",
