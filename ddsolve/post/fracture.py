@@ -335,15 +335,22 @@ def mode_split(tips: list[Tip], result) -> dict[str, np.ndarray]:
     opening and s_II that of the sliding behind the tip in its frame (x along the extension, y turned
     90° counter-clockwise from it): atan(√(G_II/G_I)) signed like K_II/K_I.
     """
+    result = disc_result(result, tips)
+    return split_modes(tips, [mirror_split(tip, result) for tip in tips], result.on_sigma,
+                       result.parsed_scene.nonpenetration, result.mesh.degree)
+
+
+def split_modes(tips: list[Tip], mirrored: list[tuple[float, float] | None], on: OnSigma, nonpenetration: bool,
+                degree: int) -> dict[str, np.ndarray]:
+    """:func:`mode_split` from each tip's :func:`mirror_split` (None where the disc is not mirror-symmetric:
+    virtual crack closure) and Σ's data ``on``."""
     count = len(tips)
     out = {"G_I": np.full(count, np.nan), "G_II": np.full(count, np.nan), "phase": np.full(count, np.nan),
            "symmetric": np.zeros(count, dtype=bool)}
-    result = disc_result(result, tips)
     for i, tip in enumerate(tips):
-        parts = mirror_split(tip, result)
-        out["symmetric"][i] = parts is not None
-        G_I, G_II = parts if parts is not None else closure_split(tip, result)
-        opening, sliding, closed = _behind(tip, result)
+        out["symmetric"][i] = mirrored[i] is not None
+        G_I, G_II = mirrored[i] if mirrored[i] is not None else closure_split(tip, on, degree)
+        opening, sliding, closed = _behind(tip, on, nonpenetration)
         if closed:
             G_I = 0.0
         out["G_I"][i], out["G_II"][i] = G_I, G_II
@@ -362,42 +369,70 @@ def mirror_split(tip: Tip, result) -> tuple[float, float] | None:
     shape functions); u_I = (u + R u(x′))/2, u_II = (u − R u(x′))/2.  θ is symmetric, so the cross term of
     the quadratic integral is odd and vanishes up to the interpolation: G_I + G_II = G.
     """
-    sigma = result.mesh.sigma
-    normal = sigma.normals[tip.node]
-    reflection = np.eye(2) - 2.0 * np.outer(normal, normal)
-    scene = result.parsed_scene
+    sigma, scene = result.mesh.sigma, result.parsed_scene
     laws = {spec.layer: assembly.elasticity(scene, spec.layer)[0] for spec in BLOCKS}
-    if not _straight_near(tip, sigma) or not all(mirrored_law(D, reflection) for D in laws.values()):
+    if not mirrorable(tip, sigma, laws.values()):
         return None
     from ddsolve.errors import DDSolveError
     from ddsolve.post.analysis import interpolate
 
     parts = np.zeros(2)
     for half, other in ((result.lower, result.upper), (result.upper, result.lower)):
-        field = theta(tip, sigma, half.points)
-        nodes = np.unique(half.cells[np.any(field != 0.0, axis=1)[half.cells].any(axis=1)])
+        field, nodes, images = mirror_nodes(tip, sigma, half)
         blocks = [spec for spec in BLOCKS if result.half(spec.name) is half]
         partners = [next(o for o in BLOCKS if o.layer == spec.layer and o is not spec) for spec in blocks]
-        images = half.points[nodes] - 2.0 * ((half.points[nodes] - tip.point) @ normal)[:, None] * normal
         try:
             mirrored = interpolate(other, np.hstack([result.solution[p.name] for p in partners]), images)
         except DDSolveError:  # the mirror image of the disc leaves the other half
             return None
         for j, spec in enumerate(blocks):
-            u = result.solution[spec.name]
-            image = mirrored[:, 2 * j:2 * j + 2] @ reflection
-            thermal = assembly.thermal_of(scene, spec.layer)
-            if thermal is not None and not mirrored_temperature(thermal, half.points[nodes], images):
+            terms = mirror_terms(tip, sigma, half, laws[spec.layer], result.solution[spec.name], (field, nodes, images),
+                                 mirrored[:, 2 * j:2 * j + 2], assembly.thermal_of(scene, spec.layer))
+            if terms is None:
                 return None
-            for k, sign in enumerate((1.0, -1.0)):
-                part = np.zeros_like(u)
-                part[nodes] = 0.5 * (u[nodes] + sign * image)
-                # a temperature symmetric about Σ strains the symmetric part only: its eigenstrain is mode I's
-                parts[k] += volume_terms(half, laws[spec.layer], part, [field], thermal if k == 0 else None)[0]
+            parts += terms
     return float(parts[0]), float(parts[1])
 
 
-def closure_split(tip: Tip, result) -> tuple[float, float]:
+def mirrorable(tip: Tip, sigma: SigmaLine, laws) -> bool:
+    """Whether the tip's θ disc can be split by mirror symmetry: Σ straight there and every layer's law
+    (``laws``: the Hooke matrices) unchanged by the reflection about it."""
+    normal = sigma.normals[tip.node]
+    reflection = np.eye(2) - 2.0 * np.outer(normal, normal)
+    return _straight_near(tip, sigma) and all(mirrored_law(D, reflection) for D in laws)
+
+
+def mirror_nodes(tip: Tip, sigma: SigmaLine, half: HalfMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """θ on ``half`` ``(n, 2)``, the nodes of the cells it touches and their mirror images about Σ's line at
+    the tip: where the other side's field is read."""
+    field = theta(tip, sigma, half.points)
+    nodes = np.unique(half.cells[np.any(field != 0.0, axis=1)[half.cells].any(axis=1)])
+    normal = sigma.normals[tip.node]
+    images = half.points[nodes] - 2.0 * ((half.points[nodes] - tip.point) @ normal)[:, None] * normal
+    return field, nodes, images
+
+
+def mirror_terms(tip: Tip, sigma: SigmaLine, half: HalfMesh, D: np.ndarray, u: np.ndarray,
+                 disc: tuple[np.ndarray, np.ndarray, np.ndarray], partner: np.ndarray,
+                 thermal: tuple[np.ndarray, object] | None = None) -> np.ndarray | None:
+    """One block's share of :func:`mirror_split` ``(2,)``: the domain integrals of (u ± R u′)/2 on its ``half``,
+    u′ the same layer's field on the other side at the images (``partner`` ``(q, 2)``, x and y) of the nodes of
+    ``disc`` (:func:`mirror_nodes`); None when the block's eigenstrain is not its own mirror image."""
+    field, nodes, images = disc
+    if thermal is not None and not mirrored_temperature(thermal, half.points[nodes], images):
+        return None
+    normal = sigma.normals[tip.node]
+    image = partner @ (np.eye(2) - 2.0 * np.outer(normal, normal))
+    parts = np.zeros(2)
+    for k, sign in enumerate((1.0, -1.0)):
+        part = np.zeros_like(u)
+        part[nodes] = 0.5 * (u[nodes] + sign * image)
+        # a temperature symmetric about Σ strains the symmetric part only: its eigenstrain is mode I's
+        parts[k] = volume_terms(half, D, part, [field], thermal if k == 0 else None)[0]
+    return parts
+
+
+def closure_split(tip: Tip, on: OnSigma, degree: int) -> tuple[float, float]:
     """(G_I, G_II) by the virtual crack closure technique from the tip's gluing forces.
 
     Advancing the tip by one element releases u⁻ = u⁺ at the tip node (and, for P2, at the midpoint ahead):
@@ -408,18 +443,17 @@ def closure_split(tip: Tip, result) -> tuple[float, float]:
     G_I, τ gives G_II), and for unequal elements ahead (a₁) and behind (a₂) with the jump scaled as √r:
     G = −Σ F·[u] / (2√(a₁a₂)).  NaN where the nodes do not exist (a tip one element from the crack's end).
     """
-    sigma = result.mesh.sigma
+    sigma = on.sigma
     step = 1 if tip.direction @ sigma.frames[tip.node, 0] > 0 else -1
-    span = 2 if result.mesh.degree == 2 else 1
+    span = 2 if degree == 2 else 1
     nodes = tip.node + step * np.arange(-span, span + 1)  # behind ... tip ... ahead
     multiplier = np.searchsorted(sigma.multiplier_nodes, nodes.clip(0, len(sigma.points) - 1))
     valid = (nodes >= 0) & (nodes < len(sigma.points)) & (multiplier < len(sigma.multiplier_nodes))
     if not valid.all() or np.any(sigma.multiplier_nodes[multiplier] != nodes):
         return math.nan, math.nan
     frame = sigma.frames[tip.node]
-    force = (sigma.weights[nodes, None] * result.multipliers["mu_g"][multiplier]) @ frame.T
-    jump = (result.solution["u_plus"][result.upper.sigma[nodes]]
-            - result.solution["u_minus"][result.lower.sigma[nodes]]) @ frame.T
+    force = (sigma.weights[nodes, None] * on.multipliers["mu_g"][multiplier]) @ frame.T
+    jump = (on.traces["u_plus"][nodes] - on.traces["u_minus"][nodes]) @ frame.T
     ahead = np.linalg.norm(sigma.points[nodes[-1]] - tip.point)
     behind = np.linalg.norm(sigma.points[nodes[0]] - tip.point)
     work = -np.sum(force[span:2 * span] * jump[:span], axis=0)  # the tip's force on the farthest jump behind
@@ -479,22 +513,21 @@ def mirrored_law(D: np.ndarray, reflection: np.ndarray) -> bool:
     return bool(np.abs(T.T @ D @ T - D).max() <= MIRROR * np.abs(D).max())
 
 
-def _behind(tip: Tip, result) -> tuple[float, float, bool]:
+def _behind(tip: Tip, on: OnSigma, nonpenetration: bool) -> tuple[float, float, bool]:
     """Opening and sliding summed over the tip's crack nodes within ``inner`` (sliding along the extension,
     signed as K_II), and whether the faces touch (a contact zone, with non-penetration) at the crack node
     nearest the tip."""
     from ddsolve.post.analysis import contact_zones
 
-    sigma = result.mesh.sigma
-    distance = np.linalg.norm(result.interface_points - tip.point, axis=1)
-    crack = result.crack & (distance <= tip.inner)
+    sigma = on.sigma
+    multiplier = sigma.multiplier_nodes
+    distance = np.linalg.norm(sigma.points[multiplier] - tip.point, axis=1)
+    crack = sigma.crack[multiplier] & (distance <= tip.inner)
     if not crack.any():
         return 0.0, 0.0, False
-    jump = result.solution["u_plus"][result.interface_nodes("u_plus")] - \
-        result.solution["u_minus"][result.interface_nodes("u_minus")]
+    jump = -on.gap
     normal = sigma.normals[tip.node]
     upward = np.sign(normal @ np.array([-tip.direction[1], tip.direction[0]]))  # ν is the tip frame's ±y
     nearest = np.flatnonzero(crack)[np.argmin(distance[crack])]
-    closed = result.parsed_scene.nonpenetration and any(
-        first <= nearest <= last for first, last in contact_zones(result))
+    closed = nonpenetration and any(first <= nearest <= last for first, last in contact_zones(on))
     return float(np.sum(jump[crack] @ normal)), float(upward * np.sum(jump[crack] @ tip.direction)), bool(closed)

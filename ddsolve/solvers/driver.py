@@ -124,23 +124,47 @@ class OnRanks:
         self.relative = estimate.relative(*totals) if exchange.is_root else None
         self.reactions = self._reactions()
 
-    def mode_split(self, result: Result | None) -> dict[str, np.ndarray] | None:
-        """G's split into modes I and II on rank 0 (``result``: rank 0's), from the parts of the halves
-        around the tips (:func:`ddsolve.post.fracture.disc_part`) that each leader sends with its block's
-        displacements there."""
-        local, exchange = self.local, self.exchange
-        mine = []
-        for b in exchange.led_blocks:
-            part, kept = fracture.disc_part(local.half(BLOCKS[b].side), local.tips)
-            mine.append((b, part, self.solutions[BLOCKS[b].name][kept]))
-        parts = exchange.comm.gather(mine, root=0)
+    def mode_split(self) -> dict[str, np.ndarray] | None:
+        """G's split into modes I and II on rank 0.  Each leader integrates its block's share of the mirror
+        split (:func:`ddsolve.post.fracture.mirror_terms`) with its partner's field at the mirror images of
+        its nodes, which the partner's leader interpolates; rank 0 sums the shares and splits the tips
+        whose disc is not mirror-symmetric by crack closure, from Σ's data."""
+        local, exchange, comm, scene = self.local, self.exchange, self.exchange.comm, self.scene
+        sigma, tips = local.sigma, local.tips
+        laws = {spec.layer: assembly.elasticity(scene, spec.layer)[0] for spec in BLOCKS}
+        partner = {b: next(p for p, o in enumerate(BLOCKS) if o.layer == BLOCKS[b].layer and p != b)
+                   for b in range(len(BLOCKS))}
+        discs, asks = {}, [[] for _ in range(comm.size)]
+        for i, tip in enumerate(tips):
+            if fracture.mirrorable(tip, sigma, laws.values()):
+                for b in exchange.led_blocks:
+                    discs[i, b] = fracture.mirror_nodes(tip, sigma, local.half(BLOCKS[b].side))
+                    asks[exchange.leader(partner[b])].append((i, b, discs[i, b][2]))
+        answers = [[(i, b, self._at(partner[b], images)) for i, b, images in asked]
+                   for asked in comm.alltoall(asks)]
+        shares, done = np.zeros((len(tips), 2)), np.zeros(len(tips), dtype=np.int64)
+        for i, b, values in (answer for answered in comm.alltoall(answers) for answer in answered):
+            spec = BLOCKS[b]
+            terms = None if values is None else fracture.mirror_terms(
+                tips[i], sigma, local.half(spec.side), laws[spec.layer], self.solutions[spec.name], discs[i, b],
+                values, assembly.thermal_of(scene, spec.layer))
+            if terms is not None:
+                shares[i] += terms
+                done[i] += 1
+        shares, done = comm.reduce(shares, op=MPI.SUM, root=0), comm.reduce(done, op=MPI.SUM, root=0)
         if not exchange.is_root:
             return None
-        parts = [part for group in parts for part in group]
-        halves = {BLOCKS[b].side: half for b, half, _ in parts}
-        disc = dataclasses.replace(result, mesh=Mesh(halves[-1], halves[1], local.sigma, local.origin),
-                                   solution={BLOCKS[b].name: u for b, _, u in parts}, held=None)
-        return fracture.mode_split(local.tips, disc)
+        mirrored = [(float(shares[i, 0]), float(shares[i, 1])) if done[i] == len(BLOCKS) else None
+                    for i in range(len(tips))]
+        return fracture.split_modes(tips, mirrored, self.on, scene.nonpenetration, local.half(-1).degree)
+
+    def _at(self, block: int, points: np.ndarray) -> np.ndarray | None:
+        """The led ``block``'s displacements at ``points`` of its half, None if one lies outside it."""
+        try:
+            return analysis.interpolate(self.local.half(BLOCKS[block].side), self.solutions[BLOCKS[block].name],
+                                        points)
+        except DDSolveError:  # the mirror image of the disc leaves the other half
+            return None
 
     def _reactions(self) -> dict[str, dict[str, np.ndarray]] | None:
         """The reactions on rank 0: each leader its block's support forces, the gluing's ties settled on
@@ -466,7 +490,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
                                                   fracture.mode_split(local.tips, result), scene, factors)
                 result.reactions = reactions.reactions(scene, mesh, result.solution, local.sigma_supports)
         if distributed:
-            split = shares.mode_split(result)  # collective: the parts around the tips go to rank 0
+            split = shares.mode_split()  # collective: the leaders integrate their blocks' shares
             if exchange.is_root:
                 result.fracture = fracture.finish(local.tips, volume, shares.on, split, scene, factors)
             part, viewer = shares.files(result, output)
