@@ -289,12 +289,14 @@ def block_cell_fields(scene: scenes.Scene, layer: str, half, u: np.ndarray) -> C
     stresses are mechanical, σ = D (ε − ε₀), with the thermal eigenstrain ε₀."""
     D, c = assembly.elasticity(scene, layer)
     out_of_plane = materials.out_of_plane_strain(scene.materials[layer], scene.model)
-    area, strain = assembly.cell_strains(half.points, half.cells, u)
+    volume, strains = assembly.quadrature_strains(half.points, half.cells, u)  # once for the mean and the energy
+    area = volume.sum(axis=1)
+    strain = np.einsum("mq,mqi->mi", volume, strains) / area[:, None]
     eigenstrain, relieved = assembly.cell_eigenstrains(scene, layer, half.points, half.cells)
     stress, stress_zz = assembly.cell_stresses(D, c, strain - eigenstrain)
     stress_zz = stress_zz + eigenstrain @ c - relieved
     strain_zz = strain @ out_of_plane if out_of_plane is not None else np.full(len(strain), np.nan)
-    energy_density = (0.5 * assembly.cell_energies(half.points, half.cells, D, u) / area if not np.any(eigenstrain)
+    energy_density = (0.5 * np.einsum("mq,mqi->m", volume, (strains @ D) * strains) / area if not np.any(eigenstrain)
                       else 0.5 * np.einsum("mi,mi->m", stress, strain - eigenstrain))
     return CellFields(strain=strain, strain_zz=strain_zz, stress=stress, stress_zz=stress_zz,
                       von_mises=materials.von_mises(stress, stress_zz), energy_density=energy_density)
