@@ -539,8 +539,9 @@ def text(record: dict, model: CostModel) -> str:
         "Example 1 as a user launches it (`./run solve -n 4 partial-closure --set ...`, the settings in "
         "`results/scaling.h5`). Phases from the result file's `/timings` (rank 0's clock; *startup*: from "
         "`ddsolve solve -n` starting mpiexec to the solver's start; *iterations*: the rounds and rank 0's updates; "
-        "*adaptive*: every level of a `mesh.target_error` run, whose other columns are its last level's); *sum*: "
-        "the launch from the timings, *launch*: the command's wall time measured outside it (with the Python and "
+        "*adaptive*: every level of a `mesh.target_error` run, whose other columns are its last level's; *output*: G, "
+        "its modes, the reactions and the fields the files hold; *write*: the result file and its viewer files); "
+        "*sum*: the launch from the timings, *launch*: the command's wall time measured outside it (with the Python and "
         "MPI start-up of the launcher); *solve phase* = factorization + iterations (of every level).",
         "",
         "| case | unknowns | estimated error | " + " | ".join(PHASES)

@@ -49,9 +49,10 @@ def write(path: Path, result: Result, viewer: str = "vtu", final: bool = False) 
     """Write ``path`` (HDF5) and its viewer files (format ``viewer``, see :mod:`ddsolve.io.viewer`) beside
     it, as one set (``final``: as for :func:`replace_together`); returns the paths written."""
     path = Path(path)
+    started = time.perf_counter()
     fields = analysis.cell_fields(result)
     part = result_part(result, fields)
-    writers = {path: lambda name: write_part(name, part),
+    writers = {path: lambda name: write_part(name, part, since=started),
                **export.viewer_files(result, path.parent, path.stem, viewer, fields)}
     replace_together(writers, final)
     return list(writers)
@@ -67,8 +68,8 @@ def write_distributed(path: Path, part: "Part", viewer: export.Distributed, comm
     """Every rank of ``comm`` writes its ``part`` of the result file ``path`` and its share of the VTU
     viewer files (``viewer``) into the same files, collectively (parallel HDF5); rank 0 commits the
     set as :func:`replace_together` does.  The file reads as :func:`write`'s."""
-    path = Path(path)
-    writers = {path: lambda name: write_part(name, part, comm),
+    path, started = Path(path), time.perf_counter()
+    writers = {path: lambda name: write_part(name, part, comm, since=started),
                **export.distributed_files(viewer, path.parent, path.stem, comm)}
     replace_together(writers, final, comm)
     return list(writers)
@@ -156,12 +157,13 @@ def result_part(result: Result, fields: dict[str, analysis.CellFields]) -> Part:
     return Part(datasets, attributes(result))
 
 
-def write_part(name: str, part: Part, comm=None) -> None:
+def write_part(name: str, part: Part, comm=None, since: float | None = None) -> None:
     """Write the result file ``name``: in memory and in one piece (:func:`hdf5_image`), or with ``comm``
     (more than one rank, h5py with MPI) collectively, every rank its own datasets.  Every rank creates
     every dataset (shapes and types gathered first) and writes the attributes (rank 0's);
-    ``/timings`` gets the seconds this took as ``write``."""
-    started = time.perf_counter()
+    ``/timings`` gets the seconds this took as ``write``, counted from ``since`` (``time.perf_counter()``
+    when the files written with it began, :func:`ddsolve.io.safe.replace_together` writing it last)."""
+    started = time.perf_counter() if since is None else since
     shapes = {key: (np.shape(values), np.asarray(values).dtype.str) for key, values in part.datasets.items()}
     attrs = part.attrs
     if comm is not None and comm.size > 1:

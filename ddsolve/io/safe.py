@@ -205,7 +205,8 @@ def replace_together(writers: dict[Path, Callable[[str], None]], final: bool = F
     draft = journal.with_name(journal.name + ".tmp")  # the journal while it is written
     _LIVE.update(temporaries.values())
     try:
-        for path, write in zip(paths, writers.values()):
+        # the first file (the result file, which names the journal) last: its timings can count the others
+        for path, write in reversed(list(zip(paths, writers.values()))):
             _on_all(comm, lambda: _create(path, temporaries[path]), root_only=True)
             _on_all(comm, lambda: _write(path, write, temporaries[path]))
         _on_all(comm, lambda: _commit(paths, temporaries, tag, final), root_only=True)
