@@ -163,6 +163,7 @@ def test_out_of_core_factors_give_the_in_core_answers_and_leave_no_files(system,
     for out_of_core in (False, True):
         block = Block(system, factor_package="mumps")
         block.factor(schur=schur, out_of_core=out_of_core)
+        assert block.out_of_core() == out_of_core
         if out_of_core:
             assert any(tmp_path.iterdir())  # the factors are on disk while the block lives
         x = block.solve(np.linspace(-1.0, 1.0, len(system.trace_dofs)), body=True).copy()

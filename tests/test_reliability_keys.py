@@ -86,6 +86,7 @@ def cases(folder: Path) -> list[tuple[str, list[str], list[str]]]:
             ("solver.tol", [], ["solver.tol=1e-3"]),
             ("solver.stop", uzawa, ['solver.stop="relative"']),
             ("solver.max_iterations", uzawa, ["solver.max_iterations=5"]),
+            ("solver.out_of_core", [], ["solver.out_of_core=true"]),
             ("fracture.inner", [], ["fracture.inner=0.1"]),
             ("fracture.outer", [], ["fracture.outer=0.3"]),
             ("fracture.toughness", [], ["fracture.toughness=1e-4"])]
@@ -142,6 +143,7 @@ def observe(command: str, output: Path, stdout: str) -> dict:
     return {"title": result.parsed_scene.title, "method": result.method, "converged": bool(result.converged),
             "iterations": int(result.iterations), "points": len(result.lower.points) + len(result.upper.points),
             "energy": _digest(result.attrs.get("energy", np.nan)), "kkt_tolerance": float(result.attrs.get("kkt_tolerance", 0)),
+            "out_of_core": bool(result.attrs.get("factors_out_of_core", False)),  # memory, not numbers
             "solution": _digest(*result.solution.values(), *result.multipliers.values()),
             "fields": _digest(*(np.r_[f.strain_zz, f.stress_zz] for f in fields.values())),
             "G": _digest(*(result.fracture.G, result.fracture.inner, result.fracture.outer, result.fracture.toughness,

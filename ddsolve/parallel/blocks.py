@@ -229,10 +229,18 @@ class Block:
         pc = self.ksp.getPC()
         if not self.is_direct() or pc.getFactorSolverType() != "mumps" or _petsc_c() is None:
             return 0.0
-        integer = ctypes.c_int64 if np.dtype(PETSc.IntType).itemsize == 8 else ctypes.c_int32
-        value = integer()
-        _call("MatMumpsGetInfo", pc.getFactorMatrix().handle, integer(16), ctypes.byref(value))
+        value = _petsc_int()
+        _call("MatMumpsGetInfo", pc.getFactorMatrix().handle, _petsc_int(16), ctypes.byref(value))
         return float(value.value)
+
+    def out_of_core(self) -> bool:
+        """Whether MUMPS keeps this rank's factors on disk (ICNTL(22) as the factorization used it)."""
+        pc = self.ksp.getPC()
+        if not self.is_direct() or pc.getFactorSolverType() != "mumps" or _petsc_c() is None:
+            return False
+        value = _petsc_int()
+        _call("MatMumpsGetIcntl", pc.getFactorMatrix().handle, _petsc_int(MUMPS_OUT_OF_CORE), ctypes.byref(value))
+        return bool(value.value)
 
     def solve(self, load: np.ndarray, body: bool) -> np.ndarray:
         """This rank's rows of x = K⁻¹(rhs·[body] + E load) (a read-only view valid until the next solve).
@@ -519,6 +527,11 @@ def _reason_name(reason: int) -> str:
 
 # --- PETSc C calls that petsc4py does not wrap (MatFactorSetSchurIS and friends) --------------
 @functools.lru_cache(maxsize=None)
+def _petsc_int(value: int = 0):
+    """A ctypes PetscInt."""
+    return (ctypes.c_int64 if np.dtype(PETSc.IntType).itemsize == 8 else ctypes.c_int32)(value)
+
+
 def _petsc_c():
     """The loaded PETSc shared library, or None when it cannot be found (then no Schur shortcut)."""
     candidates = []
@@ -584,8 +597,7 @@ def unused_options() -> list[str] | None:
     lib = _petsc_c()
     if lib is None or not hasattr(lib, "PetscOptionsLeftGet"):
         return None
-    integer = ctypes.c_int64 if np.dtype(PETSc.IntType).itemsize == 8 else ctypes.c_int32
-    count, names, values = integer(), ctypes.POINTER(ctypes.c_char_p)(), ctypes.POINTER(ctypes.c_char_p)()
+    count, names, values = _petsc_int(), ctypes.POINTER(ctypes.c_char_p)(), ctypes.POINTER(ctypes.c_char_p)()
     if lib.PetscOptionsLeftGet(None, ctypes.byref(count), ctypes.byref(names), ctypes.byref(values)) != 0:
         return None
     left = []
@@ -610,8 +622,7 @@ def _schur_complement(factor_handle: int, size: int) -> np.ndarray:
     schur = ctypes.c_void_p()
     status = ctypes.c_int()
     _call("MatFactorGetSchurComplement", factor_handle, ctypes.byref(schur), ctypes.byref(status))
-    integer = ctypes.c_int64 if np.dtype(PETSc.IntType).itemsize == 8 else ctypes.c_int32
-    lda = integer()
+    lda = _petsc_int()
     values = ctypes.POINTER(ctypes.c_double)()
     _call("MatDenseGetLDA", schur.value, ctypes.byref(lda))
     _call("MatDenseGetArrayRead", schur.value, ctypes.byref(values))

@@ -438,7 +438,8 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
         phases.hold("schur complements", rounds.schur_bytes if rounds is not None else 0)  # rank 0's, during the method
         phases.hold("solutions", sum(u.nbytes for u in server.solutions.values()))
         mine = {"mesh_bytes": local.nbytes, "unknowns": sum(len(b.system.rhs) for b in setup.blocks),
-                "factor_mb": sum(b.factor_megabytes() for b in setup.blocks)}
+                "factor_mb": sum(b.factor_megabytes() for b in setup.blocks),
+                "out_of_core": any(b.out_of_core() for b in setup.blocks)}
         if own:  # the factors are done with: the estimate and the output run in the memory they held
             for block in setup.blocks:
                 block.destroy()
@@ -504,6 +505,8 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
                 timings[f"{name}_cpu"] = sum(ranked.cpu[name] for _, ranked in memory)
             result.timings, result.memory = timings, memory_record(memory, sum(sizes), whole_bytes)
             result.attrs["peak_memory_mb"] = [max(ranked.peak.values()) for _, ranked in memory]
+            # what MUMPS did (a PETSc option may have overridden solver.out_of_core)
+            result.attrs["factors_out_of_core"] = any(ranked["out_of_core"] for ranked, _ in memory)
         if distributed:
             if exchange.is_root:
                 part.attrs = io.attributes(result)

@@ -88,6 +88,7 @@ def solve(scene: Scene, mesh: Mesh, factors: np.ndarray | None = None) -> Result
         block.factor(out_of_core=scene.solver.out_of_core)
         factorization += time.perf_counter() - mark
         x = block.solve(np.zeros(0), body=True).copy()
+        out_of_core = block.out_of_core()  # what MUMPS did (a PETSc option may override the scene)
         block.destroy()
         fields = [x[number] for number in numbers]
         loads = np.array([assembly.csr_matvec(s, u)[s.trace_dofs] - s.rhs[s.trace_dofs]
@@ -125,6 +126,7 @@ def solve(scene: Scene, mesh: Mesh, factors: np.ndarray | None = None) -> Result
         active_set_changes=np.array(changes, dtype=np.int64),
         timings={"factorization": factorization, "total": elapsed}, message=message,
         attrs={**provenance(), **meshes.quality(mesh), "closed_vertices": int(closed.sum()), "energy": float(energy),
+               "factors_out_of_core": out_of_core,
                "kkt_tolerance": constraints.kkt_tolerance(None),
                **{f"kkt_{name}": getattr(checked, name) for name in constraints.Constraints.NAMES}})
     estimated = estimate.of_scene(scene, mesh, result.solution, result.multipliers["mu_c"])

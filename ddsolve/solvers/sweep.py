@@ -22,7 +22,8 @@ T the most tips of a run, padded with NaN or −1):
 - ``parameters/KEY`` (R,) the value of each swept key;
 - ``energy``, ``converged``, ``iterations``, ``rounds``, ``unknowns``, ``kkt_tolerance`` (of the final
   check, from solver.tol), ``mesh_reused``,
-  ``factors_reused``, ``time`` (the whole run), ``setup_time``, ``factorization_time``,
+  ``factors_reused``, ``factors_out_of_core`` (MUMPS kept the factors on disk, ``solver.out_of_core``),
+  ``time`` (the whole run), ``setup_time``, ``factorization_time``,
   ``solve_time`` (R,), ``message`` (R,) strings (empty when the run succeeded);
 - ``tips/G``, ``tips/G_I``, ``tips/G_II``, ``tips/phase``, ``tips/contact``, ``tips/inner``, ``tips/outer``,
   ``tips/spacing``, ``tips/crack``, ``tips/toughness``, ``tips/critical_factor`` (R, T),
@@ -326,7 +327,8 @@ def sweep(source, items: list[str], paired: bool, output: Path | None, comm, pro
 def _blocks_key(scene) -> tuple:
     """What the assembled and factored blocks depend on besides the mesh (loads excluded; prescribed
     displacements decide which dofs the blocks hold, and their values the Σ supports)."""
-    return scene.materials, scene.model, scene.nonpenetration, scene.solver.method, scene.displacements
+    return (scene.materials, scene.model, scene.nonpenetration, scene.solver.method, scene.solver.out_of_core,
+            scene.displacements)
 
 
 def _numbers(result) -> dict:
@@ -334,7 +336,7 @@ def _numbers(result) -> dict:
     if result is None:
         return {"converged": False, "energy": math.nan, "iterations": 0, "rounds": 0, "unknowns": 0,
                 "setup_time": math.nan, "factorization_time": math.nan, "solve_time": math.nan, "fracture": None,
-                "kkt_tolerance": math.nan}
+                "kkt_tolerance": math.nan, "factors_out_of_core": False}
     timings = result.timings
     return {
         "converged": bool(result.converged), "energy": float(result.attrs.get("energy", math.nan)),
@@ -344,6 +346,7 @@ def _numbers(result) -> dict:
         "factorization_time": float(timings.get("factorization", math.nan)),
         "solve_time": float(timings.get("iterations", math.nan)), "fracture": result.fracture,
         "kkt_tolerance": float(result.attrs.get("kkt_tolerance", math.nan)),
+        "factors_out_of_core": bool(result.attrs.get("factors_out_of_core", False)),
     }
 
 
@@ -361,7 +364,7 @@ def _line(number: int, total: int, record: dict) -> str:
 
 
 SCALARS = ("energy", "converged", "iterations", "rounds", "unknowns", "mesh_reused", "factors_reused", "time",
-           "setup_time", "factorization_time", "solve_time", "kkt_tolerance")
+           "setup_time", "factorization_time", "solve_time", "kkt_tolerance", "factors_out_of_core")
 TIP_FIELDS = {"G": np.nan, "contact": np.nan, "inner": np.nan, "outer": np.nan, "spacing": np.nan, "crack": -1,
               "G_I": np.nan, "G_II": np.nan, "phase": np.nan, "toughness": np.nan, "critical_factor": np.nan}
 
