@@ -352,10 +352,10 @@ def pattern(half: HalfMesh, rows: tuple[int, int] | None = None) -> Pattern:
     del row, column, offset
     # Element entry (2α + i, 2β + j) -> indptr[2(a − first) + i] + 2·(node entry − row start) + j.
     dropped = node_position < 0
-    local = local - first_node
     # (m, α, β): dof row 2a's first entry + 2·(node entry − row start)
-    start = (indptr[2 * local][:, :, None] + 2 * (node_position - row_start[local + first_node][:, :, None])).astype(itype)
-    row_length = (2 * per_row[local])[:, :, None].astype(itype)  # dof row 2a + 1 starts this much later
+    start = (indptr[2 * (local - first_node)][:, :, None] + 2 * (node_position - row_start[local][:, :, None]))
+    start = start.astype(itype)
+    row_length = (2 * per_row[local - first_node])[:, :, None].astype(itype)  # dof row 2a + 1 starts this much later
     positions = np.empty((m, k, 2, k, 2), dtype=itype)
     for i in (0, 1):
         for j in (0, 1):
@@ -564,11 +564,21 @@ def quadrature_strains(points: np.ndarray, cells: np.ndarray, u: np.ndarray) -> 
     return det * weights, voigt_strain(field_gradients(u[cells], gradients))
 
 
+def cell_means(volume: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per cell: area ``(m,)`` and the mean of ``values`` ``(m, q, c)`` given at the rule's points with
+    their ``volume`` ``(m, q)`` (det J × weight)."""
+    area = volume.sum(axis=1)
+    return area, np.einsum("mq,mqi->mi", volume, values) / area[:, None]
+
+
+def integrated_energies(volume: np.ndarray, strain: np.ndarray, D: np.ndarray) -> np.ndarray:
+    """Per cell ∫ εᵀ D ε from the strains ``(m, q, 3)`` at the rule's points with their ``volume``."""
+    return np.einsum("mq,mqi->m", volume, (strain @ D) * strain)
+
+
 def cell_strains(points: np.ndarray, cells: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per cell: area ``(m,)`` and mean strain (εxx, εyy, γxy) ``(m, 3)`` of the field u ``(n, 2)``."""
-    volume, strain = quadrature_strains(points, cells, u)
-    area = volume.sum(axis=1)
-    return area, np.einsum("mq,mqi->mi", volume, strain) / area[:, None]
+    return cell_means(*quadrature_strains(points, cells, u))
 
 
 def energy(points: np.ndarray, cells: np.ndarray, D: np.ndarray, u: np.ndarray) -> float:
@@ -578,8 +588,7 @@ def energy(points: np.ndarray, cells: np.ndarray, D: np.ndarray, u: np.ndarray) 
 
 def cell_energies(points: np.ndarray, cells: np.ndarray, D: np.ndarray, u: np.ndarray) -> np.ndarray:
     """Per cell ∫ ε(u)ᵀ D ε(u) (twice the strain energy of the cell)."""
-    volume, strain = quadrature_strains(points, cells, u)
-    return np.einsum("mq,mqi->m", volume, (strain @ D) * strain)
+    return integrated_energies(*quadrature_strains(points, cells, u), D)
 
 
 def cell_stresses(D: np.ndarray, c: np.ndarray, strain: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

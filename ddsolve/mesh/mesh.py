@@ -507,3 +507,9 @@ BLOCKS = (
 
 
 U_MINUS, U_PLUS, V_MINUS, V_PLUS = range(4)
+
+
+def partner(block: int) -> int:
+    """The block of the same layer on the other half."""
+    spec = BLOCKS[block]
+    return next(i for i, other in enumerate(BLOCKS) if other.layer == spec.layer and other.side == -spec.side)

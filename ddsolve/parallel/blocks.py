@@ -526,12 +526,12 @@ def _reason_name(reason: int) -> str:
 
 
 # --- PETSc C calls that petsc4py does not wrap (MatFactorSetSchurIS and friends) --------------
-@functools.lru_cache(maxsize=None)
 def _petsc_int(value: int = 0):
-    """A ctypes PetscInt."""
+    """A ctypes PetscInt (a new one: C calls write into it)."""
     return (ctypes.c_int64 if np.dtype(PETSc.IntType).itemsize == 8 else ctypes.c_int32)(value)
 
 
+@functools.lru_cache(maxsize=None)
 def _petsc_c():
     """The loaded PETSc shared library, or None when it cannot be found (then no Schur shortcut)."""
     candidates = []

@@ -1,6 +1,7 @@
 """Numbers about results: error of one result against another, and the constraints' residuals."""
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -151,14 +152,15 @@ ON_BOUNDARY = 0.1
 
 
 #: Nearest cell centroids tried for a point, growing by 4× up to the last: a point of a graded mesh is
-#: almost always in one of the first few; the rest go to an exact trapezoid map.
+#: almost always in one of the first few.
 CANDIDATES = (8, 32, 128)
 
 
-def _containing_cells(points: np.ndarray, corners: np.ndarray, queries: np.ndarray) -> np.ndarray:
+def _containing_cells(points: np.ndarray, corners: np.ndarray, queries: np.ndarray, boundary) -> np.ndarray:
     """The cell (straight triangle ``corners``) holding each of ``queries`` (q, 2), −1 for none: the
-    cells of the nearest centroids (a k-d tree) are tested by barycentric coordinates, the few points
-    they miss by matplotlib's trapezoid map (building that map costs 30× the tree on a large mesh)."""
+    cells of the nearest centroids (a k-d tree) are tested by barycentric coordinates; a point they miss
+    is outside the domain (even-odd rule on the edges ``boundary()`` gives) or, on a badly shaped mesh,
+    found by matplotlib's trapezoid map (building that map costs 30× the tree on a large mesh)."""
     from scipy.spatial import cKDTree
 
     triangles = points[corners]  # (m, 3, 2)
@@ -181,7 +183,7 @@ def _containing_cells(points: np.ndarray, corners: np.ndarray, queries: np.ndarr
         hit = inside.any(axis=1)
         cell[todo[hit]] = candidates[hit, inside[hit].argmax(axis=1)]
         todo = todo[~hit]
-    todo = todo[_in_polygon(queries[todo], points, boundary_edges(corners)[0])] if len(todo) else todo
+    todo = todo[_in_polygon(queries[todo], points, boundary()[0])] if len(todo) else todo
     if len(todo):  # inside the domain, yet in none of the nearest cells: a badly shaped mesh
         from matplotlib.tri import Triangulation
 
@@ -217,11 +219,12 @@ def locate(half, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     for a point just outside it (within ON_BOUNDARY of the nearest boundary edge's length), the cell
     of that edge -- and whether each point lies outside the half's domain."""
     corners = half.corners
-    cell = _containing_cells(half.points, corners, points)
+    boundary = functools.cache(lambda: boundary_edges(corners))  # made once, and only when a point is missed
+    cell = _containing_cells(half.points, corners, points, boundary)
     missed = np.flatnonzero(cell < 0)
     outside = np.zeros(len(points), dtype=bool)
     if len(missed):
-        edges, edge_cells = boundary_edges(corners)
+        edges, edge_cells = boundary()
         start = half.points[edges[:, 0]]
         along = half.points[edges[:, 1]] - start
         length = np.hypot(along[:, 0], along[:, 1])
@@ -290,13 +293,12 @@ def block_cell_fields(scene: scenes.Scene, layer: str, half, u: np.ndarray) -> C
     D, c = assembly.elasticity(scene, layer)
     out_of_plane = materials.out_of_plane_strain(scene.materials[layer], scene.model)
     volume, strains = assembly.quadrature_strains(half.points, half.cells, u)  # once for the mean and the energy
-    area = volume.sum(axis=1)
-    strain = np.einsum("mq,mqi->mi", volume, strains) / area[:, None]
+    area, strain = assembly.cell_means(volume, strains)
     eigenstrain, relieved = assembly.cell_eigenstrains(scene, layer, half.points, half.cells)
     stress, stress_zz = assembly.cell_stresses(D, c, strain - eigenstrain)
     stress_zz = stress_zz + eigenstrain @ c - relieved
     strain_zz = strain @ out_of_plane if out_of_plane is not None else np.full(len(strain), np.nan)
-    energy_density = (0.5 * np.einsum("mq,mqi->m", volume, (strains @ D) * strains) / area if not np.any(eigenstrain)
+    energy_density = (0.5 * assembly.integrated_energies(volume, strains, D) / area if not np.any(eigenstrain)
                       else 0.5 * np.einsum("mi,mi->m", stress, strain - eigenstrain))
     return CellFields(strain=strain, strain_zz=strain_zz, stress=stress, stress_zz=stress_zz,
                       von_mises=materials.von_mises(stress, stress_zz), energy_density=energy_density)

@@ -30,8 +30,8 @@ the tip's gluing forces (docs/fracture.md, "Modes I and II").  No PETSc or MPI h
 """
 from __future__ import annotations
 
-import math
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -39,7 +39,7 @@ import numpy as np
 from ddsolve.errors import SceneError
 from ddsolve.fem import assembly
 from ddsolve.mesh import element
-from ddsolve.mesh.mesh import BLOCKS, SIGMA, HalfMesh, Mesh, SigmaLine
+from ddsolve.mesh.mesh import BLOCKS, SIGMA, HalfMesh, Mesh, SigmaLine, partner
 from ddsolve.post.result import Fracture, OnSigma
 from ddsolve.post.toughness import judge
 
@@ -380,7 +380,7 @@ def mirror_split(tip: Tip, result) -> tuple[float, float] | None:
     for half, other in ((result.lower, result.upper), (result.upper, result.lower)):
         field, nodes, images = mirror_nodes(tip, sigma, half)
         blocks = [spec for spec in BLOCKS if result.half(spec.name) is half]
-        partners = [next(o for o in BLOCKS if o.layer == spec.layer and o is not spec) for spec in blocks]
+        partners = [BLOCKS[partner(BLOCKS.index(spec))] for spec in blocks]
         try:
             mirrored = interpolate(other, np.hstack([result.solution[p.name] for p in partners]), images)
         except DDSolveError:  # the mirror image of the disc leaves the other half
@@ -397,9 +397,13 @@ def mirror_split(tip: Tip, result) -> tuple[float, float] | None:
 def mirrorable(tip: Tip, sigma: SigmaLine, laws) -> bool:
     """Whether the tip's θ disc can be split by mirror symmetry: Σ straight there and every layer's law
     (``laws``: the Hooke matrices) unchanged by the reflection about it."""
+    return _straight_near(tip, sigma) and all(mirrored_law(D, reflection(tip, sigma)) for D in laws)
+
+
+def reflection(tip: Tip, sigma: SigmaLine) -> np.ndarray:
+    """``(2, 2)``: the reflection about Σ's line at the tip."""
     normal = sigma.normals[tip.node]
-    reflection = np.eye(2) - 2.0 * np.outer(normal, normal)
-    return _straight_near(tip, sigma) and all(mirrored_law(D, reflection) for D in laws)
+    return np.eye(2) - 2.0 * np.outer(normal, normal)
 
 
 def mirror_nodes(tip: Tip, sigma: SigmaLine, half: HalfMesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -413,16 +417,15 @@ def mirror_nodes(tip: Tip, sigma: SigmaLine, half: HalfMesh) -> tuple[np.ndarray
 
 
 def mirror_terms(tip: Tip, sigma: SigmaLine, half: HalfMesh, D: np.ndarray, u: np.ndarray,
-                 disc: tuple[np.ndarray, np.ndarray, np.ndarray], partner: np.ndarray,
+                 disc: tuple[np.ndarray, np.ndarray, np.ndarray], opposite: np.ndarray,
                  thermal: tuple[np.ndarray, object] | None = None) -> np.ndarray | None:
     """One block's share of :func:`mirror_split` ``(2,)``: the domain integrals of (u ± R u′)/2 on its ``half``,
-    u′ the same layer's field on the other side at the images (``partner`` ``(q, 2)``, x and y) of the nodes of
+    u′ the same layer's field on the other side at the images (``opposite`` ``(q, 2)``, x and y) of the nodes of
     ``disc`` (:func:`mirror_nodes`); None when the block's eigenstrain is not its own mirror image."""
     field, nodes, images = disc
     if thermal is not None and not mirrored_temperature(thermal, half.points[nodes], images):
         return None
-    normal = sigma.normals[tip.node]
-    image = partner @ (np.eye(2) - 2.0 * np.outer(normal, normal))
+    image = opposite @ reflection(tip, sigma)
     parts = np.zeros(2)
     for k, sign in enumerate((1.0, -1.0)):
         part = np.zeros_like(u)

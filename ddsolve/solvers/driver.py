@@ -24,7 +24,7 @@ from ddsolve.dd.interface import Interface, for_mesh
 from ddsolve.errors import DDSolveError, DivergedError, NotConvergedError, SceneError
 from ddsolve.fem import assembly, supports
 from ddsolve.io import hdf5 as io
-from ddsolve.mesh.mesh import BLOCKS, U_PLUS, Mesh
+from ddsolve.mesh.mesh import BLOCKS, U_PLUS, Mesh, partner
 from ddsolve.parallel import launch
 from ddsolve.parallel.blocks import Block
 from ddsolve.parallel.distribution import LocalMesh, gather_upper, local_mesh, whole, whole_mesh_checks
@@ -132,15 +132,13 @@ class OnRanks:
         local, exchange, comm, scene = self.local, self.exchange, self.exchange.comm, self.scene
         sigma, tips = local.sigma, local.tips
         laws = {spec.layer: assembly.elasticity(scene, spec.layer)[0] for spec in BLOCKS}
-        partner = {b: next(p for p, o in enumerate(BLOCKS) if o.layer == BLOCKS[b].layer and p != b)
-                   for b in range(len(BLOCKS))}
         discs, asks = {}, [[] for _ in range(comm.size)]
         for i, tip in enumerate(tips):
             if fracture.mirrorable(tip, sigma, laws.values()):
                 for b in exchange.led_blocks:
                     discs[i, b] = fracture.mirror_nodes(tip, sigma, local.half(BLOCKS[b].side))
-                    asks[exchange.leader(partner[b])].append((i, b, discs[i, b][2]))
-        answers = [[(i, b, self._at(partner[b], images)) for i, b, images in asked]
+                    asks[exchange.leader(partner(b))].append((i, b, discs[i, b][2]))
+        answers = [[(i, b, self._at(partner(b), images)) for i, b, images in asked]
                    for asked in comm.alltoall(asks)]
         shares, done = np.zeros((len(tips), 2)), np.zeros(len(tips), dtype=np.int64)
         for i, b, values in (answer for answered in comm.alltoall(answers) for answer in answered):
@@ -218,7 +216,7 @@ class OnRanks:
             spec = next(spec for spec in BLOCKS if spec.name == name)
             fields[name] = analysis.block_cell_fields(self.scene, spec.layer, local.half(spec.side), u)
             datasets.update(io.block_datasets(name, u, fields[name].von_mises, self.indicators[name]))
-            other = next(o.name for o in BLOCKS if o.layer == spec.layer and o.side == -spec.side)
+            other = BLOCKS[partner(BLOCKS.index(spec))].name
             glue = viewer.Glue(sides[-1][0], sides[1][0], sigma.crack, local.nodes, local.cells,
                                self.on.traces[other])
             shares[spec.layer] = viewer.layer_share(spec.layer, local.half(spec.side), u, fields[name], glue,
