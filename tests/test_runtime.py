@@ -1,4 +1,5 @@
-"""The process runtime's decisions that need no process: BLAS threads per rank."""
+"""The process runtime's decisions that need no rank: BLAS threads per rank, mpiexec's options."""
+from ddsolve.parallel.launch import ALLOCATION_VARIABLES, launcher_options
 from ddsolve.parallel.runtime import blas_threads
 
 
@@ -13,3 +14,17 @@ def test_blas_threads_share_the_cores_among_the_ranks_of_a_node():
 def test_the_users_thread_count_is_kept():
     for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "GOTO_NUM_THREADS"):
         assert blas_threads(2, {name: "2", "OMPI_COMM_WORLD_LOCAL_SIZE": "2"}) is None
+
+
+def _pml(options: list[str]) -> str | None:
+    """The pml ``options`` name with ``--mca pml``, or None."""
+    return next((options[i + 2] for i in range(len(options) - 2) if options[i:i + 2] == ["--mca", "pml"]), None)
+
+
+def test_a_one_host_launch_names_the_shared_memory_layer():
+    open_mpi = "mpiexec (OpenRTE) 4.1.4"
+    assert _pml(launcher_options(open_mpi, {})) == "ob1"
+    assert _pml(launcher_options(open_mpi, {"OMPI_MCA_pml": "ucx"})) is None  # the user's choice stands
+    for name in ALLOCATION_VARIABLES:  # in a batch allocation the ranks may span hosts: the network decides
+        assert _pml(launcher_options(open_mpi, {name: "1"})) is None
+    assert launcher_options("HYDRA build details: Version: 4.0", {}) == []  # MPICH's options differ
