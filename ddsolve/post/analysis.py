@@ -163,17 +163,27 @@ def _containing_cells(points: np.ndarray, corners: np.ndarray, queries: np.ndarr
     found by matplotlib's trapezoid map (building that map costs 30× the tree on a large mesh)."""
     from scipy.spatial import cKDTree
 
-    triangles = points[corners]  # (m, 3, 2)
+    cell = np.full(len(queries), -1, dtype=np.int64)
+    if not len(queries):
+        return cell
+    # Only the cells whose bounding box meets the queries' can hold one: the tree is built on them alone
+    # (the mirror images of a tip's disc, say, cover a part of the half).
+    meets = np.ones(len(corners), dtype=bool)
+    for axis in range(2):
+        a, b, c = (points[corners[:, j], axis] for j in range(3))
+        meets &= (np.minimum(np.minimum(a, b), c) <= queries[:, axis].max())
+        meets &= (np.maximum(np.maximum(a, b), c) >= queries[:, axis].min())
+    near = np.flatnonzero(meets) if meets.any() else np.arange(1)  # none: the fallbacks below decide
+    triangles = points[corners[near]]  # (m, 3, 2)
     origin = triangles[:, 0]
     first, second = triangles[:, 1] - origin, triangles[:, 2] - origin
     det = first[:, 0] * second[:, 1] - first[:, 1] * second[:, 0]
     tree = cKDTree(triangles.mean(axis=1))
-    cell = np.full(len(queries), -1, dtype=np.int64)
     todo = np.arange(len(queries))
     for k in CANDIDATES:
         if not len(todo):
             break
-        k = min(k, len(corners))
+        k = min(k, len(near))
         candidates = tree.query(queries[todo], k=k)[1].reshape(len(todo), k)  # (t, k)
         offset = queries[todo, None, :] - origin[candidates]
         s = (offset[..., 0] * second[candidates, 1] - offset[..., 1] * second[candidates, 0]) / det[candidates]
@@ -181,7 +191,7 @@ def _containing_cells(points: np.ndarray, corners: np.ndarray, queries: np.ndarr
         slack = -1e-12  # a point on an edge (a mirrored Σ node) belongs to either cell
         inside = (s >= slack) & (t >= slack) & (s + t <= 1.0 - slack)
         hit = inside.any(axis=1)
-        cell[todo[hit]] = candidates[hit, inside[hit].argmax(axis=1)]
+        cell[todo[hit]] = near[candidates[hit, inside[hit].argmax(axis=1)]]
         todo = todo[~hit]
     todo = todo[_in_polygon(queries[todo], points, boundary()[0])] if len(todo) else todo
     if len(todo):  # inside the domain, yet in none of the nearest cells: a badly shaped mesh
