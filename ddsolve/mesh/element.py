@@ -103,5 +103,9 @@ def element_geometry(points: np.ndarray, cells: np.ndarray, xi: np.ndarray) -> t
 
 def field_gradients(values: np.ndarray, gradients: np.ndarray) -> np.ndarray:
     """``(m, q, c, 2)``: ∂v_c/∂x_d at the points of :func:`element_geometry`'s physical ``gradients``
-    ``(m, q, k, 2)`` for the nodal values ``(m, k, c)`` of each cell."""
+    ``(m, q, k, 2)`` for the nodal values ``(m, k, c)`` of each cell (a read-only view, the same at every
+    point, when the gradients are: P1 cells)."""
+    if gradients.shape[1] > 1 and gradients.strides[1] == 0:
+        at_one = np.matmul(values.transpose(0, 2, 1)[:, None], gradients[:, :1])
+        return np.broadcast_to(at_one, (len(at_one), gradients.shape[1]) + at_one.shape[2:])
     return np.matmul(values.transpose(0, 2, 1)[:, None], gradients)

@@ -114,9 +114,9 @@ def _add_counts(totals: np.ndarray, nodes: np.ndarray, weights: np.ndarray | Non
     """``totals[..., v] += Σ weights[i]`` over the i with ``nodes[i]`` = v (or the count); ``weights`` ``(i,)``
     or ``(c, i)`` for c rows of ``totals``.  Counted over the range of ``nodes`` only: a chunk of cells of a
     mesh numbered by position touches a narrow range of nodes, and the whole length would cost O(n) per chunk."""
-    low, high = int(nodes.min(initial=0)), int(nodes.max(initial=-1)) + 1
-    if high <= low:
+    if not len(nodes):
         return
+    low, high = int(nodes.min()), int(nodes.max()) + 1
     shifted = nodes - low
     if weights is None or weights.ndim == 1:
         totals[..., low:high] += np.bincount(shifted, weights, minlength=high - low)
