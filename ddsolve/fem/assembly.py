@@ -260,7 +260,7 @@ class Pattern:
 
     Clamped dofs are decoupled: the pattern keeps only their node's own 2×2 block (its off-diagonal
     entries stay zero).  ``positions`` ``(m, 2k, 2k)`` holds the CSR index of each element-matrix
-    entry of ``cells`` (the cells touching the rows), ``len(indices)`` for entries that are dropped.
+    entry of ``cells`` (the cells touching the rows), ``len(indices)`` or the next for entries that are dropped.
     """
 
     indptr: np.ndarray
@@ -273,7 +273,7 @@ class Pattern:
     def sum(self, matrices: np.ndarray, cells: slice = slice(None)) -> np.ndarray:
         """CSR values of the element matrices ``(m, 2k, 2k)`` of ``cells`` (a slice of :attr:`cells`),
         summed in place by one compiled pass."""
-        return np.bincount(self.positions[cells].ravel(), matrices.ravel(), minlength=len(self.indices) + 1)[:-1]
+        return np.bincount(self.positions[cells].ravel(), matrices.ravel(), minlength=len(self.indices))[:len(self.indices)]
 
 
 #: Element-matrix entries computed at once (32 MB of them): assembly's memory does not grow with the mesh.
@@ -320,52 +320,50 @@ def pattern(half: HalfMesh, rows: tuple[int, int] | None = None) -> Pattern:
     lower = np.empty(len(edges), dtype=np.int64)
     lower[by_high] = np.arange(len(edges)) - first_below[high[by_high]]
     lower = np.where(in_range(high), row_start[high] + lower, -1)
-    nodes = np.arange(first_node, last_node)
-    diagonal = row_start[nodes] + below[nodes]
-    # node entry (row, column) of every element entry (α, β); -1 where it is dropped
-    node_position = np.full((m, k, k), -1, dtype=np.int64)
-    local = np.where(in_range(cells), cells, first_node)
-    node_position[:, np.arange(k), np.arange(k)] = np.where(in_range(cells), diagonal[local - first_node], -1)
-    forward = np.full(a.shape, -1, dtype=np.int64)  # entry (α, β), α < β: row a
-    backward = np.full(a.shape, -1, dtype=np.int64)  # entry (β, α): row b
-    ascending = (a < b)[keep]
-    forward[keep] = np.where(ascending, upper[edge_of], lower[edge_of])
-    backward[keep] = np.where(ascending, lower[edge_of], upper[edge_of])
-    node_position[:, alpha, beta], node_position[:, beta, alpha] = forward, backward
-    del forward, backward, edge_of, a, b
-    count = int(row_start[last_node] - row_start[first_node])
-    row = np.repeat(np.arange(last_node - first_node), per_row)
-    column = np.empty(count, dtype=np.int64)
-    base = row_start[first_node]
+    count = int(row_start[last_node])  # node entries of the rows
+    itype = index_type(max(2 * n_nodes, 4 * count + 2))
+    # Node entry e of node row r (from the range's first) has its columns 2c, 2c + 1 in dof row 2r at dof
+    # entry 2e + 2·row_start(r) (the row opens at 4·row_start(r)); dof row 2r + 1 holds them 2·per_row(r) later.
+    opening = 2 * row_start[first_node:last_node].astype(itype)
+    row = np.repeat(np.arange(last_node - first_node, dtype=itype), per_row)
+    first_entry = 2 * np.arange(count, dtype=itype) + opening[row]
+    second_entry = first_entry + (2 * per_row.astype(itype))[row]
+    del row
+    column = np.empty(count, dtype=itype)
     mine = upper >= 0
-    column[upper[mine] - base] = high[mine]
+    column[upper[mine]] = high[mine]
     mine = lower >= 0
-    column[lower[mine] - base] = low[mine]
-    column[diagonal - base] = nodes
-    indptr = np.concatenate([[0], np.cumsum(np.repeat(2 * per_row, 2))])  # dof rows: 2 entries per node entry
-    offset = 2 * (np.arange(count) - (row_start[first_node:last_node] - base)[row])
-    itype = index_type(max(2 * n_nodes, indptr[-1] + 1))
-    indices = np.empty(indptr[-1], dtype=itype)
-    for i in (0, 1):
-        for j in (0, 1):
-            indices[indptr[2 * row + i] + offset + j] = 2 * column + j
-    del row, column, offset
-    # Element entry (2α + i, 2β + j) -> indptr[2(a − first) + i] + 2·(node entry − row start) + j.
-    dropped = node_position < 0
-    # (m, α, β): dof row 2a's first entry + 2·(node entry − row start)
-    start = (indptr[2 * (local - first_node)][:, :, None] + 2 * (node_position - row_start[local][:, :, None]))
-    start = start.astype(itype)
-    row_length = (2 * per_row[local - first_node])[:, :, None].astype(itype)  # dof row 2a + 1 starts this much later
-    positions = np.empty((m, k, 2, k, 2), dtype=itype)
-    for i in (0, 1):
-        for j in (0, 1):
-            positions[:, :, i, :, j] = np.where(dropped, len(indices), start + (i * row_length + j))
-    diagonal = clamped[cells]  # a clamped node's own block keeps its diagonal only
-    off = np.zeros((m, k, 2, k, 2), dtype=bool)
-    off[:, np.arange(k), 0, np.arange(k), 1] = diagonal
-    off[:, np.arange(k), 1, np.arange(k), 0] = diagonal
-    positions[off] = len(indices)
-    return Pattern(indptr.astype(itype), indices, cells, positions.reshape(m, 2 * k, 2 * k), first, last)
+    column[lower[mine]] = low[mine]
+    nodes = np.arange(first_node, last_node)
+    column[row_start[nodes] + below[nodes]] = nodes  # the diagonal
+    indptr = np.zeros(2 * (last_node - first_node) + 1, dtype=itype)
+    indptr[1::2], indptr[2::2] = 2 * opening + 2 * per_row, 2 * opening + 4 * per_row
+    indices = np.empty(4 * count, dtype=itype)
+    for entry in (first_entry, second_entry):
+        indices[entry], indices[entry + 1] = 2 * column, 2 * column + 1
+    del column
+    dropped = np.array(len(indices), dtype=itype)  # the position of an entry outside the rows (and the next)
+    # the node entry of every element entry (α, β), or -1 where it is dropped
+    entry = np.empty((m, k, k), dtype=itype)
+    local = np.where(in_range(cells), cells, first_node)
+    entry[:, np.arange(k), np.arange(k)] = np.where(in_range(cells), row_start[local] + below[local], -1)
+    del local
+    upper, lower = upper[edge_of], lower[edge_of]
+    ascending = (a < b)[keep]
+    forward = np.full(a.shape, -1, dtype=itype)  # entry (α, β), α < β: row a
+    backward = np.full(a.shape, -1, dtype=itype)  # entry (β, α): row b
+    forward[keep] = np.where(ascending, upper, lower)
+    backward[keep] = np.where(ascending, lower, upper)
+    entry[:, alpha, beta], entry[:, beta, alpha] = forward, backward
+    del forward, backward, upper, lower, edge_of, a, b
+    # (m, α, i, β): the dof entry of (2α + i, 2β); (2α + i, 2β + 1) is the next
+    opened = np.stack([np.where(entry >= 0, first_entry[entry], dropped),
+                       np.where(entry >= 0, second_entry[entry], dropped)], axis=2)
+    del entry
+    positions = opened[..., None] + np.arange(2, dtype=itype)  # (m, α, i, β, j)
+    cell, corner = np.nonzero(clamped[cells])  # a clamped node's own block keeps its diagonal only
+    positions[cell, corner, 0, corner, 1] = positions[cell, corner, 1, corner, 0] = dropped
+    return Pattern(indptr, indices, cells, positions.reshape(m, 2 * k, 2 * k), first, last)
 
 
 def block_system(name: str, half: HalfMesh, sigma: SigmaLine, D: np.ndarray, loads: list[Load],
