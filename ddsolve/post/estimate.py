@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ddsolve.fem.assembly import elasticity, to_global, trace_nodes, voigt_strain
-from ddsolve.mesh.element import (CELL_EDGES, cell_edges, edge_keys, edge_points, edge_shapes, element_geometry,
+from ddsolve.mesh.element import (CELL_EDGES, boundary_nodes, edge_keys, edge_points, edge_shapes, element_geometry,
                                   field_gradients, gauss_interval, shape_functions)
 from ddsolve.mesh.mesh import BLOCKS, CRACK, HalfMesh, Mesh, SigmaLine
 from ddsolve.problem.scene import Scene
@@ -155,11 +155,11 @@ def _recover(points: np.ndarray, cells: np.ndarray, where: np.ndarray, strain: n
         vertex = corners[chunk].ravel()
         cell = np.repeat(np.arange(chunk.start, chunk.stop), 3)
         basis = _monomials((where[cell] - points[vertex][:, None, :]) / scale[vertex][:, None, None], degree)
-        transposed = basis.transpose(0, 2, 1)
-        pairs = (transposed @ basis)[:, upper[0], upper[1]]  # (3c, b(b+1)/2)
-        products = (transposed @ strain[cell]).reshape(len(vertex), -1)  # (3c, 3b)
-        _add_counts(normal, vertex, pairs.T)
-        _add_counts(moments, vertex, products.T)
+        # summed over the sampling points, in rows: (b(b+1)/2, 3c) and (3b, 3c)
+        pairs = np.einsum("psi,psi->ip", basis[:, :, upper[0]], basis[:, :, upper[1]], order="C")
+        products = np.einsum("psi,psd->idp", basis, strain[cell], order="C").reshape(3 * b, len(vertex))
+        _add_counts(normal, vertex, pairs)
+        _add_counts(moments, vertex, products)
     patches = np.flatnonzero(cells_at)
     A = np.zeros((len(patches), b, b))
     for j, (row, column) in enumerate(zip(*upper)):
@@ -172,14 +172,15 @@ def _recover(points: np.ndarray, cells: np.ndarray, where: np.ndarray, strain: n
     coefficients[patches[good]] = solved[good]
     usable = np.zeros(n, dtype=bool)
     usable[patches[good]] = True
-    edges, counts = cell_edges(corners)
-    interior = usable.copy()
-    interior[edges[counts == 1].ravel()] = False
+    interior = usable & ~boundary_nodes(corners, n)
     # A node takes the mean of the interior patches it is "own" to (its vertex, or a P2 midpoint's two
     # ends); a node without one (at the boundary) the mean of the interior patches of its cells, else
     # of the usable patches of its cells.
-    own = _OWN[k]
-    out, found = _patch_means(points, cells, lambda c: cells[c][:, own], scale, coefficients, interior, degree)
+    if k == 3:  # a P1 vertex takes its own patch's fit at the vertex: its constant term
+        out, found = np.where(interior[:, None], coefficients[:, 0], 0.0), interior.copy()
+    else:
+        own = _OWN[k]
+        out, found = _patch_means(points, cells, lambda c: cells[c][:, own], scale, coefficients, interior, degree)
     missing = ~found
     if missing.any():
         near = np.flatnonzero(missing[cells].any(axis=1))  # the cells with a node still missing
