@@ -259,21 +259,45 @@ class Pattern:
     where every entry of every element matrix goes in it.
 
     Clamped dofs are decoupled: the pattern keeps only their node's own 2×2 block (its off-diagonal
-    entries stay zero).  ``positions`` ``(m, 2k, 2k)`` holds the CSR index of each element-matrix
-    entry of ``cells`` (the cells touching the rows), ``len(indices)`` or the next for entries that are dropped.
+    entries stay zero).  ``entries`` ``(m, k, k)`` holds the node entry (a 2×2 block of the CSR) of each
+    pair of nodes of ``cells`` (the cells touching the rows), the last one where it is dropped; node
+    entry e puts its columns 2c, 2c + 1 at ``opening[0][e]`` in the pair's first dof row and at
+    ``opening[1][e]`` in its second (``len(indices)`` for the dropped).  :meth:`positions` expands them for a
+    slice of cells.
     """
 
     indptr: np.ndarray
     indices: np.ndarray
     cells: np.ndarray
-    positions: np.ndarray
+    entries: np.ndarray
+    opening: tuple[np.ndarray, np.ndarray]
+    clamped: np.ndarray
     first: int
     last: int
 
-    def sum(self, matrices: np.ndarray, cells: slice = slice(None)) -> np.ndarray:
-        """CSR values of the element matrices ``(m, 2k, 2k)`` of ``cells`` (a slice of :attr:`cells`),
-        summed in place by one compiled pass."""
-        return np.bincount(self.positions[cells].ravel(), matrices.ravel(), minlength=len(self.indices))[:len(self.indices)]
+    def positions(self, cells: slice) -> np.ndarray:
+        """``(c, 2k, 2k)``: the CSR index of each element-matrix entry of ``cells`` (a slice of :attr:`cells`),
+        ``len(indices)`` or the next for entries that are dropped."""
+        entries = self.entries[cells]
+        m, k = entries.shape[:2]
+        positions = np.empty((m, k, 2, k, 2), dtype=self.indices.dtype)  # (c, α, i, β, j)
+        for i, opening in enumerate(self.opening):
+            positions[:, :, i, :, 0] = opening[entries]
+            positions[:, :, i, :, 1] = positions[:, :, i, :, 0] + 1
+        cell, corner = np.nonzero(self.clamped[self.cells[cells]])  # a clamped node keeps its own diagonal only
+        positions[cell, corner, 0, corner, 1] = positions[cell, corner, 1, corner, 0] = len(self.indices)
+        return positions.reshape(m, 2 * k, 2 * k)
+
+    def add(self, data: np.ndarray, matrices: np.ndarray, cells: slice = slice(None)) -> None:
+        """Add the element matrices ``(c, 2k, 2k)`` of ``cells`` (a slice of :attr:`cells`) to the CSR values
+        ``data`` by one compiled pass over the range of values they touch."""
+        where = self.positions(cells).ravel()
+        kept = where < len(data)
+        if not kept.any():
+            return
+        low, high = int(where.min()), int(where.max(where=kept, initial=-1)) + 1
+        summed = np.bincount(np.minimum(where, high) - low, matrices.ravel(), minlength=high - low + 1)
+        data[low:high] += summed[:high - low]
 
 
 #: Element-matrix entries computed at once (32 MB of them): assembly's memory does not grow with the mesh.
@@ -342,28 +366,21 @@ def pattern(half: HalfMesh, rows: tuple[int, int] | None = None) -> Pattern:
     for entry in (first_entry, second_entry):
         indices[entry], indices[entry + 1] = 2 * column, 2 * column + 1
     del column
-    dropped = np.array(len(indices), dtype=itype)  # the position of an entry outside the rows (and the next)
-    # the node entry of every element entry (α, β), or -1 where it is dropped
+    # the node entry of every element entry (α, β), or ``count`` (the dropped entries' row of the opening)
     entry = np.empty((m, k, k), dtype=itype)
     local = np.where(in_range(cells), cells, first_node)
-    entry[:, np.arange(k), np.arange(k)] = np.where(in_range(cells), row_start[local] + below[local], -1)
+    entry[:, np.arange(k), np.arange(k)] = np.where(in_range(cells), row_start[local] + below[local], count)
     del local
     upper, lower = upper[edge_of], lower[edge_of]
     ascending = (a < b)[keep]
-    forward = np.full(a.shape, -1, dtype=itype)  # entry (α, β), α < β: row a
-    backward = np.full(a.shape, -1, dtype=itype)  # entry (β, α): row b
+    upper[upper < 0], lower[lower < 0] = count, count
+    forward = np.full(a.shape, count, dtype=itype)  # entry (α, β), α < β: row a
+    backward = np.full(a.shape, count, dtype=itype)  # entry (β, α): row b
     forward[keep] = np.where(ascending, upper, lower)
     backward[keep] = np.where(ascending, lower, upper)
     entry[:, alpha, beta], entry[:, beta, alpha] = forward, backward
-    del forward, backward, upper, lower, edge_of, a, b
-    # (m, α, i, β): the dof entry of (2α + i, 2β); (2α + i, 2β + 1) is the next
-    opened = np.stack([np.where(entry >= 0, first_entry[entry], dropped),
-                       np.where(entry >= 0, second_entry[entry], dropped)], axis=2)
-    del entry
-    positions = opened[..., None] + np.arange(2, dtype=itype)  # (m, α, i, β, j)
-    cell, corner = np.nonzero(clamped[cells])  # a clamped node's own block keeps its diagonal only
-    positions[cell, corner, 0, corner, 1] = positions[cell, corner, 1, corner, 0] = dropped
-    return Pattern(indptr, indices, cells, positions.reshape(m, 2 * k, 2 * k), first, last)
+    opening = tuple(np.append(entries, len(indices)).astype(itype) for entries in (first_entry, second_entry))
+    return Pattern(indptr, indices, cells, entry, opening, clamped, first, last)
 
 
 def block_system(name: str, half: HalfMesh, sigma: SigmaLine, D: np.ndarray, loads: list[Load],
@@ -390,7 +407,7 @@ def block_system(name: str, half: HalfMesh, sigma: SigmaLine, D: np.ndarray, loa
     fixed, values = prescribed[0].reshape(-1), prescribed[1].reshape(-1)
     lifted = bool(np.any(values[fixed] != 0.0))
     data, lift, diagonal = np.zeros(len(structure.indices)), np.zeros(n), np.zeros(n)
-    step = max(1, ELEMENT_ENTRIES // structure.positions[0].size)
+    step = max(1, ELEMENT_ENTRIES // (2 * structure.cells.shape[1]) ** 2)
     for start in range(0, len(structure.cells), step):  # element matrices a slice at a time: bounded memory
         cells = slice(start, start + step)
         matrices = element_stiffness(half.points, structure.cells[cells], D)
@@ -407,7 +424,7 @@ def block_system(name: str, half: HalfMesh, sigma: SigmaLine, D: np.ndarray, loa
         matrices[held] = 0.0
         matrices.transpose(0, 2, 1)[held] = 0.0
         matrices[:, each, each] = own
-        data += structure.sum(matrices, cells)
+        structure.add(data, matrices, cells)
     del matrices
     rhs = np.zeros(n)
     for load in loads:
