@@ -2,12 +2,14 @@
 geometry's curves (ddsolve.mesh.curves)."""
 from __future__ import annotations
 
+from collections import Counter
+
 import numpy as np
 import pytest
 from conftest import structured_mesh
 
 from ddsolve.mesh import bisection, curves
-from ddsolve.mesh.element import cell_edges, edge_keys
+from ddsolve.mesh.element import CELL_EDGES, boundary_nodes, crowded_edges, edge_keys, outer_edges
 from ddsolve.mesh.mesh import SIGMA, edge_lengths, statistics
 from ddsolve.problem import scene as scenes
 from ddsolve.problem.scene import Geometry
@@ -24,9 +26,8 @@ def _conforming(mesh, before) -> None:
     outline as long as ``before``'s (a hanging node would add edges of one cell inside the half); the two
     halves' Σ nodes at the same places."""
     for half, old in zip(mesh.halves, before.halves):
-        edges, counts = cell_edges(half.corners)
-        assert counts.max() <= 2
-        outline = edges[counts == 1]
+        assert crowded_edges(half.corners) == 0
+        outline = outer_edges(half.corners)
         named = np.concatenate([edges[:, :2] for edges in half.boundaries.values()])
         assert np.isin(edge_keys(named, len(half.points)), edge_keys(outline, len(half.points))).all()
         perimeter = edge_lengths(old.points, old.boundary_edges[:, :2]).sum()
@@ -151,3 +152,25 @@ def test_the_projector_leaves_other_curves_to_gmsh(tmp_path):
     assert np.all(np.linalg.norm(moved - points, axis=1) < 0.3) and not np.allclose(moved, points)
     left = project(np.array([[-1.2, 0.5]]), np.array(["clamped"]))
     assert np.allclose(left, [[-1.0, 0.5]], atol=1e-15)
+
+
+
+def _edge_uses(corners: np.ndarray) -> Counter:
+    return Counter(frozenset(edge) for edge in corners[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2).tolist())
+
+
+@pytest.mark.parametrize("degree", [1, 2])
+def test_outer_edges_and_boundary_nodes_are_those_one_cell_uses(degree):
+    half = structured_mesh(8, 4, shear=0.2, degree=degree, geometry=CRACKED).lower
+    n = len(half.points)
+    edges = half.cells[:, CELL_EDGES[half.cells.shape[1]]].reshape(-1, degree + 1)
+    uses = _edge_uses(half.corners)
+    once = np.array([uses[frozenset(edge)] == 1 for edge in edges[:, :2].tolist()])
+    assert np.array_equal(outer_edges(half.cells), edges[once])  # each in its cell's orientation and order
+    expected = np.zeros(n, dtype=bool)
+    expected[edges[once][:, :2].ravel()] = True
+    assert np.array_equal(boundary_nodes(half.corners, n), expected)
+    assert crowded_edges(half.corners) == 0
+    for extra in ([0], [0, 0], [0, 5, 5]):  # cells listed again: their edges in three or more cells
+        corners = np.vstack([half.corners, half.corners[extra]])
+        assert crowded_edges(corners) == sum(count > 2 for count in _edge_uses(corners).values()) > 0

@@ -26,7 +26,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ddsolve.mesh.curves import Projector
-from ddsolve.mesh.element import CELL_EDGES, cell_edges, edge_keys
+from ddsolve.mesh.element import CELL_EDGES, boundary_nodes, edge_keys, outer_edges
 from ddsolve.mesh.mesh import CLAMPED, SIGMA, Mesh, elevate, make_half, make_mesh
 
 
@@ -104,8 +104,7 @@ def _singular(tri: Triangulation, mesh: Mesh, sigma: np.ndarray) -> np.ndarray:
     line = mesh.sigma
     singular[sigma[line.tip[line.corner]]] = True
     singular[sigma[[0, -1]]] = True
-    edges, counts = cell_edges(tri.cells)
-    outer = edges[counts == 1]
+    outer = outer_edges(tri.cells)
     clamped = np.vstack([edges for (_, name), edges in tri.boundaries.items() if name == CLAMPED] or
                         [np.zeros((0, 2), dtype=np.int64)])
     on_clamped = np.zeros(len(tri.points), dtype=bool)
@@ -119,9 +118,7 @@ def _singular(tri: Triangulation, mesh: Mesh, sigma: np.ndarray) -> np.ndarray:
     glued[sigma[[0, -1]]] = False
     for side in (-1, 1):
         cells = tri.cells[tri.side == side]
-        edges, counts = cell_edges(cells)
-        boundary = np.zeros(len(tri.points), dtype=bool)
-        boundary[edges[counts == 1].ravel()] = True
+        boundary = boundary_nodes(cells, len(tri.points))
         total = np.bincount(cells.ravel(), _angles(tri.points, cells).ravel(), minlength=len(tri.points))
         singular |= boundary & ~glued & (total > REENTRANT_ANGLE)
     return singular

@@ -19,24 +19,43 @@ EDGE_RULE = gauss_interval(4)
 CELL_EDGES = {3: np.array([[0, 1], [1, 2], [2, 0]]), 6: np.array([[0, 1, 3], [1, 2, 4], [2, 0, 5]])}
 
 
-def cell_edges(cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Every cell edge once per cell, ``(3m, 2|3)`` oriented with the cell, and how many cells use it."""
-    edges = cells[:, CELL_EDGES[cells.shape[1]]].reshape(-1, 2 if cells.shape[1] == 3 else 3)
-    keys = edge_keys(edges, int(cells.max(initial=0)) + 1)
-    _, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
-    return edges, counts[inverse]
+def cell_edges(cells: np.ndarray) -> np.ndarray:
+    """Every cell edge once per cell, ``(3m, 2|3)`` oriented with the cell (with its midpoint for P2)."""
+    return cells[:, CELL_EDGES[cells.shape[1]]].reshape(-1, 2 if cells.shape[1] == 3 else 3)
 
 
-def boundary_nodes(corners: np.ndarray, n: int) -> np.ndarray:
-    """Whether each of ``n`` nodes ends an edge that one triangle of ``corners`` alone uses: one sort of the
-    edges' keys, without the per-edge counts of :func:`cell_edges` (4× faster)."""
-    keys = np.sort(edge_keys(corners[:, CELL_EDGES[3]].reshape(-1, 2), n))
+def _used_once(keys: np.ndarray) -> np.ndarray:
+    """The values that occur once in the sorted ``keys``."""
     repeated = keys[1:] == keys[:-1]
     once = np.ones(len(keys), dtype=bool)
     once[1:] &= ~repeated
     once[:-1] &= ~repeated
+    return keys[once]
+
+
+def outer_edges(cells: np.ndarray) -> np.ndarray:
+    """The cell edges ``(e, 2|3)`` that one cell alone uses, oriented with it: one sort of the edges' keys
+    and a search of each edge among the few used once (no per-edge counts: 3× faster than np.unique's)."""
+    edges = cell_edges(cells)
+    keys = edge_keys(edges, int(cells.max(initial=0)) + 1)
+    once = _used_once(np.sort(keys))
+    if not len(once):
+        return edges[:0]
+    at = np.minimum(np.searchsorted(once, keys), len(once) - 1)
+    return edges[once[at] == keys]
+
+
+def crowded_edges(corners: np.ndarray) -> int:
+    """How many edges more than two triangles of ``corners`` use (overlapping cells)."""
+    keys = np.sort(edge_keys(cell_edges(corners), int(corners.max(initial=0)) + 1))
+    return len(np.unique(keys[2:][keys[2:] == keys[:-2]]))
+
+
+def boundary_nodes(corners: np.ndarray, n: int) -> np.ndarray:
+    """Whether each of ``n`` nodes ends an edge that one triangle of ``corners`` alone uses."""
+    once = _used_once(np.sort(edge_keys(cell_edges(corners), n)))
     boundary = np.zeros(n, dtype=bool)
-    boundary[keys[once] // n] = boundary[keys[once] % n] = True
+    boundary[once // n] = boundary[once % n] = True
     return boundary
 
 

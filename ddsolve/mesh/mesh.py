@@ -19,7 +19,8 @@ from functools import cached_property
 import numpy as np
 
 from ddsolve.errors import MeshError
-from ddsolve.mesh.element import CELL_EDGES, EDGE_RULE, cell_edges, edge_keys, edge_points, edge_shapes
+from ddsolve.mesh.element import (CELL_EDGES, EDGE_RULE, crowded_edges, edge_keys, edge_points, edge_shapes,
+                                  outer_edges)
 
 #: Boundary names with a meaning: Σ (cracks included), the cracks, and Γ_D (both layers clamped).
 SIGMA, CRACK, CLAMPED = "sigma", "crack", "clamped"
@@ -75,8 +76,7 @@ class HalfMesh:
     @cached_property
     def boundary_edges(self) -> np.ndarray:
         """Every edge used by exactly one cell, oriented counter-clockwise (with its midpoint for P2)."""
-        edges, counts = cell_edges(self.cells)
-        return edges[counts == 1]
+        return outer_edges(self.cells)
 
 
 @dataclass(frozen=True, eq=False)
@@ -212,8 +212,7 @@ def make_half(points: np.ndarray, cells: np.ndarray, side: int, boundaries: dict
     renumber[used] = np.arange(len(used))
     cells = renumber[cells]
     points = points[used]
-    edges, counts = cell_edges(cells)
-    outer = edges[counts == 1]
+    outer = outer_edges(cells)
     keys = edge_keys(outer, len(points))
     order = np.argsort(keys)
     named = {}
@@ -264,11 +263,10 @@ def _check_cover(points: np.ndarray, cells: np.ndarray, where: str) -> None:
     if len(np.unique(corners, axis=0)) < len(corners):
         repeated = len(corners) - len(np.unique(corners, axis=0))
         raise MeshError(f"{where}: {repeated} triangles are listed more than once")
-    edges, counts = cell_edges(cells[:, :3])
-    if counts.max() > 2:
-        raise MeshError(f"{where}: {int(np.sum(counts > 2) // 3 or 1)} edges are shared by more than two "
-                        "triangles (overlapping cells)")
-    outer = edges[counts == 1]
+    crowded = crowded_edges(cells[:, :3])
+    if crowded:
+        raise MeshError(f"{where}: {crowded} edges are shared by more than two triangles (overlapping cells)")
+    outer = outer_edges(cells[:, :3])
     corner = points[cells[0, 0]]  # about a point of the mesh: exact however far it is from (0, 0)
     a, b = points[outer[:, 0]] - corner, points[outer[:, 1]] - corner
     enclosed = 0.5 * np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
@@ -347,8 +345,7 @@ def check_resolution(lower: HalfMesh, upper: HalfMesh, origin: str) -> None:
     """Refuse a mesh whose coordinates are so large, against its smallest triangles, that double
     precision cannot place its nodes (a small geometry far from (0, 0))."""
     largest = max(float(np.abs(half.points).max()) for half in (lower, upper))
-    shortest = min(float(np.linalg.norm(np.diff(half.points[half.corners[:, [0, 1, 2, 0]]], axis=1),
-                                        axis=2).min()) for half in (lower, upper))
+    shortest = min(float(_sides(half)[1].min()) for half in (lower, upper))
     rounding = float(np.spacing(largest))
     if not rounding <= RESOLUTION * shortest:
         raise MeshError(f"{origin}: coordinates as large as {largest:.3g} are placed to {rounding:.2g} in double "
@@ -465,8 +462,10 @@ def statistics(half: HalfMesh) -> MeshStats:
 def _sides(half: HalfMesh) -> tuple[np.ndarray, np.ndarray]:
     """The triangles' side vectors ``(m, 3, 2)`` (from each corner to the next) and their lengths."""
     p = half.points[half.corners]
-    sides = p[:, [1, 2, 0]] - p
-    return sides, np.linalg.norm(sides, axis=2)
+    sides = np.empty_like(p)
+    sides[:, :2] = p[:, 1:] - p[:, :2]
+    sides[:, 2] = p[:, 0] - p[:, 2]
+    return sides, np.sqrt(sides[..., 0] ** 2 + sides[..., 1] ** 2)
 
 
 def _smallest_angle(sides: np.ndarray, edges: np.ndarray) -> float:
