@@ -1,9 +1,10 @@
 """Vectorized plane elasticity with P1 or P2 (isoparametric) triangles: stiffness, boundary loads,
 strains, stresses and energies.
 
-All elements are processed at once (no Python loop over cells): element matrices as one
-``(m, 2k, 2k)`` array (k = 3 or 6 nodes), summed into CSR by a precomputed scatter
-(:class:`Pattern`, one per half: the two blocks of a half share it, only their values differ).  Degrees of
+No Python loop over cells: element matrices as ``(m, 2k, 2k)`` arrays (k = 3 or 6 nodes), a slice of cells
+at a time, summed into CSR through a precomputed pattern (:class:`Pattern`, one per half: the two blocks of
+a half share it, only their values differ; it holds each node pair's entry and expands a slice's entries
+to their dofs when they are summed).  Degrees of
 freedom are interleaved, node ``v`` owning ``2v`` (x) and ``2v + 1`` (y), so the matrices have block
 size 2.  At the Σ nodes that carry multipliers the two dofs are instead the components in the node's
 (tangent, normal) frame (:attr:`~ddsolve.mesh.mesh.SigmaLine.frames`), so that every interface condition
@@ -348,9 +349,9 @@ def pattern(half: HalfMesh, rows: tuple[int, int] | None = None) -> Pattern:
     itype = index_type(max(2 * n_nodes, 4 * count + 2))
     # Node entry e of node row r (from the range's first) has its columns 2c, 2c + 1 in dof row 2r at dof
     # entry 2e + 2·row_start(r) (the row opens at 4·row_start(r)); dof row 2r + 1 holds them 2·per_row(r) later.
-    opening = 2 * row_start[first_node:last_node].astype(itype)
+    shift = 2 * row_start[first_node:last_node].astype(itype)
     row = np.repeat(np.arange(last_node - first_node, dtype=itype), per_row)
-    first_entry = 2 * np.arange(count, dtype=itype) + opening[row]
+    first_entry = 2 * np.arange(count, dtype=itype) + shift[row]
     second_entry = first_entry + (2 * per_row.astype(itype))[row]
     del row
     column = np.empty(count, dtype=itype)
@@ -361,10 +362,10 @@ def pattern(half: HalfMesh, rows: tuple[int, int] | None = None) -> Pattern:
     nodes = np.arange(first_node, last_node)
     column[row_start[nodes] + below[nodes]] = nodes  # the diagonal
     indptr = np.zeros(2 * (last_node - first_node) + 1, dtype=itype)
-    indptr[1::2], indptr[2::2] = 2 * opening + 2 * per_row, 2 * opening + 4 * per_row
+    indptr[1::2], indptr[2::2] = 2 * shift + 2 * per_row, 2 * shift + 4 * per_row
     indices = np.empty(4 * count, dtype=itype)
-    for entry in (first_entry, second_entry):
-        indices[entry], indices[entry + 1] = 2 * column, 2 * column + 1
+    for at in (first_entry, second_entry):
+        indices[at], indices[at + 1] = 2 * column, 2 * column + 1
     del column
     # the node entry of every element entry (α, β), or ``count`` (the dropped entries' row of the opening)
     entry = np.empty((m, k, k), dtype=itype)
@@ -379,7 +380,7 @@ def pattern(half: HalfMesh, rows: tuple[int, int] | None = None) -> Pattern:
     forward[keep] = np.where(ascending, upper, lower)
     backward[keep] = np.where(ascending, lower, upper)
     entry[:, alpha, beta], entry[:, beta, alpha] = forward, backward
-    opening = tuple(np.append(entries, len(indices)).astype(itype) for entries in (first_entry, second_entry))
+    opening = tuple(np.append(at, len(indices)).astype(itype) for at in (first_entry, second_entry))
     return Pattern(indptr, indices, cells, entry, opening, clamped, first, last)
 
 
