@@ -22,7 +22,6 @@ from dataclasses import dataclass, field
 from typing import Callable, Protocol
 
 import numpy as np
-import scipy.linalg
 
 from ddsolve.dd.constraints import Constraints, kkt, kkt_tolerance
 from ddsolve.dd.interface import Interface
@@ -474,6 +473,8 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
     jump = np.zeros((len(faces), len(normal)))  # B_cᵀ W^½: forces of a unit scaled contact multiplier
     jump[unknowns[0][normal] - first, np.arange(len(normal))] += sqrt_w
     jump[unknowns[1][normal] - first, np.arange(len(normal))] -= sqrt_w
+    import scipy.linalg  # here, on rank 0: importing it costs every rank 35 ms of its start-up
+
     try:  # in place: the stiffness's memory (rank 0's largest array with the S_b) becomes L
         L = scipy.linalg.cholesky(stiffness.T, lower=False, overwrite_a=True, check_finite=False).T
     except np.linalg.LinAlgError:
