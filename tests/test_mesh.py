@@ -132,3 +132,21 @@ def test_a_written_msh_reads_back_as_the_same_mesh(tmp_path, mesh_file, degree):
         assert sorted(a.boundaries) == sorted(b.boundaries)
     assert np.allclose(m.sigma.points, again.sigma.points) and np.array_equal(m.sigma.crack, again.sigma.crack)
     assert np.allclose(m.sigma.weights, again.sigma.weights)
+
+
+def _gmsh_imported() -> bool:
+    import sys
+
+    return "gmsh" in sys.modules
+
+
+def test_the_warm_child_imports_gmsh_before_its_work_and_a_later_work_gets_a_child_of_its_own():
+    import os
+
+    gmsh_io.warm_up()
+    assert gmsh_io.apart(_gmsh_imported)  # the warm child had imported gmsh when the work came
+    first, second = gmsh_io.apart(os.getpid), gmsh_io.apart(os.getpid)
+    assert len({first, second, os.getpid()}) == 3
+    gmsh_io.warm_up()
+    assert gmsh_io.apart(lambda: 7) == 7  # work that does not pickle: a forked child of its own runs it
+    assert gmsh_io.apart(os.getpid) != os.getpid()

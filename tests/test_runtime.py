@@ -1,5 +1,5 @@
 """The process runtime's decisions that need no rank: BLAS threads per rank, mpiexec's options."""
-from ddsolve.parallel.launch import ALLOCATION_VARIABLES, launcher_options
+from ddsolve.parallel.launch import ALLOCATION_VARIABLES, launcher_options, leader, world_position
 from ddsolve.parallel.runtime import blas_threads
 
 
@@ -28,3 +28,11 @@ def test_a_one_host_launch_names_the_shared_memory_layer():
     for name in ALLOCATION_VARIABLES:  # in a batch allocation the ranks may span hosts: the network decides
         assert _pml(launcher_options(open_mpi, {name: "1"})) is None
     assert launcher_options("HYDRA build details: Version: 4.0", {}) == []  # MPICH's options differ
+
+
+def test_the_rank_and_the_leaders_are_known_before_mpi_starts():
+    assert world_position({}) == (0, 1)
+    assert world_position({"OMPI_COMM_WORLD_RANK": "3", "OMPI_COMM_WORLD_SIZE": "8"}) == (3, 8)
+    assert world_position({"PMI_RANK": "1", "PMI_SIZE": "2"}) == (1, 2)
+    assert [leader(1, size) for size in (1, 2, 4, 8, 12)] == [0, 1, 1, 2, 3]  # u⁺: block 1
+    assert [leader(3, size) for size in (1, 2, 4, 8)] == [0, 1, 3, 6]

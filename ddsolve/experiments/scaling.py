@@ -484,8 +484,9 @@ def text(record: dict, model: CostModel) -> str:
         "## How the work is distributed",
         "",
         "`ddsolve solve -n` starts the ranks on one host with Open MPI's shared-memory layer named "
-        "(`--mca pml ob1`, half of MPI_Init's time). The leaders of u⁻ (rank 0) and u⁺ mesh the two halves at once (gmsh in a child process, so a signal ends "
-        "the job at once). Above P = 400 (and for large `mesh.size` boxes) gmsh makes only a coarse mesh of "
+        "(`--mca pml ob1`, half of MPI_Init's time). The leaders of u⁻ (rank 0) and u⁺ mesh the two halves at "
+        "once (gmsh in a child process, so a signal ends "
+        "the job at once; forked before MPI starts, it imports gmsh while the rank starts). Above P = 400 (and for large `mesh.size` boxes) gmsh makes only a coarse mesh of "
         "about 4,000 vertices with the same sizes and grading, and the ranks of each half refine it uniformly "
         "(`mesh.refine`, ddsolve/mesh/refine.py): every rank of a half makes the fine cells of an equal share of "
         "the coarse cells, numbered from the coarse mesh alone, and one Allgatherv places the pieces. Rank 0 pairs "
@@ -498,7 +499,8 @@ def text(record: dict, model: CostModel) -> str:
         "matrix with block size 2 and the rigid-body near-null space, factored by parallel MUMPS. Assembly builds "
         "the CSR pattern once per half (one sort of the cells' node pairs, which gives the graph's edges in their "
         "rows' order, and each pair's entry) and sums the element matrices a slice of cells at a time, over the "
-        "range of values the slice touches. A round scatters the interface loads from rank 0 to the block leaders, which "
+        "range of values the slice touches. A round scatters the interface loads from rank 0 to the block "
+        "leaders, which "
         "broadcast them in their block; the traces come back the same way. Waiting ranks sleep instead of "
         "spinning. After the rounds the factors are freed; each block's leader computes its error indicators, "
         "cell fields, reactions and its share of G, and, with parallel HDF5 (`python3-h5py-mpi`), every leader "

@@ -15,6 +15,7 @@ import numpy as np
 from mpi4py import MPI
 
 from ddsolve.errors import DDSolveError
+from ddsolve.parallel import launch
 
 T = TypeVar("T")
 ROOT = 0
@@ -84,8 +85,7 @@ class Exchange:
 
     def leader(self, block: int) -> int:
         """The rank that leads ``block``."""
-        size = self.comm.size
-        return block % size if size <= self.n_blocks else block * (size // self.n_blocks)
+        return launch.leader(block, self.comm.size)
 
     @property
     def is_root(self) -> bool:

@@ -24,6 +24,20 @@ ALLOCATION_VARIABLES = ("SLURM_JOB_ID", "PBS_JOBID", "LSB_JOBID", "PE_HOSTFILE",
 BLOCK_COUNT = 4
 
 
+def leader(block: int, size: int) -> int:
+    """The rank that leads ``block`` among ``size`` ranks (see :class:`~ddsolve.parallel.exchange.Exchange`)."""
+    return block % size if size <= BLOCK_COUNT else block * (size // BLOCK_COUNT)
+
+
+def world_position(environ: Mapping[str, str] = os.environ) -> tuple[int, int]:
+    """This process's rank and the number of ranks, from the launcher's variables before MPI starts
+    (0 of 1 outside a launcher, or for a launcher that sets none of them)."""
+    for rank, size in (("OMPI_COMM_WORLD_RANK", "OMPI_COMM_WORLD_SIZE"), ("PMI_RANK", "PMI_SIZE")):
+        if environ.get(rank, "").isdigit() and environ.get(size, "").isdigit():
+            return int(environ[rank]), int(environ[size])
+    return 0, 1
+
+
 def supported(size: int) -> bool:
     """1, 2 or 4 ranks (whole blocks per rank), or a multiple of 4 (each block on size/4 ranks)."""
     return size in (1, 2) or (size > 0 and size % BLOCK_COUNT == 0)

@@ -19,7 +19,9 @@ import unicodedata
 
 from ddsolve.environment import import_errors_explained
 from ddsolve.errors import DDSolveError, UsageError
-from ddsolve.parallel.launch import end_with_launcher
+from ddsolve.mesh import gmsh_io
+from ddsolve.mesh.mesh import U_PLUS
+from ddsolve.parallel.launch import end_with_launcher, leader, world_position
 
 class Parser(argparse.ArgumentParser):
     """argparse with one-line errors (exit status 2) instead of a usage block."""
@@ -89,7 +91,12 @@ def split_arguments(top: argparse.ArgumentParser, argv: list[str], petsc_command
 def init_petsc(options: list[str]) -> None:
     """PETSc without its signal handler: on a crash (SIGSEGV...) it calls MPI_Abort inside the handler,
     which can deadlock the crashed rank and with it the whole job; without it the rank dies of the
-    signal (after Open MPI's backtrace) and mpiexec ends the others."""
+    signal (after Open MPI's backtrace) and mpiexec ends the others.  First, on the ranks that mesh
+    (rank 0 and the leader of u⁺), the child that will run gmsh starts and imports it meanwhile
+    (:func:`~ddsolve.mesh.gmsh_io.warm_up`: forked before MPI starts, it holds no MPI state)."""
+    rank, size = world_position()
+    if rank in (0, leader(U_PLUS, size)):
+        gmsh_io.warm_up()
     import petsc4py
 
     petsc4py.init([sys.argv[0], "-no_signal_handler", *options])
