@@ -33,16 +33,21 @@ def _used_once(keys: np.ndarray) -> np.ndarray:
     return keys[once]
 
 
-def outer_edges(cells: np.ndarray) -> np.ndarray:
-    """The cell edges ``(e, 2|3)`` that one cell alone uses, oriented with it: one sort of the edges' keys
-    and a search of each edge among the few used once (no per-edge counts: 3× faster than np.unique's)."""
-    edges = cell_edges(cells)
-    keys = edge_keys(edges, int(cells.max(initial=0)) + 1)
+def outer_edge_positions(cells: np.ndarray) -> np.ndarray:
+    """Where the edges that one cell alone uses stand in :func:`cell_edges` (position p: edge p % 3 of cell
+    p // 3): one sort of the edges' keys and a search of each edge among the few used once (no per-edge
+    counts: 3× faster than np.unique's)."""
+    keys = edge_keys(cell_edges(cells), int(cells.max(initial=0)) + 1)
     once = _used_once(np.sort(keys))
     if not len(once):
-        return edges[:0]
+        return np.zeros(0, dtype=np.int64)
     at = np.minimum(np.searchsorted(once, keys), len(once) - 1)
-    return edges[once[at] == keys]
+    return np.flatnonzero(once[at] == keys)
+
+
+def outer_edges(cells: np.ndarray) -> np.ndarray:
+    """The cell edges ``(e, 2|3)`` that one cell alone uses, oriented with it."""
+    return cell_edges(cells)[outer_edge_positions(cells)]
 
 
 def crowded_edges(corners: np.ndarray) -> int:

@@ -205,10 +205,8 @@ def _containing_cells(points: np.ndarray, corners: np.ndarray, queries: np.ndarr
 def boundary_edges(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The edges ``(e, 2)`` of the triangles ``corners`` that belong to one triangle only (oriented as in
     it) and that triangle ``(e,)``."""
-    edges = np.concatenate([corners[:, [0, 1]], corners[:, [1, 2]], corners[:, [2, 0]]])
-    _, first, count = np.unique(np.sort(edges, axis=1), axis=0, return_index=True, return_counts=True)
-    boundary = first[count == 1]
-    return edges[boundary], boundary % len(corners)
+    positions = element.outer_edge_positions(corners)
+    return element.cell_edges(corners)[positions], positions // 3
 
 
 def _in_polygon(queries: np.ndarray, points: np.ndarray, edges: np.ndarray) -> np.ndarray:
