@@ -143,10 +143,13 @@ def _gmsh_imported() -> bool:
 def test_the_warm_child_imports_gmsh_before_its_work_and_a_later_work_gets_a_child_of_its_own():
     import os
 
+    gmsh_io.warm_up_cpu()
     gmsh_io.warm_up()
     assert gmsh_io.apart(_gmsh_imported)  # the warm child had imported gmsh when the work came
+    assert gmsh_io.warm_up_cpu() > 0.0  # and that was start-up work: its CPU seconds are told apart
     first, second = gmsh_io.apart(os.getpid), gmsh_io.apart(os.getpid)
     assert len({first, second, os.getpid()}) == 3
+    assert gmsh_io.warm_up_cpu() == 0.0  # children of their own wait for nothing
     gmsh_io.warm_up()
     assert gmsh_io.apart(lambda: 7) == 7  # work that does not pickle: a forked child of its own runs it
     assert gmsh_io.apart(os.getpid) != os.getpid()

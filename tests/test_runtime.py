@@ -1,4 +1,7 @@
-"""The process runtime's decisions that need no rank: BLAS threads per rank, mpiexec's options."""
+"""The process runtime's decisions that need no rank: BLAS threads per rank, mpiexec's options, the
+phases' CPU account."""
+import pytest
+
 from ddsolve.parallel.launch import ALLOCATION_VARIABLES, launcher_options, leader, world_position
 from ddsolve.parallel.runtime import blas_threads
 
@@ -36,3 +39,17 @@ def test_the_rank_and_the_leaders_are_known_before_mpi_starts():
     assert world_position({"PMI_RANK": "1", "PMI_SIZE": "2"}) == (1, 2)
     assert [leader(1, size) for size in (1, 2, 4, 8, 12)] == [0, 1, 1, 2, 3]  # u⁺: block 1
     assert [leader(3, size) for size in (1, 2, 4, 8)] == [0, 1, 3, 6]
+
+
+def test_work_a_child_did_while_the_rank_started_counts_as_start_up():
+    from ddsolve.parallel.phases import Phases
+
+    phases = Phases()
+    sum(range(200_000))  # some CPU seconds of "meshing"
+    phases.end("meshing")
+    before = dict(phases.cpu)
+    phases.move_cpu(0.5 * before["meshing"], "meshing", "startup")
+    assert phases.cpu["meshing"] == pytest.approx(0.5 * before["meshing"])
+    assert phases.cpu["startup"] + phases.cpu["meshing"] == pytest.approx(before["startup"] + before["meshing"])
+    phases.move_cpu(10.0, "meshing", "startup")  # never more than the phase had
+    assert phases.cpu["meshing"] == 0.0

@@ -17,6 +17,7 @@ PARTS = {
     "accuracy-family": ("accuracy", "family_run", (("scene", str), ("family", str), ("degree", int))),
     "scaling-network": ("scaling", "network", ()),
     "scaling-calibrate": ("scaling", "calibrate", ()),
+    "scaling-meshing": ("scaling", "meshing", (("P", int), ("M", int), ("refine", str))),
     "fracture-checks": ("fracture", "checks", ()),
 }
 

@@ -6,6 +6,7 @@ import contextlib
 import math
 import multiprocessing
 import os
+import resource
 import signal
 from pathlib import Path
 from typing import Callable, TypeVar
@@ -37,7 +38,8 @@ def apart(work: Callable[..., T], *args) -> T:
     signal handler would run only after it; here the parent waits in short steps, and on SIGTERM or
     Ctrl-C it kills the child and goes on with its own clean exit.  (The child touches no MPI.)  The
     child never outlives this process, however it ends (SIGKILL included): see :func:`_child`.  The
-    first work goes to the child :func:`warm_up` started, if any (the work and its arguments pickled).
+    first work goes to the child :func:`warm_up` started, if any (the work and its arguments pickled);
+    the CPU seconds that child spent before its work came (importing gmsh) are :func:`warm_up_cpu`'s.
     """
     child = None
     if _warm:
@@ -56,13 +58,14 @@ def apart(work: Callable[..., T], *args) -> T:
             if not child.is_alive() and not receiver.poll(0.05):
                 break
         try:
-            ok, value = receiver.recv()
+            ok, value, waiting = receiver.recv()
         except EOFError:  # the child ended without an answer (gmsh aborted it)
             child.join()
             raise MeshError(f"gmsh stopped without a mesh (it aborted, exit status {child.exitcode}): change the element "
                             "sizes (mesh.size, mesh.grading, the sizes of a .geo) or the geometry") from None
     finally:
         _end(child, receiver)
+    _warm_cpu.append(waiting)
     if not ok:
         raise value
     return value
@@ -70,6 +73,16 @@ def apart(work: Callable[..., T], *args) -> T:
 
 #: The child :func:`warm_up` started, with the pipes to send it its work and to receive the answer.
 _warm: list = []
+#: CPU seconds the children of :func:`apart` spent before their work came, not yet taken.
+_warm_cpu: list[float] = []
+
+
+def warm_up_cpu() -> float:
+    """CPU seconds the children of :func:`apart` that ended since the last call spent before their work came:
+    the warm child's import of gmsh, done while this process started (its start-up's, not its meshing's)."""
+    seconds = sum(_warm_cpu)
+    _warm_cpu.clear()
+    return seconds
 
 
 def warm_up() -> None:
@@ -118,6 +131,7 @@ def _child(parent: int, sender, work, args) -> None:
     quiet = os.open(os.devnull, os.O_WRONLY)  # gmsh writes its aborts to standard error: the parent reports
     os.dup2(quiet, 2)
     os.close(quiet)
+    waiting = 0.0
     try:
         if work is None:  # warm (warm_up): gmsh first, then the work from the pipe ``args``
             import gmsh  # noqa: F401
@@ -126,9 +140,11 @@ def _child(parent: int, sender, work, args) -> None:
                 work, args = args.recv()
             except EOFError:  # the parent needed no mesh
                 return
-        outcome = (True, work(*args))
+            used = resource.getrusage(resource.RUSAGE_SELF)
+            waiting = used.ru_utime + used.ru_stime
+        outcome = (True, work(*args), waiting)
     except BaseException as exc:  # every error goes back to the parent, which raises it
-        outcome = (False, exc)
+        outcome = (False, exc, waiting)
     sender.send(outcome)
     sender.close()
 

@@ -78,6 +78,47 @@ class HalfMesh:
         """Every edge used by exactly one cell, oriented counter-clockwise (with its midpoint for P2)."""
         return outer_edges(self.cells)
 
+    @cached_property
+    def shape(self) -> Shape:
+        """The shortest triangle side and the smallest angle."""
+        return shape_of(self.points, self.corners)
+
+
+def known(half: HalfMesh, **values) -> HalfMesh:
+    """``half`` with the values of cached properties (``boundary_edges``, ``shape``) that its maker knows
+    already (a refinement, from the coarse mesh or from pieces); they travel with it when it is sent."""
+    for name, value in values.items():
+        if not isinstance(getattr(HalfMesh, name, None), cached_property):
+            raise AttributeError(f"HalfMesh has no cached property {name!r}")
+        half.__dict__[name] = value
+    return half
+
+
+@dataclass(frozen=True)
+class Shape:
+    """What the checks and the records need of a mesh's triangles (:func:`shape_of`)."""
+
+    shortest_side: float
+    smallest_angle: float  # degrees
+
+    def __and__(self, other: Shape) -> Shape:
+        """The shape of two sets of triangles together."""
+        return Shape(min(self.shortest_side, other.shortest_side), min(self.smallest_angle, other.smallest_angle))
+
+
+#: Triangles measured at once by :func:`shape_of` (its temporaries stay a few tens of MB).
+SHAPE_CHUNK = 1 << 18
+
+
+def shape_of(points: np.ndarray, corners: np.ndarray) -> Shape:
+    """The shortest side and the smallest angle of the triangles ``corners`` (a slice at a time)."""
+    shortest, smallest = np.inf, 180.0
+    for start in range(0, len(corners), SHAPE_CHUNK):
+        sides, lengths = _sides(points, corners[start:start + SHAPE_CHUNK])
+        shortest = min(shortest, float(lengths.min()))
+        smallest = min(smallest, _smallest_angle(sides, lengths))
+    return Shape(shortest, smallest)
+
 
 @dataclass(frozen=True, eq=False)
 class SigmaLine:
@@ -345,7 +386,7 @@ def check_resolution(lower: HalfMesh, upper: HalfMesh, origin: str) -> None:
     """Refuse a mesh whose coordinates are so large, against its smallest triangles, that double
     precision cannot place its nodes (a small geometry far from (0, 0))."""
     largest = max(float(np.abs(half.points).max()) for half in (lower, upper))
-    shortest = min(float(_sides(half)[1].min()) for half in (lower, upper))
+    shortest = min(half.shape.shortest_side for half in (lower, upper))
     rounding = float(np.spacing(largest))
     if not rounding <= RESOLUTION * shortest:
         raise MeshError(f"{origin}: coordinates as large as {largest:.3g} are placed to {rounding:.2g} in double "
@@ -453,15 +494,15 @@ class MeshStats:
 
 
 def statistics(half: HalfMesh) -> MeshStats:
-    sides, edges = _sides(half)
+    sides, edges = _sides(half.points, half.corners)
     circumdiameters = edges.prod(axis=1) / (2.0 * np.abs(half.areas()))
     return MeshStats(float(circumdiameters.min()), float(circumdiameters.max()), half.vertex_count,
                      len(half.cells), _smallest_angle(sides, edges))
 
 
-def _sides(half: HalfMesh) -> tuple[np.ndarray, np.ndarray]:
+def _sides(points: np.ndarray, corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The triangles' side vectors ``(m, 3, 2)`` (from each corner to the next) and their lengths."""
-    p = half.points[half.corners]
+    p = points[corners]
     sides = np.empty_like(p)
     sides[:, :2] = p[:, 1:] - p[:, :2]
     sides[:, 2] = p[:, 0] - p[:, 2]
@@ -486,7 +527,7 @@ def boundary_vertex_count(mesh: Mesh) -> int:
 
 def quality(mesh: Mesh) -> dict:
     """What a result records of its mesh: the smallest angle (degrees), the vertices on Σ and on ∂Ω."""
-    return {"min_angle": min(_smallest_angle(*_sides(half)) for half in mesh.halves),
+    return {"min_angle": min(half.shape.smallest_angle for half in mesh.halves),
             "sigma_vertices": int(mesh.sigma.corner.sum()), "boundary_vertices": boundary_vertex_count(mesh)}
 
 

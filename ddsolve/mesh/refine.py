@@ -30,8 +30,8 @@ import numpy as np
 from ddsolve.errors import MeshError
 from ddsolve.mesh.curves import Projector
 from ddsolve.mesh.element import CELL_EDGES
-from ddsolve.mesh.mesh import (CLAMPED, CRACK, SIGMA, HalfMesh, Mesh, check_resolution, check_sigma_match,
-                               sigma_line)
+from ddsolve.mesh.mesh import (CLAMPED, CRACK, SIGMA, HalfMesh, Mesh, Shape, check_resolution, check_sigma_match,
+                               known, sigma_line)
 
 
 #: Boundary names that only tag edges of other parts: a node is projected on its part's curve.
@@ -260,16 +260,16 @@ class Lattice:
         inner = top["edge_first"][numbers][:, None] + steps - 1
         return np.column_stack([top["vertex_id"][local[:, 0]], inner, top["vertex_id"][local[:, 1]]])
 
+    def fine_edges(self, edges: np.ndarray) -> np.ndarray:
+        """The fine edges of coarse boundary ``edges``, each cut into 2^levels, in its direction."""
+        chain = self._chains(edges)
+        if self.degree == 1:
+            return np.stack([chain[:, :-1], chain[:, 1:]], axis=2).reshape(-1, 2)
+        return np.stack([chain[:, :-1:2], chain[:, 2::2], chain[:, 1::2]], axis=2).reshape(-1, 3)
+
     def boundaries(self) -> dict[str, np.ndarray]:
-        """The named boundary edges of the fine half, each coarse edge cut into 2^levels, in its direction."""
-        named = {}
-        for name, edges in self.coarse.boundaries.items():
-            chain = self._chains(edges)
-            if self.degree == 1:
-                named[name] = np.stack([chain[:, :-1], chain[:, 1:]], axis=2).reshape(-1, 2)
-            else:
-                named[name] = np.stack([chain[:, :-1:2], chain[:, 2::2], chain[:, 1::2]], axis=2).reshape(-1, 3)
-        return named
+        """The named boundary edges of the fine half."""
+        return {name: self.fine_edges(edges) for name, edges in self.coarse.boundaries.items()}
 
     def sigma(self) -> np.ndarray:
         """The fine Σ nodes in the coarse half's Σ order."""
@@ -279,9 +279,13 @@ class Lattice:
         chain = self._chains(np.column_stack([order[:-1], order[1:]]))
         return np.concatenate([chain[:, :-1].ravel(), chain[-1:, -1]])
 
-    def half(self, points: np.ndarray, cells: np.ndarray) -> HalfMesh:
-        """The fine half from its assembled points and cells (every coarse cell's pieces placed)."""
-        return HalfMesh(points, cells, self.coarse.side, self.sigma(), self.boundaries())
+    def half(self, points: np.ndarray, cells: np.ndarray, shape: Shape | None = None) -> HalfMesh:
+        """The fine half from its assembled points and cells (every coarse cell's pieces placed); its outer
+        edges are the coarse half's cut, and ``shape`` (:func:`~ddsolve.mesh.mesh.shape_of` of all its cells,
+        from the pieces' shapes) is kept."""
+        half = HalfMesh(points, cells, self.coarse.side, self.sigma(), self.boundaries())
+        return known(half, boundary_edges=self.fine_edges(self.coarse.boundary_edges),
+                     **({"shape": shape} if shape is not None else {}))
 
 
 def _rank_within(groups: np.ndarray) -> np.ndarray:
@@ -319,8 +323,11 @@ def pair_refined(coarse: Mesh, lower: HalfMesh, upper: HalfMesh) -> Mesh:
     return Mesh(lower, upper, sigma_line(lower, upper), coarse.origin)
 
 
-def shares(grid: Lattice, parts: int) -> np.ndarray:
-    """``(parts + 1,)`` coarse cell bounds giving each of ``parts`` processes about the same fine nodes."""
+def shares(grid: Lattice, parts: int, idle_first: bool = False) -> np.ndarray:
+    """``(parts + 1,)`` coarse cell bounds giving each of ``parts`` processes about the same fine nodes;
+    with ``idle_first`` the first process none (it has other work) and the others about the same."""
+    if idle_first and parts > 1:
+        return np.concatenate([[0], shares(grid, parts - 1)])
     offsets = grid.node_offsets
     targets = np.linspace(0, offsets[-1], parts + 1)
     bounds = np.searchsorted(offsets, targets)

@@ -3,6 +3,8 @@ whole mesh once and gets the upper half back for output."""
 from __future__ import annotations
 
 import dataclasses
+import functools
+import operator
 from dataclasses import dataclass
 
 import numpy as np
@@ -12,7 +14,7 @@ from ddsolve.dd import kernels
 from ddsolve.fem import supports
 from ddsolve.fem.assembly import check_range
 from ddsolve.fem.supports import SigmaSupports
-from ddsolve.mesh import curves, geometry, refine
+from ddsolve.mesh import curves, geometry, gmsh_io, refine
 from ddsolve.mesh import mesh as meshes
 from ddsolve.mesh.mesh import BLOCKS, U_PLUS, HalfMesh, Mesh, SigmaLine
 from ddsolve.parallel.exchange import Exchange, collective, wait
@@ -96,8 +98,7 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
         paired = collective(comm, lambda: geometry.build(scene), root_only=True)
         halves = {-1: paired.lower, 1: paired.upper} if rank == 0 else {}
     checked = collective(comm, lambda: whole_mesh_checks(scene, paired), root_only=True)
-    if phases is not None:
-        phases.end("meshing")
+    meshed(phases)
     sigma, nodes, cells, (tips, table, block_kernels) = comm.bcast(
         (paired.sigma, {s: len(h.points) for s, h in halves.items()}, {s: len(h.cells) for s, h in halves.items()},
          checked) if rank == 0 else None, root=0)
@@ -118,14 +119,25 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
                      meshes.quality(paired) if rank == 0 else {})
 
 
+def meshed(phases: Phases | None) -> None:
+    """End the ``meshing`` phase; the warm gmsh child's import of gmsh counts as start-up, when it ran."""
+    spent_starting = gmsh_io.warm_up_cpu()
+    if phases is not None:
+        phases.end("meshing")
+        phases.move_cpu(spent_starting, "meshing", "startup")
+
+
 def refined_local_mesh(scene: Scene, coarse_scene: Scene, levels: int, comm: MPI.Comm, exchange: Exchange,
                        phases: Phases | None = None, keep_whole: bool = False) -> LocalMesh:
     """:func:`local_mesh` for a mesh that is ``coarse_scene``'s refined ``levels`` times.
 
     The coarse halves are made as a whole mesh is (a box's by the leaders of u⁻ and u⁺ at once, else on
     rank 0, which sends the upper one to u⁺'s leader); each goes to the ranks of its half, which refine
-    an equal share of its coarse cells each (:class:`~ddsolve.mesh.refine.Lattice`) and exchange the
-    pieces.  Rank 0 then gets the upper half from u⁺'s leader, pairs and checks the whole fine mesh.
+    an equal share of its coarse cells each (:class:`~ddsolve.mesh.refine.Lattice`; the first rank of a
+    half none when the half has more than two: it made the coarse mesh, or it is rank 0, which pairs
+    and checks next) and exchange the
+    pieces, and the shape of the cells each made (the whole half's shortest side and smallest angle
+    from them).  Rank 0 then gets the upper half from u⁺'s leader, pairs and checks the whole fine mesh.
     Phases: ``meshing`` is this rank's own work (gmsh's coarse mesh, its share of the refinement);
     ``distribution`` the waits and exchanges, the pairing and the checks on rank 0.
     """
@@ -148,7 +160,7 @@ def refined_local_mesh(scene: Scene, coarse_scene: Scene, levels: int, comm: MPI
                 comm.send(coarse[1], dest=upper_maker)
             elif rank == upper_maker:
                 coarse[1] = comm.recv(source=0)
-    end("meshing")
+    meshed(phases)
     needed = sorted({BLOCKS[b].side for b in exchange.local_blocks})
     project = curves.projector(scene)  # new vertices on a .geo's curves
     group = comm.Split(color=int(needed[0] > 0), key=rank) if comm.size > 1 else comm  # its maker is first
@@ -157,11 +169,13 @@ def refined_local_mesh(scene: Scene, coarse_scene: Scene, levels: int, comm: MPI
         for side in needed:
             grid = refine.Lattice(group.bcast(coarse.get(side), root=0), levels, scene.mesh.degree)
             end("distribution")
-            bounds = refine.shares(grid, group.size)
+            bounds = refine.shares(grid, group.size, idle_first=group.size > 2)
             first, stop = bounds[group.rank], bounds[group.rank + 1]
             points, cells = collective(comm, lambda: (grid.fine_points(first, stop, project), grid.fine_cells(first, stop)))
             end("meshing")
-            fine[side] = grid.half(*share_pieces(group, grid, bounds, points, cells))
+            whole_points, whole_cells = share_pieces(group, grid, bounds, points, cells)
+            shape = functools.reduce(operator.and_, group.allgather(meshes.shape_of(whole_points, cells[:, :3])))
+            fine[side] = grid.half(whole_points, whole_cells, shape)
     finally:
         if group != comm:
             group.Free()

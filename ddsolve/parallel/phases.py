@@ -41,9 +41,12 @@ def launch_age() -> float:
 
 
 def cpu_seconds() -> float:
-    """CPU seconds of this process and of its children that ended (gmsh meshes in one)."""
-    times = os.times()
-    return times.user + times.system + times.children_user + times.children_system
+    """CPU seconds of this process and of its children that ended (gmsh meshes in one), to the microsecond
+    (``os.times`` counts clock ticks of 10 ms, as long as a phase of a small run)."""
+    import resource
+
+    own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
 
 
 #: What the memory account of a launch counts (bytes a rank holds), in the order of ``/memory``'s columns.
@@ -76,6 +79,13 @@ class Phases:
         self.held[name] = dict(self._most)
         self._most = dict(self._holding)
         self._wall, self._cpu = wall, cpu
+
+    def move_cpu(self, seconds: float, source: str, destination: str) -> None:
+        """Count ``seconds`` of phase ``source``'s CPU seconds as ``destination``'s (a child's work that ended
+        in ``source`` but ran during ``destination``)."""
+        moved = min(seconds, self.cpu.get(source, 0.0))
+        self.cpu[source] -= moved
+        self.cpu[destination] = self.cpu.get(destination, 0.0) + moved
 
     def skip(self, name: str) -> None:
         """Record phase ``name`` as not done (zero seconds), e.g. a factorization reused."""
