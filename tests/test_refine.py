@@ -2,9 +2,11 @@
 ranks, energies decreasing with the levels, and the parallel path against one rank."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
-from conftest import ddsolve, structured_mesh
+from conftest import MATERIALS, ddsolve, structured_mesh
 
 from ddsolve.errors import SceneError
 from ddsolve.fem import assembly
@@ -211,6 +213,65 @@ def test_p801_refined_gives_the_same_energy_on_1_2_and_4_ranks(tmp_path):
         energies[ranks] = io.read(output).energy
     assert energies[2] == pytest.approx(energies[1], rel=1e-10)
     assert energies[4] == pytest.approx(energies[1], rel=1e-10)
+
+
+def assert_same(a, b) -> None:
+    """``a`` and ``b`` equal to the bit: dataclasses field by field, arrays, lists and plain values."""
+    if dataclasses.is_dataclass(a):
+        assert type(a) is type(b)
+        for field in dataclasses.fields(a):
+            assert_same(getattr(a, field.name), getattr(b, field.name))
+    elif isinstance(a, np.ndarray):
+        np.testing.assert_array_equal(a, b)
+    elif isinstance(a, (list, tuple)):
+        assert len(a) == len(b)
+        for x, y in zip(a, b):
+            assert_same(x, y)
+    else:
+        assert a == b
+
+
+#: A strip clamped on its bottom only: the upper half is held by the glue (its blocks float).
+FLOATING_STRIP = """
+[geometry]
+box = [0.0, 4.0, -0.5, 0.5]
+cracks = [[1.0, 2.0]]
+clamped = ["bottom"]
+[mesh]
+sigma_vertices = 33
+boundary_vertices = 192
+refine = 2
+[loads.layer1.top]
+x = 2e-3
+""" + MATERIALS
+
+
+@pytest.mark.parametrize("name, settings", [
+    ("partial-closure", ["mesh.sigma_vertices=49", "mesh.boundary_vertices=64", "mesh.refine=2"]),
+    ("partial-closure", ["mesh.sigma_vertices=25", "mesh.boundary_vertices=64", "mesh.refine=1", "mesh.degree=2"]),
+    ("arc-bond", ["mesh.refine=1"]),
+    ("strip-disbonds", ["mesh.refine=1"]),
+    ("floating strip", []),
+])
+def test_rank_0_checks_the_skeleton_of_the_upper_half_as_it_checks_the_whole(name, settings):
+    from ddsolve.mesh import curves
+    from ddsolve.mesh import mesh as meshes
+    from ddsolve.parallel.distribution import whole_mesh_checks
+
+    chosen = scene.loads(FLOATING_STRIP) if name == "floating strip" else scene.load(name, settings)
+    coarse_scene, levels = geometry.refinement(chosen)
+    assert levels > 0
+    coarse = geometry.build_coarse(coarse_scene)
+    lower, upper = (refine.refine_half(half, levels, chosen.mesh.degree, curves.projector(chosen))
+                    for half in coarse.halves)
+    bare = meshes.skeleton(upper)
+    assert len(bare.points) < len(upper.points) / 2 and len(bare.cells) == 0
+    whole, checked = (refine.pair_refined(coarse, lower, half) for half in (upper, bare))
+    assert_same(checked.sigma, whole.sigma)
+    assert meshes.quality(checked) == meshes.quality(whole)
+    assert_same(whole_mesh_checks(chosen, checked), whole_mesh_checks(chosen, whole))  # tips, Σ supports, kernels
+    if name == "floating strip":
+        assert whole_mesh_checks(chosen, checked)[2].floating == [1, 3]
 
 
 @pytest.mark.mpi

@@ -94,6 +94,19 @@ def known(half: HalfMesh, **values) -> HalfMesh:
     return half
 
 
+def skeleton(half: HalfMesh) -> HalfMesh:
+    """The half's boundary alone: the nodes of its outer edges, named boundaries and Σ (in their order,
+    renumbered), no cells, its outer edges and shape known.  All that pairing and checking the whole
+    mesh read of a half (Σ, the boundaries, the extent, the supports' nodes) is the same on it."""
+    kept = np.unique(np.concatenate([half.boundary_edges.ravel(), half.sigma,
+                                     *(edges.ravel() for edges in half.boundaries.values())]))
+    number = np.full(len(half.points), -1, dtype=np.int64)
+    number[kept] = np.arange(len(kept))
+    bare = HalfMesh(half.points[kept], np.zeros((0, half.cells.shape[1]), dtype=half.cells.dtype), half.side,
+                    number[half.sigma], {name: number[edges] for name, edges in half.boundaries.items()})
+    return known(bare, boundary_edges=number[half.boundary_edges], shape=half.shape)
+
+
 @dataclass(frozen=True)
 class Shape:
     """What the checks and the records need of a mesh's triangles (:func:`shape_of`)."""

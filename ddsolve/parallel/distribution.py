@@ -137,7 +137,8 @@ def refined_local_mesh(scene: Scene, coarse_scene: Scene, levels: int, comm: MPI
     half none when the half has more than two: it made the coarse mesh, or it is rank 0, which pairs
     and checks next) and exchange the
     pieces, and the shape of the cells each made (the whole half's shortest side and smallest angle
-    from them).  Rank 0 then gets the upper half from u⁺'s leader, pairs and checks the whole fine mesh.
+    from them).  Rank 0 then gets the skeleton of the upper half from u⁺'s leader (its boundary:
+    :func:`~ddsolve.mesh.mesh.skeleton`; the whole half with ``keep_whole``), pairs and checks the mesh.
     Phases: ``meshing`` is this rank's own work (gmsh's coarse mesh, its share of the refinement);
     ``distribution`` the waits and exchanges, the pairing and the checks on rank 0.
     """
@@ -180,15 +181,16 @@ def refined_local_mesh(scene: Scene, coarse_scene: Scene, levels: int, comm: MPI
         if group != comm:
             group.Free()
     upper = fine.get(1)
-    if comm.size > 1:
+    upper_size = (len(upper.points), len(upper.cells)) if upper is not None else None
+    if comm.size > 1:  # rank 0 checks the skeleton of the upper half (the whole one if it keeps it)
         if rank == upper_maker:
-            comm.send(upper, dest=0)
+            comm.send((upper if keep_whole else meshes.skeleton(upper), upper_size), dest=0)
         elif rank == 0:
-            upper = comm.recv(source=upper_maker)
+            upper, upper_size = comm.recv(source=upper_maker)
     paired = collective(comm, lambda: refine.pair_refined(whole_coarse, fine[-1], upper), root_only=True)
     checked = collective(comm, lambda: whole_mesh_checks(scene, paired), root_only=True)
-    sizes = (paired.sigma, {half.side: len(half.points) for half in paired.halves},
-             {half.side: len(half.cells) for half in paired.halves}, checked) if rank == 0 else None
+    sizes = (paired.sigma, {-1: len(fine[-1].points), 1: upper_size[0]},
+             {-1: len(fine[-1].cells), 1: upper_size[1]}, checked) if rank == 0 else None
     sigma, nodes, cells, (tips, table, block_kernels) = comm.bcast(sizes, root=0)
     if keep_whole and rank == 0:
         fine[1] = upper
