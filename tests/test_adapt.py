@@ -84,3 +84,22 @@ def test_energies_decrease_monotonically_under_refinement(name):
         marked = marked > np.quantile(marked, 0.6)
         mesh = bisection.refine(mesh, marked, longest_edge=round_ == 0)
     assert all(b < a for a, b in zip(energies, energies[1:])), energies
+
+
+def test_a_level_refined_next_is_known_from_its_estimate_but_for_a_plan_past_the_limit(monkeypatch):
+    """RefinedNext says from the estimate alone what next_level decides (the level's G and reactions are
+    then left out); only a plan past the size limit it cannot foresee: the loop then solves that level again."""
+    mesh = structured_mesh(8, 4, degree=1, geometry=Geometry())
+    result = _result(mesh, 0.05, _indicators(mesh, np.array([3])))
+
+    def agree(target, level):
+        step = adapt.RefinedNext(mesh, level, target, ranks=1)
+        done = adapt.next_level(result, target, level)[0]
+        return step(0.05) == (not done) and step.said == (not done)
+
+    assert agree(0.1, 0) and agree(0.01, 0) and agree(0.01, adapt.MAX_LEVELS - 1)
+    monkeypatch.setattr(adapt, "MAX_UNKNOWNS", 100)
+    assert agree(0.01, 1)  # out of reach
+    monkeypatch.setattr(adapt, "PREDICTION_MARGIN", 1e6)
+    step = adapt.RefinedNext(mesh, 1, 0.01, ranks=1)
+    assert step(0.05) and adapt.next_level(result, 0.01, 1)[0]  # the plan is past the limit: solved again

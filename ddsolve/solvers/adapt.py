@@ -89,8 +89,9 @@ def _silent(_line: str) -> None:
 def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, level=None) -> Result | None:
     """Refine until the estimated relative energy-norm error is at most ``scene.mesh.target_error``.
 
-    ``level(mesh, scene)`` solves one level (on every rank; the result on rank 0): by default the domain
-    decomposition (:func:`ddsolve.solvers.driver.solve`); ``reference`` passes the monolithic solve.  Prints a
+    ``level(mesh, scene, refined_next)`` solves one level (on every rank; the result on rank 0): by default
+    the domain decomposition (:func:`ddsolve.solvers.driver.solve`, which leaves out G, its modes and the
+    reactions of a level ``refined_next`` says is refined next); ``reference`` passes the monolithic solve.  Prints a
     line per level on rank 0 (via ``progress``); writes the last level's result with the level table and, for
     a scene with a toughness and a temperature change, the critical load factors found on the last mesh
     by solves of the scaled scene (:func:`ddsolve.solvers.critical.roots`).
@@ -102,8 +103,8 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, lev
     """
     target = scene.mesh.target_error
     if level is None:
-        def level(mesh: Mesh, solved: Scene = scene) -> Result | None:
-            return driver.solve(solved, comm, None, progress=_silent, mesh=mesh)
+        def level(mesh: Mesh, solved: Scene, refined_next: RefinedNext | None) -> Result | None:
+            return driver.solve(solved, comm, None, progress=_silent, mesh=mesh, refined_next=refined_next)
     project = curves.projector(scene)
     startup, started = launch_age(), time.perf_counter()
     refined, rows, result, message, refining = None, [], None, "", 0.0
@@ -111,7 +112,8 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, lev
         mark = time.perf_counter()
         mesh = distribution.build_mesh(scene, comm) if number == 0 else comm.bcast(refined, root=0)
         meshing = time.perf_counter() - mark + refining
-        result = level(mesh)
+        step = RefinedNext(mesh, number, target, comm.size)
+        result = level(mesh, scene, step)
         if comm.rank == 0:
             estimate = float(result.attrs["error_estimate"])
             rows.append({"unknowns": unknowns(mesh), "cells": len(mesh.lower.cells) + len(mesh.upper.cells),
@@ -126,9 +128,11 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, lev
         refined = decision[1] if comm.rank == 0 else None
         refining = time.perf_counter() - mark
         if done:
+            if comm.bcast(step.said, root=0):  # refined next, it seemed, but the plan exceeds the machine
+                result = level(mesh, scene, None)  # this level is the result: solved again, whole
             break
     if critical.needed(scene):
-        found = critical.roots(scene, comm, lambda scaled: level(mesh, scaled), progress)
+        found = critical.roots(scene, comm, lambda scaled: level(mesh, scaled, None), progress)
         if comm.rank == 0 and result.fracture is not None:
             toughness.judge(result.fracture, scene, found)
     if comm.rank == 0:
@@ -147,6 +151,20 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, lev
         error.result = result
         raise error
     return result
+
+
+class RefinedNext:
+    """Whether a level is refined next, from its estimated error alone (rank 0; :func:`next_level` decides
+    in the end): its G, modes and reactions are then not computed.  ``said`` keeps the answer."""
+
+    def __init__(self, mesh: Mesh, level: int, target: float, ranks: int):
+        self.mesh, self.level, self.target, self.ranks, self.said = mesh, level, target, ranks, False
+
+    def __call__(self, estimate: float) -> bool:
+        self.said = bool(estimate > self.target and self.level + 1 < MAX_LEVELS
+                         and needed_unknowns(unknowns(self.mesh), estimate, self.target, self.mesh.degree)
+                         <= PREDICTION_MARGIN * largest_level(self.ranks))
+        return self.said
 
 
 def next_level(result: Result, target: float, level: int, project: bisection.Projector | None = None

@@ -44,7 +44,7 @@ def reference(scene: Scene, output: Path | None = None, progress: Callable[[str]
         from mpi4py import MPI
 
         result = adapt.solve(scene, MPI.COMM_SELF, output, progress=progress,
-                             level=lambda mesh, solved=scene: monolithic.solve(solved, mesh))
+                             level=lambda mesh, solved, _refined_next: monolithic.solve(solved, mesh))
     else:
         mesh = geometry.build(scene)
         found = critical.search(scene, lambda lam: monolithic.solve(scene.scaled(lam), mesh).fracture, progress) \
