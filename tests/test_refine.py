@@ -274,6 +274,18 @@ def test_rank_0_checks_the_skeleton_of_the_upper_half_as_it_checks_the_whole(nam
         assert whole_mesh_checks(chosen, checked)[2].floating == [1, 3]
 
 
+def test_rank_0_pairs_and_checks_gmsh_halves_from_the_skeleton_of_the_upper_one():
+    from ddsolve.mesh import mesh as meshes
+    from ddsolve.parallel.distribution import whole_mesh_checks
+
+    chosen = scene.load("partial-closure", ["mesh.sigma_vertices=96", "mesh.boundary_vertices=144"])
+    lower, upper = (geometry.generate_half(chosen, side) for side in (-1, 1))
+    whole, checked = (geometry.pair(chosen, lower, half) for half in (upper, meshes.skeleton(upper)))
+    assert_same(checked.sigma, whole.sigma)
+    assert meshes.quality(checked) == meshes.quality(whole)
+    assert_same(whole_mesh_checks(chosen, checked), whole_mesh_checks(chosen, whole))
+
+
 @pytest.mark.mpi
 @pytest.mark.slow
 def test_eight_ranks_mesh_with_a_fraction_of_the_cpu_time_of_two(tmp_path):

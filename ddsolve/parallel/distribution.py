@@ -75,7 +75,8 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
     """Each rank gets the half its blocks live on (both with one rank), Σ, and the crack tips.
 
     A box is meshed by the leaders of u⁻ (rank 0, lower half) and u⁺ (upper half) at once, else
-    rank 0 makes the whole mesh.  Rank 0 pairs the halves (checks, Σ, the loads' boundaries), then
+    rank 0 makes the whole mesh.  Rank 0 pairs the halves (checks, Σ, the loads' boundaries; of a box's
+    upper half it gets the skeleton, :func:`~ddsolve.mesh.mesh.skeleton`), then
     each half goes to the ranks that need it by a broadcast among them.  Rank 0 keeps the upper half
     only with one rank (or ``keep_whole``); it gets it back for output (:func:`gather_upper`).
     A mesh made by refinement (:func:`geometry.refinement`) is made by :func:`refined_local_mesh`.
@@ -90,18 +91,22 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
     if split:
         side = -1 if rank == 0 else 1 if rank == upper_maker else 0
         made = collective(comm, lambda: geometry.generate_half(scene, side) if side else None)
+        for_rank_0 = collective(comm, lambda: upper_for_rank_0(made, keep_whole) if rank == upper_maker else None)
         if rank == upper_maker:
-            comm.send(made, dest=0)
-        halves = {-1: made, 1: comm.recv(source=upper_maker)} if rank == 0 else {side: made} if side else {}
+            comm.send(for_rank_0, dest=0)
+        halves = {side: made} if side else {}
+        if rank == 0:
+            halves[1], upper_size = comm.recv(source=upper_maker)
         paired = collective(comm, lambda: geometry.pair(scene, halves[-1], halves[1]), root_only=True)
     else:
         paired = collective(comm, lambda: geometry.build(scene), root_only=True)
         halves = {-1: paired.lower, 1: paired.upper} if rank == 0 else {}
+        upper_size = (len(paired.upper.points), len(paired.upper.cells)) if rank == 0 else None
     checked = collective(comm, lambda: whole_mesh_checks(scene, paired), root_only=True)
     meshed(phases)
     sigma, nodes, cells, (tips, table, block_kernels) = comm.bcast(
-        (paired.sigma, {s: len(h.points) for s, h in halves.items()}, {s: len(h.cells) for s, h in halves.items()},
-         checked) if rank == 0 else None, root=0)
+        (paired.sigma, {-1: len(paired.lower.points), 1: upper_size[0]},
+         {-1: len(paired.lower.cells), 1: upper_size[1]}, checked) if rank == 0 else None, root=0)
     needed = sorted({BLOCKS[b].side for b in exchange.local_blocks})
     if comm.size > 1:
         if not split and upper_maker != 0:  # rank 0 made both halves: the upper one goes to u⁺'s leader
@@ -117,6 +122,12 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
         phases.end("distribution")
     return LocalMesh(halves, sigma, nodes, cells, geometry.origin(scene), tips, table, block_kernels,
                      meshes.quality(paired) if rank == 0 else {})
+
+
+def upper_for_rank_0(upper: HalfMesh, keep_whole: bool) -> tuple[HalfMesh, tuple[int, int]]:
+    """What u⁺'s leader sends rank 0 to pair and check: the upper half's skeleton (the whole half if rank 0
+    keeps it) and the half's numbers of nodes and cells."""
+    return upper if keep_whole else meshes.skeleton(upper), (len(upper.points), len(upper.cells))
 
 
 def meshed(phases: Phases | None) -> None:
@@ -182,9 +193,10 @@ def refined_local_mesh(scene: Scene, coarse_scene: Scene, levels: int, comm: MPI
             group.Free()
     upper = fine.get(1)
     upper_size = (len(upper.points), len(upper.cells)) if upper is not None else None
-    if comm.size > 1:  # rank 0 checks the skeleton of the upper half (the whole one if it keeps it)
+    if comm.size > 1:
+        for_rank_0 = collective(comm, lambda: upper_for_rank_0(upper, keep_whole) if rank == upper_maker else None)
         if rank == upper_maker:
-            comm.send((upper if keep_whole else meshes.skeleton(upper), upper_size), dest=0)
+            comm.send(for_rank_0, dest=0)
         elif rank == 0:
             upper, upper_size = comm.recv(source=upper_maker)
     paired = collective(comm, lambda: refine.pair_refined(whole_coarse, fine[-1], upper), root_only=True)
