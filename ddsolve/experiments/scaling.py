@@ -278,7 +278,7 @@ def render(record: dict) -> None:
     runs = record["runs"]
     model = CostModel(record["calibration"], record["network"],  # fitted to the method measurements
                       [r for r in runs if r["kind"] in ("strong", "weak", "rounds")])
-    for run in runs:
+    for run in (r for r in runs if r["kind"] != "meshing"):  # a meshing run solves nothing
         run["predicted"] = model.phases(run["method"], run["ranks"], run["unknowns"], run["trace"],
                                         run["interface_unknowns"], run["rounds"], run["multipliers"],
                                         record["cores"])["total"]
@@ -600,7 +600,7 @@ def text(record: dict, model: CostModel) -> str:
         "on N ranks as a solve does it, without the solve (`scaling-meshing`; the levels of refinement chosen as by default): "
         "rank 0's meshing wall time, the largest and smallest per-rank meshing CPU seconds (the warm gmsh "
         "child's import of gmsh counts as start-up, when it ran), the largest against the 2-rank run's, rank 0's "
-        "distribution wall time (receiving the upper half, pairing and checking the whole mesh) and the largest "
+        "distribution wall time (receiving the upper half's skeleton, pairing and checking the mesh) and the largest "
         "rank's distribution CPU seconds, the peak memory. The coarse mesh costs gmsh about the same on every "
         "mesh; the refinement grows with the mesh and is shared:",
         "",
