@@ -1,5 +1,6 @@
 """The mesh on the ranks: each rank receives the half its blocks live on and Σ; rank 0 checks the
-whole mesh once and gets the upper half back for output."""
+whole mesh once (its own half and the upper half's skeleton) and, for a gathered result, gets the upper
+half for output."""
 from __future__ import annotations
 
 import dataclasses
@@ -146,10 +147,10 @@ def refined_local_mesh(scene: Scene, coarse_scene: Scene, levels: int, comm: MPI
     rank 0, which sends the upper one to u⁺'s leader); each goes to the ranks of its half, which refine
     an equal share of its coarse cells each (:class:`~ddsolve.mesh.refine.Lattice`; the first rank of a
     half none when the half has more than two: it made the coarse mesh, or it is rank 0, which pairs
-    and checks next) and exchange the
-    pieces, and the shape of the cells each made (the whole half's shortest side and smallest angle
-    from them).  Rank 0 then gets the skeleton of the upper half from u⁺'s leader (its boundary:
-    :func:`~ddsolve.mesh.mesh.skeleton`; the whole half with ``keep_whole``), pairs and checks the mesh.
+    and checks next) and exchange the pieces and the shape of the cells each made (the whole half's
+    shortest side and smallest angle).  Rank 0 then gets the skeleton of the upper half from u⁺'s
+    leader (its boundary: :func:`~ddsolve.mesh.mesh.skeleton`; the whole half with ``keep_whole``),
+    pairs and checks the mesh.
     Phases: ``meshing`` is this rank's own work (gmsh's coarse mesh, its share of the refinement);
     ``distribution`` the waits and exchanges, the pairing and the checks on rank 0.
     """
