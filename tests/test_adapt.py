@@ -86,20 +86,23 @@ def test_energies_decrease_monotonically_under_refinement(name):
     assert all(b < a for a, b in zip(energies, energies[1:])), energies
 
 
-def test_a_level_refined_next_is_known_from_its_estimate_but_for_a_plan_past_the_limit(monkeypatch):
-    """RefinedNext says from the estimate alone what next_level decides (the level's G and reactions are
-    then left out); only a plan past the size limit it cannot foresee: the loop then solves that level again."""
+def test_the_decision_after_a_level_is_taken_once_inside_its_solve_or_after_it(monkeypatch):
+    """NextLevel takes next_level's decision when the solve asks (the level is refined next exactly when it
+    is not done, and then leaves out G), keeps a refusal for every rank, and decides after the solve for a
+    level that did not ask (the reference's)."""
     mesh = structured_mesh(8, 4, degree=1, geometry=Geometry())
     result = _result(mesh, 0.05, _indicators(mesh, np.array([3])))
-
-    def agree(target, level):
-        step = adapt.RefinedNext(mesh, level, target, ranks=1)
+    for target, level in ((0.1, 0), (0.01, 0), (0.01, adapt.MAX_LEVELS - 1)):
+        asked, after = adapt.NextLevel(target, level, None), adapt.NextLevel(target, level, None)
         done = adapt.next_level(result, target, level)[0]
-        return step(0.05) == (not done) and step.said == (not done)
-
-    assert agree(0.1, 0) and agree(0.01, 0) and agree(0.01, adapt.MAX_LEVELS - 1)
+        assert asked.refined_next(result) == (not done)
+        assert asked.taken(result)[0::2] == after.taken(result)[0::2] == adapt.next_level(result, target, level)[0::2]
     monkeypatch.setattr(adapt, "MAX_UNKNOWNS", 100)
-    assert agree(0.01, 1)  # out of reach
+    refused = adapt.NextLevel(0.01, 0, None)
+    assert not refused.refined_next(result)  # the solve finishes the level; every rank then sees the refusal
+    with pytest.raises(DDSolveError, match="refused"):
+        refused.taken(result)
     monkeypatch.setattr(adapt, "PREDICTION_MARGIN", 1e6)
-    step = adapt.RefinedNext(mesh, 1, 0.01, ranks=1)
-    assert step(0.05) and adapt.next_level(result, 0.01, 1)[0]  # the plan is past the limit: solved again
+    past_limit = adapt.NextLevel(0.01, 1, None)
+    assert not past_limit.refined_next(result)  # a plan past the size limit: this level is the result, whole
+    assert "the next mesh would have about" in past_limit.taken(result)[2]

@@ -65,7 +65,8 @@ def apart(work: Callable[..., T], *args) -> T:
                             "sizes (mesh.size, mesh.grading, the sizes of a .geo) or the geometry") from None
     finally:
         _end(child, receiver)
-    _warm_cpu.append(waiting)
+    if waiting:  # a warm child's
+        _warm_cpu.append(waiting)
     if not ok:
         raise value
     return value

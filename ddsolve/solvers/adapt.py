@@ -23,6 +23,7 @@ once (nothing written) and a later one stops there; no level is solved whose mes
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -90,8 +91,9 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, lev
     """Refine until the estimated relative energy-norm error is at most ``scene.mesh.target_error``.
 
     ``level(mesh, scene, refined_next)`` solves one level (on every rank; the result on rank 0): by default
-    the domain decomposition (:func:`ddsolve.solvers.driver.solve`, which leaves out G, its modes and the
-    reactions of a level ``refined_next`` says is refined next); ``reference`` passes the monolithic solve.  Prints a
+    the domain decomposition (:func:`ddsolve.solvers.driver.solve`, which asks ``refined_next`` for the
+    decision after the level, :class:`NextLevel`, as soon as the estimate is known, and leaves out G, its
+    modes and the reactions of a level that is refined next); ``reference`` passes the monolithic solve.  Prints a
     line per level on rank 0 (via ``progress``); writes the last level's result with the level table and, for
     a scene with a toughness and a temperature change, the critical load factors found on the last mesh
     by solves of the scaled scene (:func:`ddsolve.solvers.critical.roots`).
@@ -103,7 +105,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, lev
     """
     target = scene.mesh.target_error
     if level is None:
-        def level(mesh: Mesh, solved: Scene, refined_next: RefinedNext | None) -> Result | None:
+        def level(mesh: Mesh, solved: Scene, refined_next: Callable[[Result], bool] | None) -> Result | None:
             return driver.solve(solved, comm, None, progress=_silent, mesh=mesh, refined_next=refined_next)
     project = curves.projector(scene)
     startup, started = launch_age(), time.perf_counter()
@@ -112,24 +114,23 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, lev
         mark = time.perf_counter()
         mesh = distribution.build_mesh(scene, comm) if number == 0 else comm.bcast(refined, root=0)
         meshing = time.perf_counter() - mark + refining
-        step = RefinedNext(mesh, number, target, comm.size)
-        result = level(mesh, scene, step)
+        step = NextLevel(target, number, project)
+        result = level(mesh, scene, step.refined_next)
         if comm.rank == 0:
             estimate = float(result.attrs["error_estimate"])
             rows.append({"unknowns": unknowns(mesh), "cells": len(mesh.lower.cells) + len(mesh.upper.cells),
                          "error_estimate": estimate, "energy": float(result.attrs.get("energy", np.nan)),
                          "mesh_time": meshing, "solve_time": result.wall_time,
-                         "level_time": time.perf_counter() - mark + refining, "elapsed": time.perf_counter() - started})
+                         "level_time": time.perf_counter() - mark + refining - step.seconds,
+                         "elapsed": time.perf_counter() - started})
             progress(f"level {number}: {rows[-1]['unknowns']:,} unknowns, estimated error {100 * estimate:.3g} %, "
                      f"{rows[-1]['level_time']:.2f} s (mesh {meshing:.2f} s, solve {result.wall_time:.2f} s)")
         mark = time.perf_counter()
-        decision = collective(comm, lambda: next_level(result, target, number, project), root_only=True)
+        decision = collective(comm, lambda: step.taken(result), root_only=True)
         done, message = comm.bcast(decision[0::2] if comm.rank == 0 else None, root=0)
         refined = decision[1] if comm.rank == 0 else None
-        refining = time.perf_counter() - mark
+        refining = time.perf_counter() - mark + step.seconds  # the refinement: the next level's meshing
         if done:
-            if comm.bcast(step.said, root=0):  # refined next, it seemed, but the plan exceeds the machine
-                result = level(mesh, scene, None)  # this level is the result: solved again, whole
             break
     if critical.needed(scene):
         found = critical.roots(scene, comm, lambda scaled: level(mesh, scaled, None), progress)
@@ -153,18 +154,34 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, lev
     return result
 
 
-class RefinedNext:
-    """Whether a level is refined next, from its estimated error alone (rank 0; :func:`next_level` decides
-    in the end): its G, modes and reactions are then not computed.  ``said`` keeps the answer."""
+class NextLevel:
+    """Rank 0's decision after a level (:func:`next_level`), taken inside the level's solve as soon as its
+    estimate and indicators are known (:meth:`refined_next`), so that a level refined next leaves out G,
+    its modes and the reactions; or after the solve, for a level that does not ask (:meth:`taken`)."""
 
-    def __init__(self, mesh: Mesh, level: int, target: float, ranks: int):
-        self.mesh, self.level, self.target, self.ranks, self.said = mesh, level, target, ranks, False
+    def __init__(self, target: float, level: int, project: bisection.Projector | None):
+        self.target, self.level, self.project = target, level, project
+        self.decision: tuple | None = None
+        self.error: DDSolveError | None = None
+        self.seconds = 0.0  # spent deciding inside the solve
 
-    def __call__(self, estimate: float) -> bool:
-        self.said = bool(estimate > self.target and self.level + 1 < MAX_LEVELS
-                         and needed_unknowns(unknowns(self.mesh), estimate, self.target, self.mesh.degree)
-                         <= PREDICTION_MARGIN * largest_level(self.ranks))
-        return self.said
+    def refined_next(self, result: Result) -> bool:
+        """Decide now (rank 0, ``result`` without G yet); whether the level is refined next.  A refusal is
+        kept for :meth:`taken` to raise on every rank (the solve goes on as for a last level)."""
+        started = time.perf_counter()
+        try:
+            self.decision = next_level(result, self.target, self.level, self.project)
+        except DDSolveError as exc:
+            self.error = exc
+        self.seconds = time.perf_counter() - started
+        return self.decision is not None and not self.decision[0]
+
+    def taken(self, result: Result) -> tuple[bool, Mesh | None, str]:
+        """The decision (rank 0): the one taken inside the solve (its refusal raised), else taken now."""
+        if self.error is not None:
+            raise self.error
+        return self.decision if self.decision is not None else next_level(result, self.target, self.level,
+                                                                           self.project)
 
 
 def next_level(result: Result, target: float, level: int, project: bisection.Projector | None = None

@@ -402,7 +402,7 @@ def bound(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, iterations: in
 
 def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mesh: Mesh | None = None,
           setup: Setup | None = None, gather: bool = True, factors: np.ndarray | None = None,
-          refined_next: Callable[[float], bool] | None = None) -> Result | None:
+          refined_next: Callable[[Result], bool] | None = None) -> Result | None:
     """Run the domain decomposition for ``scene`` on ``comm``; write ``output``.
 
     Not ``gather`` (the command line), with ``output`` on more than one rank and h5py built with MPI:
@@ -416,9 +416,9 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
     :func:`prepare`, loads from :func:`reload`) skips assembly and factorization and is kept.
     ``factors`` (rank 0): the critical load factors of the tips where a root solve found them (a scene with
     a temperature change, :func:`ddsolve.solvers.critical.factors`); else √(G_c/G) or NaN
-    (:func:`ddsolve.post.toughness.judge`).  ``refined_next`` (rank 0, gathered results): given the
-    estimated error, whether this result is only a step to a finer mesh (an adaptive level); then G, its
-    modes and the reactions are not computed (``fracture`` stays None, ``reactions`` empty).
+    (:func:`ddsolve.post.toughness.judge`).  ``refined_next`` (rank 0, gathered results): given the result
+    with its estimate and indicators, whether it is only a step to a finer mesh (an adaptive level); then G,
+    its modes and the reactions are not computed (``fracture`` stays None, ``reactions`` empty).
     """
     own = setup is None
     if own:
@@ -489,7 +489,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
                 result = Result.from_blocks(scene.text, method, mesh, solutions, interface, outcome.lam, **record)
                 estimated = estimate.combine(mesh, parts, result.solution, result.multipliers["mu_c"])
                 result.attrs["error_estimate"], result.indicators = estimated.relative, estimated.indicators
-                if refined_next is None or not refined_next(estimated.relative):
+                if refined_next is None or not refined_next(result):
                     result.fracture = fracture.finish(local.tips, volume, result.on_sigma,
                                                       fracture.mode_split(local.tips, result), scene, factors)
                     result.reactions = reactions.reactions(scene, mesh, result.solution, local.sigma_supports)
