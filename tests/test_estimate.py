@@ -53,6 +53,13 @@ def test_fields_of_the_element_space_have_zero_estimate(degree, field):
                            (quadratic_strain(half.points)[:, 2] if degree == 2 else -1.0), atol=1e-11)
 
 
+@pytest.mark.parametrize("degree", [1, 2])
+def test_a_half_s_known_outer_edges_give_the_indicators_found_from_its_cells(degree):
+    half = structured_mesh(8, 4, shear=0.3, degree=degree).lower
+    u = cubic(half.points)
+    assert np.array_equal(estimate.half_indicators(half, D, u), estimate.block_indicators(half.points, half.cells, D, u))
+
+
 def _true_interpolation_error(half, u, exact_strain) -> float:
     xi, weights = element.TRIANGLE_RULES[6]  # degree 4: exact for the squared difference on straight cells
     det, gradients = element_geometry(half.points, half.cells, xi)

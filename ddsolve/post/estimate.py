@@ -97,7 +97,8 @@ def _energy_density(strain: np.ndarray, D: np.ndarray, det: np.ndarray, weights:
 
 def recovered_strain(points: np.ndarray, cells: np.ndarray, u: np.ndarray) -> np.ndarray:
     """``(n, 3)``: the SPR-recovered strain (εxx, εyy, γxy) at every node of the block."""
-    return _recover(points, cells, *_sampled_strains(points, cells, u))
+    where, _, strain = _sampled_strains(points, cells, u)
+    return _recover(points, cells, where, strain)
 
 
 #: Cells whose temporaries the estimate holds at once: its memory stays that of a few arrays per node
@@ -125,18 +126,21 @@ def _add_counts(totals: np.ndarray, nodes: np.ndarray, weights: np.ndarray | Non
         row[low:high] += np.bincount(shifted, values, minlength=high - low)
 
 
-def _sampled_strains(points: np.ndarray, cells: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Positions ``(m, s, 2)`` and strains ``(m, s, 3)`` at the sampling points of every cell."""
+def _sampled_strains(points: np.ndarray, cells: np.ndarray, u: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Positions ``(m, s, 2)``, det J ``(m, s)`` and strains ``(m, s, 3)`` at the sampling points of every cell."""
     xi = _SAMPLES[cells.shape[1]]
-    where, strain = np.empty((len(cells), len(xi), 2)), np.empty((len(cells), len(xi), 3))
+    where, det, strain = np.empty((len(cells), len(xi), 2)), np.empty((len(cells), len(xi))), np.empty((len(cells), len(xi), 3))
     for chunk in _chunks(len(cells)):
-        where[chunk], _, strain[chunk] = _strains_at(points, cells[chunk], u, xi)
-    return where, strain
+        where[chunk], det[chunk], strain[chunk] = _strains_at(points, cells[chunk], u, xi)
+    return where, det, strain
 
 
-def _recover(points: np.ndarray, cells: np.ndarray, where: np.ndarray, strain: np.ndarray) -> np.ndarray:
+def _recover(points: np.ndarray, cells: np.ndarray, where: np.ndarray, strain: np.ndarray,
+             outer_edges: np.ndarray | None = None) -> np.ndarray:
     """SPR from the positions ``(m, s, 2)`` and strains ``(m, s, 3)`` at the sampling points; the
-    patch sums are gathered a chunk of cells at a time."""
+    patch sums are gathered a chunk of cells at a time.  ``outer_edges``: the mesh's boundary edges if
+    known (:attr:`~ddsolve.mesh.mesh.HalfMesh.boundary_edges`), else found from the cells."""
     k = cells.shape[1]
     degree = 1 if k == 3 else 2
     b = 3 if degree == 1 else 6
@@ -172,7 +176,12 @@ def _recover(points: np.ndarray, cells: np.ndarray, where: np.ndarray, strain: n
     coefficients[patches[good]] = solved[good]
     usable = np.zeros(n, dtype=bool)
     usable[patches[good]] = True
-    interior = usable & ~boundary_nodes(corners, n)
+    if outer_edges is None:
+        on_boundary = boundary_nodes(corners, n)
+    else:
+        on_boundary = np.zeros(n, dtype=bool)
+        on_boundary[outer_edges[:, :2]] = True
+    interior = usable & ~on_boundary
     # A node takes the mean of the interior patches it is "own" to (its vertex, or a P2 midpoint's two
     # ends); a node without one (at the boundary) the mean of the interior patches of its cells, else
     # of the usable patches of its cells.
@@ -215,19 +224,33 @@ def _patch_means(points: np.ndarray, cells: np.ndarray, nodes, scale: np.ndarray
     return sums.T.copy(), found
 
 
-def block_indicators(points: np.ndarray, cells: np.ndarray, D: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """``(2, m)``: per cell η_K² = ∫ (ε* − ε_h)ᵀ D (ε* − ε_h) and ∫ ε_hᵀ D ε_h, for the field u ``(n, 2)``."""
+def block_indicators(points: np.ndarray, cells: np.ndarray, D: np.ndarray, u: np.ndarray,
+                     outer_edges: np.ndarray | None = None) -> np.ndarray:
+    """``(2, m)``: per cell η_K² = ∫ (ε* − ε_h)ᵀ D (ε* − ε_h) and ∫ ε_hᵀ D ε_h, for the field u ``(n, 2)``;
+    ``outer_edges`` as for :func:`_recover`."""
     k = cells.shape[1]
-    recovered = recovered_strain(points, cells, u)
+    where, sampled_det, sampled = _sampled_strains(points, cells, u)
+    recovered = _recover(points, cells, where, sampled, outer_edges)
+    del where
     xi, weights = TRIANGLE_RULES[k]
     values, _ = shape_functions(k, xi)
     out = np.empty((2, len(cells)))
     for chunk in _chunks(len(cells)):
-        _, det, strain = _strains_at(points, cells[chunk], u, xi)
+        if k == 3:  # straight P1 cells: ε_h and det J are the same at every point, the sampled ones (centroid)
+            strain = sampled[chunk]
+            out[1, chunk] = _energy_density(strain, D, sampled_det[chunk], np.array([weights.sum()]))
+            det = np.broadcast_to(sampled_det[chunk], (len(strain), len(xi)))
+        else:
+            _, det, strain = _strains_at(points, cells[chunk], u, xi)
+            out[1, chunk] = _energy_density(strain, D, det, weights)
         difference = np.tensordot(recovered[cells[chunk]], values, axes=([1], [1])).transpose(0, 2, 1) - strain
         out[0, chunk] = _energy_density(difference, D, det, weights)
-        out[1, chunk] = _energy_density(strain, D, det, weights)
     return out
+
+
+def half_indicators(half: HalfMesh, D: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """:func:`block_indicators` of the field ``u`` on ``half`` (whose outer edges may be known already)."""
+    return block_indicators(half.points, half.cells, D, u, half.boundary_edges)
 
 
 def contact_indicators(mesh: Mesh, u_minus: np.ndarray, u_plus: np.ndarray, mu_c: np.ndarray
@@ -318,8 +341,8 @@ def combine(mesh: Mesh, parts: dict[str, np.ndarray], solution: dict[str, np.nda
 def of_solution(mesh: Mesh, laws: dict[str, np.ndarray], solution: dict[str, np.ndarray], mu_c: np.ndarray
                 ) -> Estimate:
     """The whole estimate in one process; ``laws``: layer -> Hooke matrix D."""
-    parts = {spec.name: block_indicators(mesh.half(spec.side).points, mesh.half(spec.side).cells,
-                                         laws[spec.layer], solution[spec.name]) for spec in BLOCKS}
+    parts = {spec.name: half_indicators(mesh.half(spec.side), laws[spec.layer], solution[spec.name])
+             for spec in BLOCKS}
     return combine(mesh, parts, solution, mu_c)
 
 
@@ -328,7 +351,7 @@ def block_part(scene: Scene, mesh: Mesh, index: int, x: np.ndarray) -> np.ndarra
     spec = BLOCKS[index]
     half = mesh.half(spec.side)
     u = to_global(x, trace_nodes(half, mesh.sigma), mesh.sigma.frames[mesh.sigma.multiplier_nodes])
-    return block_indicators(half.points, half.cells, elasticity(scene, spec.layer)[0], u)
+    return half_indicators(half, elasticity(scene, spec.layer)[0], u)
 
 
 def of_scene(scene: Scene, mesh: Mesh, solution: dict[str, np.ndarray], mu_c: np.ndarray) -> Estimate:

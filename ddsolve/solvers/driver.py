@@ -117,7 +117,7 @@ class OnRanks:
         for name, u in self.solutions.items():
             spec = next(spec for spec in BLOCKS if spec.name == name)
             half = local.half(spec.side)
-            part = estimate.block_indicators(half.points, half.cells, assembly.elasticity(scene, spec.layer)[0], u)
+            part = estimate.half_indicators(half, assembly.elasticity(scene, spec.layer)[0], u)
             contact = estimate.half_contact_indicators(half, pressure, jump) if spec.layer == "layer1" else 0.0
             self.indicators[name], block_squared, block_energy = estimate.block_estimate(part, contact)
             squared, energy = squared + block_squared, energy + block_energy
