@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import random
+import re
 import shutil
 import subprocess
 
@@ -14,7 +15,7 @@ from ddsolve.errors import DDSolveError
 from ddsolve.fem import assembly
 from ddsolve.io import hdf5 as io
 from ddsolve.io import safe
-from ddsolve.io.viewer import merged_upper_nodes
+from ddsolve.io.viewer import ViewerMesh, merged_upper_nodes, write_vtu
 from ddsolve.post import analysis
 from ddsolve.problem import materials
 
@@ -39,6 +40,27 @@ def results(tmp_path_factory):
 
 def components(values: np.ndarray) -> int:
     return 1 if values.ndim == 1 else values.shape[1]
+
+
+@pytest.mark.parametrize("cell_type, cells", [("triangle", [[0, 1, 2], [1, 3, 2]]),
+                                              ("triangle6", [[0, 1, 2, 4, 5, 6], [1, 3, 2, 7, 8, 5]])])
+def test_a_vtu_file_keeps_the_vtk_rules_for_its_cell_arrays(tmp_path, cell_type, cells):
+    """The connectivity is one list (VTK refuses it with components), offsets and types one value per
+    cell, and the file reads back as written."""
+    points = np.random.default_rng(5).random((9, 3))
+    cells = np.array(cells)
+    mesh = ViewerMesh("t", points, cell_type, cells, {"displacement": points[:, :2] * 2.0},
+                      {"stress": np.arange(18.0).reshape(2, 9)})
+    path = tmp_path / "t.vtu"
+    write_vtu(mesh, str(path))
+    head = path.read_bytes().split(b"<AppendedData")[0].decode()
+    tags = re.findall(r"<DataArray [^>]*>", head)
+    arrays = {(re.findall(r'Name="(\w+)"', tag) or ["Points"])[0]: tag for tag in tags}
+    assert "NumberOfComponents" not in arrays["connectivity"] + arrays["offsets"] + arrays["types"]
+    assert 'NumberOfComponents="9"' in arrays["stress"] and 'NumberOfComponents="3"' in arrays["Points"]
+    read = meshio.read(path)
+    assert np.array_equal(read.cells[0].data, cells) and read.cells[0].type == cell_type
+    assert np.array_equal(read.points, points) and np.array_equal(read.cell_data["stress"][0], mesh.cell_data["stress"])
 
 
 @pytest.mark.mpi
@@ -222,6 +244,7 @@ for name in sys.argv[1:]:
 """
 
 
+@pytest.mark.mpi
 @needs_paraview
 def test_paraview_reads_every_viewer_file(results, tmp_path):
     script = tmp_path / "read.py"
@@ -245,6 +268,7 @@ def test_paraview_reads_every_viewer_file(results, tmp_path):
         assert {key: int(value) for key, value in found.items()} == wanted
 
 
+@pytest.mark.mpi
 @needs_paraview
 @pytest.mark.parametrize("fmt", ["vtu", "xdmf"])
 def test_the_paraview_script_renders_both_layers_and_sigma(tmp_path, fmt):

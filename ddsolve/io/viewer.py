@@ -274,7 +274,8 @@ def _vtu_head(arrays: dict, offsets: dict, totals: tuple[int, int]) -> str:
         for (where, key), (dtype, shape) in arrays.items():
             if where == section:
                 name = "" if section == "Points" else f' Name="{key}"'
-                components = f' NumberOfComponents="{int(np.prod(shape))}"' if shape else ""
+                # the connectivity is one list of the cells' nodes (VTK refuses it with components)
+                components = f' NumberOfComponents="{int(np.prod(shape))}"' if shape and key != "connectivity" else ""
                 lines.append(f'<DataArray type="{_VTK_NUMBERS[dtype]}"{name}{components} '
                              f'format="appended" offset="{offsets[(where, key)][0]}"/>')
         lines.append(f"</{section}>")
