@@ -203,13 +203,16 @@ _VTK_TYPES = {"triangle": 5, "triangle6": 22, "line": 3, "line3": 21}
 _VTK_NUMBERS = {"f8": "Float64", "f4": "Float32", "i8": "Int64", "i4": "Int32", "u1": "UInt8", "i1": "Int8"}
 
 
-def _share_arrays(share: ViewerMesh) -> list[tuple[str, str, np.ndarray, int]]:
-    """(section, name, rows, first row) of every array of a share, in file order."""
+def _share_arrays(share: ViewerMesh, totals: tuple[int, int]) -> list[tuple[str, str, np.ndarray, int]]:
+    """(section, name, rows, first row) of every array of a share of a mesh of ``totals`` (points, cells; a
+    share knows the whole mesh's), in file order; the connectivity and offsets are 32-bit integers when
+    the mesh's numbers fit."""
     k = share.cells.shape[1]
     cells = np.arange(share.first_cell, share.first_cell + len(share.cells))
+    index = np.int32 if max(totals[0], k * totals[1]) <= np.iinfo(np.int32).max else np.int64
     return ([("Points", "Points", share.points, share.first_point),
-             ("Cells", "connectivity", share.cells.astype(np.int64), share.first_cell),
-             ("Cells", "offsets", (k * (cells + 1)).astype(np.int64), share.first_cell),
+             ("Cells", "connectivity", share.cells.astype(index), share.first_cell),
+             ("Cells", "offsets", (k * (cells + 1)).astype(index), share.first_cell),
              ("Cells", "types", np.full(len(cells), _VTK_TYPES[share.cell_type], dtype=np.uint8), share.first_cell)]
             + [("PointData", key, values, share.first_point) for key, values in share.point_data.items()]
             + [("CellData", key, values, share.first_cell) for key, values in share.cell_data.items()])
@@ -220,12 +223,13 @@ def write_vtu(mesh: ViewerMesh, name: str, comm=None) -> None:
     time for a third of the size).  With ``comm``, ``mesh`` is this rank's share (or None) and the ranks
     write the one file together: rank 0 its header and layout, then every rank its rows in place."""
     shares = [mesh] if mesh is not None else []
-    layout = [(section, key, values.dtype.str[1:], values.shape[1:]) for share in shares
-              for section, key, values, _ in _share_arrays(share)]
     totals = (0, 0)
     if shares:
         totals = (mesh.total_points if mesh.total_points is not None else len(mesh.points),
                   mesh.total_cells if mesh.total_cells is not None else len(mesh.cells))
+    pieces = [_share_arrays(share, totals) for share in shares]
+    layout = [(section, key, values.dtype.str[1:], values.shape[1:]) for piece in pieces
+              for section, key, values, _ in piece]
     if comm is not None and comm.size > 1:
         gathered = comm.allgather((layout, totals))
         totals = max(t for _, t in gathered)
@@ -252,17 +256,26 @@ def write_vtu(mesh: ViewerMesh, name: str, comm=None) -> None:
             out.write(tail)
     if comm is not None and comm.size > 1:
         comm.barrier()
-    if shares:
+    if pieces:
         handle = os.open(name, os.O_WRONLY)
         try:
-            for share in shares:
-                for section, key, values, row in _share_arrays(share):
-                    data = np.ascontiguousarray(values).tobytes()
-                    if data:
-                        row_bytes = len(data) // len(values)
-                        os.pwrite(handle, data, len(head) + offsets[(section, key)][0] + 8 + row * row_bytes)
+            for piece in pieces:
+                for section, key, values, row in piece:
+                    data = np.ascontiguousarray(values)
+                    if data.nbytes:
+                        row_bytes = data.nbytes // len(data)
+                        _write_at(handle, data, len(head) + offsets[(section, key)][0] + 8 + row * row_bytes)
         finally:
             os.close(handle)
+
+
+def _write_at(handle: int, data: np.ndarray, position: int) -> None:
+    """Write the contiguous array ``data`` at ``position`` of the open file (no copy; pwrite may write less
+    than asked: the rest follows)."""
+    view = memoryview(data.reshape(-1)).cast("B")
+    while len(view):
+        written = os.pwrite(handle, view, position)
+        view, position = view[written:], position + written
 
 
 def _vtu_head(arrays: dict, offsets: dict, totals: tuple[int, int]) -> str:
