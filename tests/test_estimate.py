@@ -8,6 +8,7 @@ from conftest import structured_mesh
 from ddsolve.fem.assembly import element_dofs, strain_operator
 from ddsolve.mesh import element, geometry
 from ddsolve.mesh.element import element_geometry
+from ddsolve.mesh.mesh import HalfMesh
 from ddsolve.post import analysis, estimate
 from ddsolve.problem import scene
 from ddsolve.problem.materials import Isotropic, elasticity
@@ -58,6 +59,26 @@ def test_a_half_s_known_outer_edges_give_the_indicators_found_from_its_cells(deg
     half = structured_mesh(8, 4, shear=0.3, degree=degree).lower
     u = cubic(half.points)
     assert np.array_equal(estimate.half_indicators(half, D, u), estimate.block_indicators(half.points, half.cells, D, u))
+
+
+def test_every_point_is_located_in_a_cell_that_holds_it_on_a_strongly_graded_mesh():
+    """Cells from 1e-6 to 0.1 across (a tip's grading, exaggerated): each point inside is in the cell
+    found for it, each point outside is reported outside."""
+    half = structured_mesh(40, 20, shear=0.3).lower
+    graded = half.points.copy()
+    graded[:, 0] = np.sign(graded[:, 0]) * np.abs(graded[:, 0]) ** 4  # cells shrink towards x = 0
+    half = HalfMesh(graded, half.cells, half.side, half.sigma)
+    rng = np.random.default_rng(6)
+    inside = np.column_stack([np.sign(rng.standard_normal(4000)) * rng.random(4000) ** 6, -rng.random(4000)])
+    outside = np.column_stack([rng.uniform(-1.0, 1.0, 500), rng.uniform(0.05, 1.0, 500)])  # above y = 0
+    cell, out = analysis.locate(half, np.vstack([inside, outside]))
+    assert not out[:len(inside)].any() and out[len(inside):].all()
+    corners = half.points[half.corners[cell[:len(inside)]]]  # (q, 3, 2)
+    first, second, offset = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0], inside - corners[:, 0]
+    det = first[:, 0] * second[:, 1] - first[:, 1] * second[:, 0]
+    s = (offset[:, 0] * second[:, 1] - offset[:, 1] * second[:, 0]) / det
+    t = (first[:, 0] * offset[:, 1] - first[:, 1] * offset[:, 0]) / det
+    assert np.all(s >= -1e-9) and np.all(t >= -1e-9) and np.all(s + t <= 1.0 + 1e-9)
 
 
 def _true_interpolation_error(half, u, exact_strain) -> float:

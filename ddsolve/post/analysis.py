@@ -151,50 +151,72 @@ def tolerance_of(result: Result) -> float:
 ON_BOUNDARY = 0.1
 
 
-#: Nearest cell centroids tried for a point, growing by 4× up to the last: a point of a graded mesh is
-#: almost always in one of the first few.
-CANDIDATES = (8, 32, 128)
+#: Buckets of point location along y at most (keys are x-bucket × this + y-bucket, in int64).
+_BUCKET_ROWS = 2 ** 31
 
 
 def _containing_cells(points: np.ndarray, corners: np.ndarray, queries: np.ndarray, boundary) -> np.ndarray:
-    """The cell (straight triangle ``corners``) holding each of ``queries`` (q, 2), −1 for none: the
-    cells of the nearest centroids (a k-d tree) are tested by barycentric coordinates; a point they miss
-    is outside the domain (even-odd rule on the edges ``boundary()`` gives) or, on a badly shaped mesh,
-    found by matplotlib's trapezoid map (building that map costs 30× the tree on a large mesh)."""
-    from scipy.spatial import cKDTree
+    """The cell (straight triangle ``corners``) holding each of ``queries`` (q, 2), −1 for none.
 
+    The cells are sorted into size classes, a class's square buckets twice as large as the one below
+    and no smaller than its cells (so a cell lies in at most four of its class's buckets); a point is
+    tested, by barycentric coordinates, against the cells of the bucket that holds it in each class.
+    Exact on graded meshes too (the cells near a crack tip are small in a small class).  A point that no
+    cell holds is outside the domain (even-odd rule on the edges ``boundary()`` gives) or, on a badly
+    shaped mesh, found by matplotlib's trapezoid map."""
     cell = np.full(len(queries), -1, dtype=np.int64)
     if not len(queries):
         return cell
-    # Only the cells whose bounding box meets the queries' can hold one: the tree is built on them alone
-    # (the mirror images of a tip's disc, say, cover a part of the half).
+    # Only the cells whose bounding box meets the queries' can hold one (the mirror images of a tip's
+    # disc, say, cover a part of the half).
     meets = np.ones(len(corners), dtype=bool)
     for axis in range(2):
         a, b, c = (points[corners[:, j], axis] for j in range(3))
         meets &= (np.minimum(np.minimum(a, b), c) <= queries[:, axis].max())
         meets &= (np.maximum(np.maximum(a, b), c) >= queries[:, axis].min())
-    near = np.flatnonzero(meets) if meets.any() else np.arange(1)  # none: the fallbacks below decide
+    near = np.flatnonzero(meets)
     triangles = points[corners[near]]  # (m, 3, 2)
     origin = triangles[:, 0]
     first, second = triangles[:, 1] - origin, triangles[:, 2] - origin
     det = first[:, 0] * second[:, 1] - first[:, 1] * second[:, 0]
-    tree = cKDTree(triangles.mean(axis=1))
+    low, high = triangles.min(axis=1), triangles.max(axis=1)
+    base = np.minimum(queries.min(axis=0), low.min(axis=0, initial=np.inf))  # every coordinate counts from here
+    region = float(np.max(np.maximum(queries.max(axis=0), high.max(axis=0, initial=-np.inf)) - base))
+    extent = (high - low).max(axis=1)
+    size = max(float(extent.min(initial=0.0)), 1e-9 * region, np.finfo(float).tiny)
+    level = np.ceil(np.log2(np.maximum(extent, size) / size)).astype(np.int64)
     todo = np.arange(len(queries))
-    for k in CANDIDATES:
+    for c in np.unique(level):
         if not len(todo):
             break
-        k = min(k, len(near))
-        candidates = tree.query(queries[todo], k=k)[1].reshape(len(todo), k)  # (t, k)
-        offset = queries[todo, None, :] - origin[candidates]
-        s = (offset[..., 0] * second[candidates, 1] - offset[..., 1] * second[candidates, 0]) / det[candidates]
-        t = (first[candidates, 0] * offset[..., 1] - first[candidates, 1] * offset[..., 0]) / det[candidates]
+        members, bucket = np.flatnonzero(level == c), size * 2.0 ** c
+        lo = np.floor((low[members] - base) / bucket).astype(np.int64)
+        span = np.floor((high[members] - base) / bucket).astype(np.int64) - lo  # 0 or 1 (rounding aside)
+        keys, owners = [], []
+        for dx in range(int(span[:, 0].max()) + 1):
+            for dy in range(int(span[:, 1].max()) + 1):
+                used = (dx <= span[:, 0]) & (dy <= span[:, 1])
+                keys.append((lo[used, 0] + dx) * _BUCKET_ROWS + lo[used, 1] + dy)
+                owners.append(members[used])
+        keys, owners = np.concatenate(keys), np.concatenate(owners)
+        order = np.argsort(keys, kind="stable")
+        keys, owners = keys[order], owners[order]
+        at = np.floor((queries[todo] - base) / bucket).astype(np.int64)
+        key = at[:, 0] * _BUCKET_ROWS + at[:, 1]
+        start = np.searchsorted(keys, key, side="left")
+        counts = np.searchsorted(keys, key, side="right") - start
+        which = np.repeat(np.arange(len(todo)), counts)  # the point (in todo) of each candidate
+        candidates = owners[np.arange(len(which)) - np.repeat(np.cumsum(counts) - counts - start, counts)]
+        offset = queries[todo[which]] - origin[candidates]
+        s = (offset[:, 0] * second[candidates, 1] - offset[:, 1] * second[candidates, 0]) / det[candidates]
+        t = (first[candidates, 0] * offset[:, 1] - first[candidates, 1] * offset[:, 0]) / det[candidates]
         slack = -1e-12  # a point on an edge (a mirrored Σ node) belongs to either cell
         inside = (s >= slack) & (t >= slack) & (s + t <= 1.0 - slack)
-        hit = inside.any(axis=1)
-        cell[todo[hit]] = near[candidates[hit, inside[hit].argmax(axis=1)]]
-        todo = todo[~hit]
+        found, firsts = np.unique(which[inside], return_index=True)
+        cell[todo[found]] = near[candidates[inside][firsts]]
+        todo = np.delete(todo, found)
     todo = todo[_in_polygon(queries[todo], points, boundary()[0])] if len(todo) else todo
-    if len(todo):  # inside the domain, yet in none of the nearest cells: a badly shaped mesh
+    if len(todo):  # inside the domain, yet in no cell (by rounding at an edge): a badly shaped mesh
         from matplotlib.tri import Triangulation
 
         finder = Triangulation(points[:, 0], points[:, 1], corners).get_trifinder()
