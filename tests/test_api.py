@@ -72,6 +72,18 @@ def test_with_keeps_files_relative_to_the_scene():
     assert scene.with_({"mesh.size": 0.3}).mesh.file == scene.mesh.file
 
 
+def test_with_gives_the_scene_load_gives_with_the_same_overrides():
+    """Defaults that follow other keys follow them through ``with_`` (``mesh.target_error`` chooses P2 and,
+    with a size, a graded mesh), and overrides given in turns add up as one list of them does."""
+    base = ddsolve.Scene.load("partial-closure")
+    adaptive = base.with_({"mesh.target_error": 0.01})
+    assert (base.mesh.degree, adaptive.mesh.degree) == (1, 2)
+    assert adaptive == ddsolve.Scene.load("partial-closure", {"mesh.target_error": 0.01})
+    sized = adaptive.with_({"mesh.size": 0.1})
+    assert sized == ddsolve.Scene.load("partial-closure", {"mesh.target_error": 0.01, "mesh.size": 0.1})
+    assert sized.mesh.grading == 0.2 and base.with_({"mesh.size": 0.1}).mesh.grading is None
+
+
 def test_load_refuses_what_is_not_a_scene(tmp_path):
     with pytest.raises(ddsolve.SceneError, match="no such scene file or built-in scene"):
         ddsolve.Scene.load(tmp_path / "missing.toml")

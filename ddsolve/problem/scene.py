@@ -176,6 +176,10 @@ class Scene:
     #: layer -> temperature change ΔT (an expression in x and y); absent: no thermal load.
     temperature: dict[str, Expression] = field(default_factory=dict)
     text: str = field(repr=False, default="")
+    #: The text the scene was read from and the ``--set`` items applied to it, in order: what
+    #: :meth:`with_` reads again, so that defaults that follow other keys follow the new values too.
+    source: str = field(repr=False, default="", compare=False)
+    overrides: tuple[str, ...] = field(repr=False, default=(), compare=False)
     #: Where the scene came from (named in messages) and the folder its file names are relative to.
     origin: str = field(repr=False, default="scene", compare=False)
     base: Path | None = field(repr=False, default=None, compare=False)
@@ -188,9 +192,11 @@ class Scene:
 
     def with_(self, overrides: dict[str, Any] | Sequence[str] = (), **more: Any) -> Scene:
         """This scene with some keys changed, validated as a scene file is:
-        ``scene.with_({"materials.layer2.E": 20.0})`` or ``scene.with_(**{"solver.tol": 1e-10})``."""
+        ``scene.with_({"materials.layer2.E": 20.0})`` or ``scene.with_(**{"solver.tol": 1e-10})``.
+        The same scene as :meth:`load` with all the overrides: its source is read again with them, so a
+        default that follows another key (``mesh.target_error`` chooses P2) follows the new value."""
         items = override_items(overrides) + override_items(more)
-        return loads(self.text, items, origin=self.origin, base=self.base)
+        return loads(self.source or self.text, [*self.overrides, *items], origin=self.origin, base=self.base)
 
     def scaled(self, factor: float) -> Scene:
         """This scene with every mechanical load (tractions, pressures, prescribed displacements) times
@@ -771,7 +777,8 @@ def _material(table: dict) -> materials.Material:
     return materials.Isotropic(**table)
 
 
-def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str) -> Scene:
+def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str, source: str,
+              overrides: tuple[str, ...]) -> Scene:
     mesh = dict(data["mesh"])
     if mesh["file"] is not None:
         mesh["file"] = Path(mesh["file"])
@@ -806,6 +813,8 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str) 
         displacements=displacements,
         temperature=temperature,
         text=text,
+        source=source,
+        overrides=overrides,
         origin=origin,
         base=base,
     )
@@ -957,7 +966,7 @@ def loads(text: str, overrides: list[str] = (), origin: str = "scene", base: Pat
         written = {key: value for key, value in data.items() if key != "geometry"}
     else:
         written = data
-    return _to_scene(data, raw, dumps(written), base, origin)
+    return _to_scene(data, raw, dumps(written), base, origin, text, tuple(overrides))
 
 
 # ---------------------------------------------------------------------------------------------
