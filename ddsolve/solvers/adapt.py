@@ -10,9 +10,9 @@ The marking aims at the target in one step (:func:`plan`): bisecting a cell mult
 by 2^-p for degree p (each child carries 2^-(p+1): η_K² ∝ h_K^(2p+2) where the solution is smooth), and
 the child that keeps a singular vertex (crack tips, ends of Σ, clamped meeting free boundary, re-entrant
 corners) carries 2^-½ of its parent's (η_K² ∝ h_K for an r^½ singularity).  Cells whose predicted η_K²
-is above a threshold τ² are bisected, their children predicted, again, until none is; τ² starts at the
-target's η² over the present number of cells and is lowered until the predicted η² is below
-(target / ``SAFETY``)².  The result is a mesh with the error equidistributed, graded towards the
+is above a threshold τ² are bisected, their children predicted, again, until none is; τ² starts above
+every cell's and is lowered in steps until the predicted η² is below (target / ``SAFETY``)², so that
+the mesh is refined no further than the target needs.  The result is a mesh with the error equidistributed, graded towards the
 singular points, that reaches the target in one refinement as a rule (two at most).
 
 What cannot finish is not started: after every level the unknowns the target needs are predicted at
@@ -205,7 +205,7 @@ def next_level(result: Result, target: float, level: int, project: bisection.Pro
     if level + 1 == MAX_LEVELS:
         return True, None, (f"mesh.target_error = {target:g} not reached in {MAX_LEVELS} levels "
                             f"(estimated error {estimate:.3g})")
-    planned = plan(result.mesh, result.indicators, estimate, target, limit, longest_edge=level == 0)
+    planned, _ = plan(result.mesh, result.indicators, estimate, target, limit, longest_edge=level == 0)
     if planned_unknowns(planned) > limit:
         return True, None, (f"mesh.target_error = {target:g} not reached: the next mesh would have about "
                             f"{planned_unknowns(planned):,.0f} unknowns, more than the {limit:,} a level may "
@@ -230,14 +230,20 @@ def planned_unknowns(tri: bisection.Triangulation) -> float:
 
 
 def plan(mesh: Mesh, indicators: dict[str, np.ndarray], estimate: float, target: float, limit: float,
-         longest_edge: bool = True) -> bisection.Triangulation:
-    """The bisected triangulation whose predicted error is ``target`` / ``SAFETY`` (see the module's
-    docstring), or the first one past ``limit`` unknowns.  ``estimate`` is the relative error the
-    ``indicators`` (per block) add up to; ``longest_edge`` as in :func:`ddsolve.mesh.bisection.triangulation`."""
+         longest_edge: bool = True) -> tuple[bisection.Triangulation, float]:
+    """The bisected triangulation whose predicted error is at most ``target`` / ``SAFETY`` (see the
+    module's docstring), or the first one past ``limit`` unknowns, and its predicted relative error.
+    ``estimate`` is the relative error the ``indicators`` (per block) add up to; ``longest_edge`` as in
+    :func:`ddsolve.mesh.bisection.triangulation`.
+
+    The threshold τ² starts above every cell's η_K² and is lowered in steps, each refinement carried on
+    from the last, until the prediction is below the goal: so the plan stops at (about) the largest τ²
+    that reaches it, not below.  A step lowers τ² by (goal / predicted)^((p+1)/p): with the error
+    equidistributed, η² ∝ N^-p and τ² ∝ η²/N, so η² ∝ τ^(2p/(p+1))."""
     tri = bisection.triangulation(mesh, longest_edge)
     predicted = cell_indicators(mesh, indicators)
     goal = predicted.sum() * (target / (SAFETY * estimate)) ** 2  # the target's η²: η² / estimate² = ‖u‖² + η²
-    threshold = goal / len(predicted)
+    threshold, power = predicted.max(), (mesh.degree + 1.0) / mesh.degree
     area = signed_areas(tri.points, tri.cells)
     smallest = (SMALLEST * np.ptp(tri.points, axis=0).max()) ** 2
     for _ in range(MAX_SWEEPS):
@@ -247,7 +253,7 @@ def plan(mesh: Mesh, indicators: dict[str, np.ndarray], estimate: float, target:
             remaining = predicted[refinable].sum()  # the smallest cells' share is beyond refinement
             if remaining <= goal:
                 break
-            threshold *= goal / remaining
+            threshold *= (goal / remaining) ** power
             continue
         tri, parent, splits = bisection.bisect(tri, marked)
         rate = np.where(tri.singular[tri.cells].any(axis=1), SINGULAR_EXPONENT, mesh.degree + 1.0)
@@ -255,4 +261,4 @@ def plan(mesh: Mesh, indicators: dict[str, np.ndarray], estimate: float, target:
         area = area[parent] * 2.0 ** -splits
         if planned_unknowns(tri) > limit:
             break
-    return tri
+    return tri, estimate * np.sqrt(predicted.sum() / cell_indicators(mesh, indicators).sum())
