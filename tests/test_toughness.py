@@ -162,12 +162,15 @@ def test_the_domain_decomposition_finds_the_reference_factors():
 @pytest.mark.mpi
 def test_solve_on_two_ranks_prints_and_writes_the_critical_factor(tmp_path):
     """``ddsolve solve -n 2`` of heated Example 2 with a toughness: the printed G lines give G/G_c and λ_c,
-    the file holds the reference's factors."""
+    the file holds the reference's factors, and its timings the whole launch, the search included."""
     items = [*SMALL, *HEATED, "fracture.toughness=1e-4"]
     output = tmp_path / "t.h5"
     completed = ddsolve("solve", "-n", "2", "full-opening", *(w for item in items for w in ("--set", item)),
                         "-o", str(output))
-    fracture = io.read(output).fracture
+    result = io.read(output)
+    fracture = result.fracture
+    assert all(result.timings[phase] > 0 for phase in ("startup", "meshing", "factorization", "critical_factors"))
+    assert "critical_factors" in next(line for line in completed.stdout.splitlines() if line.startswith("launch "))
     expected = run.reference(scene.load("full-opening", items), progress=lambda line: None).fracture
     np.testing.assert_allclose(fracture.critical_factor, expected.critical_factor, rtol=1e-7)
     for factor in fracture.critical_factor:

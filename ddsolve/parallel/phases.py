@@ -19,8 +19,8 @@ LAUNCHED = "DDSOLVE_LAUNCHED"
 
 
 #: The phases of a launch, in order; their sum is the whole launch (``total``).
-PHASES = ("startup", "meshing", "distribution", "assembly", "factorization", "iterations", "estimate", "output",
-          "write")
+PHASES = ("startup", "meshing", "distribution", "assembly", "factorization", "critical_factors", "iterations",
+          "estimate", "output", "write")
 
 
 def launch_age() -> float:

@@ -181,11 +181,15 @@ def roots(scene: Scene, comm, solve: Callable[[Scene], Result | None],
     return outcome
 
 
-def factors(scene: Scene, comm, mesh: Mesh, progress: Callable[[str], None] | None = None) -> np.ndarray:
+def factors(scene: Scene, comm, mesh: Mesh | None, progress: Callable[[str], None] | None = None,
+            setup: driver.Setup | None = None) -> np.ndarray:
     """The critical load factors of ``scene``'s tips on every rank of ``comm`` (rank 0 decides, the result is
     broadcast), each evaluation a domain-decomposition solve of ``scene.scaled(λ)`` on the whole ``mesh``
-    (on every rank), the blocks assembled and factored once."""
-    setup = driver.prepare(scene, comm, mesh)
+    (on every rank), the blocks assembled and factored once: here, or given as ``setup`` (from
+    :func:`ddsolve.solvers.driver.prepare` with the whole mesh; kept, with the last solve's loads)."""
+    own = setup is None
+    if own:
+        setup = driver.prepare(scene, comm, mesh)
     try:
         def solve(scaled: Scene) -> Result | None:
             driver.reload(setup, scaled)
@@ -193,7 +197,8 @@ def factors(scene: Scene, comm, mesh: Mesh, progress: Callable[[str], None] | No
 
         return roots(scene, comm, solve, progress)
     finally:
-        setup.destroy()
+        if own:
+            setup.destroy()
 
 
 def _quiet(_line: str) -> None:

@@ -11,6 +11,7 @@ from ddsolve.io import hdf5
 from ddsolve.mesh import geometry
 from ddsolve.parallel.distribution import build_mesh
 from ddsolve.parallel.exchange import collective
+from ddsolve.parallel.phases import Phases, launch_age
 from ddsolve.post.result import Result
 from ddsolve.problem.scene import Scene
 from ddsolve.solvers import adapt, checks, critical, driver
@@ -23,16 +24,26 @@ def solve(scene: Scene, comm, output: Path | None, progress: Callable[[str], Non
     ``output`` written.  The result on rank 0, None elsewhere; not ``gather``: the ranks write their
     parts of ``output`` and rank 0's result holds only Σ, the scalars and G (see
     :func:`ddsolve.solvers.driver.solve`).  A scene with a toughness and a temperature change has its
-    critical load factors found first, by solves of the scaled scene on the same mesh
-    (:func:`ddsolve.solvers.critical.factors`), so that the file written holds them."""
+    critical load factors found first, by solves of the scaled scene on the same mesh and factors
+    (:func:`ddsolve.solvers.critical.factors`), so that the file written holds them; the search is the
+    launch's phase ``critical_factors``."""
     collective(comm, lambda: checks.check_size(scene, comm.size), root_only=True)
     if scene.mesh.target_error is not None:
         return adapt.solve(scene, comm, output, progress=progress)
     if not critical.needed(scene):
         return driver.solve(scene, comm, output, progress=progress, gather=gather)
-    mesh = build_mesh(scene, comm)
-    found = critical.factors(scene, comm, mesh, progress)
-    return driver.solve(scene, comm, output, progress=progress, gather=gather, mesh=mesh, factors=found)
+    phases = Phases(launch_age())
+    mesh = build_mesh(scene, comm)  # whole on every rank: the scaled scenes' prescribed values need both halves
+    phases.end("meshing")
+    setup = driver.prepare(scene, comm, mesh, phases)
+    try:
+        found = critical.factors(scene, comm, mesh, progress, setup=setup)
+        driver.reload(setup, scene)
+        setup.phases = phases
+        phases.end("critical_factors")
+        return driver.solve(scene, comm, output, progress=progress, gather=gather, setup=setup, factors=found)
+    finally:
+        setup.destroy()
 
 
 def reference(scene: Scene, output: Path | None = None, progress: Callable[[str], None] = print) -> Result:
