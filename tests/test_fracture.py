@@ -27,6 +27,14 @@ def solved(source: scene.Scene):
     return reference.solve(source, geometry.build(source))
 
 
+def test_the_reference_presses_only_where_the_faces_touch():
+    """Open crack nodes carry no contact pressure, exactly, not the residuals' round-off: ``mu_c > 0`` in a
+    user's script finds the contact zone the solver prints."""
+    result = solved(scene.load("partial-closure", SMALL))
+    pressure = np.asarray(result.multipliers["mu_c"])
+    assert np.count_nonzero(pressure) == result.attrs["closed_vertices"] > 0
+
+
 def moved(mesh, tip, step: float, normals: np.ndarray | None = None):
     """The mesh with every node moved by step·θ (θ of ``tip``); the same cells, flags and, if given, normals."""
     halves = [HalfMesh(h.points + step * fracture.theta(tip, mesh.sigma, h.points), h.cells, h.side, h.sigma,
