@@ -23,7 +23,7 @@ from ddsolve.mesh import gmsh_io
 from ddsolve.parallel.launch import mpiexec_command, supervise
 from ddsolve.mesh.mesh import BLOCKS
 from ddsolve.parallel import runtime
-from ddsolve.parallel.runtime import Parser, guarded, init_petsc, is_number
+from ddsolve.parallel.runtime import Parser, check_petsc_files, guarded, init_petsc, is_number
 from ddsolve.solvers.checks import check_ranks, check_read, check_size
 
 #: ddsolve's commands that hand options to PETSc.
@@ -100,6 +100,7 @@ def _launch(args, petsc_options: list[str], scene_checks: bool) -> None:
     if args.ranks is None:
         return
     check_ranks(args.ranks)
+    check_petsc_files(petsc_options)
     for module in ("petsc4py", "mpi4py", "h5py"):  # if one is missing, one line here, not one per rank
         importlib.import_module(module)
     from ddsolve.io import viewer as export

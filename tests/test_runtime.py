@@ -1,9 +1,10 @@
 """The process runtime's decisions that need no rank: BLAS threads per rank, mpiexec's options, the
-phases' CPU account."""
+files PETSc's options name, the phases' CPU account."""
 import pytest
 
+from ddsolve.errors import UsageError
 from ddsolve.parallel.launch import ALLOCATION_VARIABLES, launcher_options, leader, world_position
-from ddsolve.parallel.runtime import blas_threads
+from ddsolve.parallel.runtime import blas_threads, check_petsc_files
 
 
 def test_blas_threads_share_the_cores_among_the_ranks_of_a_node():
@@ -17,6 +18,22 @@ def test_blas_threads_share_the_cores_among_the_ranks_of_a_node():
 def test_the_users_thread_count_is_kept():
     for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "GOTO_NUM_THREADS"):
         assert blas_threads(2, {name: "2", "OMPI_COMM_WORLD_LOCAL_SIZE": "2"}) is None
+
+
+def test_files_petsc_would_fail_to_read_or_write_are_refused_first(tmp_path):
+    """One line naming the option, before PETSc starts (its own error is many lines, and a log it cannot
+    write fails only after the result set replaced the old one)."""
+    options = tmp_path / "options.txt"
+    options.write_text("-ksp_type cg\n")
+    check_petsc_files(["-options_file", str(options), "-log_view", f":{tmp_path / 'log.txt'}", "-log_view",
+                       "-memory_view", "-ksp_view", "ascii:x.txt"])  # all fine: a value is a path only there
+    for given, message in [(["-options_file", str(tmp_path / "none")], "file of -options_file not found"),
+                           (["-options_file_yaml", str(tmp_path)], "cannot read file of -options_file_yaml"),
+                           (["-log_view", f":{tmp_path / 'no' / 'log.txt'}"], "no writable folder"),
+                           (["-log_view", f"ascii:{tmp_path}:ascii_info"], "is a directory")]:
+        with pytest.raises(UsageError, match=message) as caught:
+            check_petsc_files(given)
+        assert caught.value.collective
 
 
 def _pml(options: list[str]) -> str | None:

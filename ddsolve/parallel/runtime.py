@@ -16,6 +16,7 @@ import threading
 import time
 import traceback
 import unicodedata
+from pathlib import Path
 
 from ddsolve.environment import import_errors_explained
 from ddsolve.errors import DDSolveError, UsageError
@@ -88,6 +89,33 @@ def split_arguments(top: argparse.ArgumentParser, argv: list[str], petsc_command
     return own, petsc
 
 
+#: PETSc options that name a file PETSc reads as it starts; and options whose value ``[type]:path[:format]``
+#: names a file PETSc writes as it ends, after the result is written.
+READ_FILE_OPTIONS = ("-options_file", "-options_file_yaml")
+WRITE_FILE_OPTIONS = ("-log_view", "-log_trace", "-memory_view")
+
+
+def check_petsc_files(options: list[str]) -> None:
+    """Refuse, in one line naming the option, a file PETSc would fail to read as it starts (its own error is
+    many lines) or to write as it ends (after the result set replaced the old one)."""
+    from ddsolve.problem.scene import readable
+
+    for name, value in zip(options, options[1:]):
+        if value.startswith("-"):
+            continue
+        try:
+            if name in READ_FILE_OPTIONS:
+                readable(value, f"file of {name}", UsageError)
+            elif name in WRITE_FILE_OPTIONS and ":" in value:
+                path = Path(value.split(":")[1])
+                if path.name and (path.is_dir() or not path.parent.is_dir() or not os.access(path.parent, os.W_OK)):
+                    why = "is a directory" if path.is_dir() else f"no writable folder {path.parent}"
+                    raise UsageError(f"{name} {value}: cannot write {path} ({why})")
+        except UsageError as error:
+            error.collective = True  # every rank has the same options and sees the same files
+            raise
+
+
 def init_petsc(options: list[str]) -> None:
     """PETSc without its signal handler: on a crash (SIGSEGV...) it calls MPI_Abort inside the handler,
     which can deadlock the crashed rank and with it the whole job; without it the rank dies of the
@@ -99,8 +127,15 @@ def init_petsc(options: list[str]) -> None:
         gmsh_io.warm_up()
     import petsc4py
 
-    petsc4py.init([sys.argv[0], "-no_signal_handler", *options])
-    from petsc4py import PETSc  # noqa: F401 -- PETSc starts here
+    check_petsc_files(options)
+    try:
+        petsc4py.init([sys.argv[0], "-no_signal_handler", *options])
+        from petsc4py import PETSc  # noqa: F401 -- PETSc starts here
+    except Exception as exc:  # PETSc.Error: PetscInitialize refused an option (its message is above)
+        error = UsageError(f"PETSc did not start with the options {' '.join(options)} "
+                           f"(PETSc error code {getattr(exc, 'ierr', '?')})")
+        error.collective = True  # every rank has the same options
+        raise error from None
     limit_blas_threads()
 
     # A closed pipe on standard output is an error to report in one line (EPIPE), not a death by SIGPIPE.
