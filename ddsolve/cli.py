@@ -332,6 +332,10 @@ def cmd_plot(args, _petsc_options) -> int:
     scale = _scale(args.scale)
     result = io.read(args.result)
     stem = Path(args.result).with_suffix("")
+    broken = next((name for name, u in result.solution.items() if not np.isfinite(u).all()), None)
+    if broken is not None:
+        raise DDSolveError(f"{args.result}: /solution/{broken} holds values that are not finite numbers: "
+                           "nothing to draw")
     if scale is not None:
         points = np.vstack([result.lower.points, result.upper.points])
         drawn = scale * analysis.largest_displacement(result.solution.values()) / np.ptp(points, axis=0).max()

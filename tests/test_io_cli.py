@@ -103,3 +103,17 @@ def test_compare_check_and_plot(tmp_path, reference_file):
     assert (tmp_path / "r-deformed.png").stat().st_size > 10_000
     assert (tmp_path / "r-crack-faces.png").stat().st_size > 10_000
     assert (tmp_path / "r-convergence.png").stat().st_size > 10_000
+
+
+@pytest.mark.mpi
+def test_plot_of_a_solution_that_is_not_finite_is_one_line(tmp_path, reference_file):
+    import h5py
+
+    broken = tmp_path / "nan.h5"
+    broken.write_bytes(reference_file.read_bytes())
+    with h5py.File(broken, "r+") as f:
+        f["solution/u_minus"][0, 0] = float("nan")
+    completed = ddsolve("plot", str(broken), check=False)
+    assert completed.returncode == 1 and not list(tmp_path.glob("*.png"))
+    assert completed.stderr.strip() == (f"ddsolve: error: {broken}: /solution/u_minus holds values that are not "
+                                        "finite numbers: nothing to draw")
