@@ -240,7 +240,7 @@ def cmd_grow(args, petsc_options: list[str]) -> int:
     if steps is not None:
         plots.growth_curves(grow.read(output), picture)
         unstable = sum(step.unstable for step in steps)
-        print(f"grow: {len(steps) - 1} steps, {sum(step.solves for step in steps)} solves"
+        print(f"grow: {len(steps)} steps written (the first at λ = 0), {sum(step.solves for step in steps)} solves"
               + (f", unstable growth at {unstable} steps" if unstable else ", stable growth") +
               f", {time.perf_counter() - started:.1f} s on {comm.size} ranks -> {output}, {picture}", flush=True)
     return 0

@@ -710,7 +710,8 @@ def text(record: dict) -> str:
     cross = record["cross_check"]
     out += ["", "### A floating block on 2 ranks", "",
             f"ENF, identical layers, a = 6 (blocks {cross['floating']} held only through Σ): "
-            f"`./run solve -n {cross['ranks']} enf.toml` ({cross['method']}) gives G = {cross['G']:.9e} "
+            f"`./run solve -n {cross['ranks']} results/delamination/enf.toml` (the scene `./run delamination` "
+            f"writes) ({cross['method']}) gives G = {cross['G']:.9e} "
             f"(G_I {cross['G_I']:.3e}, G_II {cross['G_II']:.6e}), the reference {cross['reference_G']:.9e} "
             f"(relative difference {abs(cross['G'] / cross['reference_G'] - 1):.1e}; {cross['seconds']:.1f} s "
             "with the launch).", ""]

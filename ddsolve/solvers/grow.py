@@ -389,7 +389,7 @@ def grow(scene: Scene, comm, limit: float, steps: int, tolerance: float = 1e-4,
     if initiation < limit:  # a step of its own (one that falls within 1e-9 of it becomes it)
         controls = sorted([c for c in controls if abs(c - initiation) > 1e-9 * limit] + [initiation])
     if comm.rank == 0:
-        progress(f"grow: {growth.kind} control to {limit:g} in {len(controls)} steps; cracks {describe(cracks)}; "
+        progress(f"grow: {growth.kind} control to {limit:g} in {len(controls)} control steps; cracks {describe(cracks)}; "
                  f"initiation at {initiation:.6g}")
     records = [] if initiation == 0.0 else [Step(growth.state(cracks, 0.0))]  # 0: the temperature alone grows it
     for number, control in enumerate(controls, 1):
