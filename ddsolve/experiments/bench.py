@@ -19,6 +19,7 @@ import os
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -27,6 +28,9 @@ from ddsolve.experiments import report
 from ddsolve.mesh.mesh import BLOCKS as BLOCK_SPECS
 from ddsolve.parallel import distribution
 from ddsolve.problem import scene as scenes
+
+if TYPE_CHECKING:
+    from ddsolve.post.result import Result
 
 #: The paper's Table 1 meshes (P, M) and one finer mesh.
 TABLE1_MESHES = ((12, 32), (24, 48), (48, 80), (96, 144), (200, 256))
@@ -66,7 +70,7 @@ def paper_scene(P: int, M: int, overrides: list[str] = (), name: str = "partial-
 
 
 # --- the strongest baseline: one MUMPS factorization of the glued system ---------------------
-def monolithic(scene: scenes.Scene, mesh, systems) -> tuple["Result", dict]:
+def monolithic(scene: scenes.Scene, mesh, systems) -> tuple[Result, dict]:
     """The glued problem in one process: tied unknowns share one number (``reference.merged_system``),
     the crack faces' normal unknowns stay apart; one MUMPS factorization, which also gives their
     Schur complement S; contact by the active set on the small dense dual problem of the crack

@@ -443,7 +443,6 @@ def validation_text(record: dict) -> str:
 
 
 def sweeps_text(data: dict, record: dict) -> str:
-    lengths, stiff = data[("length", 1)], data[("stiffness", 1)]
     runs = sum(len(d["energy"]) for d in data.values())
     converged = sum(int(np.sum(d["converged"])) for d in data.values())
     times = {key: float(np.sum(d["time"])) for key, d in data.items()}
