@@ -14,6 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ddsolve.experiments.hostile_procs import AFTER, PHASES, marked, stop
+from ddsolve.parallel.launch import interrupt_line
 
 SIGNALS = [signal.SIGTERM, signal.SIGINT, signal.SIGKILL]
 
@@ -41,8 +42,10 @@ def test_a_signal_to_the_launcher_ends_every_process_at_every_phase(tmp_path, ph
     outcome = stop(tmp_path, phase, signum)
     if signum == signal.SIGKILL:
         ended_cleanly(outcome, -signal.SIGKILL)
-    else:  # at the write, the set may be complete (0)
+    else:  # at the write, the set may be complete (0); the launcher says which, in one line, always
         ended_cleanly(outcome, launcher_status(signum), *((0,) if phase == "write" else ()))
+        said = [line for line in outcome["output"].splitlines() if line.startswith("ddsolve:")]
+        assert said == [interrupt_line(signum == signal.SIGTERM, complete=outcome["status"] == 0)], said
 
 
 @pytest.mark.mpi
@@ -57,10 +60,10 @@ def test_a_crashing_rank_ends_the_others_and_its_gmsh_process(tmp_path, signum):
 @pytest.mark.mpi
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT], ids=lambda s: signal.Signals(s).name)
 def test_on_one_rank_too_the_launcher_exits_with_the_signal_status(tmp_path, signum):
-    """docs/usage.md: ``solve -n N`` (any N) exits 130 or 143; the ranks say they were stopped."""
+    """docs/usage.md: ``solve -n N`` (any N) exits 130 or 143 and says which signal stopped it."""
     outcome = stop(tmp_path, "meshing on one rank", signum)
     ended_cleanly(outcome, launcher_status(signum))
-    assert "ddsolve: terminated" in outcome["output"] or "ddsolve: interrupted" in outcome["output"]
+    assert outcome["output"].strip().splitlines()[-1] == interrupt_line(signum == signal.SIGTERM, complete=False)
 
 
 @pytest.mark.mpi

@@ -13,6 +13,7 @@ from typing import Mapping
 from ddsolve.environment import end_with_parent
 from ddsolve.errors import DDSolveError
 from ddsolve.io import safe
+from ddsolve.parallel.phases import LAUNCHED
 
 #: Variables an MPI launcher (Open MPI, MPICH's hydra, PMIx) gives the ranks it starts.
 RANK_VARIABLES = ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK")
@@ -22,6 +23,18 @@ ALLOCATION_VARIABLES = ("SLURM_JOB_ID", "PBS_JOBID", "LSB_JOBID", "PE_HOSTFILE",
 
 #: Blocks of the decomposition: a rank count must divide them or be a multiple of them.
 BLOCK_COUNT = 4
+
+
+def supervised() -> bool:
+    """Whether this rank was started by ``ddsolve solve -n`` (or ``sweep``, ``grow``), whose launcher
+    reports an interrupt itself (:func:`supervise`)."""
+    return bool(os.environ.get(LAUNCHED))
+
+
+def interrupt_line(terminated: bool, complete: bool) -> str:
+    """The one line an interrupted command ends with (SIGTERM or SIGINT; whether its result set is in place)."""
+    word = "terminated" if terminated else "interrupted"
+    return f"ddsolve: {word} after its result files were written (they are complete)" if complete else f"ddsolve: {word}"
 
 
 def leader(block: int, size: int) -> int:
@@ -135,7 +148,9 @@ def supervise(command: list[str], env: dict, outputs: list[Path]) -> int:
     """Run the ranks' mpiexec and return its exit status.  SIGINT and SIGTERM are passed on to it once
     (Open MPI then stops every rank); afterwards the result set ``outputs`` is made whole if a rank was
     killed while renaming it (:func:`ddsolve.io.safe.recover`), and the status is 0 if the run replaced it
-    (the signal came after its commit: the set is complete), else 130 or 143."""
+    (the signal came after its commit: the set is complete), else 130 or 143.  The interrupt's one line is
+    printed here, not by the ranks: Open MPI may stop them before their output reaches it, and it gives
+    them SIGTERM whatever this process received."""
     import subprocess
 
 
@@ -167,5 +182,7 @@ def supervise(command: list[str], env: dict, outputs: list[Path]) -> int:
             end_session(job.pid)
     safe.recover(outputs)
     if received:
-        return 0 if identity(outputs[0]) != before else (143 if received[0] == signal.SIGTERM else 130)
+        complete = identity(outputs[0]) != before
+        print(interrupt_line(received[0] == signal.SIGTERM, complete), file=sys.stderr, flush=True)
+        return 0 if complete else (143 if received[0] == signal.SIGTERM else 130)
     return status if status >= 0 else 128 - status

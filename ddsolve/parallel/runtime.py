@@ -22,7 +22,7 @@ from ddsolve.environment import import_errors_explained
 from ddsolve.errors import DDSolveError, UsageError
 from ddsolve.mesh import gmsh_io
 from ddsolve.mesh.mesh import U_PLUS
-from ddsolve.parallel.launch import end_with_launcher, leader, world_position
+from ddsolve.parallel.launch import end_with_launcher, interrupt_line, leader, supervised, world_position
 
 class Parser(argparse.ArgumentParser):
     """argparse with one-line errors (exit status 2) instead of a usage block."""
@@ -230,15 +230,13 @@ def watch_interrupts() -> None:
 
 
 def interrupted_status(status: int) -> int:
-    """Report an interrupt; its exit status, or 0 if the result files that end the command were
-    already in place (they are complete)."""
+    """Report an interrupt (unless the launcher of ``solve -n`` does, :func:`~ddsolve.parallel.launch.supervise`);
+    its exit status, or 0 if the result files that end the command were already in place (they are complete)."""
     io = sys.modules.get("ddsolve.io.safe")
-    if io is not None and io.committed:
-        report("ddsolve: " + ("terminated" if status == 143 else "interrupted") + " after its result files "
-                "were written (they are complete)")
-        return 0
-    report("ddsolve: terminated" if status == 143 else "ddsolve: interrupted")
-    return status
+    complete = io is not None and io.committed
+    if not supervised():
+        report(interrupt_line(status == 143, complete))
+    return 0 if complete else status
 
 
 def guarded(call) -> int:
