@@ -12,8 +12,9 @@ the child that keeps a singular vertex (crack tips, ends of Σ, clamped meeting 
 corners) carries 2^-½ of its parent's (η_K² ∝ h_K for an r^½ singularity).  Cells whose predicted η_K²
 is above a threshold τ² are bisected, their children predicted, again, until none is; τ² starts above
 every cell's and is lowered in steps until the predicted η² is below (target / ``SAFETY``)², so that
-the mesh is refined no further than the target needs.  The result is a mesh with the error equidistributed, graded towards the
-singular points, that reaches the target in one refinement as a rule (two at most).
+the mesh is refined no further than the target needs.  The result is a mesh with the error
+equidistributed, graded towards the singular points, that reaches the target in one refinement as a
+rule (two at most).
 
 What cannot finish is not started: after every level the unknowns the target needs are predicted at
 the best rate adaptive meshes reach, error ∝ N^(−degree/2) (:func:`needed_unknowns`); if they exceed
@@ -242,7 +243,8 @@ def plan(mesh: Mesh, indicators: dict[str, np.ndarray], estimate: float, target:
     equidistributed, η² ∝ N^-p and τ² ∝ η²/N, so η² ∝ τ^(2p/(p+1))."""
     tri = bisection.triangulation(mesh, longest_edge)
     predicted = cell_indicators(mesh, indicators)
-    goal = predicted.sum() * (target / (SAFETY * estimate)) ** 2  # the target's η²: η² / estimate² = ‖u‖² + η²
+    present = predicted.sum()
+    goal = present * (target / (SAFETY * estimate)) ** 2  # the target's η²: η² / estimate² = ‖u‖² + η²
     threshold, power = predicted.max(), (mesh.degree + 1.0) / mesh.degree
     area = signed_areas(tri.points, tri.cells)
     smallest = (SMALLEST * np.ptp(tri.points, axis=0).max()) ** 2
@@ -261,4 +263,4 @@ def plan(mesh: Mesh, indicators: dict[str, np.ndarray], estimate: float, target:
         area = area[parent] * 2.0 ** -splits
         if planned_unknowns(tri) > limit:
             break
-    return tri, estimate * np.sqrt(predicted.sum() / cell_indicators(mesh, indicators).sum())
+    return tri, estimate * np.sqrt(predicted.sum() / present)

@@ -181,12 +181,12 @@ def roots(scene: Scene, comm, solve: Callable[[Scene], Result | None],
     return outcome
 
 
-def factors(scene: Scene, comm, mesh: Mesh | None, progress: Callable[[str], None] | None = None,
+def factors(scene: Scene, comm, mesh: Mesh, progress: Callable[[str], None] | None = None,
             setup: driver.Setup | None = None) -> np.ndarray:
     """The critical load factors of ``scene``'s tips on every rank of ``comm`` (rank 0 decides, the result is
     broadcast), each evaluation a domain-decomposition solve of ``scene.scaled(λ)`` on the whole ``mesh``
     (on every rank), the blocks assembled and factored once: here, or given as ``setup`` (from
-    :func:`ddsolve.solvers.driver.prepare` with the whole mesh; kept, with the last solve's loads)."""
+    :func:`ddsolve.solvers.driver.prepare` with the whole ``mesh``; kept, with the last solve's loads)."""
     own = setup is None
     if own:
         setup = driver.prepare(scene, comm, mesh)
