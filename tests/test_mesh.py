@@ -87,6 +87,20 @@ def test_bad_meshes_are_rejected(tmp_path, damage, message):
         build(write(tmp_path, points, cells))
 
 
+def test_a_half_whose_triangles_are_not_merged_at_a_node_is_rejected():
+    """Any geometry (not only the box, whose boundary is checked too): a cell at an interior node that uses
+    a copy of it is not connected there, though the cells cover the half exactly."""
+    points, cells = structured_square(4, 2)
+    cells = cells[np.all(points[cells, 1] <= 0, axis=1)]
+    mesh.make_half(points, cells, -1, {}, "merged")
+    node = int(np.flatnonzero(np.all(np.isclose(points, [-0.5, -0.5]), axis=1))[0])
+    points = np.vstack([points, points[node]])
+    cell = np.flatnonzero(np.any(cells == node, axis=1))[0]
+    cells[cell][cells[cell] == node] = len(points) - 1
+    with pytest.raises(MeshError, match="test: lower half: nodes of its triangles where another node is: 1 "):
+        mesh.make_half(points, cells, -1, {}, "test")
+
+
 def test_crack_tips_must_be_vertices_and_sigma_must_match(mesh_file):
     with pytest.raises(MeshError, match="crack tip x = 0.3 is not a Σ vertex"):
         build(mesh_file, overrides=["geometry.crack=[-0.5, 0.3]"])

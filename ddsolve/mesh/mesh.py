@@ -266,6 +266,7 @@ def make_half(points: np.ndarray, cells: np.ndarray, side: int, boundaries: dict
     renumber[used] = np.arange(len(used))
     cells = renumber[cells]
     points = points[used]
+    _check_distinct(points, where)
     outer = outer_edges(cells)
     keys = edge_keys(outer, len(points))
     order = np.argsort(keys)
@@ -308,6 +309,18 @@ def oriented(points: np.ndarray, cells: np.ndarray, where: str) -> np.ndarray:
                         "(non-positive area)")
     _check_cover(points, cells, where)
     return cells
+
+
+def _check_distinct(points: np.ndarray, where: str) -> None:
+    """Reject nodes of the triangles at the position of another (to 1e-12 of the half's size): a mesh not
+    merged there, whose triangles meet without sharing the node, is not connected across it (a crack
+    lies on Σ, between the halves, never inside one).  ``points`` are sorted along an axis, then the
+    other (:func:`make_half`), so a repeated position is a repeated row."""
+    close = np.abs(np.diff(points, axis=0)) <= 1e-12 * np.ptp(points, axis=0).max()
+    repeated = int(np.count_nonzero(close.all(axis=1)))
+    if repeated:
+        raise MeshError(f"{where}: nodes of its triangles where another node is: {repeated} (a mesh not merged "
+                        "there, its triangles not connected; gmsh's Coherence merges them)")
 
 
 def _check_cover(points: np.ndarray, cells: np.ndarray, where: str) -> None:
