@@ -18,12 +18,15 @@ import sys
 from pathlib import Path
 from typing import Callable, Sequence
 
-from ddsolve.errors import NotConvergedError
+from ddsolve.errors import DDSolveError, NotConvergedError, SceneError
 from ddsolve.io import hdf5
 from ddsolve.post.result import Result
 from ddsolve.problem.scene import Scene
 
 def _scene(scene: Scene | str | Path) -> Scene:
+    if not isinstance(scene, (Scene, str, Path)):
+        raise SceneError(f"scene: a Scene, a built-in scene's name or a scene file's path (got "
+                         f"{type(scene).__name__})")
     return scene if isinstance(scene, Scene) else Scene.load(scene)
 
 
@@ -37,6 +40,14 @@ def _comm(comm):
     from mpi4py import MPI
 
     return MPI.COMM_WORLD if comm is None else comm
+
+
+def _output(output: str | Path | None) -> Path | None:
+    """The result file to write (checked as ``-o`` is: an ``.h5`` name whose set can be written), or None."""
+    if output is None:
+        return None
+    hdf5.check_result(Path(output), named="output")
+    return Path(output)
 
 
 def _silent(*_args, **_kwargs) -> None:
@@ -57,7 +68,7 @@ def solve(scene: Scene | str | Path, comm=None, output: str | Path | None = None
 
     comm = _comm(comm)
     try:
-        result = run.solve(_scene(scene), comm, Path(output) if output is not None else None, progress or _silent)
+        result = run.solve(_scene(scene), comm, _output(output), progress or _silent)
     except NotConvergedError as error:  # raised on every rank; the result (written) is rank 0's
         error.result = comm.bcast(getattr(error, "result", None), root=0)
         raise
@@ -69,11 +80,13 @@ def reference(scene: Scene | str | Path, output: str | Path | None = None) -> Re
     from ddsolve.solvers import run
 
     _comm(None)
-    return run.reference(_scene(scene), Path(output) if output is not None else None)
+    return run.reference(_scene(scene), _output(output))
 
 
 def load(path: str | Path) -> Result:
     """Read a result file written by :func:`solve`, :func:`reference`, :meth:`Result.save` or the CLI."""
+    if not isinstance(path, (str, Path)):
+        raise DDSolveError(f"load: a result file's path (got {type(path).__name__})")
     return hdf5.read(Path(path))
 
 

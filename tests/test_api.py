@@ -82,6 +82,27 @@ def test_with_gives_the_scene_load_gives_with_the_same_overrides():
     sized = adaptive.with_({"mesh.size": 0.1})
     assert sized == ddsolve.Scene.load("partial-closure", {"mesh.target_error": 0.01, "mesh.size": 0.1})
     assert sized.mesh.grading == 0.2 and base.with_({"mesh.size": 0.1}).mesh.grading is None
+    table = {"E": 70.0, "nu": 0.33}  # a table, as --set 'materials.layer1={E = 70.0, nu = 0.33}' gives
+    assert base.with_({"materials.layer1": table}) == ddsolve.Scene.load(
+        "partial-closure", ["materials.layer1={E = 70.0, nu = 0.33}"])
+
+
+def test_arguments_of_the_wrong_type_are_one_line_errors():
+    with pytest.raises(ddsolve.SceneError, match=r"^scene: a Scene, a built-in scene's name or a scene file's path "
+                                                 r"\(got int\)$"):
+        ddsolve.reference(5)
+    with pytest.raises(ddsolve.DDSolveError, match=r"^load: a result file's path \(got dict\)$"):
+        ddsolve.load({})
+
+
+def test_a_result_is_written_only_under_an_hdf5_name(tmp_path):
+    """As ``-o`` is checked: the API's ``output`` and ``Result.save`` refuse another suffix, nothing written."""
+    scene = ddsolve.Scene.load("full-opening").with_({"mesh.sigma_vertices": 24, "mesh.boundary_vertices": 40})
+    with pytest.raises(ddsolve.DDSolveError, match=r"^output .*o\.txt: a result is an HDF5 file: give it the suffix"):
+        ddsolve.solve(scene, output=tmp_path / "o.txt")
+    with pytest.raises(ddsolve.DDSolveError, match=r"^save .*noext: a result is an HDF5 file"):
+        ddsolve.reference(scene).save(tmp_path / "noext")
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_load_refuses_what_is_not_a_scene(tmp_path):

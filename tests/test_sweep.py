@@ -28,10 +28,19 @@ def test_ranges_and_fixed_values():
 @pytest.mark.parametrize("item, message", [
     ("materials.layer2.E=0:100:3:log", "a log range needs START > 0"),
     ("materials.layer2.E=1:100:0", "COUNT must be at least 1"),
+    ("materials.layer2.E=abc:200:3", r"=abc:200:3: not a range START:STOP:COUNT\[:log\]"),  # alone: not a value
+    ("materials.layer2.E=100:200", "not a range START:STOP:COUNT"),
 ])
 def test_bad_ranges(item, message):
     with pytest.raises(SceneError, match=message):
         sweep.parse([item])
+
+
+def test_the_apis_values_are_a_non_empty_list():
+    assert sweep.given_range("a", np.array([1.0, 2.0])).values == (1.0, 2.0)
+    for values in ([], 100.0, "100"):
+        with pytest.raises(SceneError, match="a: a sweep takes a non-empty list of values"):
+            sweep.given_range("a", values)
 
 
 def test_every_combination_or_side_by_side():

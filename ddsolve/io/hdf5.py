@@ -30,14 +30,15 @@ RESULT_SUFFIXES = (".h5", ".hdf5")
 
 
 
-def check_result(path: Path, inputs: list[Path] = (), viewer: bool = True) -> None:
+def check_result(path: Path, inputs: list[Path] = (), viewer: bool = True, named: str = "-o") -> None:
     """Refuse a result (or sweep) file ``path`` that is not an HDF5 name, or whose set (with its viewer
-    files unless not ``viewer``) cannot be written or would replace one of the ``inputs``."""
+    files unless not ``viewer``) cannot be written or would replace one of the ``inputs``; ``named``: how
+    the messages name the path's argument."""
     path = Path(path)
     if not path.name:
-        raise DDSolveError(f"-o {str(path)!r}: not a file name")
+        raise DDSolveError(f"{named} {str(path)!r}: not a file name")
     if path.suffix.lower() not in RESULT_SUFFIXES:
-        raise DDSolveError(f"-o {path}: a result is an HDF5 file: give it the suffix .h5"
+        raise DDSolveError(f"{named} {path}: a result is an HDF5 file: give it the suffix .h5"
                            + (" (its viewer files are written beside it)" if viewer else "")
                            + ("; this name is an input of this run" if any(same_file(path, s) for s in inputs) else ""))
     check_targets([path, *(export.viewer_paths(path.parent, path.stem) if viewer else [])], inputs)

@@ -86,8 +86,9 @@ class Result:
     def save(self, path: str | Path, viewer: str = "vtu") -> list[Path]:
         """Write the result set: the HDF5 file ``path`` and its viewer files (``vtu`` or ``xdmf``) beside
         it, replaced together; returns the paths written."""
-        from ddsolve.io.hdf5 import write  # deferred, as meshio's Mesh.write: io is the stage above
+        from ddsolve.io.hdf5 import check_result, write  # deferred, as meshio's Mesh.write: io is the stage above
 
+        check_result(Path(path), named="save")
         return write(Path(path), self, viewer)
 
     @classmethod

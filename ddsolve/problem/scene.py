@@ -11,6 +11,7 @@ import dataclasses
 import difflib
 import math
 import os
+import re
 import stat
 from dataclasses import dataclass, field
 from importlib import resources
@@ -833,7 +834,7 @@ def override_items(overrides: dict[str, Any] | Sequence[str]) -> list[str]:
             items.append(f"{key}={_toml_value(value)}")
         except TypeError:
             raise SceneError(f"{printable(str(key))}: {type(value).__name__} is not a scene value "
-                             "(a number, a boolean, a string or a list of them)") from None
+                             "(a number, a boolean, a string, or a list or table of them)") from None
     return items
 
 
@@ -981,7 +982,14 @@ def _toml_value(value: Any) -> str:
         return '"' + "".join(f"\\u{ord(c):04x}" if ord(c) < 0x20 or c in '"\\\x7f' else c for c in value) + '"'
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):  # a table, as --set 'materials.layer1={E = 70.0, nu = 0.33}' gives one
+        return "{" + ", ".join(f"{_toml_key(str(k))} = {_toml_value(v)}" for k, v in value.items()) + "}"
     raise TypeError(f"cannot write {value!r} as TOML")
+
+
+def _toml_key(key: str) -> str:
+    """A TOML key: bare when it can be, else a basic string."""
+    return key if re.fullmatch(r"[A-Za-z0-9_-]+", key) else _toml_value(key)
 
 
 def dumps(data: dict, path: tuple[str, ...] = ()) -> str:

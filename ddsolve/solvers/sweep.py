@@ -150,6 +150,11 @@ def parse(items: list[str], per_run: float | None = None) -> tuple[list[str], li
         if any(r.key == key for r in ranges):
             raise SceneError(f"--set {item}: {key} is swept twice")
         ranges.append(Range(key, values, item))
+    if not ranges:  # a value with colons that is not a range is a range mistyped, not a value to keep
+        mistyped = next((item for item in fixed if ":" in item.partition("=")[2]), None)
+        if mistyped is not None:
+            raise SceneError(f"--set {mistyped}: not a range START:STOP:COUNT[:log] (START and STOP numbers, "
+                             "COUNT a whole number)")
     return fixed, ranges
 
 
@@ -177,6 +182,14 @@ def overrides(run: dict) -> list[str]:
     from ddsolve.problem.scene import override_items
 
     return override_items(run)
+
+
+def given_range(key: str, values) -> Range:
+    """The range of the Python API's ``{key: values}``: a non-empty list (or array) of values."""
+    values = values.tolist() if hasattr(values, "tolist") else values
+    if isinstance(values, (str, bytes)) or not hasattr(values, "__len__") or len(values) == 0:
+        raise SceneError(f"{key}: a sweep takes a non-empty list of values (got {values!r})")
+    return Range(key, tuple(values))
 
 
 def describe(run: dict) -> str:
@@ -256,8 +269,7 @@ def sweep(source, items: list[str], paired: bool, output: Path | None, comm, pro
     def arrange():
         per_run = _base_seconds(source, [item for item in items if _range(item) is None], comm.size)
         fixed, ranges = parse(items, per_run)
-        ranges += [Range(key, tuple(value.tolist() if hasattr(value, "tolist") else value))
-                   for key, value in (values or {}).items()]
+        ranges += [given_range(key, value) for key, value in (values or {}).items()]
         return fixed, ranges, plan(ranges, paired, per_run)
 
     fixed, ranges, runs = collective(comm, arrange)  # the same on every rank, errors included
