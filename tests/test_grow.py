@@ -128,7 +128,8 @@ toughness = 1e-9
 def test_bad_input_is_one_line(tmp_path):
     scene = experiment.dcb(tmp_path, SIZE, "displacement")
     for limit, steps, tolerance, fragment in ((0.0, 4, 1e-4, "--to"), (math.nan, 4, 1e-4, "--to"),
-                                              (1.0, 0, 1e-4, "--steps"), (1.0, 4, 2.0, "--tolerance")):
+                                              (1.0, 0, 1e-4, "--steps"), (1.0, 2.5, 1e-4, "--steps 2.5: a whole"),
+                                              (1.0, 4, 2.0, "--tolerance")):
         with pytest.raises(SceneError, match=fragment):
             grow.grow(scene, comm(), limit, steps, tolerance, progress=quiet)
     with pytest.raises(SceneError, match="no toughness"):

@@ -29,6 +29,7 @@ is ∫ load d(displacement) either way.
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
@@ -376,8 +377,8 @@ def grow(scene: Scene, comm, limit: float, steps: int, tolerance: float = 1e-4,
     steps spread over the run (``OUTPUT-step<k>.png``).  Returns the steps on rank 0, None elsewhere."""
     if not (math.isfinite(limit) and limit > 0.0):
         raise SceneError(f"grow: --to {limit:g}: the control's limit must be a positive number")
-    if steps < 1:
-        raise SceneError(f"grow: --steps {steps}: at least one step")
+    if not isinstance(steps, numbers.Integral) or steps < 1:
+        raise SceneError(f"grow: --steps {steps}: a whole number of steps, at least one")
     if not 0.0 < tolerance < 1.0:
         raise SceneError(f"grow: --tolerance {tolerance:g}: between 0 and 1")
     if pictures < 0:
