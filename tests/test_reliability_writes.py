@@ -167,3 +167,33 @@ def test_export_and_plot_write_beside_their_input_and_keep_it(inputs, tmp_path):
         assert run.returncode == 0 and result.read_bytes() == data, run.stderr
     assert {p.name for p in tmp_path.iterdir()} >= {"r-layer1.vtu", "r-paraview.py", "r-deformed.png"}
     assert not [p for p in tmp_path.iterdir() if ".ddsolve~" in p.name]
+
+
+@pytest.fixture
+def small_file_system(tmp_path):
+    """A 200 KiB file system (mounting one needs root; skipped otherwise)."""
+    folder = tmp_path / "full"
+    folder.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=200k", "tmpfs", str(folder)],
+                      capture_output=True).returncode != 0:
+        pytest.skip("mounting a small file system needs root")
+    try:
+        yield folder
+    finally:
+        subprocess.run(["umount", str(folder)], capture_output=True)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("filled_kib", [40, 120, 160])  # the HDF5 file, a layer file, then the other layer's
+def test_four_ranks_writing_into_a_full_file_system_end_in_one_line(small_file_system, filled_kib):
+    """The ranks write one file together: when rank 0 or all of them hit the full disk, every rank stops
+    (no rank waits for the others at a barrier), one line says which file, nothing is left or replaced."""
+    (small_file_system / "filler").write_bytes(bytes(filled_kib * 1024))
+    completed = ddsolve("solve", "partial-closure", "--set", "mesh.sigma_vertices=13", "--set",
+                        "mesh.boundary_vertices=32", "-o", str(small_file_system / "out.h5"), ranks=4, check=False,
+                        timeout=120)
+    assert completed.returncode == 1, completed.stderr
+    lines = [line for line in completed.stderr.splitlines() if not line.startswith("[warn]")]
+    assert len(lines) == 1 and lines[0].startswith("ddsolve: error: ") and \
+        lines[0].endswith(": cannot write (No space left on device)"), lines
+    assert sorted(path.name for path in small_file_system.iterdir()) == ["filler"]

@@ -2,6 +2,7 @@
 one set that replaces the previous one together or not at all."""
 from __future__ import annotations
 
+import errno
 import os
 import time
 from dataclasses import dataclass, field
@@ -170,20 +171,42 @@ def write_part(name: str, part: Part, comm=None, since: float | None = None) -> 
     if comm is not None and comm.size > 1:
         shapes = {key: shape for mine in comm.allgather(shapes) for key, shape in mine.items()}
         attrs = comm.bcast(attrs, root=0)
+        needed = sum(int(np.prod(shape)) * np.dtype(dtype).itemsize for shape, dtype in shapes.values())
+        if not comm.bcast(_room(Path(name).parent, needed) if comm.rank == 0 else None, root=0):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))  # on every rank, before HDF5 writes a byte
         opened = h5py.File(name, "w", driver="mpio", comm=comm)
     else:
         opened = hdf5_image(name)
-    with opened as f:
-        created = {key: f.create_dataset(key, shape=shape, dtype=dtype) for key, (shape, dtype) in sorted(shapes.items())}
-        for key, values in part.datasets.items():
-            if np.size(values):
-                created[key][...] = values
-        for group, values in attrs.items():
-            target = f.require_group(group) if group else f
-            for key, value in values.items():
-                target.attrs[key] = value
-        elapsed = time.perf_counter() - started
-        f.require_group("timings").attrs["write"] = comm.bcast(elapsed, root=0) if comm is not None else elapsed
+    try:
+        with opened as f:
+            created = {key: f.create_dataset(key, shape=shape, dtype=dtype)
+                       for key, (shape, dtype) in sorted(shapes.items())}
+            for key, values in part.datasets.items():
+                if np.size(values):
+                    created[key][...] = values
+            for group, values in attrs.items():
+                target = f.require_group(group) if group else f
+                for key, value in values.items():
+                    target.attrs[key] = value
+            elapsed = time.perf_counter() - started
+            f.require_group("timings").attrs["write"] = comm.bcast(elapsed, root=0) if comm is not None else elapsed
+    except RuntimeError as exc:  # h5py closing a file whose writes failed
+        raise OSError(errno.EIO, " ".join(str(exc).split())) from None
+
+
+#: Bytes a result file needs beyond its datasets' at most (groups, attributes, the scene's text).
+HDF5_OVERHEAD = 1 << 20
+
+
+def _room(folder: Path, needed: int) -> bool:
+    """Whether ``folder``'s file system has room for a result file of ``needed`` bytes of datasets: checked
+    before a parallel write, which the MPI-IO layer would report on every rank, in many lines, if it ran
+    out of space (the serial write builds the file in memory and writes it whole)."""
+    try:
+        stats = os.statvfs(folder)
+    except OSError:
+        return True  # nothing known: the write says what fails
+    return stats.f_bavail * stats.f_frsize >= needed + HDF5_OVERHEAD
 
 
 def read(path: Path) -> Result:

@@ -245,17 +245,22 @@ def write_vtu(mesh: ViewerMesh, name: str, comm=None) -> None:
         position += 8 + size
     head = _vtu_head(arrays, offsets, totals).encode()
     tail = b"\n</AppendedData>\n</VTKFile>\n"
-    rank = comm.rank if comm is not None else 0
+    rank, failed = comm.rank if comm is not None else 0, None
     if rank == 0:
-        with open(name, "wb") as out:
-            out.write(head)
-            for start, size in offsets.values():
-                out.seek(len(head) + start)
-                out.write(np.uint64(size).tobytes())
-            out.seek(len(head) + position)
-            out.write(tail)
+        try:
+            with open(name, "wb") as out:
+                out.write(head)
+                for start, size in offsets.values():
+                    out.seek(len(head) + start)
+                    out.write(np.uint64(size).tobytes())
+                out.seek(len(head) + position)
+                out.write(tail)
+        except OSError as exc:  # a full disk: every rank stops here, none waits for the others' rows
+            failed = exc
     if comm is not None and comm.size > 1:
-        comm.barrier()
+        failed = comm.bcast(failed, root=0)
+    if failed is not None:
+        raise failed
     if pieces:
         handle = os.open(name, os.O_WRONLY)
         try:
