@@ -117,7 +117,8 @@ def _redirected(hostile, arguments: list[str], env: dict, closed_pipe: bool) -> 
     started = time.perf_counter()
     try:
         completed = subprocess.run([sys.executable, "-m", "ddsolve", *arguments], stdout=writer, stderr=subprocess.PIPE,
-                                   text=True, timeout=300, cwd=hostile.folder, stdin=subprocess.DEVNULL,
+                                   text=True, errors="backslashreplace", timeout=300, cwd=hostile.folder,
+                                   stdin=subprocess.DEVNULL,
                                    env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2]), **env})
     finally:
         os.close(writer)

@@ -387,6 +387,7 @@ class Hostile:
             ) -> tuple[subprocess.CompletedProcess, float]:
         started = time.perf_counter()
         completed = subprocess.run([sys.executable, "-m", "ddsolve", *arguments], capture_output=True, text=True,
+                                   errors="backslashreplace",  # what a latin-1 or ASCII run printed, byte for byte
                                    timeout=timeout, cwd=self.folder, stdin=subprocess.DEVNULL,
                                    env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2]),
                                         **(env or {})})
