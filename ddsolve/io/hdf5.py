@@ -206,6 +206,8 @@ def _room(folder: Path, needed: int) -> bool:
         stats = os.statvfs(folder)
     except OSError:
         return True  # nothing known: the write says what fails
+    if stats.f_blocks == 0:  # a file system that reports no sizes
+        return True
     return stats.f_bavail * stats.f_frsize >= needed + HDF5_OVERHEAD
 
 
