@@ -21,6 +21,7 @@ from ddsolve.errors import DDSolveError, NotConvergedError, UsageError
 from ddsolve.io import safe
 from ddsolve.mesh import gmsh_io
 from ddsolve.parallel.launch import mpiexec_command, supervise
+from ddsolve.parallel.phases import LAUNCHED
 from ddsolve.mesh.mesh import BLOCKS
 from ddsolve.parallel import runtime
 from ddsolve.parallel.runtime import Parser, check_petsc_files, guarded, init_petsc, is_number
@@ -114,7 +115,7 @@ def _launch(args, petsc_options: list[str], scene_checks: bool) -> None:
         outputs = [_grow_output(args)] if args.command == "grow" else [_sweep_output(args)]
     forwarded = [arg for i, arg in enumerate(args.own) if i not in args.ranks_at]
     command = mpiexec_command(args.ranks, forwarded + (["--", *petsc_options] if petsc_options else []))
-    sys.exit(supervise(command, {**os.environ, "DDSOLVE_LAUNCHED": repr(time.time())}, outputs))  # start-up timing
+    sys.exit(supervise(command, {**os.environ, LAUNCHED: repr(time.time())}, outputs))  # start-up timing
 
 
 def _sweep_output(args) -> Path:
