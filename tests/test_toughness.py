@@ -176,3 +176,19 @@ def test_solve_on_two_ranks_prints_and_writes_the_critical_factor(tmp_path):
     for factor in fracture.critical_factor:
         assert f"grows at λ = {factor:.6g}" in completed.stdout
     assert completed.stdout.count("G/G_c = ") == 2
+
+
+def test_an_adaptive_solve_finds_the_factors_on_its_last_mesh_factored_once(monkeypatch):
+    """Adaptive heated Example 2 with a toughness: the search on the last mesh prepares (assembles and
+    factors) its blocks once, not once per solve of the scaled scene, and finds the reference's factors."""
+    from mpi4py import MPI
+
+    from ddsolve.solvers import adapt, driver
+
+    source = scene.load("full-opening", [*SMALL, *HEATED, "fracture.toughness=1e-4", "mesh.target_error=0.05"])
+    prepared, prepare = [], driver.prepare
+    monkeypatch.setattr(driver, "prepare", lambda *args, **kwargs: prepared.append(1) or prepare(*args, **kwargs))
+    result = adapt.solve(source, MPI.COMM_SELF, None, progress=lambda line: None)
+    assert len(prepared) == len(result.levels["unknowns"]) + 1 and result.timings["critical_factors"] > 0
+    expected = critical.search(source, lambda lam: reference.solve(source.scaled(lam), result.mesh).fracture)
+    np.testing.assert_allclose(result.fracture.critical_factor, expected, rtol=1e-7)

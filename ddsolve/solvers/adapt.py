@@ -97,7 +97,8 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, lev
     modes and the reactions of a level that is refined next); ``reference`` passes the monolithic solve.  Prints a
     line per level on rank 0 (via ``progress``); writes the last level's result with the level table and, for
     a scene with a toughness and a temperature change, the critical load factors found on the last mesh
-    by solves of the scaled scene (:func:`ddsolve.solvers.critical.roots`).
+    by solves of the scaled scene (by default on blocks factored once, :func:`ddsolve.solvers.critical.factors`;
+    else by ``level``, :func:`ddsolve.solvers.critical.roots`), timed as ``critical_factors``.
     Returns the result on rank 0 (None elsewhere).  Raises DDSolveError on every rank after the first
     level, nothing written, if the target needs more unknowns than a level may have
     (:func:`largest_level`); NotConvergedError on every rank (after writing the last result) if it is
@@ -105,7 +106,8 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, lev
     as ``result`` on rank 0.
     """
     target = scene.mesh.target_error
-    if level is None:
+    decomposed = level is None
+    if decomposed:
         def level(mesh: Mesh, solved: Scene, refined_next: Callable[[Result], bool] | None) -> Result | None:
             return driver.solve(solved, comm, None, progress=_silent, mesh=mesh, refined_next=refined_next)
     project = curves.projector(scene)
@@ -134,9 +136,13 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, lev
         if done:
             break
     if critical.needed(scene):
-        found = critical.roots(scene, comm, lambda scaled: level(mesh, scaled, None), progress)
-        if comm.rank == 0 and result.fracture is not None:
-            toughness.judge(result.fracture, scene, found)
+        searched = time.perf_counter()
+        found = critical.factors(scene, comm, mesh, progress) if decomposed else critical.roots(
+            scene, comm, lambda scaled: level(mesh, scaled, None), progress)
+        if comm.rank == 0:
+            result.timings["critical_factors"] = time.perf_counter() - searched
+            if result.fracture is not None:
+                toughness.judge(result.fracture, scene, found)
     if comm.rank == 0:
         result.levels = {column: np.array([row[column] for row in rows]) for column in LEVEL_COLUMNS}
         result.attrs.update({"target_error": target, "levels": len(rows)})
