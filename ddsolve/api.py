@@ -39,6 +39,8 @@ def _comm(comm):
         petsc4py.init([sys.argv[0] if sys.argv and sys.argv[0] else "ddsolve", "-no_signal_handler"])
     from mpi4py import MPI
 
+    if comm is not None and not isinstance(comm, MPI.Comm):
+        raise DDSolveError(f"comm: an mpi4py communicator (got {type(comm).__name__})")
     return MPI.COMM_WORLD if comm is None else comm
 
 

@@ -93,6 +93,11 @@ def test_arguments_of_the_wrong_type_are_one_line_errors():
         ddsolve.reference(5)
     with pytest.raises(ddsolve.DDSolveError, match=r"^load: a result file's path \(got dict\)$"):
         ddsolve.load({})
+    for run in (lambda **comm: ddsolve.solve("full-opening", **comm),
+                lambda **comm: ddsolve.sweep("full-opening", {"solver.theta": [60.0, 65.0]}, **comm),
+                lambda **comm: ddsolve.grow("full-opening", 2.0, **comm)):
+        with pytest.raises(ddsolve.DDSolveError, match=r"^comm: an mpi4py communicator \(got int\)$"):
+            run(comm=5)
 
 
 def test_a_result_is_written_only_under_an_hdf5_name(tmp_path):

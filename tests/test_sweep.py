@@ -23,6 +23,9 @@ def test_ranges_and_fixed_values():
     assert ranges[1].values == (49, 97, 145, 193) and all(isinstance(v, int) for v in ranges[1].values)
     assert ranges[2].values == pytest.approx((-0.2, -0.4, -0.6, -0.8))
     assert sweep.parse(["loads.layer1.top.y=0.5:0.5:1"])[1][0].values == (0.5,)
+    uneven = sweep.parse(["mesh.sigma_vertices=24:25:4"])[1][0].values  # whole values stay integers
+    assert uneven == pytest.approx((24, 24 + 1 / 3, 24 + 2 / 3, 25)) and [type(v) for v in uneven] == [int, float,
+                                                                                                        float, int]
 
 
 @pytest.mark.parametrize("item, message", [
@@ -124,6 +127,8 @@ def test_a_failed_run_is_recorded_and_the_sweep_goes_on(tmp_path):
 @pytest.mark.parametrize("arguments, message", [
     (["--set", "geometry.crack.1=0.5:1.5:3"], "sweep run 3 (geometry.crack.1=1.5): partial-closure: "
                                               "geometry.crack: the crack [-0.5, 1.5] leaves the box"),
+    (["--set", "mesh.sigma_vertices=24:25:4"], "sweep run 2 (mesh.sigma_vertices=24.3333): partial-closure: "
+                                                "mesh.sigma_vertices must be an integer (got 24.33"),
     (["--set", "solver.tol=1e-9"], "sweep: no range to sweep; give --set KEY=START:STOP:COUNT"),
     (["--set", "a.b=1:2:2", "--set", "c.d=1:2:3", "--zip"], "--zip: the ranges must have the same COUNT"),
     (["--set", "materials.layer2.E=1:2:2", "-o", "missing/x.h5"], "missing/x.h5: output directory missing does not"),

@@ -143,10 +143,8 @@ def parse(items: list[str], per_run: float | None = None) -> tuple[list[str], li
         else:
             values = np.linspace(start, stop, count)
         integral = all(re.fullmatch(r"[+-]?[0-9]+", text) for text in texts) and spacing == "lin"
-        if integral and np.allclose(values, np.round(values)):
-            values = tuple(int(v) for v in np.round(values))
-        else:
-            values = tuple(float(v) for v in values)
+        whole = np.isclose(values, np.round(values)) & integral  # integers stay integers (an integer key's too)
+        values = tuple(int(round(v)) if is_whole else float(v) for v, is_whole in zip(values, whole))
         if any(r.key == key for r in ranges):
             raise SceneError(f"--set {item}: {key} is swept twice")
         ranges.append(Range(key, values, item))
