@@ -6,7 +6,7 @@ import pytest
 from conftest import structured_mesh
 
 from ddsolve.fem.assembly import element_dofs, strain_operator
-from ddsolve.mesh import element, geometry
+from ddsolve.mesh import element, geometry, pieces
 from ddsolve.mesh.element import element_geometry
 from ddsolve.mesh.mesh import HalfMesh
 from ddsolve.post import analysis, estimate
@@ -195,3 +195,28 @@ def test_locate_agrees_with_a_trapezoid_map_on_a_graded_mesh_with_a_hole():
     assert min(s.min(), r.min(), (1.0 - s - r).min()) > -1e-9
     far = ~found & ((queries < -0.01) | (queries > 1.01)).any(axis=1)
     assert np.all(outside[far])
+
+
+@pytest.mark.parametrize("degree", [1, 2])
+def test_pieces_give_the_indicators_of_the_whole_half(degree):
+    """The cells owned by the ranks of a distributed block, each with two rings of neighbours
+    (:func:`ddsolve.mesh.pieces.cut`), have the indicators of the whole half; every cell is owned once."""
+    source = scene.load("partial-closure", ["mesh.sigma_vertices=49", "mesh.boundary_vertices=64",
+                                            f"mesh.degree={degree}"])
+    half = geometry.build(source).lower
+    x, y = half.points.T
+    u = np.column_stack([np.sin(3 * x) * y ** 2 + 0.1 * x * y, np.cos(2 * y) * x + 0.01 * np.exp(x)])
+    whole = estimate.half_indicators(half, D, u)
+    for ranks in (2, 3):
+        bounds = np.linspace(0, len(half.points), ranks + 1).astype(int)
+        owners = np.zeros(len(half.cells), dtype=int)
+        found = np.empty_like(whole)
+        for first, stop in zip(bounds[:-1], bounds[1:]):
+            piece = pieces.cut(half, first, stop)
+            assert len(piece.cell_ids) < len(half.cells)
+            mine = piece.cell_ids[:piece.owned]
+            owners[mine] += 1
+            found[:, mine] = estimate.block_indicators(piece.points, piece.cells, D, u[piece.nodes],
+                                                       piece.outer_edges)[:, :piece.owned]
+        assert np.all(owners == 1)
+        np.testing.assert_allclose(found, whole, rtol=0, atol=1e-12 * whole.max())

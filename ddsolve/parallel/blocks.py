@@ -305,6 +305,21 @@ class Block:
         self.mpi.Gatherv(np.ascontiguousarray(x), (out, counts) if self.is_leader else None, root=0)
         return out
 
+    def values_at(self, dofs: np.ndarray) -> np.ndarray:
+        """The last solution at the block's global ``dofs`` (its rows here and any others; collective over the
+        block), by one PETSc scatter."""
+        if self.mpi.size == 1:
+            return self.x.getArray(readonly=True)[dofs]
+        index = PETSc.IS().createGeneral(np.asarray(dofs, dtype=PETSc.IntType), comm=PETSc.COMM_SELF)
+        target = PETSc.Vec().createSeq(len(dofs), comm=PETSc.COMM_SELF)
+        scatter = PETSc.Scatter().create(self.x, index, target, None)
+        try:
+            scatter.scatter(self.x, target, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
+            return target.getArray().copy()
+        finally:
+            for obj in (scatter, target, index):
+                obj.destroy()
+
     def _gather_trace(self, values: np.ndarray) -> np.ndarray | None:
         """Trace rows owned here (``(owned,)`` or ``(owned, c)``) -> all of them in trace order, on the leader."""
         if self.mpi.size == 1:

@@ -35,10 +35,17 @@ def load_width(command: int, trace_size: int) -> int:
 class BlockServer:
     """The blocks this rank works on and what a round does with them."""
 
-    def __init__(self, blocks: list[Block], exchange: Exchange):
+    def __init__(self, blocks: list[Block], exchange: Exchange, piece_dofs: dict[int, np.ndarray] | None = None):
         self.blocks, self.exchange = blocks, exchange
         self.solutions: dict[int, np.ndarray] = {}  # led blocks' solutions from the last full solve
+        self.piece_dofs = piece_dofs or {}  # local block -> the dofs of this rank's piece of its half
+        self.piece_values: dict[int, np.ndarray] = {}  # ... and the last full solve there
         self.error = ""
+
+    @property
+    def held_bytes(self) -> int:
+        """Bytes of the solutions held: the led blocks' whole ones and the pieces' values (once each)."""
+        return sum({id(u): u.nbytes for u in (*self.solutions.values(), *self.piece_values.values())}.values())
 
     def run(self, command: int, loads: list[np.ndarray] | None, width: int) -> np.ndarray:
         """One round on the local blocks: the rows of the led blocks, each ending with a status flag."""
@@ -89,6 +96,9 @@ class BlockServer:
             whole = block.gather(x)
             if block.is_leader:
                 self.solutions[index] = whole
+            if index in self.piece_dofs:
+                self.piece_values[index] = (whole if block.mpi.size == 1 else
+                                            block.values_at(self.piece_dofs[index]))
         return np.concatenate([trace, energies, checks]) if block.is_leader else None
 
 

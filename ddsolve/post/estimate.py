@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ddsolve.fem.assembly import elasticity, to_global, trace_nodes, voigt_strain
+from ddsolve.fem.assembly import elasticity, voigt_strain
 from ddsolve.mesh.element import (CELL_EDGES, boundary_nodes, edge_keys, edge_points, edge_shapes, element_geometry,
                                   field_gradients, gauss_interval, shape_functions)
 from ddsolve.mesh.mesh import BLOCKS, CRACK, HalfMesh, Mesh, SigmaLine
@@ -344,14 +344,6 @@ def of_solution(mesh: Mesh, laws: dict[str, np.ndarray], solution: dict[str, np.
     parts = {spec.name: half_indicators(mesh.half(spec.side), laws[spec.layer], solution[spec.name])
              for spec in BLOCKS}
     return combine(mesh, parts, solution, mu_c)
-
-
-def block_part(scene: Scene, mesh: Mesh, index: int, x: np.ndarray) -> np.ndarray:
-    """:func:`block_indicators` of block ``index`` from its solution vector ``x`` (Σ dofs in local frames)."""
-    spec = BLOCKS[index]
-    half = mesh.half(spec.side)
-    u = to_global(x, trace_nodes(half, mesh.sigma), mesh.sigma.frames[mesh.sigma.multiplier_nodes])
-    return half_indicators(half, elasticity(scene, spec.layer)[0], u)
 
 
 def of_scene(scene: Scene, mesh: Mesh, solution: dict[str, np.ndarray], mu_c: np.ndarray) -> Estimate:

@@ -25,7 +25,9 @@ from ddsolve.dd.interface import Interface, for_mesh
 from ddsolve.errors import DDSolveError, DivergedError, NotConvergedError, SceneError
 from ddsolve.fem import assembly, supports
 from ddsolve.io import hdf5 as io
+from ddsolve.mesh import pieces
 from ddsolve.mesh.mesh import BLOCKS, U_PLUS, Mesh, partner
+from ddsolve.mesh.pieces import Piece
 from ddsolve.parallel import launch
 from ddsolve.parallel.blocks import Block
 from ddsolve.parallel.distribution import LocalMesh, gather_upper, local_mesh, whole, whole_mesh_checks
@@ -69,13 +71,39 @@ def run_method(scene: Scene, setup: "Setup", server: BlockServer, progress):
     return outcome, rounds, failure
 
 
-def gather_estimate(scene: Scene, mesh: LocalMesh, exchange: Exchange, server: BlockServer
+def block_indicators(setup: "Setup", server: BlockServer) -> dict[int, np.ndarray]:
+    """The error indicators of the last full solve (:func:`ddsolve.post.estimate.block_indicators`): every
+    rank of a block computes those of the cells it owns on its piece of the half (:mod:`ddsolve.mesh.pieces`);
+    the block's leader gets the whole ``(2, cells)`` (local block -> indicators, on the leaders)."""
+    local, exchange, scene = setup.mesh, setup.exchange, setup.scene
+    sigma = local.sigma
+    frames = sigma.frames[sigma.multiplier_nodes]
+    out = {}
+    for index, group in zip(exchange.local_blocks, exchange.groups):
+        spec, piece = BLOCKS[index], setup.pieces[index]
+        nodes = assembly.trace_nodes(local.half(spec.side), sigma)
+        where = np.minimum(np.searchsorted(piece.nodes, nodes), len(piece.nodes) - 1)
+        present = piece.nodes[where] == nodes
+        u = assembly.to_global(server.piece_values[index], where[present], frames[present])
+        mine = estimate.block_indicators(piece.points, piece.cells, assembly.elasticity(scene, spec.layer)[0], u,
+                                         piece.outer_edges)[:, :piece.owned]
+        if group.size == 1:
+            out[index] = mine
+            continue
+        parts = group.gather((piece.cell_ids[:piece.owned], mine), root=0)
+        if group.rank == 0:
+            out[index] = np.empty((2, local.cells[spec.side]))
+            for cells, values in parts:
+                out[index][:, cells] = values
+    return out
+
+
+def gather_estimate(mesh: LocalMesh, exchange: Exchange, indicators: dict[int, np.ndarray]
                     ) -> dict[str, np.ndarray] | None:
-    """Each block's leader computes its error indicators from the last full solve; rank 0 gets them
-    (block name -> ``(2, cells)``, see :func:`ddsolve.post.estimate.block_indicators`), None elsewhere."""
-    local = [estimate.block_part(scene, mesh, index, server.solutions[index]).ravel()
-             for index in exchange.led_blocks]
-    parts = exchange.gather_varying(local, [2 * mesh.cells[spec.side] for spec in BLOCKS])
+    """The blocks' error indicators (:func:`block_indicators`) on rank 0 (block name -> ``(2, cells)``),
+    None elsewhere."""
+    parts = exchange.gather_varying([indicators[index].ravel() for index in exchange.led_blocks],
+                                    [2 * mesh.cells[spec.side] for spec in BLOCKS])
     return None if parts is None else {spec.name: part.reshape(2, -1) for spec, part in zip(BLOCKS, parts)}
 
 
@@ -98,10 +126,10 @@ class OnRanks:
     and the estimate, from sums over the blocks.  Only Σ-sized arrays and scalars are exchanged."""
 
     def __init__(self, scene: Scene, local: LocalMesh, exchange: Exchange, server: BlockServer,
-                 interface: Interface, lam: np.ndarray | None):
+                 interface: Interface, lam: np.ndarray | None, indicators: dict[int, np.ndarray]):
         comm, sigma = exchange.comm, local.sigma
         frames = sigma.frames[sigma.multiplier_nodes]
-        self.scene, self.local, self.exchange = scene, local, exchange
+        self.scene, self.local, self.exchange, self.server = scene, local, exchange, server
         self.solutions = {BLOCKS[b].name: assembly.to_global(server.solutions[b], assembly.trace_nodes(
             local.half(BLOCKS[b].side), sigma), frames) for b in exchange.led_blocks}
         traces = exchange.gather_varying([self.solutions[BLOCKS[b].name][local.half(BLOCKS[b].side).sigma].ravel()
@@ -114,12 +142,12 @@ class OnRanks:
         pressure, jump = estimate.contact_on_sigma(sigma, self.on.multipliers["mu_c"], self.on.traces["u_minus"],
                                                    self.on.traces["u_plus"])
         self.indicators, squared, energy = {}, 0.0, 0.0
-        for name, u in self.solutions.items():
-            spec = next(spec for spec in BLOCKS if spec.name == name)
+        for index in exchange.led_blocks:
+            spec = BLOCKS[index]
             half = local.half(spec.side)
-            part = estimate.half_indicators(half, assembly.elasticity(scene, spec.layer)[0], u)
             contact = estimate.half_contact_indicators(half, pressure, jump) if spec.layer == "layer1" else 0.0
-            self.indicators[name], block_squared, block_energy = estimate.block_estimate(part, contact)
+            self.indicators[spec.name], block_squared, block_energy = estimate.block_estimate(indicators[index],
+                                                                                              contact)
             squared, energy = squared + block_squared, energy + block_energy
         totals = comm.reduce(np.array([squared, energy]), op=MPI.SUM, root=0)
         self.relative = estimate.relative(*totals) if exchange.is_root else None
@@ -195,7 +223,7 @@ class OnRanks:
     @property
     def held_bytes(self) -> int:
         """Bytes of the mesh and solution arrays this rank holds at output."""
-        return self.local.nbytes + sum(u.nbytes for u in self.solutions.values())
+        return self.local.nbytes + self.server.held_bytes
 
     def files(self, result: Result | None, output: Path) -> tuple[io.Part, viewer.Distributed]:
         """This rank's datasets of the result file and its share of the viewer files (``result``: rank 0's);
@@ -249,6 +277,7 @@ class Setup:
     stages: dict
     phases: Phases
     scene: Scene  # with the method resolved
+    pieces: dict[int, Piece]  # local block -> this rank's piece of its half (its rows' nodes and cells)
 
     @property
     def timings(self) -> dict:
@@ -336,6 +365,8 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
         error.collective = True  # every rank knows the supports
         raise error
     blocks = collective(comm, lambda: make_blocks(scene, local, exchange, FACTOR_PACKAGE[method]))
+    block_pieces = cut_pieces(local, exchange, blocks)
+    phases.hold("mesh", local.nbytes + pieces.extra_bytes(block_pieces.values(), local.halves.values()))
     interface = for_mesh(local.sigma, scene.nonpenetration, local.sigma_supports.fixed, assembly.modulus(scene))
     hold_blocks(phases, blocks, factored=False)
     stages["Setup"].pop()
@@ -355,7 +386,16 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
     hold_blocks(phases, blocks)
     stages["Factorization"].pop()
     phases.end("factorization")
-    return Setup(local, exchange, blocks, interface, stages, phases, scene)
+    return Setup(local, exchange, blocks, interface, stages, phases, scene, block_pieces)
+
+
+def cut_pieces(local: LocalMesh, exchange: Exchange, blocks: list[Block]) -> dict[int, Piece]:
+    """This rank's piece of the half of each of its blocks: the nodes of its rows (:mod:`ddsolve.mesh.pieces`)."""
+    out = {}
+    for index, block in zip(exchange.local_blocks, blocks):
+        first = block.system.first // 2
+        out[index] = pieces.cut(local.half(BLOCKS[index].side), first, first + len(block.system.rhs) // 2)
+    return out
 
 
 def make_floating(block: Block, scene: Scene, mesh: LocalMesh, index: int, fixed: bool) -> None:
@@ -432,13 +472,13 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
     method = scene.solver.method
 
     try:
-        server = BlockServer(setup.blocks, exchange)
+        server = BlockServer(setup.blocks, exchange, {index: piece.local_dofs() for index, piece in setup.pieces.items()})
         outcome, rounds, failure = run_method(scene, setup, server, progress)
         failure = comm.bcast(failure, root=0)
         if failure is not None:
             failure.collective = True
         phases.hold("schur complements", rounds.schur_bytes if rounds is not None else 0)  # rank 0's, during the method
-        phases.hold("solutions", sum(u.nbytes for u in server.solutions.values()))
+        phases.hold("solutions", server.held_bytes)
         mine = {"mesh_bytes": local.nbytes, "unknowns": sum(len(b.system.rhs) for b in setup.blocks),
                 "factor_mb": sum(b.factor_megabytes() for b in setup.blocks),
                 "out_of_core": any(b.out_of_core() for b in setup.blocks)}
@@ -451,10 +491,12 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
             raise failure
 
         distributed = output is not None and not gather and io.parallel_available(comm)
-        if distributed:  # the estimate on the blocks' leaders
-            shares = OnRanks(scene, local, exchange, server, interface, outcome.lam if exchange.is_root else None)
+        indicators = block_indicators(setup, server)
+        if distributed:
+            shares = OnRanks(scene, local, exchange, server, interface, outcome.lam if exchange.is_root else None,
+                             indicators)
         else:
-            parts = gather_estimate(scene, local, exchange, server)
+            parts = gather_estimate(local, exchange, indicators)
         phases.end("estimate")
         stages["Output"].push()
         volume = comm.reduce(fracture.block_terms(scene, local, local.tips, {b: server.solutions[b]
