@@ -126,8 +126,9 @@ def test_eight_ranks_split_every_block_over_two(tmp_path, method, options):
         results[ranks] = io.read(output)
     assert results[8].ranks == 8 and results[8].converged
     assert analysis.compare(results[8], results[4]).energy_error < 1e-8
-    # the error estimate, made by both ranks of each block on their pieces, is the one of 4 ranks
+    # the error estimate and G's volume terms, made by both ranks of each block on their pieces: those of 4 ranks
     assert results[8].attrs["error_estimate"] == pytest.approx(results[4].attrs["error_estimate"], rel=1e-6)
+    np.testing.assert_allclose(results[8].fracture.G, results[4].fracture.G, rtol=1e-6)
     for name, indicators in results[4].indicators.items():
         np.testing.assert_allclose(results[8].indicators[name], indicators, rtol=0, atol=1e-6 * indicators.max())
     assert len(results[8].attrs["peak_memory_mb"]) == 8

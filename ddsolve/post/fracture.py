@@ -184,27 +184,27 @@ def _directions(tip: Tip, sigma: SigmaLine, points: np.ndarray) -> np.ndarray:
 
 
 # --- the integrals --------------------------------------------------------------------------------
-def volume_terms(half: HalfMesh, D: np.ndarray, u: np.ndarray, fields: list[np.ndarray],
+def volume_terms(points: np.ndarray, cells: np.ndarray, D: np.ndarray, u: np.ndarray, fields: list[np.ndarray],
                  thermal: tuple[np.ndarray, object] | None = None) -> np.ndarray:
-    """∫ [σ_ij u_i,k θ_k,j − ½ σ:(ε − ε₀) div θ] + eigenstrain term, over ``half``, for each nodal θ
-    ``(n, 2)`` in ``fields``.
+    """∫ [σ_ij u_i,k θ_k,j − ½ σ:(ε − ε₀) div θ] + eigenstrain term, over the ``cells`` on ``points`` (a half,
+    or the cells a rank owns of it), for each nodal θ ``(n, 2)`` in ``fields``.
 
     ``u`` ``(n, 2)`` in x, y; σ = D (ε − ε₀) (Voigt, engineering shear), the mechanical stress, with the
     eigenstrain ε₀ = e ΔT of ``thermal`` (e, ΔT) (zero without), so ½ σ:(ε − ε₀) is the in-plane energy density.
     """
     out = np.zeros(len(fields))
-    support = np.zeros(len(half.points), dtype=bool)
+    support = np.zeros(len(points), dtype=bool)
     for field in fields:
         support |= np.any(field != 0.0, axis=1)
-    cells = half.cells[support[half.cells].any(axis=1)]
+    cells = cells[support[cells].any(axis=1)]
     if len(cells) == 0:
         return out
     xi, weights = element.quadrature(cells.shape[1])
-    det, gradients = element.element_geometry(half.points, cells, xi)
+    det, gradients = element.element_geometry(points, cells, xi)
     grad_u = element.field_gradients(u[cells], gradients)  # u_d,e
     strain = assembly.voigt_strain(grad_u)
     if thermal is not None:
-        strain = strain - assembly.cell_temperatures(half.points, cells, thermal[1], xi)[..., None] * thermal[0]
+        strain = strain - assembly.cell_temperatures(points, cells, thermal[1], xi)[..., None] * thermal[0]
     s = strain @ D.T
     stress = np.stack([np.stack([s[..., 0], s[..., 2]], -1), np.stack([s[..., 2], s[..., 1]], -1)], -2)
     density = 0.5 * np.sum(s * strain, axis=-1)
@@ -215,38 +215,34 @@ def volume_terms(half: HalfMesh, D: np.ndarray, u: np.ndarray, fields: list[np.n
         integrand = (momentum * grad_theta).sum(axis=(-1, -2)) - density * (grad_theta[..., 0, 0]
                                                                            + grad_theta[..., 1, 1])
         if thermal is not None:
-            integrand = integrand + eigenstrain_term(half, cells, xi, gradients, s, field, thermal)
+            integrand = integrand + eigenstrain_term(points, cells, xi, gradients, s, field, thermal)
         out[i] = float(np.sum(volume * integrand))
     return out
 
 
-def eigenstrain_term(half: HalfMesh, cells: np.ndarray, xi: np.ndarray, gradients: np.ndarray, stress: np.ndarray,
+def eigenstrain_term(points: np.ndarray, cells: np.ndarray, xi: np.ndarray, gradients: np.ndarray, stress: np.ndarray,
                      field: np.ndarray, thermal: tuple[np.ndarray, object]) -> np.ndarray:
     """σ : (∂ε₀/∂x_k) θ_k at the quadrature points ``(m, q)``: the part of −dΠ/da an eigenstrain that varies
     in space adds (Shih, Moran and Nakamura 1986, eq. 13: J = ∫ [σ_ij u_i,1 − W δ_1j] q_,j dA +
     ∫ σ_ij ∂ε₀_ij/∂x_1 q dA, with W the energy of ε − ε₀).  ε₀ = e ΔT; ∇ΔT from ΔT interpolated at the nodes."""
     eigenstrain, temperature = thermal
-    nodal = np.asarray(temperature(half.points[cells][..., 0], half.points[cells][..., 1]), dtype=np.float64)
+    nodal = np.asarray(temperature(points[cells][..., 0], points[cells][..., 1]), dtype=np.float64)
     grad_change = np.einsum("mk,mqkd->mqd", np.broadcast_to(nodal, cells.shape), gradients)
     shapes, _ = element.shape_functions(cells.shape[1], xi)
     theta_q = np.einsum("qk,mkd->mqd", shapes, field[cells])
     return (stress @ eigenstrain) * np.einsum("mqd,mqd->mq", grad_change, theta_q)
 
 
-def block_terms(scene, mesh: Mesh, tips: list[Tip], solutions: dict[int, np.ndarray]) -> np.ndarray:
-    """Sum of the volume terms of the blocks in ``solutions`` (block index -> solution as solved: flat,
-    Σ dofs of multiplier nodes in their local frames) for every tip."""
+def block_terms(scene, sigma: SigmaLine, tips: list[Tip], parts: dict[int, tuple]) -> np.ndarray:
+    """Sum of the volume terms for every tip over ``parts``: block index -> (points, cells, u), cells of the
+    block's half (all, or those a rank owns) and the displacements ``(n, 2)`` (x, y) at the points."""
     out = np.zeros(len(tips))
     if not tips:
         return out
-    frames = mesh.sigma.frames[mesh.sigma.multiplier_nodes]
-    for index, x in solutions.items():
-        spec = BLOCKS[index]
-        half = mesh.half(spec.side)
-        u = assembly.to_global(np.asarray(x), assembly.trace_nodes(half, mesh.sigma), frames)
-        D, _ = assembly.elasticity(scene, spec.layer)
-        out += volume_terms(half, D, u, [theta(tip, mesh.sigma, half.points) for tip in tips],
-                            assembly.thermal_of(scene, spec.layer))
+    for index, (points, cells, u) in parts.items():
+        layer = BLOCKS[index].layer
+        out += volume_terms(points, cells, assembly.elasticity(scene, layer)[0], u,
+                            [theta(tip, sigma, points) for tip in tips], assembly.thermal_of(scene, layer))
     return out
 
 
@@ -306,7 +302,8 @@ def of_result(result, tips: list[Tip], factors: np.ndarray | None = None) -> Fra
         half = result.half(spec.name)
         D, _ = assembly.elasticity(scene, spec.layer)
         fields = [theta(tip, result.mesh.sigma, half.points) for tip in tips]
-        volume += volume_terms(half, D, result.solution[spec.name], fields, assembly.thermal_of(scene, spec.layer))
+        volume += volume_terms(half.points, half.cells, D, result.solution[spec.name], fields,
+                               assembly.thermal_of(scene, spec.layer))
     return finish(tips, volume, result.on_sigma, mode_split(tips, result), scene, factors)
 
 
@@ -431,7 +428,7 @@ def mirror_terms(tip: Tip, sigma: SigmaLine, half: HalfMesh, D: np.ndarray, u: n
         part = np.zeros_like(u)
         part[nodes] = 0.5 * (u[nodes] + sign * image)
         # a temperature symmetric about Σ strains the symmetric part only: its eigenstrain is mode I's
-        parts[k] = volume_terms(half, D, part, [field], thermal if k == 0 else None)[0]
+        parts[k] = volume_terms(half.points, half.cells, D, part, [field], thermal if k == 0 else None)[0]
     return parts
 
 

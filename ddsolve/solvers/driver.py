@@ -71,28 +71,35 @@ def run_method(scene: Scene, setup: "Setup", server: BlockServer, progress):
     return outcome, rounds, failure
 
 
-def block_indicators(setup: "Setup", server: BlockServer) -> dict[int, np.ndarray]:
-    """The error indicators of the last full solve (:func:`ddsolve.post.estimate.block_indicators`): every
-    rank of a block computes those of the cells it owns on its piece of the half (:mod:`ddsolve.mesh.pieces`);
-    the block's leader gets the whole ``(2, cells)`` (local block -> indicators, on the leaders)."""
-    local, exchange, scene = setup.mesh, setup.exchange, setup.scene
-    sigma = local.sigma
+def piece_displacements(setup: "Setup", server: BlockServer) -> dict[int, np.ndarray]:
+    """Local block -> the last full solve at the nodes of this rank's piece of its half, ``(n, 2)`` in x, y."""
+    sigma = setup.mesh.sigma
     frames = sigma.frames[sigma.multiplier_nodes]
     out = {}
-    for index, group in zip(exchange.local_blocks, exchange.groups):
-        spec, piece = BLOCKS[index], setup.pieces[index]
-        nodes = assembly.trace_nodes(local.half(spec.side), sigma)
+    for index, piece in setup.pieces.items():
+        nodes = assembly.trace_nodes(setup.mesh.half(BLOCKS[index].side), sigma)
         where = np.minimum(np.searchsorted(piece.nodes, nodes), len(piece.nodes) - 1)
         present = piece.nodes[where] == nodes
-        u = assembly.to_global(server.piece_values[index], where[present], frames[present])
-        mine = estimate.block_indicators(piece.points, piece.cells, assembly.elasticity(scene, spec.layer)[0], u,
-                                         piece.outer_edges)[:, :piece.owned]
+        out[index] = assembly.to_global(server.piece_values[index], where[present], frames[present])
+    return out
+
+
+def block_indicators(setup: "Setup", displacements: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
+    """The error indicators of the last full solve (:func:`ddsolve.post.estimate.block_indicators`): every
+    rank of a block computes those of the cells it owns on its piece of the half (:mod:`ddsolve.mesh.pieces`,
+    ``displacements`` there: :func:`piece_displacements`); the block's leader gets the whole ``(2, cells)``
+    (local block -> indicators, on the leaders)."""
+    out = {}
+    for index, group in zip(setup.exchange.local_blocks, setup.exchange.groups):
+        spec, piece = BLOCKS[index], setup.pieces[index]
+        mine = estimate.block_indicators(piece.points, piece.cells, assembly.elasticity(setup.scene, spec.layer)[0],
+                                         displacements[index], piece.outer_edges)[:, :piece.owned]
         if group.size == 1:
             out[index] = mine
             continue
         parts = group.gather((piece.cell_ids[:piece.owned], mine), root=0)
         if group.rank == 0:
-            out[index] = np.empty((2, local.cells[spec.side]))
+            out[index] = np.empty((2, setup.mesh.cells[spec.side]))
             for cells, values in parts:
                 out[index][:, cells] = values
     return out
@@ -491,7 +498,8 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
             raise failure
 
         distributed = output is not None and not gather and io.parallel_available(comm)
-        indicators = block_indicators(setup, server)
+        displacements = piece_displacements(setup, server)
+        indicators = block_indicators(setup, displacements)
         if distributed:
             shares = OnRanks(scene, local, exchange, server, interface, outcome.lam if exchange.is_root else None,
                              indicators)
@@ -499,8 +507,9 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
             parts = gather_estimate(local, exchange, indicators)
         phases.end("estimate")
         stages["Output"].push()
-        volume = comm.reduce(fracture.block_terms(scene, local, local.tips, {b: server.solutions[b]
-                                                                            for b in exchange.led_blocks}), root=0)
+        volume = comm.reduce(fracture.block_terms(scene, local.sigma, local.tips, {
+            index: (piece.points, piece.cells[:piece.owned], displacements[index])
+            for index, piece in setup.pieces.items()}), root=0)  # each rank over the cells it owns
         sizes = [2 * local.nodes[spec.side] for spec in BLOCKS]
         whole_bytes = whole_mesh_bytes(local, exchange)
         if distributed:
