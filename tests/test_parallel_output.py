@@ -36,7 +36,7 @@ def listing(path) -> dict[str, tuple]:
 
 
 @pytest.mark.mpi
-@pytest.mark.parametrize("ranks", [1, 2, 4])
+@pytest.mark.parametrize("ranks", [1, 2, 4, 8])
 def test_the_ranks_write_the_file_the_serial_writer_writes(tmp_path, ranks):
     written = tmp_path / "dd.h5"
     ddsolve("solve", "partial-closure", *MESH, "-o", str(written), ranks=ranks)

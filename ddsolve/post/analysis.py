@@ -313,18 +313,20 @@ class CellFields:
 
 def cell_fields(result: Result) -> dict[str, CellFields]:
     """Block name -> its per-cell strains, stresses, von Mises stress and energy density."""
-    return {spec.name: block_cell_fields(result.parsed_scene, spec.layer, result.half(spec.name),
-                                         result.solution[spec.name]) for spec in BLOCKS}
+    return {spec.name: block_cell_fields(result.parsed_scene, spec.layer, result.half(spec.name).points,
+                                         result.half(spec.name).cells, result.solution[spec.name]) for spec in BLOCKS}
 
 
-def block_cell_fields(scene: scenes.Scene, layer: str, half, u: np.ndarray) -> CellFields:
-    """The :class:`CellFields` of one block: displacements ``u`` ``(n, 2)`` of ``layer`` on ``half``;
-    stresses are mechanical, σ = D (ε − ε₀), with the thermal eigenstrain ε₀."""
+def block_cell_fields(scene: scenes.Scene, layer: str, points: np.ndarray, cells: np.ndarray, u: np.ndarray
+                      ) -> CellFields:
+    """The :class:`CellFields` of one block's ``cells`` (a half's, or those a rank owns of it): displacements
+    ``u`` ``(n, 2)`` of ``layer`` at ``points``; stresses are mechanical, σ = D (ε − ε₀), with the thermal
+    eigenstrain ε₀."""
     D, c = assembly.elasticity(scene, layer)
     out_of_plane = materials.out_of_plane_strain(scene.materials[layer], scene.model)
-    volume, strains = assembly.quadrature_strains(half.points, half.cells, u)  # once for the mean and the energy
+    volume, strains = assembly.quadrature_strains(points, cells, u)  # once for the mean and the energy
     area, strain = assembly.cell_means(volume, strains)
-    eigenstrain, relieved = assembly.cell_eigenstrains(scene, layer, half.points, half.cells)
+    eigenstrain, relieved = assembly.cell_eigenstrains(scene, layer, points, cells)
     stress, stress_zz = assembly.cell_stresses(D, c, strain - eigenstrain)
     stress_zz = stress_zz + eigenstrain @ c - relieved
     strain_zz = strain @ out_of_plane if out_of_plane is not None else np.full(len(strain), np.nan)

@@ -94,14 +94,39 @@ def block_indicators(setup: "Setup", displacements: dict[int, np.ndarray]) -> di
         spec, piece = BLOCKS[index], setup.pieces[index]
         mine = estimate.block_indicators(piece.points, piece.cells, assembly.elasticity(setup.scene, spec.layer)[0],
                                          displacements[index], piece.outer_edges)[:, :piece.owned]
-        if group.size == 1:
-            out[index] = mine
-            continue
-        parts = group.gather((piece.cell_ids[:piece.owned], mine), root=0)
-        if group.rank == 0:
-            out[index] = np.empty((2, setup.mesh.cells[spec.side]))
-            for cells, values in parts:
-                out[index][:, cells] = values
+        whole = collect_owned(group, piece, setup.mesh.cells[spec.side], {"indicators": mine.T})
+        if whole is not None:
+            out[index] = whole["indicators"].T
+    return out
+
+
+def block_cell_fields(setup: "Setup", displacements: dict[int, np.ndarray]) -> dict[int, analysis.CellFields]:
+    """The cell fields of the last full solve, every rank of a block computing those of the cells it owns;
+    on the blocks' leaders (local block -> its :class:`~ddsolve.post.analysis.CellFields`)."""
+    out = {}
+    for index, group in zip(setup.exchange.local_blocks, setup.exchange.groups):
+        spec, piece = BLOCKS[index], setup.pieces[index]
+        mine = analysis.block_cell_fields(setup.scene, spec.layer, piece.points, piece.cells[:piece.owned],
+                                          displacements[index])
+        whole = collect_owned(group, piece, setup.mesh.cells[spec.side], dataclasses.asdict(mine))
+        if whole is not None:
+            out[index] = analysis.CellFields(**whole)
+    return out
+
+
+def collect_owned(group: MPI.Comm, piece: Piece, count: int, arrays: dict[str, np.ndarray]
+                  ) -> dict[str, np.ndarray] | None:
+    """Arrays over the cells each rank of a block owns (first axis) -> over all ``count`` cells of the half,
+    on the block's leader (None on the others)."""
+    if group.size == 1:
+        return arrays
+    parts = group.gather((piece.cell_ids[:piece.owned], arrays), root=0)
+    if group.rank != 0:
+        return None
+    out = {name: np.empty((count,) + values.shape[1:], values.dtype) for name, values in arrays.items()}
+    for cells, values in parts:
+        for name, array in values.items():
+            out[name][cells] = array
     return out
 
 
@@ -232,9 +257,11 @@ class OnRanks:
         """Bytes of the mesh and solution arrays this rank holds at output."""
         return self.local.nbytes + self.server.held_bytes
 
-    def files(self, result: Result | None, output: Path) -> tuple[io.Part, viewer.Distributed]:
-        """This rank's datasets of the result file and its share of the viewer files (``result``: rank 0's);
-        rank 0 adds the attributes once the launch's timings are complete."""
+    def files(self, result: Result | None, output: Path, cell_fields: dict[int, analysis.CellFields]
+              ) -> tuple[io.Part, viewer.Distributed]:
+        """This rank's datasets of the result file and its share of the viewer files (``result``: rank 0's;
+        ``cell_fields``: the led blocks', :func:`block_cell_fields`); rank 0 adds the attributes once the
+        launch's timings are complete."""
         local, exchange, comm = self.local, self.exchange, self.exchange.comm
         sigma, nodes = local.sigma, local.sigma.multiplier_nodes
         written = {side: min(b for b in exchange.led_blocks if BLOCKS[b].side == side)
@@ -250,7 +277,7 @@ class OnRanks:
         shares, tops, fields = {}, {}, {}
         for name, u in self.solutions.items():
             spec = next(spec for spec in BLOCKS if spec.name == name)
-            fields[name] = analysis.block_cell_fields(self.scene, spec.layer, local.half(spec.side), u)
+            fields[name] = cell_fields[BLOCKS.index(spec)]
             datasets.update(io.block_datasets(name, u, fields[name].von_mises, self.indicators[name]))
             other = BLOCKS[partner(BLOCKS.index(spec))].name
             glue = viewer.Glue(sides[-1][0], sides[1][0], sigma.crack, local.nodes, local.cells,
@@ -548,7 +575,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
             split = shares.mode_split()  # collective: the leaders integrate their blocks' shares
             if exchange.is_root:
                 result.fracture = fracture.finish(local.tips, volume, shares.on, split, scene, factors)
-            part, viewer = shares.files(result, output)
+            part, viewer = shares.files(result, output, block_cell_fields(setup, displacements))
         phases.end("output")  # G, its modes, the reactions and the files' contents included
         memory = comm.gather((mine, phases), root=0)
         if exchange.is_root:
