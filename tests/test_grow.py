@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from conftest import MATERIALS, ddsolve, refused
 
-from ddsolve.errors import SceneError
+from ddsolve.errors import SceneError, UsageError
 from ddsolve.experiments import delamination as beams
 from ddsolve.experiments import growth as experiment
 from ddsolve.post import toughness
@@ -130,7 +130,7 @@ def test_bad_input_is_one_line(tmp_path):
     for limit, steps, tolerance, fragment in ((0.0, 4, 1e-4, "--to"), (math.nan, 4, 1e-4, "--to"),
                                               (1.0, 0, 1e-4, "--steps"), (1.0, 2.5, 1e-4, "--steps 2.5: a whole"),
                                               (1.0, 4, 2.0, "--tolerance")):
-        with pytest.raises(SceneError, match=fragment):
+        with pytest.raises(UsageError, match=fragment):
             grow.grow(scene, comm(), limit, steps, tolerance, progress=quiet)
     with pytest.raises(SceneError, match="no toughness"):
         grow.Growth(Scene.load("partial-closure", ["mesh.sigma_vertices=13", "mesh.boundary_vertices=16"]),
@@ -154,7 +154,10 @@ def test_grow_command_on_two_ranks(tmp_path):
     data = grow.read(output)
     assert data["cracks"][-1, 0, 1] > experiment.DCB_CRACK
     bad = ddsolve("grow", str(tmp_path / "dcb-displacement-0.25.toml"), "--to", "-1", check=False)
-    refused(bad, 1, "--to")
+    refused(bad, 2, "--to")
+    bad = ddsolve("grow", "-n", "2", str(tmp_path / "dcb-displacement-0.25.toml"), "--to", "1", "--steps", "0",
+                  check=False)  # every rank finds it: one line, not one per rank
+    refused(bad, 2, "grow: --steps 0: a whole number of steps")
 
 
 def test_a_temperature_change_is_kept_while_the_opening_rises(tmp_path):

@@ -23,7 +23,8 @@ def test_ranges_and_fixed_values():
     assert ranges[1].values == (49, 97, 145, 193) and all(isinstance(v, int) for v in ranges[1].values)
     assert ranges[2].values == pytest.approx((-0.2, -0.4, -0.6, -0.8))
     assert sweep.parse(["loads.layer1.top.y=0.5:0.5:1"])[1][0].values == (0.5,)
-    uneven = sweep.parse(["mesh.sigma_vertices=24:25:4"])[1][0].values  # whole values stay integers
+    assert sweep.parse(["mesh.sigma_vertices=16:64:3:log"])[1][0].values == (16, 32, 64)  # integers stay integers
+    uneven = sweep.parse(["mesh.sigma_vertices=24:25:4"])[1][0].values
     assert uneven == pytest.approx((24, 24 + 1 / 3, 24 + 2 / 3, 25)) and [type(v) for v in uneven] == [int, float,
                                                                                                         float, int]
 

@@ -36,7 +36,7 @@ from typing import Callable
 
 import numpy as np
 
-from ddsolve.errors import DDSolveError, SceneError
+from ddsolve.errors import DDSolveError, SceneError, UsageError
 from ddsolve.fem import assembly, supports
 from ddsolve.mesh import cracks as crack_mesh
 from ddsolve.mesh.mesh import BLOCKS, Mesh
@@ -369,20 +369,29 @@ def describe(cracks) -> str:
     return ", ".join(f"({a:.6g}, {b:.6g})" for a, b in cracks) or "none"
 
 
+def check_controls(limit: float, steps: int, tolerance: float, pictures: int) -> None:
+    """Raise UsageError for a bad ``--to``, ``--steps``, ``--tolerance`` or ``--pictures`` (every rank checks
+    the same values: the error is collective, reported once)."""
+    problems = [(not (math.isfinite(limit) and limit > 0.0), f"--to {limit:g}: the control's limit must be a "
+                 "positive number"),
+                (not isinstance(steps, numbers.Integral) or steps < 1, f"--steps {steps}: a whole number of steps, "
+                 "at least one"),
+                (not 0.0 < tolerance < 1.0, f"--tolerance {tolerance:g}: between 0 and 1"),
+                (pictures < 0, f"--pictures {pictures}: a number of pictures, 0 or more")]
+    for bad, message in problems:
+        if bad:
+            error = UsageError(f"grow: {message}")
+            error.collective = True
+            raise error
+
+
 def grow(scene: Scene, comm, limit: float, steps: int, tolerance: float = 1e-4,
          progress: Callable[[str], None] = print, output: Path | None = None, pictures: int = 0
          ) -> list[Step] | None:
     """Grow the cracks of ``scene`` as the control rises to ``limit`` in ``steps`` steps (every rank);
     writes ``output`` (rank 0) and, with ``pictures``, that many pictures of the deformed structure at
     steps spread over the run (``OUTPUT-step<k>.png``).  Returns the steps on rank 0, None elsewhere."""
-    if not (math.isfinite(limit) and limit > 0.0):
-        raise SceneError(f"grow: --to {limit:g}: the control's limit must be a positive number")
-    if not isinstance(steps, numbers.Integral) or steps < 1:
-        raise SceneError(f"grow: --steps {steps}: a whole number of steps, at least one")
-    if not 0.0 < tolerance < 1.0:
-        raise SceneError(f"grow: --tolerance {tolerance:g}: between 0 and 1")
-    if pictures < 0:
-        raise SceneError(f"grow: --pictures {pictures}: a number of pictures, 0 or more")
+    check_controls(limit, steps, tolerance, pictures)
     growth = Growth(scene, comm)
     cracks = tuple(tuple(piece) for piece in crack_mesh.intervals(growth.base))
     initiation = growth.initiation(cracks)

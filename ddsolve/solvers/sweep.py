@@ -142,7 +142,7 @@ def parse(items: list[str], per_run: float | None = None) -> tuple[list[str], li
             values = np.geomspace(start, stop, count)
         else:
             values = np.linspace(start, stop, count)
-        integral = all(re.fullmatch(r"[+-]?[0-9]+", text) for text in texts) and spacing == "lin"
+        integral = all(re.fullmatch(r"[+-]?[0-9]+", text) for text in texts)
         whole = np.isclose(values, np.round(values)) & integral  # integers stay integers (an integer key's too)
         values = tuple(int(round(v)) if is_whole else float(v) for v, is_whole in zip(values, whole))
         if any(r.key == key for r in ranges):
