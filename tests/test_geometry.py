@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from conftest import MATERIALS, ROOT, SMALL, ddsolve
 
+from ddsolve.errors import MeshError
 from ddsolve.io import hdf5 as io
 from ddsolve.mesh import geometry, gmsh_io
 from ddsolve.post import analysis
@@ -208,3 +209,16 @@ def test_results_store_the_energy_and_the_interface_geometry(tmp_path):
         assert np.allclose(np.linalg.norm(f["interface/normal"][()], axis=1), 1.0)
         assert np.all(f["interface/normal"][()][:, 1] > 0.9)  # the arc rises gently: ν points up
         assert f.attrs["energy"] < 0  # Π(u) = −½ a(u, u) < 0 at equilibrium under loads
+
+
+@pytest.mark.parametrize("overrides", [[], ["mesh.degree=2", "mesh.refine=1"]])
+def test_a_p2_mesh_file_names_what_to_set(tmp_path, overrides):
+    """A mesh file of 6-node triangles read as P1, or as the coarse mesh of a refinement (which starts from
+    3-node triangles), is refused in one line that says both: set mesh.degree = 2, without mesh.refine."""
+    p2 = geometry.build(scene.load("partial-closure", ["mesh.sigma_vertices=25", "mesh.boundary_vertices=48", "mesh.degree=2"]))
+    gmsh_io.write_msh(p2, tmp_path / "p2.msh")
+    source = write_scene(tmp_path, "p2", 'file = "p2.msh"', "")
+    with pytest.raises(MeshError, match=r"p2\.msh: the file has 6-node \(P2\) triangles: set mesh.degree = 2, "
+                                        r"without mesh.refine"):
+        geometry.build(scene.load(source, overrides))
+    assert len(geometry.build(scene.load(source, ["mesh.degree=2"])).lower.cells) == len(p2.lower.cells)

@@ -237,7 +237,8 @@ def _from_gmsh(scene: Scene) -> Mesh:
         normals = _curve_normals(gmsh, groups[(1, SIGMA)], position, len(points)) if options.kind == "geo" else None
     cells = surfaces["lower"]
     if cells.shape[1] == 6 and options.degree == 1:
-        raise MeshError(f"{where}: the file has 6-node (P2) triangles: set mesh.degree = 2")
+        raise MeshError(f"{where}: the file has 6-node (P2) triangles: set mesh.degree = 2, without mesh.refine "
+                        "(a mesh file is refined from its 3-node triangles: give it as P1 to refine it)")
     halves, renumbered = [], []
     for side, name in ((-1, "lower"), (1, "upper")):
         cells = surfaces[name]
