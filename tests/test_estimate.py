@@ -199,8 +199,9 @@ def test_locate_agrees_with_a_trapezoid_map_on_a_graded_mesh_with_a_hole():
 
 @pytest.mark.parametrize("degree", [1, 2])
 def test_pieces_give_the_indicators_of_the_whole_half(degree):
-    """The cells owned by the ranks of a distributed block, each with two rings of neighbours
-    (:func:`ddsolve.mesh.pieces.cut`), have the indicators of the whole half; every cell is owned once."""
+    """The cells owned by the ranks of a distributed block (contiguous ranges: the cells whose smallest node
+    they own), each with two rings of neighbours (:func:`ddsolve.mesh.pieces.cut`), have the indicators of
+    the whole half; every cell is owned once."""
     source = scene.load("partial-closure", ["mesh.sigma_vertices=49", "mesh.boundary_vertices=64",
                                             f"mesh.degree={degree}"])
     half = geometry.build(source).lower
@@ -215,6 +216,9 @@ def test_pieces_give_the_indicators_of_the_whole_half(degree):
             piece = pieces.cut(half, first, stop)
             assert len(piece.cell_ids) < len(half.cells)
             mine = piece.cell_ids[:piece.owned]
+            assert np.array_equal(mine, np.arange(piece.cell_first, piece.cell_stop))  # a slab of the half's cells
+            smallest = half.cells[mine].min(axis=1)  # ... those whose smallest node is owned (make_half's order)
+            assert np.all((smallest >= first) & (smallest < stop))
             owners[mine] += 1
             found[:, mine] = estimate.block_indicators(piece.points, piece.cells, D, u[piece.nodes],
                                                        piece.outer_edges)[:, :piece.owned]

@@ -253,7 +253,9 @@ def make_half(points: np.ndarray, cells: np.ndarray, side: int, boundaries: dict
     Cells are made counter-clockwise (a file that is clockwise throughout is flipped; mixed
     orientation is an error); nodes the cells do not use are dropped and the rest numbered along the
     longer side of the bounding box, so that contiguous row ranges of a distributed block are compact
-    slabs.  Returns the half and the new number of every old node (−1: dropped).
+    slabs, and the cells in the order of their smallest node, so that the cells of such a range are a
+    contiguous range too (:mod:`ddsolve.mesh.pieces`).  Returns the half and the new number of every old
+    node (−1: dropped).
     """
     where = f"{origin}: {'lower' if side < 0 else 'upper'} half"
     points = np.asarray(points, dtype=np.float64)
@@ -265,6 +267,7 @@ def make_half(points: np.ndarray, cells: np.ndarray, side: int, boundaries: dict
     renumber = np.full(len(points), -1, dtype=np.int64)
     renumber[used] = np.arange(len(used))
     cells = renumber[cells]
+    cells = cells[np.argsort(cells.min(axis=1), kind="stable")]
     points = points[used]
     _check_distinct(points, where)
     outer = outer_edges(cells)
