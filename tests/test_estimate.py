@@ -224,3 +224,39 @@ def test_pieces_give_the_indicators_of_the_whole_half(degree):
                                                        piece.outer_edges)[:, :piece.owned]
         assert np.all(owners == 1)
         np.testing.assert_allclose(found, whole, rtol=0, atol=1e-12 * whole.max())
+
+
+RIGID = """title = "a rigid motion prescribed"
+[geometry]
+crack = [-0.5, 0.5]
+clamped = []
+[mesh]
+sigma_vertices = 25
+boundary_vertices = 48
+[materials.layer1]
+E = 200.0
+nu = 0.28
+[materials.layer2]
+E = 112.0
+nu = 0.32
+[displacements.layer1.left]
+x = "0.001 - 0.0002*y"
+y = "0.003 + 0.0002*x"
+[displacements.layer1.right]
+x = "0.001 - 0.0002*y"
+y = "0.003 + 0.0002*x"
+"""
+
+
+def test_a_rigid_motion_has_nothing_to_estimate():
+    """Supports that move the structure rigidly: the solution is exact, its strains rounding, and so is η:
+    the relative estimate is 0, not the ratio of two roundings (47 %), and an adaptive run stops at once."""
+    from mpi4py import MPI
+
+    from ddsolve.solvers import adapt
+
+    source = scene.loads(RIGID)
+    result = reference.solve(source, geometry.build(source))
+    assert abs(result.attrs["energy"]) < 1e-15 and result.attrs["error_estimate"] == 0.0
+    adaptive = adapt.solve(source.with_({"mesh.target_error": 0.01}), MPI.COMM_SELF, None, progress=lambda line: None)
+    assert len(adaptive.levels["unknowns"]) == 1 and adaptive.attrs["error_estimate"] == 0.0

@@ -305,6 +305,7 @@ class Estimate:
 
     indicators: dict[str, np.ndarray]
     energy: float  # ‖u_h‖²_E = Σ_b x_bᵀ K_b x_b
+    floor: float = 0.0  # the rounding level of ‖u_h‖²_E (:func:`rounding_energy`)
 
     @property
     def absolute(self) -> float:
@@ -314,13 +315,25 @@ class Estimate:
     @property
     def relative(self) -> float:
         """η / sqrt(‖u_h‖² + η²): the estimated relative energy-norm error."""
-        return relative(self.absolute ** 2, self.energy)
+        return relative(self.absolute ** 2, self.energy, self.floor)
 
 
-def relative(squared: float, energy: float) -> float:
-    """η / sqrt(‖u_h‖² + η²) from η² = ``squared`` and ‖u_h‖²_E = ``energy`` (sums over the blocks)."""
+#: Strains of this fraction of the largest displacement per unit length, or less, are rounding: a field
+#: without larger ones is a rigid motion (or none), which every mesh represents exactly.
+ROUNDING = 1e-11
+
+
+def rounding_energy(modulus: float, largest: float) -> float:
+    """‖u‖²_E of strains ROUNDING × ``largest`` per unit length under the stiffness ``modulus`` (the largest
+    entry of the layers' D): D (ROUNDING |u|)², an energy per unit thickness whatever the domain's size."""
+    return modulus * (ROUNDING * largest) ** 2
+
+
+def relative(squared: float, energy: float, floor: float = 0.0) -> float:
+    """η / sqrt(‖u_h‖² + η²) from η² = ``squared`` and ‖u_h‖²_E = ``energy`` (sums over the blocks); 0 when
+    both are rounding, at most ``floor`` (:func:`rounding_energy`): nothing is strained, nothing to estimate."""
     total = squared + energy
-    return float(np.sqrt(squared / total)) if total > 0 else 0.0
+    return float(np.sqrt(squared / total)) if total > max(floor, 0.0) else 0.0
 
 
 def block_estimate(part: np.ndarray, contact: np.ndarray | float = 0.0) -> tuple[np.ndarray, float, float]:
@@ -330,23 +343,19 @@ def block_estimate(part: np.ndarray, contact: np.ndarray | float = 0.0) -> tuple
     return np.sqrt(squared), float(squared.sum()), float(part[1].sum())
 
 
-def combine(mesh: Mesh, parts: dict[str, np.ndarray], solution: dict[str, np.ndarray], mu_c: np.ndarray
-            ) -> Estimate:
-    """The estimate from each block's :func:`block_indicators` and the contact term (rank 0's part)."""
+def combine(mesh: Mesh, parts: dict[str, np.ndarray], solution: dict[str, np.ndarray], mu_c: np.ndarray,
+            modulus: float) -> Estimate:
+    """The estimate from each block's :func:`block_indicators` and the contact term (rank 0's part);
+    ``modulus``: the largest entry of the layers' D (the rounding level, :func:`rounding_energy`)."""
     contact = dict(zip(("u_minus", "u_plus"), contact_indicators(mesh, solution["u_minus"], solution["u_plus"], mu_c)))
+    largest = max(float(np.abs(u).max(initial=0.0)) for u in solution.values())
     return Estimate({name: block_estimate(part, contact.get(name, 0.0))[0] for name, part in parts.items()},
-                    float(sum(parts[name][1].sum() for name in parts)))
-
-
-def of_solution(mesh: Mesh, laws: dict[str, np.ndarray], solution: dict[str, np.ndarray], mu_c: np.ndarray
-                ) -> Estimate:
-    """The whole estimate in one process; ``laws``: layer -> Hooke matrix D."""
-    parts = {spec.name: half_indicators(mesh.half(spec.side), laws[spec.layer], solution[spec.name])
-             for spec in BLOCKS}
-    return combine(mesh, parts, solution, mu_c)
+                    float(sum(parts[name][1].sum() for name in parts)), rounding_energy(modulus, largest))
 
 
 def of_scene(scene: Scene, mesh: Mesh, solution: dict[str, np.ndarray], mu_c: np.ndarray) -> Estimate:
     """The whole estimate in one process, for displacements in (x, y)."""
     laws = {spec.layer: elasticity(scene, spec.layer)[0] for spec in BLOCKS}
-    return of_solution(mesh, laws, solution, mu_c)
+    parts = {spec.name: half_indicators(mesh.half(spec.side), laws[spec.layer], solution[spec.name])
+             for spec in BLOCKS}
+    return combine(mesh, parts, solution, mu_c, max(float(np.abs(D).max()) for D in laws.values()))

@@ -182,7 +182,8 @@ class OnRanks:
                                                                                               contact)
             squared, energy = squared + block_squared, energy + block_energy
         totals = comm.reduce(np.array([squared, energy]), op=MPI.SUM, root=0)
-        self.relative = estimate.relative(*totals) if exchange.is_root else None
+        self.relative = (estimate.relative(*totals, estimate.rounding_energy(assembly.modulus(scene), largest))
+                         if exchange.is_root else None)
         self.reactions = self._reactions()
 
     def mode_split(self) -> dict[str, np.ndarray] | None:
@@ -565,7 +566,8 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
                 result.reactions = shares.reactions
             else:
                 result = Result.from_blocks(scene.text, method, mesh, solutions, interface, outcome.lam, **record)
-                estimated = estimate.combine(mesh, parts, result.solution, result.multipliers["mu_c"])
+                estimated = estimate.combine(mesh, parts, result.solution, result.multipliers["mu_c"],
+                                             assembly.modulus(scene))
                 result.attrs["error_estimate"], result.indicators = estimated.relative, estimated.indicators
                 if refined_next is None or not refined_next(result):
                     result.fracture = fracture.finish(local.tips, volume, result.on_sigma,
