@@ -168,3 +168,20 @@ def test_the_ranks_split_the_modes_as_one_process_does(tmp_path, name, symmetric
         for key in ("G", "G_I", "G_II"):
             assert np.allclose(getattr(split[ranks], key), getattr(split[1], key), rtol=1e-8,
                                atol=1e-12 * np.abs(split[1].G).max())
+
+
+def test_a_split_that_misses_g_says_so():
+    """On strip-disbonds' default mesh the split misses G by up to half at some tips (too few elements
+    between the radii): those tips' lines say by how much and to refine; Example 2's tips, split to 1e-6,
+    say nothing."""
+    strips = scene.load("strip-disbonds")
+    found = reference.solve(strips, geometry.build(strips)).fracture
+    drift = found.split_drift()
+    np.testing.assert_allclose(drift, (found.G_I + found.G_II) / found.G - 1.0)
+    lines = found.lines()
+    assert np.abs(drift).max() > 0.25
+    for tip, off in enumerate(drift):
+        assert ("the split is not resolved, refine near this tip" in lines[tip]) == (abs(off) > 0.05)
+        assert (f"G_I + G_II is {off:+.0%} off G" in lines[tip]) == (abs(off) > 0.05)
+    opening = scene.load("full-opening", ["mesh.sigma_vertices=49", "mesh.boundary_vertices=64"])
+    assert not any("not resolved" in line for line in reference.solve(opening, geometry.build(opening)).fracture.lines())

@@ -176,6 +176,8 @@ class OnSigma:
 
 #: Fewer Σ edges than this within the inner radius: G is printed with a note to refine near the tip.
 FEW_ELEMENTS = 2.0
+#: G_I + G_II further than this from G (relative): the split is printed with a warning.
+SPLIT_DRIFT = 0.05
 
 
 @dataclass
@@ -221,11 +223,26 @@ class Fracture:
             self.symmetric = np.zeros(count, dtype=bool)
 
     def modes(self) -> list[str]:
-        """Per tip: «(G_I ..., G_II ..., ψ = ...°)», with «by crack closure» where not split by symmetry;
-        empty where there is no split (a result written before it)."""
+        """Per tip: «(G_I ..., G_II ..., ψ = ...°)», with «by crack closure» where not split by symmetry and
+        a warning where G_I + G_II is more than SPLIT_DRIFT off G (:meth:`split_drift`); empty where there is
+        no split (a result written before it)."""
+        def warning(drift: float) -> str:
+            return (f"; G_I + G_II is {drift:+.0%} off G: the split is not resolved, refine near this tip"
+                    if abs(drift) > SPLIT_DRIFT else "")
+
         return ["" if np.isnan(g1) else
-                f"(G_I {g1:.3e}, G_II {g2:.3e}, ψ = {psi:.1f}°{'' if by_symmetry else ', by crack closure'})"
-                for g1, g2, psi, by_symmetry in zip(self.G_I, self.G_II, self.phase, self.symmetric)]
+                f"(G_I {g1:.3e}, G_II {g2:.3e}, ψ = {psi:.1f}°{'' if by_symmetry else ', by crack closure'}"
+                f"{warning(drift)})"
+                for g1, g2, psi, by_symmetry, drift in zip(self.G_I, self.G_II, self.phase, self.symmetric,
+                                                           self.split_drift())]
+
+    def split_drift(self) -> np.ndarray:
+        """Per tip (G_I + G_II)/G − 1, where G is a release rate (above 10⁻⁶ of the largest); 0 elsewhere."""
+        G = np.asarray(self.G, dtype=float)
+        largest = np.abs(G).max(initial=0.0)
+        released = (G > 1e-6 * largest) & np.isfinite(self.G_I) & np.isfinite(self.G_II)
+        return np.where(released, (np.asarray(self.G_I) + np.asarray(self.G_II)) / np.where(released, G, 1.0) - 1.0,
+                        0.0)
 
     def growth(self) -> list[str]:
         """Per tip: «G/G_c = ..., grows at λ = ...» (the critical load factor; «does not grow at any λ» where
