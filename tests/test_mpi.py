@@ -208,3 +208,17 @@ def test_out_of_core_factors_solve_the_reference_problem(tmp_path, references, m
     result = io.read(output)
     assert result.converged and result.parsed_scene.solver.out_of_core and result.attrs["factors_out_of_core"]
     assert analysis.compare(result, io.read(references["partial-closure"])).energy_error < 1e-8
+
+
+@pytest.mark.mpi
+def test_the_contact_zone_does_not_depend_on_the_method(tmp_path):
+    """MPRGP's openings where the faces press are its tolerance (1-4e-9 max|u|), not 0: the zone is where
+    μᶜ > 0 or the faces touch, one zone as schur finds it, not two."""
+    zones = {}
+    for method in ("schur", "mprgp"):
+        output = tmp_path / f"{method}.h5"
+        ddsolve("solve", "partial-closure", "--set", "mesh.sigma_vertices=48", "--set", "mesh.boundary_vertices=80",
+                "--set", f"solver.method={method}", "-o", str(output), ranks=2)
+        zones[method] = io.read(output).fracture.zones
+    assert len(zones["schur"]) == 1
+    np.testing.assert_allclose(zones["mprgp"], zones["schur"])

@@ -361,9 +361,11 @@ def along_sigma(result: Result) -> tuple[np.ndarray, str]:
 
 
 def contact_zones(result: Result | OnSigma, tolerance: float = 1e-9) -> list[tuple[int, int]]:
-    """Runs ``[first, last]`` of multiplier nodes where the crack faces touch: crack nodes whose opening
-    [u]·ν is at most ``tolerance`` × max |u|.  (Not μᶜ > 0: a multiplier recovered from residuals, as
-    the reference's, is round-off where the faces are apart.)"""
+    """Runs ``[first, last]`` of multiplier nodes where the crack faces touch: crack nodes that carry a
+    contact pressure μᶜ > 0 (every method leaves it exactly 0 where the faces are apart, the reference
+    too) or whose opening [u]·ν is at most ``tolerance`` × max |u| (faces touching without pressure).  An
+    iterative method's openings where the faces press are its tolerance, not 0: μᶜ decides there."""
     on = result.on_sigma if isinstance(result, Result) else result
-    touching = on.sigma.crack[on.sigma.multiplier_nodes] & (on.opening <= tolerance * on.largest)
+    pressed = on.multipliers["mu_c"] > 0.0
+    touching = on.sigma.crack[on.sigma.multiplier_nodes] & ((on.opening <= tolerance * on.largest) | pressed)
     return on.sigma.pieces(touching)
