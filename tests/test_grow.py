@@ -172,3 +172,13 @@ def test_a_temperature_change_is_kept_while_the_opening_rises(tmp_path):
     initiation = next(s for s in steps if s.events and s.events[0].startswith("initiation"))
     assert 0.0 < initiation.state.control and abs(initiation.state.ratio[0] - 1.0) <= 1e-6
     assert steps[-1].state.cracks[0][1] > experiment.DCB_CRACK
+
+
+def test_cracks_with_their_own_toughness_end_the_run_where_they_meet():
+    """fracture.toughness with one value per crack does not say which G_c a merged crack has: where two
+    cracks meet the run ends (its steps kept), instead of failing the merged configuration's checks."""
+    source = Scene.load("strip-disbonds", ["fracture.toughness=[1e-6, 1.2e-6, 5e-6]"])
+    steps = grow.grow(source, comm(), 2.0, 4, progress=quiet)
+    last = steps[-1]
+    assert last.events[-1].startswith("end: cracks meet") and "one value per crack" in last.events[-1]
+    assert len(last.state.cracks) == 3  # the configuration before they met

@@ -10,7 +10,8 @@ iteration), bracketed by doubling the advance and closed by regula falsi (Illino
 ``|G/G_c − 1| ≤ tolerance``.  Where G rises as the tip advances at a fixed control the growth is
 unstable (a snap-through under load control, a jump under displacement control): the step says so
 and the tip jumps to where G falls back to G_c (crack arrest), or to what stops it.  A tip stops one Σ
-edge before a clamped Σ node or Σ's end; two tips that meet merge their cracks.  Under displacement
+edge before a clamped Σ node or Σ's end, which ends the run; two tips that meet merge their cracks (with
+one toughness per crack the run ends there instead).  Under displacement
 control the stable branch is thereby followed step by step.
 
 The contact problem is positively homogeneous: without a temperature change the fields at λ are λ
@@ -280,6 +281,10 @@ class Growth:
         for iteration in range(MAX_ITERATIONS):
             proposal = self.comm.bcast({**trial, **settled} if self.comm.rank == 0 else None, root=0)
             trial_cracks = self.advanced(cracks, start, proposal)
+            if len(trial_cracks) < len(cracks) and isinstance(self.scene.fracture.toughness, tuple):
+                step.events.append(f"end: cracks meet ({describe(trial_cracks)}), and fracture.toughness gives one "
+                                   "value per crack: the merged crack has none")
+                return cracks, step
             state = self.state(trial_cracks, control)
             if len(trial_cracks) < len(cracks):  # two cracks met
                 step.state = state
