@@ -14,6 +14,7 @@ import numpy as np
 
 from ddsolve.mesh.mesh import BLOCKS
 from ddsolve.post.analysis import along_sigma, layer_stresses, normal_jump
+from ddsolve.post.result import SPLIT_DRIFT
 
 if TYPE_CHECKING:
     from ddsolve.post.result import Result
@@ -174,21 +175,36 @@ def crack_faces(result: Result, path: Path) -> None:
                 ax.axvspan(*np.interp([start, end], arc, position), color="tab:red", alpha=0.15, linewidth=0)
         if len(fracture.zones):
             shading += "; red: faces in contact"
-        for point, rate, modes in zip(fracture.points, fracture.G, fracture.modes()):
+        for point, text in zip(fracture.points, tip_labels(fracture)):
             nearest = int(np.argmin(np.linalg.norm(result.interface_points - point, axis=1)))
             top.axvline(position[nearest], color="0.4", linestyle=":", linewidth=0.8)
-            split = "\n" + modes.strip("()") if modes else ""  # older results have no split
-            top.annotate(f"G = {rate:.3e}{split}", (position[nearest], 0.0), xytext=(3, 6),
-                         textcoords="offset points", fontsize=7, rotation=90, va="bottom")
+            top.annotate(text, (position[nearest], 1.0), xycoords=("data", "axes fraction"), xytext=(2, -3),
+                         textcoords="offset points", fontsize=7, rotation=90, va="top", ha="left",
+                         bbox={"facecolor": "white", "alpha": 0.75, "linewidth": 0, "pad": 1})
     top.axhline(0.0, color="black", linewidth=0.6)
-    top.set_ylabel(f"opening [u]·ν ({LENGTH})")
-    bottom.set_ylabel(f"contact pressure μᶜ ({STRESS})")
+    top.set_ylabel(f"opening [u]·ν\n({LENGTH})")
+    bottom.set_ylabel(f"contact pressure μᶜ\n({STRESS})")
+    fig.align_ylabels((top, bottom))
     bottom.set_xlabel(f"{axis_label} ({LENGTH}; {shading})")
     for ax in (top, bottom):
         ax.grid(alpha=0.3)
     top.set_title(drawn_title(result), fontsize=9, **PLAIN_TEXT)
     fig.savefig(path, dpi=130)
     plt.close(fig)
+
+
+def tip_labels(fracture) -> list[str]:
+    """Per tip, what the crack-face picture writes at it: G and, where split, G_I, G_II, ψ (and how far their
+    sum misses G when the split is not resolved), short enough to stand beside the tip's line."""
+    labels = []
+    for g, g1, g2, psi, drift in zip(fracture.G, fracture.G_I, fracture.G_II, fracture.phase, fracture.split_drift()):
+        lines = [f"G = {g:.3e}"]
+        if not np.isnan(g1):  # older results have no split
+            lines.append(f"G_I {g1:.2e}, G_II {g2:.2e}, ψ {psi:.1f}°")
+            if abs(drift) > SPLIT_DRIFT:
+                lines.append(f"G_I + G_II off G by {drift:+.0%}")
+        labels.append("\n".join(lines))
+    return labels
 
 
 @dataclass(frozen=True)
