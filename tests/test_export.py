@@ -136,18 +136,25 @@ def test_energy_density_integrates_to_the_strain_energy(results):
 
 
 def test_plane_stress_strain_zz_makes_sigma_zz_vanish():
+    """εzz = e·ε + t ΔT zeroes σzz of the 3-D law with the eigenstrain α ΔT, and is α_zz ΔT under free
+    expansion."""
     strain = np.array([[1.0e-3, -2.0e-4, 5.0e-4], [0.0, 3.0e-4, 0.0]])
-    isotropic = materials.Isotropic(E=200.0, nu=0.28)
-    e = materials.out_of_plane_strain(isotropic, "plane_stress")
-    assert np.allclose(strain @ e, -0.28 / 0.72 * (strain[:, 0] + strain[:, 1]))
-    assert np.array_equal(materials.out_of_plane_strain(isotropic, "plane_strain"), np.zeros(3))
-    orthotropic = materials.Orthotropic(E1=140.0, E2=10.0, G12=5.0, nu12=0.3, angle=30.0)
-    e = materials.out_of_plane_strain(orthotropic, "plane_stress")
-    C = materials.stiffness_3d(orthotropic)
+    change = np.array([80.0, -30.0])
+    isotropic = materials.Isotropic(E=200.0, nu=0.28, alpha=1e-5)
+    e, t = materials.out_of_plane_strain(isotropic, "plane_stress")
+    assert np.allclose(strain @ e + t * change, -0.28 / 0.72 * (strain[:, 0] + strain[:, 1] - 2e-5 * change)
+                       + 1e-5 * change, rtol=1e-14, atol=0)
+    e, t = materials.out_of_plane_strain(isotropic, "plane_strain")
+    assert np.array_equal(e, np.zeros(3)) and t == 0.0
+    orthotropic = materials.Orthotropic(E1=140.0, E2=10.0, G12=5.0, nu12=0.3, angle=30.0, alpha1=-1e-6, alpha2=3e-5)
+    e, t = materials.out_of_plane_strain(orthotropic, "plane_stress")
+    C, alpha = materials.stiffness_3d(orthotropic), materials.expansion(orthotropic)
     full = np.zeros((2, 6))
     full[:, [0, 1, 5]] = strain
-    full[:, 2] = strain @ e
-    assert np.allclose((full @ C.T)[:, 2], 0.0, atol=1e-12)  # σzz = 0
+    full[:, 2] = strain @ e + t * change
+    assert np.allclose(((full - np.outer(change, alpha)) @ C.T)[:, 2], 0.0, atol=1e-12)  # σzz = 0
+    free = np.outer(change, materials.thermal_strain(orthotropic, "plane_stress")[0])
+    assert np.allclose(free @ e + t * change, 3e-5 * change, rtol=1e-12, atol=0)  # εzz = α2 ΔT
     assert materials.out_of_plane_strain(materials.Anisotropic(D=((1, 0, 0), (0, 1, 0), (0, 0, 1))),
                                          "plane_stress") is None
 

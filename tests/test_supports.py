@@ -115,6 +115,35 @@ def test_free_expansion_carries_no_stress():
     assert abs(result.energy) <= 1e-12 * E * strain ** 2 * 4.0
 
 
+@pytest.mark.parametrize("model, strain, strain_zz", [("plane_strain", (1 + NU) * ALPHA * DT, 0.0),
+                                                      ("plane_stress", ALPHA * DT, ALPHA * DT)])
+def test_free_expansion_has_the_total_out_of_plane_strain(model, strain, strain_zz):
+    """Free expansion on rollers (left u_x = 0, bottom u_y = 0): in every cell εxx = εyy = (1 + ν)αΔT, εzz = 0
+    (plane strain) or εxx = εyy = εzz = αΔT (plane stress: σzz = 0, the thermal part included), to 1e-12."""
+    text = SQUARE % ("[]", model, ALPHA) + "\n" + both_layers("left", "x = 0.0") + both_layers("bottom", "y = 0.0")
+    for fields in analysis.cell_fields(solved(scene.loads(text))).values():
+        assert np.abs(fields.strain - [strain, strain, 0.0]).max() <= 1e-12 * strain
+        assert np.abs(fields.strain_zz - strain_zz).max() <= 1e-12 * strain
+
+
+@pytest.mark.parametrize("degree, temperature", [(2, "100.0"), (2, '"50.0 + 30.0 * x * y"'),
+                                                 (1, '"50.0 + 30.0 * x * y"')])
+def test_energy_density_integrates_to_the_strain_energy_under_heating(degree, temperature):
+    """A thermal mismatch between clamped sides, no traction: Σ energy_density × area over the cells equals
+    ½ ∫ (ε − ε₀):D:(ε − ε₀) integrated from the fields, and Π, to 1e-10 (P2, or a ΔT varying in the
+    cell)."""
+    text = SQUARE % ('["left", "right"]', "plane_strain", 3e-5)
+    text = text.replace("size = 0.25", f"size = 0.25\ndegree = {degree}")
+    result = solved(scene.loads(text.replace("layer1 = 100.0", f"layer1 = {temperature}")))
+    total = 0.0
+    for name, fields in analysis.cell_fields(result).items():
+        half = result.half(name)
+        area, _ = assembly.cell_strains(half.points, half.cells, result.solution[name])
+        total += float(fields.energy_density @ area)
+    assert total == pytest.approx(mechanical_energy(result), rel=1e-10)
+    assert total == pytest.approx(result.energy, rel=1e-10)
+
+
 def test_g_under_a_thermal_mismatch_is_the_derivative_of_the_energy():
     """Different α per layer, clamped sides: G at each tip equals −ΔΠ/Δa (moving the nodes by ±δθ) to 1 %."""
     source = scene.loads(SQUARE % ('["left", "right"]', "plane_strain", 3e-5))

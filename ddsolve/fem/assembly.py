@@ -494,19 +494,6 @@ def eigenstrains(scene: Scene, layer: str, points: np.ndarray, cells: np.ndarray
     return change[..., None] * thermal[0], change * relieved
 
 
-def cell_eigenstrains(scene: Scene, layer: str, points: np.ndarray, cells: np.ndarray
-                      ) -> tuple[np.ndarray, np.ndarray]:
-    """Per cell the mean eigenstrain ``(m, 3)`` and relieved σzz ``(m,)`` of :func:`eigenstrains` (zeros
-    without a thermal load)."""
-    xi, weights = TRIANGLE_RULES[6]
-    found = eigenstrains(scene, layer, points, cells, xi)
-    if found is None:
-        return np.zeros((len(cells), 3)), np.zeros(len(cells))
-    det, _ = element_geometry(points, cells, xi)
-    share = det * weights / (det @ weights)[:, None]
-    return np.einsum("mq,mqi->mi", share, found[0]), np.einsum("mq,mq->m", share, found[1])
-
-
 def thermal_of(scene: Scene, layer: str) -> tuple[np.ndarray, Expression] | None:
     """(eigenstrain per unit ΔT, ΔT) of a layer, or None when it has no temperature change or expansion."""
     if layer not in scene.temperature:
@@ -573,11 +560,26 @@ def voigt_strain(grad_u: np.ndarray) -> np.ndarray:
     return np.stack([grad_u[..., 0, 0], grad_u[..., 1, 1], grad_u[..., 0, 1] + grad_u[..., 1, 0]], axis=-1)
 
 
-def quadrature_strains(points: np.ndarray, cells: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """det J × weight ``(m, q)`` and the strain ``(m, q, 3)`` of the field u ``(n, 2)`` at the element rule's points."""
-    xi, weights = TRIANGLE_RULES[cells.shape[1]]
+def quadrature_strains(points: np.ndarray, cells: np.ndarray, u: np.ndarray, rule: tuple | None = None
+                       ) -> tuple[np.ndarray, np.ndarray]:
+    """det J × weight ``(m, q)`` and the strain ``(m, q, 3)`` of the field u ``(n, 2)`` at the points of
+    ``rule`` (reference points, weights; the element's by default)."""
+    xi, weights = TRIANGLE_RULES[cells.shape[1]] if rule is None else rule
     det, gradients = element_geometry(points, cells, xi)
     return det * weights, voigt_strain(field_gradients(u[cells], gradients))
+
+
+def quadrature_fields(scene: Scene, layer: str, points: np.ndarray, cells: np.ndarray, u: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`quadrature_strains` of ``layer``'s field u ``(n, 2)`` and its ΔT ``(m, q)`` at the same points:
+    the element rule's (ΔT zero) without a thermal load, else the rule of :func:`thermal_load` and
+    :func:`thermal_energy`."""
+    thermal = thermal_of(scene, layer)
+    if thermal is None:
+        volume, strain = quadrature_strains(points, cells, u)
+        return volume, strain, np.zeros(volume.shape)
+    rule = TRIANGLE_RULES[6]
+    return (*quadrature_strains(points, cells, u, rule), cell_temperatures(points, cells, thermal[1], rule[0]))
 
 
 def cell_means(volume: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

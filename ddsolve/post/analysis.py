@@ -301,14 +301,16 @@ def energy_error(energy: float, exact: float) -> float:
 
 @dataclass(frozen=True)
 class CellFields:
-    """Per-cell fields of one block from each cell's mean strain; Voigt order (xx, yy, xy)."""
+    """Per-cell fields of one block from each cell's mean strain and ΔT, but the energy density, integrated;
+    Voigt order (xx, yy, xy)."""
 
     strain: np.ndarray  # (m, 3) εxx, εyy, γxy = 2 εxy
-    strain_zz: np.ndarray  # (m,) 0 in plane strain; from σzz = 0 in plane stress (NaN if the law is not known)
+    strain_zz: np.ndarray  # (m,) total: 0 in plane strain; from σzz = 0 in plane stress, thermal part included
+    # (NaN if the law is not known)
     stress: np.ndarray  # (m, 3) σxx, σyy, σxy
     stress_zz: np.ndarray  # (m,) from the plane model (0 in plane stress)
     von_mises: np.ndarray  # (m,)
-    energy_density: np.ndarray  # (m,) strain energy per unit area: ½ ∫ ε·σ over the cell / its area
+    energy_density: np.ndarray  # (m,) strain energy per unit area: ½ ∫ σ:(ε − ε₀) over the cell / its area
 
 
 def cell_fields(result: Result) -> dict[str, CellFields]:
@@ -323,15 +325,17 @@ def block_cell_fields(scene: scenes.Scene, layer: str, points: np.ndarray, cells
     ``u`` ``(n, 2)`` of ``layer`` at ``points``; stresses are mechanical, σ = D (ε − ε₀), with the thermal
     eigenstrain ε₀."""
     D, c = assembly.elasticity(scene, layer)
+    expansion, relieved = materials.thermal_strain(scene.materials[layer], scene.model)
     out_of_plane = materials.out_of_plane_strain(scene.materials[layer], scene.model)
-    volume, strains = assembly.quadrature_strains(points, cells, u)  # once for the mean and the energy
+    volume, strains, change = assembly.quadrature_fields(scene, layer, points, cells, u)
     area, strain = assembly.cell_means(volume, strains)
-    eigenstrain, relieved = assembly.cell_eigenstrains(scene, layer, points, cells)
+    mean_change = np.einsum("mq,mq->m", volume, change) / area
+    eigenstrain = mean_change[:, None] * expansion
     stress, stress_zz = assembly.cell_stresses(D, c, strain - eigenstrain)
-    stress_zz = stress_zz + eigenstrain @ c - relieved
-    strain_zz = strain @ out_of_plane if out_of_plane is not None else np.full(len(strain), np.nan)
-    energy_density = (0.5 * assembly.integrated_energies(volume, strains, D) / area if not np.any(eigenstrain)
-                      else 0.5 * np.einsum("mi,mi->m", stress, strain - eigenstrain))
+    stress_zz = stress_zz + eigenstrain @ c - mean_change * relieved
+    strain_zz = (strain @ out_of_plane[0] + out_of_plane[1] * mean_change if out_of_plane is not None
+                 else np.full(len(strain), np.nan))
+    energy_density = 0.5 * assembly.integrated_energies(volume, strains - change[..., None] * expansion, D) / area
     return CellFields(strain=strain, strain_zz=strain_zz, stress=stress, stress_zz=stress_zz,
                       von_mises=materials.von_mises(stress, stress_zz), energy_density=energy_density)
 

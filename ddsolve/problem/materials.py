@@ -75,35 +75,30 @@ def elasticity(material, model: str = "plane_strain") -> tuple[np.ndarray, np.nd
     return np.linalg.inv(S[np.ix_(_PLANE, _PLANE)]), np.zeros(3)
 
 
-def out_of_plane_strain(material, model: str = "plane_strain") -> np.ndarray | None:
-    """The row ``e`` ``(3,)`` giving εzz = e·ε: zero for plane strain; for plane stress, from σzz = 0
-    with the 3-D law; None for a full matrix in plane stress (its 3-D law is not known)."""
+def out_of_plane_strain(material, model: str = "plane_strain") -> tuple[np.ndarray, float] | None:
+    """(e, t) giving the total εzz = e·ε + t ΔT: zeros for plane strain; for plane stress, from σzz = 0 with
+    the 3-D law and eigenstrain α ΔT (t = C_z·α / C_zz, so εzz = α_zz ΔT under free expansion); None for a
+    full matrix in plane stress (its 3-D law is not known)."""
     if model == "plane_strain":
-        return np.zeros(3)
+        return np.zeros(3), 0.0
     if isinstance(material, Anisotropic):
         return None
     C = stiffness_3d(material)
-    return -C[_ZZ, _PLANE] / C[_ZZ, _ZZ]
+    return -C[_ZZ, _PLANE] / C[_ZZ, _ZZ], float(C[_ZZ] @ expansion(material)) / C[_ZZ, _ZZ]
 
 
 def thermal_strain(material, model: str = "plane_strain") -> tuple[np.ndarray, float]:
     """(e, s) per unit temperature change: the in-plane eigenstrain ε₀ = e ΔT (Voigt, engineering shear)
     with σ = D (ε − ε₀), and the out-of-plane stress σzz = c·ε − s ΔT.
 
-    The 3-D eigenstrain is α ΔT (α = diag(α1, α2, α2) in the fibre frame, rotated by the fibre angle).
+    The 3-D eigenstrain is α ΔT (α: :func:`expansion`).
     Plane stress: ε₀ is its in-plane part and σzz = 0.  Plane strain (εzz = 0): σ_p = C_pp ε − (C_pp ε₀_p +
     C_pz ε₀_zz), so ε₀ = ε₀_p + C_pp⁻¹ C_pz ε₀_zz ((1 + ν) α ΔT for an isotropic layer), and
     s = C_zp ε₀_p + C_zz ε₀_zz.  A full matrix (``Anisotropic``) takes no expansion.
     """
     if isinstance(material, Anisotropic):
         return np.zeros(3), 0.0
-    if isinstance(material, Isotropic):
-        strain = np.array([material.alpha, material.alpha, material.alpha, 0.0, 0.0, 0.0])
-    else:
-        cos, sin = math.cos(math.radians(material.angle)), math.sin(math.radians(material.angle))
-        a1, a2 = material.alpha1, material.alpha2
-        strain = np.array([a1 * cos ** 2 + a2 * sin ** 2, a1 * sin ** 2 + a2 * cos ** 2, a2, 0.0, 0.0,
-                           2.0 * (a1 - a2) * sin * cos])  # engineering shear
+    strain = expansion(material)
     in_plane = strain[_PLANE]
     if model == "plane_stress":
         return in_plane, 0.0
@@ -111,6 +106,17 @@ def thermal_strain(material, model: str = "plane_strain") -> tuple[np.ndarray, f
     coupling = C[_PLANE, _ZZ]
     return in_plane + np.linalg.solve(C[np.ix_(_PLANE, _PLANE)], coupling) * strain[_ZZ], \
         float(C[_ZZ, _PLANE] @ in_plane + C[_ZZ, _ZZ] * strain[_ZZ])
+
+
+def expansion(material) -> np.ndarray:
+    """The 3-D eigenstrain per unit temperature change ``(6,)`` (Voigt, engineering shears) of an isotropic or
+    orthotropic layer: α = diag(α1, α2, α2) in the fibre frame, rotated by the fibre angle."""
+    if isinstance(material, Isotropic):
+        return np.array([material.alpha, material.alpha, material.alpha, 0.0, 0.0, 0.0])
+    cos, sin = math.cos(math.radians(material.angle)), math.sin(math.radians(material.angle))
+    a1, a2 = material.alpha1, material.alpha2
+    return np.array([a1 * cos ** 2 + a2 * sin ** 2, a1 * sin ** 2 + a2 * cos ** 2, a2, 0.0, 0.0,
+                     2.0 * (a1 - a2) * sin * cos])
 
 
 def check_positive_definite(D: np.ndarray, name: str) -> None:
