@@ -254,8 +254,9 @@ def mechanical_energy(result) -> float:
         D, _ = assembly.elasticity(source, spec.layer)
         det, gradients = element_geometry(half.points, half.cells, xi)
         strain = np.einsum("mqij,mj->mqi", assembly.strain_operator(gradients), u[assembly.element_dofs(half.cells)])
-        eigenstrain = assembly.eigenstrains(source, spec.layer, half.points, half.cells, xi)
-        elastic = strain - (eigenstrain[0] if eigenstrain is not None else 0.0)
+        thermal = assembly.thermal_of(source, spec.layer)  # ε₀ = e ΔT at the points
+        elastic = strain - (assembly.cell_temperatures(half.points, half.cells, thermal[1], xi)[..., None] * thermal[0]
+                            if thermal is not None else 0.0)
         total += 0.5 * np.einsum("mq,q,mqi,ij,mqj->", det, weights, elastic, D, elastic)
         for load in assembly.layer_loads(source, spec.layer, half):
             total -= assembly.boundary_load(half.points, half.edges(load.boundary), load) @ u

@@ -482,18 +482,6 @@ def cell_temperatures(points: np.ndarray, cells: np.ndarray, temperature: Expres
     return change
 
 
-def eigenstrains(scene: Scene, layer: str, points: np.ndarray, cells: np.ndarray, xi: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray] | None:
-    """The layer's eigenstrain ε₀ ``(m, q, 3)`` at the reference points ``xi`` of ``cells`` and the σzz it
-    relieves ``(m, q)`` (σzz = c·ε − that), or None without a thermal load."""
-    thermal = thermal_of(scene, layer)
-    if thermal is None:
-        return None
-    change = cell_temperatures(points, cells, thermal[1], xi)
-    _, relieved = materials.thermal_strain(scene.materials[layer], scene.model)
-    return change[..., None] * thermal[0], change * relieved
-
-
 def thermal_of(scene: Scene, layer: str) -> tuple[np.ndarray, Expression] | None:
     """(eigenstrain per unit ΔT, ΔT) of a layer, or None when it has no temperature change or expansion."""
     if layer not in scene.temperature:
