@@ -71,7 +71,7 @@ def test_overrides_are_typed_and_validated():
     ("mesh.degree=3", "mesh.degree must be 1 (P1 triangles) or 2 (P2 triangles)"),
     ("materials.model=\"plane\"", "materials.model must be one of plane_strain, plane_stress"),
     ("materials.layer1={D = [[1, 2, 0], [2, 1, 0], [0, 0, 1]]}", "materials.layer1: D is not positive definite"),
-    ("materials.layer1.D=[[1, 0, 0], [0, 1, 0], [0, 0, 1]]", "unknown key materials.layer1.E; valid here: D, Dzz"),
+    ("materials.layer1.D=[[1, 2, 0], [2, 1, 0], [0, 0, 1]]", "materials.layer1: D is not positive definite"),
     ("materials.layer1={E1 = -3, E2 = 1, G12 = 1, nu12 = 0.3}", "materials.layer1.E1 must be > 0"),
     ("materials.layer1={E1 = 3, E2 = 1, G12 = 1, nu12 = 3}", "materials.layer1: the orthotropic compliance"),
     ("loads.layer1.top.y=\"x + z\"", "loads.layer1.top.y: bad expression 'x + z': unknown name 'z'"),
@@ -142,3 +142,17 @@ def test_bare_words_are_strings_and_mesh_files_resolve_against_the_scene(tmp_pat
     path.write_text(MINIMAL.replace("sigma_vertices = 12\nboundary_vertices = 32", 'file = "m.vtu"'))
     (tmp_path / "m.vtu").write_text("")  # load refuses a mesh file it cannot open
     assert scene.load(path).mesh.file == tmp_path / "m.vtu"
+
+
+def test_an_override_of_another_material_law_replaces_the_layers_law():
+    """--set materials.layer1.D=... on an isotropic layer makes it anisotropic (E and nu go), E1 makes it
+    orthotropic and asks for the keys that law needs; an α override keeps the law."""
+    from ddsolve.problem import materials
+
+    D = "[[270.2, 105.1, 0.0], [105.1, 270.2, 0.0], [0.0, 0.0, 78.1]]"
+    assert isinstance(scene.load("partial-closure", [f"materials.layer1.D={D}"]).materials["layer1"],
+                      materials.Anisotropic)
+    with pytest.raises(SceneError, match="missing key materials.layer1.E2$"):
+        scene.load("partial-closure", ["materials.layer1.E1=200.0"])
+    heated = scene.load("partial-closure", ["materials.layer1.alpha=1e-5"]).materials["layer1"]
+    assert heated.E == 200.0 and heated.alpha == 1e-5

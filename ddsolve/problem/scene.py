@@ -884,10 +884,20 @@ def apply_overrides(raw: dict, overrides: list[str]) -> dict:
         if isinstance(table, list):
             table[_list_index(table, path, len(path) - 1, item)] = value
             continue
-        for replaced in REPLACES.get(tuple(path), ()):
+        for replaced in REPLACES.get(tuple(path), ()) or _other_laws(path):
             table.pop(replaced, None)
         table[path[-1]] = value
     return raw
+
+
+def _other_laws(path: list[str]) -> tuple[str, ...]:
+    """The keys of the other material laws, which a key that fixes a layer's law replaces
+    (``--set materials.layer1.E1=...`` makes an isotropic layer orthotropic; α keys decide nothing)."""
+    if len(path) != 3 or path[0] != "materials":
+        return ()
+    laws = [_ISOTROPIC, _ORTHOTROPIC, _ANISOTROPIC]
+    mine = [law for law in laws if path[2] in law and not path[2].startswith("alpha")]
+    return tuple(key for law in laws if mine and law is not mine[0] for key in law if key not in mine[0])
 
 
 def _list_index(values: list, path: list[str], depth: int, item: str) -> int:
