@@ -251,7 +251,7 @@ def convergence(results: list[tuple[str, Result]], path: Path) -> list[Curve]:
                 ax.set_yscale("symlog", linthresh=positive.min())
         ax.set_ylabel(axis)
         if axis == CHANGES_AXIS:
-            ax.yaxis.set_major_locator(MaxNLocator(integer=True))
+            ax.yaxis.set_major_locator(MaxNLocator(integer=True, min_n_ticks=1))
         ax.legend()
         ax.grid(alpha=0.3, which="both")
     if not panels:
@@ -260,7 +260,7 @@ def convergence(results: list[tuple[str, Result]], path: Path) -> list[Curve]:
         axes[0].set_ylabel(CRITERION_AXIS)
     steps = " (active-set step for schur and the reference)" if any(c.axis == CHANGES_AXIS for c in curves) else ""
     axes[-1].set_xlabel("iteration" + steps)
-    axes[-1].xaxis.set_major_locator(MaxNLocator(integer=True))
+    axes[-1].xaxis.set_major_locator(MaxNLocator(integer=True, min_n_ticks=1))
     fig.savefig(path, dpi=130)
     plt.close(fig)
     return curves
@@ -302,6 +302,7 @@ def growth_curves(growth: dict, path: Path) -> None:
     ax.set_ylabel("G / G_c")
     for ax in axes:
         ax.grid(alpha=0.3)
+        ax.ticklabel_format(style="sci", scilimits=(-3, 4), useMathText=True)  # 0.00015 as 1.5 × 10⁻⁴
         if ax.get_legend_handles_labels()[0]:
             ax.legend()
     fig.suptitle(f"growth of {growth['attrs']['scene']}: {growth['attrs']['control_kind']} control, "
