@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import both_layers, ddsolve
+from conftest import MATERIALS, both_layers, ddsolve
 
 from ddsolve.errors import DDSolveError
 from ddsolve.fem import assembly
@@ -329,3 +329,40 @@ def test_a_half_on_one_roller_floats_and_is_solved():
     for layer in ("layer1", "layer2"):
         assert abs(floating.reactions[layer]["top"][0]) <= 1e-12 * E * ALPHA * DT  # a roller carries no x force
         assert floating.reactions[layer]["top"][1] != 0.0
+
+
+#: A 4 × 2 bar without a crack pulled in x on rollers: x = 0 on the left (both layers), y = 0 on layer 1's
+#: bottom; the rollers meet at the corner (0, −1).
+BAR = """
+[geometry]
+box = [0.0, 4.0, -1.0, 1.0]
+cracks = []
+clamped = []
+[mesh]
+size = 0.25
+degree = 1
+[loads.layer1.right]
+x = 0.01
+[loads.layer2.right]
+x = 0.01
+""" + MATERIALS + both_layers("left", "x = 0.0") + "[displacements.layer1.bottom]\ny = 0.0\n"
+
+#: Clamped sides and a roller (y = 0) on layer 2's bottom between them, under a thermal mismatch alone:
+#: at the bottom corners Γ_D wins.
+HEATED = SQUARE % ('["left", "right"]', "plane_strain", 3e-5) + "[displacements.layer2.bottom]\ny = 0.0\n"
+
+
+@pytest.mark.parametrize("text, along", [
+    (BAR, [("layer1", "left", 1), ("layer2", "left", 1), ("layer1", "bottom", 0)]),
+    (HEATED, [("layer2", "bottom", 0)]),
+], ids=["rollers", "clamped"])
+def test_each_boundary_reports_only_the_directions_it_prescribes(text, along):
+    """Where two supported boundaries meet, each counts the force of the shared node only in the directions
+    it prescribes there: a roller reports exactly 0 along itself, and the reactions balance the loads in x
+    and y to round-off."""
+    result = solved(scene.loads(text))
+    for layer, name, direction in along:
+        assert result.reactions[layer][name][direction] == 0.0
+    forces = [force for named in result.reactions.values() for force in named.values()]
+    largest = max(np.abs(force).max() for force in forces)
+    assert largest > 0 and np.abs(sum(forces) + load_resultants(result)).max() <= 1e-12 * largest

@@ -16,13 +16,15 @@ between a prescribed and a free crack-face normal is refused.  No PETSc or MPI h
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
 
 from ddsolve.errors import SceneError
 from ddsolve.mesh.mesh import BLOCKS, CLAMPED, CRACK, SIGMA, HalfMesh, Mesh, SigmaLine
-from ddsolve.problem.scene import Scene
+from ddsolve.problem.expressions import Expression
+from ddsolve.problem.scene import Displacement, Scene
 
 #: Directions closer than this (1 − |cos|) are the same; values agreeing to this (relative) are equal.
 ALIGNED = 1e-9
@@ -45,24 +47,30 @@ def node_frames(half: HalfMesh, sigma: SigmaLine) -> np.ndarray:
     return frames
 
 
-def _rows(scene: Scene, half: HalfMesh, layer: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
-    """The layer's displacement conditions on this half as rows (node, direction in x, y, value, key)."""
+def _conditions(scene: Scene, half: HalfMesh, layer: str
+                ) -> Iterator[tuple[Displacement, np.ndarray, dict[str, tuple[Expression, np.ndarray]]]]:
+    """The layer's displaced boundaries on this half: the displacement, the nodes it prescribes (Γ_D wins at
+    its own) and its components, component -> (expression, unit direction in x, y)."""
     clamped = np.zeros(len(half.points), dtype=bool)
     clamped[half.clamped()] = True
-    nodes, directions, values, keys = [], [], [], []
     for (name_layer, name), displacement in scene.displacements.items():
         edges = half.edges(name)
         if name_layer != layer or len(edges) == 0:
             continue
         where = np.unique(edges)
-        where = where[~clamped[where]]
-        x, y = half.points[where].T
         parts = {"x": (displacement.x, np.array([1.0, 0.0])), "y": (displacement.y, np.array([0.0, 1.0]))}
         if displacement.normal is not None:
             parts = {"normal": (displacement.normal, _normal(half, edges, f"{displacement.key}.normal"))}
+        given = {component: part for component, part in parts.items() if part[0] is not None}
+        yield displacement, where[~clamped[where]], given
+
+
+def _rows(scene: Scene, half: HalfMesh, layer: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
+    """The layer's displacement conditions on this half as rows (node, direction in x, y, value, key)."""
+    nodes, directions, values, keys = [], [], [], []
+    for displacement, where, parts in _conditions(scene, half, layer):
+        x, y = half.points[where].T
         for component, (expression, direction) in parts.items():
-            if expression is None:
-                continue
             value = np.broadcast_to(np.asarray(expression(x, y), dtype=np.float64), x.shape)
             if not np.all(np.isfinite(value)):
                 bad = np.flatnonzero(~np.isfinite(value))[0]
@@ -123,6 +131,16 @@ def fold(count: int, nodes: np.ndarray, directions: np.ndarray, values: np.ndarr
         raise SceneError(f"{keys[i]}: at ({x:.6g}, {y:.6g}) it disagrees with another prescribed displacement "
                          f"there ({values[i]:.6g} against {implied[i]:.6g})")
     return fixed, out
+
+
+def projectors(scene: Scene, half: HalfMesh, layer: str) -> dict[str, np.ndarray]:
+    """Displaced boundary name -> ``(n, 2, 2)``: at every node of the half the orthogonal projector (in x, y)
+    onto the directions that boundary prescribes to ``layer`` there, zero where it prescribes none."""
+    out = {}
+    for displacement, where, parts in _conditions(scene, half, layer):
+        out[displacement.boundary] = np.zeros((len(half.points), 2, 2))
+        out[displacement.boundary][where] = sum(np.outer(direction, direction) for _, direction in parts.values())
+    return out
 
 
 def own_supports(scene: Scene, half: HalfMesh, sigma: SigmaLine, layer: str) -> tuple[np.ndarray, np.ndarray]:

@@ -4,8 +4,9 @@ At a prescribed dof the residual K u − f of a block's equations is the force i
 multiplier acts there: :mod:`ddsolve.fem.supports`).  It is computed element by element on the cells
 touching the prescribed nodes, in x and y, projected on the prescribed directions (a roller carries no
 force along itself), and summed per boundary and layer.  At a Σ node that the gluing ties to a prescribed
-one, the tied blocks' residuals belong to the layers whose own conditions prescribe it.  A node on two
-supported boundaries counts in both.  No PETSc or MPI here.
+one, the tied blocks' residuals belong to the layers whose own conditions prescribe it.  Each boundary sums
+its nodes' forces on the directions it prescribes there (none at a node of Γ_D for a displaced one): a
+direction that two boundaries prescribe at a shared node counts in both.  No PETSc or MPI here.
 """
 from __future__ import annotations
 
@@ -72,9 +73,12 @@ def tie(sigma: SigmaLine, entries: list[np.ndarray], own: list[np.ndarray]) -> l
 
 def boundary_sums(scene: Scene, half: HalfMesh, sigma: SigmaLine, layer: str, forces: np.ndarray
                   ) -> dict[str, np.ndarray]:
-    """Boundary name -> the sum ``(2,)`` in x, y of a block's support forces (in its dof frames) on it."""
+    """Boundary name -> the sum ``(2,)`` in x, y of a block's support forces (in its dof frames) on it, each
+    projected on the directions that boundary prescribes at its node (a clamped side: both)."""
     vectors = np.einsum("nab,na->nb", supports.node_frames(half, sigma), forces)
-    return {name: vectors[half.nodes(name)].sum(axis=0)
+    displaced = supports.projectors(scene, half, layer)
+    return {name: np.einsum("nab,nb->a", displaced[name], vectors) if name in displaced
+            else vectors[half.nodes(name)].sum(axis=0)
             for name in supported_boundaries(scene, set(half.boundaries), layer)}
 
 
