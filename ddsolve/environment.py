@@ -125,3 +125,19 @@ def end_with_parent(parent: int, signum: int = signal.SIGKILL) -> None:
         return
     if os.getppid() != parent:  # the parent ended before the request: nobody waits for this process
         os._exit(128 + int(signum))
+
+
+def process_exists(pid: int) -> bool:
+    """Whether process ``pid`` runs (a zombie, dead but not yet reaped, does not: its files are closed and
+    it writes nothing more); a process of another user counts as running."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[0]
+    except (OSError, IndexError):
+        return True  # no /proc: what kill said
+    return state not in ("Z", "X")

@@ -197,3 +197,44 @@ def test_four_ranks_writing_into_a_full_file_system_end_in_one_line(small_file_s
     assert len(lines) == 1 and lines[0].startswith("ddsolve: error: ") and \
         lines[0].endswith(": cannot write (No space left on device)"), lines
     assert sorted(path.name for path in small_file_system.iterdir()) == ["filler"]
+
+
+def _zombie() -> subprocess.Popen:
+    """A child that has ended and is not reaped yet (a zombie), as a rank killed by the launcher is
+    until its parent, or init, reaps it."""
+    child = subprocess.Popen([sys.executable, "-c", "pass"])
+    while Path(f"/proc/{child.pid}/stat").read_text().rpartition(")")[2].split()[0] != "Z":
+        pass
+    return child
+
+
+@pytest.mark.mpi  # starts a process
+def test_the_temporaries_of_a_killed_writer_that_is_not_reaped_are_removed(tmp_path):
+    """A killed rank's temporary files go with the next recovery even while the rank is a zombie: a
+    zombie writes nothing more (os.kill(pid, 0) still finds it)."""
+    from ddsolve.environment import process_exists
+    from ddsolve.io import safe
+
+    child = _zombie()
+    try:
+        assert not process_exists(child.pid) and process_exists(os.getpid())
+        left = tmp_path / f".w.h5.ddsolve~{safe.host_tag()}~{child.pid}~0123abcd.tmp.h5"
+        left.write_bytes(b"half written")
+        assert safe.remove_stale(tmp_path / "w.h5") == [left] and not left.exists()
+    finally:
+        child.wait()
+
+
+@pytest.mark.mpi  # starts a process
+def test_ending_a_session_waits_until_its_processes_are_gone():
+    """The launcher SIGKILLs what an interrupted mpiexec left and repairs the result set next; the repair
+    removes temporaries only of writers that are gone, so end_session returns once they are."""
+    from ddsolve.environment import process_exists
+    from ddsolve.parallel import launch
+
+    sleeper = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"], start_new_session=True)
+    try:
+        launch.end_session(sleeper.pid)
+        assert not process_exists(sleeper.pid)
+    finally:
+        sleeper.wait()

@@ -15,6 +15,7 @@ import threading
 from pathlib import Path
 from typing import Callable
 
+from ddsolve.environment import process_exists
 from ddsolve.errors import DDSolveError
 
 #: Temporary, backup and journal files of a write: ``.NAME.ddsolve~HOST~PID~RANDOM.tmp[.suffix]`` (the
@@ -57,14 +58,7 @@ def _writer_gone(match: re.Match) -> bool:
     if match["host"] != host_tag():
         return False
     pid = int(match["pid"])
-    try:
-        if pid != os.getpid():
-            os.kill(pid, 0)
-        return False  # its writer is alive
-    except ProcessLookupError:
-        return True
-    except (PermissionError, OverflowError):
-        return False
+    return pid != os.getpid() and not process_exists(pid)
 
 
 def recover(paths: list[Path]) -> None:

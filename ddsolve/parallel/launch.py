@@ -7,10 +7,11 @@ import shutil
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 from typing import Mapping
 
-from ddsolve.environment import end_with_parent
+from ddsolve.environment import end_with_parent, process_exists
 from ddsolve.errors import DDSolveError
 from ddsolve.io import safe
 from ddsolve.parallel.phases import LAUNCHED
@@ -91,17 +92,28 @@ def launcher_options(version: str, environ: Mapping[str, str]) -> list[str]:
 
 
 
+#: Seconds end_session waits for the processes it killed to be gone.
+KILL_WAIT = 10.0
+
+
 def end_session(session: int) -> None:
     """SIGKILL every process still in the session ``session`` (mpiexec's: the ranks it started and their
-    gmsh children, each in a process group of its own), mpiexec included."""
+    gmsh children, each in a process group of its own), mpiexec included, and wait until they are gone
+    (at most KILL_WAIT s): the temporary files of a rank killed mid-write are removed by the next
+    :func:`ddsolve.io.safe.recover` only once their writer no longer exists."""
+    killed = []
     for entry in os.listdir("/proc"):
         if not entry.isdigit() or int(entry) == os.getpid():
             continue
         try:
             if os.getsid(int(entry)) == session:
                 os.kill(int(entry), signal.SIGKILL)
+                killed.append(int(entry))
         except OSError:  # ended meanwhile
             continue
+    deadline = time.monotonic() + KILL_WAIT
+    while any(process_exists(pid) for pid in killed) and time.monotonic() < deadline:
+        time.sleep(0.01)
 
 
 def end_with_launcher(parent: int) -> None:
