@@ -171,8 +171,12 @@ def crack_faces(result: Result, path: Path) -> None:
     if fracture is not None:  # contact zones and G at the tips
         arc = result.mesh.sigma.arclength[result.multiplier_nodes]
         for start, end in fracture.zones:
+            first, last = np.interp([start, end], arc, position)
             for ax in (top, bottom):
-                ax.axvspan(*np.interp([start, end], arc, position), color="tab:red", alpha=0.15, linewidth=0)
+                if last > first:
+                    ax.axvspan(first, last, color="tab:red", alpha=0.15, linewidth=0)
+                else:  # a zone of one node: a line, which a span of no width would not show
+                    ax.axvline(first, color="tab:red", alpha=0.4, linewidth=2)
         if len(fracture.zones):
             shading += "; red: faces in contact"
         for point, text in zip(fracture.points, tip_labels(fracture)):
