@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import structured_mesh
+from conftest import MATERIALS, structured_mesh
 
 from ddsolve.fem.assembly import element_dofs, strain_operator
 from ddsolve.mesh import element, geometry, pieces
@@ -226,6 +226,7 @@ def test_pieces_give_the_indicators_of_the_whole_half(degree):
         np.testing.assert_allclose(found, whole, rtol=0, atol=1e-12 * whole.max())
 
 
+#: The paper's square with layer 1's sides moved by one rigid motion (a translation and a small rotation).
 RIGID = """title = "a rigid motion prescribed"
 [geometry]
 crack = [-0.5, 0.5]
@@ -233,19 +234,8 @@ clamped = []
 [mesh]
 sigma_vertices = 25
 boundary_vertices = 48
-[materials.layer1]
-E = 200.0
-nu = 0.28
-[materials.layer2]
-E = 112.0
-nu = 0.32
-[displacements.layer1.left]
-x = "0.001 - 0.0002*y"
-y = "0.003 + 0.0002*x"
-[displacements.layer1.right]
-x = "0.001 - 0.0002*y"
-y = "0.003 + 0.0002*x"
-"""
+""" + MATERIALS + "".join(f'[displacements.layer1.{side}]\nx = "0.001 - 0.0002*y"\ny = "0.003 + 0.0002*x"\n'
+                          for side in ("left", "right"))
 
 
 def test_a_rigid_motion_has_nothing_to_estimate():

@@ -215,7 +215,8 @@ def test_results_store_the_energy_and_the_interface_geometry(tmp_path):
 def test_a_p2_mesh_file_names_what_to_set(tmp_path, overrides):
     """A mesh file of 6-node triangles read as P1, or as the coarse mesh of a refinement (which starts from
     3-node triangles), is refused in one line that says both: set mesh.degree = 2, without mesh.refine."""
-    p2 = geometry.build(scene.load("partial-closure", ["mesh.sigma_vertices=25", "mesh.boundary_vertices=48", "mesh.degree=2"]))
+    p2 = geometry.build(scene.load("partial-closure", ["mesh.sigma_vertices=25", "mesh.boundary_vertices=48",
+                                                       "mesh.degree=2"]))
     gmsh_io.write_msh(p2, tmp_path / "p2.msh")
     source = write_scene(tmp_path, "p2", 'file = "p2.msh"', "")
     with pytest.raises(MeshError, match=r"p2\.msh: the file has 6-node \(P2\) triangles: set mesh.degree = 2, "

@@ -133,14 +133,11 @@ def fold(count: int, nodes: np.ndarray, directions: np.ndarray, values: np.ndarr
     return fixed, out
 
 
-def projectors(scene: Scene, half: HalfMesh, layer: str) -> dict[str, np.ndarray]:
-    """Displaced boundary name -> ``(n, 2, 2)``: at every node of the half the orthogonal projector (in x, y)
-    onto the directions that boundary prescribes to ``layer`` there, zero where it prescribes none."""
-    out = {}
-    for displacement, where, parts in _conditions(scene, half, layer):
-        out[displacement.boundary] = np.zeros((len(half.points), 2, 2))
-        out[displacement.boundary][where] = sum(np.outer(direction, direction) for _, direction in parts.values())
-    return out
+def projectors(scene: Scene, half: HalfMesh, layer: str) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Displaced boundary name -> (the nodes it prescribes to ``layer``, the orthogonal projector ``(2, 2)``
+    in x, y onto the directions it prescribes there, the same at each of them)."""
+    return {displacement.boundary: (where, sum(np.outer(direction, direction) for _, direction in parts.values()))
+            for displacement, where, parts in _conditions(scene, half, layer)}
 
 
 def own_supports(scene: Scene, half: HalfMesh, sigma: SigmaLine, layer: str) -> tuple[np.ndarray, np.ndarray]:

@@ -77,7 +77,7 @@ def boundary_sums(scene: Scene, half: HalfMesh, sigma: SigmaLine, layer: str, fo
     projected on the directions that boundary prescribes at its node (a clamped side: both)."""
     vectors = np.einsum("nab,na->nb", supports.node_frames(half, sigma), forces)
     displaced = supports.projectors(scene, half, layer)
-    return {name: np.einsum("nab,nb->a", displaced[name], vectors) if name in displaced
+    return {name: displaced[name][1] @ vectors[displaced[name][0]].sum(axis=0) if name in displaced
             else vectors[half.nodes(name)].sum(axis=0)
             for name in supported_boundaries(scene, set(half.boundaries), layer)}
 

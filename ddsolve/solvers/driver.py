@@ -158,12 +158,15 @@ class OnRanks:
     and the estimate, from sums over the blocks.  Only Σ-sized arrays and scalars are exchanged."""
 
     def __init__(self, scene: Scene, local: LocalMesh, exchange: Exchange, server: BlockServer,
-                 interface: Interface, lam: np.ndarray | None, indicators: dict[int, np.ndarray]):
+                 interface: Interface, lam: np.ndarray | None, indicators: dict[int, np.ndarray],
+                 displacements: dict[int, np.ndarray]):
         comm, sigma = exchange.comm, local.sigma
         frames = sigma.frames[sigma.multiplier_nodes]
         self.scene, self.local, self.exchange, self.server = scene, local, exchange, server
-        self.solutions = {BLOCKS[b].name: assembly.to_global(server.solutions[b], assembly.trace_nodes(
-            local.half(BLOCKS[b].side), sigma), frames) for b in exchange.led_blocks}
+        self.solutions = {BLOCKS[b].name: displacements[b] if len(displacements[b]) == local.nodes[BLOCKS[b].side]
+                          else assembly.to_global(server.solutions[b], assembly.trace_nodes(
+                              local.half(BLOCKS[b].side), sigma), frames)
+                          for b in exchange.led_blocks}  # a piece that is the whole half has them already
         traces = exchange.gather_varying([self.solutions[BLOCKS[b].name][local.half(BLOCKS[b].side).sigma].ravel()
                                           for b in exchange.led_blocks], [2 * len(sigma.points)] * len(BLOCKS))
         largest = comm.allreduce(max((np.abs(u).max(initial=0.0) for u in self.solutions.values()), default=0.0),
@@ -507,7 +510,8 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
     method = scene.solver.method
 
     try:
-        server = BlockServer(setup.blocks, exchange, {index: piece.local_dofs() for index, piece in setup.pieces.items()})
+        server = BlockServer(setup.blocks, exchange, {index: piece.local_dofs()
+                                                      for index, piece in setup.pieces.items()})
         outcome, rounds, failure = run_method(scene, setup, server, progress)
         failure = comm.bcast(failure, root=0)
         if failure is not None:
@@ -530,7 +534,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
         indicators = block_indicators(setup, displacements)
         if distributed:
             shares = OnRanks(scene, local, exchange, server, interface, outcome.lam if exchange.is_root else None,
-                             indicators)
+                             indicators, displacements)
         else:
             parts = gather_estimate(local, exchange, indicators)
         phases.end("estimate")
