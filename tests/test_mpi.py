@@ -131,11 +131,26 @@ def test_eight_ranks_split_every_block_over_two(tmp_path, method, options):
     np.testing.assert_allclose(results[8].fracture.G, results[4].fracture.G, rtol=1e-6)
     for name, indicators in results[4].indicators.items():
         np.testing.assert_allclose(results[8].indicators[name], indicators, rtol=0, atol=1e-6 * indicators.max())
+    # G's split (mirror images found on the partner block's pieces), the reactions (each rank's own nodes), the
+    # contact zones
+    scale = np.abs(results[4].fracture.G).max()
+    for key in ("G_I", "G_II"):
+        np.testing.assert_allclose(getattr(results[8].fracture, key), getattr(results[4].fracture, key),
+                                   rtol=1e-6, atol=1e-9 * scale)
+    for layer, named in results[4].reactions.items():
+        for name, force in named.items():
+            np.testing.assert_allclose(results[8].reactions[layer][name], force, rtol=1e-6,
+                                       atol=1e-9 * np.abs(force).max())
+    assert analysis.contact_zones(results[8]) == analysis.contact_zones(results[4])
     assert len(results[8].attrs["peak_memory_mb"]) == 8
     memory = results[8].memory  # each rank holds one half (and Σ): about half of the mesh, never all of it
     assert len(memory["rank_mesh_bytes"]) == 8
     assert np.all(memory["rank_mesh_bytes"] <= 0.55 * memory["whole_mesh_bytes"])
     assert np.all(memory["rank_mesh_bytes"] > 0.45 * memory["whole_mesh_bytes"])
+    # ... and of its block's solution, at output, its piece: no rank gathers a block's (8 bytes per unknown)
+    block_unknowns = memory["rank_unknowns"].reshape(4, 2).sum(axis=1).repeat(2)
+    solutions = memory["held_mb_output"][:, list(memory["held"]).index("solutions")] * 2 ** 20
+    assert np.all(solutions <= 0.6 * 8 * block_unknowns), solutions / (8 * block_unknowns)
 
 
 @pytest.mark.mpi

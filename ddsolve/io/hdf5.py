@@ -84,32 +84,61 @@ def write_viewer(result: Result, folder: Path, stem: str, viewer: str = "vtu", f
     return list(writers)
 
 
+@dataclass(frozen=True)
+class Slab:
+    """The rows ``first:first + len(values)`` of a dataset of ``rows`` rows, the rest of which other ranks write."""
+
+    values: np.ndarray
+    first: int
+    rows: int
+
+
 @dataclass
 class Part:
-    """What one rank writes of a result file: whole datasets by path (each held by one rank) and, on
-    rank 0, the attributes by group ("" the root, "timings", "memory")."""
+    """What one rank writes of a result file: datasets by path, whole (each held by one rank) or as
+    :class:`Slab` (rows of it), and, on rank 0, the attributes by group ("" the root, "timings", "memory")."""
 
-    datasets: dict[str, np.ndarray] = field(default_factory=dict)
+    datasets: dict[str, np.ndarray | Slab] = field(default_factory=dict)
     attrs: dict[str, dict] = field(default_factory=dict)
 
 
-def half_datasets(half: HalfMesh, multiplier_nodes: np.ndarray) -> dict[str, np.ndarray]:
-    """``/mesh/<half>/...``: the points, cells, Σ nodes, interface nodes and boundaries of ``half``."""
+def half_datasets(half: HalfMesh, multiplier_nodes: np.ndarray, piece=None, skeleton: bool = True
+                  ) -> dict[str, np.ndarray | Slab]:
+    """``/mesh/<half>/...``: the points, cells, Σ nodes, interface nodes and boundaries of ``half`` (with
+    ``piece``, a :class:`~ddsolve.mesh.pieces.Piece` of it: the slabs of its owned nodes and cells, and
+    unless not ``skeleton`` Σ's nodes and the boundaries)."""
     group = f"mesh/{half.name}"
-    out = {f"{group}/points": half.points, f"{group}/cells": half.cells, f"{group}/sigma": half.sigma,
-           f"{group}/interface": half.sigma[multiplier_nodes]}
-    out.update({f"{group}/boundaries/{boundary}": edges for boundary, edges in half.boundaries.items()})
+    out: dict[str, np.ndarray | Slab] = {}
+    if piece is None:
+        out = {f"{group}/points": half.points, f"{group}/cells": half.cells}
+        numbers = None
+    else:
+        out = {f"{group}/points": Slab(half.points[piece.owned_nodes], piece.first, piece.rows),
+               f"{group}/cells": Slab(piece.nodes[piece.owned_cells], piece.cell_first, piece.cell_rows)}
+        numbers = piece.nodes
+    if skeleton:
+        sigma = half.sigma if numbers is None else numbers[half.sigma]
+        out.update({f"{group}/sigma": sigma, f"{group}/interface": sigma[multiplier_nodes]})
+        out.update({f"{group}/boundaries/{boundary}": edges if numbers is None else numbers[edges]
+                    for boundary, edges in half.boundaries.items()})
     return out
 
 
 def block_datasets(block: str, u: np.ndarray, von_mises: np.ndarray, indicator: np.ndarray | None = None,
-                   cell_data: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
-    """A block's solution ``(n, 2)``, its viewer arrays, error indicators and per-cell data."""
-    out = {f"solution/{block}": u, f"paraview/{block}/displacement": export.padded(u),
-           f"paraview/{block}/von_mises": von_mises}
+                   cell_data: dict[str, np.ndarray] | None = None, piece=None) -> dict[str, np.ndarray | Slab]:
+    """A block's solution ``(n, 2)``, its viewer arrays, error indicators and per-cell data (with ``piece``:
+    the slabs of its owned nodes and cells)."""
+    def nodes(values):
+        return values if piece is None else Slab(values, piece.first, piece.rows)
+
+    def cells(values):
+        return values if piece is None else Slab(values, piece.cell_first, piece.cell_rows)
+
+    out = {f"solution/{block}": nodes(u), f"paraview/{block}/displacement": nodes(export.padded(u)),
+           f"paraview/{block}/von_mises": cells(von_mises)}
     if indicator is not None:
-        out[f"error/indicator/{block}"] = indicator
-    out.update({f"cell_data/{name}/{block}": values for name, values in (cell_data or {}).items()})
+        out[f"error/indicator/{block}"] = cells(indicator)
+    out.update({f"cell_data/{name}/{block}": cells(values) for name, values in (cell_data or {}).items()})
     return out
 
 
@@ -166,7 +195,8 @@ def write_part(name: str, part: Part, comm=None, since: float | None = None) -> 
     ``/timings`` gets the seconds this took as ``write``, counted from ``since`` (``time.perf_counter()``
     when the files written with it began, :func:`ddsolve.io.safe.replace_together` writing it last)."""
     started = time.perf_counter() if since is None else since
-    shapes = {key: (np.shape(values), np.asarray(values).dtype.str) for key, values in part.datasets.items()}
+    shapes = {key: ((values.rows,) + values.values.shape[1:], values.values.dtype.str) if isinstance(values, Slab)
+              else (np.shape(values), np.asarray(values).dtype.str) for key, values in part.datasets.items()}
     attrs = part.attrs
     if comm is not None and comm.size > 1:
         shapes = {key: shape for mine in comm.allgather(shapes) for key, shape in mine.items()}
@@ -182,7 +212,10 @@ def write_part(name: str, part: Part, comm=None, since: float | None = None) -> 
             created = {key: f.create_dataset(key, shape=shape, dtype=dtype)
                        for key, (shape, dtype) in sorted(shapes.items())}
             for key, values in part.datasets.items():
-                if np.size(values):
+                if isinstance(values, Slab):
+                    if len(values.values):
+                        created[key][values.first:values.first + len(values.values)] = values.values
+                elif np.size(values):
                     created[key][...] = values
             for group, values in attrs.items():
                 target = f.require_group(group) if group else f

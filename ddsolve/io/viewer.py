@@ -63,19 +63,27 @@ class Glue:
 def merged_upper_nodes(result: Result) -> tuple[np.ndarray, int]:
     """The layer-mesh node of every upper-half node (lower nodes keep their numbers), and the node
     count: a Σ node off the cracks is the lower half's node; crack nodes keep one node per face."""
-    return _upper_index(result.lower.sigma, result.upper.sigma, result.mesh.sigma.crack, len(result.lower.points),
-                        len(result.upper.points))
+    glue = glue_of(result, "layer1", 1)
+    return layer_numbers(glue, np.arange(glue.nodes[1])), node_count(glue)
 
 
-def _upper_index(lower_sigma: np.ndarray, upper_sigma: np.ndarray, crack: np.ndarray, lower_count: int,
-                 upper_count: int) -> tuple[np.ndarray, int]:
-    glued = ~crack
-    own = np.ones(upper_count, dtype=bool)
-    own[upper_sigma[glued]] = False
-    index = np.empty(upper_count, dtype=np.int64)
-    index[own] = lower_count + np.arange(own.sum())
-    index[upper_sigma[glued]] = lower_sigma[glued]
-    return index, lower_count + int(own.sum())
+def layer_numbers(glue: Glue, nodes: np.ndarray) -> np.ndarray:
+    """The layer-mesh number of each of the upper half's ``nodes``: a Σ node off the cracks is the lower
+    half's node, the others follow the lower half's in their order."""
+    glued = ~glue.crack
+    upper, lower = glue.upper_sigma[glued], glue.lower_sigma[glued]
+    order = np.argsort(upper)
+    below = np.searchsorted(upper[order], nodes)  # glued upper nodes before each node
+    out = glue.nodes[-1] + nodes - below
+    merged = np.flatnonzero(below < len(upper))
+    merged = merged[upper[order[below[merged]]] == nodes[merged]]
+    out[merged] = lower[order[below[merged]]]
+    return out
+
+
+def node_count(glue: Glue) -> int:
+    """Nodes of a layer mesh."""
+    return glue.nodes[-1] + glue.nodes[1] - int(np.count_nonzero(~glue.crack))
 
 
 def padded(values: np.ndarray) -> np.ndarray:
@@ -93,38 +101,45 @@ def tensors(xx: np.ndarray, yy: np.ndarray, xy: np.ndarray, zz: np.ndarray) -> n
     return out
 
 
-def layer_share(layer: str, half, u: np.ndarray, fields: analysis.CellFields, glue: Glue,
-                indicator: np.ndarray | None = None, cell_data: dict[str, np.ndarray] | None = None) -> ViewerMesh:
-    """One half's share of the mesh of ``layer`` (see :func:`layer_mesh`): its nodes (the upper half's
-    own nodes only, merged Σ nodes are the lower half's), its cells and their fields."""
+def layer_share(layer: str, side: int, points: np.ndarray, u: np.ndarray, cells: np.ndarray,
+                fields: analysis.CellFields, glue: Glue, indicator: np.ndarray | None = None,
+                cell_data: dict[str, np.ndarray] | None = None, first_node: int = 0, first_cell: int = 0
+                ) -> ViewerMesh:
+    """A half's share of the mesh of ``layer`` (see :func:`layer_mesh`): of its nodes ``first_node`` on
+    (``points`` and displacements ``u``) the upper half's own nodes only (merged Σ nodes are the lower
+    half's), and its ``cells`` (the half's node numbers) from ``first_cell`` on with their fields."""
     glued = ~glue.crack
     lower_count = glue.nodes[-1]
-    index, count = _upper_index(glue.lower_sigma, glue.upper_sigma, glue.crack, lower_count, glue.nodes[1])
-    if half.side < 0:
-        points, displacement, cells, first = half.points, u.copy(), half.cells, 0
+    nodes = np.arange(first_node, first_node + len(points))
+    if side < 0:
+        displacement, first = u.copy(), first_node
         merged = glue.lower_sigma[glued]
-        displacement[merged] = 0.5 * (u[merged] + glue.other[glued])
+        mine = (merged >= first_node) & (merged < first_node + len(points))
+        displacement[merged[mine] - first_node] = 0.5 * (u[merged[mine] - first_node] + glue.other[glued][mine])
+        first_cell_row = first_cell
     else:
-        own = index >= lower_count
-        points, displacement, cells, first = half.points[own], u[own], index[half.cells], lower_count
+        own = layer_numbers(glue, nodes) >= lower_count
+        points, displacement, cells = points[own], u[own], layer_numbers(glue, cells.reshape(-1)).reshape(cells.shape)
+        first = lower_count + first_node - int(np.count_nonzero(glue.upper_sigma[glued] < first_node))
+        first_cell_row = glue.cells[-1] + first_cell
     cell_data_out = {
         "stress": tensors(*fields.stress.T, fields.stress_zz),
         "strain": tensors(fields.strain[:, 0], fields.strain[:, 1], 0.5 * fields.strain[:, 2], fields.strain_zz),
         "von_mises": fields.von_mises, "energy_density": fields.energy_density,
-        "half": np.full(len(half.cells), half.side, dtype=np.int32),
+        "half": np.full(len(cells), side, dtype=np.int32),
     }
     extra = [("error_indicator", indicator)] if indicator is not None else []
     for name, values in extra + list((cell_data or {}).items()):
         if name in cell_data_out:
             raise DDSolveError(f"cell data {name}: the name of a field the viewer files already have")
         values = np.asarray(values)
-        if np.ndim(values) == 0 or len(values) != len(half.cells):
-            raise DDSolveError(f"cell data {name}: {np.size(values)} values for the {len(half.cells)} cells "
-                               f"of the {half.name} half")
+        if np.ndim(values) == 0 or len(values) != len(cells):
+            raise DDSolveError(f"cell data {name}: {np.size(values)} values for the {len(cells)} cells "
+                               f"of the {'lower' if side < 0 else 'upper'} half")
         cell_data_out[name] = values if values.dtype.kind in "iuf" else values.astype(np.float64)
     return ViewerMesh(layer, padded(points), "triangle" if cells.shape[1] == 3 else "triangle6", cells,
-                      {"displacement": padded(displacement)}, cell_data_out, first, 0 if half.side < 0
-                      else glue.cells[-1], count, glue.cells[-1] + glue.cells[1])
+                      {"displacement": padded(displacement)}, cell_data_out, first, first_cell_row,
+                      node_count(glue), glue.cells[-1] + glue.cells[1])
 
 
 def joined(shares: list[ViewerMesh]) -> ViewerMesh:
@@ -157,8 +172,9 @@ def layer_mesh(result: Result, layer: str, fields: dict[str, analysis.CellFields
     """
     shares = []
     for spec in (spec for spec in BLOCKS if spec.layer == layer):  # the lower half's block first
-        shares.append(layer_share(layer, result.half(spec.name), result.solution[spec.name], fields[spec.name],
-                                  glue_of(result, layer, spec.side), result.indicators.get(spec.name),
+        half = result.half(spec.name)
+        shares.append(layer_share(layer, spec.side, half.points, result.solution[spec.name], half.cells,
+                                  fields[spec.name], glue_of(result, layer, spec.side), result.indicators.get(spec.name),
                                   {name: per_block[spec.name] for name, per_block in result.cell_data.items()
                                    if spec.name in per_block}))
     return joined(sorted(shares, key=lambda share: share.first_point))

@@ -87,6 +87,11 @@ class Exchange:
         """The rank that leads ``block``."""
         return launch.leader(block, self.comm.size)
 
+    def ranks(self, block: int) -> range:
+        """The ranks that work on ``block``: its leader and, with more ranks than blocks, those after it."""
+        per = max(1, self.comm.size // self.n_blocks)
+        return range(self.leader(block), self.leader(block) + per)
+
     @property
     def is_root(self) -> bool:
         return self.comm.rank == ROOT

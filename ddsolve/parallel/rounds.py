@@ -35,9 +35,10 @@ def load_width(command: int, trace_size: int) -> int:
 class BlockServer:
     """The blocks this rank works on and what a round does with them."""
 
-    def __init__(self, blocks: list[Block], exchange: Exchange, piece_dofs: dict[int, np.ndarray] | None = None):
-        self.blocks, self.exchange = blocks, exchange
-        self.solutions: dict[int, np.ndarray] = {}  # led blocks' solutions from the last full solve
+    def __init__(self, blocks: list[Block], exchange: Exchange, piece_dofs: dict[int, np.ndarray] | None = None,
+                 gather: bool = True):
+        self.blocks, self.exchange, self.gather = blocks, exchange, gather
+        self.solutions: dict[int, np.ndarray] = {}  # led blocks' solutions from the last full solve (``gather``)
         self.piece_dofs = piece_dofs or {}  # local block -> the dofs of this rank's piece of its half
         self.piece_values: dict[int, np.ndarray] = {}  # ... and the last full solve there
         self.error = ""
@@ -93,8 +94,8 @@ class BlockServer:
         checks = np.zeros(2)
         if full:
             checks = np.array([block.residual(), block.largest_displacement(x)])
-            whole = block.gather(x)
-            if block.is_leader:
+            whole = block.gather(x) if self.gather or block.mpi.size == 1 else None
+            if block.is_leader and self.gather:
                 self.solutions[index] = whole
             if index in self.piece_dofs:
                 self.piece_values[index] = (whole if block.mpi.size == 1 else

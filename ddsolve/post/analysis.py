@@ -12,6 +12,7 @@ from ddsolve.errors import DDSolveError
 from ddsolve.fem import assembly, supports
 from ddsolve.mesh import element
 from ddsolve.mesh.mesh import BLOCKS
+from ddsolve.mesh.pieces import Piece
 from ddsolve.post.result import OnSigma, Result
 from ddsolve.problem import materials
 from ddsolve.problem import scene as scenes
@@ -250,33 +251,92 @@ def locate(half, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     of that edge -- and whether each point lies outside the half's domain."""
     corners = half.corners
     boundary = functools.cache(lambda: boundary_edges(corners))  # made once, and only when a point is missed
-    cell = _containing_cells(half.points, corners, points, boundary)
+    cell, miss = nearest_cells(half.points, corners, points, boundary)
+    return cell, miss > ON_BOUNDARY
+
+
+def nearest_cells(points: np.ndarray, corners: np.ndarray, queries: np.ndarray, boundary, snap=None
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """The cell of ``corners`` holding each of ``queries`` (q, 2) and 0, or for a point that none holds the
+    cell of the nearest of the edges ``snap()`` gives (edges, their cells; default: the cells' outline,
+    ``boundary()``) and the point's distance to it over the edge's length (inf without edges)."""
+    cell = _containing_cells(points, corners, queries, boundary)
+    miss = np.zeros(len(queries))
     missed = np.flatnonzero(cell < 0)
-    outside = np.zeros(len(points), dtype=bool)
     if len(missed):
-        edges, edge_cells = boundary()
-        start = half.points[edges[:, 0]]
-        along = half.points[edges[:, 1]] - start
+        edges, edge_cells = (snap or boundary)()
+        miss[missed] = np.inf
+        if not len(edges):
+            return cell, miss
+        start = points[edges[:, 0]]
+        along = points[edges[:, 1]] - start
         length = np.hypot(along[:, 0], along[:, 1])
         for chunk in np.array_split(missed, max(1, len(missed) * len(edges) // 1_000_000)):
-            offset = points[chunk, None, :] - start  # (q, e, 2)
+            offset = queries[chunk, None, :] - start  # (q, e, 2)
             t = np.clip(np.einsum("qed,ed->qe", offset, along) / length ** 2, 0.0, 1.0)
             distance = np.linalg.norm(offset - t[..., None] * along, axis=2)
             nearest = np.argmin(distance, axis=1)
             cell[chunk] = edge_cells[nearest]
-            outside[chunk] = distance[np.arange(len(chunk)), nearest] > ON_BOUNDARY * length[nearest]
-    return cell, outside
+            miss[chunk] = distance[np.arange(len(chunk)), nearest] / length[nearest]
+    return cell, miss
+
+
+def owned_values_at(piece: Piece, values: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The field ``values`` (n, c) of ``piece`` at ``points`` (q, 2) from the cells it owns, and how far each
+    point is from them (:func:`nearest_cells`, snapped to the half's own boundary edges only).  The pieces of
+    a half's ranks together answer as :func:`locate` does: per point, the answer with the smallest miss,
+    outside the half beyond ON_BOUNDARY."""
+    owned = piece.owned_half
+    outline = functools.cache(lambda: boundary_edges(owned.corners))
+    n = len(piece.points)
+
+    def snap() -> tuple[np.ndarray, np.ndarray]:
+        edges, cells = outline()
+        keep = np.isin(element.edge_keys(edges, n), element.edge_keys(piece.outer_edges[:, :2], n))
+        return edges[keep], cells[keep]
+
+    cell, miss = nearest_cells(owned.points, owned.corners, points, outline, snap)
+    out = np.full((len(points), values.shape[1]), np.nan)
+    found = cell >= 0
+    out[found] = evaluate(owned, values, cell[found], points[found])
+    return out, miss
+
+
+def owned_box(piece: Piece) -> np.ndarray:
+    """``(2, 2)``: the low and high corners of the box where :func:`owned_values_at` may find a point: around
+    the piece's owned cells, widened by what a point may lie off them and still be snapped to one."""
+    corners = piece.points[piece.owned_cells[:, :3]]
+    if not len(corners):
+        return np.array([[np.inf, np.inf], [-np.inf, -np.inf]])
+    sides = np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2)
+    margin = ON_BOUNDARY * float(sides.max())
+    return np.array([corners.min(axis=(0, 1)) - margin, corners.max(axis=(0, 1)) + margin])
+
+
+def nearest_answer(count: int, answers: list[tuple[np.ndarray, np.ndarray, np.ndarray]]) -> np.ndarray | None:
+    """Per point of ``count``, the value of the :func:`owned_values_at` answer with the smallest miss
+    (``answers``: the points asked, by index, their values and misses); None if a point lies outside the half
+    (every miss beyond ON_BOUNDARY, or none asked)."""
+    values, miss = np.full((count, 2), np.nan), np.full(count, np.inf)
+    for asked, found, missed in answers:
+        better = missed < miss[asked]
+        values[asked[better]], miss[asked[better]] = found[better], missed[better]
+    return None if np.any(miss > ON_BOUNDARY) else values
 
 
 def interpolate(half, values: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Evaluate the field ``values`` (n, c) of ``half`` at ``points`` (q, 2) inside that half with the
     element's own shape functions (P1, or isoparametric P2: the reference coordinates of a point are
     found by Newton's method from those in the straight triangle of its corners)."""
-    corners = half.corners
     cell, outside = locate(half, points)
     if np.any(outside):
         raise DDSolveError(f"{int(np.sum(outside))} points lie outside the {half.name} mesh")
-    p = half.points[corners[cell]]  # (q, 3, 2)
+    return evaluate(half, values, cell, points)
+
+
+def evaluate(half, values: np.ndarray, cell: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """The field ``values`` (n, c) of ``half`` at ``points`` (q, 2), each in (or by) its ``cell``."""
+    p = half.points[half.corners[cell]]  # (q, 3, 2)
     d1, d2, d = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0], points - p[:, 0]
     det = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
     xi = np.column_stack([(d[:, 0] * d2[:, 1] - d[:, 1] * d2[:, 0]) / det,

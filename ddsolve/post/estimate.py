@@ -272,12 +272,15 @@ def contact_on_sigma(sigma: SigmaLine, mu_c: np.ndarray, minus: np.ndarray, plus
 
 
 def half_contact_indicators(half: HalfMesh, pressure: np.ndarray, jump: np.ndarray) -> np.ndarray:
-    """``(m,)``: the contact term of every cell of ``half`` (see :func:`contact_indicators`)."""
+    """``(m,)``: the contact term of every cell of ``half`` (see :func:`contact_indicators`; of a piece of a
+    half, the crack edges of its cells count)."""
     edges = half.edges(CRACK)
     cells = np.zeros(len(half.cells))
     if len(edges) and np.any(pressure):
         position = np.full(len(half.points), -1, dtype=np.int64)
         position[half.sigma] = np.arange(len(half.sigma))
+        owner = _edge_cells(half.cells, edges)
+        edges, owner = edges[owner >= 0], owner[owner >= 0]
         s, w = gauss_interval(4)
         shapes, _ = edge_shapes(edges.shape[1], s)
         _, tangents = edge_points(half.points, edges, s)
@@ -285,18 +288,22 @@ def half_contact_indicators(half: HalfMesh, pressure: np.ndarray, jump: np.ndarr
         along = position[edges]
         product = (shapes @ pressure[along].T).T * (shapes @ jump[along].T).T  # (e, q)
         defect = np.abs(np.einsum("eq,eq,q->e", product, speed, w))  # |∫ μ [u]·ν| per edge
-        np.add.at(cells, _edge_cells(half.cells, edges), defect)  # ½ of 2|∫ μ [u]·ν|
+        np.add.at(cells, owner, defect)  # ½ of 2|∫ μ [u]·ν|
     return cells
 
 
 def _edge_cells(cells: np.ndarray, edges: np.ndarray) -> np.ndarray:
-    """The cell that has each boundary edge (by its end nodes)."""
+    """The cell that has each boundary edge (by its end nodes), −1 for an edge of none of ``cells``."""
+    if not len(cells):
+        return np.full(len(edges), -1, dtype=np.int64)
     pairs = cells[:, CELL_EDGES[cells.shape[1]][:, :2]].reshape(-1, 2)
     n = int(max(cells.max(), edges.max())) + 1
     keys = edge_keys(pairs, n)
     order = np.argsort(keys)
-    found = order[np.searchsorted(keys[order], edge_keys(edges[:, :2], n))]
-    return found // 3
+    wanted = edge_keys(edges[:, :2], n)
+    at = np.minimum(np.searchsorted(keys[order], wanted), len(keys) - 1)
+    found = order[at]
+    return np.where(keys[found] == wanted, found // 3, -1)
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,8 @@ def residual(scene: Scene, half: HalfMesh, layer: str, u: np.ndarray, nodes: np.
     D, _ = assembly.elasticity(scene, layer)
     forces = np.einsum("mij,mj->mi", assembly.element_stiffness(half.points, cells, D),
                        u.reshape(-1)[assembly.element_dofs(cells)])
-    out = np.bincount(assembly.element_dofs(cells).ravel(), forces.ravel(), minlength=2 * len(half.points))
+    out = np.bincount(assembly.element_dofs(cells).ravel(), forces.ravel(),
+                      minlength=2 * len(half.points)).astype(np.float64, copy=False)  # none near: no weights, ints
     for load in assembly.layer_loads(scene, layer, half):
         out -= assembly.boundary_load(half.points, half.edges(load.boundary), load)
     thermal = assembly.thermal_of(scene, layer)

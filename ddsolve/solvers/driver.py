@@ -84,34 +84,30 @@ def piece_displacements(setup: "Setup", server: BlockServer) -> dict[int, np.nda
     return out
 
 
-def block_indicators(setup: "Setup", displacements: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
-    """The error indicators of the last full solve (:func:`ddsolve.post.estimate.block_indicators`): every
-    rank of a block computes those of the cells it owns on its piece of the half (:mod:`ddsolve.mesh.pieces`,
-    ``displacements`` there: :func:`piece_displacements`); the block's leader gets the whole ``(2, cells)``
-    (local block -> indicators, on the leaders)."""
+def block_indicators(setup: "Setup", displacements: dict[int, np.ndarray], collect: bool = True
+                     ) -> dict[int, np.ndarray]:
+    """The error indicators ``(2, cells)`` of the last full solve (:func:`ddsolve.post.estimate.block_indicators`):
+    every rank of a block computes those of the cells it owns on its piece of the half (:mod:`ddsolve.mesh.pieces`,
+    ``displacements`` there: :func:`piece_displacements`); with ``collect`` the block's leader gets the whole
+    half's (local block -> indicators, on the leaders), else every rank keeps its own cells'."""
     out = {}
     for index, group in zip(setup.exchange.local_blocks, setup.exchange.groups):
         spec, piece = BLOCKS[index], setup.pieces[index]
         mine = estimate.block_indicators(piece.points, piece.cells, assembly.elasticity(setup.scene, spec.layer)[0],
                                          displacements[index], piece.outer_edges)[:, :piece.owned]
-        whole = collect_owned(group, piece, setup.mesh.cells[spec.side], {"indicators": mine.T})
+        whole = collect_owned(group, piece, setup.mesh.cells[spec.side], {"indicators": mine.T}) if collect else \
+            {"indicators": mine.T}
         if whole is not None:
             out[index] = whole["indicators"].T
     return out
 
 
 def block_cell_fields(setup: "Setup", displacements: dict[int, np.ndarray]) -> dict[int, analysis.CellFields]:
-    """The cell fields of the last full solve, every rank of a block computing those of the cells it owns;
-    on the blocks' leaders (local block -> its :class:`~ddsolve.post.analysis.CellFields`)."""
-    out = {}
-    for index, group in zip(setup.exchange.local_blocks, setup.exchange.groups):
-        spec, piece = BLOCKS[index], setup.pieces[index]
-        mine = analysis.block_cell_fields(setup.scene, spec.layer, piece.points, piece.cells[:piece.owned],
-                                          displacements[index])
-        whole = collect_owned(group, piece, setup.mesh.cells[spec.side], dataclasses.asdict(mine))
-        if whole is not None:
-            out[index] = analysis.CellFields(**whole)
-    return out
+    """The cell fields of the last full solve on the cells this rank owns (local block -> its
+    :class:`~ddsolve.post.analysis.CellFields`)."""
+    return {index: analysis.block_cell_fields(setup.scene, BLOCKS[index].layer, piece.points, piece.owned_cells,
+                                              displacements[index])
+            for index, piece in setup.pieces.items()}
 
 
 def collect_owned(group: MPI.Comm, piece: Piece, count: int, arrays: dict[str, np.ndarray]
@@ -153,36 +149,34 @@ def whole_mesh_bytes(local: LocalMesh, exchange: Exchange) -> int:
 
 
 class OnRanks:
-    """The result as the ranks hold it for a distributed write: each block's leader has its block's
-    displacements (x, y), indicators, cell fields and viewer share; rank 0 the Σ data (:class:`OnSigma`)
-    and the estimate, from sums over the blocks.  Only Σ-sized arrays and scalars are exchanged."""
+    """The result as the ranks hold it for a distributed write: every rank its pieces of its blocks' halves
+    (:mod:`ddsolve.mesh.pieces`) with the displacements (x, y) there, the indicators and cell fields of the
+    cells it owns, and its slabs of the files; rank 0 the Σ data (:class:`OnSigma`) and the estimate, from
+    sums over the ranks.  Only Σ-sized arrays and scalars are exchanged."""
 
-    def __init__(self, scene: Scene, local: LocalMesh, exchange: Exchange, server: BlockServer,
+    def __init__(self, scene: Scene, local: LocalMesh, exchange: Exchange, setup_pieces: dict[int, Piece],
                  interface: Interface, lam: np.ndarray | None, indicators: dict[int, np.ndarray],
-                 displacements: dict[int, np.ndarray]):
+                 displacements: dict[int, np.ndarray], solver_bytes: int = 0):
         comm, sigma = exchange.comm, local.sigma
         frames = sigma.frames[sigma.multiplier_nodes]
-        self.scene, self.local, self.exchange, self.server = scene, local, exchange, server
-        self.solutions = {BLOCKS[b].name: displacements[b] if len(displacements[b]) == local.nodes[BLOCKS[b].side]
-                          else assembly.to_global(server.solutions[b], assembly.trace_nodes(
-                              local.half(BLOCKS[b].side), sigma), frames)
-                          for b in exchange.led_blocks}  # a piece that is the whole half has them already
-        traces = exchange.gather_varying([self.solutions[BLOCKS[b].name][local.half(BLOCKS[b].side).sigma].ravel()
+        self.scene, self.local, self.exchange = scene, local, exchange
+        self.pieces, self.displacements = setup_pieces, displacements
+        self.held_bytes = local.nbytes + solver_bytes + sum(u.nbytes for u in displacements.values())
+        # a piece has every Σ node of its half
+        traces = exchange.gather_varying([displacements[b][setup_pieces[b].half.sigma].ravel()
                                           for b in exchange.led_blocks], [2 * len(sigma.points)] * len(BLOCKS))
-        largest = comm.allreduce(max((np.abs(u).max(initial=0.0) for u in self.solutions.values()), default=0.0),
-                                 op=MPI.MAX)
+        largest = comm.allreduce(max((np.abs(displacements[b][piece.owned_nodes]).max(initial=0.0)
+                                      for b, piece in setup_pieces.items()), default=0.0), op=MPI.MAX)
         on = OnSigma(sigma, interface.split(lam, frames), {spec.name: trace.reshape(-1, 2) for spec, trace in
                                                            zip(BLOCKS, traces)}, largest) if exchange.is_root else None
         self.on = comm.bcast(on, root=0)
         pressure, jump = estimate.contact_on_sigma(sigma, self.on.multipliers["mu_c"], self.on.traces["u_minus"],
                                                    self.on.traces["u_plus"])
         self.indicators, squared, energy = {}, 0.0, 0.0
-        for index in exchange.led_blocks:
-            spec = BLOCKS[index]
-            half = local.half(spec.side)
-            contact = estimate.half_contact_indicators(half, pressure, jump) if spec.layer == "layer1" else 0.0
-            self.indicators[spec.name], block_squared, block_energy = estimate.block_estimate(indicators[index],
-                                                                                              contact)
+        for b, piece in setup_pieces.items():
+            contact = (estimate.half_contact_indicators(piece.owned_half, pressure, jump)
+                       if BLOCKS[b].layer == "layer1" else 0.0)
+            self.indicators[b], block_squared, block_energy = estimate.block_estimate(indicators[b], contact)
             squared, energy = squared + block_squared, energy + block_energy
         totals = comm.reduce(np.array([squared, energy]), op=MPI.SUM, root=0)
         self.relative = (estimate.relative(*totals, estimate.rounding_energy(assembly.modulus(scene), largest))
@@ -190,105 +184,108 @@ class OnRanks:
         self.reactions = self._reactions()
 
     def mode_split(self) -> dict[str, np.ndarray] | None:
-        """G's split into modes I and II on rank 0.  Each leader integrates its block's share of the mirror
-        split (:func:`ddsolve.post.fracture.mirror_terms`) with its partner's field at the mirror images of
-        its nodes, which the partner's leader interpolates; rank 0 sums the shares and splits the tips
-        whose disc is not mirror-symmetric by crack closure, from Σ's data."""
+        """G's split into modes I and II on rank 0.  Every rank integrates its owned cells' share of the mirror
+        split (:func:`ddsolve.post.fracture.mirror_terms`) with the other side's field at the mirror images of
+        their nodes, which the ranks of the partner block interpolate on the cells they own; rank 0 sums the
+        shares and splits the tips whose disc is not mirror-symmetric by crack closure, from Σ's data."""
         local, exchange, comm, scene = self.local, self.exchange, self.exchange.comm, self.scene
         sigma, tips = local.sigma, local.tips
         laws = {spec.layer: assembly.elasticity(scene, spec.layer)[0] for spec in BLOCKS}
+        mirrorable = [fracture.mirrorable(tip, sigma, laws.values()) for tip in tips]
+        boxes = comm.allgather({b: analysis.owned_box(piece) for b, piece in self.pieces.items()} if any(mirrorable)
+                               else {})
         discs, asks = {}, [[] for _ in range(comm.size)]
         for i, tip in enumerate(tips):
-            if fracture.mirrorable(tip, sigma, laws.values()):
-                for b in exchange.led_blocks:
-                    discs[i, b] = fracture.mirror_nodes(tip, sigma, local.half(BLOCKS[b].side))
-                    asks[exchange.leader(partner(b))].append((i, b, discs[i, b][2]))
-        answers = [[(i, b, self._at(partner(b), images)) for i, b, images in asked]
-                   for asked in comm.alltoall(asks)]
-        shares, done = np.zeros((len(tips), 2)), np.zeros(len(tips), dtype=np.int64)
-        for i, b, values in (answer for answered in comm.alltoall(answers) for answer in answered):
-            spec = BLOCKS[b]
+            for b, piece in self.pieces.items():
+                if mirrorable[i]:
+                    discs[i, b] = fracture.mirror_nodes(tip, sigma, piece.owned_half)
+                    images = discs[i, b][2]
+                    for rank in exchange.ranks(partner(b)) if len(images) else ():  # no disc cells here: no share
+                        low, high = boxes[rank][partner(b)]
+                        asked = np.flatnonzero(np.all((images >= low) & (images <= high), axis=1))
+                        asks[rank].append((i, b, asked, images[asked]))
+        answers = [[(i, b, asked, *analysis.owned_values_at(self.pieces[partner(b)], self.displacements[partner(b)],
+                                                            images)) for i, b, asked, images in received]
+                   for received in comm.alltoall(asks)]
+        replies: dict[tuple[int, int], list] = {}
+        for i, b, *answer in (answer for answered in comm.alltoall(answers) for answer in answered):
+            replies.setdefault((i, b), []).append(answer)
+        shares, failed = np.zeros((len(tips), 2)), np.zeros(len(tips), dtype=np.int64)
+        for (i, b), answered in replies.items():
+            spec, values = BLOCKS[b], analysis.nearest_answer(len(discs[i, b][2]), answered)
             terms = None if values is None else fracture.mirror_terms(
-                tips[i], sigma, local.half(spec.side), laws[spec.layer], self.solutions[spec.name], discs[i, b],
+                tips[i], sigma, self.pieces[b].owned_half, laws[spec.layer], self.displacements[b], discs[i, b],
                 values, assembly.thermal_of(scene, spec.layer))
-            if terms is not None:
+            if terms is None:  # the images leave the other half, or the eigenstrain is not symmetric
+                failed[i] += 1
+            else:
                 shares[i] += terms
-                done[i] += 1
-        shares, done = comm.reduce(shares, op=MPI.SUM, root=0), comm.reduce(done, op=MPI.SUM, root=0)
+        shares, failed = comm.reduce(shares, op=MPI.SUM, root=0), comm.reduce(failed, op=MPI.SUM, root=0)
         if not exchange.is_root:
             return None
-        mirrored = [(float(shares[i, 0]), float(shares[i, 1])) if done[i] == len(BLOCKS) else None
+        mirrored = [(float(shares[i, 0]), float(shares[i, 1])) if mirrorable[i] and failed[i] == 0 else None
                     for i in range(len(tips))]
         return fracture.split_modes(tips, mirrored, self.on, scene.nonpenetration, local.half(-1).degree)
 
-    def _at(self, block: int, points: np.ndarray) -> np.ndarray | None:
-        """The led ``block``'s displacements at ``points`` of its half, None if one lies outside it."""
-        try:
-            return analysis.interpolate(self.local.half(BLOCKS[block].side), self.solutions[BLOCKS[block].name],
-                                        points)
-        except DDSolveError:  # the mirror image of the disc leaves the other half
-            return None
-
     def _reactions(self) -> dict[str, dict[str, np.ndarray]] | None:
-        """The reactions on rank 0: each leader its block's support forces, the gluing's ties settled on
-        rank 0 from the Σ entries (:func:`ddsolve.post.reactions.reactions` in one process)."""
-        scene, local, exchange = self.scene, self.local, self.exchange
+        """The reactions on rank 0: every rank the support forces at the nodes it owns, the gluing's ties
+        settled on rank 0 from the Σ entries (:func:`ddsolve.post.reactions.reactions` in one process)."""
+        scene, local, comm = self.scene, self.local, self.exchange.comm
         sigma = local.sigma
         count = 2 * len(sigma.multiplier_nodes)
-        forces, own, positions = {}, {}, {}
-        for b in exchange.led_blocks:
-            half = local.half(BLOCKS[b].side)
+        forces, positions, mine = {}, {}, {}
+        entries, owning = np.zeros((len(BLOCKS), count)), np.zeros((len(BLOCKS), count), dtype=np.int64)
+        for b, piece in self.pieces.items():
+            half = piece.half
+            forces[b], own = reactions.block_forces(scene, half, sigma, b, self.displacements[b], local.sigma_supports)
+            others = np.ones(len(half.points), dtype=bool)
+            others[piece.owned_nodes] = False
+            forces[b][others] = 0.0  # a node's force comes from the rank that owns it
             positions[b] = half.sigma[sigma.multiplier_nodes]
-            forces[b], own[b] = reactions.block_forces(scene, half, sigma, b, self.solutions[BLOCKS[b].name],
-                                                       local.sigma_supports)
-        entries = exchange.gather_varying([np.concatenate([forces[b][positions[b]].ravel(), own[b][positions[b]].ravel()])
-                                           for b in exchange.led_blocks], [2 * count] * len(BLOCKS))
-        tied = None
-        if exchange.is_root:
-            tied = reactions.tie(sigma, [e[:count].reshape(-1, 2) for e in entries],
-                                 [e[count:].reshape(-1, 2) != 0.0 for e in entries])
-        tied = exchange.comm.bcast(tied, root=0)
+            mine[b] = ~others[positions[b]]
+            entries[b], owning[b] = forces[b][positions[b]].ravel(), own[positions[b]].ravel()
+        entries, owning = comm.reduce(entries, op=MPI.SUM, root=0), comm.reduce(owning, op=MPI.SUM, root=0)
+        tied = reactions.tie(sigma, list(entries.reshape(len(BLOCKS), -1, 2)),
+                             list(owning.reshape(len(BLOCKS), -1, 2) > 0)) if self.exchange.is_root else None
+        tied = comm.bcast(tied, root=0)
         parts = []
-        for b in exchange.led_blocks:
-            forces[b][positions[b]] = tied[b]
-            half = local.half(BLOCKS[b].side)
-            parts.append((BLOCKS[b].layer, reactions.boundary_sums(scene, half, sigma, BLOCKS[b].layer, forces[b])))
-        parts = exchange.comm.gather(parts, root=0)
-        return reactions.ordered(scene, [part for mine in parts for part in mine]) if exchange.is_root else None
-
-    @property
-    def held_bytes(self) -> int:
-        """Bytes of the mesh and solution arrays this rank holds at output."""
-        return self.local.nbytes + self.server.held_bytes
+        for b, piece in self.pieces.items():
+            forces[b][positions[b][mine[b]]] = tied[b][mine[b]]
+            parts.append((BLOCKS[b].layer, reactions.boundary_sums(scene, piece.half, sigma, BLOCKS[b].layer,
+                                                                   forces[b])))
+        parts = comm.gather(parts, root=0)
+        return reactions.ordered(scene, [part for ranked in parts for part in ranked]) if self.exchange.is_root else None
 
     def files(self, result: Result | None, output: Path, cell_fields: dict[int, analysis.CellFields]
               ) -> tuple[io.Part, viewer.Distributed]:
-        """This rank's datasets of the result file and its share of the viewer files (``result``: rank 0's;
-        ``cell_fields``: the led blocks', :func:`block_cell_fields`); rank 0 adds the attributes once the
+        """This rank's slabs of the result file and its shares of the viewer files (``result``: rank 0's;
+        ``cell_fields``: of the cells it owns, :func:`block_cell_fields`); rank 0 adds the attributes once the
         launch's timings are complete."""
         local, exchange, comm = self.local, self.exchange, self.exchange.comm
         sigma, nodes = local.sigma, local.sigma.multiplier_nodes
-        written = {side: min(b for b in exchange.led_blocks if BLOCKS[b].side == side)
-                   for side in {BLOCKS[b].side for b in exchange.led_blocks}}  # a half's first led block
         datasets = {}
-        for side in written:
-            datasets.update(io.half_datasets(local.half(side), nodes))
-        held = comm.allgather({side: (local.half(side).sigma, np.ptp(local.half(side).points, axis=0),
-                                      local.half(side).points.min(axis=0)) for side in written})
-        sides = {side: value for mine in held for side, value in mine.items()}
-        low = np.min([corner for _, _, corner in sides.values()], axis=0)
-        high = np.max([corner + extent for _, extent, corner in sides.values()], axis=0)
-        shares, tops, fields = {}, {}, {}
-        for name, u in self.solutions.items():
-            spec = next(spec for spec in BLOCKS if spec.name == name)
-            fields[name] = cell_fields[BLOCKS.index(spec)]
-            datasets.update(io.block_datasets(name, u, fields[name].von_mises, self.indicators[name]))
-            other = BLOCKS[partner(BLOCKS.index(spec))].name
-            glue = viewer.Glue(sides[-1][0], sides[1][0], sigma.crack, local.nodes, local.cells,
-                               self.on.traces[other])
-            shares[spec.layer] = viewer.layer_share(spec.layer, local.half(spec.side), u, fields[name], glue,
-                                                    self.indicators[name])
-            tops[spec.layer] = plots.largest_values(fields[name].von_mises, sum(local.cells.values()))
+        for b, piece in self.pieces.items():  # a half's first block writes its mesh, its leader Σ and boundaries
+            if b == min(c for c, spec in enumerate(BLOCKS) if spec.side == BLOCKS[b].side):
+                datasets.update(io.half_datasets(piece.half, nodes, piece, skeleton=b in exchange.led_blocks))
+        held = comm.allgather({BLOCKS[b].side: (piece.nodes[piece.half.sigma],
+                                                piece.points[piece.owned_nodes].min(axis=0, initial=np.inf),
+                                                piece.points[piece.owned_nodes].max(axis=0, initial=-np.inf))
+                               for b, piece in self.pieces.items()})
+        halves_sigma, low, high = {}, np.full(2, np.inf), np.full(2, -np.inf)
+        for ranked in held:
+            for side, (numbers, lowest, highest) in ranked.items():
+                halves_sigma[side], low, high = numbers, np.minimum(low, lowest), np.maximum(high, highest)
+        shares, tops = {}, {}
+        for b, piece in self.pieces.items():
+            spec, fields = BLOCKS[b], cell_fields[b]
+            u = self.displacements[b][piece.owned_nodes]
+            datasets.update(io.block_datasets(spec.name, u, fields.von_mises, self.indicators[b], piece=piece))
+            glue = viewer.Glue(halves_sigma[-1], halves_sigma[1], sigma.crack, local.nodes, local.cells,
+                               self.on.traces[BLOCKS[partner(b)].name])
+            shares[spec.layer] = viewer.layer_share(spec.layer, spec.side, piece.points[piece.owned_nodes], u,
+                                                    piece.nodes[piece.owned_cells], fields, glue, self.indicators[b],
+                                                    first_node=piece.first, first_cell=piece.cell_first)
+            tops[spec.layer] = plots.largest_values(fields.von_mises, sum(local.cells.values()))
         tops = comm.gather(tops, root=0)
         script = ""
         if exchange.is_root:
@@ -509,9 +506,10 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
     local, exchange, interface, stages, scene = setup.mesh, setup.exchange, setup.interface, setup.stages, setup.scene
     method = scene.solver.method
 
+    distributed = output is not None and not gather and io.parallel_available(comm)
     try:
-        server = BlockServer(setup.blocks, exchange, {index: piece.local_dofs()
-                                                      for index, piece in setup.pieces.items()})
+        server = BlockServer(setup.blocks, exchange, {index: piece.local_dofs() for index, piece in setup.pieces.items()},
+                             gather=not distributed)
         outcome, rounds, failure = run_method(scene, setup, server, progress)
         failure = comm.bcast(failure, root=0)
         if failure is not None:
@@ -529,12 +527,13 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
         if failure is not None and not isinstance(failure, NotConvergedError):
             raise failure
 
-        distributed = output is not None and not gather and io.parallel_available(comm)
         displacements = piece_displacements(setup, server)
-        indicators = block_indicators(setup, displacements)
+        if distributed:  # the output reads the (x, y) copy alone
+            server.piece_values.clear()
+        indicators = block_indicators(setup, displacements, collect=not distributed)
         if distributed:
-            shares = OnRanks(scene, local, exchange, server, interface, outcome.lam if exchange.is_root else None,
-                             indicators, displacements)
+            shares = OnRanks(scene, local, exchange, setup.pieces, interface, outcome.lam if exchange.is_root else None,
+                             indicators, displacements, server.held_bytes)
         else:
             parts = gather_estimate(local, exchange, indicators)
         phases.end("estimate")
