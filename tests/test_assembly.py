@@ -273,3 +273,42 @@ def test_interpolation_is_exact_for_linear_fields_and_errors_vanish_on_the_same_
     fine = structured_mesh(12, 6, shear=0.1).lower
     linear = lambda p: np.column_stack([1 + 2 * p[:, 0] - p[:, 1], 3 * p[:, 1]])  # noqa: E731
     assert np.allclose(interpolate(coarse, linear(coarse.points), fine.points), linear(fine.points), atol=1e-13)
+
+
+@pytest.mark.parametrize("degree", [1, 2])
+def test_a_piece_assembles_the_rows_of_the_whole_half(degree):
+    """The rows a rank owns, assembled on its piece of the half (:mod:`ddsolve.mesh.pieces`: the cells of its
+    nodes and their neighbours, the half's Σ and boundaries) and renumbered, are the whole half's rows: matrix,
+    loads, prescribed displacements, thermal load, trace dofs and energy offset."""
+    from ddsolve.fem import supports
+    from ddsolve.mesh import geometry, pieces
+    from ddsolve.problem import scene as scenes
+
+    source = scenes.load("partial-closure", [
+        "mesh.sigma_vertices=25", "mesh.boundary_vertices=32", f"mesh.degree={degree}", "geometry.clamped=[]",
+        "displacements.layer1.left.x=0.001", "displacements.layer1.left.y=0.0", "displacements.layer1.right.y=0.0",
+        "materials.layer1.alpha=2e-5", "temperature.layer1=50+10*x"])
+    mesh = geometry.build(source)
+    table = supports.sigma_supports(source, mesh)
+    spec = "layer1"
+    D, _ = assembly.elasticity(source, spec)
+
+    def system(on, rows, block):
+        return assembly.block_system("u", on, mesh.sigma, D, assembly.layer_loads(source, spec, on), rows,
+                                     None, supports.block_supports(source, on, mesh.sigma, spec, block, table),
+                                     assembly.thermal_of(source, spec))
+
+    assert assembly.layer_loads(source, spec, mesh.upper)  # the upper half is loaded, the lower one displaced
+    for block, half in enumerate(mesh.halves):
+        for first, last in assembly.row_ranges(len(half.points), 3):
+            whole = system(half, (first, last), block)
+            piece = pieces.cut(half, first // 2, last // 2)
+            owned = piece.owned_nodes
+            mine = assembly.renumbered(system(piece.half, (2 * owned.start, 2 * owned.stop), block), piece.nodes,
+                                       len(half.points))
+            for key in ("indptr", "indices", "trace_dofs"):
+                assert np.array_equal(getattr(mine, key), getattr(whole, key)), key
+            assert (mine.first, mine.size) == (whole.first, whole.size)
+            np.testing.assert_allclose(mine.data, whole.data, rtol=0, atol=1e-13 * np.abs(whole.data).max())
+            np.testing.assert_allclose(mine.rhs, whole.rhs, rtol=0, atol=1e-13 * np.abs(whole.rhs).max())
+            assert mine.energy_offset == pytest.approx(whole.energy_offset, rel=1e-12, abs=1e-15)

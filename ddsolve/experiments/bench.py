@@ -372,11 +372,14 @@ def account_table(records: list[dict]) -> str:
 # --- inside the MPI launch ------------------------------------------------------------------
 def floor_time(scene: scenes.Scene, mesh, comm, package: str) -> float:
     """Wall time for one factorization and one solve of every block, all ranks together."""
+    from ddsolve.fem.supports import sigma_supports
+    from ddsolve.parallel.distribution import whole
     from ddsolve.parallel.exchange import Exchange
-    from ddsolve.solvers.driver import make_blocks
+    from ddsolve.solvers.driver import cut_pieces, make_blocks
 
     exchange = Exchange(comm, 4)
-    blocks = make_blocks(scene, mesh, exchange, package)
+    local = whole(mesh, table=sigma_supports(scene, mesh))
+    blocks = make_blocks(scene, local, exchange, package, cut_pieces(local, exchange))
     comm.Barrier()
     started = time.perf_counter()
     for block in blocks:

@@ -12,6 +12,7 @@ acts on single dofs; :func:`to_global` turns a solution back.  No PETSc or MPI h
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -534,6 +535,18 @@ def block_systems(scene: Scene, mesh: Mesh, which: list[int] | None = None,
         systems.append(block_system(spec.name, half, mesh.sigma, D, layer_loads(scene, spec.layer, half), rows,
                                     patterns[spec.side], prescribed, thermal_of(scene, spec.layer)))
     return systems
+
+
+def renumbered(system: BlockSystem, nodes: np.ndarray, count: int) -> BlockSystem:
+    """A system assembled on a piece of a half (:mod:`ddsolve.mesh.pieces`) in the numbers of the half: the
+    piece's node i is the half's ``nodes[i]`` (ascending, so each row's columns stay in order), the half has
+    ``count`` nodes."""
+    def dofs(local: np.ndarray) -> np.ndarray:
+        return 2 * nodes[local // 2] + local % 2
+
+    return dataclasses.replace(system, indices=dofs(system.indices).astype(index_type(2 * count), copy=False),
+                               trace_dofs=dofs(system.trace_dofs), size=2 * count,
+                               first=int(dofs(np.array([system.first]))[0]))
 
 
 def csr_matvec(system: BlockSystem, x: np.ndarray) -> np.ndarray:

@@ -332,20 +332,24 @@ def hold_blocks(phases: Phases, blocks: list[Block], factored: bool = True) -> N
         phases.hold(what, sum(kinds[what] for kinds in held))
 
 
-def local_systems(scene: Scene, mesh: LocalMesh | Mesh, exchange: Exchange) -> list[assembly.BlockSystem]:
-    """Assemble this rank's blocks (or its rows of the one it shares); blocks of one half share its
-    sparsity pattern."""
-    group = exchange.groups[0]
-    rows = None
-    if group.size > 1:
-        half = mesh.half(BLOCKS[exchange.local_blocks[0]].side)
-        rows = assembly.row_ranges(len(half.points), group.size)[group.rank]
-    return assembly.block_systems(scene, mesh, exchange.local_blocks, rows, getattr(mesh, "sigma_supports", None))
+def local_systems(scene: Scene, mesh: LocalMesh, exchange: Exchange, block_pieces: dict[int, Piece]
+                  ) -> list[assembly.BlockSystem]:
+    """Assemble this rank's blocks, or its rows of the one it shares on its piece of the half (:func:`cut_pieces`);
+    blocks of one half share its sparsity pattern."""
+    if exchange.groups[0].size == 1:
+        return assembly.block_systems(scene, mesh, exchange.local_blocks, None, mesh.sigma_supports)
+    index = exchange.local_blocks[0]
+    piece = block_pieces[index]
+    rows = (2 * piece.owned_nodes.start, 2 * piece.owned_nodes.stop)
+    on_piece = replace(mesh, halves={BLOCKS[index].side: piece.half})
+    return [assembly.renumbered(system, piece.nodes, piece.rows) for system in
+            assembly.block_systems(scene, on_piece, [index], rows, mesh.sigma_supports)]
 
 
-def make_blocks(scene: Scene, mesh: LocalMesh | Mesh, exchange: Exchange, package: str) -> list[Block]:
+def make_blocks(scene: Scene, mesh: LocalMesh, exchange: Exchange, package: str,
+                block_pieces: dict[int, Piece]) -> list[Block]:
     """This rank's blocks as PETSc objects; no assembled array outlives its PETSc matrix."""
-    systems = local_systems(scene, mesh, exchange)
+    systems = local_systems(scene, mesh, exchange, block_pieces)
     blocks = []
     while systems:
         blocks.append(Block(systems.pop(0), comm=PETSc.Comm(exchange.groups[len(blocks)]), factor_package=package))
@@ -364,7 +368,7 @@ def reload(setup: "Setup", scene: Scene) -> None:
             raise error
         whole_mesh = Mesh(local.half(-1), local.half(1), local.sigma, local.origin)
         setup.mesh = replace(local, sigma_supports=supports.sigma_supports(scene, whole_mesh))
-    systems = collective(setup.exchange.comm, lambda: local_systems(scene, setup.mesh, setup.exchange))
+    systems = collective(setup.exchange.comm, lambda: local_systems(scene, setup.mesh, setup.exchange, setup.pieces))
     for block, system in zip(setup.blocks, systems):
         block.system = replace(block.system, rhs=system.rhs)
     setup.phases = Phases()
@@ -399,8 +403,8 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
                            f"{' or '.join(FLOATING_METHODS)}")
         error.collective = True  # every rank knows the supports
         raise error
-    blocks = collective(comm, lambda: make_blocks(scene, local, exchange, FACTOR_PACKAGE[method]))
-    block_pieces = cut_pieces(local, exchange, blocks)
+    block_pieces = cut_pieces(local, exchange)
+    blocks = collective(comm, lambda: make_blocks(scene, local, exchange, FACTOR_PACKAGE[method], block_pieces))
     phases.hold("mesh", local.nbytes + pieces.extra_bytes(block_pieces.values(), local.halves.values()))
     interface = for_mesh(local.sigma, scene.nonpenetration, local.sigma_supports.fixed, assembly.modulus(scene))
     hold_blocks(phases, blocks, factored=False)
@@ -424,12 +428,14 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
     return Setup(local, exchange, blocks, interface, stages, phases, scene, block_pieces)
 
 
-def cut_pieces(local: LocalMesh, exchange: Exchange, blocks: list[Block]) -> dict[int, Piece]:
-    """This rank's piece of the half of each of its blocks: the nodes of its rows (:mod:`ddsolve.mesh.pieces`)."""
+def cut_pieces(local: LocalMesh, exchange: Exchange) -> dict[int, Piece]:
+    """This rank's piece of the half of each of its blocks: the nodes of its rows (:mod:`ddsolve.mesh.pieces`;
+    a block's rows are shared out as :func:`ddsolve.fem.assembly.row_ranges` says)."""
     out = {}
-    for index, block in zip(exchange.local_blocks, blocks):
-        first = block.system.first // 2
-        out[index] = pieces.cut(local.half(BLOCKS[index].side), first, first + len(block.system.rhs) // 2)
+    for index, group in zip(exchange.local_blocks, exchange.groups):
+        half = local.half(BLOCKS[index].side)
+        first, last = assembly.row_ranges(len(half.points), group.size)[group.rank]
+        out[index] = pieces.cut(half, first // 2, last // 2)
     return out
 
 
