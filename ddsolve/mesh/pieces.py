@@ -3,7 +3,9 @@
 The rank of a distributed block that owns the nodes ``first:stop`` of a half owns a contiguous range of
 its cells: as many as have their smallest node below ``stop``, less those below ``first`` — the cells
 whose smallest node lies in the range when the cells are in the order of their smallest node, as
-:func:`~ddsolve.mesh.mesh.make_half` makes them (in any order every cell has one owner).  It works on
+:func:`~ddsolve.mesh.mesh.make_half` makes them.  In any order every cell has one owner; a refined half's
+cells come coarse cell by coarse cell, nearly that order (P = 800: 99.6 % of a rank's cells have their
+smallest node among its nodes, the others lie next to them).  It works on
 those cells, the other cells of its nodes, and ``rings`` layers of neighbours around them all (cells that
 share a node): two rings are what the error estimate's recovery needs at the nodes of the owned cells;
 every owned node has all its cells, so the forces there (the reactions) are whole.  The piece is a
