@@ -206,3 +206,54 @@ def test_bad_radius_is_one_line(tmp_path):
         "ddsolve: error: fracture.outer = 0.7: the θ disc around the crack tip at (-0.5, 0) reaches the outer "
         "boundary (at distance 0.5); θ must vanish there"]
     assert not (tmp_path / "x.h5").exists()
+
+
+def test_faces_without_non_penetration_overlap_rather_than_touch(tmp_path, monkeypatch):
+    """Without non-penetration (the linear problem) the faces pass through each other on the right part of
+    the crack: no contact zone, an overlap zone there instead (negative opening throughout), which the summary
+    and the crack-face picture call an overlap, not contact, and the file keeps; Example 1 touches there."""
+    from matplotlib.figure import Figure
+
+    from ddsolve.post import plots
+
+    linear = solved(scene.load("linear", SMALL))
+    f = linear.fracture
+    assert len(f.zones) == 0 and f.overlap_crack.tolist() == [0]
+    (start, end), = f.overlaps
+    arc = linear.mesh.sigma.arclength[linear.multiplier_nodes]
+    inside = (arc >= start) & (arc <= end)
+    assert inside.sum() > 3 and np.all(linear.on_sigma.opening[inside] < 0.0)
+    text = "\n".join(f.lines())
+    assert "in contact" not in text
+    assert f"crack faces overlap (no non-penetration condition; arc length along Σ): [{start:.4g}, {end:.4g}] on " \
+           "crack 0" in text
+    linear.save(tmp_path / "linear.h5")
+    back = io.read(tmp_path / "linear.h5").fracture
+    np.testing.assert_array_equal(back.overlaps, f.overlaps)
+    assert len(back.zones) == 0 and back.overlap_crack.tolist() == [0]
+    saved = []
+    monkeypatch.setattr(Figure, "savefig", lambda figure, *args, **kwargs: saved.append(figure))
+    plots.crack_faces(linear, tmp_path / "faces.png")
+    label = saved[-1].axes[-1].get_xlabel()
+    assert "orange: faces overlap" in label and "contact" not in label
+
+    closed = solved(scene.load("partial-closure", SMALL))
+    contact = closed.fracture
+    assert len(contact.zones) == 1 and len(contact.overlaps) == 0
+    assert "crack faces in contact" in contact.lines()[-1] and "overlap" not in "\n".join(contact.lines())
+    plots.crack_faces(closed, tmp_path / "contact.png")
+    assert "red: faces in contact" in saved[-1].axes[-1].get_xlabel()
+
+
+@pytest.mark.mpi
+def test_two_ranks_say_where_free_faces_overlap(tmp_path):
+    """``solve -n 2 linear``: the summary says where the faces overlap and claims no contact; the file written
+    by the ranks holds the reference's overlap zone and no contact zone."""
+    sets = [part for item in SMALL for part in ("--set", item)]
+    run = ddsolve("solve", "linear", *sets, "-o", str(tmp_path / "dd.h5"), ranks=2)
+    dd = io.read(tmp_path / "dd.h5").fracture
+    exact = solved(scene.load("linear", SMALL)).fracture
+    assert "crack faces in contact" not in run.stdout
+    assert run.stdout.count("crack faces overlap (no non-penetration condition; arc length along Σ)") == 1
+    assert len(dd.zones) == 0 and dd.overlap_crack.tolist() == exact.overlap_crack.tolist() == [0]
+    np.testing.assert_allclose(dd.overlaps, exact.overlaps, rtol=1e-12)

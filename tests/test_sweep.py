@@ -114,6 +114,17 @@ def test_geometry_sweep_remeshes(tmp_path):
 
 
 @pytest.mark.mpi
+def test_a_sweep_without_non_penetration_records_overlaps_not_contact(tmp_path):
+    """The linear problem's faces overlap on the right part of the crack in every run: overlap zones, no
+    contact zones."""
+    out = tmp_path / "linear.h5"
+    ddsolve("sweep", "linear", *SMALL, "--set", "materials.layer2.E=100:200:2", "-o", str(out), ranks=2)
+    data = sweep.read(out)
+    assert data["contact_zones/run"].size == 0 and data["overlap_zones/run"].tolist() == [0, 1]
+    assert np.all(data["overlap_zones/start"] < data["overlap_zones/end"])
+
+
+@pytest.mark.mpi
 def test_a_failed_run_is_recorded_and_the_sweep_goes_on(tmp_path):
     out = tmp_path / "short.h5"
     run = ddsolve("sweep", "partial-closure", *SMALL, "--set", "solver.method=uzawa",

@@ -51,11 +51,14 @@ def gallery() -> None:
 
 
 def section(name: str, description: str, result, scale: float, constraints) -> str:
-    from ddsolve.post.analysis import along_sigma, contact_zones, normal_jump
+    from ddsolve.post.analysis import along_sigma, contact_zones, normal_jump, overlap_zones
 
     position, axis = along_sigma(result)
     crack = result.crack
-    zones = ", ".join(f"[{position[a]:.2f}, {position[b]:.2f}]" for a, b in contact_zones(result)) or "none"
+    touching = result.parsed_scene.nonpenetration
+    zones = ", ".join(f"[{position[a]:.2f}, {position[b]:.2f}]"
+                      for a, b in (contact_zones if touching else overlap_zones)(result)) or "none"
+    faces = f"faces in contact on {zones}" if touching else f"no non-penetration: faces overlap on {zones}"
     unknowns = 4 * (len(result.lower.points) + len(result.upper.points))
     opening = normal_jump(result)[crack].max(initial=0.0)
     return "\n".join([
@@ -68,7 +71,7 @@ def section(name: str, description: str, result, scale: float, constraints) -> s
         "",
         f"`./run solve -n 4 {name}`: {unknowns:,} unknowns (P{result.mesh.degree}), {result.solves} rounds of block "
         f"solves, {result.wall_time:.2f} s solve phase; total potential energy {result.attrs['energy']:.4e}; "
-        f"largest crack opening {opening:.3e}; faces in contact on {zones} ({axis}); max penetration "
+        f"largest crack opening {opening:.3e}; {faces} ({axis}); max penetration "
         f"{constraints.penetration:.1e} and max gluing gap {constraints.gluing_gap:.1e} relative to max |u| = "
         f"{constraints.max_displacement:.3e}. Displacements drawn ×{scale:g}.",
     ])

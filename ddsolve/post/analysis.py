@@ -424,12 +424,25 @@ def along_sigma(result: Result) -> tuple[np.ndarray, str]:
     return result.mesh.sigma.arclength[result.multiplier_nodes], "arc length along Σ"
 
 
-def contact_zones(result: Result | OnSigma, tolerance: float = 1e-9) -> list[tuple[int, int]]:
+#: Openings within this fraction of max |u| of zero: the crack faces touch (a negative one beyond it: they overlap).
+TOUCHING = 1e-9
+
+
+def contact_zones(result: Result | OnSigma, tolerance: float = TOUCHING) -> list[tuple[int, int]]:
     """Runs ``[first, last]`` of multiplier nodes where the crack faces touch: crack nodes that carry a
     contact pressure μᶜ > 0 (every method leaves it exactly 0 where the faces are apart, the reference
     too) or whose opening [u]·ν is at most ``tolerance`` × max |u| (faces touching without pressure).  An
-    iterative method's openings where the faces press are its tolerance, not 0: μᶜ decides there."""
+    iterative method's openings where the faces press are its tolerance, not 0: μᶜ decides there.
+    Meaningful with non-penetration only: without it the faces do not touch but pass through each other
+    (:func:`overlap_zones`)."""
     on = result.on_sigma if isinstance(result, Result) else result
     pressed = on.multipliers["mu_c"] > 0.0
     touching = on.sigma.crack[on.sigma.multiplier_nodes] & ((on.opening <= tolerance * on.largest) | pressed)
     return on.sigma.pieces(touching)
+
+
+def overlap_zones(result: Result | OnSigma, tolerance: float = TOUCHING) -> list[tuple[int, int]]:
+    """Runs ``[first, last]`` of multiplier nodes where the crack faces overlap: crack nodes whose opening
+    [u]·ν is below −``tolerance`` × max |u|.  What a scene without non-penetration has instead of contact."""
+    on = result.on_sigma if isinstance(result, Result) else result
+    return on.sigma.pieces(on.sigma.crack[on.sigma.multiplier_nodes] & (on.opening < -tolerance * on.largest))

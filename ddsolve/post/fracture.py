@@ -42,6 +42,7 @@ from ddsolve.mesh import element
 from ddsolve.mesh.mesh import BLOCKS, SIGMA, HalfMesh, Mesh, SigmaLine, partner
 from ddsolve.post.result import Fracture, OnSigma
 from ddsolve.post.toughness import judge
+from ddsolve.problem.scene import Scene
 
 #: Σ turns by more than this between two edges at a kink (a smooth curve turns by h·κ per edge).
 KINK_DEGREES = 10.0
@@ -264,13 +265,14 @@ def contact_terms(tips: list[Tip], on: OnSigma) -> np.ndarray:
     return out
 
 
-def finish(tips: list[Tip], volume: np.ndarray, on: OnSigma, split: dict[str, np.ndarray] | None = None,
-           scene=None, factors: np.ndarray | None = None) -> Fracture:
-    """G = volume terms − contact terms, and the contact zones, from the Σ data ``on`` of a result
+def finish(tips: list[Tip], volume: np.ndarray, on: OnSigma, split: dict[str, np.ndarray] | None, scene: Scene,
+           factors: np.ndarray | None = None) -> Fracture:
+    """G = volume terms − contact terms, and the contact zones (without the ``scene``'s non-penetration: the
+    zones where the faces overlap), from the Σ data ``on`` of a result
     (:attr:`ddsolve.post.result.Result.on_sigma`); ``split``: G's split into modes I and II
-    (:func:`mode_split`), or none; with the ``scene``, its toughness and the critical load factors
+    (:func:`mode_split`), or none; the scene's toughness and the critical load factors
     (``factors`` where a root solve found them: :func:`ddsolve.post.toughness.judge`)."""
-    from ddsolve.post.analysis import contact_zones
+    from ddsolve.post.analysis import contact_zones, overlap_zones
 
     contact = contact_terms(tips, on)
     sigma = on.sigma
@@ -278,19 +280,25 @@ def finish(tips: list[Tip], volume: np.ndarray, on: OnSigma, split: dict[str, np
     for index, (first, last) in enumerate(sigma.pieces(sigma.crack)):
         crack_of[first:last + 1] = index
     nodes = sigma.multiplier_nodes
-    runs = np.array(contact_zones(on), dtype=np.int64).reshape(-1, 2)
     arc = sigma.arclength[nodes]
+
+    def located(runs: list[tuple[int, int]]) -> tuple[np.ndarray, np.ndarray]:
+        """Runs of multiplier nodes as arc length ``(z, 2)`` and the crack of each ``(z,)``."""
+        runs = np.array(runs, dtype=np.int64).reshape(-1, 2)
+        return arc[runs].reshape(-1, 2), crack_of[nodes[runs[:, 0]]].astype(np.int64)
+
+    zones, zone_crack = located(contact_zones(on) if scene.nonpenetration else [])
+    overlaps, overlap_crack = located([] if scene.nonpenetration else overlap_zones(on))
     G = np.asarray(volume, dtype=np.float64) - contact
     out = Fracture(
         points=np.array([tip.point for tip in tips]).reshape(-1, 2),
         directions=np.array([tip.direction for tip in tips]).reshape(-1, 2),
         crack=np.array([tip.crack for tip in tips], dtype=np.int64),
         inner=np.array([tip.inner for tip in tips]), outer=np.array([tip.outer for tip in tips]),
-        spacing=np.array([tip.spacing for tip in tips]), G=G, contact=contact,
-        zones=arc[runs].reshape(-1, 2), zone_crack=crack_of[nodes[runs[:, 0]]] if len(runs) else np.zeros(0, np.int64),
-        **(split or {}),
+        spacing=np.array([tip.spacing for tip in tips]), G=G, contact=contact, zones=zones, zone_crack=zone_crack,
+        overlaps=overlaps, overlap_crack=overlap_crack, **(split or {}),
     )
-    return out if scene is None else judge(out, scene, factors)
+    return judge(out, scene, factors)
 
 
 def of_result(result, tips: list[Tip], factors: np.ndarray | None = None) -> Fracture:

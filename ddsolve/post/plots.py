@@ -157,7 +157,8 @@ def interface_jumps(results: list[tuple[str, Result]], path: Path) -> None:
 
 def crack_faces(result: Result, path: Path) -> None:
     """Along Σ: the opening [u]·ν of layer 1 and the contact pressure μᶜ, cracks shaded; with the result's
-    fracture data, the contact zones shaded red and G with its split into modes written at each crack tip."""
+    fracture data, the contact zones shaded red (without non-penetration: where the faces overlap, orange) and
+    G with its split into modes written at each crack tip."""
     plt = _pyplot()
     position, axis_label = along_sigma(result)
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 5.5), sharex=True, constrained_layout=True)
@@ -168,17 +169,19 @@ def crack_faces(result: Result, path: Path) -> None:
             ax.axvspan(position[max(first - 1, 0)], position[min(last + 1, len(position) - 1)], color="0.9")
     shading = "shaded: cracks"
     fracture = result.fracture
-    if fracture is not None:  # contact zones and G at the tips
+    if fracture is not None:  # contact (or overlap) zones and G at the tips
         arc = result.mesh.sigma.arclength[result.multiplier_nodes]
-        for start, end in fracture.zones:
-            first, last = np.interp([start, end], arc, position)
-            for ax in (top, bottom):
-                if last > first:
-                    ax.axvspan(first, last, color="tab:red", alpha=0.15, linewidth=0)
-                else:  # a zone of one node: a line, which a span of no width would not show
-                    ax.axvline(first, color="tab:red", alpha=0.4, linewidth=2)
-        if len(fracture.zones):
-            shading += "; red: faces in contact"
+        for zones, colour, words in ((fracture.zones, "tab:red", "red: faces in contact"),
+                                     (fracture.overlaps, "tab:orange", "orange: faces overlap")):
+            for start, end in zones:
+                first, last = np.interp([start, end], arc, position)
+                for ax in (top, bottom):
+                    if last > first:
+                        ax.axvspan(first, last, color=colour, alpha=0.15, linewidth=0)
+                    else:  # a zone of one node: a line, which a span of no width would not show
+                        ax.axvline(first, color=colour, alpha=0.4, linewidth=2)
+            if len(zones):
+                shading += f"; {words}"
         for point, text in zip(fracture.points, tip_labels(fracture)):
             nearest = int(np.argmin(np.linalg.norm(result.interface_points - point, axis=1)))
             top.axvline(position[nearest], color="0.4", linestyle=":", linewidth=0.8)

@@ -80,7 +80,8 @@ class Result:
 
     @property
     def contact_zones(self) -> np.ndarray:
-        """``(zones, 2)``: where the crack faces touch, as arc length along Σ from its first node."""
+        """``(zones, 2)``: where the crack faces touch, as arc length along Σ from its first node (none
+        without non-penetration: see :attr:`Fracture.overlaps`)."""
         return self.fracture.zones if self.fracture is not None else np.zeros((0, 2))
 
     def save(self, path: str | Path, viewer: str = "vtu") -> list[Path]:
@@ -194,7 +195,9 @@ class Fracture:
     grow (inf: never), both NaN without a toughness or in files written before them
     (:mod:`ddsolve.post.toughness`).
     Contact zones: ``zones`` ``(z, 2)`` as arc length along Σ from its first node (first and last
-    touching node), ``zone_crack`` the crack of each.
+    touching node), ``zone_crack`` the crack of each; with non-penetration only.  Without it the faces do
+    not touch but may overlap: ``overlaps`` ``(o, 2)`` and ``overlap_crack`` the same for the runs of
+    overlapping nodes (empty with non-penetration, and in files written before them).
     """
 
     points: np.ndarray
@@ -213,6 +216,8 @@ class Fracture:
     symmetric: np.ndarray | None = None
     toughness: np.ndarray | None = None
     critical_factor: np.ndarray | None = None
+    overlaps: np.ndarray | None = None
+    overlap_crack: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         count = len(self.G)
@@ -221,6 +226,10 @@ class Fracture:
                 setattr(self, name, np.full(count, np.nan))
         if self.symmetric is None:
             self.symmetric = np.zeros(count, dtype=bool)
+        if self.overlaps is None:
+            self.overlaps = np.zeros((0, 2))
+        if self.overlap_crack is None:
+            self.overlap_crack = np.zeros(0, dtype=np.int64)
 
     def modes(self) -> list[str]:
         """Per tip: «(G_I ..., G_II ..., ψ = ...°)», with «by crack closure» where not split by symmetry and
@@ -256,7 +265,8 @@ class Fracture:
         return [parts(*values) for values in zip(self.G, self.toughness, self.critical_factor)]
 
     def lines(self) -> list[str]:
-        """One line per tip and one for the contact zones, as printed after a solve."""
+        """One line per tip and one for the contact zones (without non-penetration: where the faces overlap),
+        as printed after a solve."""
         lines = []
         for (x, y), c, g, a, b, h, modes, growth in zip(self.points, self.crack, self.G, self.inner, self.outer,
                                                          self.spacing, self.modes(), self.growth()):
@@ -264,7 +274,10 @@ class Fracture:
                 if a < FEW_ELEMENTS * h else ""
             lines.append(f"G at tip ({x:.6g}, {y:.6g}) of crack {c}: {g:.6e}{' ' * bool(modes)}{modes}"
                          f"{'; ' * bool(growth)}{growth}   (θ radii {a:.4g}, {b:.4g}{note})")
-        if np.size(self.zone_crack):
-            lines.append("crack faces in contact (arc length along Σ): " + ", ".join(
-                f"[{a:.4g}, {b:.4g}] on crack {c}" for (a, b), c in zip(self.zones, self.zone_crack)))
+        for title, zones, cracks in (("crack faces in contact (arc length along Σ): ", self.zones, self.zone_crack),
+                                     ("crack faces overlap (no non-penetration condition; arc length along Σ): ",
+                                      self.overlaps, self.overlap_crack)):
+            if np.size(cracks):
+                lines.append(title + ", ".join(
+                    f"[{a:.4g}, {b:.4g}] on crack {c}" for (a, b), c in zip(zones, cracks)))
         return lines

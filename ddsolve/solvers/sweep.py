@@ -31,7 +31,7 @@ T the most tips of a run, padded with NaN or −1):
   the critical load factor (ddsolve.post.toughness; NaN without a toughness, and for a scene with a
   temperature change, whose factors need a root solve per run);
 - ``contact_zones/run``, ``start``, ``end``, ``crack`` (Z,): every contact zone of every run, as arc
-  length along Σ.
+  length along Σ; ``overlap_zones/...`` the same where the faces overlap (a scene without non-penetration).
 """
 from __future__ import annotations
 
@@ -409,13 +409,15 @@ def _write(path: Path, header: dict, records: list[dict]) -> None:
                 f[f"tips/{field}"] = tips(field)
             f["tips/points"] = tips("points", (2,))
             f["tips/directions"] = tips("directions", (2,))
-            zones = [(i, start, end, crack) for i, r in enumerate(records) if r["fracture"] is not None
-                     for (start, end), crack in zip(r["fracture"].zones, r["fracture"].zone_crack)]
-            columns = np.array(zones, dtype=np.float64).reshape(-1, 4)
-            f["contact_zones/run"] = columns[:, 0].astype(np.int64)
-            f["contact_zones/start"] = columns[:, 1]
-            f["contact_zones/end"] = columns[:, 2]
-            f["contact_zones/crack"] = columns[:, 3].astype(np.int64)
+            for group, spans, cracks in (("contact_zones", "zones", "zone_crack"),
+                                         ("overlap_zones", "overlaps", "overlap_crack")):
+                zones = [(i, start, end, crack) for i, r in enumerate(records) if r["fracture"] is not None
+                         for (start, end), crack in zip(getattr(r["fracture"], spans), getattr(r["fracture"], cracks))]
+                columns = np.array(zones, dtype=np.float64).reshape(-1, 4)
+                f[f"{group}/run"] = columns[:, 0].astype(np.int64)
+                f[f"{group}/start"] = columns[:, 1]
+                f[f"{group}/end"] = columns[:, 2]
+                f[f"{group}/crack"] = columns[:, 3].astype(np.int64)
 
     atomic(path, write, final=True)
 
