@@ -16,6 +16,8 @@ from ddsolve.problem import scene
 from ddsolve.solvers import reference
 
 GRADED_P2 = ["mesh.degree=2", "mesh.size=0.1", "mesh.grading=true"]
+#: What the summary and the pictures say of ψ at a tip with G ≈ 0.
+UNDEFINED = "ψ undefined: G ≈ 0"
 
 #: A strip 20 × 2 clamped at its right end, two identical layers, an edge crack of length 6 along the
 #: mid-plane; the end face of the cracked end carries LOAD (both layers).
@@ -148,6 +150,46 @@ def test_written_read_and_printed(tmp_path):
     assert np.isnan(old.G_I).all() and np.isnan(old.phase).all() and not old.symmetric.any()
     line = result.fracture.lines()[0]
     assert "G_I" in line and "G_II" in line and "ψ = " in line
+
+
+def test_a_tip_that_releases_nothing_has_no_phase_angle(tmp_path):
+    """Example 1's closed tip has G ≈ 0 (below 1e-6 of the open tip's): its G_I and G_II are noise, whose signs
+    made ψ 0° or 90° (as on the graded meshes: G_II = ±1e-16); ψ is NaN whatever they are, in the file too,
+    and the summary and the picture say «ψ undefined: G ≈ 0», never «nan»; the open tip keeps its ψ."""
+    from ddsolve.post import plots
+
+    source = scene.load("partial-closure", ["mesh.sigma_vertices=25", "mesh.boundary_vertices=48"])
+    result = solved(source)
+    f = result.fracture
+    assert f.G[1] <= 1e-6 * f.G[0]
+    assert np.isfinite(f.phase[0]) and np.isnan(f.phase[1])
+    assert f.released().tolist() == [True, False]
+    tips = fracture.find_tips(result.mesh)
+    for noise, angle in ((1.5e-16, 90.0), (-1.5e-16, 0.0)):
+        split = fracture.split_modes(tips, [(f.G_I[0], f.G_II[0]), (0.0, noise)], result.on_sigma, True, 1)
+        assert split["phase"][1] == angle  # the angle of two noises
+        again = fracture.finish(tips, f.G + f.contact, result.on_sigma, split, source)
+        assert np.isnan(again.phase[1]) and again.phase[0] == f.phase[0]
+    lines = f.lines()
+    assert "ψ = " in lines[0] and f"G_II {f.G_II[1]:.3e}, {UNDEFINED})" in lines[1]
+    labels = plots.tip_labels(f)
+    assert "ψ " in labels[0] and labels[1].endswith(UNDEFINED)
+    assert not any("nan" in text for text in lines + labels)
+    result.save(tmp_path / "r.h5")
+    np.testing.assert_array_equal(io.read(tmp_path / "r.h5").fracture.phase, f.phase)
+
+
+@pytest.mark.mpi
+def test_two_ranks_print_and_write_no_phase_at_a_closed_tip(tmp_path):
+    """``solve -n 2 partial-closure``: the closed tip's line says «ψ undefined: G ≈ 0», its ψ in the file
+    written by the ranks is NaN; the open tip's ψ is printed and stored."""
+    output = tmp_path / "r.h5"
+    run = ddsolve("solve", "partial-closure", "--set", "mesh.sigma_vertices=25", "--set",
+                  "mesh.boundary_vertices=48", "-o", str(output), ranks=2)
+    tips = [line for line in run.stdout.splitlines() if line.startswith("G at tip")]
+    assert len(tips) == 2 and "ψ = 0.0°" in tips[0] and UNDEFINED in tips[1] and "nan" not in run.stdout
+    phase = io.read(output).fracture.phase
+    assert np.isfinite(phase[0]) and np.isnan(phase[1])
 
 
 @pytest.mark.mpi

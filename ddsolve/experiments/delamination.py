@@ -674,10 +674,11 @@ def text(record: dict) -> str:
             ratio = row["G_I"] / row["G_II"]
             corrected = row["corrected_I"] / row["corrected_II"]
             composite = row["wang_williams_I"] / row["wang_williams_II"]
+            phase = f"{row['phase']:.1f}°" if np.isfinite(row["phase"]) else "undefined"  # NaN: G ≈ 0
             out.append(f"| {layers} | {row['c'] / row['L']:g} | {row['G_I']:.4e} | {row['G_II']:.4e} | {ratio:.4f} | "
                        f"{row['simple_I'] / row['simple_II']:.4f} | {corrected:.4f} | "
                        f"{_percent(ratio / corrected - 1)} | {composite:.4f} | {_percent(ratio / composite - 1)} | "
-                       f"{row['phase']:.1f}° |")
+                       f"{phase} |")
     out += ["", "### Mesh convergence", "",
             f"The a = 6 cases of identical layers at `mesh.size = {SIZE:g}` and {FINE_SIZE:g}:", "",
             f"| specimen | G, size {SIZE:g} | G, size {FINE_SIZE:g} | change | unknowns | (G_I + G_II)/G − 1, "

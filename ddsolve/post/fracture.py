@@ -270,7 +270,8 @@ def finish(tips: list[Tip], volume: np.ndarray, on: OnSigma, split: dict[str, np
     """G = volume terms − contact terms, and the contact zones (without the ``scene``'s non-penetration: the
     zones where the faces overlap), from the Σ data ``on`` of a result
     (:attr:`ddsolve.post.result.Result.on_sigma`); ``split``: G's split into modes I and II
-    (:func:`mode_split`), or none; the scene's toughness and the critical load factors
+    (:func:`mode_split`), or none, its ψ left undefined (NaN) where G is no release rate
+    (:meth:`~ddsolve.post.result.Fracture.released`); the scene's toughness and the critical load factors
     (``factors`` where a root solve found them: :func:`ddsolve.post.toughness.judge`)."""
     from ddsolve.post.analysis import contact_zones, overlap_zones
 
@@ -298,6 +299,7 @@ def finish(tips: list[Tip], volume: np.ndarray, on: OnSigma, split: dict[str, np
         spacing=np.array([tip.spacing for tip in tips]), G=G, contact=contact, zones=zones, zone_crack=zone_crack,
         overlaps=overlaps, overlap_crack=overlap_crack, **(split or {}),
     )
+    out.phase = np.where(out.released(), out.phase, np.nan)
     return judge(out, scene, factors)
 
 
@@ -338,7 +340,8 @@ def mode_split(tips: list[Tip], result) -> dict[str, np.ndarray]:
     behind it (:func:`closure_split`).  A tip whose faces touch at the first crack node behind it
     (non-penetration holds there) has G_I = 0.  ψ = atan2(s_II √G_II, s_I √G_I), s_I the sign of the
     opening and s_II that of the sliding behind the tip in its frame (x along the extension, y turned
-    90° counter-clockwise from it): atan(√(G_II/G_I)) signed like K_II/K_I.
+    90° counter-clockwise from it): atan(√(G_II/G_I)) signed like K_II/K_I.  :func:`finish` leaves ψ
+    undefined (NaN) at a tip whose G is no release rate: there G_I and G_II are noise, and so is their angle.
     """
     result = disc_result(result, tips)
     return split_modes(tips, [mirror_split(tip, result) for tip in tips], result.on_sigma,

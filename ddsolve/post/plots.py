@@ -14,7 +14,7 @@ import numpy as np
 
 from ddsolve.mesh.mesh import BLOCKS
 from ddsolve.post.analysis import along_sigma, layer_stresses, normal_jump
-from ddsolve.post.result import SPLIT_DRIFT
+from ddsolve.post.result import NO_PHASE, SPLIT_DRIFT
 
 if TYPE_CHECKING:
     from ddsolve.post.result import Result
@@ -201,13 +201,15 @@ def crack_faces(result: Result, path: Path) -> None:
 
 
 def tip_labels(fracture) -> list[str]:
-    """Per tip, what the crack-face picture writes at it: G and, where split, G_I, G_II, ψ (and how far their
-    sum misses G when the split is not resolved), short enough to stand beside the tip's line."""
+    """Per tip, what the crack-face picture writes at it: G and, where split, G_I, G_II, ψ (NO_PHASE where
+    undefined; and how far their sum misses G when the split is not resolved), short enough to stand beside
+    the tip's line."""
     labels = []
     for g, g1, g2, psi, drift in zip(fracture.G, fracture.G_I, fracture.G_II, fracture.phase, fracture.split_drift()):
         lines = [f"G = {g:.3e}"]
         if not np.isnan(g1):  # older results have no split
-            lines.append(f"G_I {g1:.2e}, G_II {g2:.2e}, ψ {psi:.1f}°")
+            split = f"G_I {g1:.2e}, G_II {g2:.2e}"
+            lines += [f"{split}, ψ {psi:.1f}°"] if np.isfinite(psi) else [split, NO_PHASE]  # a line of its own
             if abs(drift) > SPLIT_DRIFT:
                 lines.append(f"G_I + G_II off G by {drift:+.0%}")
         labels.append("\n".join(lines))

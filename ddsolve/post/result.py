@@ -179,6 +179,11 @@ class OnSigma:
 FEW_ELEMENTS = 2.0
 #: G_I + G_II further than this from G (relative): the split is printed with a warning.
 SPLIT_DRIFT = 0.05
+#: G at most this fraction of the largest |G| of the scene's tips is no release rate: zero up to rounding and
+#: the discretization error of a closed tip.  Such a tip has no mode mix (ψ NaN) and no split drift.
+RELEASE = 1e-6
+#: What the summary says of ψ at a tip that is no release rate.
+NO_PHASE = "ψ undefined: G ≈ 0"
 
 
 @dataclass
@@ -188,8 +193,9 @@ class Fracture:
     Tips: ``points``, ``directions`` (unit, away from the crack), ``crack`` (index), ``inner`` and
     ``outer`` radii, ``spacing`` (the mean length of the Σ edges at the tip), ``G`` and its part
     ``contact`` from the turning normals (zero on a straight Σ); its split into opening ``G_I`` and
-    sliding ``G_II``, the phase angle ``phase`` ψ = atan(√(G_II/G_I)) in degrees, signed as K_II/K_I,
-    and ``symmetric``: split by the mirror symmetry about Σ (else by virtual crack closure; see
+    sliding ``G_II``, the phase angle ``phase`` ψ = atan(√(G_II/G_I)) in degrees, signed as K_II/K_I
+    (NaN where G is no release rate, :meth:`released`: a tip at G ≈ 0 has no mode mix), and ``symmetric``:
+    split by the mirror symmetry about Σ (else by virtual crack closure; see
     :func:`ddsolve.post.fracture.mode_split`).  Results written before the split have NaN there.
     ``toughness``: G_c at every tip, and ``critical_factor``: the load factor at which the tip starts to
     grow (inf: never), both NaN without a toughness or in files written before them
@@ -231,25 +237,29 @@ class Fracture:
         if self.overlap_crack is None:
             self.overlap_crack = np.zeros(0, dtype=np.int64)
 
+    def released(self) -> np.ndarray:
+        """Per tip whether G is a release rate: above RELEASE × the largest |G| of the tips."""
+        G = np.asarray(self.G, dtype=float)
+        return G > RELEASE * np.abs(G).max(initial=0.0)
+
     def modes(self) -> list[str]:
-        """Per tip: «(G_I ..., G_II ..., ψ = ...°)», with «by crack closure» where not split by symmetry and
-        a warning where G_I + G_II is more than SPLIT_DRIFT off G (:meth:`split_drift`); empty where there is
-        no split (a result written before it)."""
+        """Per tip: «(G_I ..., G_II ..., ψ = ...°)» (NO_PHASE where ψ is NaN), with «by crack closure» where
+        not split by symmetry and a warning where G_I + G_II is more than SPLIT_DRIFT off G
+        (:meth:`split_drift`); empty where there is no split (a result written before it)."""
         def warning(drift: float) -> str:
             return (f"; G_I + G_II is {drift:+.0%} off G: the split is not resolved, refine near this tip"
                     if abs(drift) > SPLIT_DRIFT else "")
 
         return ["" if np.isnan(g1) else
-                f"(G_I {g1:.3e}, G_II {g2:.3e}, ψ = {psi:.1f}°{'' if by_symmetry else ', by crack closure'}"
-                f"{warning(drift)})"
+                f"(G_I {g1:.3e}, G_II {g2:.3e}, {f'ψ = {psi:.1f}°' if np.isfinite(psi) else NO_PHASE}"
+                f"{'' if by_symmetry else ', by crack closure'}{warning(drift)})"
                 for g1, g2, psi, by_symmetry, drift in zip(self.G_I, self.G_II, self.phase, self.symmetric,
                                                            self.split_drift())]
 
     def split_drift(self) -> np.ndarray:
-        """Per tip (G_I + G_II)/G − 1, where G is a release rate (above 10⁻⁶ of the largest); 0 elsewhere."""
+        """Per tip (G_I + G_II)/G − 1, where G is a release rate (:meth:`released`); 0 elsewhere."""
         G = np.asarray(self.G, dtype=float)
-        largest = np.abs(G).max(initial=0.0)
-        released = (G > 1e-6 * largest) & np.isfinite(self.G_I) & np.isfinite(self.G_II)
+        released = self.released() & np.isfinite(self.G_I) & np.isfinite(self.G_II)
         return np.where(released, (np.asarray(self.G_I) + np.asarray(self.G_II)) / np.where(released, G, 1.0) - 1.0,
                         0.0)
 

@@ -38,7 +38,7 @@ def law(options: FractureOptions, crack: np.ndarray, G: np.ndarray, G_II: np.nda
         ) -> np.ndarray:
     """G_c of the toughness ``options`` at tips of cracks ``crack`` with G, G_II and the phase angle ψ
     (degrees); NaN where no toughness is given, or where the law needs a mode mix G does not define
-    (Benzeggagh–Kenane at G ≤ 0)."""
+    (Benzeggagh–Kenane at G ≤ 0, Hutchinson–Suo where ψ is undefined: NaN at G ≈ 0)."""
     crack, G = np.asarray(crack, dtype=np.int64), np.asarray(G, dtype=np.float64)
     if options.toughness is not None:
         if not isinstance(options.toughness, tuple):
