@@ -147,10 +147,21 @@ def test_eight_ranks_split_every_block_over_two(tmp_path, method, options):
     assert len(memory["rank_mesh_bytes"]) == 8
     assert np.all(memory["rank_mesh_bytes"] <= 0.55 * memory["whole_mesh_bytes"])
     assert np.all(memory["rank_mesh_bytes"] > 0.45 * memory["whole_mesh_bytes"])
-    # ... and of its block's solution, at output, its piece: no rank gathers a block's (8 bytes per unknown)
+
+
+@pytest.mark.mpi
+def test_at_eight_ranks_no_rank_holds_its_block_solution_at_output(tmp_path):
+    """Each rank of a block holds the last solve on its piece of the half (its nodes, two rings of cells, Σ and
+    the boundaries) for the output, and writes its rows: no rank gathers a block's solution (8 bytes per
+    unknown), none holds more than 60 % of it."""
+    output = tmp_path / "eight.h5"
+    ddsolve("solve", "partial-closure", "--set", "mesh.sigma_vertices=200", "--set", "mesh.boundary_vertices=256",
+            "-o", str(output), ranks=8)
+    memory = io.read(output).memory
     block_unknowns = memory["rank_unknowns"].reshape(4, 2).sum(axis=1).repeat(2)
     solutions = memory["held_mb_output"][:, list(memory["held"]).index("solutions")] * 2 ** 20
     assert np.all(solutions <= 0.6 * 8 * block_unknowns), solutions / (8 * block_unknowns)
+    assert np.all(solutions >= 0.5 * 8 * block_unknowns)  # half the nodes each, and the rings
 
 
 @pytest.mark.mpi
