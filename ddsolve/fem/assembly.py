@@ -21,7 +21,7 @@ from ddsolve.errors import SceneError
 from ddsolve.fem import supports
 from ddsolve.mesh.element import (TRIANGLE_RULES, edge_points, edge_shapes, element_geometry, field_gradients,
                                   gauss_interval, shape_functions)
-from ddsolve.mesh.mesh import BLOCKS, HalfMesh, Mesh, SigmaLine
+from ddsolve.mesh.mesh import BLOCKS, HalfMesh, Mesh, SigmaLine, index_type
 from ddsolve.problem import materials
 from ddsolve.problem.expressions import Expression
 from ddsolve.problem.scene import LAYERS, Load, Scene
@@ -304,11 +304,6 @@ class Pattern:
 
 #: Element-matrix entries computed at once (32 MB of them): assembly's memory does not grow with the mesh.
 ELEMENT_ENTRIES = 2 ** 22
-
-
-def index_type(largest: int):
-    """int32 when every index fits (half the memory; what PETSc uses unless built for 64-bit), else int64."""
-    return np.int32 if largest < 2 ** 31 - 1 else np.int64
 
 
 def pattern(half: HalfMesh, rows: tuple[int, int] | None = None) -> Pattern:

@@ -109,18 +109,18 @@ def half_datasets(half: HalfMesh, multiplier_nodes: np.ndarray, piece=None, skel
     unless not ``skeleton`` Σ's nodes and the boundaries)."""
     group = f"mesh/{half.name}"
     out: dict[str, np.ndarray | Slab] = {}
+    def numbered(local: np.ndarray) -> np.ndarray:  # the half's node numbers, as the half holds them
+        return local if piece is None else piece.nodes[local].astype(local.dtype, copy=False)
+
     if piece is None:
         out = {f"{group}/points": half.points, f"{group}/cells": half.cells}
-        numbers = None
     else:
         out = {f"{group}/points": Slab(half.points[piece.owned_nodes], piece.first, piece.rows),
-               f"{group}/cells": Slab(piece.nodes[piece.owned_cells], piece.cell_first, piece.cell_rows)}
-        numbers = piece.nodes
+               f"{group}/cells": Slab(numbered(piece.owned_cells), piece.cell_first, piece.cell_rows)}
     if skeleton:
-        sigma = half.sigma if numbers is None else numbers[half.sigma]
+        sigma = numbered(half.sigma)
         out.update({f"{group}/sigma": sigma, f"{group}/interface": sigma[multiplier_nodes]})
-        out.update({f"{group}/boundaries/{boundary}": edges if numbers is None else numbers[edges]
-                    for boundary, edges in half.boundaries.items()})
+        out.update({f"{group}/boundaries/{boundary}": numbered(edges) for boundary, edges in half.boundaries.items()})
     return out
 
 

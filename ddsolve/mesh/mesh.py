@@ -84,6 +84,11 @@ class HalfMesh:
         return shape_of(self.points, self.corners)
 
 
+def index_type(largest: int):
+    """int32 when every index fits (half the memory; what PETSc uses unless built for 64-bit), else int64."""
+    return np.int32 if largest < 2 ** 31 - 1 else np.int64
+
+
 def known(half: HalfMesh, **values) -> HalfMesh:
     """``half`` with the values of cached properties (``boundary_edges``, ``shape``) that its maker knows
     already (a refinement, from the coarse mesh or from pieces); they travel with it when it is sent."""

@@ -22,19 +22,18 @@ from functools import cached_property
 
 import numpy as np
 
-from ddsolve.mesh.mesh import HalfMesh
+from ddsolve.mesh.mesh import HalfMesh, index_type
 
 
 @dataclass(frozen=True, eq=False)
 class Piece:
-    """The piece ``half`` (local numbers; its cells the half's ``cell_ids``, the ``owned`` ones first:
-    ``cell_first:cell_stop``) on the half's nodes ``nodes`` (global numbers, ascending) of a rank that owns
+    """The piece ``half`` (local numbers; its cells the half's cells ``cell_first:cell_stop`` that it owns, then
+    the others it needs) on the half's nodes ``nodes`` (global numbers, ascending) of a rank that owns
     the nodes ``first:stop`` of ``rows``; ``outer_edges``: the half's boundary edges among the piece's cells
     (local)."""
 
     half: HalfMesh
     nodes: np.ndarray
-    cell_ids: np.ndarray
     owned: int
     outer_edges: np.ndarray
     first: int
@@ -87,7 +86,7 @@ def cut(half: HalfMesh, first: int, stop: int, rings: int = 2) -> Piece:
     """The piece of the rank owning the nodes ``first:stop`` of ``half`` (the whole half if that is all of them)."""
     n = len(half.points)
     if first == 0 and stop == n:
-        return Piece(half, np.arange(n), np.arange(len(half.cells)), len(half.cells), half.boundary_edges, 0, n, 0, n,
+        return Piece(half, np.arange(n, dtype=index_type(2 * n)), len(half.cells), half.boundary_edges, 0, n, 0, n,
                      len(half.cells))
     cell_first, cell_stop = cell_range(half, first, stop)
     mine = np.zeros(n, dtype=bool)
@@ -112,14 +111,15 @@ def cut(half: HalfMesh, first: int, stop: int, rings: int = 2) -> Piece:
     piece = HalfMesh(half.points[nodes], local[half.cells[cell_ids]], half.side, local[half.sigma],
                      {name: local[named] for name, named in half.boundaries.items()})
     outer = local[edges[in_cells[edges].all(axis=1)]]
-    return Piece(piece, nodes, cell_ids, cell_stop - cell_first, outer, first, stop, cell_first, n, len(half.cells))
+    return Piece(piece, nodes.astype(index_type(2 * n)), cell_stop - cell_first, outer, first, stop, cell_first, n,
+                 len(half.cells))
 
 
 def extra_bytes(pieces, halves) -> int:
     """Bytes of the pieces' arrays that are not their halves' own (none for a piece that is a whole half)."""
-    own = {id(a) for half in halves for a in (half.points, half.cells, half.sigma, half.boundary_edges,
+    own = {id(a) for half in halves for a in (half.points, half.cells, half.sigma, half.__dict__.get("boundary_edges"),
                                                *half.boundaries.values())}
     arrays = {id(a): a.nbytes for piece in pieces
-              for a in (piece.nodes, piece.cell_ids, piece.outer_edges, piece.half.points, piece.half.cells,
+              for a in (piece.nodes, piece.outer_edges, piece.half.points, piece.half.cells,
                         piece.half.sigma, *piece.half.boundaries.values()) if id(a) not in own}
     return sum(arrays.values())

@@ -119,10 +119,12 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
         halves = {needed[0]: group.bcast(halves.get(needed[0]), root=0),
                   **({1: halves[1]} if keep_whole and rank == 0 else {})}
         group.Free()
+    local = LocalMesh(halves, sigma, nodes, cells, geometry.origin(scene), tips, table, block_kernels,
+                      meshes.quality(paired) if rank == 0 else {})
     if phases is not None:
+        phases.hold("mesh", local.nbytes)
         phases.end("distribution")
-    return LocalMesh(halves, sigma, nodes, cells, geometry.origin(scene), tips, table, block_kernels,
-                     meshes.quality(paired) if rank == 0 else {})
+    return local
 
 
 def upper_for_rank_0(upper: HalfMesh, keep_whole: bool) -> tuple[HalfMesh, tuple[int, int]]:
@@ -207,9 +209,12 @@ def refined_local_mesh(scene: Scene, coarse_scene: Scene, levels: int, comm: MPI
     sigma, nodes, cells, (tips, table, block_kernels) = comm.bcast(sizes, root=0)
     if keep_whole and rank == 0:
         fine[1] = upper
+    local = LocalMesh(fine, sigma, nodes, cells, geometry.origin(scene), tips, table, block_kernels,
+                      meshes.quality(paired) if rank == 0 else {})
+    if phases is not None:
+        phases.hold("mesh", local.nbytes)
     end("distribution")
-    return LocalMesh(fine, sigma, nodes, cells, geometry.origin(scene), tips, table, block_kernels,
-                     meshes.quality(paired) if rank == 0 else {})
+    return local
 
 
 def share_pieces(group: MPI.Comm, grid: refine.Lattice, bounds, points, cells) -> tuple:

@@ -76,11 +76,8 @@ def piece_displacements(setup: "Setup", server: BlockServer) -> dict[int, np.nda
     sigma = setup.mesh.sigma
     frames = sigma.frames[sigma.multiplier_nodes]
     out = {}
-    for index, piece in setup.pieces.items():
-        nodes = assembly.trace_nodes(setup.mesh.half(BLOCKS[index].side), sigma)
-        where = np.minimum(np.searchsorted(piece.nodes, nodes), len(piece.nodes) - 1)
-        present = piece.nodes[where] == nodes
-        out[index] = assembly.to_global(server.piece_values[index], where[present], frames[present])
+    for index, piece in setup.pieces.items():  # a piece has every Σ node of its half
+        out[index] = assembly.to_global(server.piece_values[index], assembly.trace_nodes(piece.half, sigma), frames)
     return out
 
 
@@ -116,7 +113,7 @@ def collect_owned(group: MPI.Comm, piece: Piece, count: int, arrays: dict[str, n
     on the block's leader (None on the others)."""
     if group.size == 1:
         return arrays
-    parts = group.gather((piece.cell_ids[:piece.owned], arrays), root=0)
+    parts = group.gather((slice(piece.cell_first, piece.cell_stop), arrays), root=0)
     if group.rank != 0:
         return None
     out = {name: np.empty((count,) + values.shape[1:], values.dtype) for name, values in arrays.items()}
@@ -313,6 +310,7 @@ class Setup:
     phases: Phases
     scene: Scene  # with the method resolved
     pieces: dict[int, Piece]  # local block -> this rank's piece of its half (its rows' nodes and cells)
+    whole_mesh_bytes: int  # of both halves and Σ (:func:`whole_mesh_bytes`)
 
     @property
     def timings(self) -> dict:
@@ -376,8 +374,12 @@ def reload(setup: "Setup", scene: Scene) -> None:
     setup.phases.skip("factorization")
 
 
-def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phases | None = None) -> Setup:
-    """Build (or take) the mesh, assemble and factor every rank's blocks."""
+def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phases | None = None,
+            keep_halves: bool = True) -> Setup:
+    """Build (or take) the mesh, assemble and factor every rank's blocks.  Not ``keep_halves`` (a solve whose
+    ranks write the result together): from assembly on, a rank holds only its pieces of its halves
+    (:mod:`ddsolve.mesh.pieces`; all a gathered result, a reload or a critical-factor search would need the
+    halves whole)."""
     if not supported(comm.size):
         error = DDSolveError(f"unsupported number of ranks {comm.size}: use 1, 2 or a multiple of 4")
         error.collective = True  # every rank sees the same size
@@ -404,8 +406,14 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
         error.collective = True  # every rank knows the supports
         raise error
     block_pieces = cut_pieces(local, exchange)
-    blocks = collective(comm, lambda: make_blocks(scene, local, exchange, FACTOR_PACKAGE[method], block_pieces))
+    kernel_rows = {index: floating_kernel(scene, local, index, block_pieces[index], fixed=method == "feti")
+                   for index in exchange.local_blocks if index in floating}
+    whole_bytes = whole_mesh_bytes(local, exchange)
+    if not keep_halves:
+        local = replace(local, halves={BLOCKS[index].side: piece.half for index, piece in block_pieces.items()})
     phases.hold("mesh", local.nbytes + pieces.extra_bytes(block_pieces.values(), local.halves.values()))
+    phases.end("distribution")  # the pieces cut, and the halves dropped: assembly holds what it works on
+    blocks = collective(comm, lambda: make_blocks(scene, local, exchange, FACTOR_PACKAGE[method], block_pieces))
     interface = for_mesh(local.sigma, scene.nonpenetration, local.sigma_supports.fixed, assembly.modulus(scene))
     hold_blocks(phases, blocks, factored=False)
     stages["Setup"].pop()
@@ -415,7 +423,7 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
     def factor():
         for index, block in zip(exchange.local_blocks, blocks):
             if index in floating:
-                make_floating(block, scene, local, index, fixed=method == "feti")
+                block.make_floating(*kernel_rows[index])
             if not (block.floating and method == "schur"):  # schur inverts a floating block's interior only
                 block.factor(schur=method == "schur", out_of_core=scene.solver.out_of_core)
             if method == "feti" or block.floating:
@@ -425,7 +433,7 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
     hold_blocks(phases, blocks)
     stages["Factorization"].pop()
     phases.end("factorization")
-    return Setup(local, exchange, blocks, interface, stages, phases, scene, block_pieces)
+    return Setup(local, exchange, blocks, interface, stages, phases, scene, block_pieces, whole_bytes)
 
 
 def cut_pieces(local: LocalMesh, exchange: Exchange) -> dict[int, Piece]:
@@ -439,19 +447,20 @@ def cut_pieces(local: LocalMesh, exchange: Exchange) -> dict[int, Piece]:
     return out
 
 
-def make_floating(block: Block, scene: Scene, mesh: LocalMesh, index: int, fixed: bool) -> None:
-    """Give a floating block its kernel (its rows) and, with ``fixed``, the dofs fixed for FETI's K⁺: m dofs
-    off the trace and the prescribed dofs where the kernel is independent."""
+def floating_kernel(scene: Scene, mesh: LocalMesh, index: int, piece: Piece, fixed: bool
+                    ) -> tuple[np.ndarray, np.ndarray | None]:
+    """A floating block's kernel at its rows here (the nodes ``piece`` owns) and, with ``fixed``, the dofs fixed
+    for FETI's K⁺: m dofs off the trace and the prescribed dofs where the kernel is independent (chosen on the
+    whole half, the same on every rank of the block)."""
     spec = BLOCKS[index]
     half = mesh.half(spec.side)
     vectors = kernels.kernel_vectors(half, mesh.sigma, mesh.kernels.kernels[index], mesh.kernels.frame)
-    first, last = block.system.first, block.system.first + len(block.system.rhs)
     chosen = None
     if fixed:
         prescribed, _ = supports.block_supports(scene, half, mesh.sigma, spec.layer, index, mesh.sigma_supports)
-        excluded = np.concatenate([block.trace_dofs, np.flatnonzero(prescribed)])
-        chosen = kernels.fixing_dofs(vectors, excluded)
-    block.make_floating(vectors[:, first:last], chosen)
+        trace = assembly.element_dofs(assembly.trace_nodes(half, mesh.sigma)[:, None]).ravel()
+        chosen = kernels.fixing_dofs(vectors, np.concatenate([trace, np.flatnonzero(prescribed)]))
+    return vectors[:, 2 * piece.first:2 * piece.stop], chosen
 
 
 def resolve(scene: Scene, ranks: int, mesh: LocalMesh) -> Scene:
@@ -502,8 +511,9 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
     its modes and the reactions are not computed (``fracture`` stays None, ``reactions`` empty).
     """
     own = setup is None
+    distributed = output is not None and not gather and io.parallel_available(comm)
     if own:
-        setup = prepare(scene, comm, mesh, Phases(launch_age() if mesh is None else 0.0))
+        setup = prepare(scene, comm, mesh, Phases(launch_age() if mesh is None else 0.0), keep_halves=not distributed)
     else:
         # the method the setup was made for (``auto`` resolved), the scene's other solver settings
         scene = dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, method=setup.scene.solver.method))
@@ -512,7 +522,6 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
     local, exchange, interface, stages, scene = setup.mesh, setup.exchange, setup.interface, setup.stages, setup.scene
     method = scene.solver.method
 
-    distributed = output is not None and not gather and io.parallel_available(comm)
     try:
         server = BlockServer(setup.blocks, exchange, {index: piece.local_dofs() for index, piece in setup.pieces.items()},
                              gather=not distributed)
@@ -548,7 +557,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
             index: (piece.points, piece.cells[:piece.owned], displacements[index])
             for index, piece in setup.pieces.items()}), root=0)  # each rank over the cells it owns
         sizes = [2 * local.nodes[spec.side] for spec in BLOCKS]
-        whole_bytes = whole_mesh_bytes(local, exchange)
+        whole_bytes = setup.whole_mesh_bytes
         if distributed:
             mine["held_bytes"] = shares.held_bytes
         else:
