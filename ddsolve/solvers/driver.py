@@ -189,8 +189,9 @@ class OnRanks:
         sigma, tips = local.sigma, local.tips
         laws = {spec.layer: assembly.elasticity(scene, spec.layer)[0] for spec in BLOCKS}
         mirrorable = [fracture.mirrorable(tip, sigma, laws.values()) for tip in tips]
-        boxes = comm.allgather({b: analysis.owned_box(piece) for b, piece in self.pieces.items()} if any(mirrorable)
-                               else {})
+        shared = exchange.groups[0].size > 1  # the blocks' ranks own parts of their halves: ask where it may be
+        boxes = comm.allgather({b: analysis.owned_box(piece) for b, piece in self.pieces.items()}
+                               if shared and any(mirrorable) else {})
         discs, asks = {}, [[] for _ in range(comm.size)]
         for i, tip in enumerate(tips):
             for b, piece in self.pieces.items():
@@ -198,8 +199,10 @@ class OnRanks:
                     discs[i, b] = fracture.mirror_nodes(tip, sigma, piece.owned_half)
                     images = discs[i, b][2]
                     for rank in exchange.ranks(partner(b)) if len(images) else ():  # no disc cells here: no share
-                        low, high = boxes[rank][partner(b)]
-                        asked = np.flatnonzero(np.all((images >= low) & (images <= high), axis=1))
+                        asked = np.arange(len(images))
+                        if shared:
+                            low, high = boxes[rank][partner(b)]
+                            asked = asked[np.all((images >= low) & (images <= high), axis=1)]
                         asks[rank].append((i, b, asked, images[asked]))
         answers = [[(i, b, asked, *analysis.owned_values_at(self.pieces[partner(b)], self.displacements[partner(b)],
                                                             images)) for i, b, asked, images in received]
