@@ -174,7 +174,8 @@ def layer_mesh(result: Result, layer: str, fields: dict[str, analysis.CellFields
     for spec in (spec for spec in BLOCKS if spec.layer == layer):  # the lower half's block first
         half = result.half(spec.name)
         shares.append(layer_share(layer, spec.side, half.points, result.solution[spec.name], half.cells,
-                                  fields[spec.name], glue_of(result, layer, spec.side), result.indicators.get(spec.name),
+                                  fields[spec.name], glue_of(result, layer, spec.side),
+                                  result.indicators.get(spec.name),
                                   {name: per_block[spec.name] for name, per_block in result.cell_data.items()
                                    if spec.name in per_block}))
     return joined(sorted(shares, key=lambda share: share.first_point))

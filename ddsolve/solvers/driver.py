@@ -151,26 +151,26 @@ class OnRanks:
     cells it owns, and its slabs of the files; rank 0 the Σ data (:class:`OnSigma`) and the estimate, from
     sums over the ranks.  Only Σ-sized arrays and scalars are exchanged."""
 
-    def __init__(self, scene: Scene, local: LocalMesh, exchange: Exchange, setup_pieces: dict[int, Piece],
+    def __init__(self, scene: Scene, local: LocalMesh, exchange: Exchange, block_pieces: dict[int, Piece],
                  interface: Interface, lam: np.ndarray | None, indicators: dict[int, np.ndarray],
                  displacements: dict[int, np.ndarray], solver_bytes: int = 0):
         comm, sigma = exchange.comm, local.sigma
         frames = sigma.frames[sigma.multiplier_nodes]
         self.scene, self.local, self.exchange = scene, local, exchange
-        self.pieces, self.displacements = setup_pieces, displacements
+        self.pieces, self.displacements = block_pieces, displacements
         self.held_bytes = local.nbytes + solver_bytes + sum(u.nbytes for u in displacements.values())
         # a piece has every Σ node of its half
-        traces = exchange.gather_varying([displacements[b][setup_pieces[b].half.sigma].ravel()
+        traces = exchange.gather_varying([displacements[b][block_pieces[b].half.sigma].ravel()
                                           for b in exchange.led_blocks], [2 * len(sigma.points)] * len(BLOCKS))
         largest = comm.allreduce(max((np.abs(displacements[b][piece.owned_nodes]).max(initial=0.0)
-                                      for b, piece in setup_pieces.items()), default=0.0), op=MPI.MAX)
+                                      for b, piece in block_pieces.items()), default=0.0), op=MPI.MAX)
         on = OnSigma(sigma, interface.split(lam, frames), {spec.name: trace.reshape(-1, 2) for spec, trace in
                                                            zip(BLOCKS, traces)}, largest) if exchange.is_root else None
         self.on = comm.bcast(on, root=0)
         pressure, jump = estimate.contact_on_sigma(sigma, self.on.multipliers["mu_c"], self.on.traces["u_minus"],
                                                    self.on.traces["u_plus"])
         self.indicators, squared, energy = {}, 0.0, 0.0
-        for b, piece in setup_pieces.items():
+        for b, piece in block_pieces.items():
             contact = (estimate.half_contact_indicators(piece.owned_half, pressure, jump)
                        if BLOCKS[b].layer == "layer1" else 0.0)
             self.indicators[b], block_squared, block_energy = estimate.block_estimate(indicators[b], contact)
@@ -254,7 +254,9 @@ class OnRanks:
             parts.append((BLOCKS[b].layer, reactions.boundary_sums(scene, piece.half, sigma, BLOCKS[b].layer,
                                                                    forces[b])))
         parts = comm.gather(parts, root=0)
-        return reactions.ordered(scene, [part for ranked in parts for part in ranked]) if self.exchange.is_root else None
+        if not self.exchange.is_root:
+            return None
+        return reactions.ordered(scene, [part for ranked in parts for part in ranked])
 
     def files(self, result: Result | None, output: Path, cell_fields: dict[int, analysis.CellFields]
               ) -> tuple[io.Part, viewer.Distributed]:
@@ -526,8 +528,8 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
     method = scene.solver.method
 
     try:
-        server = BlockServer(setup.blocks, exchange, {index: piece.local_dofs() for index, piece in setup.pieces.items()},
-                             gather=not distributed)
+        piece_dofs = {index: piece.local_dofs() for index, piece in setup.pieces.items()}
+        server = BlockServer(setup.blocks, exchange, piece_dofs, gather=not distributed)
         outcome, rounds, failure = run_method(scene, setup, server, progress)
         failure = comm.bcast(failure, root=0)
         if failure is not None:
