@@ -84,6 +84,6 @@ def page(sections: list[str]) -> str:
         "on 4 ranks with the default method, redraws the pictures and rewrites this page from the results "
         "(results/gallery/). Left or top: layer 1, right or bottom: layer 2, coloured by von Mises stress; the "
         "second picture shows the normal opening [u]·ν of layer 1 and the contact pressure μᶜ along Σ. The scene "
-        "files are in ddsolve/scenes/; [geometry.md](geometry.md) describes the geometry formats.",
+        "files are in ddsolve/problem/scenes/; [geometry.md](geometry.md) describes the geometry formats.",
         *sections,
     ]) + "\n"
