@@ -78,7 +78,8 @@ def test_dcb_under_load_runs_away_at_initiation(tmp_path):
     assert initiation.unstable and initiation.events == ["initiation (unstable)"]
     assert initiation.state.load == pytest.approx(experiment.dcb_load(experiment.DCB_CRACK, MODULUS,
                                                                        experiment.G_IC), rel=0.01)
-    assert "a support at arc length 20" in steps[-1].events[-1]
+    assert any("a support at arc length 20 ahead" in event for event in steps[-1].events)
+    assert steps[-1].events[-1] == "end: every tip has stopped before a support or the end of Σ"
 
 
 def test_the_step_size_does_not_move_the_branch(tmp_path):
@@ -123,6 +124,35 @@ toughness = 1e-9
     steps = grow.grow(scene, comm(), 1.0, 2, 1e-3, progress=quiet)
     assert any("merge" in event for s in steps for event in s.events)
     assert len(steps[-1].state.cracks) == 1
+
+
+def test_a_tip_at_a_support_stops_and_the_others_grow_on(tmp_path):
+    """A tip that reaches a support above G_c stops there (one Σ edge before it); the run goes on with the
+    other tips, and ends once every tip has stopped."""
+    pressure = '"-1e-3*exp(-8*(x - 1)^2) - 0.7e-3*exp(-8*(x - 3.75)^2)"'
+    text = f"""
+[geometry]
+box = [0.0, 6.0, -0.5, 0.5]
+cracks = [[0.6, 1.4], [3.0, 4.5]]
+clamped = ["left", "right"]
+[mesh]
+size = 0.1
+{MATERIALS}
+[loads.layer1.top]
+pressure = {pressure}
+[loads.layer2.top]
+pressure = {pressure}
+[fracture]
+toughness = 1e-8
+"""
+    (tmp_path / "two.toml").write_text(text)
+    steps = grow.grow(Scene.load(tmp_path / "two.toml"), comm(), 1.0, 1, 1e-3, progress=quiet)
+    events = [event for step in steps for event in step.events]
+    stopped = next(i for i, event in enumerate(events) if "stops at 0.1: a support at arc length 0 ahead" in event)
+    assert any("merge" in event for event in events[stopped:])  # crack 0's other tip grew on, into crack 1
+    assert any("stops at 5.9: a support at arc length 6 ahead" in event for event in events[stopped:])
+    assert events[-1] == "end: every tip has stopped before a support or the end of Σ"
+    assert np.allclose(steps[-1].state.cracks, [(0.1, 5.9)])
 
 
 def test_bad_input_is_one_line(tmp_path):

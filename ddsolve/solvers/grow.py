@@ -153,6 +153,7 @@ class Growth:
         self.stops = collective(comm, lambda: stops(scene, self.base))
         self.cache: dict[tuple, State] = {}
         self.solves = 0
+        self.stopped: list[tuple[float, float]] = []  # (arc length, heading): tips before a support or Σ's end
 
     # --- one configuration --------------------------------------------------------------------------
     def mesh_for(self, cracks) -> Mesh:
@@ -227,6 +228,11 @@ class Growth:
         room, what = min(ahead)
         return max(room, 0.0), what
 
+    def has_stopped(self, state: State, tip: int) -> bool:
+        """Whether tip ``tip`` of ``state`` is one that reached a support or Σ's end (it grows no further)."""
+        return any(abs(state.tips[tip] - position) <= 0.25 * state.spacing[tip] and state.heading[tip] == heading
+                   for position, heading in self.stopped)
+
     def advanced(self, cracks: tuple, state: State, moves: dict[int, float]) -> tuple:
         """``cracks`` with tip i moved by ``moves[i]`` along its heading; cracks that meet are merged."""
         ends = [list(piece) for piece in cracks]
@@ -251,17 +257,24 @@ class Growth:
         growth is unstable and goes on at this control."""
         solves = self.solves
         step = Step(self.state(cracks, control))
+        def free(tips: np.ndarray) -> list[int]:
+            return [int(i) for i in tips if not self.has_stopped(step.state, i)]
+
         if probe:
-            critical = [int(i) for i in np.flatnonzero(np.abs(step.state.ratio - 1.0) <= tolerance)]
+            critical = free(np.flatnonzero(np.abs(step.state.ratio - 1.0) <= tolerance))
             if critical:
                 cracks, step = self.advance(cracks, step.state, critical, control, tolerance, step, probe=True)
         for _ in range(MAX_ROUNDS):
             if any(event.startswith("end") for event in step.events):
                 break
-            growing = [int(i) for i in np.flatnonzero(step.state.ratio - 1.0 > tolerance)]
+            growing = free(np.flatnonzero(step.state.ratio - 1.0 > tolerance))
             if not growing:
                 break
             cracks, step = self.advance(cracks, step.state, growing, control, tolerance, step)
+        tips = range(len(step.state.tips))
+        if tips and all(self.has_stopped(step.state, i) for i in tips) and not any(
+                event.startswith("end") for event in step.events):
+            step.events.append("end: every tip has stopped before a support or the end of Σ")
         step.solves = self.solves - solves
         return cracks, step
 
@@ -278,6 +291,7 @@ class Growth:
         trial = {i: min(FIRST_ADVANCE * start.spacing[i], limits[i][0]) for i in growing}
         last = {i: 0 for i in growing}  # the side regula falsi moved last (Illinois halves the other's f)
         settled: dict[int, float] = {}
+        halted: list[str] = []  # the tips that reached a support or Σ's end above G_c
         for iteration in range(MAX_ITERATIONS):
             proposal = self.comm.bcast({**trial, **settled} if self.comm.rank == 0 else None, root=0)
             trial_cracks = self.advanced(cracks, start, proposal)
@@ -309,10 +323,14 @@ class Growth:
                     continue
                 if f > 0.0:
                     if i not in bracket:  # still bracketing
-                        if x >= limits[i][0] * (1.0 - 1e-12):
-                            step.state = state
-                            step.events.append(f"end: a tip reached {limits[i][1]}")
-                            return trial_cracks, step
+                        if x >= limits[i][0] * (1.0 - 1e-12):  # above G_c where it cannot go further: it stops
+                            settled[i] = x
+                            del trial[i]
+                            end = float(start.tips[i] + start.heading[i] * x)
+                            self.stopped.append((end, float(start.heading[i])))
+                            halted.append(f"tip {start.tips[i]:.6g} stops at {end:.6g}: {limits[i][1]} ahead "
+                                          f"(G/G_c = {f + 1.0:.4g} there)")
+                            continue
                         low[i], f_low[i] = x, f
                         trial[i] = min(2.0 * x, limits[i][0])
                         continue
@@ -342,6 +360,7 @@ class Growth:
                           for i, x in settled.items() if x > 0.0)
         if moved:
             step.events.append(("unstable: " if step.unstable else "") + moved)
+        step.events.extend(halted)
         step.state = state
         return trial_cracks, step
 
