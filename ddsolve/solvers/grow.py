@@ -9,9 +9,10 @@ until G = G_c again: a root solve in the tip's position, all growing tips at onc
 iteration), bracketed by doubling the advance and closed by regula falsi (Illinois), to
 ``|G/G_c − 1| ≤ tolerance``.  Where G rises as the tip advances at a fixed control the growth is
 unstable (a snap-through under load control, a jump under displacement control): the step says so
-and the tip jumps to where G falls back to G_c (crack arrest), or to what stops it.  A tip stops one Σ
-edge before a clamped Σ node or Σ's end, which ends the run; two tips that meet merge their cracks (with
-one toughness per crack the run ends there instead).  Under displacement
+and the tip jumps to where G falls back to G_c (crack arrest), or to what stops it.  A tip stops for
+good one Σ edge before a clamped Σ node or Σ's end and the others grow on (the run ends when every tip
+has stopped); two tips that meet merge their cracks (with one toughness per crack the run ends there
+instead).  Under displacement
 control the stable branch is thereby followed step by step.
 
 The contact problem is positively homogeneous: without a temperature change the fields at λ are λ
