@@ -238,3 +238,28 @@ def test_ending_a_session_waits_until_its_processes_are_gone():
         assert not process_exists(sleeper.pid)
     finally:
         sleeper.wait()
+
+
+#: A commit section whose deferred SIGTERM another thread takes between the section's look at the pending
+#: signals and its consuming them (the interrupt watchdog's thread does not block it): simulated by a
+#: sigpending that reports a signal nobody sent.
+TAKEN_CHILD = """
+import signal, sys
+from ddsolve.io import safe
+seen = []
+signal.signal(signal.SIGTERM, lambda number, _frame: seen.append(number))
+signal.sigpending = lambda: {signal.SIGTERM}
+with safe.commit_section():
+    pass
+sys.exit(0 if seen == [signal.SIGTERM] else 1)
+"""
+
+
+@pytest.mark.mpi
+def test_a_deferred_signal_that_another_thread_took_does_not_hang_the_commit():
+    import subprocess
+    import sys
+
+    child = subprocess.run([sys.executable, "-c", TAKEN_CHILD], capture_output=True, text=True, timeout=20,
+                           stdin=subprocess.DEVNULL)
+    assert child.returncode == 0, child.stderr

@@ -165,9 +165,8 @@ def commit_section():
                 received += [signum for signum in signal.sigpending() & deferred if signum not in blocked]
                 for signum, handler in previous.items():
                     signal.signal(signum, handler)
-                for signum in received:  # consume them here; they are raised again below
-                    if signum in signal.sigpending():
-                        signal.sigwait({signum})
+                for signum in received:  # consume them here (if no other thread took them since); raised below
+                    signal.sigtimedwait({signum}, 0)
                 signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
     for signum in dict.fromkeys(received):
         signal.raise_signal(signum)
