@@ -87,6 +87,43 @@ def test_pieces_of_any_number_of_parts_assemble_into_the_same_mesh(coarse, degre
     assert len(np.unique(np.round(whole_points, 12), axis=0)) == grid.node_count
 
 
+@pytest.mark.parametrize("degree, levels", [(1, 1), (1, 2), (1, 3), (2, 1), (2, 2)])
+def test_a_piece_made_from_the_coarse_half_is_the_piece_cut_from_the_fine_one(degree, levels):
+    """pieces.of_lattice (what a rank of a shared block makes alone) equals pieces.cut of the whole refined half:
+    the same nodes, points, cells in the same order, skeleton and owned cells, for every rank of 2 and 3; the
+    coarse half's skeleton of the fine half is the whole one's; the fine cells are in the order of their
+    smallest node."""
+    from ddsolve.mesh import curves, pieces
+    from ddsolve.mesh.mesh import skeleton
+
+    chosen = scene.load("partial-closure", ["mesh.sigma_vertices=25", "mesh.boundary_vertices=36"])
+    project = curves.projector(chosen)
+    for coarse_half in geometry.build_coarse(chosen).halves:
+        grid = refine.Lattice(coarse_half, levels, degree)
+        half = refine.refine_half(coarse_half, levels, degree, project)
+        smallest = half.cells.min(axis=1)
+        assert np.all(np.diff(smallest) >= 0)
+        n = len(half.points)
+        for parts in (2, 3):
+            bounds = np.linspace(0, n, parts + 1).round().astype(int)
+            for first, stop in zip(bounds[:-1], bounds[1:]):
+                cut, made = pieces.cut(half, first, stop), pieces.of_lattice(grid, first, stop, project)
+                made = dataclasses.replace(made, cell_first=int(np.count_nonzero(smallest < first)))
+                for name in ("nodes", "outer_edges", "outline"):
+                    np.testing.assert_array_equal(getattr(made, name), getattr(cut, name))
+                for name in ("owned", "first", "stop", "cell_first", "rows", "cell_rows"):
+                    assert getattr(made, name) == getattr(cut, name)
+                np.testing.assert_array_equal(made.half.points, cut.half.points)
+                np.testing.assert_array_equal(made.half.cells, cut.half.cells)
+                np.testing.assert_array_equal(made.half.sigma, cut.half.sigma)
+                assert made.half.boundaries.keys() == cut.half.boundaries.keys()
+                for name, edges in cut.half.boundaries.items():
+                    np.testing.assert_array_equal(made.half.boundaries[name], edges)
+        whole, bare = skeleton(half), grid.skeleton(half.shape, project)
+        for name in ("points", "sigma", "boundary_edges"):
+            np.testing.assert_array_equal(getattr(bare, name), getattr(whole, name))
+
+
 @pytest.mark.parametrize("parts", [2, 4, 8])
 def test_the_ranks_of_a_half_share_the_fine_nodes_evenly(coarse, parts):
     grid = refine.Lattice(refine.refine_half(coarse.lower, 2), 2, 1)  # 128 coarse cells
@@ -289,13 +326,14 @@ def test_rank_0_pairs_and_checks_gmsh_halves_from_the_skeleton_of_the_upper_one(
 @pytest.mark.mpi
 @pytest.mark.slow
 def test_eight_ranks_mesh_with_a_fraction_of_the_cpu_time_of_two(tmp_path):
-    """Meshing as a solve does it (a coarse gmsh mesh, the ranks of each half refining their shares), on a
-    mesh whose refinement outweighs gmsh's coarse mesh (P = 1600 from a coarse mesh of P = 51, 5 levels):
-    the busiest of 8 ranks spends well under the 2-rank run's CPU seconds (0.33-0.50 of it measured on 2
-    cores; at most 0.35 is the aim on the larger meshes of docs/scaling.md)."""
+    """Meshing as a solve that writes in parallel does it (a coarse gmsh mesh; on 2 ranks each refines its
+    half, on 8 each makes its piece of its half, sharing it with the rank of the other layer's block), on a
+    mesh whose refinement outweighs gmsh's coarse mesh (P = 1600 from a coarse mesh of P = 51, 5 levels): the
+    busiest of 8 ranks spends less than the 2-rank run's CPU seconds (0.65-0.70 of it measured on 2 cores:
+    each piece is half its half and two rings, made by two ranks)."""
     from ddsolve.experiments import report
 
     records = {ranks: report.launch(ranks, ["scaling-meshing", "1600", "2048", "5"], tmp_path / f"{ranks}.json")
                for ranks in (2, 8)}
     assert records[2]["unknowns"] == records[8]["unknowns"] == 3_057_928  # the same mesh
-    assert max(records[8]["meshing_cpu"]) <= 0.75 * max(records[2]["meshing_cpu"])
+    assert max(records[8]["meshing_cpu"]) <= 0.85 * max(records[2]["meshing_cpu"])

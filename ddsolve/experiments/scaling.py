@@ -165,7 +165,8 @@ class CostModel:
 
 def meshing(P: int, M: int, refine: str, output: Path, comm) -> None:
     """Inside one launch: Example 1's (P, M) mesh (``refine``: ``auto`` or the ``mesh.refine`` levels) made
-    and distributed as a solve makes it (:func:`ddsolve.parallel.distribution.local_mesh`); rank 0 writes
+    and distributed as a solve that writes its result in parallel makes it
+    (:func:`ddsolve.parallel.distribution.local_mesh`, each rank of a shared block making its piece); rank 0 writes
     every rank's meshing and distribution CPU seconds, its own wall seconds and the peak memory of each
     rank as JSON."""
     from ddsolve.experiments.bench import paper_scene
@@ -178,7 +179,7 @@ def meshing(P: int, M: int, refine: str, output: Path, comm) -> None:
     exchange = Exchange(comm, len(BLOCKS))
     try:
         scene = paper_scene(P, M, [] if refine == "auto" else [f"mesh.refine={refine}"])
-        local = distribution.local_mesh(scene, comm, exchange, phases)
+        local = distribution.local_mesh(scene, comm, exchange, phases, whole_halves=False)
     finally:
         exchange.free()
     ranks = comm.gather(phases, root=0)

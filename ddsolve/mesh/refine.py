@@ -37,6 +37,9 @@ from ddsolve.mesh.mesh import (CLAMPED, CRACK, SIGMA, HalfMesh, Mesh, Shape, che
 #: Boundary names that only tag edges of other parts: a node is projected on its part's curve.
 _TAGS = (CLAMPED, CRACK)
 
+#: Coarse cells whose inner points :meth:`Lattice.points_of` places at once.
+_CELL_CHUNK = 1024
+
 
 def lattice_triangles(n: int, degree: int) -> np.ndarray:
     """The triangles of the lattice ``(i, j)``, i + j ≤ n, of one cell as ``(n², 3)`` (P1) or
@@ -105,7 +108,7 @@ class Lattice:
         return {"vertices": vertices, "cells": local, "edges": edges,
                 "cell_edges": cell_edge.reshape(-1, 3), "forward": (pairs[:, 0] < pairs[:, 1]).reshape(-1, 3),
                 "offsets": offsets, "vertex_id": vertex_id, "edge_first": edge_first,
-                "vertex_owner": vertex_owner, "edge_owner": edge_owner,
+                "vertex_owner": vertex_owner, "edge_owner": edge_owner, "owned_vertices": owned_vertices,
                 "inner_first": offsets[1:] - inner}
 
     @property
@@ -141,10 +144,9 @@ class Lattice:
         return {"i": i, "j": j, "corner": corner, "edge": edge, "step": step, "inner": inner,
                 "inner_index": inner_index, "triangles": lattice_triangles(n, self.degree)}
 
-    def node_ids(self, first: int, stop: int) -> np.ndarray:
-        """``(cells, lattice points)``: the fine number of every lattice point of coarse cells ``first:stop``."""
+    def node_ids(self, cells: np.ndarray) -> np.ndarray:
+        """``(cells, lattice points)``: the fine number of every lattice point of coarse ``cells``."""
         top, shape = self._topology, self._template
-        cells = np.arange(first, stop)
         ids = np.empty((len(cells), len(shape["i"])), dtype=np.int64)
         for local in range(3):
             at = shape["corner"] == local
@@ -158,29 +160,46 @@ class Lattice:
 
     def fine_cells(self, first: int, stop: int) -> np.ndarray:
         """The fine cells of coarse cells ``first:stop`` (``cells_per_cell`` rows per coarse cell)."""
-        return self.node_ids(first, stop)[:, self._template["triangles"]].reshape(-1, 3 * self.degree)
+        return self.cells_of(np.arange(first, stop))
+
+    def cells_of(self, cells: np.ndarray) -> np.ndarray:
+        """The fine cells of coarse ``cells`` (``cells_per_cell`` rows per coarse cell, in lattice order)."""
+        return self.node_ids(cells)[:, self._template["triangles"]].reshape(-1, 3 * self.degree)
+
+    def points_of(self, nodes: np.ndarray, project: Projector | None = None) -> np.ndarray:
+        """The points of the fine ``nodes`` (any numbers, in any order), placed as :meth:`fine_points` places them."""
+        top, n, shape = self._topology, self.n, self._template
+        nodes = np.asarray(nodes, dtype=np.int64)
+        owner = np.searchsorted(self.node_offsets, nodes, side="right") - 1
+        out = np.empty((len(nodes), 2))
+        vertex = nodes - self.node_offsets[owner] < top["owned_vertices"][owner]
+        inner = nodes >= top["inner_first"][owner]
+        edge = ~vertex & ~inner
+        by_number = np.argsort(top["vertex_id"])
+        out[vertex] = self.coarse.points[top["vertices"][by_number[np.searchsorted(top["vertex_id"], nodes[vertex],
+                                                                                   sorter=by_number)]]]
+        by_first = np.argsort(top["edge_first"])
+        edges = by_first[np.searchsorted(top["edge_first"], nodes[edge], side="right", sorter=by_first) - 1]
+        unique_edges, which = np.unique(edges, return_inverse=True)
+        out[edge] = self._edge_nodes(unique_edges, project)[which, nodes[edge] - top["edge_first"][edges]]
+        cells, at = np.unique(owner[inner], return_inverse=True)
+        weights = np.column_stack([n - shape["i"] - shape["j"], shape["i"], shape["j"]])[shape["inner"]] / n
+        position = nodes[inner] - top["inner_first"][owner[inner]]
+        placed = np.empty((int(inner.sum()), 2))
+        for start in range(0, len(cells), _CELL_CHUNK):  # the inner points of a chunk of cells at a time
+            chunk = cells[start:start + _CELL_CHUNK]
+            rows = np.flatnonzero((at >= start) & (at < start + len(chunk)))
+            chunk_points = np.einsum("qk,ckd->cqd", weights, self.coarse.points[top["vertices"][top["cells"][chunk]]])
+            if project is not None:
+                chunk_points += self._bend(chunk, weights, project)
+            placed[rows] = chunk_points[at[rows] - start, position[rows]]
+        out[inner] = placed
+        return out
 
     def fine_points(self, first: int, stop: int, project: Projector | None = None) -> np.ndarray:
         """The fine nodes coarse cells ``first:stop`` own, in their fine order
         (``node_offsets[first]:node_offsets[stop]``)."""
-        top, n = self._topology, self.n
-        base = int(self.node_offsets[first])
-        coarse = self.coarse.points[top["vertices"]]
-        out = np.empty((int(self.node_offsets[stop]) - base, 2))
-        mine = np.flatnonzero((top["vertex_owner"] >= first) & (top["vertex_owner"] < stop))
-        out[top["vertex_id"][mine] - base] = coarse[mine]
-        edges = np.flatnonzero((top["edge_owner"] >= first) & (top["edge_owner"] < stop))
-        placed = self._edge_nodes(edges, project)
-        out[(top["edge_first"][edges][:, None] + np.arange(n - 1)).ravel() - base] = placed.reshape(-1, 2)
-        cells = np.arange(first, stop)
-        shape = self._template
-        inner = shape["inner"]
-        weights = np.column_stack([n - shape["i"] - shape["j"], shape["i"], shape["j"]])[inner] / n  # (q, 3)
-        nodes = np.einsum("qk,ckd->cqd", weights, coarse[top["cells"][cells]])
-        if project is not None:
-            nodes += self._bend(cells, weights, project)
-        out[(top["inner_first"][cells][:, None] + np.arange(inner.sum())).ravel() - base] = nodes.reshape(-1, 2)
-        return out
+        return self.points_of(np.arange(self.node_offsets[first], self.node_offsets[stop]), project)
 
     def _edge_nodes(self, edges: np.ndarray, project: Projector | None) -> np.ndarray:
         """``(e, n − 1, 2)``: the inner lattice nodes of coarse ``edges``, from the lower vertex to the
@@ -279,13 +298,61 @@ class Lattice:
         chain = self._chains(np.column_stack([order[:-1], order[1:]]))
         return np.concatenate([chain[:, :-1].ravel(), chain[-1:, -1]])
 
+    def outer_edges(self) -> np.ndarray:
+        """The fine half's boundary edges (the coarse half's, cut)."""
+        return self.fine_edges(self.coarse.boundary_edges)
+
     def half(self, points: np.ndarray, cells: np.ndarray, shape: Shape | None = None) -> HalfMesh:
-        """The fine half from its assembled points and cells (every coarse cell's pieces placed); its outer
-        edges are the coarse half's cut, and ``shape`` (:func:`~ddsolve.mesh.mesh.shape_of` of all its cells,
-        from the pieces' shapes) is kept."""
-        half = HalfMesh(points, cells, self.coarse.side, self.sigma(), self.boundaries())
-        return known(half, boundary_edges=self.fine_edges(self.coarse.boundary_edges),
-                     **({"shape": shape} if shape is not None else {}))
+        """The fine half from its assembled points and cells (every coarse cell's pieces placed, in lattice order),
+        its cells put in the order of their smallest node (:func:`cell_order`); its outer edges are the coarse
+        half's cut, and ``shape`` (:func:`~ddsolve.mesh.mesh.shape_of` of all its cells, from the pieces'
+        shapes) is kept."""
+        half = HalfMesh(points, cells[cell_order(cells)], self.coarse.side, self.sigma(), self.boundaries())
+        return known(half, boundary_edges=self.outer_edges(), **({"shape": shape} if shape is not None else {}))
+
+    def skeleton(self, shape: Shape, project: Projector | None = None) -> HalfMesh:
+        """:func:`~ddsolve.mesh.mesh.skeleton` of the fine half, made from the coarse half alone (``shape``: the
+        fine half's)."""
+        outer, sigma, boundaries = self.outer_edges(), self.sigma(), self.boundaries()
+        kept = np.unique(np.concatenate([outer.ravel(), sigma, *(edges.ravel() for edges in boundaries.values())]))
+        bare = HalfMesh(self.points_of(kept, project), np.zeros((0, 3 * self.degree), dtype=np.int64),
+                        self.coarse.side, np.searchsorted(kept, sigma),
+                        {name: np.searchsorted(kept, edges) for name, edges in boundaries.items()})
+        return known(bare, boundary_edges=np.searchsorted(kept, outer), shape=shape)
+
+    def owners(self, first: int, stop: int) -> np.ndarray:
+        """The coarse cells that own the fine nodes ``first:stop`` (a range of them)."""
+        offsets = self.node_offsets
+        return np.arange(np.searchsorted(offsets, first, side="right") - 1,
+                         np.searchsorted(offsets, stop - 1, side="right"))
+
+    def node_span(self, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The smallest and the largest fine node of each coarse cell of ``cells`` (without making its fine cells)."""
+        top, offsets = self._topology, self.node_offsets
+        vertices = top["vertex_id"][top["cells"][cells]]
+        edges = top["edge_first"][top["cell_edges"][cells]]
+        low, high = np.minimum(vertices.min(axis=1), edges.min(axis=1)), np.maximum(vertices.max(axis=1),
+                                                                                    edges.max(axis=1) + self.n - 2)
+        own = offsets[cells + 1] > offsets[cells]  # the cell owns nodes of its own
+        return (np.where(own, np.minimum(low, offsets[cells]), low),
+                np.where(own, np.maximum(high, offsets[cells + 1] - 1), high))
+
+    def around(self, cells: np.ndarray, rings: int) -> np.ndarray:
+        """The coarse ``cells`` with ``rings`` layers of their neighbours (cells that share a vertex), ascending."""
+        corners = self._topology["cells"]
+        taken = np.zeros(len(corners), dtype=bool)
+        taken[cells] = True
+        for _ in range(rings):
+            reached = np.zeros(len(self._topology["vertices"]), dtype=bool)
+            reached[corners[taken]] = True
+            taken |= reached[corners].any(axis=1)
+        return np.flatnonzero(taken)
+
+
+def cell_order(cells: np.ndarray) -> np.ndarray:
+    """The order of a refined half's cells (given in lattice order): by their smallest node, as
+    :func:`~ddsolve.mesh.mesh.make_half` orders a half's, ties in lattice order."""
+    return np.argsort(cells.min(axis=1), kind="stable")
 
 
 def _rank_within(groups: np.ndarray) -> np.ndarray:

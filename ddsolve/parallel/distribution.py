@@ -13,11 +13,12 @@ from mpi4py import MPI
 
 from ddsolve.dd import kernels
 from ddsolve.fem import supports
-from ddsolve.fem.assembly import check_range
+from ddsolve.fem.assembly import check_range, row_ranges
 from ddsolve.fem.supports import SigmaSupports
-from ddsolve.mesh import curves, geometry, gmsh_io, refine
+from ddsolve.mesh import curves, geometry, gmsh_io, pieces, refine
 from ddsolve.mesh import mesh as meshes
 from ddsolve.mesh.mesh import BLOCKS, U_PLUS, HalfMesh, Mesh, SigmaLine
+from ddsolve.mesh.pieces import Piece
 from ddsolve.parallel.exchange import Exchange, collective, wait
 from ddsolve.parallel.phases import Phases
 from ddsolve.post import fracture, toughness
@@ -37,6 +38,8 @@ class LocalMesh:
     sigma_supports: SigmaSupports | None = None  # the prescribed trace entries (needs both halves to make)
     kernels: kernels.Kernels | None = None  # the blocks' kernels (rigid motions their supports leave)
     quality: dict = dataclasses.field(default_factory=dict)  # rank 0: the whole mesh's (meshes.quality)
+    pieces: dict[int, Piece] = dataclasses.field(default_factory=dict)  # side -> this rank's piece, when made alone
+    whole_bytes: dict[int, int] = dataclasses.field(default_factory=dict)  # side -> its arrays' bytes, with pieces
 
     def half(self, side: int) -> HalfMesh:
         return self.halves[side]
@@ -44,11 +47,13 @@ class LocalMesh:
     @property
     def nbytes(self) -> int:
         """Bytes of the mesh arrays held here (halves and Σ)."""
-        arrays = [getattr(self.sigma, name) for name in ("points", "normals", "weights", "crack", "tip", "clamped",
-                                                          "corner")]
-        for half in self.halves.values():
-            arrays += [half.points, half.cells, half.sigma, *half.boundaries.values()]
-        return int(sum(a.nbytes for a in arrays))
+        return self.sigma_bytes + sum(half_bytes(half) for half in self.halves.values())
+
+    @property
+    def sigma_bytes(self) -> int:
+        """Bytes of Σ's arrays."""
+        return int(sum(getattr(self.sigma, name).nbytes for name in ("points", "normals", "weights", "crack", "tip",
+                                                                     "clamped", "corner")))
 
 
 def whole(mesh: Mesh, tips: list | None = None, table: SigmaSupports | None = None,
@@ -72,7 +77,7 @@ def build_mesh(scene: Scene, comm: MPI.Comm) -> Mesh:
 
 
 def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases | None = None,
-               keep_whole: bool = False) -> LocalMesh:
+               keep_whole: bool = False, whole_halves: bool = True) -> LocalMesh:
     """Each rank gets the half its blocks live on (both with one rank), Σ, and the crack tips.
 
     A box is meshed by the leaders of u⁻ (rank 0, lower half) and u⁺ (upper half) at once, else
@@ -80,12 +85,13 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
     upper half it gets the skeleton, :func:`~ddsolve.mesh.mesh.skeleton`), then
     each half goes to the ranks that need it by a broadcast among them.  Rank 0 keeps the upper half
     only with one rank (or ``keep_whole``); it gets it back for output (:func:`gather_upper`).
-    A mesh made by refinement (:func:`geometry.refinement`) is made by :func:`refined_local_mesh`.
+    A mesh made by refinement (:func:`geometry.refinement`) is made by :func:`refined_local_mesh`; not
+    ``whole_halves``, a rank of a block shared by several gets only its piece of it (:mod:`ddsolve.mesh.pieces`).
     """
     coarse_scene, levels = comm.bcast(collective(comm, lambda: geometry.refinement(scene), root_only=True),
                                       root=0)  # rank 0 decides
     if levels:
-        return refined_local_mesh(scene, coarse_scene, levels, comm, exchange, phases, keep_whole)
+        return refined_local_mesh(scene, coarse_scene, levels, comm, exchange, phases, keep_whole, whole_halves)
     rank = comm.rank
     upper_maker = exchange.leader(U_PLUS)
     split = scene.mesh.kind == "box" and comm.size > 1
@@ -142,7 +148,8 @@ def meshed(phases: Phases | None) -> None:
 
 
 def refined_local_mesh(scene: Scene, coarse_scene: Scene, levels: int, comm: MPI.Comm, exchange: Exchange,
-                       phases: Phases | None = None, keep_whole: bool = False) -> LocalMesh:
+                       phases: Phases | None = None, keep_whole: bool = False, whole_halves: bool = True
+                       ) -> LocalMesh:
     """:func:`local_mesh` for a mesh that is ``coarse_scene``'s refined ``levels`` times.
 
     The coarse halves are made as a whole mesh is (a box's by the leaders of u⁻ and u⁺ at once, else on
@@ -152,7 +159,8 @@ def refined_local_mesh(scene: Scene, coarse_scene: Scene, levels: int, comm: MPI
     and checks next) and exchange the pieces and the shape of the cells each made (the whole half's
     shortest side and smallest angle).  Rank 0 then gets the skeleton of the upper half from u⁺'s
     leader (its boundary: :func:`~ddsolve.mesh.mesh.skeleton`; the whole half with ``keep_whole``),
-    pairs and checks the mesh.
+    pairs and checks the mesh.  Not ``whole_halves``, with more ranks than blocks, each rank makes its
+    piece alone instead (:func:`refined_pieces`).
     Phases: ``meshing`` is this rank's own work (gmsh's coarse mesh, its share of the refinement);
     ``distribution`` the waits and exchanges, the pairing and the checks on rank 0.
     """
@@ -176,6 +184,8 @@ def refined_local_mesh(scene: Scene, coarse_scene: Scene, levels: int, comm: MPI
             elif rank == upper_maker:
                 coarse[1] = comm.recv(source=0)
     meshed(phases)
+    if not whole_halves and not keep_whole and comm.size > len(BLOCKS):
+        return refined_pieces(scene, levels, comm, exchange, coarse, whole_coarse, phases)
     needed = sorted({BLOCKS[b].side for b in exchange.local_blocks})
     project = curves.projector(scene)  # new vertices on a .geo's curves
     group = comm.Split(color=int(needed[0] > 0), key=rank) if comm.size > 1 else comm  # its maker is first
@@ -215,6 +225,92 @@ def refined_local_mesh(scene: Scene, coarse_scene: Scene, levels: int, comm: MPI
         phases.hold("mesh", local.nbytes)
     end("distribution")
     return local
+
+
+def refined_pieces(scene: Scene, levels: int, comm: MPI.Comm, exchange: Exchange, coarse: dict[int, HalfMesh],
+                   whole_coarse: Mesh | None, phases: Phases | None) -> LocalMesh:
+    """The rest of :func:`refined_local_mesh` when every rank makes only its piece of its block's half.
+
+    The coarse half goes to the ranks of its half; each makes its piece (:func:`~ddsolve.mesh.pieces.of_lattice`:
+    the nodes of its rows of the block, their cells and two rings) and learns where its owned cells start from
+    the ranks before it in the block.  The half's shape comes from every rank's owned cells; the leaders of
+    u⁻ (rank 0) and u⁺ make their half's skeleton from the coarse one
+    (:meth:`~ddsolve.mesh.refine.Lattice.skeleton`), and rank 0 pairs and checks those.  No rank holds a
+    whole fine half.
+    """
+    rank, upper_maker = comm.rank, exchange.leader(U_PLUS)
+    end = phases.end if phases is not None else (lambda name: None)
+    index, block_group = exchange.local_blocks[0], exchange.groups[0]
+    side = BLOCKS[index].side
+    project = curves.projector(scene)
+    group = comm.Split(color=int(side > 0), key=rank)  # the ranks of one half; its coarse mesh's holder is first
+    partners = comm.Split(color=2 * block_group.rank + int(side > 0), key=rank)  # those making the same piece
+    try:
+        grid = refine.Lattice(group.bcast(coarse.get(side), root=0), levels, scene.mesh.degree)
+        end("distribution")
+        first, last = assembly_ranges(grid.node_count, block_group)
+        piece = collective(comm, lambda: pieces.of_lattice(grid, first, last, project, share=(partners.rank,
+                                                                                               partners.size),
+                                                           join=lambda part: joined(partners, part)))
+        if phases is not None:
+            phases.hold("mesh", piece_bytes(piece) + half_bytes(grid.coarse))
+        end("meshing")
+        piece = dataclasses.replace(piece, cell_first=block_group.exscan(piece.owned) or 0)
+        shape = functools.reduce(operator.and_, group.allgather(meshes.shape_of(piece.points,
+                                                                                piece.owned_cells[:, :3])))
+        whole_bytes = grid_bytes(grid)
+        skeleton = (collective(comm, lambda: grid.skeleton(shape, project)) if rank in (0, upper_maker)
+                    else collective(comm, lambda: None))
+    finally:
+        group.Free()
+        partners.Free()
+    if rank == upper_maker:
+        comm.send((skeleton, (grid.node_count, grid.cell_count * grid.cells_per_cell), whole_bytes), dest=0)
+    elif rank == 0:
+        upper, upper_size, upper_bytes = comm.recv(source=upper_maker)
+    paired = collective(comm, lambda: refine.pair_refined(whole_coarse, skeleton, upper), root_only=True)
+    checked = collective(comm, lambda: whole_mesh_checks(scene, paired), root_only=True)
+    sizes = (paired.sigma, {-1: grid.node_count, 1: upper_size[0]},
+             {-1: grid.cell_count * grid.cells_per_cell, 1: upper_size[1]}, {-1: whole_bytes, 1: upper_bytes},
+             checked) if rank == 0 else None
+    sigma, nodes, cells, whole_sizes, (tips, table, block_kernels) = comm.bcast(sizes, root=0)
+    local = LocalMesh({side: piece.half}, sigma, nodes, cells, geometry.origin(scene), tips, table, block_kernels,
+                      meshes.quality(paired) if rank == 0 else {}, {side: piece}, whole_sizes)
+    if phases is not None:
+        phases.hold("mesh", local.nbytes + piece_bytes(piece) - half_bytes(piece.half))
+    end("distribution")
+    return local
+
+
+def joined(comm: MPI.Comm, part: np.ndarray) -> np.ndarray:
+    """The ``part`` arrays of the ranks of ``comm``, in their order, one after the other (one Allgatherv)."""
+    part = np.ascontiguousarray(part)
+    counts = comm.allgather(part.size)
+    whole = np.empty((sum(counts) // max(1, int(np.prod(part.shape[1:]))), *part.shape[1:]), dtype=part.dtype)
+    wait(comm.Iallgatherv(part, [whole, counts]))
+    return whole
+
+
+def assembly_ranges(nodes: int, block_group: MPI.Comm) -> tuple[int, int]:
+    """The nodes ``first:stop`` of this rank's rows of its block (:func:`ddsolve.fem.assembly.row_ranges`)."""
+    first, last = row_ranges(nodes, block_group.size)[block_group.rank]
+    return first // 2, last // 2
+
+
+def half_bytes(half: HalfMesh) -> int:
+    """Bytes of a half's mesh arrays."""
+    return int(sum(a.nbytes for a in (half.points, half.cells, half.sigma, *half.boundaries.values())))
+
+
+def piece_bytes(piece: Piece) -> int:
+    """Bytes of a piece's arrays (its half's and its own numbers)."""
+    return half_bytes(piece.half) + piece.nodes.nbytes + piece.outer_edges.nbytes + piece.outline.nbytes
+
+
+def grid_bytes(grid: refine.Lattice) -> int:
+    """Bytes the arrays of the fine half ``grid`` numbers would take whole (int64 cells)."""
+    cells = grid.cell_count * grid.cells_per_cell * 3 * grid.degree
+    return 16 * grid.node_count + 8 * cells + grid.sigma().nbytes + sum(e.nbytes for e in grid.boundaries().values())
 
 
 def share_pieces(group: MPI.Comm, grid: refine.Lattice, bounds, points, cells) -> tuple:

@@ -30,7 +30,8 @@ from ddsolve.mesh.mesh import BLOCKS, U_PLUS, Mesh, partner
 from ddsolve.mesh.pieces import Piece
 from ddsolve.parallel import launch
 from ddsolve.parallel.blocks import Block
-from ddsolve.parallel.distribution import LocalMesh, gather_upper, local_mesh, whole, whole_mesh_checks
+from ddsolve.parallel.distribution import (LocalMesh, gather_upper, half_bytes, local_mesh, whole,
+                                          whole_mesh_checks)
 from ddsolve.parallel.exchange import Exchange, collective
 from ddsolve.parallel.launch import supported
 from ddsolve.parallel.phases import Phases, launch_age, memory_record
@@ -134,15 +135,13 @@ def gather_estimate(mesh: LocalMesh, exchange: Exchange, indicators: dict[int, n
 
 
 
-def half_bytes(half) -> int:
-    """Bytes of a half's mesh arrays."""
-    return int(sum(a.nbytes for a in (half.points, half.cells, half.sigma, *half.boundaries.values())))
-
-
 def whole_mesh_bytes(local: LocalMesh, exchange: Exchange) -> int:
-    """Bytes of the whole mesh's arrays (both halves and Σ), counted by the leaders of u⁻ and u⁺."""
+    """Bytes of the whole mesh's arrays (both halves and Σ), counted by the leaders of u⁻ and u⁺ (known from the
+    sizes when they hold pieces)."""
+    if local.whole_bytes:
+        return sum(local.whole_bytes.values()) + local.sigma_bytes
     own = sum(half_bytes(local.half(BLOCKS[b].side)) for b in (0, U_PLUS) if exchange.comm.rank == exchange.leader(b))
-    return exchange.comm.allreduce(own) + local.nbytes - sum(half_bytes(half) for half in local.halves.values())
+    return exchange.comm.allreduce(own) + local.sigma_bytes
 
 
 class OnRanks:
@@ -399,7 +398,7 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
                                                            root_only=True), root=0)
         local = whole(mesh, tips, table, block_kernels)
     else:
-        local = local_mesh(scene, comm, exchange, phases)
+        local = local_mesh(scene, comm, exchange, phases, whole_halves=keep_halves)
     scene = resolve(scene, comm.size, local)
     method = scene.solver.method
     phases.hold("mesh", local.nbytes)
@@ -443,7 +442,9 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
 
 def cut_pieces(local: LocalMesh, exchange: Exchange) -> dict[int, Piece]:
     """This rank's piece of the half of each of its blocks: the nodes of its rows (:mod:`ddsolve.mesh.pieces`;
-    a block's rows are shared out as :func:`ddsolve.fem.assembly.row_ranges` says)."""
+    a block's rows are shared out as :func:`ddsolve.fem.assembly.row_ranges` says), made with the mesh or cut now."""
+    if local.pieces:
+        return {index: local.pieces[BLOCKS[index].side] for index in exchange.local_blocks}
     out = {}
     for index, group in zip(exchange.local_blocks, exchange.groups):
         half = local.half(BLOCKS[index].side)
@@ -455,17 +456,20 @@ def cut_pieces(local: LocalMesh, exchange: Exchange) -> dict[int, Piece]:
 def floating_kernel(scene: Scene, mesh: LocalMesh, index: int, piece: Piece, fixed: bool
                     ) -> tuple[np.ndarray, np.ndarray | None]:
     """A floating block's kernel at its rows here (the nodes ``piece`` owns) and, with ``fixed``, the dofs fixed
-    for FETI's K⁺: m dofs off the trace and the prescribed dofs where the kernel is independent (chosen on the
-    whole half, the same on every rank of the block)."""
-    spec = BLOCKS[index]
-    half = mesh.half(spec.side)
+    for FETI's K⁺: m dofs of the half's outer boundary, off the trace and the prescribed dofs, where the kernel
+    is independent (chosen from the skeleton every piece keeps, the same on every rank of the block)."""
+    spec, half = BLOCKS[index], piece.half
     vectors = kernels.kernel_vectors(half, mesh.sigma, mesh.kernels.kernels[index], mesh.kernels.frame)
     chosen = None
     if fixed:
         prescribed, _ = supports.block_supports(scene, half, mesh.sigma, spec.layer, index, mesh.sigma_supports)
-        trace = assembly.element_dofs(assembly.trace_nodes(half, mesh.sigma)[:, None]).ravel()
-        chosen = kernels.fixing_dofs(vectors, np.concatenate([trace, np.flatnonzero(prescribed)]))
-    return vectors[:, 2 * piece.first:2 * piece.stop], chosen
+        excluded = prescribed.ravel().copy()
+        excluded[assembly.element_dofs(assembly.trace_nodes(half, mesh.sigma)[:, None]).ravel()] = True
+        dofs = assembly.element_dofs(piece.outline[:, None]).ravel()
+        picked = dofs[kernels.fixing_dofs(vectors[:, dofs], np.flatnonzero(excluded[dofs]))]
+        chosen = 2 * piece.nodes[picked // 2].astype(np.int64) + picked % 2
+    owned = piece.owned_nodes
+    return vectors[:, 2 * owned.start:2 * owned.stop], chosen
 
 
 def resolve(scene: Scene, ranks: int, mesh: LocalMesh) -> Scene:
