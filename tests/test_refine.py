@@ -329,11 +329,12 @@ def test_eight_ranks_mesh_with_a_fraction_of_the_cpu_time_of_two(tmp_path):
     """Meshing as a solve that writes in parallel does it (a coarse gmsh mesh; on 2 ranks each refines its
     half, on 8 each makes its piece of its half, sharing it with the rank of the other layer's block), on a
     mesh whose refinement outweighs gmsh's coarse mesh (P = 1600 from a coarse mesh of P = 51, 5 levels): the
-    busiest of 8 ranks spends less than the 2-rank run's CPU seconds (0.65-0.70 of it measured on 2 cores:
-    each piece is half its half and two rings, made by two ranks)."""
+    busiest of 8 ranks (one that made a coarse half, and half its piece's cells and points) spends well under
+    the 2-rank run's CPU seconds (0.43 of it measured on 2 cores; choosing, ordering and numbering a piece's
+    cells is distribution, as cutting it from a whole half is)."""
     from ddsolve.experiments import report
 
     records = {ranks: report.launch(ranks, ["scaling-meshing", "1600", "2048", "5"], tmp_path / f"{ranks}.json")
                for ranks in (2, 8)}
     assert records[2]["unknowns"] == records[8]["unknowns"] == 3_057_928  # the same mesh
-    assert max(records[8]["meshing_cpu"]) <= 0.85 * max(records[2]["meshing_cpu"])
+    assert max(records[8]["meshing_cpu"]) <= 0.75 * max(records[2]["meshing_cpu"])

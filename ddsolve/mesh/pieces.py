@@ -121,8 +121,8 @@ def cut(half: HalfMesh, first: int, stop: int, rings: int = 2) -> Piece:
 
 
 def of_lattice(grid: Lattice, first: int, stop: int, project: Projector | None = None, rings: int = 2,
-               share: tuple[int, int] = (0, 1), join: Callable[[np.ndarray], np.ndarray] = lambda part: part
-               ) -> Piece:
+               share: tuple[int, int] = (0, 1), join: Callable[[np.ndarray], np.ndarray] = lambda part: part,
+               mark: Callable[[str, int], None] = lambda name, nbytes: None) -> Piece:
     """The piece :func:`cut` makes of the refined half ``grid`` numbers (:meth:`Lattice.half`, its cells in the
     order of their smallest node), made from the coarse half alone.  The coarse cells around the owned nodes
     whose fine nodes are all owned give all their fine cells; those of the others (a band along the range's
@@ -130,7 +130,10 @@ def of_lattice(grid: Lattice, first: int, stop: int, project: Projector | None =
     the piece's kept.  Its ``cell_first`` is left 0: it is the number of cells the ranks before own.
 
     Processes making the same piece can share the work: ``share = (k, parts)`` makes the k-th of ``parts``
-    parts of its inner cells and of its points, and ``join`` returns the parts of all, in order, together."""
+    parts of its inner cells and of its points, and ``join`` returns the parts of all, in order, together.
+    ``mark(name, nbytes)`` is called at the end of each step, with the bytes of the piece's cells and points
+    made so far: ``"meshing"`` after making cells or points, ``"distribution"`` after choosing, joining,
+    ordering and numbering them (what :func:`cut` does)."""
     rows, per_cell = grid.node_count, grid.cells_per_cell
     # every cell within rings + 1 fine layers of the owned nodes, the owners' neighbours across a coarse vertex
     patch = grid.around(grid.owners(first, stop), 1 + -(-(rings + 1) // grid.n))
@@ -140,8 +143,7 @@ def of_lattice(grid: Lattice, first: int, stop: int, project: Projector | None =
     chunks = np.array_split(band, max(1, len(band) * per_cell // CHUNK_CELLS))
     reached = np.zeros(rows, dtype=bool)
     reached[first:stop] = True
-    kept = [join(grid.cells_of(np.array_split(patch[inside], share[1])[share[0]]))]
-    positions = [fine_positions(patch[inside], per_cell)]
+    kept, positions = [], []
     for ring in range(rings + 1):  # the owned nodes reach their cells' nodes, and so on; the cells of the last
         grown = reached.copy()
         for chunk in chunks:
@@ -154,20 +156,28 @@ def of_lattice(grid: Lattice, first: int, stop: int, project: Projector | None =
                 positions.append(fine_positions(chunk, per_cell)[hit])
         reached = grown
     del reached, grown
-    cells, position = np.concatenate(kept), np.concatenate(positions)
+    band_bytes = sum(a.nbytes for a in (*kept, *positions))
+    mark("distribution", band_bytes)
+    inner = grid.cells_of(np.array_split(patch[inside], share[1])[share[0]])
+    mark("meshing", band_bytes + inner.nbytes)
+    cells = np.concatenate([join(inner), *kept])
+    position = np.concatenate([fine_positions(patch[inside], per_cell), *positions])
+    del inner, kept, positions
     smallest = cells.min(axis=1)
     owned = (smallest >= first) & (smallest < stop)
     cells = cells[np.lexsort((position, smallest, ~owned))]  # owned first, each part in the half's order
     edges, sigma, boundaries = grid.outer_edges(), grid.sigma(), grid.boundaries()
-    kept = np.zeros(rows, dtype=bool)
-    kept[cells] = True
-    outer = edges[kept[edges].all(axis=1)]
+    used = np.zeros(rows, dtype=bool)
+    used[cells] = True
+    outer = edges[used[edges].all(axis=1)]
     for skeleton in (edges, sigma, *boundaries.values()):
-        kept[skeleton] = True
-    nodes = np.flatnonzero(kept)
-    local = np.cumsum(kept, dtype=np.int64) - 1
-    points = join(grid.points_of(np.array_split(nodes, share[1])[share[0]], project))
-    piece = HalfMesh(points, local[cells], grid.coarse.side, local[sigma],
+        used[skeleton] = True
+    nodes = np.flatnonzero(used)
+    local = np.cumsum(used, dtype=np.int64) - 1
+    mark("distribution", cells.nbytes + nodes.nbytes)
+    points = grid.points_of(np.array_split(nodes, share[1])[share[0]], project)
+    mark("meshing", cells.nbytes + nodes.nbytes + points.nbytes)
+    piece = HalfMesh(join(points), local[cells], grid.coarse.side, local[sigma],
                      {name: local[named] for name, named in boundaries.items()})
     return Piece(piece, nodes.astype(index_type(2 * rows)), int(owned.sum()), local[outer], first, stop, 0, rows,
                  grid.cell_count * per_cell, local[np.unique(edges)])

@@ -232,11 +232,12 @@ def refined_pieces(scene: Scene, levels: int, comm: MPI.Comm, exchange: Exchange
     """The rest of :func:`refined_local_mesh` when every rank makes only its piece of its block's half.
 
     The coarse half goes to the ranks of its half; each makes its piece (:func:`~ddsolve.mesh.pieces.of_lattice`:
-    the nodes of its rows of the block, their cells and two rings) and learns where its owned cells start from
-    the ranks before it in the block.  The half's shape comes from every rank's owned cells; the leaders of
-    u⁻ (rank 0) and u⁺ make their half's skeleton from the coarse one
-    (:meth:`~ddsolve.mesh.refine.Lattice.skeleton`), and rank 0 pairs and checks those.  No rank holds a
-    whole fine half.
+    the nodes of its rows of the block, their cells and two rings; making the fine cells and points counts as
+    meshing, choosing, ordering and numbering them as distribution, as cutting a piece from a whole half does)
+    and learns where its owned cells start from the ranks before it in the block.  The half's shape comes
+    from every rank's owned cells; the leaders of u⁻ (rank 0) and u⁺ make their half's skeleton from the
+    coarse one (:meth:`~ddsolve.mesh.refine.Lattice.skeleton`), and rank 0 pairs and checks those.  No rank
+    holds a whole fine half.
     """
     rank, upper_maker = comm.rank, exchange.leader(U_PLUS)
     end = phases.end if phases is not None else (lambda name: None)
@@ -248,13 +249,16 @@ def refined_pieces(scene: Scene, levels: int, comm: MPI.Comm, exchange: Exchange
     try:
         grid = refine.Lattice(group.bcast(coarse.get(side), root=0), levels, scene.mesh.degree)
         end("distribution")
+
+        def mark(name: str, nbytes: int) -> None:  # the piece made so far and the coarse half
+            if phases is not None:
+                phases.hold("mesh", nbytes + half_bytes(grid.coarse))
+            end(name)
+
         first, last = assembly_ranges(grid.node_count, block_group)
         piece = collective(comm, lambda: pieces.of_lattice(grid, first, last, project, share=(partners.rank,
                                                                                                partners.size),
-                                                           join=lambda part: joined(partners, part)))
-        if phases is not None:
-            phases.hold("mesh", piece_bytes(piece) + half_bytes(grid.coarse))
-        end("meshing")
+                                                           join=lambda part: joined(partners, part), mark=mark))
         piece = dataclasses.replace(piece, cell_first=block_group.exscan(piece.owned) or 0)
         shape = functools.reduce(operator.and_, group.allgather(meshes.shape_of(piece.points,
                                                                                 piece.owned_cells[:, :3])))
@@ -277,6 +281,7 @@ def refined_pieces(scene: Scene, levels: int, comm: MPI.Comm, exchange: Exchange
     local = LocalMesh({side: piece.half}, sigma, nodes, cells, geometry.origin(scene), tips, table, block_kernels,
                       meshes.quality(paired) if rank == 0 else {}, {side: piece}, whole_sizes)
     if phases is not None:
+        phases.hold("mesh", local.nbytes + piece_bytes(piece) - half_bytes(piece.half) + half_bytes(grid.coarse))
         phases.hold("mesh", local.nbytes + piece_bytes(piece) - half_bytes(piece.half))
     end("distribution")
     return local

@@ -55,7 +55,8 @@ HELD = ("mesh", "matrices", "factors", "schur complements", "solutions")
 
 class Phases:
     """Wall seconds (this rank's clock), CPU seconds and peak memory at the end of each phase, and the
-    account of what the rank held: per phase the most bytes of each of :data:`HELD` (:meth:`hold`)."""
+    account of what the rank held: per phase the most bytes of each of :data:`HELD` (:meth:`hold`).  A phase
+    may end several times (a step of one, then of another): its seconds add up, its account keeps the most."""
 
     def __init__(self, startup: float = 0.0):
         self.wall = {"startup": startup}
@@ -76,7 +77,8 @@ class Phases:
         self.wall[name] = self.wall.get(name, 0.0) + wall - self._wall
         self.cpu[name] = self.cpu.get(name, 0.0) + cpu - self._cpu
         self.peak[name] = peak_memory_mb()
-        self.held[name] = dict(self._most)
+        before = self.held.get(name, {})
+        self.held[name] = {what: max(most, before.get(what, 0.0)) for what, most in self._most.items()}
         self._most = dict(self._holding)
         self._wall, self._cpu = wall, cpu
 
