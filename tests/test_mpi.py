@@ -149,20 +149,27 @@ def test_eight_ranks_split_every_block_over_two(tmp_path, method, options):
 
 
 @pytest.mark.mpi
-def test_at_eight_ranks_a_rank_holds_its_piece_of_the_mesh_and_of_the_solution(tmp_path):
-    """On a refined mesh each rank of a block makes its piece of the half from the coarse one (its nodes, two
-    rings of cells, Σ and the boundaries; :mod:`ddsolve.mesh.pieces`), holds it and the last solve there, and
-    writes its rows: no rank holds more than 60 % of its half's mesh or of its block's solution (8 bytes per
-    unknown) in any phase (the coarse half counted while the piece is made)."""
+@pytest.mark.parametrize("sigma_vertices, makers", [(600, []), (300, [0, 2])])
+def test_at_eight_ranks_a_rank_holds_its_piece_of_the_mesh_and_of_the_solution(tmp_path, sigma_vertices, makers):
+    """On a refined mesh (P = 600) each rank of a block makes its piece of the half from the coarse one (its
+    nodes, two rings of cells, Σ and the boundaries; :mod:`ddsolve.mesh.pieces`), holds it and the last solve
+    there, and writes its rows: no rank holds more than 60 % of its half's mesh or of its block's solution
+    (8 bytes per unknown) in any phase (the coarse half counted while the piece is made).  A half gmsh makes
+    whole (P = 300) is held whole by the rank that makes it (rank 0, and u⁺'s leader, rank 2) until it has
+    cut and sent the pieces; the others receive only theirs."""
     output = tmp_path / "eight.h5"
-    ddsolve("solve", "partial-closure", "--set", "mesh.sigma_vertices=600", "--set", "mesh.boundary_vertices=768",
-            "-o", str(output), ranks=8)
+    ddsolve("solve", "partial-closure", "--set", f"mesh.sigma_vertices={sigma_vertices}", "--set",
+            f"mesh.boundary_vertices={sigma_vertices * 128 // 100}", "-o", str(output), ranks=8)
     memory = io.read(output).memory
     held = list(memory["held"])
     block_unknowns = memory["rank_unknowns"].reshape(4, 2).sum(axis=1).repeat(2)
     half = memory["whole_mesh_bytes"] / 2  # the halves are of one size here
+    others = np.setdiff1d(np.arange(8), makers)
     for phase in ("meshing", "distribution", "assembly", "factorization", "iterations", "estimate", "output"):
         mesh, solutions = (memory[f"held_mb_{phase}"][:, held.index(what)] * 2 ** 20 for what in ("mesh", "solutions"))
+        if phase in ("meshing", "distribution"):
+            assert np.all(mesh[makers] >= 0.99 * half), (phase, mesh / half)  # the whole half, accounted
+            mesh = mesh[others]
         assert np.all(mesh <= 0.6 * half), (phase, mesh / half)
         assert np.all(solutions <= 0.6 * 8 * block_unknowns), (phase, solutions / (8 * block_unknowns))
     assert np.all(solutions >= 0.5 * 8 * block_unknowns)  # at output: half the nodes each, and the rings

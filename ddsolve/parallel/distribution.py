@@ -110,6 +110,8 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
         halves = {-1: paired.lower, 1: paired.upper} if rank == 0 else {}
         upper_size = (len(paired.upper.points), len(paired.upper.cells)) if rank == 0 else None
     checked = collective(comm, lambda: whole_mesh_checks(scene, paired), root_only=True)
+    if phases is not None:  # the halves this rank made or was sent (rank 0: the upper one's skeleton, or whole)
+        phases.hold("mesh", sum(half_bytes(half) for half in halves.values()))
     meshed(phases)
     sigma, nodes, cells, (tips, table, block_kernels) = comm.bcast(
         (paired.sigma, {-1: len(paired.lower.points), 1: upper_size[0]},
@@ -122,15 +124,40 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
             elif rank == upper_maker:
                 halves[1] = comm.recv(source=0)
         group = comm.Split(color=int(needed[0] > 0), key=rank)  # the ranks of one half; its maker is the first
-        halves = {needed[0]: group.bcast(halves.get(needed[0]), root=0),
-                  **({1: halves[1]} if keep_whole and rank == 0 else {})}
-        group.Free()
+        try:
+            if not whole_halves and not keep_whole and comm.size > len(BLOCKS):
+                piece, size = collective(comm, lambda: scattered_piece(group, exchange.groups[0],
+                                                                       halves.get(needed[0])))
+                whole_bytes = dict(comm.allgather((needed[0], size)))
+                local = LocalMesh({needed[0]: piece.half}, sigma, nodes, cells, geometry.origin(scene), tips, table,
+                                  block_kernels, meshes.quality(paired) if rank == 0 else {}, {needed[0]: piece},
+                                  whole_bytes)
+                if phases is not None:
+                    phases.hold("mesh", local.nbytes + piece_bytes(piece) - half_bytes(piece.half))
+                    phases.end("distribution")
+                return local
+            halves = {needed[0]: group.bcast(halves.get(needed[0]), root=0),
+                      **({1: halves[1]} if keep_whole and rank == 0 else {})}
+        finally:
+            group.Free()
     local = LocalMesh(halves, sigma, nodes, cells, geometry.origin(scene), tips, table, block_kernels,
                       meshes.quality(paired) if rank == 0 else {})
     if phases is not None:
         phases.hold("mesh", local.nbytes)
         phases.end("distribution")
     return local
+
+
+def scattered_piece(group: MPI.Comm, block_group: MPI.Comm, half: HalfMesh | None) -> tuple[Piece, int]:
+    """This rank's piece of the half that ``group``'s first rank holds (:func:`~ddsolve.mesh.pieces.cut` there, one
+    per row range of the block, and sent) and the bytes of that half's arrays."""
+    size = group.bcast((len(half.points), half_bytes(half)) if group.rank == 0 else None, root=0)
+    ranges = group.gather(assembly_ranges(size[0], block_group), root=0)
+    if group.rank != 0:
+        return group.recv(source=0), size[1]
+    cut = {bounds: pieces.cut(half, *bounds) for bounds in set(ranges)}
+    MPI.Request.waitall([group.isend(cut[bounds], dest=member) for member, bounds in enumerate(ranges) if member])
+    return cut[ranges[0]], size[1]
 
 
 def upper_for_rank_0(upper: HalfMesh, keep_whole: bool) -> tuple[HalfMesh, tuple[int, int]]:
