@@ -57,11 +57,8 @@ def run_method(scene: Scene, setup: "Setup", server: BlockServer, progress):
     interface = setup.interface
 
     def work(rounds):
-        method = scene.solver.method
-        outcome = methods.METHODS[method](rounds, interface, scene.solver, methods.Progress(method, out=progress))
-        if not outcome.diverged:
-            methods.final_solve(rounds, interface, scene.solver, outcome)  # the displacements for λ, checked
-        return outcome
+        method = scene.solver.method  # then the displacements for λ, checked
+        return methods.checked_solve(method, rounds, interface, scene.solver, methods.Progress(method, out=progress))
 
     outcome, rounds, failure = drive(setup, server, work)
     if failure is None and outcome is not None:
