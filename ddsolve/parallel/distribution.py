@@ -290,8 +290,7 @@ def refined_pieces(scene: Scene, levels: int, comm: MPI.Comm, exchange: Exchange
         shape = functools.reduce(operator.and_, group.allgather(meshes.shape_of(piece.points,
                                                                                 piece.owned_cells[:, :3])))
         whole_bytes = grid_bytes(grid)
-        skeleton = (collective(comm, lambda: grid.skeleton(shape, project)) if rank in (0, upper_maker)
-                    else collective(comm, lambda: None))
+        skeleton = collective(comm, lambda: grid.skeleton(shape, project) if rank in (0, upper_maker) else None)
     finally:
         group.Free()
         partners.Free()
@@ -307,9 +306,8 @@ def refined_pieces(scene: Scene, levels: int, comm: MPI.Comm, exchange: Exchange
     sigma, nodes, cells, whole_sizes, (tips, table, block_kernels) = comm.bcast(sizes, root=0)
     local = LocalMesh({side: piece.half}, sigma, nodes, cells, geometry.origin(scene), tips, table, block_kernels,
                       meshes.quality(paired) if rank == 0 else {}, {side: piece}, whole_sizes)
-    if phases is not None:
+    if phases is not None:  # with the coarse half, still held
         phases.hold("mesh", local.nbytes + piece_bytes(piece) - half_bytes(piece.half) + half_bytes(grid.coarse))
-        phases.hold("mesh", local.nbytes + piece_bytes(piece) - half_bytes(piece.half))
     end("distribution")
     return local
 

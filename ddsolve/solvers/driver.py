@@ -56,8 +56,8 @@ def run_method(scene: Scene, setup: "Setup", server: BlockServer, progress):
     """The scene's multiplier method on rank 0, then the final round; (outcome, rounds, failure)."""
     interface = setup.interface
 
-    def work(rounds):
-        method = scene.solver.method  # then the displacements for λ, checked
+    def work(rounds):  # the multipliers, then the displacements for λ, checked
+        method = scene.solver.method
         return methods.checked_solve(method, rounds, interface, scene.solver, methods.Progress(method, out=progress))
 
     outcome, rounds, failure = drive(setup, server, work)
