@@ -641,6 +641,8 @@ def checked_solve(method: str, rounds: Rounds, interface: Interface, solver: Sol
         outcome = more
         if outcome.diverged:
             return outcome
+        if not outcome.converged:  # all the iterations, to the lowered tol
+            outcome.message = _no_convergence(method, replace(solver, tol=tol), outcome.history)
         met = outcome.converged
         residuals = final_solve(rounds, interface, solver, outcome)
     return outcome
