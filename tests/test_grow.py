@@ -103,37 +103,12 @@ def test_enf_is_unstable_below_a_over_L_0_7(tmp_path, ratio, unstable):
     assert abs(initiation.state.G_I[0]) <= 1e-3 * initiation.state.G[0]  # mode II, faces in contact
 
 
-def test_two_disbonds_merge(tmp_path):
-    text = """
+def strip_with_disbonds(path, cracks: str, pressure: str, toughness: float) -> Scene:
+    """A clamped strip 6 × 1 with the disbonds ``cracks`` on Σ, both layers' tops under ``pressure``."""
+    path.write_text(f"""
 [geometry]
 box = [0.0, 6.0, -0.5, 0.5]
-cracks = [[0.5, 2.8], [3.2, 5.5]]
-clamped = ["left", "right"]
-[mesh]
-size = 0.1
-""" + MATERIALS + """
-[loads.layer1.top]
-pressure = "-1e-3*exp(-20*(x - 3)^2)"
-[loads.layer2.top]
-pressure = "-1e-3*exp(-20*(x - 3)^2)"
-[fracture]
-toughness = 1e-9
-"""
-    (tmp_path / "disbonds.toml").write_text(text)
-    scene = Scene.load(tmp_path / "disbonds.toml")
-    steps = grow.grow(scene, comm(), 1.0, 2, 1e-3, progress=quiet)
-    assert any("merge" in event for s in steps for event in s.events)
-    assert len(steps[-1].state.cracks) == 1
-
-
-def test_a_tip_at_a_support_stops_and_the_others_grow_on(tmp_path):
-    """A tip that reaches a support above G_c stops there (one Σ edge before it); the run goes on with the
-    other tips, and ends once every tip has stopped."""
-    pressure = '"-1e-3*exp(-8*(x - 1)^2) - 0.7e-3*exp(-8*(x - 3.75)^2)"'
-    text = f"""
-[geometry]
-box = [0.0, 6.0, -0.5, 0.5]
-cracks = [[0.6, 1.4], [3.0, 4.5]]
+cracks = {cracks}
 clamped = ["left", "right"]
 [mesh]
 size = 0.1
@@ -143,10 +118,25 @@ pressure = {pressure}
 [loads.layer2.top]
 pressure = {pressure}
 [fracture]
-toughness = 1e-8
-"""
-    (tmp_path / "two.toml").write_text(text)
-    steps = grow.grow(Scene.load(tmp_path / "two.toml"), comm(), 1.0, 1, 1e-3, progress=quiet)
+toughness = {toughness}
+""")
+    return Scene.load(path)
+
+
+def test_two_disbonds_merge(tmp_path):
+    scene = strip_with_disbonds(tmp_path / "disbonds.toml", "[[0.5, 2.8], [3.2, 5.5]]",
+                                '"-1e-3*exp(-20*(x - 3)^2)"', 1e-9)
+    steps = grow.grow(scene, comm(), 1.0, 2, 1e-3, progress=quiet)
+    assert any("merge" in event for s in steps for event in s.events)
+    assert len(steps[-1].state.cracks) == 1
+
+
+def test_a_tip_at_a_support_stops_and_the_others_grow_on(tmp_path):
+    """A tip that reaches a support above G_c stops there (one Σ edge before it); the run goes on with the
+    other tips, and ends once every tip has stopped."""
+    scene = strip_with_disbonds(tmp_path / "two.toml", "[[0.6, 1.4], [3.0, 4.5]]",
+                                '"-1e-3*exp(-8*(x - 1)^2) - 0.7e-3*exp(-8*(x - 3.75)^2)"', 1e-8)
+    steps = grow.grow(scene, comm(), 1.0, 1, 1e-3, progress=quiet)
     events = [event for step in steps for event in step.events]
     stopped = next(i for i, event in enumerate(events) if "stops at 0.1: a support at arc length 0 ahead" in event)
     assert any("merge" in event for event in events[stopped:])  # crack 0's other tip grew on, into crack 1

@@ -117,6 +117,7 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
         (paired.sigma, {-1: len(paired.lower.points), 1: upper_size[0]},
          {-1: len(paired.lower.cells), 1: upper_size[1]}, checked) if rank == 0 else None, root=0)
     needed = sorted({BLOCKS[b].side for b in exchange.local_blocks})
+    made, whole_bytes = {}, {}  # this rank's piece and the halves' sizes, when the maker sends pieces
     if comm.size > 1:
         if not split and upper_maker != 0:  # rank 0 made both halves: the upper one goes to u⁺'s leader
             if rank == 0:
@@ -128,22 +129,17 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
             if not whole_halves and not keep_whole and comm.size > len(BLOCKS):
                 piece, size = collective(comm, lambda: scattered_piece(group, exchange.groups[0],
                                                                        halves.get(needed[0])))
-                whole_bytes = dict(comm.allgather((needed[0], size)))
-                local = LocalMesh({needed[0]: piece.half}, sigma, nodes, cells, geometry.origin(scene), tips, table,
-                                  block_kernels, meshes.quality(paired) if rank == 0 else {}, {needed[0]: piece},
-                                  whole_bytes)
-                if phases is not None:
-                    phases.hold("mesh", local.nbytes + piece_bytes(piece) - half_bytes(piece.half))
-                    phases.end("distribution")
-                return local
-            halves = {needed[0]: group.bcast(halves.get(needed[0]), root=0),
-                      **({1: halves[1]} if keep_whole and rank == 0 else {})}
+                halves, made, whole_bytes = {needed[0]: piece.half}, {needed[0]: piece}, dict(comm.allgather(
+                    (needed[0], size)))
+            else:
+                halves = {needed[0]: group.bcast(halves.get(needed[0]), root=0),
+                          **({1: halves[1]} if keep_whole and rank == 0 else {})}
         finally:
             group.Free()
     local = LocalMesh(halves, sigma, nodes, cells, geometry.origin(scene), tips, table, block_kernels,
-                      meshes.quality(paired) if rank == 0 else {})
+                      meshes.quality(paired) if rank == 0 else {}, made, whole_bytes)
     if phases is not None:
-        phases.hold("mesh", local.nbytes)
+        phases.hold("mesh", local.nbytes + pieces.extra_bytes(made.values(), halves.values()))
         phases.end("distribution")
     return local
 
@@ -307,7 +303,7 @@ def refined_pieces(scene: Scene, levels: int, comm: MPI.Comm, exchange: Exchange
     local = LocalMesh({side: piece.half}, sigma, nodes, cells, geometry.origin(scene), tips, table, block_kernels,
                       meshes.quality(paired) if rank == 0 else {}, {side: piece}, whole_sizes)
     if phases is not None:  # with the coarse half, still held
-        phases.hold("mesh", local.nbytes + piece_bytes(piece) - half_bytes(piece.half) + half_bytes(grid.coarse))
+        phases.hold("mesh", local.nbytes + pieces.extra_bytes([piece], local.halves.values()) + half_bytes(grid.coarse))
     end("distribution")
     return local
 
@@ -330,11 +326,6 @@ def assembly_ranges(nodes: int, block_group: MPI.Comm) -> tuple[int, int]:
 def half_bytes(half: HalfMesh) -> int:
     """Bytes of a half's mesh arrays."""
     return int(sum(a.nbytes for a in (half.points, half.cells, half.sigma, *half.boundaries.values())))
-
-
-def piece_bytes(piece: Piece) -> int:
-    """Bytes of a piece's arrays (its half's and its own numbers)."""
-    return half_bytes(piece.half) + piece.nodes.nbytes + piece.outer_edges.nbytes + piece.outline.nbytes
 
 
 def grid_bytes(grid: refine.Lattice) -> int:
