@@ -192,6 +192,7 @@ def refined_local_mesh(scene: Scene, coarse_scene: Scene, levels: int, comm: MPI
     if scene.mesh.kind == "box" and comm.size > 1:
         side = -1 if rank == 0 else 1 if rank == upper_maker else 0
         made = collective(comm, lambda: geometry.generate_half(coarse_scene, side) if side else None)
+        meshed(phases)  # sending and pairing the coarse halves are distribution's
         coarse = {side: made} if side else {}
         if rank == upper_maker:
             comm.send(made, dest=0)
@@ -200,13 +201,13 @@ def refined_local_mesh(scene: Scene, coarse_scene: Scene, levels: int, comm: MPI
         whole_coarse = collective(comm, lambda: geometry.pair(scene, coarse[-1], coarse[1]), root_only=True)
     else:
         whole_coarse = collective(comm, lambda: geometry.build_coarse(coarse_scene), root_only=True)
+        meshed(phases)
         coarse = {-1: whole_coarse.lower, 1: whole_coarse.upper} if rank == 0 else {}
         if upper_maker != 0:
             if rank == 0:
                 comm.send(coarse[1], dest=upper_maker)
             elif rank == upper_maker:
                 coarse[1] = comm.recv(source=0)
-    meshed(phases)
     if not whole_halves and not keep_whole and comm.size > len(BLOCKS):
         return refined_pieces(scene, levels, comm, exchange, coarse, whole_coarse, phases)
     needed = sorted({BLOCKS[b].side for b in exchange.local_blocks})
