@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import operator
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -98,6 +99,7 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
     if split:
         side = -1 if rank == 0 else 1 if rank == upper_maker else 0
         made = collective(comm, lambda: geometry.generate_half(scene, side) if side else None)
+        meshed(phases, [made] if side else [])
         for_rank_0 = collective(comm, lambda: upper_for_rank_0(made, keep_whole) if rank == upper_maker else None)
         if rank == upper_maker:
             comm.send(for_rank_0, dest=0)
@@ -108,11 +110,11 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
     else:
         paired = collective(comm, lambda: geometry.build(scene), root_only=True)
         halves = {-1: paired.lower, 1: paired.upper} if rank == 0 else {}
+        meshed(phases, halves.values())
         upper_size = (len(paired.upper.points), len(paired.upper.cells)) if rank == 0 else None
     checked = collective(comm, lambda: whole_mesh_checks(scene, paired), root_only=True)
     if phases is not None:  # the halves this rank made or was sent (rank 0: the upper one's skeleton, or whole)
         phases.hold("mesh", sum(half_bytes(half) for half in halves.values()))
-    meshed(phases)
     sigma, nodes, cells, (tips, table, block_kernels) = comm.bcast(
         (paired.sigma, {-1: len(paired.lower.points), 1: upper_size[0]},
          {-1: len(paired.lower.cells), 1: upper_size[1]}, checked) if rank == 0 else None, root=0)
@@ -162,10 +164,12 @@ def upper_for_rank_0(upper: HalfMesh, keep_whole: bool) -> tuple[HalfMesh, tuple
     return upper if keep_whole else meshes.skeleton(upper), (len(upper.points), len(upper.cells))
 
 
-def meshed(phases: Phases | None) -> None:
-    """End the ``meshing`` phase; the warm gmsh child's import of gmsh counts as start-up, when it ran."""
+def meshed(phases: Phases | None, made: Iterable[HalfMesh] = ()) -> None:
+    """End the ``meshing`` phase when this rank has made its mesh (holding the halves ``made``): sending, pairing
+    and checking meshes are distribution's.  The warm gmsh child's import of gmsh counts as start-up, when it ran."""
     spent_starting = gmsh_io.warm_up_cpu()
     if phases is not None:
+        phases.hold("mesh", sum(half_bytes(half) for half in made))
         phases.end("meshing")
         phases.move_cpu(spent_starting, "meshing", "startup")
 
@@ -192,7 +196,7 @@ def refined_local_mesh(scene: Scene, coarse_scene: Scene, levels: int, comm: MPI
     if scene.mesh.kind == "box" and comm.size > 1:
         side = -1 if rank == 0 else 1 if rank == upper_maker else 0
         made = collective(comm, lambda: geometry.generate_half(coarse_scene, side) if side else None)
-        meshed(phases)  # sending and pairing the coarse halves are distribution's
+        meshed(phases)
         coarse = {side: made} if side else {}
         if rank == upper_maker:
             comm.send(made, dest=0)
