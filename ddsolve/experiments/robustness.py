@@ -375,13 +375,30 @@ ROUND3_MODULES = ("hostile_expr", "hostile_geom", "hostile_text", "hostile_keys"
                   "hostile_procs")
 
 
+def round4_modules() -> list:
+    """The modules ``hostile4_<topic>`` of this package that measure issue 40 (round 4): each holds
+    ``CLASSES`` (its class numbers, 201 to 211, with a title and how the class is fixed at the root)
+    and ``measure(hostile)``, which adds its rows."""
+    names = sorted(path.stem for path in Path(__file__).parent.glob("hostile4_*.py"))
+    return [importlib.import_module(f"ddsolve.experiments.{name}") for name in names]
+
+
+def round4_classes() -> dict:
+    """Issue 40's classes, in number order, from the modules that measure them."""
+    classes = {}
+    for module in round4_modules():
+        classes.update(module.CLASSES)
+    return dict(sorted(classes.items()))
+
+
 class Hostile:
     """The hostile inputs of docs/robustness.md, measured in a scratch folder: each row gives what the
     previous code did (measured once, before the fixes; those numbers are quoted) and what this code does."""
 
     def __init__(self, folder: Path):
         self.folder = folder
-        self.rows: dict[int, list[tuple[str, str, str]]] = {number: [] for number in (*CLASSES, *ROUND3)}
+        self.rows: dict[int, list[tuple[str, str, str]]] = {number: [] for number in
+                                                            (*CLASSES, *ROUND3, *round4_classes())}
 
     def run(self, arguments: list[str], env: dict | None = None, timeout: float = 300
             ) -> tuple[subprocess.CompletedProcess, float]:
@@ -457,6 +474,8 @@ class Hostile:
         self._options()
         for name in ROUND3_MODULES:
             importlib.import_module(f"ddsolve.experiments.{name}").measure(self)
+        for module in round4_modules():
+            module.measure(self)
 
     def _fixtures(self) -> None:
         completed, _ = self.run(["solve", "-n", "2", "partial-closure", *SMALL, "-o", "base.h5"])
@@ -672,6 +691,13 @@ class Hostile:
                   "robustness` on this code. Each class has its tests in `tests/test_reliability_*.py`, each with a "
                   "hypothesis generator of the inputs that would have found it."]
         lines += self._classes(ROUND3)
+        lines += ["", "## Hostile input, round 4", "",
+                  "The inputs of issue 40: the surfaces added by prescribed displacements, thermal loads, toughness "
+                  "laws, `grow` and the Python API, tried as a new user would, grouped by class. *Before* is what the "
+                  "code before the fixes did, measured once (quoted); *after* is measured by `./run robustness` on "
+                  "this code. Each class has its tests and a hypothesis generator of its inputs in "
+                  "`tests/test_round4_*.py`."]
+        lines += self._classes(round4_classes())
         return lines
 
     def _classes(self, classes: dict) -> list[str]:
