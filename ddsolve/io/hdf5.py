@@ -7,11 +7,12 @@ import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Iterable, Mapping
 
 import h5py
 import numpy as np
 
-from ddsolve.errors import DDSolveError, SceneError
+from ddsolve.errors import ArgumentError, DDSolveError, SceneError
 from ddsolve.io import viewer as export
 from ddsolve.io.safe import check_targets, hdf5_image, recover, replace_together, same_file
 from ddsolve.mesh.mesh import BLOCKS, HalfMesh, Mesh, SigmaLine
@@ -31,7 +32,8 @@ RESULT_SUFFIXES = (".h5", ".hdf5")
 
 
 
-def check_result(path: Path, inputs: list[Path] = (), viewer: bool = True, named: str = "-o") -> None:
+def check_result(path: Path, inputs: Iterable[Path] | Mapping[Path, str] = (), viewer: bool = True,
+                 named: str = "-o") -> None:
     """Refuse a result (or sweep) file ``path`` that is not an HDF5 name, or whose set (with its viewer
     files unless not ``viewer``) cannot be written or would replace one of the ``inputs``; ``named``: how
     the messages name the path's argument."""
@@ -42,9 +44,15 @@ def check_result(path: Path, inputs: list[Path] = (), viewer: bool = True, named
         raise DDSolveError(f"{named} {path}: a result is an HDF5 file: give it the suffix .h5"
                            + (" (its viewer files are written beside it)" if viewer else "")
                            + ("; this name is an input of this run" if any(same_file(path, s) for s in inputs) else ""))
-    check_targets([path, *(export.viewer_paths(path.parent, path.stem) if viewer else [])], inputs)
+    check_targets([path, *(export.viewer_paths(path.parent, path.stem) if viewer else [])], inputs, named)
 
 
+
+
+def check_viewer(viewer: object, named: str = "--format") -> None:
+    """Refuse a viewer format that is not one of :data:`ddsolve.io.viewer.FORMATS`."""
+    if not isinstance(viewer, str) or viewer not in export.FORMATS:
+        raise ArgumentError(f"{named} must be one of {', '.join(map(repr, export.FORMATS))} (got {viewer!r:.40})")
 
 
 def write(path: Path, result: Result, viewer: str = "vtu", final: bool = False) -> list[Path]:

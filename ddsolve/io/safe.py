@@ -13,7 +13,7 @@ import socket
 import tempfile
 import threading
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Iterable, Mapping
 
 from ddsolve.environment import process_exists
 from ddsolve.errors import DDSolveError
@@ -112,14 +112,16 @@ def same_file(path: Path, source: Path) -> bool:
     return path.exists() and Path(source).exists() and os.path.samefile(path, source)
 
 
-def check_targets(paths: list[Path], inputs: list[Path] = ()) -> None:
+def check_targets(paths: list[Path], inputs: Iterable[Path] | Mapping[Path, str] = (), named: str = "-o") -> None:
     """Refuse a set of output files that could not be written as a whole: an empty name, a name given
     twice, an existing file that is not a regular file (a directory, a device, a FIFO), one of the
-    ``inputs``, or a folder that does not exist or where no file can be created."""
+    ``inputs`` (paths, or paths with how the run reads each), or a folder that does not exist or where no
+    file can be created; ``named``: how the messages name the output's argument."""
+    reads = inputs if isinstance(inputs, Mapping) else dict.fromkeys(inputs, "")
     seen: dict[str, Path] = {}
     for path in map(Path, paths):
         if not path.name or str(path).endswith(os.sep):
-            raise DDSolveError(f"-o {str(path)!r}: not a file name")
+            raise DDSolveError(f"{named} {str(path)!r}: not a file name")
         key = os.path.abspath(path)
         if key in seen:
             raise DDSolveError(f"{path}: written twice in one set of result files")
@@ -128,10 +130,11 @@ def check_targets(paths: list[Path], inputs: list[Path] = ()) -> None:
             continue  # the link itself is replaced, never its target
         if path.exists() and not path.is_file():
             kind = "a directory" if path.is_dir() else "not a regular file"
-            raise DDSolveError(f"{path}: is {kind}; ddsolve replaces regular files only: choose another -o")
-        for source in inputs:
+            raise DDSolveError(f"{path}: is {kind}; ddsolve replaces regular files only: choose another {named}")
+        for source, how in reads.items():
             if same_file(path, source):
-                raise DDSolveError(f"{path}: is an input of this run ({source}); choose another -o")
+                raise DDSolveError(f"{path}: is an input of this run ({source}{', ' * bool(how)}{how}); "
+                                   f"choose another {named}")
     for folder, path in {Path(path).parent: Path(path) for path in reversed(paths)}.items():
         if not folder.is_dir():
             raise DDSolveError(f"{path}: output directory {folder} does not exist")

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ddsolve.errors import ArgumentError, DDSolveError
 from ddsolve.fem import assembly
 from ddsolve.mesh.mesh import BLOCKS, HalfMesh, Mesh, SigmaLine
 from ddsolve.problem import scene as scenes
@@ -51,6 +52,26 @@ class Result:
     indicators: dict[str, np.ndarray] = field(default_factory=dict)
     levels: dict[str, np.ndarray] = field(default_factory=dict)
     held: OnSigma | None = None  # rank 0 of a run whose ranks wrote the result: all it holds (no mesh, no solution)
+    #: The files the run read (scene, mesh and the files it reaches) -> how: :meth:`save` never replaces them.
+    inputs: dict[Path, str] = field(default_factory=dict, compare=False)
+    #: The result file this result was last read from or saved to, if any.
+    path: Path | None = field(default=None, compare=False)
+
+    def __repr__(self) -> str:
+        """A few lines: what was solved, how, the energy, G and the file (the arrays are attributes)."""
+        try:
+            title = self.parsed_scene.title
+        except DDSolveError:  # a result file's scene that does not parse: the rest still describes it
+            title = "(scene not readable)"
+        state = "converged" if self.converged else "NOT converged"
+        G = self.G
+        tips = ("no crack tips" if len(G) == 0 else f"G at {len(G)} tip{'s' * (len(G) > 1)} "
+                + ", ".join(f"{g:.4e}" for g in G[:4]) + (", ..." if len(G) > 4 else ""))
+        unknowns = 4 * sum(len(half.points) for half in self.mesh.halves) if self.mesh is not None else None
+        size = "" if unknowns is None else f", {unknowns} unknowns"
+        return (f"<Result of {title!r}: {self.method}, {state} after {self.iterations} iterations on {self.ranks} "
+                f"rank{'s' * (self.ranks != 1)}{size}; energy {self.energy:.10e}; {tips}"
+                f"{'' if self.path is None else f'; file {self.path}'}>")
 
     @cached_property
     def parsed_scene(self) -> scenes.Scene:
@@ -86,11 +107,16 @@ class Result:
 
     def save(self, path: str | Path, viewer: str = "vtu") -> list[Path]:
         """Write the result set: the HDF5 file ``path`` and its viewer files (``vtu`` or ``xdmf``) beside
-        it, replaced together; returns the paths written."""
-        from ddsolve.io.hdf5 import check_result, write  # deferred, as meshio's Mesh.write: io is the stage above
+        it, replaced together (never over a file the run read: :attr:`inputs`); returns the paths written."""
+        from ddsolve.io.hdf5 import check_result, check_viewer, write  # deferred: io is the stage above
 
-        check_result(Path(path), named="save")
-        return write(Path(path), self, viewer)
+        if not isinstance(path, (str, Path)):
+            raise ArgumentError(f"save: path must be a file's path (got {type(path).__name__})")
+        check_viewer(viewer, "save: viewer")
+        check_result(Path(path), self.inputs, named="save path")
+        written = write(Path(path), self, viewer)
+        self.path = Path(path)
+        return written
 
     @classmethod
     def from_blocks(cls, scene: str, method: str, mesh: Mesh, fields: list[np.ndarray], interface, lam: np.ndarray,
@@ -236,6 +262,10 @@ class Fracture:
             self.overlaps = np.zeros((0, 2))
         if self.overlap_crack is None:
             self.overlap_crack = np.zeros(0, dtype=np.int64)
+
+    def __repr__(self) -> str:
+        return (f"<Fracture: {len(self.G)} tips, G {np.array2string(np.asarray(self.G), precision=4, threshold=8)}, "
+                f"{len(self.zones)} contact zones, {len(self.overlaps)} overlaps>")
 
     def released(self) -> np.ndarray:
         """Per tip whether G is a release rate: above RELEASE × the largest |G| of the tips."""

@@ -824,9 +824,19 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str, 
 
 def override_items(overrides: dict[str, Any] | Sequence[str]) -> list[str]:
     """``KEY=VALUE`` items from a dict of dotted keys and Python values (numbers, booleans, text, lists,
-    numpy scalars and arrays) or from items already written so."""
+    numpy scalars and arrays) or from items already written so (a list of them, or one)."""
+    if isinstance(overrides, str):
+        return [overrides]
+    if not isinstance(overrides, (dict, list, tuple)):
+        raise SceneError(f"overrides: a dict of dotted keys and values, or KEY=VALUE items (got "
+                         f"{type(overrides).__name__})")
+    wrong = [item for item in overrides if not isinstance(item, str)]
+    if wrong:
+        raise SceneError(f"overrides: {printable(repr(wrong[0]))[:40]} is not a " +
+                         ("dotted key (text such as 'solver.tol')" if isinstance(overrides, dict) else
+                          "KEY=VALUE item (text such as 'solver.tol=1e-10')"))
     if not isinstance(overrides, dict):
-        return [str(item) for item in overrides]
+        return list(overrides)
     items = []
     for key, value in overrides.items():
         value = value.tolist() if hasattr(value, "tolist") else value  # numpy scalars and arrays

@@ -252,10 +252,11 @@ def check_cost(items: list[str], scenes: list, runs: list[dict], ranges: list[Ra
 
 
 def sweep(source, items: list[str], paired: bool, output: Path | None, comm, progress=print,
-          values: dict | None = None) -> list[dict] | None:
+          values: dict | None = None, named: str = "-o") -> list[dict] | None:
     """Run the sweep of ``source`` (a Scene, a scene file or a built-in name) on ``comm`` (every rank):
     ``items`` are ``--set`` items (ranges and fixed values), ``values`` more swept keys with their values
-    given (key -> sequence).  Writes ``output`` (if given) on rank 0 at the end.
+    given (key -> sequence).  Writes ``output`` (if given; ``named``: how messages name it) on rank 0 at
+    the end; it may be none of the files the scenes read.
 
     Returns the records on rank 0 (None elsewhere).
     """
@@ -273,13 +274,13 @@ def sweep(source, items: list[str], paired: bool, output: Path | None, comm, pro
     fixed, ranges, runs = collective(comm, arrange)  # the same on every rank, errors included
 
     def check():
+        from ddsolve.io import inputs
         from ddsolve.io.hdf5 import check_result
 
         scenes = load_scenes(source, fixed, runs)
         if output is not None:
-            inputs = [*([] if isinstance(source, Scene) else [Path(source)]),
-                      *{scene.mesh.file for scene in scenes if scene.mesh.file is not None}]
-            check_result(output, [path for path in inputs if path.is_file()], viewer=False)
+            check_result(output, inputs.of_scenes(scenes, None if isinstance(source, Scene) else source),
+                         viewer=False, named=named)
         return scenes
 
     scenes = comm.bcast(collective(comm, check, root_only=True), root=0)
