@@ -32,11 +32,11 @@ RESULT_SUFFIXES = (".h5", ".hdf5")
 
 
 
-def check_result(path: Path, inputs: Iterable[Path] | Mapping[Path, str] = (), viewer: bool = True,
+def check_result(path: Path, inputs: Iterable[Path] | Mapping[Path, str] = (), viewer: bool | str = True,
                  named: str = "-o") -> None:
     """Refuse a result (or sweep) file ``path`` that is not an HDF5 name, or whose set (with its viewer
-    files unless not ``viewer``) cannot be written or would replace one of the ``inputs``; ``named``: how
-    the messages name the path's argument."""
+    files unless not ``viewer``; a string: their format) cannot be written or would replace one of the
+    ``inputs``; ``named``: how the messages name the path's argument."""
     path = Path(path)
     if not path.name:
         raise DDSolveError(f"{named} {str(path)!r}: not a file name")
@@ -44,7 +44,8 @@ def check_result(path: Path, inputs: Iterable[Path] | Mapping[Path, str] = (), v
         raise DDSolveError(f"{named} {path}: a result is an HDF5 file: give it the suffix .h5"
                            + (" (its viewer files are written beside it)" if viewer else "")
                            + ("; this name is an input of this run" if any(same_file(path, s) for s in inputs) else ""))
-    check_targets([path, *(export.viewer_paths(path.parent, path.stem) if viewer else [])], inputs, named)
+    fmt = viewer if isinstance(viewer, str) else "vtu"
+    check_targets([path, *(export.viewer_paths(path.parent, path.stem, fmt) if viewer else [])], inputs, named)
 
 
 

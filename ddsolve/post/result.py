@@ -113,7 +113,7 @@ class Result:
         if not isinstance(path, (str, Path)):
             raise ArgumentError(f"save: path must be a file's path (got {type(path).__name__})")
         check_viewer(viewer, "save: viewer")
-        check_result(Path(path), self.inputs, named="save path")
+        check_result(Path(path), self.inputs, viewer=viewer, named="save path")
         written = write(Path(path), self, viewer)
         self.path = Path(path)
         return written
