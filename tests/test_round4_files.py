@@ -63,6 +63,17 @@ def test_an_xdmf_meshs_arrays_are_an_input_no_command_replaces(command, tmp_path
     assert heavy.read_bytes() == before, line
 
 
+@pytest.mark.mpi
+def test_a_file_a_geo_merges_is_an_input_mesh_o_does_not_replace(tmp_path):
+    scenes = ROOT / "ddsolve" / "problem" / "scenes"
+    (tmp_path / "a.geo").write_text((scenes / "arc-bond.geo").read_text() + 'Merge "extra.msh";\n')
+    (tmp_path / "a.toml").write_text((scenes / "arc-bond.toml").read_text().replace("arc-bond.geo", "a.geo"))
+    (tmp_path / "extra.msh").write_text("a mesh merged into the geometry")
+    refused(ddsolve("mesh", str(tmp_path / "a.toml"), "-o", str(tmp_path / "extra.msh"), check=False), 1,
+            "extra.msh: is an input of this run", "read through", "a.geo")
+    assert (tmp_path / "extra.msh").read_text() == "a mesh merged into the geometry"
+
+
 def references(draw, folder: Path) -> tuple[Path, set[Path]]:
     """A mesh or geometry file naming others (XDMF heavy data and binary items, XIncludes; a .geo's
     Include, Merge and ShapeFromFile, in chains), some in subfolders, some absolute, some missing;

@@ -75,6 +75,15 @@ def _fixtures(folder: Path) -> None:
     (folder / "fo.toml").write_text(text + "\n[fracture]\ntoughness = 1e-6\n")
 
 
+def _geo_merging(folder: Path) -> None:
+    """a.toml: the arc-bond scene on a.geo, which merges extra.msh."""
+    from ddsolve.problem.scene import builtin_folder
+
+    (folder / "a.geo").write_text((builtin_folder() / "arc-bond.geo").read_text() + 'Merge "extra.msh";\n')
+    (folder / "a.toml").write_text((builtin_folder() / "arc-bond.toml").read_text().replace("arc-bond.geo", "a.geo"))
+    (folder / "extra.msh").write_text("a mesh merged into the geometry\n")
+
+
 def _kept(folder: Path, name: str):
     """An ``observe`` note: whether ``name`` is byte-identical after the run (put back if not)."""
     before = (folder / name).read_bytes()
@@ -129,6 +138,11 @@ def measure(hostile) -> None:
             (["grow", "--to", "2", "--steps", "2", "--pictures", "0"], "exit 0, 1.4 s: box.h5 replaced by the growth")):
         hostile.case(206, f"{command[0]} on an XDMF mesh (box.xdmf, arrays in box.h5) with -o box.h5", before,
                      [command[0], "x.toml", *command[1:], "-o", "box.h5"], observe=_kept(hostile.folder, "box.h5"))
+    _geo_merging(hostile.folder)
+    hostile.case(206, "mesh a.toml -o extra.msh, a.geo saying Merge \"extra.msh\"", "exit 1, 1.8 s: «a.geo: gmsh cannot "
+                 "read it ('extra.msh', line 1: syntax error ...)»: -o not seen as an input (the Merge not followed); "
+                 "kept only because gmsh failed first",
+                 ["mesh", "a.toml", "-o", "extra.msh"], observe=_kept(hostile.folder, "extra.msh"))
     for label, before, code, kept in (
             ("API: solve('x.toml', output='box.h5') (XDMF mesh's arrays)", "exit 0, 1.5 s: box.h5 replaced",
              "import ddsolve; ddsolve.solve('x.toml', output='box.h5')", "box.h5"),
