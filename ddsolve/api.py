@@ -149,8 +149,9 @@ def _agreed(comm, function: str, check: Callable[[], tuple[Scene, dict]]) -> tup
         value = check()
     except DDSolveError as exc:
         error = exc
-    digests = None if value is None else (_digest(value[0].text), {key: _digest(item) for key, item in value[1].items()
-                                                                   if key != "progress"})  # a function each
+    digests = None if value is None else (_digest((value[0].text, value[0])),  # its text and what it holds
+                                          {key: _digest(item) for key, item in value[1].items()
+                                           if key != "progress"})  # a function on each rank
     gathered = comm.allgather((error, digests))
     first = next((e for e, _ in gathered if e is not None), None)
     if first is None:
