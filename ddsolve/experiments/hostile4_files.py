@@ -196,4 +196,6 @@ def _measure_api(hostile) -> None:
     script(hostile, 211, "docs/api.md's mpiexec line as written (4 ranks, 2 cores, as root as the page says)",
            "«mpiexec has detected an attempt to run as root»; with --allow-run-as-root: «There are not enough "
            "slots available in the system to satisfy the 4 slots», exit 1",
-           f"import ddsolve; r = ddsolve.solve(ddsolve.Scene.load('partial-closure', {small})); print(r.ranks)", 4)
+           "import ddsolve; from mpi4py import MPI\n"
+           f"r = ddsolve.solve(ddsolve.Scene.load('partial-closure', {small}))\n"
+           "if MPI.COMM_WORLD.rank == 0: print(f'solved on {r.ranks} ranks, converged {r.converged}')", 4)
