@@ -635,6 +635,7 @@ def _cross_checks(data: dict, raw: dict, origin: str) -> None:
                 raise SceneError(f"{origin}: loads.{layer}.{printable(name)}: pressure excludes x and y "
                                  "(a pressure acts along the normal)")
     _displacement_checks(data, origin)
+    _temperature_checks(data, origin)
     solver = data["solver"]
     if solver["method"] == "uzawa" and solver["theta"] is None:
         raise SceneError(f"{origin}: solver.theta is required by method uzawa")
@@ -679,6 +680,25 @@ def _toughness_checks(data: dict, origin: str) -> None:
     if isinstance(values, tuple) and data["mesh"]["file"] is None and len(values) != cracks:
         raise SceneError(f"{origin}: fracture.toughness lists {len(values)} values for the {cracks} crack"
                          f"{'' if cracks == 1 else 's'} of geometry.cracks (one per crack, in order along Σ)")
+
+
+def _temperature_checks(data: dict, origin: str) -> None:
+    """A temperature change acts through the layer's expansion coefficients: a layer heated (ΔT not zero) must
+    give them (``alpha``, or ``alpha1`` or ``alpha2``); a layer given by its matrix D takes none."""
+    for layer, change in data.get("temperature", {}).items():
+        if change is None or (change.constant and change(0.0, 0.0) == 0.0):
+            continue
+        table = data["materials"][layer]
+        if "D" in table:
+            raise SceneError(f"{origin}: temperature.{layer}: materials.{layer} is given by its matrix D, which takes "
+                             "no thermal expansion, so the temperature change would do nothing: give the layer by "
+                             "its constants with alpha, or leave the temperature change out")
+        given = [key for key in ("alpha", "alpha1", "alpha2") if table.get(key) is not None]
+        if not given:
+            names = "alpha" if "E" in table else "alpha1 or alpha2"
+            raise SceneError(f"{origin}: temperature.{layer}: materials.{layer} has no expansion coefficient, so the "
+                             f"temperature change would do nothing: give materials.{layer}.{names}, or leave the "
+                             "temperature change out")
 
 
 #: Components of a load and of a displacement on one boundary that act in the same direction.
