@@ -802,7 +802,8 @@ def driven_displacements(scene: Scene, mesh, layer: str, size: float, key: str, 
         else:
             out.append((value, load.key, f"{load.key}: prescribed values up to {value:.3g}, {outside}: change the "
                         "unit of length"))
-    thermal = thermal_of(scene, layer)
+    with np.errstate(all="ignore"):  # an expansion beyond double precision is refused below, naming its key
+        thermal = thermal_of(scene, layer)
     if thermal is not None:
         change = max(field_extent(half.points, half.cells, thermal[1], f"temperature.{layer}") for half in mesh.halves)
         if change != 0.0:
