@@ -63,9 +63,11 @@ def range_refusal(overrides: list[str]) -> str | None:
 @pytest.mark.parametrize("overrides, fragment", [
     (["temperature.layer1=1e300"], "materials.layer1.alpha with temperature.layer1 up to 1e+300"),
     (["materials.layer2.alpha=1e300"], "materials.layer2.alpha with temperature.layer2 up to 100"),
-    (["materials.layer1.alpha=1e-200", "temperature.layer1=1e-200"], "materials.layer1.alpha with temperature"),
+    (["materials.layer1.alpha=1e-200", "temperature.layer1=1e-200", "temperature.layer2=0.0"],
+     "materials.layer1.alpha with temperature"),
     (["displacements.layer2.top.y=1e160"], "displacements.layer2.top: prescribed values up to 1e+160"),
-    (["displacements.layer2.top.y=1e-300", "temperature.layer2=0.0"], "displacements.layer2.top: prescribed values"),
+    (["displacements.layer2.top.y=1e-300", "temperature.layer1=0.0", "temperature.layer2=0.0"],
+     "displacements.layer2.top: prescribed values"),
     (["displacements.layer1.top.x=\"1e160*x\""], "displacements.layer1.top: prescribed values up to 1e+160"),
     (["materials.layer1.E=1e250", "materials.layer2.E=1e250", "displacements.layer1.top.y=1e90"],
      "gives energies of order inf"),
@@ -76,9 +78,12 @@ def test_displacements_and_eigenstrains_enter_the_range_check(overrides, fragmen
 
 
 def test_values_in_range_pass_and_a_tiny_part_beside_a_normal_one_is_negligible():
+    """The layers are glued: the structure's displacement scale is the largest of what drives either layer."""
     assert range_refusal([]) is None
     assert range_refusal(["displacements.layer1.top.y=0.001"]) is None
-    assert range_refusal(["displacements.layer1.top.y=1e-300"]) is None  # the eigenstrain drives layer 1
+    assert range_refusal(["displacements.layer1.top.y=1e-300"]) is None  # the eigenstrains drive the structure
+    assert range_refusal(["displacements.layer2.top.y=1e-300", "temperature.layer2=0.0"]) is None  # layer 1 drives
+    assert range_refusal(["materials.layer2.alpha=1e-300"]) is None
 
 
 @FUZZ
@@ -89,7 +94,8 @@ def test_every_magnitude_is_solved_in_range_or_refused_naming_its_key(key, expon
     largest of eigenstrain × size and the prescribed value) is inside 1e-100 … 1e100 or the run is refused
     naming the key that drives it."""
     value = mantissa * 10.0 ** exponent
-    others = {"temperature.layer1": 100.0, "materials.layer1.alpha": 2e-5, "displacements.layer1.top.y": 0.0}
+    others = {"temperature.layer1": 100.0, "materials.layer1.alpha": 2e-5, "displacements.layer1.top.y": 0.0,
+              "temperature.layer2": 0.0}
     others[key] = value
     strain = abs(others["materials.layer1.alpha"] * others["temperature.layer1"]) * 1.28  # (1 + ν) α ΔT
     scale = max(strain * 2.0, abs(others["displacements.layer1.top.y"]))

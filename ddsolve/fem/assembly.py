@@ -747,16 +747,17 @@ def check_range(scene: Scene, mesh) -> None:
     """Refuse moduli, loads, prescribed displacements and thermal eigenstrains a double-precision solve cannot
     represent, naming their keys.
 
-    Each layer's stiffness is the largest entry of its elastic matrix; its displacements are of the order of the
-    largest of what drives them (:func:`driven_displacements`): (largest traction on the layer) × (size of the
-    mesh) / stiffness, the largest prescribed value, (largest eigenstrain αΔT) × (size of the mesh).  Blocks are
-    scaled to order one (:class:`ddsolve.parallel.blocks.Block`), so only the ranges matter: stiffnesses within
-    STIFFNESS_RANGE, displacements within DISPLACEMENT_RANGE (their squares must not overflow) and the energy
-    stiffness × displacement² within ENERGY_RANGE.  A load, a
+    Each layer's stiffness is the largest entry of its elastic matrix; the structure's displacements (the layers
+    are glued) are of the order of the largest of what drives them (:func:`driven_displacements`): (largest
+    traction on a layer) × (size of the mesh) / its stiffness, the largest prescribed value, (largest eigenstrain
+    αΔT) × (size of the mesh).  Blocks are scaled to order one (:class:`ddsolve.parallel.blocks.Block`), so only
+    the ranges matter: stiffnesses within STIFFNESS_RANGE, displacements within DISPLACEMENT_RANGE (their
+    squares must not overflow) and the energy stiffness × displacement² within ENERGY_RANGE.  A load, a
     displacement or a temperature change that is not finite or singular is refused first (:func:`load_extent`,
     :func:`field_extent`).
     """
     size = float(np.ptp(np.vstack([half.points for half in mesh.halves]), axis=0).max())
+    driven, stiffest = [], (0.0, "")
     for layer in LAYERS:
         key = f"materials.{layer}" + (".E" if isinstance(scene.materials[layer], materials.Isotropic) else "")
         with np.errstate(all="ignore"):
@@ -766,19 +767,21 @@ def check_range(scene: Scene, mesh) -> None:
         if not low <= stiffness <= high:
             raise SceneError(f"{key}: the elastic matrix has entries of {stiffness:.3g}, outside the range a "
                              f"double-precision solve represents ({low:g} to {high:g}): change the unit of stress")
-        driven = driven_displacements(scene, mesh, layer, size, key, stiffness)
-        if not driven:
-            continue
-        displacement, cause, message = max(driven, key=lambda item: item[0])
-        if not DISPLACEMENT_RANGE[0] <= displacement <= DISPLACEMENT_RANGE[1]:
-            raise SceneError(message)
-        energy = stiffness * displacement * displacement  # also the force scale K g squared over K
-        low, high = ENERGY_RANGE
-        if not low <= energy <= high:
-            raise SceneError(f"{key}: the elastic matrix (largest entry {stiffness:.3g}) with displacements of order "
-                             f"{displacement:.1g} ({cause} drives them) gives energies of order "
-                             f"{energy:.1g}, outside the range a double-precision solve represents ({low:g} to "
-                             f"{high:g}): change the units of the moduli and of what drives the displacements")
+        driven += driven_displacements(scene, mesh, layer, size, key, stiffness)
+        stiffest = max(stiffest, (stiffness, key))
+    if not driven:
+        return
+    displacement, cause, message = max(driven, key=lambda item: item[0])
+    if not DISPLACEMENT_RANGE[0] <= displacement <= DISPLACEMENT_RANGE[1]:
+        raise SceneError(message)
+    stiffness, key = stiffest
+    energy = stiffness * displacement * displacement  # also the force scale K g squared over K
+    low, high = ENERGY_RANGE
+    if not low <= energy <= high:
+        raise SceneError(f"{key}: the elastic matrix (largest entry {stiffness:.3g}) with displacements of order "
+                         f"{displacement:.1g} ({cause} drives them) gives energies of order {energy:.1g}, outside "
+                         f"the range a double-precision solve represents ({low:g} to {high:g}): change the units "
+                         "of the moduli and of what drives the displacements")
 
 
 def driven_displacements(scene: Scene, mesh, layer: str, size: float, key: str, stiffness: float
