@@ -254,7 +254,7 @@ def _finite(part: Expression, position: np.ndarray, key: str, message: str) -> t
 #: cell and at the quadrature points; where it is not a polynomial, the closing-in search runs in the
 #: CANDIDATES cells where it is largest, and for each of its divisors (:func:`ddsolve.problem.expressions.divisors`)
 #: in the CANDIDATES cells nearest the divisor's zeros, the only places it can grow without bound.
-LATTICE = 8
+LATTICE = 4
 CANDIDATES = 16
 #: Cells sampled at once (bounded memory on large meshes).
 SAMPLED_CELLS = 2 ** 14
@@ -275,8 +275,7 @@ def field_extent(points: np.ndarray, cells: np.ndarray, field: Expression, key: 
     largest = [np.zeros(len(cells)) for _ in steering]  # per cell: |field|, then −|divisor| (nearest its zero)
     for first in range(0, len(cells), SAMPLED_CELLS):
         chunk = slice(first, first + SAMPLED_CELLS)
-        values, position, _ = _cell_sample(points, cells[chunk], field, key)(
-            np.broadcast_to(start, (len(cells[chunk]), *start.shape)))
+        values, position, _ = _cell_sample(points, cells[chunk], field, key)(start)
         largest[0][chunk] = values.max(axis=1)
         for index, divisor in enumerate(steering[1:], 1):
             largest[index][chunk] = -np.abs(divisor(position[..., 0], position[..., 1])).min(axis=1)
@@ -314,8 +313,11 @@ _NOT_FINITE = "the temperature change is not finite at (x, y) = ({:.6g}, {:.6g})
 
 
 def _cell_positions(points: np.ndarray, cells: np.ndarray, at: np.ndarray) -> np.ndarray:
-    """The points ``(m, q, 2)`` at the reference coordinates ``at`` ``(m, q, 2)`` of each cell."""
+    """The points ``(m, q, 2)`` at the reference coordinates ``at`` of each cell: ``(m, q, 2)``, or ``(q, 2)``
+    the same in every cell."""
     shapes, _ = shape_functions(cells.shape[1], at.reshape(-1, 2))
+    if at.ndim == 2:
+        return np.einsum("qk,mkd->mqd", shapes, points[cells])
     return np.einsum("mqk,mkd->mqd", shapes.reshape(*at.shape[:2], -1), points[cells])
 
 
