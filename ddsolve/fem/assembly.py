@@ -812,7 +812,7 @@ def driven_displacements(scene: Scene, mesh, layer: str, size: float, key: str, 
     if thermal is not None:
         change = max(field_extent(half.points, half.cells, thermal[1], f"temperature.{layer}") for half in mesh.halves)
         if change != 0.0:
-            strain = float(np.abs(thermal[0]).max()) * change
+            strain = float(np.nan_to_num(np.abs(thermal[0]), nan=np.inf).max()) * change
             alpha = "alpha" if isinstance(scene.materials[layer], materials.Isotropic) else "alpha1, alpha2"
             cause = f"materials.{layer}.{alpha} with temperature.{layer}"
             out.append((strain * size, cause, f"{cause} up to {change:.3g} give eigenstrains of order {strain:.1g} "
