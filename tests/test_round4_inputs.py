@@ -312,3 +312,16 @@ def test_target_error_alone_solves_a_box_scene(tmp_path):
 
     result = hdf5.read(tmp_path / "a.h5")
     assert result.converged and result.parsed_scene.mesh.size == pytest.approx(0.2)
+
+
+def test_the_reference_writes_a_result_that_is_not_finite_as_not_converged(tmp_path, monkeypatch):
+    """The claim is withdrawn where the run finishes its result, before the file is written: status 3."""
+    from ddsolve.errors import NotConvergedError
+    from ddsolve.io import hdf5
+    from ddsolve.solvers import run
+
+    monkeypatch.setattr(Result, "not_finite", lambda self: ["the energy"])
+    with pytest.raises(NotConvergedError, match="reference: not converged: the energy is not finite") as error:
+        run.reference(scene.loads(HEATED), tmp_path / "r.h5", progress=lambda line: None)
+    assert error.value.exit_status == 3 and not error.value.result.converged
+    assert not hdf5.read(tmp_path / "r.h5").converged
