@@ -209,4 +209,34 @@ def check(scene: Scene, mesh: Mesh) -> SigmaSupports:
         if name not in names or name in (CLAMPED, SIGMA, CRACK):
             raise SceneError(f"{displacement.key}: no boundary named {name!r} in {mesh.origin} "
                              f"(boundaries: {', '.join(n for n in names if n != CLAMPED)})")
-    return sigma_supports(scene, mesh)
+    table = sigma_supports(scene, mesh)
+    check_prescribed_contact(scene, mesh, table)
+    return table
+
+
+def check_prescribed_contact(scene: Scene, mesh: Mesh, table: SigmaSupports) -> None:
+    """Under non-penetration, refuse prescribed displacements that push the crack faces through each other: at a
+    crack node where both faces' normal components are prescribed no contact row remains, so the data alone
+    decide, (u⁻ − u⁺)·ν > 0 (beyond round-off of the values) is an overlap no solve can undo."""
+    sigma = mesh.sigma
+    nodes = sigma.multiplier_nodes
+    normal = 2 * np.flatnonzero(sigma.crack[nodes]) + 1
+    if not scene.nonpenetration or not len(normal):
+        return
+    lower, upper = (next(b for b, spec in enumerate(BLOCKS) if spec.layer == "layer1" and spec.side == side)
+                    for side in (-1, +1))  # the faces that touch are layer 1's (the contact rows)
+    both = table.fixed[lower, normal] & table.fixed[upper, normal]
+    overlap = np.where(both, table.values[lower, normal] - table.values[upper, normal], 0.0)
+    scale = max(float(np.abs(table.values).max(initial=0.0)), 1e-300)
+    if overlap.max(initial=0.0) <= AGREE * scale:
+        return
+    worst = int(np.argmax(overlap))
+    node = nodes[normal[worst] // 2]
+    keys = [displacement.key for half in mesh.halves for layer in ("layer1", "layer2")
+            for displacement, where, _ in _conditions(scene, half, layer) if half.sigma[node] in where]
+    x, y = sigma.points[node]
+    raise SceneError(f"{', '.join(dict.fromkeys(keys)) or 'displacements'}: the prescribed displacements push "
+                     f"the crack faces through each other at ({x:.6g}, {y:.6g}): the lower face moves "
+                     f"{table.values[lower, normal[worst]]:.6g} along Σ's normal, the upper face "
+                     f"{table.values[upper, normal[worst]]:.6g} (an overlap of {overlap[worst]:.3g}), which "
+                     "contact.nonpenetration forbids: change the prescribed values")

@@ -131,6 +131,26 @@ class Result:
         return cls(scene=scene, method=method, mesh=mesh, solution=solution,
                    multipliers=interface.split(lam, frames), **record)
 
+    def not_finite(self) -> list[str]:
+        """What of this result is not a finite number: its energy, G at a tip, a displacement or multiplier field
+        (what it holds: rank 0 of a run whose ranks wrote the result has no displacements)."""
+        fields = {f"the displacement of {name}": u for name, u in self.solution.items()}
+        fields |= {f"the multipliers {name}": values for name, values in self.multipliers.items()}
+        fields |= {"the energy": np.array([self.energy]) if "energy" in self.attrs else np.zeros(0), "G": self.G}
+        return [what for what, values in fields.items() if not np.all(np.isfinite(values))]
+
+    def claim(self) -> str:
+        """Withdraw ``converged`` from a result that is not finite (:meth:`not_finite`): every run's last step
+        before its result is written, so that no file says converged = true over NaN or inf.  Returns the
+        message set ("" when the result is finite)."""
+        bad = self.not_finite()
+        if not bad:
+            return ""
+        self.converged = False
+        self.message = (f"{self.method}: not converged: {', '.join(bad)} {'is' if len(bad) == 1 else 'are'} not "
+                        "finite (NaN or inf): the problem's values are beyond double precision")
+        return self.message
+
     @cached_property
     def on_sigma(self) -> OnSigma:
         """What the Σ post-processing (G, contact zones, the opening) needs of this result."""

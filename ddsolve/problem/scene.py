@@ -596,7 +596,7 @@ def _cross_checks(data: dict, raw: dict, origin: str) -> None:
                          f"apart, within the meshing tolerance {feature:.2g} ({GEOMETRIC_TOLERANCE:g} × the box "
                          "size): lengthen, move or remove the crack")
     counts = (mesh["sigma_vertices"], mesh["boundary_vertices"])
-    _adaptive_defaults(mesh, set(raw["mesh"]) if isinstance(raw.get("mesh"), dict) else set())
+    _adaptive_defaults(mesh, set(raw["mesh"]) if isinstance(raw.get("mesh"), dict) else set(), geometry)
     _mesh_refinement_checks(mesh, origin)
     if mesh["file"] is not None:
         extra = [name for name in ("sigma_vertices", "boundary_vertices") if mesh[name] is not None]
@@ -612,7 +612,7 @@ def _cross_checks(data: dict, raw: dict, origin: str) -> None:
             raise SceneError(f"{origin}: mesh.size excludes mesh.sigma_vertices and mesh.boundary_vertices")
     elif None in counts:
         missing = "mesh.sigma_vertices" if counts[0] is None else "mesh.boundary_vertices"
-        raise SceneError(f"{origin}: missing key {missing} (or give mesh.size or mesh.file)")
+        raise SceneError(f"{origin}: missing key {missing} (or give mesh.size, mesh.file or mesh.target_error)")
     else:
         sigma_spacing = (x1 - x0) / (counts[0] - 1)
         boundary_spacing = 2.0 * ((x1 - x0) + (y1 - y0)) / counts[1]
@@ -635,6 +635,7 @@ def _cross_checks(data: dict, raw: dict, origin: str) -> None:
                 raise SceneError(f"{origin}: loads.{layer}.{printable(name)}: pressure excludes x and y "
                                  "(a pressure acts along the normal)")
     _displacement_checks(data, origin)
+    _temperature_checks(data, origin)
     solver = data["solver"]
     if solver["method"] == "uzawa" and solver["theta"] is None:
         raise SceneError(f"{origin}: solver.theta is required by method uzawa")
@@ -679,6 +680,25 @@ def _toughness_checks(data: dict, origin: str) -> None:
     if isinstance(values, tuple) and data["mesh"]["file"] is None and len(values) != cracks:
         raise SceneError(f"{origin}: fracture.toughness lists {len(values)} values for the {cracks} crack"
                          f"{'' if cracks == 1 else 's'} of geometry.cracks (one per crack, in order along Σ)")
+
+
+def _temperature_checks(data: dict, origin: str) -> None:
+    """A temperature change acts through the layer's expansion coefficients: a layer heated (ΔT not zero) must
+    give them (``alpha``, or ``alpha1`` or ``alpha2``); a layer given by its matrix D takes none."""
+    for layer, change in data.get("temperature", {}).items():
+        if change is None or (change.constant and change(0.0, 0.0) == 0.0):
+            continue
+        table = data["materials"][layer]
+        if "D" in table:
+            raise SceneError(f"{origin}: temperature.{layer}: materials.{layer} is given by its matrix D, which takes "
+                             "no thermal expansion, so the temperature change would do nothing: give the layer by "
+                             "its constants with alpha, or leave the temperature change out")
+        given = [key for key in ("alpha", "alpha1", "alpha2") if table.get(key) is not None]
+        if not given:
+            names = "alpha" if "E" in table else "alpha1 or alpha2"
+            raise SceneError(f"{origin}: temperature.{layer}: materials.{layer} has no expansion coefficient, so the "
+                             f"temperature change would do nothing: give materials.{layer}.{names}, or leave the "
+                             "temperature change out")
 
 
 #: Components of a load and of a displacement on one boundary that act in the same direction.
@@ -742,15 +762,30 @@ def _check_conditioning(D, table: dict, model: str, where: str) -> None:
                      f"{CONDITIONING:.2g}): use nu {limit}")
 
 
-def _adaptive_defaults(mesh: dict, given: set[str]) -> None:
-    """``mesh.target_error`` alone chooses P2 elements and, where a size is given (the box or a .geo
-    file with ``mesh.size``), a graded first mesh; keys the scene writes stay."""
+def _adaptive_defaults(mesh: dict, given: set[str], geometry: dict) -> None:
+    """``mesh.target_error`` alone chooses P2 elements, on a box without a mesh size a coarse first mesh
+    (:func:`coarse_size`), and, where a size is given (the box or a .geo file with ``mesh.size``), a graded
+    first mesh; keys the scene writes stay."""
     if mesh["target_error"] is None:
         return
     if "degree" not in given:
         mesh["degree"] = ADAPTIVE_DEGREE
+    if mesh["file"] is None and mesh["size"] is None and (mesh["sigma_vertices"], mesh["boundary_vertices"]) == (
+            None, None):
+        mesh["size"] = coarse_size(geometry["box"], geometry["sigma"])
     if "grading" not in given and mesh["size"] is not None:
         mesh["grading"] = True
+
+
+#: The first mesh of an adaptive run on a box that gives no mesh size: elements of the box's width over
+#: COARSE[0], and at least COARSE[1] through the thinner half, whichever is smaller (the paper's square: 0.1).
+COARSE = (20, 2)
+
+
+def coarse_size(box: Sequence[float], sigma: float) -> float:
+    """The element size of an adaptive run's first mesh on ``box`` cut at ``sigma`` (:data:`COARSE`)."""
+    x0, x1, y0, y1 = box
+    return min((x1 - x0) / COARSE[0], min(sigma - y0, y1 - sigma) / COARSE[1])
 
 
 def _mesh_refinement_checks(mesh: dict, origin: str) -> None:
