@@ -121,6 +121,7 @@ def half_datasets(half: HalfMesh, multiplier_nodes: np.ndarray, piece=None, skel
         sigma = numbered(half.sigma)
         out.update({f"{group}/sigma": sigma, f"{group}/interface": sigma[multiplier_nodes]})
         out.update({f"{group}/boundaries/{boundary}": numbered(edges) for boundary, edges in half.boundaries.items()})
+        out.update({f"{group}/named_points/{name}": xy for name, xy in half.named_points.items()})
     return out
 
 
@@ -308,7 +309,9 @@ def _read(f: h5py.File, path: Path) -> Result:
         on_sigma = _indices(_array(f, f"{group}/sigma", "i", (sigma_count,)), len(points), f"{group}/sigma")
         boundaries = {key: _indices(_array(f, f"{group}/boundaries/{key}", "i", (None, None)), len(points),
                                     f"{group}/boundaries/{key}") for key in f[group].get("boundaries", {})}
-        halves.append(HalfMesh(points, cells, side, on_sigma, boundaries))
+        named_points = {key: _array(f, f"{group}/named_points/{key}", "f", (None, 2))
+                        for key in f[group].get("named_points", {})}
+        halves.append(HalfMesh(points, cells, side, on_sigma, boundaries, named_points))
     mesh = Mesh(*halves, sigma, str(path))
     k = len(sigma.multiplier_nodes)
     solution = {spec.name: _array(f, f"solution/{spec.name}", "f", (len(mesh.half(spec.side).points), 2))
