@@ -160,7 +160,7 @@ def sigma_datasets(on: OnSigma, history: np.ndarray, active_set_changes: np.ndar
                 for layer, named in reactions.items() for name, force in named.items()})
     if fracture is not None:
         out.update({f"fracture/{key}": getattr(fracture, key) for key in FRACTURE_FIELDS + MODE_FIELDS
-                    + TOUGHNESS_FIELDS + OVERLAP_FIELDS})
+                    + TOUGHNESS_FIELDS + OVERLAP_FIELDS + NOISE_FIELDS})
         out.update({"fracture/arclength": sigma.arclength[nodes], "fracture/opening": on.opening,
                     "fracture/pressure": on.multipliers["mu_c"]})
     return out
@@ -367,6 +367,8 @@ MODE_FIELDS = ("G_I", "G_II", "phase", "symmetric")
 TOUGHNESS_FIELDS = ("toughness", "critical_factor")
 #: Where the faces overlap, without non-penetration: absent from older files, read as none.
 OVERLAP_FIELDS = ("overlaps", "overlap_crack")
+#: G's noise level and the split's drift as computed: absent from older files, read as NaN.
+NOISE_FIELDS = ("noise", "split_error")
 
 
 def _read_fracture(f):
@@ -376,4 +378,4 @@ def _read_fracture(f):
         return None
     return Fracture(**{key: _dataset(f, f"fracture/{key}")[()] for key in FRACTURE_FIELDS},
                     **{key: _dataset(f, f"fracture/{key}")[()] for key in MODE_FIELDS + TOUGHNESS_FIELDS
-                       + OVERLAP_FIELDS if f"fracture/{key}" in f})
+                       + OVERLAP_FIELDS + NOISE_FIELDS if f"fracture/{key}" in f})

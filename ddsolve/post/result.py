@@ -224,10 +224,12 @@ class Fracture:
     critical_factor: np.ndarray | None = None
     overlaps: np.ndarray | None = None
     overlap_crack: np.ndarray | None = None
+    noise: np.ndarray | None = None
+    split_error: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         count = len(self.G)
-        for name in ("G_I", "G_II", "phase", "toughness", "critical_factor"):
+        for name in ("G_I", "G_II", "phase", "toughness", "critical_factor", "noise", "split_error"):
             if getattr(self, name) is None:
                 setattr(self, name, np.full(count, np.nan))
         if self.symmetric is None:
@@ -238,9 +240,15 @@ class Fracture:
             self.overlap_crack = np.zeros(0, dtype=np.int64)
 
     def released(self) -> np.ndarray:
-        """Per tip whether G is a release rate: above RELEASE × the largest |G| of the tips."""
+        """Per tip whether G is a release rate: above RELEASE × the largest |G| of the tips and above its
+        noise level (``noise``: the discretization error, :func:`ddsolve.post.fracture.release_and_noise`)."""
         G = np.asarray(self.G, dtype=float)
-        return G > RELEASE * np.abs(G).max(initial=0.0)
+        noise = np.nan_to_num(np.asarray(self.noise, dtype=float), nan=0.0)
+        return (G > RELEASE * np.abs(G).max(initial=0.0)) & (G > noise)
+
+    def reported(self) -> np.ndarray:
+        """G as reported: 0 where it is no release rate (:meth:`released`: within its noise, or negative)."""
+        return np.where(self.released(), np.asarray(self.G, dtype=float), 0.0)
 
     def modes(self) -> list[str]:
         """Per tip: «(G_I ..., G_II ..., ψ = ...°)» (NO_PHASE where ψ is NaN), with «by crack closure» where
@@ -257,8 +265,11 @@ class Fracture:
                                                            self.split_drift())]
 
     def split_drift(self) -> np.ndarray:
-        """Per tip (G_I + G_II)/G − 1, where G is a release rate (:meth:`released`); 0 elsewhere."""
+        """Per tip (G_I + G_II)/G − 1 of the split as computed (``split_error``, before its parts were made
+        non-negative and summed to G), where G is a release rate (:meth:`released`); 0 elsewhere."""
         G = np.asarray(self.G, dtype=float)
+        if np.all(np.isfinite(self.split_error)) and len(G):
+            return np.where(self.released(), self.split_error, 0.0)
         released = self.released() & np.isfinite(self.G_I) & np.isfinite(self.G_II)
         return np.where(released, (np.asarray(self.G_I) + np.asarray(self.G_II)) / np.where(released, G, 1.0) - 1.0,
                         0.0)
@@ -274,15 +285,23 @@ class Fracture:
 
         return [parts(*values) for values in zip(self.G, self.toughness, self.critical_factor)]
 
+    def quoted(self, G: float, noise: float) -> str:
+        """G as printed: the value (± its noise level where known), or 0 where within the noise."""
+        if not np.isfinite(noise):
+            return f"{G:.6e}"
+        if G <= noise:
+            return f"0 (G ≈ 0: computed {G:.3e}, within the discretization noise {noise:.2g})"
+        return f"{G:.6e} (± {noise:.2g})"
+
     def lines(self) -> list[str]:
         """One line per tip and one for the contact zones (without non-penetration: where the faces overlap),
         as printed after a solve."""
         lines = []
-        for (x, y), c, g, a, b, h, modes, growth in zip(self.points, self.crack, self.G, self.inner, self.outer,
-                                                         self.spacing, self.modes(), self.growth()):
+        for (x, y), c, g, n, a, b, h, modes, growth in zip(self.points, self.crack, self.G, self.noise, self.inner,
+                                                            self.outer, self.spacing, self.modes(), self.growth()):
             note = f"; only {a / h:.1f} elements within the inner radius: refine near this tip" \
                 if a < FEW_ELEMENTS * h else ""
-            lines.append(f"G at tip ({x:.6g}, {y:.6g}) of crack {c}: {g:.6e}{' ' * bool(modes)}{modes}"
+            lines.append(f"G at tip ({x:.6g}, {y:.6g}) of crack {c}: {self.quoted(g, n)}{' ' * bool(modes)}{modes}"
                          f"{'; ' * bool(growth)}{growth}   (θ radii {a:.4g}, {b:.4g}{note})")
         for title, zones, cracks in (("crack faces in contact (arc length along Σ): ", self.zones, self.zone_crack),
                                      ("crack faces overlap (no non-penetration condition; arc length along Σ): ",
