@@ -236,7 +236,7 @@ def _from_gmsh(scene: Scene) -> Mesh:
         curves = {name: _elements(gmsh, entities, (GMSH_LINE, GMSH_LINE3), position, where)
                   for (dim, name), entities in groups.items() if dim == 1}
         normals = _curve_normals(gmsh, groups[(1, SIGMA)], position, len(points)) if options.kind == "geo" else None
-        named_points = _named_points(gmsh, groups)
+        named_points = _named_points(gmsh, groups, points, position)
     cells = surfaces["lower"]
     if cells.shape[1] == 6 and options.degree == 1:
         raise MeshError(f"{where}: the file has 6-node (P2) triangles: set mesh.degree = 2, without mesh.refine "
@@ -262,15 +262,17 @@ def _from_gmsh(scene: Scene) -> Mesh:
     return with_named_points(make_mesh(*halves, where, exact_normals=exact), named_points)
 
 
-def _named_points(gmsh, groups: dict[tuple[int, str], list[int]]) -> dict[str, np.ndarray]:
-    """The physical points: name -> the coordinates ``(k, 2)`` of its points (a support where a
-    ``[displacements.LAYER.NAME]`` names it)."""
+def _named_points(gmsh, groups: dict[tuple[int, str], list[int]], points: np.ndarray, position: np.ndarray
+                  ) -> dict[str, np.ndarray]:
+    """The physical points: name -> the coordinates ``(k, 2)`` of the nodes of its point elements (a support
+    where a ``[displacements.LAYER.NAME]`` names it)."""
     out = {}
     for (dim, name), entities in groups.items():
         if dim == 0:
-            found = [np.asarray(gmsh.model.mesh.getNodes(0, entity)[1], dtype=np.float64).reshape(-1, 3)[:, :2]
-                     for entity in dict.fromkeys(entities)]
-            out[name] = np.unique(np.vstack(found or [np.zeros((0, 2))]), axis=0)
+            tags = [np.asarray(nodes, dtype=np.int64) for entity in dict.fromkeys(entities)
+                    for nodes in gmsh.model.mesh.getElements(0, entity)[2]]
+            found = np.unique(np.concatenate(tags)) if tags else np.zeros(0, dtype=np.int64)
+            out[name] = np.unique(points[position[found]], axis=0).reshape(-1, 2)
     return out
 
 
