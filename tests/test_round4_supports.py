@@ -16,7 +16,6 @@ from ddsolve.fem import supports
 from ddsolve.io import hdf5 as io
 from ddsolve.mesh import geometry
 from ddsolve.mesh.gmsh_io import session, write_msh
-from ddsolve.post import fracture
 from ddsolve.post.result import Fracture
 from ddsolve.problem import scene
 from ddsolve.solvers import reference
@@ -156,9 +155,10 @@ def test_enf_on_point_supports_matches_corrected_beam_theory(tmp_path):
     G = result.fracture.G[0]
     assert G == pytest.approx(enf_beam_theory(), rel=2e-3)
     assert result.fracture.noise[0] < 1e-3 * G
-    assert result.fracture.G_I[0] >= 0.0 and result.fracture.G_II[0] >= 0.0
-    assert result.fracture.G_I[0] + result.fracture.G_II[0] == pytest.approx(G, rel=1e-12)
-    assert result.fracture.G_II[0] > 0.99 * G
+    shown = result.fracture.reported()
+    assert shown["G"][0] == G and shown["G_I"][0] >= 0.0 and shown["G_II"][0] >= 0.0
+    assert shown["G_I"][0] + shown["G_II"][0] == pytest.approx(G, rel=1e-12)
+    assert shown["G_II"][0] > 0.99 * G
     assert result.reactions["layer1"]["pin"][1] + result.reactions["layer2"]["pin"][1] == pytest.approx(5e-4, rel=2e-3)
 
 
@@ -169,11 +169,14 @@ def test_a_closed_tip_is_reported_as_zero_with_its_noise_level():
     result = reference.solve(source, geometry.build(source))
     found = result.fracture
     assert np.all(np.isfinite(found.noise)) and np.all(found.noise >= 0.0)
-    assert found.released().tolist() == [True, False]
-    assert found.reported()[1] == 0.0 and abs(found.G[1]) <= found.noise[1]
+    assert found.within_noise().tolist() == [False, True] and abs(found.G[1]) <= found.noise[1]
+    shown = found.reported()
+    assert shown["G"].tolist() == [found.G[0], 0.0]
     assert "0 (G ≈ 0: computed" in found.lines()[1] and "within the discretization noise" in found.lines()[1]
-    assert np.all(found.G_I >= 0.0) and np.all(found.G_II >= 0.0)
-    assert found.G_I[0] + found.G_II[0] == pytest.approx(found.G[0], rel=1e-12)
+    assert "ψ undefined" in found.lines()[1] and f"± {found.noise[0]:.2g}" in found.lines()[0]
+    assert np.all(shown["G_I"] >= 0.0) and np.all(shown["G_II"] >= 0.0) and shown["G_I"][1] == shown["G_II"][1] == 0
+    assert shown["G_I"][0] + shown["G_II"][0] == pytest.approx(found.G[0], rel=1e-12)
+    assert found.G_I[0] > found.G[0]  # as computed, the split overshoots G by 4.7 % on this mesh
 
 
 SPLITS = st.tuples(st.floats(-1e-9, 1e-6), st.floats(0.0, 1e-8), st.floats(-0.1, 1.1), st.floats(-0.03, 0.03))
@@ -182,18 +185,18 @@ SPLITS = st.tuples(st.floats(-1e-9, 1e-6), st.floats(0.0, 1e-8), st.floats(-0.1,
 @settings(derandomize=True, max_examples=60, deadline=None)
 @given(st.lists(SPLITS, min_size=1, max_size=4))
 def test_the_split_is_non_negative_and_sums_to_g(tips):
-    """For any G, noise and split (a mode I share and a drift of up to 3 %): G_I, G_II ≥ 0; where G is a
-    release rate they sum to G to rounding; where G ≈ 0 both are 0; the drift as computed is kept."""
+    """For any G, noise and split (a mode I share and a drift of up to 3 %), as reported: G is 0 within its noise
+    and kept above it; G_I, G_II ≥ 0, summing to G to rounding where G is not 0, both 0 where it is."""
     G, noise, share, drift = (np.array(column, dtype=float) for column in zip(*tips))
     count = len(G)
     out = Fracture(points=np.zeros((count, 2)), directions=np.zeros((count, 2)), crack=np.zeros(count, dtype=int),
                    inner=np.ones(count), outer=np.ones(count), spacing=np.ones(count), G=G, contact=np.zeros(count),
                    zones=np.zeros((0, 2)), zone_crack=np.zeros(0, dtype=int), G_I=share * G * (1 + drift),
                    G_II=(1 - share) * G * (1 + drift), noise=noise)
-    fracture.nonnegative_split(out)
-    released = out.released()
-    assert np.all(out.G_I >= 0.0) and np.all(out.G_II >= 0.0)
-    assert np.allclose((out.G_I + out.G_II)[released], G[released], rtol=1e-12, atol=0.0)
-    assert np.all(out.G_I[~released] == 0.0) and np.all(out.G_II[~released] == 0.0)
-    assert np.all(out.reported()[~released] == 0.0) and np.all(G[~released] <= np.maximum(noise[~released],
-                                                                                           1e-6 * np.abs(G).max()))
+    shown = out.reported()
+    zero = shown["G"] == 0.0
+    assert np.all(shown["G_I"] >= 0.0) and np.all(shown["G_II"] >= 0.0)
+    assert np.allclose((shown["G_I"] + shown["G_II"])[~zero], G[~zero], rtol=1e-12, atol=0.0)
+    assert np.all(shown["G_I"][zero] == 0.0) and np.all(shown["G_II"][zero] == 0.0)
+    assert np.all(G[zero] <= np.maximum(noise[zero], 1e-6 * np.abs(G).max()))
+    assert np.all(shown["G"][~zero] == G[~zero])

@@ -161,6 +161,7 @@ def sigma_datasets(on: OnSigma, history: np.ndarray, active_set_changes: np.ndar
     if fracture is not None:
         out.update({f"fracture/{key}": getattr(fracture, key) for key in FRACTURE_FIELDS + MODE_FIELDS
                     + TOUGHNESS_FIELDS + OVERLAP_FIELDS + NOISE_FIELDS})
+        out.update({f"fracture/reported/{key}": value for key, value in fracture.reported().items()})
         out.update({"fracture/arclength": sigma.arclength[nodes], "fracture/opening": on.opening,
                     "fracture/pressure": on.multipliers["mu_c"]})
     return out
@@ -367,8 +368,8 @@ MODE_FIELDS = ("G_I", "G_II", "phase", "symmetric")
 TOUGHNESS_FIELDS = ("toughness", "critical_factor")
 #: Where the faces overlap, without non-penetration: absent from older files, read as none.
 OVERLAP_FIELDS = ("overlaps", "overlap_crack")
-#: G's noise level and the split's drift as computed: absent from older files, read as NaN.
-NOISE_FIELDS = ("noise", "split_error")
+#: G's noise level: absent from older files, read as NaN.
+NOISE_FIELDS = ("noise",)
 
 
 def _read_fracture(f):

@@ -308,7 +308,6 @@ def finish(tips: list[Tip], volume: np.ndarray, on: OnSigma, split: dict[str, np
         overlaps=overlaps, overlap_crack=overlap_crack, noise=noise, **(split or {}),
     )
     out.phase = np.where(out.released(), out.phase, np.nan)
-    nonnegative_split(out)
     return judge(out, scene, factors)
 
 
@@ -328,23 +327,6 @@ def release_and_noise(tips: list[Tip], volume: np.ndarray, contact: np.ndarray, 
 
 #: The rounding of a domain integral relative to its value (its terms cancel to about this).
 ROUNDING = 1e-12
-
-
-def nonnegative_split(out: Fracture) -> None:
-    """G_I, G_II ≥ 0 and G_I + G_II = G to rounding where G is a release rate and the split is resolved
-    (its drift at most SPLIT_DRIFT: the parts clamped at 0, then scaled to G); both 0 where G ≈ 0 (within its
-    noise).  The drift before that stays in ``split_error`` (printed where it exceeds SPLIT_DRIFT)."""
-    from ddsolve.post.result import SPLIT_DRIFT
-
-    released = out.released()
-    out.split_error = out.split_drift()
-    G_I, G_II = np.maximum(out.G_I, 0.0), np.maximum(out.G_II, 0.0)
-    total = G_I + G_II
-    scale = np.where(released & (np.abs(out.split_error) <= SPLIT_DRIFT) & (total > 0),
-                     out.G / np.where(total > 0, total, 1.0), 1.0)
-    known = np.isfinite(out.G_I) & np.isfinite(out.G_II)
-    out.G_I = np.where(known, np.where(released, G_I * scale, 0.0), out.G_I)
-    out.G_II = np.where(known, np.where(released, G_II * scale, 0.0), out.G_II)
 
 
 def of_result(result, tips: list[Tip], factors: np.ndarray | None = None) -> Fracture:

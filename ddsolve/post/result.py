@@ -225,11 +225,10 @@ class Fracture:
     overlaps: np.ndarray | None = None
     overlap_crack: np.ndarray | None = None
     noise: np.ndarray | None = None
-    split_error: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         count = len(self.G)
-        for name in ("G_I", "G_II", "phase", "toughness", "critical_factor", "noise", "split_error"):
+        for name in ("G_I", "G_II", "phase", "toughness", "critical_factor", "noise"):
             if getattr(self, name) is None:
                 setattr(self, name, np.full(count, np.nan))
         if self.symmetric is None:
@@ -240,15 +239,28 @@ class Fracture:
             self.overlap_crack = np.zeros(0, dtype=np.int64)
 
     def released(self) -> np.ndarray:
-        """Per tip whether G is a release rate: above RELEASE × the largest |G| of the tips and above its
-        noise level (``noise``: the discretization error, :func:`ddsolve.post.fracture.release_and_noise`)."""
+        """Per tip whether G is a release rate: above RELEASE × the largest |G| of the tips."""
         G = np.asarray(self.G, dtype=float)
-        noise = np.nan_to_num(np.asarray(self.noise, dtype=float), nan=0.0)
-        return (G > RELEASE * np.abs(G).max(initial=0.0)) & (G > noise)
+        return G > RELEASE * np.abs(G).max(initial=0.0)
 
-    def reported(self) -> np.ndarray:
-        """G as reported: 0 where it is no release rate (:meth:`released`: within its noise, or negative)."""
-        return np.where(self.released(), np.asarray(self.G, dtype=float), 0.0)
+    def within_noise(self) -> np.ndarray:
+        """Per tip whether G is at most its noise level (``noise``, the discretization error:
+        :func:`ddsolve.post.fracture.release_and_noise`; NaN in older files: never)."""
+        return np.asarray(self.G, dtype=float) <= np.nan_to_num(np.asarray(self.noise, dtype=float), nan=-np.inf)
+
+    def reported(self) -> dict[str, np.ndarray]:
+        """G, G_I and G_II as reported: G is 0 where it is no release rate or within its noise; G_I and G_II are
+        clamped at 0 (a negative part is the split's error), 0 where G is, and where the split is resolved
+        (G_I + G_II as computed within SPLIT_DRIFT of G) scaled to sum to G.  The fields keep what was computed
+        (G the exact derivative of the discrete energy; G, G_I, G_II quadratics in a load factor)."""
+        zero = ~self.released() | self.within_noise()
+        G = np.where(zero, 0.0, np.asarray(self.G, dtype=float))
+        G_I, G_II = np.maximum(self.G_I, 0.0), np.maximum(self.G_II, 0.0)
+        total = G_I + G_II
+        resolved = ~zero & (np.abs(self.split_drift()) <= SPLIT_DRIFT) & (total > 0)
+        scale = np.where(resolved, G / np.where(total > 0, total, 1.0), np.where(zero, 0.0, 1.0))
+        return {"G": G, "G_I": np.where(np.isnan(self.G_I), np.nan, G_I * scale),
+                "G_II": np.where(np.isnan(self.G_II), np.nan, G_II * scale)}
 
     def modes(self) -> list[str]:
         """Per tip: «(G_I ..., G_II ..., ψ = ...°)» (NO_PHASE where ψ is NaN), with «by crack closure» where
@@ -258,18 +270,18 @@ class Fracture:
             return (f"; G_I + G_II is {drift:+.0%} off G: the split is not resolved, refine near this tip"
                     if abs(drift) > SPLIT_DRIFT else "")
 
+        shown = self.reported()
+        phase = np.where(self.within_noise(), np.nan, self.phase)
         return ["" if np.isnan(g1) else
                 f"(G_I {g1:.3e}, G_II {g2:.3e}, {f'ψ = {psi:.1f}°' if np.isfinite(psi) else NO_PHASE}"
                 f"{'' if by_symmetry else ', by crack closure'}{warning(drift)})"
-                for g1, g2, psi, by_symmetry, drift in zip(self.G_I, self.G_II, self.phase, self.symmetric,
+                for g1, g2, psi, by_symmetry, drift in zip(shown["G_I"], shown["G_II"], phase, self.symmetric,
                                                            self.split_drift())]
 
     def split_drift(self) -> np.ndarray:
-        """Per tip (G_I + G_II)/G − 1 of the split as computed (``split_error``, before its parts were made
-        non-negative and summed to G), where G is a release rate (:meth:`released`); 0 elsewhere."""
+        """Per tip (G_I + G_II)/G − 1 of the split as computed, where G is a release rate (:meth:`released`);
+        0 elsewhere."""
         G = np.asarray(self.G, dtype=float)
-        if np.all(np.isfinite(self.split_error)) and len(G):
-            return np.where(self.released(), self.split_error, 0.0)
         released = self.released() & np.isfinite(self.G_I) & np.isfinite(self.G_II)
         return np.where(released, (np.asarray(self.G_I) + np.asarray(self.G_II)) / np.where(released, G, 1.0) - 1.0,
                         0.0)
