@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from conftest import ddsolve
+from conftest import ROOT, ddsolve
 from ddsolve.dd import kernels
 from ddsolve.errors import SceneError
 from ddsolve.fem import supports
@@ -96,7 +96,7 @@ def test_a_point_near_a_corner_or_a_tip_is_snapped_onto_it():
 
 
 def enf_scene(tmp_path: Path, mesh_file: str | None = None, *items: str) -> scene.Scene:
-    folder = Path(scene.builtin_folder())
+    folder = ROOT / "docs"
     text = (folder / "enf-points.toml").read_text()
     (tmp_path / "enf-points.geo").write_text((folder / "enf-points.geo").read_text())
     if mesh_file is not None:
@@ -147,10 +147,10 @@ def enf_beam_theory(P: float = 1e-3, a: float = 10.0, h: float = 1.0, E: float =
 
 @pytest.mark.mpi
 def test_enf_on_point_supports_matches_corrected_beam_theory(tmp_path):
-    """The built-in enf-points (pin and roller physical points, P2, 0.02 at the tip) on 2 ranks at mesh.size
+    """docs/enf-points.toml (pin and roller physical points, P2, 0.02 at the tip) on 2 ranks at mesh.size
     = 0.5: G within 0.2 % of corrected beam theory (measured −0.045 %; 2 % asked), mode II, G_I + G_II = G."""
     output = tmp_path / "enf.h5"
-    ddsolve("solve", "enf-points", "--set", "mesh.size=0.5", "-o", str(output), ranks=2)
+    ddsolve("solve", str(ROOT / "docs" / "enf-points.toml"), "--set", "mesh.size=0.5", "-o", str(output), ranks=2)
     result = io.read(output)
     G = result.fracture.G[0]
     assert G == pytest.approx(enf_beam_theory(), rel=2e-3)

@@ -4,7 +4,13 @@ the shared two-core machine and quoted.
 """
 from __future__ import annotations
 
+import shutil
+from pathlib import Path
+
 from ddsolve.experiments.robustness import SMALL
+
+#: The ENF on point supports (docs/delamination.md): its scene and .geo.
+ENF = Path(__file__).resolve().parents[2] / "docs" / "enf-points.toml"
 
 CLASSES = {
     211: ("First use: point supports and G ≈ 0",
@@ -35,6 +41,8 @@ y = -1e-3
 def measure(hostile) -> None:
     """Rows of class 211: point supports off the layer, with a normal, from gmsh physical points; a closed tip."""
     (hostile.folder / "c211-strip.toml").write_text(STRIP)
+    for path in (ENF, ENF.with_suffix(".geo")):
+        shutil.copyfile(path, hostile.folder / path.name)
     strip = ["solve", "-n", "2", "c211-strip.toml"]
     unknown = "exit 1, 0.7 s: «ddsolve: error: strip.toml: unknown key displacements.layer1.pin.point; valid here: " \
               "normal, x, y»"
@@ -51,11 +59,11 @@ def measure(hostile) -> None:
                  [*strip, "--set", "displacements.layer1.pin={point = [2.0, -0.5], y = 0.0}", "-o", "c211.h5"])
     no_pin = "exit 1, 4.5 s: «ddsolve: error: displacements.layer1.pin: no boundary named 'pin' in enf-points.geo " \
              "(boundaries: bottom, load, top)»"
-    hostile.case(211, "ENF on gmsh physical points `pin` and `roller` (`enf-points`, mesh.size = 0.5)", no_pin,
-                 ["solve", "-n", "2", "enf-points", "--set", "mesh.size=0.5", "-o", "c211-enf.h5"],
+    hostile.case(211, "ENF on gmsh physical points `pin` and `roller` (docs/enf-points.toml, mesh.size = 0.5)", no_pin,
+                 ["solve", "-n", "2", "enf-points.toml", "--set", "mesh.size=0.5", "-o", "c211-enf.h5"],
                  observe=_tips)
     hostile.case(211, "ENF, a normal displacement on the physical point `roller`", no_pin,
-                 ["solve", "-n", "2", "enf-points", "--set", "mesh.size=0.5", "--set",
+                 ["solve", "-n", "2", "enf-points.toml", "--set", "mesh.size=0.5", "--set",
                   "displacements.layer1.roller={normal = 0.0}", "-o", "c211-enf.h5"], kept=("c211-enf",))
     hostile.case(211, "Example 1's closed tip (P = 13): G ≈ 0", "exit 0, 3.7 s: «G at tip (0.5, 0) of crack 0: "
                  "-1.334738e-09 (G_I -1.461e-09, G_II 1.202e-10, ψ undefined: G ≈ 0)»; the open tip's G_I 2.758e-07 "
