@@ -5,7 +5,9 @@ A block's dof frame is (x, y) at every node but the Σ nodes that carry multipli
 components of both layers to zero, and wins where it meets a displaced boundary.  A boundary in
 ``[displacements.LAYER.NAME]`` fixes x and/or y, or the normal component (a straight boundary whose
 normal is along a dof axis: x or y away from Σ, Σ's tangent or normal at a multiplier node).  Where
-several boundaries meet, their conditions are combined; two that fix the same direction must agree.
+several boundaries meet, their conditions are combined; two that fix the same direction must agree.  A point
+support (a gmsh physical point of that name, or ``point = [x, y]``) fixes x and/or y at the vertex there,
+found by its coordinates (:func:`displaced_nodes`).
 
 At a Σ multiplier node the gluing ties the dofs of the blocks: every block at a glued vertex, the
 blocks of one face (u⁻ with v⁻, u⁺ with v⁺) at a crack vertex.  A dof that one block prescribes is
@@ -224,11 +226,11 @@ def check(scene: Scene, mesh: Mesh) -> SigmaSupports:
             if name in names or name in spots or name in (SIGMA, CRACK):
                 raise SceneError(f"{displacement.key}: {name!r} names a boundary or a point of {mesh.origin}; give the "
                                  "point support a name of its own")
-            _check_point(mesh, displacement, [displacement.point], f"{displacement.key}.point")
+            _check_point(mesh, [displacement.point], f"{displacement.key}.point")
         elif name in spots:
             if displacement.normal is not None:
                 raise SceneError(f"{displacement.key}.normal: {name!r} is a point, which has no normal; give x and/or y")
-            _check_point(mesh, displacement, spots[name], f"{displacement.key}: the point {name!r} of {mesh.origin}")
+            _check_point(mesh, spots[name], f"{displacement.key}: the point {name!r} of {mesh.origin}")
         elif name not in names or name in (CLAMPED, SIGMA, CRACK):
             listed = ", ".join(n for n in names if n != CLAMPED)
             points = f"; points: {', '.join(sorted(spots))}" if spots else ""
@@ -237,7 +239,7 @@ def check(scene: Scene, mesh: Mesh) -> SigmaSupports:
     return sigma_supports(scene, mesh)
 
 
-def _check_point(mesh: Mesh, displacement: Displacement, points, what: str) -> None:
+def _check_point(mesh: Mesh, points, what: str) -> None:
     """Each of ``points`` is a vertex of a half of the layer, on that half's boundary (outer or Σ)."""
     for xy in points:
         found = False
