@@ -130,6 +130,7 @@ def half_datasets(half: HalfMesh, multiplier_nodes: np.ndarray, piece=None, skel
         sigma = numbered(half.sigma)
         out.update({f"{group}/sigma": sigma, f"{group}/interface": sigma[multiplier_nodes]})
         out.update({f"{group}/boundaries/{boundary}": numbered(edges) for boundary, edges in half.boundaries.items()})
+        out.update({f"{group}/named_points/{name}": xy for name, xy in half.named_points.items()})
     return out
 
 
@@ -168,7 +169,8 @@ def sigma_datasets(on: OnSigma, history: np.ndarray, active_set_changes: np.ndar
                 for layer, named in reactions.items() for name, force in named.items()})
     if fracture is not None:
         out.update({f"fracture/{key}": getattr(fracture, key) for key in FRACTURE_FIELDS + MODE_FIELDS
-                    + TOUGHNESS_FIELDS + OVERLAP_FIELDS})
+                    + TOUGHNESS_FIELDS + OVERLAP_FIELDS + NOISE_FIELDS})
+        out.update({f"fracture/reported/{key}": value for key, value in fracture.reported().items()})
         out.update({"fracture/arclength": sigma.arclength[nodes], "fracture/opening": on.opening,
                     "fracture/pressure": on.multipliers["mu_c"]})
     return out
@@ -317,7 +319,9 @@ def _read(f: h5py.File, path: Path) -> Result:
         on_sigma = _indices(_array(f, f"{group}/sigma", "i", (sigma_count,)), len(points), f"{group}/sigma")
         boundaries = {key: _indices(_array(f, f"{group}/boundaries/{key}", "i", (None, None)), len(points),
                                     f"{group}/boundaries/{key}") for key in f[group].get("boundaries", {})}
-        halves.append(HalfMesh(points, cells, side, on_sigma, boundaries))
+        named_points = {key: _array(f, f"{group}/named_points/{key}", "f", (None, 2))
+                        for key in f[group].get("named_points", {})}
+        halves.append(HalfMesh(points, cells, side, on_sigma, boundaries, named_points))
     mesh = Mesh(*halves, sigma, str(path))
     k = len(sigma.multiplier_nodes)
     solution = {spec.name: _array(f, f"solution/{spec.name}", "f", (len(mesh.half(spec.side).points), 2))
@@ -373,6 +377,8 @@ MODE_FIELDS = ("G_I", "G_II", "phase", "symmetric")
 TOUGHNESS_FIELDS = ("toughness", "critical_factor")
 #: Where the faces overlap, without non-penetration: absent from older files, read as none.
 OVERLAP_FIELDS = ("overlaps", "overlap_crack")
+#: G's noise level: absent from older files, read as NaN.
+NOISE_FIELDS = ("noise",)
 
 
 def _read_fracture(f):
@@ -382,4 +388,4 @@ def _read_fracture(f):
         return None
     return Fracture(**{key: _dataset(f, f"fracture/{key}")[()] for key in FRACTURE_FIELDS},
                     **{key: _dataset(f, f"fracture/{key}")[()] for key in MODE_FIELDS + TOUGHNESS_FIELDS
-                       + OVERLAP_FIELDS if f"fracture/{key}" in f})
+                       + OVERLAP_FIELDS + NOISE_FIELDS if f"fracture/{key}" in f})

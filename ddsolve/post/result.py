@@ -270,10 +270,11 @@ class Fracture:
     critical_factor: np.ndarray | None = None
     overlaps: np.ndarray | None = None
     overlap_crack: np.ndarray | None = None
+    noise: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         count = len(self.G)
-        for name in ("G_I", "G_II", "phase", "toughness", "critical_factor"):
+        for name in ("G_I", "G_II", "phase", "toughness", "critical_factor", "noise"):
             if getattr(self, name) is None:
                 setattr(self, name, np.full(count, np.nan))
         if self.symmetric is None:
@@ -292,6 +293,25 @@ class Fracture:
         G = np.asarray(self.G, dtype=float)
         return G > RELEASE * np.abs(G).max(initial=0.0)
 
+    def within_noise(self) -> np.ndarray:
+        """Per tip whether G is at most its noise level (``noise``, the discretization error:
+        :func:`ddsolve.post.fracture.release_and_noise`; NaN in older files: never)."""
+        return np.asarray(self.G, dtype=float) <= np.nan_to_num(np.asarray(self.noise, dtype=float), nan=-np.inf)
+
+    def reported(self) -> dict[str, np.ndarray]:
+        """G, G_I and G_II as reported: G is 0 where it is no release rate or within its noise; G_I and G_II are
+        clamped at 0 (a negative part is the split's error), 0 where G is, and where the split is resolved
+        (G_I + G_II as computed within SPLIT_DRIFT of G) scaled to sum to G.  The fields keep what was computed
+        (G the exact derivative of the discrete energy; G, G_I, G_II quadratics in a load factor)."""
+        zero = ~self.released() | self.within_noise()
+        G = np.where(zero, 0.0, np.asarray(self.G, dtype=float))
+        G_I, G_II = np.maximum(self.G_I, 0.0), np.maximum(self.G_II, 0.0)
+        total = G_I + G_II
+        resolved = ~zero & (np.abs(self.split_drift()) <= SPLIT_DRIFT) & (total > 0)
+        scale = np.where(resolved, G / np.where(total > 0, total, 1.0), np.where(zero, 0.0, 1.0))
+        return {"G": G, "G_I": np.where(np.isnan(self.G_I), np.nan, G_I * scale),
+                "G_II": np.where(np.isnan(self.G_II), np.nan, G_II * scale)}
+
     def modes(self) -> list[str]:
         """Per tip: «(G_I ..., G_II ..., ψ = ...°)» (NO_PHASE where ψ is NaN), with «by crack closure» where
         not split by symmetry and a warning where G_I + G_II is more than SPLIT_DRIFT off G
@@ -300,14 +320,17 @@ class Fracture:
             return (f"; G_I + G_II is {drift:+.0%} off G: the split is not resolved, refine near this tip"
                     if abs(drift) > SPLIT_DRIFT else "")
 
+        shown = self.reported()
+        phase = np.where(self.within_noise(), np.nan, self.phase)
         return ["" if np.isnan(g1) else
                 f"(G_I {g1:.3e}, G_II {g2:.3e}, {f'ψ = {psi:.1f}°' if np.isfinite(psi) else NO_PHASE}"
                 f"{'' if by_symmetry else ', by crack closure'}{warning(drift)})"
-                for g1, g2, psi, by_symmetry, drift in zip(self.G_I, self.G_II, self.phase, self.symmetric,
+                for g1, g2, psi, by_symmetry, drift in zip(shown["G_I"], shown["G_II"], phase, self.symmetric,
                                                            self.split_drift())]
 
     def split_drift(self) -> np.ndarray:
-        """Per tip (G_I + G_II)/G − 1, where G is a release rate (:meth:`released`); 0 elsewhere."""
+        """Per tip (G_I + G_II)/G − 1 of the split as computed, where G is a release rate (:meth:`released`);
+        0 elsewhere."""
         G = np.asarray(self.G, dtype=float)
         released = self.released() & np.isfinite(self.G_I) & np.isfinite(self.G_II)
         return np.where(released, (np.asarray(self.G_I) + np.asarray(self.G_II)) / np.where(released, G, 1.0) - 1.0,
@@ -324,15 +347,23 @@ class Fracture:
 
         return [parts(*values) for values in zip(self.G, self.toughness, self.critical_factor)]
 
+    def quoted(self, G: float, noise: float) -> str:
+        """G as printed: the value (± its noise level where known), or 0 where within the noise."""
+        if not np.isfinite(noise):
+            return f"{G:.6e}"
+        if G <= noise:
+            return f"0 (G ≈ 0: computed {G:.3e}, within the discretization noise {noise:.2g})"
+        return f"{G:.6e} (± {noise:.2g})"
+
     def lines(self) -> list[str]:
         """One line per tip and one for the contact zones (without non-penetration: where the faces overlap),
         as printed after a solve."""
         lines = []
-        for (x, y), c, g, a, b, h, modes, growth in zip(self.points, self.crack, self.G, self.inner, self.outer,
-                                                         self.spacing, self.modes(), self.growth()):
+        for (x, y), c, g, n, a, b, h, modes, growth in zip(self.points, self.crack, self.G, self.noise, self.inner,
+                                                            self.outer, self.spacing, self.modes(), self.growth()):
             note = f"; only {a / h:.1f} elements within the inner radius: refine near this tip" \
                 if a < FEW_ELEMENTS * h else ""
-            lines.append(f"G at tip ({x:.6g}, {y:.6g}) of crack {c}: {g:.6e}{' ' * bool(modes)}{modes}"
+            lines.append(f"G at tip ({x:.6g}, {y:.6g}) of crack {c}: {self.quoted(g, n)}{' ' * bool(modes)}{modes}"
                          f"{'; ' * bool(growth)}{growth}   (θ radii {a:.4g}, {b:.4g}{note})")
         for title, zones, cracks in (("crack faces in contact (arc length along Σ): ", self.zones, self.zone_crack),
                                      ("crack faces overlap (no non-penetration condition; arc length along Σ): ",

@@ -116,13 +116,16 @@ class Load:
 
 @dataclass(frozen=True)
 class Displacement:
-    """Prescribed displacement components on the boundary ``key`` names (``displacements.LAYER.NAME``):
-    x and y, or the normal component; each an expression in x and y, or None (that component is free)."""
+    """Prescribed displacement components on the boundary or named point ``key`` names
+    (``displacements.LAYER.NAME``), or at ``point`` (x, y), a mesh vertex on the boundary or Σ: x and y,
+    or the normal component (boundaries only); each an expression in x and y, or None (that component
+    is free)."""
 
     key: str
     x: Expression | None = None
     y: Expression | None = None
     normal: Expression | None = None
+    point: tuple[float, float] | None = None
 
     @property
     def boundary(self) -> str:
@@ -459,7 +462,8 @@ def _material_schema(raw: dict) -> dict:
 
 
 _LOAD = {"x": (_load_value, None), "y": (_load_value, None), "pressure": (_load_value, None)}
-_DISPLACEMENT = {"x": (_load_value, None), "y": (_load_value, None), "normal": (_load_value, None)}
+_DISPLACEMENT = {"x": (_load_value, None), "y": (_load_value, None), "normal": (_load_value, None),
+                 "point": (_fixed_numbers(2), None)}
 
 SCHEMA: dict[str, Any] = {
     "title": (_string, ""),
@@ -713,7 +717,9 @@ def _displacement_checks(data: dict, origin: str) -> None:
     for layer, tables in data.get("displacements", {}).items():
         for name, table in tables.items():
             key = f"displacements.{layer}.{printable(name)}"
-            given = [component for component, value in table.items() if value is not None]
+            given = [component for component, value in table.items() if value is not None and component != "point"]
+            if table.get("point") is not None:
+                _point_checks(data, table, key, given, origin)
             if not given:
                 raise SceneError(f"{origin}: {key}: give x, y or normal")
             if "normal" in given and len(given) > 1:
@@ -730,6 +736,36 @@ def _displacement_checks(data: dict, origin: str) -> None:
                 if loaded:
                     raise SceneError(f"{origin}: {key}.{component}: boundary {printable(name)!r} of {layer} is "
                                      f"also loaded in that direction (loads.{layer}.{printable(name)}.{loaded[0]})")
+
+
+def _point_checks(data: dict, table: dict, key: str, given: list[str], origin: str) -> None:
+    """A point support (``point = [x, y]``) fixes x and/or y (a point has no normal) and, in the box, lies
+    on its sides or on Σ (the mesher puts a vertex there; a file's mesh must have one).  A box point is
+    snapped onto its line and onto a corner, Σ's end or a crack tip within the meshing tolerance."""
+    if "normal" in given:
+        raise SceneError(f"{origin}: {key}.normal: a point has no normal; give x and/or y at the point")
+    if data["mesh"]["file"] is not None:
+        return
+    x, y = table["point"]
+    box = x0, x1, y0, y1 = data["geometry"]["box"]
+    sigma = data["geometry"]["sigma"]
+    feature = GEOMETRIC_TOLERANCE * max(x1 - x0, y1 - y0)
+    inside = x0 - feature <= x <= x1 + feature and y0 - feature <= y <= y1 + feature
+    tips = [x0, x1, *(tip for piece in data["geometry"]["cracks"] for tip in piece)]
+    lines = [(1, y0, [x0, x1]), (1, y1, [x0, x1]), (1, sigma, tips), (0, x0, [y0, sigma, y1]),
+             (0, x1, [y0, sigma, y1])]
+    point = [x, y]
+    for axis, value, stops in lines:
+        if inside and abs(point[axis] - value) <= feature:
+            point[axis] = value
+            along = min(stops, key=lambda stop: abs(point[1 - axis] - stop))
+            if abs(point[1 - axis] - along) <= feature:
+                point[1 - axis] = along
+            table["point"] = tuple(point)
+            return
+    where = "outside the box" if not inside else "inside a layer, off its boundary"
+    raise SceneError(f"{origin}: {key}.point = [{x:g}, {y:g}] is {where}: a point support must lie on a side of "
+                     f"geometry.box = {[float(v) for v in box]} or on Σ (y = {sigma:g})")
 
 
 #: The largest ratio of the largest to the smallest eigenvalue of a layer's elastic matrix: 2/√ε, which

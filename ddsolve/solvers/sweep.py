@@ -240,7 +240,7 @@ def check_cost(items: list[str], scenes: list, runs: list[dict], ranges: list[Ra
     seconds, previous = [], None
     for scene in scenes:  # what the loop below reuses: the factorization while only loads change
         reused = previous is not None and scene.mesh.target_error is None and \
-            (scene.geometry, scene.mesh, _blocks_key(scene)) == (previous.geometry, previous.mesh, _blocks_key(previous))
+            (_mesh_key(scene), _blocks_key(scene)) == (_mesh_key(previous), _blocks_key(previous))
         seconds.append(run_seconds(scene, ranks, factor=not reused))
         previous = scene
     total = sweep_seconds(sum(seconds), len(runs))
@@ -292,8 +292,7 @@ def sweep(source, items: list[str], paired: bool, output: Path | None, comm, pro
     try:
         for number, (run, scene) in enumerate(zip(runs, scenes), 1):
             started = time.perf_counter()
-            same_mesh = previous is not None and mesh is not None and \
-                (scene.geometry, scene.mesh) == (previous.geometry, previous.mesh)
+            same_mesh = previous is not None and mesh is not None and _mesh_key(scene) == _mesh_key(previous)
             same_blocks = same_mesh and setup is not None and _blocks_key(scene) == _blocks_key(previous)
             if setup is not None and not same_blocks:
                 setup.destroy()
@@ -333,6 +332,11 @@ def sweep(source, items: list[str], paired: bool, output: Path | None, comm, pro
         if setup is not None:
             setup.destroy()
     return records if comm.rank == 0 else None
+
+
+def _mesh_key(scene) -> tuple:
+    """What the mesh depends on: the geometry and mesh keys, and the point supports (the box has a vertex at each)."""
+    return (scene.geometry, scene.mesh, sorted(d.point for d in scene.displacements.values() if d.point is not None))
 
 
 def _blocks_key(scene) -> tuple:
