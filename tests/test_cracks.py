@@ -8,7 +8,7 @@ import pytest
 from conftest import MATERIALS
 
 from ddsolve.errors import MeshError
-from ddsolve.experiments.delamination import strip_geo
+from experiments.delamination import strip_geo
 from ddsolve.mesh import cracks, geometry
 from ddsolve.mesh.element import CELL_EDGES, edge_keys
 from ddsolve.mesh.mesh import SIGMA, make_half, make_mesh

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from conftest import ddsolve
 
-from ddsolve.experiments import delamination as d
+from experiments import delamination as d
 from ddsolve.io import hdf5 as io
 
 E, NU, P, H = 200.0, 0.28, 1e-3, 1.0

@@ -10,7 +10,7 @@ import pytest
 from conftest import MATERIALS, ddsolve
 
 from ddsolve.errors import SceneError
-from ddsolve.experiments.fracture import PLATE, example_scene, handbook, plate_scene
+from experiments.fracture import PLATE, example_scene, handbook, plate_scene
 from ddsolve.io import hdf5 as io
 from ddsolve.mesh import geometry
 from ddsolve.mesh.mesh import HalfMesh, make_mesh

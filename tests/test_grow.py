@@ -9,8 +9,8 @@ import pytest
 from conftest import MATERIALS, ddsolve, refused
 
 from ddsolve.errors import SceneError, UsageError
-from ddsolve.experiments import delamination as beams
-from ddsolve.experiments import growth as experiment
+from experiments import delamination as beams
+from experiments import growth as experiment
 from ddsolve.post import toughness
 from ddsolve.problem import expressions
 from ddsolve.problem.scene import Scene

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ddsolve.problem import scene as scenes
+from experiments import ROOT
 
 MESH = ["--set", "mesh.sigma_vertices=48", "--set", "mesh.boundary_vertices=80"]
 DOCS = Path("docs")
@@ -41,7 +42,7 @@ def _run(arguments: list[str], ranks: int | None = 4, timeout: float = 600,
     command = mpiexec_command(ranks, arguments) if ranks else [sys.executable, "-m", "ddsolve", *arguments]
     started = time.perf_counter()
     completed = subprocess.run(command, capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL,
-                               env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])},
+                               env={**os.environ, "PYTHONPATH": str(ROOT)},
                                cwd=folder)
     return completed, time.perf_counter() - started
 
@@ -379,8 +380,8 @@ def round4_modules() -> list:
     """The modules ``hostile4_<topic>`` of this package that measure issue 40 (round 4): each holds
     ``CLASSES`` (its class numbers, 201 to 211, with a title and how the class is fixed at the root)
     and ``measure(hostile)``, which adds its rows."""
-    names = sorted(path.stem for path in Path(__file__).parent.glob("hostile4_*.py"))
-    return [importlib.import_module(f"ddsolve.experiments.{name}") for name in names]
+    names = sorted(path.stem for path in (ROOT / "experiments").glob("hostile4_*.py"))
+    return [importlib.import_module(f"experiments.{name}") for name in names]
 
 
 def round4_classes() -> dict:
@@ -406,7 +407,7 @@ class Hostile:
         completed = subprocess.run([sys.executable, "-m", "ddsolve", *arguments], capture_output=True, text=True,
                                    errors="backslashreplace",  # what a latin-1 or ASCII run printed, byte for byte
                                    timeout=timeout, cwd=self.folder, stdin=subprocess.DEVNULL,
-                                   env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2]),
+                                   env={**os.environ, "PYTHONPATH": str(ROOT),
                                         **(env or {})})
         return completed, time.perf_counter() - started
 
@@ -473,7 +474,7 @@ class Hostile:
         self._messages()
         self._options()
         for name in ROUND3_MODULES:
-            importlib.import_module(f"ddsolve.experiments.{name}").measure(self)
+            importlib.import_module(f"experiments.{name}").measure(self)
         for module in round4_modules():
             module.measure(self)
 

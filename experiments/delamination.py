@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ddsolve.experiments import report
+from experiments import report
 
 RESULTS = Path("results")
 DOCS = Path("docs")

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ddsolve.errors import DDSolveError
-from ddsolve.experiments import report
+from experiments import report
 
 RESULTS = Path("results/scaling")
 DOCS = Path("docs")
@@ -78,7 +78,7 @@ def network(output: Path, comm) -> None:
 
 def calibrate(output: Path, comm) -> None:
     """One block at each calibration size, on one rank: factorization, solve and interface-matrix times."""
-    from ddsolve.experiments.bench import block_timings
+    from experiments.bench import block_timings
 
     if comm.rank == 0:
         output.write_text(json.dumps({"blocks": [block_timings(P, M, solves=10, repeats=2)
@@ -170,7 +170,7 @@ def meshing(P: int, M: int, refine: str, output: Path, comm) -> None:
     (:func:`ddsolve.parallel.distribution.local_mesh`, each rank of a shared block making its piece); rank 0 writes
     every rank's meshing and distribution CPU seconds, its own wall seconds and the peak memory of each
     rank as JSON."""
-    from ddsolve.experiments.bench import paper_scene
+    from experiments.bench import paper_scene
     from ddsolve.mesh.mesh import BLOCKS
     from ddsolve.parallel import distribution
     from ddsolve.parallel.exchange import Exchange
@@ -264,7 +264,7 @@ def _launch(ranks: int, settings: tuple[str, ...], name: str) -> dict:
 def scaling() -> dict:
     """Calibrate, run strong, weak, rounds and large cases and the baseline, fit the model; write HDF5,
     docs/scaling.md, plots."""
-    from ddsolve.experiments.bench import default_ranks
+    from experiments.bench import default_ranks
 
     RESULTS.mkdir(parents=True, exist_ok=True)
     print("scaling: calibration (one block at 5 sizes; MPI latency and bandwidth)", flush=True)
@@ -522,7 +522,7 @@ def _rounds_rows(runs: list[dict]) -> list[str]:
 
 
 def _baseline_rows(baseline: list[dict]) -> list[str]:
-    from ddsolve.experiments.bench import MONOLITHIC_ORDERINGS
+    from experiments.bench import MONOLITHIC_ORDERINGS
 
     rows = []
     for b in baseline:
@@ -535,7 +535,7 @@ def _baseline_rows(baseline: list[dict]) -> list[str]:
 
 
 def text(record: dict, model: CostModel) -> str:
-    from ddsolve.experiments.bench import MONOLITHIC_ORDERINGS
+    from experiments.bench import MONOLITHIC_ORDERINGS
     from ddsolve.parallel.phases import PHASES
 
     runs = record["runs"]
