@@ -198,6 +198,7 @@ def test_patch_test_on_the_refined_mesh(degree):
     assert patch_error(fine.lower) < 1e-12
 
 
+@pytest.mark.solve
 def test_energy_decreases_with_the_levels():
     small = scene.load("partial-closure", ["mesh.sigma_vertices=9", "mesh.boundary_vertices=12"])
     coarse = geometry.build(small)
