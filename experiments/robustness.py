@@ -182,9 +182,22 @@ def robustness() -> None:
     (DOCS / "robustness.md").write_text("\n".join(lines) + "\n")
 
 
+#: Where the tests of the cases below are (most are in tests/test_robustness.py).
+ROBUSTNESS_TESTS = "`test_robustness.py::"
+
+
 def measure(cases: Cases, folder: Path) -> None:
-    t = "`test_robustness.py::"
-    # --- numerically hard
+    """Every hard case and bad input of the page's first table, in its order (files in ``folder``)."""
+    _divergence(cases)
+    _contrast_and_cracks(cases)
+    _loads_and_meshes(cases, folder)
+    _bad_input(cases, folder)
+    _failures_while_running(cases, folder)
+
+
+def _divergence(cases: Cases) -> None:
+    """Uzawa above its stable step, and θ given to the default method."""
+    t = ROBUSTNESS_TESTS
     cases.fails("`uzawa`, θ = 65, crack fully closed", "θ above the stable bound 2/λmax = 58.1 of this mesh: with "
                 "every contact multiplier active the full dual operator applies; divergence is detected from the "
                 "growth of the multiplier steps",
@@ -197,6 +210,11 @@ def measure(cases: Cases, folder: Path) -> None:
                 "refused naming the key (the θ = 65 the paper's scene files carry is not read)",
                 ["solve", "partial-closure", *MESH, "--set", "solver.theta=200", "-o", "x.h5"],
                 test="`test_reliability_keys.py`")
+
+
+def _contrast_and_cracks(cases: Cases) -> None:
+    """Stiffness contrast, near-incompressible layers, cracks of every extent."""
+    t = ROBUSTNESS_TESTS
     for label, overrides in (("E2/E1 = 1e-4", ("materials.layer2.E=0.02",)),
                              ("E2/E1 = 1e4", ("materials.layer2.E=2e6",))):
         cases.against_reference(label, "the exact solve is insensitive to the contrast; the Schur complement is "
@@ -219,6 +237,11 @@ def measure(cases: Cases, folder: Path) -> None:
     cases.fails("crack reaching a clamped end, (−1, 0.5)", "rejected: the paper requires the crack to stay off Γ_D",
                 ["solve", "partial-closure", "--set", "geometry.crack=[-1.0, 0.5]"], ranks=None,
                 test="`test_scene.py::test_bad_values_name_the_key`")
+
+
+def _loads_and_meshes(cases: Cases, folder: Path) -> None:
+    """Zero and scaled loads, a load on layer 2 only, all contact or none, a strongly graded mesh."""
+    t = ROBUSTNESS_TESTS
     zero = ("loads.layer1.bottom.y=[0.0]", "loads.layer1.top.y=[0.0]")
     for method in ("schur", "mprgp", "fista", "uzawa"):
         cases.against_reference(f"zero load, `{method}`", "exactly zero; every stopping rule treats 0/0 as converged",
@@ -247,7 +270,11 @@ def measure(cases: Cases, folder: Path) -> None:
     graded = _mesh_file(folder, "graded", points, cells)
     cases.against_reference("graded mesh, aspect ratio 58 at Σ", "direct block solves do not mind the aspect ratio",
                             graded.name, test=t + "test_strongly_graded_and_distorted_mesh`")
-    # --- bad input
+
+
+def _bad_input(cases: Cases, folder: Path) -> None:
+    """Bad scenes and bad mesh files: refused before any work."""
+    t = ROBUSTNESS_TESTS
     bad = [
         ("malformed TOML", ["solve", _name(_text(folder, "bad.toml", "[mesh\nx = 1"))]),
         ("unknown key", ["solve", "partial-closure", "--set", "solver.thta=60"]),
@@ -280,6 +307,11 @@ def measure(cases: Cases, folder: Path) -> None:
     cases.fails("Σ vertices of the halves differ", "the nodal constraints need matching vertices",
                 ["solve", _name(_mismatched(folder))], ranks=2,
                 test=t + "test_halves_with_different_sigma_vertices_are_rejected`")
+
+
+def _failures_while_running(cases: Cases, folder: Path) -> None:
+    """Unsupported rank counts, an unwritable output, a failing block solver, signals."""
+    t = ROBUSTNESS_TESTS
     for ranks in (3, 5):
         cases.fails(f"{ranks} ranks", "checked collectively before any work", ["solve", "partial-closure", *MESH,
                     "-o", "x.h5"], ranks=ranks, test=t + "test_five_ranks_are_refused_on_every_rank`")
