@@ -421,7 +421,7 @@ def cmd_version(_args, petsc_options) -> int:
 
 def parser() -> argparse.ArgumentParser:
     """The command line; ``ddsolve --help`` lists the commands (the epilog).  The experiments have their
-    own (:mod:`ddsolve.experiments.commands`)."""
+    own (:mod:`experiments.commands`)."""
     top = Parser(prog="ddsolve", description="Domain decomposition (PETSc/MPI) for a two-layer "
                                   "elastic structure with a non-penetrating crack.",
                                   formatter_class=argparse.RawDescriptionHelpFormatter)

@@ -40,11 +40,41 @@ def both_layers(name: str, body: str) -> str:
 RUNNERS = ("python", "mpiexec", "mpirun", "pvpython", "xvfb-run", "run", "bash", "sh", "timeout")
 
 
+#: The in-process solves of a whole structure (the monolithic reference, the DD driver): a test that calls
+#: one is marked ``solve`` (or ``mpi``), which keeps ``-m unit`` the fast loop.
+STRUCTURE_SOLVES = (("ddsolve.solvers.reference", "solve"), ("ddsolve.solvers.driver", "solve"))
+
+
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """A test is ``unit`` unless it is marked ``mpi``: ``-m unit`` runs the serial numerics alone."""
+    """A test is ``unit`` unless it is marked ``mpi`` or ``solve``: ``-m unit`` runs the serial numerics
+    alone, without a whole structure solved."""
     for item in items:
-        if item.get_closest_marker("mpi") is None:
+        if item.get_closest_marker("mpi") is None and item.get_closest_marker("solve") is None:
             item.add_marker(pytest.mark.unit)
+
+
+@contextlib.contextmanager
+def no_solves_in_unit(item: pytest.Item):
+    """While a ``unit`` test is set up and run, solving a whole structure in this process (the
+    STRUCTURE_SOLVES, once imported) fails and asks for the ``solve`` mark."""
+    if item.get_closest_marker("unit") is None:
+        yield
+        return
+    replaced = []
+    for module_name, name in STRUCTURE_SOLVES:
+        module = sys.modules.get(module_name)
+        if module is None:
+            continue
+
+        def refused(*_args, _where=f"{module_name}.{name}", **_options):
+            raise AssertionError(f"{item.nodeid} solves a whole structure ({_where}): mark it pytest.mark.solve")
+        replaced.append((module, name, getattr(module, name)))
+        setattr(module, name, refused)
+    try:
+        yield
+    finally:
+        for module, name, original in replaced:
+            setattr(module, name, original)
 
 
 @contextlib.contextmanager
@@ -72,13 +102,13 @@ def no_runs_unless_mpi(item: pytest.Item):
 
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_setup(item: pytest.Item):
-    with no_runs_unless_mpi(item):
+    with no_runs_unless_mpi(item), no_solves_in_unit(item):
         yield
 
 
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_call(item: pytest.Item):
-    with no_runs_unless_mpi(item):
+    with no_runs_unless_mpi(item), no_solves_in_unit(item):
         yield
 
 

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from ddsolve.experiments import accuracy
+from experiments import accuracy
 from ddsolve.post.analysis import energy_error
 
 

@@ -74,6 +74,7 @@ def test_target_error_alone_chooses_p2_and_grading():
     assert scene.load("partial-closure", ["mesh.target_error=0.01"]).mesh.grading is None  # the paper's family
 
 
+@pytest.mark.solve
 @pytest.mark.parametrize("name", ["partial-closure", "linear"])
 def test_energies_decrease_monotonically_under_refinement(name):
     source = scene.load(name, ["mesh.target_error=0.01"])

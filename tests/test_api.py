@@ -100,6 +100,7 @@ def test_arguments_of_the_wrong_type_are_one_line_errors():
             run(comm=5)
 
 
+@pytest.mark.solve
 def test_a_result_is_written_only_under_an_hdf5_name(tmp_path):
     """As ``-o`` is checked: the API's ``output`` and ``Result.save`` refuse another suffix, nothing written."""
     scene = ddsolve.Scene.load("full-opening").with_({"mesh.sigma_vertices": 24, "mesh.boundary_vertices": 40})

@@ -6,7 +6,8 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-from ddsolve.experiments.architecture import DEFERRED, SERIAL, STAGES, import_graph, imports, modules, stage
+from experiments import ROOT
+from experiments.architecture import DEFERRED, PACKAGE, SERIAL, STAGES, import_graph, imports, modules, stage
 
 
 def test_the_graph_sees_every_module_and_the_known_imports():
@@ -64,10 +65,19 @@ def test_petsc_and_mpi_only_in_the_parallel_and_solvers_stages():
     assert not offenders, "\n".join(offenders)
 
 
-def test_nothing_imports_the_experiments():
-    users = [f"{module} imports {target}" for module, targets in import_graph().items() for target in targets
-             if stage(target) == "experiments" and stage(module) != "experiments"]
+def test_nothing_in_the_package_imports_the_experiments():
+    users = [f"{module} imports {imported}" for module, path in modules().items() for imported in imports(path)
+             if imported.split(".")[0] == "experiments"]
     assert not users, "\n".join(users)
+    assert not (PACKAGE / "experiments").exists(), "the experiments live beside the package, in experiments/"
+
+
+def test_the_experiments_find_the_repository_through_its_root():
+    """Children of the experiments import this checkout through ``PYTHONPATH=experiments.ROOT``; a module
+    that counts parent folders from its own file breaks when it moves."""
+    counting = [path.name for path in (ROOT / "experiments").glob("*.py")
+                if path.name != "__init__.py" and "__file__" in path.read_text(encoding="utf-8")]
+    assert not counting, counting
 
 
 def test_tests_import_no_private_name():

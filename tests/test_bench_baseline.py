@@ -1,7 +1,7 @@
 """The account of `bench baseline` (no run: a synthetic record)."""
 import pytest
 
-from ddsolve.experiments.bench import ACCOUNT_PHASES, account_lines, account_table, structure_bound
+from experiments.bench import ACCOUNT_PHASES, account_lines, account_table, structure_bound
 
 
 def record(ranks: int = 2) -> dict:

@@ -8,7 +8,7 @@ import pytest
 from conftest import MATERIALS
 
 from ddsolve.errors import MeshError
-from ddsolve.experiments.delamination import strip_geo
+from experiments.delamination import strip_geo
 from ddsolve.mesh import cracks, geometry
 from ddsolve.mesh.element import CELL_EDGES, edge_keys
 from ddsolve.mesh.mesh import SIGMA, make_half, make_mesh
@@ -141,6 +141,7 @@ def test_a_curved_sigma_keeps_its_nodes_on_the_polyline_of_the_original_nodes(de
         assert np.array_equal(after.points[fixed], before.points[fixed])
 
 
+@pytest.mark.solve
 @pytest.mark.parametrize("degree", [1, 2])
 def test_g_on_a_moved_tip_is_g_on_a_mesh_made_for_that_crack(degree):
     """Example 1 (P1 with P = 97, P2 with P = 25) with its crack longer by 0.45 edges at both tips: G on the

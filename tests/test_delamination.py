@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from conftest import ddsolve
 
-from ddsolve.experiments import delamination as d
+from experiments import delamination as d
 from ddsolve.io import hdf5 as io
 
 E, NU, P, H = 200.0, 0.28, 1e-3, 1.0
@@ -127,6 +127,7 @@ def small(case: d.Case, tmp_path):
     return d.measure(case, d.solve(case.scene(tmp_path, "case")), 0.0)
 
 
+@pytest.mark.solve
 def test_dcb_is_mode_one_near_corrected_beam_theory(tmp_path):
     """DCB, a/h = 6, identical layers, size 0.2: G within 2 % of corrected beam theory with the isotropic
     correction 0.677h (measured −0.3 %), G_II/G ≤ 0.5 %, G_I + G_II within 0.5 % of G."""
@@ -136,6 +137,7 @@ def test_dcb_is_mode_one_near_corrected_beam_theory(tmp_path):
     assert row["G_I"] + row["G_II"] == pytest.approx(row["G"], rel=5e-3)
 
 
+@pytest.mark.solve
 def test_enf_is_mode_two_with_the_faces_in_contact(tmp_path):
     """ENF, a/h = 6, identical layers (the upper half floating), size 0.2: G_I/G ≤ 0.5 %, G_I + G_II within
     0.5 % of G, no penetration beyond 1e-10·max|u|, faces in contact; G above beam theory and within 2 % of
@@ -149,6 +151,7 @@ def test_enf_is_mode_two_with_the_faces_in_contact(tmp_path):
     assert row["G"] == pytest.approx(row["corrected"], rel=2e-2)
 
 
+@pytest.mark.solve
 def test_mmb_mode_ratio_at_one_lever_length(tmp_path):
     """MMB, c = L, a/h = 6, identical layers, size 0.2: G_I/G_II within 4 % of corrected beam theory,
     (4/3)((3c − L)/(c + L))² ((a + 0.677h)/(a + 0.206h))² (measured +2.9 % on this coarse mesh; the

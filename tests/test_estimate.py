@@ -141,6 +141,7 @@ def test_interpolation_reproduces_fields_of_the_element_on_curved_cells(degree):
     assert np.allclose(analysis.interpolate(half, values, points), expected, atol=1e-9)
 
 
+@pytest.mark.solve
 def test_reference_results_carry_the_estimate():
     result = reference.solve(scene.load("partial-closure", ["mesh.sigma_vertices=13", "mesh.boundary_vertices=32"]),
                              geometry.build(scene.load("partial-closure", ["mesh.sigma_vertices=13",
@@ -150,6 +151,7 @@ def test_reference_results_carry_the_estimate():
         assert values.shape == (len(result.half(name).cells),) and np.all(values >= 0)
 
 
+@pytest.mark.solve
 @pytest.mark.parametrize("degree", [1, 2])
 def test_compare_on_different_meshes_interpolates_the_coarse_solution(degree):
     """A coarse solution against a finer one: the distance is what the estimates say is between them."""
@@ -237,6 +239,7 @@ boundary_vertices = 48
                           for side in ("left", "right"))
 
 
+@pytest.mark.solve
 def test_a_rigid_motion_has_nothing_to_estimate():
     """Supports that move the structure rigidly: the solution is exact, its strains rounding, and so is η:
     the relative estimate is 0, not the ratio of two roundings (47 %), and an adaptive run stops at once."""

@@ -4,7 +4,7 @@ from __future__ import annotations
 import pytest
 from conftest import ddsolve
 
-from ddsolve.experiments import delamination
+from experiments import delamination
 from ddsolve.io import hdf5 as io
 from ddsolve.post import analysis
 

@@ -10,7 +10,7 @@ import pytest
 from conftest import MATERIALS, ddsolve
 
 from ddsolve.errors import SceneError
-from ddsolve.experiments.fracture import PLATE, example_scene, handbook, plate_scene
+from experiments.fracture import PLATE, example_scene, handbook, plate_scene
 from ddsolve.io import hdf5 as io
 from ddsolve.mesh import geometry
 from ddsolve.mesh.mesh import HalfMesh, make_mesh
@@ -27,6 +27,7 @@ def solved(source: scene.Scene):
     return reference.solve(source, geometry.build(source))
 
 
+@pytest.mark.solve
 def test_the_reference_presses_only_where_the_faces_touch():
     """Open crack nodes carry no contact pressure, exactly, not the residuals' round-off: ``mu_c > 0`` in a
     user's script finds the contact zone the solver prints."""
@@ -42,6 +43,7 @@ def moved(mesh, tip, step: float, normals: np.ndarray | None = None):
     return make_mesh(*halves, "moved", exact_normals=normals)
 
 
+@pytest.mark.solve
 @pytest.mark.parametrize("name, degree", [("partial-closure", 1), ("full-opening", 1), ("partial-closure", 2),
                                           ("linear", 2)])
 def test_g_is_the_derivative_of_the_discrete_energy(name, degree):
@@ -57,6 +59,7 @@ def test_g_is_the_derivative_of_the_discrete_energy(name, degree):
         assert -(energies[0] - energies[1]) / (2 * step) == pytest.approx(rate, abs=1e-6 * np.abs(G).max())
 
 
+@pytest.mark.solve
 @pytest.mark.parametrize("degree", [1, 2])
 def test_curved_sigma_with_contact_needs_the_turning_normals(degree):
     """On the arc (arc-bond.geo, P1 and curved P2) with layer 1 pressed (a pressure on top and bottom) the faces
@@ -82,6 +85,7 @@ def test_curved_sigma_with_contact_needs_the_turning_normals(degree):
         assert abs(contact) > 1000 * tolerance * scale
 
 
+@pytest.mark.solve
 @pytest.mark.parametrize("example", [1, 2])
 def test_finite_differences_with_remeshing(tmp_path, example):
     """Extending the open tip by ±δ on re-meshed graded meshes (P2): −(Π(a + δ) − Π(a − δ))/2δ within 2 %
@@ -95,6 +99,7 @@ def test_finite_differences_with_remeshing(tmp_path, example):
     assert -(longer - shorter) / (2 * delta) == pytest.approx(G, rel=0.02)
 
 
+@pytest.mark.solve
 @pytest.mark.parametrize("name", ["partial-closure", "full-opening"])
 def test_three_radii_agree(name):
     """On the built-in mesh (P2, P = 49) three pairs of θ radii give G within 0.5 % at open tips; a closed
@@ -110,6 +115,7 @@ def test_three_radii_agree(name):
             assert np.abs(column).max() < 1e-3 * scale
 
 
+@pytest.mark.solve
 def test_centre_crack_in_a_plate(tmp_path):
     """Two identical layers under the same remote tension: G at each tip is the sum of the two single-plate
     values 2πσ²a/E′·F(a/W)² within 2 % on a small P2 mesh; under compression the faces close and G vanishes."""
@@ -151,6 +157,7 @@ def test_tips_directions_and_radii():
     assert all(t.outer <= 0.5 * 0.5 + 1e-12 for t in tips)  # half the distance to the top and bottom sides
 
 
+@pytest.mark.solve
 def test_coarse_tips_are_flagged():
     """Fewer than two Σ edges within the inner radius: the printed line says so; a finer mesh does not."""
     coarse = solved(scene.load("partial-closure", ["mesh.sigma_vertices=13", "mesh.boundary_vertices=32"]))
@@ -208,6 +215,7 @@ def test_bad_radius_is_one_line(tmp_path):
     assert not (tmp_path / "x.h5").exists()
 
 
+@pytest.mark.solve
 def test_faces_without_non_penetration_overlap_rather_than_touch(tmp_path, monkeypatch):
     """Without non-penetration (the linear problem) the faces pass through each other on the right part of
     the crack: no contact zone, an overlap zone there instead (negative opening throughout), which the summary

@@ -9,8 +9,8 @@ import pytest
 from conftest import MATERIALS, ddsolve, refused
 
 from ddsolve.errors import SceneError, UsageError
-from ddsolve.experiments import delamination as beams
-from ddsolve.experiments import growth as experiment
+from experiments import delamination as beams
+from experiments import growth as experiment
 from ddsolve.post import toughness
 from ddsolve.problem import expressions
 from ddsolve.problem.scene import Scene
@@ -43,6 +43,7 @@ def test_scaled_scene_scales_every_mechanical_action():
     assert expressions.scaled(expressions.parse("x^2 + y"), 3.0).degree == 2
 
 
+@pytest.mark.solve
 def test_dcb_opening_grows_stably_on_corrected_beam_theory(tmp_path):
     scene = experiment.dcb(tmp_path, SIZE, "displacement")
     limit = experiment.dcb_opening(9.0, MODULUS, experiment.G_IC)
@@ -70,6 +71,7 @@ def test_dcb_opening_grows_stably_on_corrected_beam_theory(tmp_path):
     assert np.allclose(data["energy"], 0.5 * data["load"] * data["displacement"], rtol=1e-6, atol=0.0)
 
 
+@pytest.mark.solve
 def test_dcb_under_load_runs_away_at_initiation(tmp_path):
     scene = experiment.dcb(tmp_path, SIZE, "load")
     limit = 1.5 * experiment.dcb_load(experiment.DCB_CRACK, MODULUS, experiment.G_IC)
@@ -82,6 +84,7 @@ def test_dcb_under_load_runs_away_at_initiation(tmp_path):
     assert steps[-1].events[-1] == "end: every tip has stopped before a support or the end of Σ"
 
 
+@pytest.mark.solve
 def test_the_step_size_does_not_move_the_branch(tmp_path):
     scene = experiment.dcb(tmp_path, SIZE, "displacement")
     limit = experiment.dcb_opening(8.0, MODULUS, experiment.G_IC)
@@ -90,6 +93,7 @@ def test_the_step_size_does_not_move_the_branch(tmp_path):
     assert ends[0].cracks[0][1] == pytest.approx(ends[1].cracks[0][1], rel=1e-4)
 
 
+@pytest.mark.solve
 @pytest.mark.slow
 @pytest.mark.parametrize("ratio, unstable", [(0.5, True), (0.8, False)])
 def test_enf_is_unstable_below_a_over_L_0_7(tmp_path, ratio, unstable):
@@ -123,6 +127,7 @@ toughness = {toughness}
     return Scene.load(path)
 
 
+@pytest.mark.solve
 def test_two_disbonds_merge(tmp_path):
     scene = strip_with_disbonds(tmp_path / "disbonds.toml", "[[0.5, 2.8], [3.2, 5.5]]",
                                 '"-1e-3*exp(-20*(x - 3)^2)"', 1e-9)
@@ -131,6 +136,7 @@ def test_two_disbonds_merge(tmp_path):
     assert len(steps[-1].state.cracks) == 1
 
 
+@pytest.mark.solve
 def test_a_tip_at_a_support_stops_and_the_others_grow_on(tmp_path):
     """A tip that reaches a support above G_c stops there (one Σ edge before it); the run goes on with the
     other tips, and ends once every tip has stopped."""
@@ -180,6 +186,7 @@ def test_grow_command_on_two_ranks(tmp_path):
     refused(bad, 2, "grow: --steps 0: a whole number of steps")
 
 
+@pytest.mark.solve
 def test_a_temperature_change_is_kept_while_the_opening_rises(tmp_path):
     """With a fixed temperature change the initiation factor comes from the root solve over scaled scenes
     (the prescribed opening's Σ values scaled with it); a fresh solve there is critical, and growth follows."""
@@ -194,6 +201,7 @@ def test_a_temperature_change_is_kept_while_the_opening_rises(tmp_path):
     assert steps[-1].state.cracks[0][1] > experiment.DCB_CRACK
 
 
+@pytest.mark.solve
 def test_cracks_with_their_own_toughness_end_the_run_where_they_meet():
     """fracture.toughness with one value per crack does not say which G_c a merged crack has: where two
     cracks meet the run ends (its steps kept), instead of failing the merged configuration's checks."""

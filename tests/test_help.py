@@ -1,4 +1,4 @@
-"""``ddsolve --help``, ``python -m ddsolve.experiments --help`` and ``./run --help``: every command, one line
+"""``ddsolve --help``, ``python -m experiments --help`` and ``./run --help``: every command, one line
 each; the experiments are their own command line, which ./run dispatches to."""
 import argparse
 import re
@@ -9,7 +9,7 @@ import pytest
 from conftest import ROOT
 
 from ddsolve import cli
-from ddsolve.experiments import commands
+from experiments import commands
 
 pytestmark = pytest.mark.mpi
 
@@ -35,10 +35,10 @@ def test_help_lists_every_command(capsys):
 def test_the_experiments_have_their_own_command_line_and_run_knows_them_all():
     experiments = subcommands(commands.parser())
     assert list(experiments) == [*commands.EXPERIMENTS, "bench"]
-    help_text = subprocess.run([sys.executable, "-m", "ddsolve.experiments", "--help"], capture_output=True,
+    help_text = subprocess.run([sys.executable, "-m", "experiments", "--help"], capture_output=True, cwd=ROOT,
                                text=True, check=True, timeout=60).stdout
     assert re.findall(r"^  (\S+) +\S", help_text.split("experiments (")[1], re.M) == list(experiments)
-    dispatched = re.search(r"^    ([a-z0-9|-]+)\)\n        exec \"\$PY\" -m ddsolve.experiments", (ROOT / "run").read_text(),
+    dispatched = re.search(r"^    ([a-z0-9|-]+)\)\n        .*exec \"\$PY\" -m experiments", (ROOT / "run").read_text(),
                            re.M).group(1).split("|")
     assert sorted(dispatched) == sorted(experiments)
 

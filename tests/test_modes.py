@@ -53,6 +53,7 @@ def solved(source: scene.Scene):
     return reference.solve(source, geometry.build(source))
 
 
+@pytest.mark.solve
 @pytest.mark.parametrize("name", ["partial-closure", "full-opening"])
 def test_examples_are_mode_one(name):
     """Examples 1 and 2 are symmetric about Σ: at an open tip G_I + G_II equals G to 0.5 % (measured 1e-4 on
@@ -68,6 +69,7 @@ def test_examples_are_mode_one(name):
         assert f.G_I[1] == 0.0 and abs(f.G_II[1]) < 1e-5 * f.G[0]
 
 
+@pytest.mark.solve
 def test_dcb_is_mode_one():
     """DCB: G_II/G ≤ 0.5 % (measured 1e-7), G_I + G_II within 0.5 % of G."""
     f = solved(scene.loads(DCB)).fracture
@@ -75,6 +77,7 @@ def test_dcb_is_mode_one():
     assert abs(f.G_II[0]) <= 5e-3 * f.G[0] and abs(f.phase[0]) < 1.0
 
 
+@pytest.mark.solve
 def test_els_is_mode_two_with_the_faces_in_contact():
     """ELS: the faces touch (contact zones along the crack), G_I/G ≤ 0.5 % (measured 1e-5) also before a
     closed tip's G_I is set to 0, G_II within 0.5 % of G, |ψ| > 89.5°, no penetration beyond 1e-10·max|u|."""
@@ -89,6 +92,7 @@ def test_els_is_mode_two_with_the_faces_in_contact():
     assert abs(faces[0]) <= 5e-3 * f.G[0]
 
 
+@pytest.mark.solve
 def test_split_equals_the_symmetric_and_antisymmetric_loads_alone():
     """Linear problem, full-opening mesh: layer 1 pulled apart and sheared in opposite directions at top and
     bottom (a mixed load, ψ ≈ 30°) splits into G_I = G of the symmetric part of the load alone (the pull)
@@ -112,6 +116,7 @@ def test_split_equals_the_symmetric_and_antisymmetric_loads_alone():
     np.testing.assert_allclose(reversed_shear.phase, -mixed.phase, rtol=1e-3)
 
 
+@pytest.mark.solve
 def test_tips_without_mirror_symmetry_use_crack_closure():
     """A curved Σ (arc-bond) is split by virtual crack closure: G_I + G_II within 0.5 % of G at both tips,
     and the two tips, mirror images of each other, have opposite phases."""
@@ -134,6 +139,7 @@ def test_mirror_law():
                                      reflection)
 
 
+@pytest.mark.solve
 def test_written_read_and_printed(tmp_path):
     """/fracture/G_I, G_II, phase and symmetric round-trip through the result file; a file written before
     the split reads as NaN; the printed line gives the split."""
@@ -152,6 +158,7 @@ def test_written_read_and_printed(tmp_path):
     assert "G_I" in line and "G_II" in line and "ψ = " in line
 
 
+@pytest.mark.solve
 def test_a_tip_that_releases_nothing_has_no_phase_angle(tmp_path):
     """Example 1's closed tip has G ≈ 0 (below 1e-6 of the open tip's): its G_I and G_II are noise, whose signs
     made ψ 0° or 90° (as on the graded meshes: G_II = ±1e-16); ψ is NaN whatever they are, in the file too,
@@ -212,6 +219,7 @@ def test_the_ranks_split_the_modes_as_one_process_does(tmp_path, name, symmetric
                                atol=1e-12 * np.abs(split[1].G).max())
 
 
+@pytest.mark.solve
 def test_a_split_that_misses_g_says_so():
     """On strip-disbonds' default mesh the split misses G by up to half at some tips (too few elements
     between the radii): those tips' lines say by how much and to refine; Example 2's tips, split to 1e-6,

@@ -198,6 +198,7 @@ def test_patch_test_on_the_refined_mesh(degree):
     assert patch_error(fine.lower) < 1e-12
 
 
+@pytest.mark.solve
 def test_energy_decreases_with_the_levels():
     small = scene.load("partial-closure", ["mesh.sigma_vertices=9", "mesh.boundary_vertices=12"])
     coarse = geometry.build(small)
@@ -332,7 +333,7 @@ def test_eight_ranks_mesh_with_a_fraction_of_the_cpu_time_of_two(tmp_path):
     busiest of 8 ranks (one that made a coarse half, and half its piece's cells and points) spends well under
     the 2-rank run's CPU seconds (0.43 of it measured on 2 cores; choosing, ordering and numbering a piece's
     cells is distribution, as cutting it from a whole half is)."""
-    from ddsolve.experiments import report
+    from experiments import report
 
     records = {ranks: report.launch(ranks, ["scaling-meshing", "1600", "2048", "5"], tmp_path / f"{ranks}.json")
                for ranks in (2, 8)}

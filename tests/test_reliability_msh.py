@@ -18,7 +18,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from ddsolve.errors import DDSolveError, MeshError
-from ddsolve.experiments.hostile_msh import MATERIALS, PAPER_LOADS, energy, geometries, msh_versions
+from experiments.hostile_msh import MATERIALS, PAPER_LOADS, energy, geometries, msh_versions
 from ddsolve.io import hdf5 as io
 from ddsolve.mesh import geometry, mesh
 from ddsolve.problem import scene

@@ -13,7 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from ddsolve.experiments.hostile_procs import AFTER, PHASES, marked, stop
+from experiments.hostile_procs import AFTER, PHASES, marked, stop
 from ddsolve.parallel.launch import interrupt_line
 
 SIGNALS = [signal.SIGTERM, signal.SIGINT, signal.SIGKILL]

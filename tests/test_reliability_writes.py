@@ -15,7 +15,7 @@ from conftest import ROOT, SMALL, ddsolve
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from ddsolve.experiments import hostile_writes
+from experiments import hostile_writes
 from ddsolve.io import hdf5 as io
 from ddsolve.problem.scene import builtin_folder
 

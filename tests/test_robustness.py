@@ -196,7 +196,7 @@ def test_a_block_solver_failing_on_one_rank_stops_every_rank(tmp_path):
 @pytest.mark.mpi
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
 def test_a_signal_stops_every_rank_promptly_and_keeps_the_previous_file(tmp_path, signum):
-    from ddsolve.experiments.robustness import interrupt
+    from experiments.robustness import interrupt
 
     outcome = interrupt(tmp_path, signum, wait=8.0)
     assert outcome["running"] and outcome["status"] != 0 and not outcome["traceback"]

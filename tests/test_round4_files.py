@@ -123,6 +123,7 @@ def test_every_file_a_mesh_file_reaches_is_an_input_an_output_cannot_be(data, tm
                 hdf5.check_result(target, found, viewer=False)
 
 
+@pytest.mark.solve
 def test_the_api_writers_refuse_what_the_run_reads_and_names_that_are_not_hdf5(tmp_path):
     """``output=`` of every writer and ``Result.save`` go through the -o check, with the run's inputs."""
     scene, heavy = xdmf_scene(tmp_path)
@@ -180,6 +181,7 @@ def small_result():
     return api.reference(api.Scene.load("full-opening", SMALL_KEYS))
 
 
+@pytest.mark.solve
 @FEW
 @given(wrong=WRONG)
 def test_arguments_of_the_wrong_type_are_one_line_errors_naming_them(wrong, small_result):
@@ -286,6 +288,7 @@ def test_a_script_whose_ranks_cannot_go_on_ends_every_rank_with_one_line(case, t
     refused(completed, 1, fragment)
 
 
+@pytest.mark.solve
 def test_a_results_repr_is_one_short_line(small_result, tmp_path):
     text = repr(small_result)
     assert "\n" not in text and len(text) < 300, text

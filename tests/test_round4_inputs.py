@@ -314,6 +314,7 @@ def test_target_error_alone_solves_a_box_scene(tmp_path):
     assert result.converged and result.parsed_scene.mesh.size == pytest.approx(0.2)
 
 
+@pytest.mark.solve
 def test_the_reference_writes_a_result_that_is_not_finite_as_not_converged(tmp_path, monkeypatch):
     """The claim is withdrawn where the run finishes its result, before the file is written: status 3."""
     from ddsolve.errors import NotConvergedError

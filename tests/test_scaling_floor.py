@@ -3,7 +3,7 @@ import math
 
 import pytest
 
-from ddsolve.experiments.scaling import bare_start, floor_rows
+from experiments.scaling import bare_start, floor_rows
 
 
 def launch(**phases) -> dict:

@@ -83,6 +83,7 @@ def load_resultants(result) -> np.ndarray:
     return total
 
 
+@pytest.mark.solve
 @pytest.mark.parametrize("model, expected", [("plane_strain", -E * ALPHA * DT / (1 - 2 * NU)),
                                              ("plane_stress", -E * ALPHA * DT / (1 - NU))])
 def test_clamped_layers_under_uniform_heating_carry_the_closed_form_stress(model, expected):
@@ -97,6 +98,7 @@ def test_clamped_layers_under_uniform_heating_carry_the_closed_form_stress(model
     assert np.abs(result.G).max() <= 1e-12 * abs(expected)
 
 
+@pytest.mark.solve
 def test_free_expansion_carries_no_stress():
     """Two identical layers, the same α, uniform ΔT, on rollers: the left side (u_x = 0) and the bottom
     (u_y = 0) hold both halves' rigid motions with the top displaced by the free expansion: zero stress
@@ -115,6 +117,7 @@ def test_free_expansion_carries_no_stress():
     assert abs(result.energy) <= 1e-12 * E * strain ** 2 * 4.0
 
 
+@pytest.mark.solve
 @pytest.mark.parametrize("model, strain, strain_zz", [("plane_strain", (1 + NU) * ALPHA * DT, 0.0),
                                                       ("plane_stress", ALPHA * DT, ALPHA * DT)])
 def test_free_expansion_has_the_total_out_of_plane_strain(model, strain, strain_zz):
@@ -126,6 +129,7 @@ def test_free_expansion_has_the_total_out_of_plane_strain(model, strain, strain_
         assert np.abs(fields.strain_zz - strain_zz).max() <= 1e-12 * strain
 
 
+@pytest.mark.solve
 @pytest.mark.parametrize("degree, temperature", [(2, "100.0"), (2, '"50.0 + 30.0 * x * y"'),
                                                  (1, '"50.0 + 30.0 * x * y"')])
 def test_energy_density_integrates_to_the_strain_energy_under_heating(degree, temperature):
@@ -144,6 +148,7 @@ def test_energy_density_integrates_to_the_strain_energy_under_heating(degree, te
     assert total == pytest.approx(result.energy, rel=1e-10)
 
 
+@pytest.mark.solve
 def test_g_under_a_thermal_mismatch_is_the_derivative_of_the_energy():
     """Different α per layer, clamped sides: G at each tip equals −ΔΠ/Δa (moving the nodes by ±δθ) to 1 %."""
     source = scene.loads(SQUARE % ('["left", "right"]', "plane_strain", 3e-5))
@@ -155,6 +160,7 @@ def test_g_under_a_thermal_mismatch_is_the_derivative_of_the_energy():
         assert -(energies[0] - energies[1]) / 2e-4 == pytest.approx(rate, rel=1e-2)
 
 
+@pytest.mark.solve
 def test_displacement_controlled_dcb_matches_the_load_controlled_one():
     """The displaced arms' reactions, as a traction (the polynomial in y whose consistent nodal loads equal
     them), give the load-controlled DCB with the same solution: G equal to 1e-8; the reactions balance."""
@@ -234,6 +240,7 @@ y = 0.5
 """
 
 
+@pytest.mark.solve
 @pytest.mark.parametrize("degree", [1, 2])
 def test_energy_with_a_displaced_boundary_is_half_the_work_of_the_reactions(degree):
     """No load (Clapeyron): Π = ½ a(u, u) = ½ Σ g·R over the supports (only the displaced side moves) to 1e-10,
@@ -263,6 +270,7 @@ def mechanical_energy(result) -> float:
     return float(total)
 
 
+@pytest.mark.solve
 @pytest.mark.parametrize("text", [ROLLERS, PULLED], ids=["rollers", "pulled"])
 def test_energy_is_the_mechanical_energy_less_the_work_of_the_tractions(text):
     """Prescribed values (x, y and normal, at Σ too) and a thermal mismatch, with and without a traction:
@@ -298,6 +306,7 @@ def test_every_method_agrees_with_the_reference_under_displacement_control(metho
     assert got.energy == pytest.approx(expected.energy, rel=1e-10 if method == "schur" else 1e-6)
 
 
+@pytest.mark.solve
 @pytest.mark.parametrize("override, message", [
     ("displacements.layer1.side.y=0.0", "displacements.layer1.side: no boundary named 'side'"),
     ("temperature.layer3=1.0", "unknown key temperature.layer3"),
@@ -319,6 +328,7 @@ def test_bad_supports_and_thermal_keys_are_refused_naming_the_key(override, mess
     assert message in str(caught.value) and "\n" not in str(caught.value)
 
 
+@pytest.mark.solve
 def test_a_half_on_one_roller_floats_and_is_solved():
     """The upper half on one roller (u_y = 0 on top) can translate in x on its own: its blocks float, held
     through Σ, and the structure is solved; the roller carries no force along itself."""
@@ -352,6 +362,7 @@ x = 0.01
 HEATED = SQUARE % ('["left", "right"]', "plane_strain", 3e-5) + "[displacements.layer2.bottom]\ny = 0.0\n"
 
 
+@pytest.mark.solve
 @pytest.mark.parametrize("text, along", [
     (BAR, [("layer1", "left", 1), ("layer2", "left", 1), ("layer1", "bottom", 0)]),
     (HEATED, [("layer2", "bottom", 0)]),

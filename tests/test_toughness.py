@@ -87,6 +87,7 @@ def test_bad_toughness_is_a_one_line_error_naming_the_key(items, key):
     assert key in str(caught.value) and "\n" not in str(caught.value)
 
 
+@pytest.mark.solve
 def test_a_per_crack_toughness_is_checked_against_a_mesh_file(mesh_file):
     """A mesh file's cracks are counted on its mesh: a list of the wrong length is refused naming the key."""
     text = scene.builtin_scenes()["full-opening"].replace("sigma_vertices = 96\nboundary_vertices = 144",
@@ -97,6 +98,7 @@ def test_a_per_crack_toughness_is_checked_against_a_mesh_file(mesh_file):
     toughness.check_cracks(source, 2)
 
 
+@pytest.mark.solve
 def test_example_2_grows_at_the_square_root_of_the_toughness_ratio(tmp_path):
     """Proportional loading: λ_c = √(G_c/G(1)) at each tip, and a solve of the scene scaled by λ_c has
     G = G_c there to 1e-10; the file keeps G_c and λ_c (a file written before them reads NaN); the
@@ -123,12 +125,14 @@ def test_example_2_grows_at_the_square_root_of_the_toughness_ratio(tmp_path):
     assert f"G/G_c = {fracture.G[0] / 1e-4:.6g}, grows at λ = {factors[0]:.6g}" in line
 
 
+@pytest.mark.solve
 def test_without_a_toughness_nothing_is_judged():
     fracture = reference.solve(source := scene.load("full-opening", SMALL), geometry.build(source)).fracture
     assert np.isnan(fracture.toughness).all() and np.isnan(fracture.critical_factor).all()
     assert "G/G_c" not in fracture.lines()[0]
 
 
+@pytest.mark.solve
 @pytest.mark.parametrize("law", [["fracture.toughness=1e-4"], HS[:1] + ["fracture.G_Ic=1e-4", "fracture.lambda=0.3"]])
 def test_a_temperature_change_kept_by_the_root_solve(law):
     """Heated Example 2 (its thermal mismatch closes the crack until the load opens it: G(λ) is no
@@ -146,6 +150,7 @@ def test_a_temperature_change_kept_by_the_root_solve(law):
         assert abs(at.G[tip] / toughness.resistance(source, at)[tip] - 1.0) <= 1e-8
 
 
+@pytest.mark.solve
 def test_the_domain_decomposition_finds_the_reference_factors():
     """critical.factors on one rank (the driver, blocks factored once) gives the reference's factors."""
     from mpi4py import MPI
@@ -178,6 +183,7 @@ def test_solve_on_two_ranks_prints_and_writes_the_critical_factor(tmp_path):
     assert completed.stdout.count("G/G_c = ") == 2
 
 
+@pytest.mark.solve
 def test_an_adaptive_solve_finds_the_factors_on_its_last_mesh_factored_once(monkeypatch):
     """Adaptive heated Example 2 with a toughness: the search on the last mesh prepares (assembles and
     factors) its blocks once, not once per solve of the scaled scene, and finds the reference's factors."""

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ddsolve.problem import scene as scenes
+from experiments import ROOT
 
 MESH = ["--set", "mesh.sigma_vertices=48", "--set", "mesh.boundary_vertices=80"]
 DOCS = Path("docs")
@@ -41,7 +42,7 @@ def _run(arguments: list[str], ranks: int | None = 4, timeout: float = 600,
     command = mpiexec_command(ranks, arguments) if ranks else [sys.executable, "-m", "ddsolve", *arguments]
     started = time.perf_counter()
     completed = subprocess.run(command, capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL,
-                               env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2])},
+                               env={**os.environ, "PYTHONPATH": str(ROOT)},
                                cwd=folder)
     return completed, time.perf_counter() - started
 
@@ -181,9 +182,22 @@ def robustness() -> None:
     (DOCS / "robustness.md").write_text("\n".join(lines) + "\n")
 
 
+#: Where the tests of the cases below are (most are in tests/test_robustness.py).
+ROBUSTNESS_TESTS = "`test_robustness.py::"
+
+
 def measure(cases: Cases, folder: Path) -> None:
-    t = "`test_robustness.py::"
-    # --- numerically hard
+    """Every hard case and bad input of the page's first table, in its order (files in ``folder``)."""
+    _divergence(cases)
+    _contrast_and_cracks(cases)
+    _loads_and_meshes(cases, folder)
+    _bad_input(cases, folder)
+    _failures_while_running(cases, folder)
+
+
+def _divergence(cases: Cases) -> None:
+    """Uzawa above its stable step, and θ given to the default method."""
+    t = ROBUSTNESS_TESTS
     cases.fails("`uzawa`, θ = 65, crack fully closed", "θ above the stable bound 2/λmax = 58.1 of this mesh: with "
                 "every contact multiplier active the full dual operator applies; divergence is detected from the "
                 "growth of the multiplier steps",
@@ -196,6 +210,11 @@ def measure(cases: Cases, folder: Path) -> None:
                 "refused naming the key (the θ = 65 the paper's scene files carry is not read)",
                 ["solve", "partial-closure", *MESH, "--set", "solver.theta=200", "-o", "x.h5"],
                 test="`test_reliability_keys.py`")
+
+
+def _contrast_and_cracks(cases: Cases) -> None:
+    """Stiffness contrast, near-incompressible layers, cracks of every extent."""
+    t = ROBUSTNESS_TESTS
     for label, overrides in (("E2/E1 = 1e-4", ("materials.layer2.E=0.02",)),
                              ("E2/E1 = 1e4", ("materials.layer2.E=2e6",))):
         cases.against_reference(label, "the exact solve is insensitive to the contrast; the Schur complement is "
@@ -218,6 +237,11 @@ def measure(cases: Cases, folder: Path) -> None:
     cases.fails("crack reaching a clamped end, (−1, 0.5)", "rejected: the paper requires the crack to stay off Γ_D",
                 ["solve", "partial-closure", "--set", "geometry.crack=[-1.0, 0.5]"], ranks=None,
                 test="`test_scene.py::test_bad_values_name_the_key`")
+
+
+def _loads_and_meshes(cases: Cases, folder: Path) -> None:
+    """Zero and scaled loads, a load on layer 2 only, all contact or none, a strongly graded mesh."""
+    t = ROBUSTNESS_TESTS
     zero = ("loads.layer1.bottom.y=[0.0]", "loads.layer1.top.y=[0.0]")
     for method in ("schur", "mprgp", "fista", "uzawa"):
         cases.against_reference(f"zero load, `{method}`", "exactly zero; every stopping rule treats 0/0 as converged",
@@ -246,7 +270,11 @@ def measure(cases: Cases, folder: Path) -> None:
     graded = _mesh_file(folder, "graded", points, cells)
     cases.against_reference("graded mesh, aspect ratio 58 at Σ", "direct block solves do not mind the aspect ratio",
                             graded.name, test=t + "test_strongly_graded_and_distorted_mesh`")
-    # --- bad input
+
+
+def _bad_input(cases: Cases, folder: Path) -> None:
+    """Bad scenes and bad mesh files: refused before any work."""
+    t = ROBUSTNESS_TESTS
     bad = [
         ("malformed TOML", ["solve", _name(_text(folder, "bad.toml", "[mesh\nx = 1"))]),
         ("unknown key", ["solve", "partial-closure", "--set", "solver.thta=60"]),
@@ -279,6 +307,11 @@ def measure(cases: Cases, folder: Path) -> None:
     cases.fails("Σ vertices of the halves differ", "the nodal constraints need matching vertices",
                 ["solve", _name(_mismatched(folder))], ranks=2,
                 test=t + "test_halves_with_different_sigma_vertices_are_rejected`")
+
+
+def _failures_while_running(cases: Cases, folder: Path) -> None:
+    """Unsupported rank counts, an unwritable output, a failing block solver, signals."""
+    t = ROBUSTNESS_TESTS
     for ranks in (3, 5):
         cases.fails(f"{ranks} ranks", "checked collectively before any work", ["solve", "partial-closure", *MESH,
                     "-o", "x.h5"], ranks=ranks, test=t + "test_five_ranks_are_refused_on_every_rank`")
@@ -379,15 +412,21 @@ def round4_modules() -> list:
     """The modules ``hostile4_<topic>`` of this package that measure issue 40 (round 4): each holds
     ``CLASSES`` (its class numbers, 201 to 211, with a title and how the class is fixed at the root)
     and ``measure(hostile)``, which adds its rows."""
-    names = sorted(path.stem for path in Path(__file__).parent.glob("hostile4_*.py"))
-    return [importlib.import_module(f"ddsolve.experiments.{name}") for name in names]
+    names = sorted(path.stem for path in (ROOT / "experiments").glob("hostile4_*.py"))
+    return [importlib.import_module(f"experiments.{name}") for name in names]
 
 
 def round4_classes() -> dict:
-    """Issue 40's classes, in number order, from the modules that measure them."""
-    classes = {}
+    """Issue 40's classes, in number order, from the modules that measure them.  Modules that share a class
+    (the first-use items, 211) each name their part of it: «Topic: part»; the parts are joined."""
+    classes: dict[int, tuple[str, str]] = {}
     for module in round4_modules():
-        classes.update(module.CLASSES)
+        for number, (title, how) in module.CLASSES.items():
+            if number in classes:
+                topic, _, part = title.partition(": ")
+                title = f"{classes[number][0]}; {part or topic}"
+                how = f"{classes[number][1]}; {how}"
+            classes[number] = (title, how)
     return dict(sorted(classes.items()))
 
 
@@ -406,7 +445,7 @@ class Hostile:
         completed = subprocess.run([sys.executable, "-m", "ddsolve", *arguments], capture_output=True, text=True,
                                    errors="backslashreplace",  # what a latin-1 or ASCII run printed, byte for byte
                                    timeout=timeout, cwd=self.folder, stdin=subprocess.DEVNULL,
-                                   env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2]),
+                                   env={**os.environ, "PYTHONPATH": str(ROOT),
                                         **(env or {})})
         return completed, time.perf_counter() - started
 
@@ -473,7 +512,7 @@ class Hostile:
         self._messages()
         self._options()
         for name in ROUND3_MODULES:
-            importlib.import_module(f"ddsolve.experiments.{name}").measure(self)
+            importlib.import_module(f"experiments.{name}").measure(self)
         for module in round4_modules():
             module.measure(self)
 

@@ -9,24 +9,27 @@ from pathlib import Path
 import numpy as np
 
 from ddsolve.errors import DDSolveError
+from experiments import ROOT
 
 
 def run(ranks: int, arguments: list[str], module: str = "ddsolve") -> None:
     """Run ``python -m MODULE ARGUMENTS`` on ``ranks`` MPI ranks, raising if it fails.
 
     The calling process must not have started MPI (mpiexec cannot be nested in an MPI process);
-    the child gets Python's view of the environment, without what an MPI library added in C.
+    the child gets Python's view of the environment, without what an MPI library added in C, and the
+    repository first on PYTHONPATH (the experiments are not installed).
     """
     from ddsolve.parallel.launch import mpiexec_command
 
-    completed = subprocess.run(mpiexec_command(ranks, arguments, module), env=dict(os.environ))
+    path = os.pathsep.join(filter(None, (str(ROOT), os.environ.get("PYTHONPATH"))))
+    completed = subprocess.run(mpiexec_command(ranks, arguments, module), env={**os.environ, "PYTHONPATH": path})
     if completed.returncode != 0:
         raise DDSolveError(f"{' '.join(arguments)}: the launch failed (exit {completed.returncode})")
 
 
 def launch(ranks: int, arguments: list[str], part: Path) -> dict:
     """Run the experiment part ``ARGUMENTS PART`` on ``ranks`` ranks; return the JSON record it wrote to PART."""
-    run(ranks, [*arguments, str(part)], module="ddsolve.experiments")
+    run(ranks, [*arguments, str(part)], module="experiments")
     record = json.loads(part.read_text())
     part.unlink()
     return record

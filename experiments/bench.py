@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ddsolve.errors import DDSolveError
-from ddsolve.experiments import report
+from experiments import report
 from ddsolve.mesh.mesh import BLOCKS as BLOCK_SPECS
 from ddsolve.parallel import distribution
 from ddsolve.problem import scene as scenes

@@ -11,7 +11,8 @@ import sys
 import time
 from pathlib import Path
 
-from ddsolve.experiments.robustness import SMALL
+from experiments import ROOT
+from experiments.robustness import SMALL
 
 TEXT, MESSAGES = 103, 108
 #: Standard outputs that are not UTF-8: Python's setting, and a C locale without Python's UTF-8 mode.
@@ -119,7 +120,7 @@ def _redirected(hostile, arguments: list[str], env: dict, closed_pipe: bool) -> 
         completed = subprocess.run([sys.executable, "-m", "ddsolve", *arguments], stdout=writer, stderr=subprocess.PIPE,
                                    text=True, errors="backslashreplace", timeout=300, cwd=hostile.folder,
                                    stdin=subprocess.DEVNULL,
-                                   env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2]), **env})
+                                   env={**os.environ, "PYTHONPATH": str(ROOT), **env})
     finally:
         os.close(writer)
     completed.stdout = ""

@@ -23,7 +23,7 @@ PARTS = {
 
 
 def parser() -> argparse.ArgumentParser:
-    top = argparse.ArgumentParser(prog="python -m ddsolve.experiments")
+    top = argparse.ArgumentParser(prog="python -m experiments")
     sub = top.add_subparsers(dest="part", required=True)
     for name, (_, _, arguments) in PARTS.items():
         p = sub.add_parser(name)

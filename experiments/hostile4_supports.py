@@ -7,10 +7,11 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
-from ddsolve.experiments.robustness import SMALL
+from experiments import ROOT
+from experiments.robustness import SMALL
 
 #: The ENF on point supports (docs/delamination.md): its scene and .geo.
-ENF = Path(__file__).resolve().parents[2] / "docs" / "enf-points.toml"
+ENF = ROOT / "docs" / "enf-points.toml"
 
 CLASSES = {
     211: ("First use: point supports and G ≈ 0",

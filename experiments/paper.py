@@ -1,5 +1,5 @@
 """The paper's experiments, regenerated: Table 1, the θ sweep of Fig. 2, Figs. 1, 3 and 4 (the accuracy
-study against the continuous solution is :mod:`ddsolve.experiments.accuracy`).
+study against the continuous solution is :mod:`experiments.accuracy`).
 
 Each command launches MPI jobs (this process starts no MPI itself), keeps HDF5 files with provenance
 in ``results/`` and rewrites its section of ``docs/results.md`` and its PNG files in ``docs/``.
@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from ddsolve.errors import DDSolveError
-from ddsolve.experiments import report
-from ddsolve.experiments.bench import TABLE1_MESHES
+from experiments import report
+from experiments.bench import TABLE1_MESHES
 
 #: The paper's Table 1: P, M, h⁻min, h⁻max, h⁺min, h⁺max, Nod⁻, Tri⁻, Nod⁺, Tri⁺, iterations.
 PAPER_TABLE1 = {

@@ -1,6 +1,6 @@
 """Issue 21, classes 2 (coarse, thin, slender or far-away geometry), 8 (ν and mesh.grading at their edges)
 and 4 (a gmsh size factor near zero in a .geo): the rows of docs/robustness.md, measured by
-``measure(hostile)`` (see :class:`ddsolve.experiments.robustness.Hostile`)."""
+``measure(hostile)`` (see :class:`experiments.robustness.Hostile`)."""
 from __future__ import annotations
 
 from ddsolve.problem import scene as scenes

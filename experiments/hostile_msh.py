@@ -13,9 +13,11 @@ import tempfile
 import time
 from pathlib import Path
 
+from experiments import ROOT
+
 CLASS = 106
 #: The paper's geometry (docs/example1.geo) and scene: the MSH 2.2 cases mesh it.
-EXAMPLE1 = Path(__file__).resolve().parents[2] / "docs" / "example1.geo"
+EXAMPLE1 = ROOT / "docs" / "example1.geo"
 MATERIALS = "[materials.layer1]\nE = 200.0\nnu = 0.28\n[materials.layer2]\nE = 112.0\nnu = 0.32\n"
 PAPER_LOADS = '[loads.layer1.bottom]\ny = "0.078125*x"\n[loads.layer1.top]\ny = "-0.078125*x"\n'
 #: A strip with three cracks on Σ, clamped on the left, loaded on three sides.
@@ -118,7 +120,7 @@ BEFORE_MSH = {
 
 
 def measure(hostile) -> None:
-    """Add the rows of class 106 to ``hostile`` (a :class:`~ddsolve.experiments.robustness.Hostile`)."""
+    """Add the rows of class 106 to ``hostile`` (a :class:`~experiments.robustness.Hostile`)."""
     folder = hostile.folder
     shapes = geometries()
     for (name, order, command), before in BEFORE_MSH.items():
@@ -210,7 +212,7 @@ def _denied(hostile, shared: Path) -> None:
             completed = subprocess.run(
                 [*prefix, sys.executable, "-m", "ddsolve", *arguments], capture_output=True, text=True, timeout=300,
                 cwd=shared, stdin=subprocess.DEVNULL,
-                env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2]), "HOME": str(shared),
+                env={**os.environ, "PYTHONPATH": str(ROOT), "HOME": str(shared),
                      "MPLCONFIGDIR": str(shared), "PYTHONDONTWRITEBYTECODE": "1"})
         except (OSError, subprocess.SubprocessError) as exc:
             hostile.rows[CLASS].append((label, BEFORE_DENIED[key], f"not measured here ({exc})"))

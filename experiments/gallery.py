@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ddsolve.experiments import report
+from experiments import report
 
 RESULTS = Path("results/gallery")
 DOCS = Path("docs")

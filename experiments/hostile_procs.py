@@ -15,6 +15,8 @@ import time
 import uuid
 from pathlib import Path
 
+from experiments import ROOT
+
 #: The environment variable that marks the processes of one run.
 MARKER = "DDSOLVE_PROCS_RUN"
 SMALL = ["--set", "mesh.sigma_vertices=13", "--set", "mesh.boundary_vertices=32"]
@@ -85,7 +87,7 @@ def stop(folder: Path, phase: str, signum: int, target: str = "launcher", timeou
     with open(log, "w+") as output:
         process = subprocess.Popen([sys.executable, "-m", "ddsolve", *arguments], cwd=folder, stdout=output,
                                    stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                   env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2]),
+                                   env={**os.environ, "PYTHONPATH": str(ROOT),
                                         "MPLBACKEND": "Agg", MARKER: tag})
         seen_gmsh, reached, victim, ranks_ended = False, False, process.pid, None
         try:

@@ -14,6 +14,8 @@ import textwrap
 import time
 from pathlib import Path
 
+from experiments import ROOT
+
 CLASSES = {
     206: ("Inputs reached through other files", "the files a run reads are the scene file, its mesh or geometry file "
           "and every file those name (an XDMF mesh's heavy-data .h5 and binary items, a .geo's Include, Merge and "
@@ -99,7 +101,7 @@ def _kept(folder: Path, name: str):
 
 def documented_line() -> str:
     """docs/api.md's mpiexec line (its first shell block)."""
-    page = Path(__file__).resolve().parents[2] / "docs" / "api.md"
+    page = ROOT / "docs" / "api.md"
     block = re.search(r"```sh\n(.*?)```", page.read_text(encoding="utf-8"), re.S).group(1)
     return next(line.split("#")[0].strip() for line in block.splitlines() if line.startswith("mpiexec"))
 
@@ -112,7 +114,7 @@ def script(hostile, number: int, label: str, before: str, code: str, ranks: int 
     path.write_text(textwrap.dedent(code), encoding="utf-8")
     environment = {key: value for key, value in os.environ.items() if not key.startswith("OMPI_")}
     environment.update(PATH=f"{Path(sys.executable).parent}{os.pathsep}{environment.get('PATH', '')}",
-                       PYTHONPATH=str(Path(__file__).resolve().parents[2]))
+                       PYTHONPATH=str(ROOT))
     if ranks is None:
         command = [sys.executable, str(path)]
     else:

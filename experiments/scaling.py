@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ddsolve.errors import DDSolveError
-from ddsolve.experiments import report
+from experiments import report
 
 RESULTS = Path("results/scaling")
 DOCS = Path("docs")
@@ -78,7 +78,7 @@ def network(output: Path, comm) -> None:
 
 def calibrate(output: Path, comm) -> None:
     """One block at each calibration size, on one rank: factorization, solve and interface-matrix times."""
-    from ddsolve.experiments.bench import block_timings
+    from experiments.bench import block_timings
 
     if comm.rank == 0:
         output.write_text(json.dumps({"blocks": [block_timings(P, M, solves=10, repeats=2)
@@ -170,7 +170,7 @@ def meshing(P: int, M: int, refine: str, output: Path, comm) -> None:
     (:func:`ddsolve.parallel.distribution.local_mesh`, each rank of a shared block making its piece); rank 0 writes
     every rank's meshing and distribution CPU seconds, its own wall seconds and the peak memory of each
     rank as JSON."""
-    from ddsolve.experiments.bench import paper_scene
+    from experiments.bench import paper_scene
     from ddsolve.mesh.mesh import BLOCKS
     from ddsolve.parallel import distribution
     from ddsolve.parallel.exchange import Exchange
@@ -264,7 +264,7 @@ def _launch(ranks: int, settings: tuple[str, ...], name: str) -> dict:
 def scaling() -> dict:
     """Calibrate, run strong, weak, rounds and large cases and the baseline, fit the model; write HDF5,
     docs/scaling.md, plots."""
-    from ddsolve.experiments.bench import default_ranks
+    from experiments.bench import default_ranks
 
     RESULTS.mkdir(parents=True, exist_ok=True)
     print("scaling: calibration (one block at 5 sizes; MPI latency and bandwidth)", flush=True)
@@ -522,7 +522,7 @@ def _rounds_rows(runs: list[dict]) -> list[str]:
 
 
 def _baseline_rows(baseline: list[dict]) -> list[str]:
-    from ddsolve.experiments.bench import MONOLITHIC_ORDERINGS
+    from experiments.bench import MONOLITHIC_ORDERINGS
 
     rows = []
     for b in baseline:
@@ -534,13 +534,67 @@ def _baseline_rows(baseline: list[dict]) -> list[str]:
     return rows
 
 
-def text(record: dict, model: CostModel) -> str:
-    from ddsolve.experiments.bench import MONOLITHIC_ORDERINGS
-    from ddsolve.parallel.phases import PHASES
+#: How ``ddsolve solve -n`` distributes the work (a section of docs/scaling.md).
+DISTRIBUTION = (
+    "`ddsolve solve -n` starts the ranks on one host with Open MPI's shared-memory layer named (`--mca pml ob1`, "
+    "half of MPI_Init's time). The leaders of u⁻ (rank 0) and u⁺ mesh the two halves at once (gmsh in a child "
+    "process, so a signal ends the job at once; forked before MPI starts, it imports gmsh while the rank starts). "
+    "Above P = 400 (and for large `mesh.size` boxes) gmsh makes only a coarse mesh of about 4,000 vertices with "
+    "the same sizes and grading, and the ranks of each half refine it uniformly (`mesh.refine`, "
+    "ddsolve/mesh/refine.py): every rank of a half makes the fine cells of an equal share of the coarse cells "
+    "(with more than two ranks on a half, all but its first, which made the coarse mesh or is rank 0), numbered "
+    "from the coarse mesh alone, and one Allgatherv places the pieces; each measures the cells it made (shortest "
+    "side, smallest angle). Rank 0 pairs and checks the halves (Σ, the loads' boundaries, the supports, the crack "
+    "tips' radii) on its own half and the skeleton of the upper one (its boundary nodes and edges, sent by u⁺'s "
+    "leader; the outer edges come from the coarse mesh's), and each half goes only to the ranks whose blocks live "
+    "on it, Σ to all: every rank holds one half (both with one rank). With 1, 2 or 4 ranks, rank r owns the "
+    "blocks b ≡ r (mod N): with two ranks u⁻, v⁻ on rank 0 and u⁺, v⁺ on rank 1, so both blocks of a rank share "
+    "one half and its sparsity pattern. With 4k ranks the world communicator splits into four block communicators "
+    "of k ranks (block b on ranks b·k … (b+1)·k − 1); each rank cuts its piece of the half "
+    "(ddsolve/mesh/pieces.py: the cells of its rows' nodes, a contiguous row range being a compact piece of the "
+    "half, with two rings of neighbours and the half's skeleton — Σ, the named boundaries and the outer "
+    "boundary), and a `solve` whose ranks write the result together drops the whole half then. On a refined mesh "
+    "such a solve makes each rank's piece directly from the coarse half (`pieces.of_lattice`; rank 0 checks the "
+    "two halves' skeletons, made from the coarse ones), so no rank ever holds a whole fine half: at P = 600 on 8 "
+    "ranks at most 57 % of its half's mesh arrays in every phase, the coarse half included while the piece is "
+    "made. A half gmsh makes whole (P ≤ 400, mesh files) is held whole by the rank that makes it (rank 0, or u⁺'s "
+    "leader) until it has cut every rank of the half its piece and sent it; the other ranks receive only their "
+    "pieces (at P = 300 on 8 ranks 58 % of the half; the two makers 99–102 % during meshing and distribution). "
+    "Each rank assembles its rows on its piece into an MPIAIJ matrix with block size 2 and the rigid-body "
+    "near-null space, factored by parallel MUMPS. Assembly builds the CSR pattern once per half (one sort of the "
+    "cells' node pairs, which gives the graph's edges in their rows' order, and each pair's entry) and sums the "
+    "element matrices a slice of cells at a time, over the range of values the slice touches. A round scatters "
+    "the interface loads from rank 0 to the block leaders, which broadcast them in their block; the traces come "
+    "back the same way. Waiting ranks sleep instead of spinning. After the rounds the factors are freed. Every "
+    "rank of a block takes the last solve on its piece (one PETSc scatter): on it it computes the error "
+    "indicators, cell fields and G's domain integrals of the cells it owns (those whose smallest node is among "
+    "its rows), and the reactions at the nodes it owns and its share of the split of G (the partner block's ranks "
+    "interpolating its field at the mirror images of the disc on the cells they own); with parallel HDF5 "
+    "(`python3-h5py-mpi`) every rank writes the rows of its nodes and owned cells into the one result file and "
+    "the viewer files, and no rank gathers a block's solution: rank 0 gathers only Σ-sized data and sums (the "
+    "*output* phase counts all of it). With `solver.out_of_core = true` MUMPS keeps the factors on disk "
+    "(`MUMPS_OOC_TMPDIR`) and reads them back at every solve; rank 0 factors the dense interface stiffness in "
+    "place."
+)
 
-    runs = record["runs"]
-    c = record["cores"]
-    lines = [
+
+def text(record: dict, model: CostModel) -> str:
+    """docs/scaling.md from a record of measurements (:func:`scaling`) and the model fitted to it: a
+    section per function, joined by blank lines."""
+    runs, cores_here = record["runs"], record["cores"]
+    launch = LaunchModel(runs)
+    strong, weak = predictions(model, launch)
+    sections = [_introduction(cores_here), _measured(runs), _rounds(runs, model),
+                _whole_launch(runs, record["bare_start"]), _meshing(runs), _memory(runs),
+                _baseline(record.get("baseline", [])), _cost_model(model, cores_here), _validation(runs, cores_here),
+                _predictions(launch, strong, weak), _limits(strong, weak)]
+    return "\n\n".join("\n".join(section) for section in sections) + "\n"
+
+
+def _introduction(cores_here: int) -> list[str]:
+    """The page's title, what regenerates it, this machine, and how the work is distributed."""
+    c = cores_here
+    return [
         "# Scaling",
         "",
         "`./run scaling` regenerates this page: calibration, strong and weak scaling on N = 1, 2, 4, 8 ranks, "
@@ -556,46 +610,13 @@ def text(record: dict, model: CostModel) -> str:
         "",
         "## How the work is distributed",
         "",
-        "`ddsolve solve -n` starts the ranks on one host with Open MPI's shared-memory layer named (`--mca pml ob1`, "
-        "half of MPI_Init's time). The leaders of u⁻ (rank 0) and u⁺ mesh the two halves at once (gmsh in a child "
-        "process, so a signal ends the job at once; forked before MPI starts, it imports gmsh while the rank starts). "
-        "Above P = 400 (and for large `mesh.size` boxes) gmsh makes only a coarse mesh of about 4,000 vertices with "
-        "the same sizes and grading, and the ranks of each half refine it uniformly (`mesh.refine`, "
-        "ddsolve/mesh/refine.py): every rank of a half makes the fine cells of an equal share of the coarse cells "
-        "(with more than two ranks on a half, all but its first, which made the coarse mesh or is rank 0), numbered "
-        "from the coarse mesh alone, and one Allgatherv places the pieces; each measures the cells it made (shortest "
-        "side, smallest angle). Rank 0 pairs and checks the halves (Σ, the loads' boundaries, the supports, the crack "
-        "tips' radii) on its own half and the skeleton of the upper one (its boundary nodes and edges, sent by u⁺'s "
-        "leader; the outer edges come from the coarse mesh's), and each half goes only to the ranks whose blocks live "
-        "on it, Σ to all: every rank holds one half (both with one rank). With 1, 2 or 4 ranks, rank r owns the "
-        "blocks b ≡ r (mod N): with two ranks u⁻, v⁻ on rank 0 and u⁺, v⁺ on rank 1, so both blocks of a rank share "
-        "one half and its sparsity pattern. With 4k ranks the world communicator splits into four block communicators "
-        "of k ranks (block b on ranks b·k … (b+1)·k − 1); each rank cuts its piece of the half "
-        "(ddsolve/mesh/pieces.py: the cells of its rows' nodes, a contiguous row range being a compact piece of the "
-        "half, with two rings of neighbours and the half's skeleton — Σ, the named boundaries and the outer "
-        "boundary), and a `solve` whose ranks write the result together drops the whole half then. On a refined mesh "
-        "such a solve makes each rank's piece directly from the coarse half (`pieces.of_lattice`; rank 0 checks the "
-        "two halves' skeletons, made from the coarse ones), so no rank ever holds a whole fine half: at P = 600 on 8 "
-        "ranks at most 57 % of its half's mesh arrays in every phase, the coarse half included while the piece is "
-        "made. A half gmsh makes whole (P ≤ 400, mesh files) is held whole by the rank that makes it (rank 0, or u⁺'s "
-        "leader) until it has cut every rank of the half its piece and sent it; the other ranks receive only their "
-        "pieces (at P = 300 on 8 ranks 58 % of the half; the two makers 99–102 % during meshing and distribution). "
-        "Each rank assembles its rows on its piece into an MPIAIJ matrix with block size 2 and the rigid-body "
-        "near-null space, factored by parallel MUMPS. Assembly builds the CSR pattern once per half (one sort of the "
-        "cells' node pairs, which gives the graph's edges in their rows' order, and each pair's entry) and sums the "
-        "element matrices a slice of cells at a time, over the range of values the slice touches. A round scatters "
-        "the interface loads from rank 0 to the block leaders, which broadcast them in their block; the traces come "
-        "back the same way. Waiting ranks sleep instead of spinning. After the rounds the factors are freed. Every "
-        "rank of a block takes the last solve on its piece (one PETSc scatter): on it it computes the error "
-        "indicators, cell fields and G's domain integrals of the cells it owns (those whose smallest node is among "
-        "its rows), and the reactions at the nodes it owns and its share of the split of G (the partner block's ranks "
-        "interpolating its field at the mirror images of the disc on the cells they own); with parallel HDF5 "
-        "(`python3-h5py-mpi`) every rank writes the rows of its nodes and owned cells into the one result file and "
-        "the viewer files, and no rank gathers a block's solution: rank 0 gathers only Σ-sized data and sums (the "
-        "*output* phase counts all of it). With `solver.out_of_core = true` MUMPS keeps the factors on disk "
-        "(`MUMPS_OOC_TMPDIR`) and reads them back at every solve; rank 0 factors the dense interface stiffness in "
-        "place.",
-        "",
+        DISTRIBUTION,
+    ]
+
+
+def _measured(runs: list[dict]) -> list[str]:
+    """The strong and weak runs, phase by phase, against the model."""
+    lines = [
         "## Measured (`schur`, `mprgp`, `feti`)",
         "",
         "| run | N | P | block unknowns | rounds | factorization (s) | rounds (s) | rank-0 update (s) | solve phase (s) "
@@ -607,14 +628,12 @@ def text(record: dict, model: CostModel) -> str:
         lines.append(f"| {r['kind']} {r['method']} | {r['ranks']} | {r['P']} | {r['unknowns']:,} | {r['rounds']} "
                      f"| {r['factorization']:.3f} | {r['iterations'] - r['update']:.3f} | {r['update']:.3f} "
                      f"| {r['wall_time']:.3f} | {r['predicted']:.3f} | {r['setup']:.1f} | {memory} |")
-    fitted = [r for r in runs if r["ranks"] <= c and r["kind"] in ("strong", "weak")]
-    errors = [abs(r["predicted"] / r["wall_time"] - 1.0) for r in fitted]
-    overhead = [r["wall_time"] / r["predicted"] for r in runs if r["ranks"] > c and r["kind"] in ("strong", "weak")]
-    m = model
-    lines += [
-        "",
-        "![measured phases](scaling-measured.png)",
-        "",
+    return lines + ["", "![measured phases](scaling-measured.png)"]
+
+
+def _rounds(runs: list[dict], m: CostModel) -> list[str]:
+    """Rounds against P and the fitted laws."""
+    return [
         "## Rounds against P (kkt 1e-6 for the iterative methods, 4 ranks)",
         "",
         *_rounds_rows(runs),
@@ -623,7 +642,14 @@ def text(record: dict, model: CostModel) -> str:
         f"{m.feti_rounds[1]:.2f}. `schur` is exact in 3 rounds on every mesh. `feti`'s CG iterations on the linear "
         "problem are nearly constant in P (the Dirichlet preconditioner); what grows is the number of active-set "
         "steps of the contact problem, each a few warm-started iterations.",
-        "",
+    ]
+
+
+def _whole_launch(runs: list[dict], bare: float) -> list[str]:
+    """Example 1 launched as a user does: phases, what bounds sum / solve, CPU per rank."""
+    from ddsolve.parallel.phases import PHASES
+
+    return [
         "## Whole launch (default method, 4 ranks)",
         "",
         "Example 1 as a user launches it (`./run solve -n 4 partial-closure --set ...`, the settings in "
@@ -642,21 +668,26 @@ def text(record: dict, model: CostModel) -> str:
         "No launch can solve before its ranks have started and assembled their blocks: start-up and one assembly "
         "(the last level's, for an adaptive run) bound sum / solve from below, whatever the meshing, the estimate "
         "and the output cost. The least start-up of any Python program on MPI and PETSc is measured too: "
-        f"{record['bare_start']:.2f} s from mpiexec's start until the last of 4 ranks that only import numpy and "
+        f"{bare:.2f} s from mpiexec's start until the last of 4 ranks that only import numpy and "
         "start MPI and PETSc has started (`BARE_START`, the median of three). Where start-up and one assembly "
         "exceed half the solve phase, no launch of that case reaches 1.5× on this machine:",
         "",
         "| case | solve phase (s) | startup (s) | assembly (s) | least sum / solve | least with a bare start "
         "| sum / solve |",
         "|---|---|---|---|---|---|---|",
-        *floor_rows(runs, record["bare_start"]),
+        *floor_rows(runs, bare),
         "",
         "CPU seconds of every phase on each rank (`/memory` `cpu_s_<phase>`) and the rank's peak memory:",
         "",
         "| case | rank | " + " | ".join(PHASES) + " | peak (MB) |",
         "|---" * (len(PHASES) + 3) + "|",
         *_per_rank_rows(runs),
-        "",
+    ]
+
+
+def _meshing(runs: list[dict]) -> list[str]:
+    """Meshing and distribution against the ranks."""
+    return [
         "## Meshing against the ranks",
         "",
         f"Example 1's mesh of (P, M) = {', '.join(f'({P}, {M})' for P, M in MESHING_MESHES)} made and distributed "
@@ -675,7 +706,12 @@ def text(record: dict, model: CostModel) -> str:
         "| largest / 2 ranks | distribution wall (s) | distribution CPU, largest rank (s) | peak per rank (MB) |",
         "|---|---|---|---|---|---|---|---|---|---|",
         *_meshing_rows(runs),
-        "",
+    ]
+
+
+def _memory(runs: list[dict]) -> list[str]:
+    """Peak memory, factors and mesh per rank, bytes per unknown, and what the ranks hold per phase."""
+    return [
         "## Memory",
         "",
         "Peak resident memory per rank (largest rank), MUMPS's own count of its factors (INFO(16), largest rank), "
@@ -695,7 +731,14 @@ def text(record: dict, model: CostModel) -> str:
         "| case | phase | mesh | matrices | factors | Schur complements | solutions | peak resident |",
         "|---|---|---|---|---|---|---|---|",
         *_account_rows(runs),
-        "",
+    ]
+
+
+def _baseline(baseline: list[dict]) -> list[str]:
+    """The default method against one MUMPS factorization of the whole problem."""
+    from experiments.bench import MONOLITHIC_ORDERINGS
+
+    return [
         "## The monolithic baseline",
         "",
         "`bench baseline`: one MUMPS factorization of the whole glued problem in one process (contact by the active "
@@ -706,8 +749,14 @@ def text(record: dict, model: CostModel) -> str:
         "| scene | P | unknowns | DD ranks | DD method | DD solve phase (s) | "
         + " | ".join(f"monolithic, {label} (s)" for label in MONOLITHIC_ORDERINGS) + " | DD error | load |",
         "|---|---|---|---|---|---|" + "---|" * len(MONOLITHIC_ORDERINGS) + "---|---|",
-        *_baseline_rows(record.get("baseline", [])),
-        "",
+        *_baseline_rows(baseline),
+    ]
+
+
+def _cost_model(m: CostModel, cores_here: int) -> list[str]:
+    """The fitted laws of the cost model, phase by phase."""
+    c = cores_here
+    return [
         "## Cost model",
         "",
         "Solve phase = factorization + interface matrices + rounds + gather + rank-0 work. Block work is "
@@ -738,19 +787,26 @@ def text(record: dict, model: CostModel) -> str:
         "per rank for N ≤ 4, a block over k = N/4 ranks otherwise. Parallel MUMPS is assumed to scale "
         "ideally within a block — nothing on this machine can measure that (k ≤ 2, and only oversubscribed) — "
         "so the predictions are lower bounds for the block work.",
-        "",
+    ]
+
+
+def _validation(runs: list[dict], cores_here: int) -> list[str]:
+    """How far the model is from the measured runs (with at most one rank per core, and oversubscribed)."""
+    c = cores_here
+    fitted = [r for r in runs if r["ranks"] <= c and r["kind"] in ("strong", "weak")]
+    errors = [abs(r["predicted"] / r["wall_time"] - 1.0) for r in fitted]
+    overhead = [r["wall_time"] / r["predicted"] for r in runs if r["ranks"] > c and r["kind"] in ("strong", "weak")]
+    return [
         f"**Validation.** On the {len(fitted)} measured runs with at most one rank per core the model's "
         f"solve-phase time is within {100 * np.median(errors):.0f} % in the median and {100 * max(errors):.0f} % "
         "at worst (column *model* above). The oversubscribed runs are overhead measurements: they take "
         f"{min(overhead):.1f}–{max(overhead):.1f}× the model.",
-        "",
-        "## Predictions for 64 to 1024 cores",
-        "",
-        "![model predictions](scaling-model.png)",
-        "",
     ]
-    launch = LaunchModel(runs)
-    strong, weak = predictions(model, launch)
+
+
+def _predictions(launch: LaunchModel, strong: list[dict], weak: list[dict]) -> list[str]:
+    """The predicted strong and weak scaling on 64 to 1024 cores, and the launch around the solve phase."""
+    lines = ["## Predictions for 64 to 1024 cores", "", "![model predictions](scaling-model.png)", ""]
     for title, rows in (("Strong scaling, P = 1600 (about 3M unknowns)", strong),
                         (f"Weak scaling, {WEAK_UNKNOWNS_PER_CORE:,} unknowns per core", weak)):
         lines += [f"**{title}** (seconds; the phases are those of `schur`; *auto*: what the default picks; "
@@ -769,9 +825,14 @@ def text(record: dict, model: CostModel) -> str:
               f"and the distribution, and per unknown of the busiest rank {rates} (CPU seconds of one rank; the "
               "write assumes a file system whose bandwidth grows with the writers). The per-unknown phases shrink with "
               "the ranks; the constant does not (the start-up of Python, MPI and PETSc, gmsh's coarse mesh, rank "
-              "0's checks of the whole mesh), and on many cores it is most of the launch.", ""]
+              "0's checks of the whole mesh), and on many cores it is most of the launch."]
+    return lines
+
+
+def _limits(strong: list[dict], weak: list[dict]) -> list[str]:
+    """Where the design stops scaling, and what the default method does about it."""
     crossover = next((r["ranks"] for r in weak if r["rank0"] > r["factorization"] + r["interface"]), None)
-    lines += [
+    return [
         "**Where the design stops scaling, and what the default does.** With distributed blocks `schur` needs "
         "the interface matrices by 2kΣ right-hand sides of multi-column solves (PETSc's MUMPS interface has no "
         "parallel Schur complement), and rank 0's dense interface solve does not shrink with the number of ranks "
@@ -783,4 +844,3 @@ def text(record: dict, model: CostModel) -> str:
         "above): `feti` on every predicted configuration here. What remains: `feti`'s active-set steps grow "
         "slowly with P, and its Dirichlet factorization doubles the factorization work and memory.",
     ]
-    return "\n".join(lines) + "\n"

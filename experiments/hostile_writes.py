@@ -1,6 +1,6 @@
 """Issue 21, classes 5 and 8 (writes): interrupted writes and outputs that name an input.
 
-``python -m ddsolve.experiments.hostile_writes [solve|sweep] [COUNT]`` prints the outcome of SIGTERM at
+``python -m experiments.hostile_writes [solve|sweep] [COUNT]`` prints the outcome of SIGTERM at
 COUNT (20) evenly spaced moments of a P = 400 solve on 4 ranks (or of a sweep): every time, either the
 complete new result set with exit 0 or the complete previous one, byte-identical, with a non-zero exit.
 :func:`measure` adds these outcomes and the ``-o INPUT`` cases to docs/robustness.md.
@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ddsolve.io import safe
+from experiments import ROOT
 
 #: The mesh of the interrupted solves (P = 400, M = 512).
 LARGE = ["--set", "mesh.sigma_vertices=400", "--set", "mesh.boundary_vertices=512"]
@@ -69,7 +70,7 @@ def state_of(paths: list[Path], previous: dict[Path, bytes]) -> str:
 def _environment() -> dict:
     return {"OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
             "OMPI_MCA_rmaps_base_oversubscribe": "1", **os.environ,
-            "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
+            "PYTHONPATH": str(ROOT)}
 
 
 def interrupted(arguments: list[str], folder: Path, paths: list[Path], count: int = 20,

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ddsolve.experiments import report
+from experiments import report
 from ddsolve.parallel import distribution
 from ddsolve.post.analysis import energy_error
 

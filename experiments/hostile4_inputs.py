@@ -5,7 +5,7 @@ the first-use friction of ``mesh.target_error`` alone on a box.  *Before* is wha
 (measured once on the P = 13 mesh, on the shared two-core machine, and quoted)."""
 from __future__ import annotations
 
-from ddsolve.experiments.robustness import SMALL
+from experiments.robustness import SMALL
 
 CLASSES = {
     201: ("Inputs that scale the answer have no range",

@@ -3,7 +3,7 @@ limits), the singular load and the fibre angle of class 7, the infinite load and
 class 8.  *Before* is what the code before the fix did (measured once, quoted)."""
 from __future__ import annotations
 
-from ddsolve.experiments.robustness import SMALL
+from experiments.robustness import SMALL
 from ddsolve.problem import scene as scenes
 
 KEY = "loads.layer1.top.y"

@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ddsolve.experiments import delamination as beams
-from ddsolve.experiments import report
+from experiments import delamination as beams
+from experiments import report
 
 RESULTS = Path("results") / "growth"
 DOCS = Path("docs")
@@ -66,7 +66,7 @@ def enf_load(a: float, modulus: float, toughness: float, h: float = beams.ARM) -
 # --- scenes ----------------------------------------------------------------------------------------------
 def specimen(folder: Path, name: str, case, conditions: str, size: float, toughness: float,
              pieces: dict | None = None):
-    """A strip specimen (``case``: a :class:`ddsolve.experiments.delamination.Case`, its boundary pieces
+    """A strip specimen (``case``: a :class:`experiments.delamination.Case`, its boundary pieces
     or ``pieces``) with its supports and loads ``conditions`` (scene text), a uniform P2 mesh of ``size``
     and a constant toughness."""
     from ddsolve.problem import scene

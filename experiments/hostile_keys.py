@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import subprocess
 
-from ddsolve.experiments.robustness import SMALL
+from experiments.robustness import SMALL
 
 
 def _unknowns(output: str):

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ddsolve.experiments import report
+from experiments import report
 from ddsolve.parallel import launch
 
 RESULTS = Path("results")

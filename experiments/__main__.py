@@ -1,7 +1,7 @@
-"""``python -m ddsolve.experiments COMMAND ...``: an experiment (``./run COMMAND``), or one MPI launch of a
+"""``python -m experiments COMMAND ...``: an experiment (``./run COMMAND``), or one MPI launch of a
 part of one (``PART ARGS... OUTPUT``, which the experiments start under mpiexec themselves)."""
 import sys
 
-from ddsolve.experiments import commands, parts
+from experiments import commands, parts
 
 sys.exit(parts.main() if sys.argv[1:2] and sys.argv[1] in parts.PARTS else commands.main())

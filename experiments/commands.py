@@ -1,4 +1,4 @@
-"""The experiments' commands (``python -m ddsolve.experiments COMMAND``, ``./run COMMAND``): each reruns
+"""The experiments' commands (``python -m experiments COMMAND``, ``./run COMMAND``): each reruns
 its measurements and rewrites its part of docs/ and results/.  The solver never imports them."""
 from __future__ import annotations
 
@@ -40,7 +40,7 @@ PETSC_COMMANDS = ("bench",)
 
 def meshes(text: str | None):
     """``--meshes P:M,P:M`` as pairs (default: the benchmark meshes)."""
-    from ddsolve.experiments.bench import BENCH_MESHES
+    from experiments.bench import BENCH_MESHES
 
     if not text:
         return BENCH_MESHES
@@ -51,7 +51,7 @@ def meshes(text: str | None):
 
 
 def cmd_bench(args, petsc_options) -> int:
-    from ddsolve.experiments import bench
+    from experiments import bench
 
     if args.what == "factor":
         init_petsc(petsc_options)
@@ -71,14 +71,14 @@ def cmd_bench(args, petsc_options) -> int:
 
 def cmd_experiment(args, _petsc_options) -> int:
     module, function, _, written = EXPERIMENTS[args.command]
-    getattr(importlib.import_module(f"ddsolve.experiments.{module}"), function)()
+    getattr(importlib.import_module(f"experiments.{module}"), function)()
     print(f"wrote {written}")
     return 0
 
 
 def parser() -> argparse.ArgumentParser:
     """The experiments' command line; its epilog lists them, one line each."""
-    top = Parser(prog="python -m ddsolve.experiments", description="ddsolve's experiments: each reruns its "
+    top = Parser(prog="python -m experiments", description="ddsolve's experiments: each reruns its "
                  "measurements and rewrites its part of docs/ and results/.",
                  formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = top.add_subparsers(dest="command", required=True, metavar="COMMAND")

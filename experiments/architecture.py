@@ -5,10 +5,12 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-PACKAGE = Path(__file__).resolve().parents[1]
+from experiments import ROOT
+
+PACKAGE = ROOT / "ddsolve"
 #: The stages from the bottom up: a module may import from its own stage and the stages before it.
-STAGES = ("errors", "environment", "problem", "mesh", "fem", "dd", "post", "io", "parallel", "solvers", "api", "cli",
-          "experiments")
+#: (The experiments, beside the package in experiments/, come after them all: nothing in it imports them.)
+STAGES = ("errors", "environment", "problem", "mesh", "fem", "dd", "post", "io", "parallel", "solvers", "api", "cli")
 #: The one import against the stages' direction, deferred into a method: ``Result.save`` writes the
 #: result through the io stage, as meshio's ``Mesh.write`` does; io imports nothing at load time that
 #: would need it, so the cycle exists only in a call.
@@ -83,7 +85,7 @@ def architecture() -> None:
     """Draw docs/architecture.png: which stage imports which, as a matrix of module-import counts.  The
     stages run bottom-up in both directions, so every import that points the right way lies below the
     diagonal; one above it would point against the layering."""
-    from ..post.plots import _pyplot
+    from ddsolve.post.plots import _pyplot
 
     plt = _pyplot()
     counts = stage_graph()
