@@ -76,7 +76,8 @@ def cases(folder: Path) -> list[tuple[str, list[str], list[str]]]:
             ("temperature.layer1", ["materials.layer1.alpha=1e-5"], ["temperature.layer1=50.0"]),
             ("displacements.layer1.top.x", [], ["displacements.layer1.top.x=0.001"]),
             ("displacements.layer1.top.y", [], ["displacements.layer1.top.y=0.001"]),
-            ("displacements.layer1.top.normal", [], ["displacements.layer1.top.normal=0.001"])]
+            ("displacements.layer1.top.normal", [], ["displacements.layer1.top.normal=0.001"]),
+            ("displacements.layer1.pin.point", [], ["displacements.layer1.pin={point=[0.5, 1.0], x=0.001}"])]
     out += [("loads.layer1.top.x", [], ["loads.layer1.top.x=0.01"]),
             ("loads.layer1.top.y", [], ["loads.layer1.top.y=[0.0, -0.05]"]),
             ("loads.layer2.top.pressure", [], ["loads.layer2.top.pressure=0.01"]),
@@ -340,7 +341,8 @@ def test_sweep_honours_target_error(tmp_path):
 
 def test_the_cases_cover_every_key_of_the_schema(tmp_path):
     covered = {key.replace("layer2", "layer1") for key, _, _ in cases(tmp_path)}
-    expected = {key.replace("layer2", "layer1").replace(".NAME", ".top") for key in schema_leaves()}
+    expected = {key.replace("layer2", "layer1").replace(".NAME.point", ".pin.point").replace(".NAME", ".top")
+                for key in schema_leaves()}
     assert expected == covered
 
 

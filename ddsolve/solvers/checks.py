@@ -53,6 +53,8 @@ def unread(command: str, path: list[str], scene, ranks: int) -> str | None:
 
     section, leaf = path[0], path[2:3]
     if command == "mesh":
+        if section == "displacements" and _point_support(scene, path):
+            return None  # the mesh carries a vertex at the point, named as the support is
         if section in NOT_MESHING or path[:2] == ["mesh", "target_error"]:
             return "mesh makes the starting mesh only (solve, reference and sweep read the key)"
         return None
@@ -74,6 +76,12 @@ def unread(command: str, path: list[str], scene, ranks: int) -> str | None:
         if path[1:] == ["max_iterations"] and method == "schur":
             return "method schur is exact in a few rounds and iterates no further (uzawa, mprgp, fista and feti do)"
     return None
+
+
+def _point_support(scene, path: list[str]) -> bool:
+    """Whether ``path`` is a key of a point support's table (``displacements.LAYER.NAME`` with a point)."""
+    displacement = scene.displacements.get(tuple(path[1:3])) if len(path) >= 3 else None
+    return displacement is not None and displacement.point is not None
 
 
 def check_read(command: str, items: list[str], scene, ranks: int = 1) -> None:
