@@ -1,13 +1,15 @@
 """Issue 40, class 4: a structure whose exact displacement is zero is solved, not refused.
 
-The fixture: the paper's square, both layers clamped on all four sides by ``[displacements.LAYER.SIDE]``
-and heated uniformly.  Then u ≡ 0, ε = 0, and the stress is the eigenstress σ = −D ε₀ in every cell of each
-layer: ε₀ = (1 + ν)αΔT (x and y) in plane strain, where the out-of-plane constraint adds ναΔT, gives
-σxx = σyy = −E(1 + ν)αΔT / ((1 + ν)(1 − 2ν)) = −EαΔT / (1 − 2ν); in plane stress ε₀ = αΔT gives
+The fixture (:func:`ddsolve.experiments.hostile4_zero.clamped_plate`, measured for docs/robustness.md too):
+the paper's square, both layers clamped on all four sides by ``[displacements.LAYER.SIDE]`` and heated
+uniformly.  Then u ≡ 0, ε = 0, and each layer's stress is the eigenstress σ = −D ε₀ in every cell: in plane
+strain the in-plane ε₀ is (1 + ν)αΔT in x and y (the out-of-plane constraint adds ναΔT), so
+σxx = σyy = −E(1 + ν)αΔT / ((1 + ν)(1 − 2ν)) = −EαΔT / (1 − 2ν); in plane stress ε₀ = αΔT and
 σxx = σyy = −EαΔT / (1 − ν); σxy = 0.  A crack under non-penetration changes nothing while the layers are
 heated (its faces are pressed together).  Before the fix every method and the reference ended with status 3
-("too ill-conditioned"): the checks divided gaps by max|u| and equilibrium residuals by ‖f + ℓ‖, both
-round-off here; they now measure against the data's scale (prescribed values, eigenstrains, loads).
+or 4 ("too ill-conditioned", "diverged"): the checks divided gaps by max|u| and equilibrium residuals by
+‖f + ℓ‖, both round-off here; they now measure against the data's scale (prescribed values, eigenstrains,
+loads).
 """
 from __future__ import annotations
 
@@ -22,6 +24,7 @@ from hypothesis import strategies as st
 
 from ddsolve.dd import constraints, methods
 from ddsolve.dd.interface import Interface
+from ddsolve.experiments.hostile4_zero import LAYERS, PAPER_LAYERS, PRESSED_LAYERS, clamped_plate, pressed_plate
 from ddsolve.fem import assembly
 from ddsolve.io import hdf5 as io
 from ddsolve.mesh import geometry
@@ -29,25 +32,13 @@ from ddsolve.post import analysis
 from ddsolve.problem import scene
 from ddsolve.solvers import reference
 
-E, NU, ALPHA, DT = 200.0, 0.3, 1e-5, 100.0
-SIDES = ("left", "right", "top", "bottom")
-LAYERS = ("layer1", "layer2")
+(E, NU, ALPHA, DT), _ = PAPER_LAYERS
 #: Σ's length in the square [-1, 1]²: the length the data's strains are multiplied by.
 SIGMA_LENGTH = 2.0
 
 
-def clamped_plate(model: str = "plane_strain", layers=((E, NU, ALPHA, DT),) * 2, crack: str = "[-0.5, 0.5]") -> str:
-    """The scene text: ``layers`` as (E, ν, α, ΔT) of layer 1 and layer 2, both clamped on all four sides."""
-    text = (f'title = "A heated plate clamped all round"\n[geometry]\nbox = [-1.0, 1.0, -1.0, 1.0]\ncrack = {crack}\n'
-            f'clamped = []\n[mesh]\nsigma_vertices = 13\nboundary_vertices = 32\n[materials]\nmodel = "{model}"\n')
-    for layer, (modulus, poisson, alpha, _) in zip(LAYERS, layers):
-        text += f"[materials.{layer}]\nE = {modulus!r}\nnu = {poisson!r}\nalpha = {alpha!r}\n"
-    text += "[temperature]\n" + "".join(f"{layer} = {change!r}\n" for layer, (*_, change) in zip(LAYERS, layers))
-    return text + "".join(f"[displacements.{layer}.{side}]\nx = 0.0\ny = 0.0\n" for layer in LAYERS for side in SIDES)
-
-
 def closed_form(model: str, modulus: float, poisson: float, alpha: float, change: float) -> float:
-    """σxx = σyy of a layer clamped all round: −EαΔT/(1 − 2ν) in plane strain, −EαΔT/(1 − ν) in plane stress."""
+    """σxx = σyy of a layer clamped all round: −EαΔT/(1 − 2ν) (plane strain), −EαΔT/(1 − ν) (plane stress)."""
     return -modulus * alpha * change / ((1.0 - 2.0 * poisson) if model == "plane_strain" else (1.0 - poisson))
 
 
@@ -112,7 +103,8 @@ def test_the_stopping_rules_take_the_same_floor_and_stay_zero_without_data():
     assert energy_floor == pytest.approx(200.0 * (constraints.DATA_FLOOR * 1e-3) ** 2)
     steps, energies = np.array([1e-30, 0, 0, 0]), np.zeros(4)
     assert methods.block_criterion("relative", steps, energies) == np.inf
-    assert methods.block_criterion("relative", steps, energies, energy_floor) == pytest.approx(1e-15 / np.sqrt(energy_floor))
+    floored = methods.block_criterion("relative", steps, energies, energy_floor)
+    assert floored == pytest.approx(1e-15 / np.sqrt(energy_floor))
     assert methods.block_criterion("relative", np.zeros(4), energies, energy_floor) == 0.0
 
 
@@ -129,7 +121,7 @@ def test_the_equilibrium_residual_measures_body_and_interface_loads_each_on_its_
 def test_the_reference_solves_the_clamped_plate(model):
     """Converged (it said "too ill-conditioned for double precision"), the closed-form stress to 1e-12 of
     itself, max|u| below 1e-13 of the data's displacement (measured 1e-16)."""
-    layers = ((E, NU, ALPHA, DT),) * 2
+    layers = PAPER_LAYERS
     source = scene.loads(clamped_plate(model))
     result = reference.solve(source, geometry.build(source))
     assert result.converged, result.message
@@ -184,15 +176,16 @@ METHODS = [("schur", [], 2, 1e-12, 1e-13), ("auto", [], 1, 1e-12, 1e-13), ("refe
 @pytest.mark.parametrize("method, extra, ranks, stress_bound, displacement_bound", METHODS,
                          ids=[f"{m[0]}{'-' + m[1][-1].split('=')[1] if len(m[1]) > 2 else ''}" for m in METHODS])
 def test_every_method_solves_the_clamped_heated_plate(tmp_path, method, extra, ranks, stress_bound, displacement_bound):
-    """Exit 0, converged after the final check, σxx = σyy = −EαΔT/(1 − 2ν) = −0.5 (plane strain) in every cell
+    """Exit 0, converged after the final check, σxx = σyy = −EαΔT/(1 − 2ν) = −0.5 (plane strain) in each cell
     and max|u| ≈ 0 to the bounds of METHODS; uzawa's kkt rule, relative to the uncoupled blocks' gap, goes on
     with a lower tol when the final check (relative to the data's displacement here) finds it short."""
-    layers = ((E, NU, ALPHA, DT),) * 2
+    layers = PAPER_LAYERS
     result = solved(tmp_path, clamped_plate(), method, *extra, ranks=ranks)
     assert result.converged, result.message
     error, stress = stress_errors(result, "plane_strain", layers)
     assert stress == pytest.approx(0.5) and error <= stress_bound * stress
-    assert analysis.largest_displacement(result.solution.values()) <= displacement_bound * data_scale("plane_strain", layers)
+    largest = analysis.largest_displacement(result.solution.values())
+    assert largest <= displacement_bound * data_scale("plane_strain", layers)
     assert not analysis.constraints(result).violations(analysis.tolerance_of(result))
 
 
@@ -203,43 +196,13 @@ def test_the_check_command_passes_a_zero_solution(tmp_path):
     assert "KKT check passed" in completed.stdout and "the data's displacement scale 2.600e-05" in completed.stdout
 
 
-#: Rollers (left x = 0, bottom y = 0) and on the right and top sides the pressure that cancels the thermal
-#: expansion, −EαΔT/(1 − 2ν) per layer: u ≡ 0 again, the upper halves floating (held only through Σ).
-PRESSED = f"""
-[geometry]
-box = [-1.0, 1.0, -1.0, 1.0]
-crack = [-0.5, 0.5]
-clamped = []
-[mesh]
-sigma_vertices = 13
-boundary_vertices = 32
-[materials]
-model = "plane_strain"
-[materials.layer1]
-E = 200.0
-nu = 0.3
-alpha = 1e-5
-[materials.layer2]
-E = 100.0
-nu = 0.2
-alpha = 2e-5
-[temperature]
-layer1 = 100.0
-layer2 = 100.0
-""" + "".join(f"[displacements.{layer}.{side}]\n{axis} = 0.0\n" for layer in LAYERS
-              for side, axis in (("left", "x"), ("bottom", "y"))) + "".join(
-    f"[loads.{layer}.{side}]\npressure = {pressure!r}\n" for layer, pressure in (("layer1", 0.5), ("layer2", 1 / 3))
-    for side in ("right", "top"))
-
-
 @pytest.mark.mpi
 @pytest.mark.parametrize("method", ["schur", "feti"])
 def test_floating_blocks_held_by_a_pressure_that_cancels_the_expansion(tmp_path, method):
     """The floating blocks' equilibrium residual (f and the interface loads cancel) passes: it said 1e-2."""
-    layers = ((200.0, 0.3, 1e-5, 100.0), (100.0, 0.2, 2e-5, 100.0))
-    result = solved(tmp_path, PRESSED, method, ranks=2)
+    result = solved(tmp_path, pressed_plate(), method, ranks=2)
     assert result.converged, result.message
-    error, stress = stress_errors(result, "plane_strain", layers)
+    error, stress = stress_errors(result, "plane_strain", PRESSED_LAYERS)
     assert error <= (1e-12 if method == "schur" else 1e-6) * stress
 
 
