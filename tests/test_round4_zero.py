@@ -219,3 +219,20 @@ def test_generated_zero_solutions_are_solved_by_every_method(model, layers, meth
     error, stress = stress_errors(result, model, layers)
     assert error <= 1e-6 * stress
     assert analysis.largest_displacement(result.solution.values()) <= 1e-6 * data_scale(model, layers)
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("method", ["mprgp", "feti"])
+def test_the_stopping_rule_of_a_zero_solution_stays_scale_free(tmp_path, method):
+    """α × 2^-40 and 2^-20 (exact in floating point): the same iterations, the stress scaled exactly as much."""
+    results = {}
+    for power in (0, -20, -40):
+        layers = tuple((modulus, poisson, alpha * 2.0 ** power, change)
+                       for modulus, poisson, alpha, change in PAPER_LAYERS)
+        (tmp_path / str(power)).mkdir()
+        results[power] = solved(tmp_path / str(power), clamped_plate(layers=layers), method)
+    assert len({result.iterations for result in results.values()}) == 1
+    reference_stress = analysis.cell_fields(results[0])["u_minus"].stress
+    for power, result in results.items():
+        stress = analysis.cell_fields(result)["u_minus"].stress
+        assert np.abs(stress * 2.0 ** -power - reference_stress).max() <= 1e-12 * 0.5
