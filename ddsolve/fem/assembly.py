@@ -621,7 +621,8 @@ def data_displacement(scene: Scene, halves, sigma: SigmaLine) -> float:
     / the layer's largest modulus), at the nodes of ``halves`` (whole halves or pieces of them: the largest
     over the pieces is the whole's).  The scale of the KKT check where the solution itself is (near) zero
     (a heated plate clamped all round); 0 for a scene without data.  Values that are not finite are left
-    out (assembly refuses them)."""
+    out (assembly refuses them).  A scale, not a range check: the values at the nodes, where
+    :func:`driven_displacements` samples densely once, before any work, to refuse data out of range."""
     def largest(expression: Expression | None, points: np.ndarray) -> float:
         if expression is None or not len(points):
             return 0.0
