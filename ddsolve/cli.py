@@ -297,8 +297,9 @@ def cmd_check(args, _petsc_options) -> int:
     c = analysis.constraints(result)
     tolerance = analysis.tolerance_of(result)
     violations = c.violations(tolerance)
-    print(f"{c.summary()}   (scale-free: relative to max |u| = {c.max_displacement:.3e}, max |mu|, ||K|| ||x||); "
-          f"min mu_c {c.min_mu_c:.3e}")
+    scale = (f"max |u| = {c.max_displacement:.3e}" if c.displacement_scale <= c.max_displacement else
+             f"the data's displacement scale {c.displacement_scale:.3e} (max |u| = {c.max_displacement:.3e})")
+    print(f"{c.summary()}   (scale-free: relative to {scale}, max |mu|, ||K|| ||x||); min mu_c {c.min_mu_c:.3e}")
     claim = f"the file says converged = {str(result.converged).lower()}"
     if violations:
         raise NotConvergedError(f"{args.result}: KKT check failed: {', '.join(violations)} above the tolerance "

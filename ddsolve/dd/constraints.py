@@ -38,13 +38,14 @@ def kkt_tolerance(solver: scenes.Solver | None) -> float:
 class Constraints:
     """The KKT residuals of a result, each scale-free (0 for an exact solution)."""
 
-    penetration: float  # max (u⁻ − u⁺)·ν > 0 over every crack node under non-penetration (prescribed too), / max|u|
-    gluing_gap: float  # max |gluing gap| over Σ (but the gap a multiplier at its bound ±p allows), / max|u|
-    complementarity: float  # max |μᶜ [u]·ν| (but where μᶜ = p) / (max|λ| max|u|)
+    penetration: float  # max (u⁻ − u⁺)·ν > 0 over every crack node under non-penetration (prescribed too), / U
+    gluing_gap: float  # max |gluing gap| over Σ (but the gap a multiplier at its bound ±p allows), / U
+    complementarity: float  # max |μᶜ [u]·ν| (but where μᶜ = p) / (max|λ| U)
     multiplier_bounds: float  # max violation of 0 ≤ μᶜ ≤ p, |μ| ≤ p (a pull on closed crack faces), / max|λ|
-    equilibrium: float  # max over blocks of ‖K x − f − ℓ(λ)‖∞ / (‖K‖∞‖x‖∞ + ‖f + ℓ(λ)‖∞)
+    equilibrium: float  # max over blocks of ‖K x − f − ℓ(λ)‖∞ / (‖K‖∞‖x‖∞ + ‖f‖∞ + ‖ℓ(λ)‖∞)
     min_mu_c: float  # smallest contact multiplier (≥ 0 when dual feasible)
     max_displacement: float  # max nodal |u|
+    displacement_scale: float = 0.0  # U: max|u|, or DATA_FLOOR × the data's displacement where larger
 
     NAMES = ("penetration", "gluing_gap", "complementarity", "multiplier_bounds", "equilibrium")
 
@@ -61,9 +62,32 @@ class Constraints:
         return "   ".join(f"{labels.get(name, name.replace('_', ' '))} {getattr(self, name):.3e}" for name in self.NAMES)
 
 
-#: The smallest traction scale of the KKT check, as a fraction of the stress scale modulus × max|u| / |Σ|:
+#: The smallest traction scale of the KKT check, as a fraction of the stress scale modulus × U / |Σ|:
 #: below it multipliers are round-off (a structure that expands freely carries no stress at all).
 STRESS_FLOOR = 1e-6
+
+
+#: The smallest displacement scale U of the KKT check and of the stopping rules, as a fraction of the
+#: displacement the data would make (:attr:`~ddsolve.dd.interface.Interface.data`).  Where the solution is
+#: (near) zero but the data is not (a heated plate clamped all round: u ≡ 0, the stress −EαΔT/(1 − 2ν)), its
+#: displacements and gaps are both round-off of the data's size, and their ratio means nothing.  The built-in
+#: scenes' max|u| is 0.2 to 270 times the data's displacement, so this floor never decides their checks.
+DATA_FLOOR = 1e-2
+
+
+def displacement_scale(interface: Interface, largest: float) -> float:
+    """U, what the KKT check measures displacements against: the largest nodal displacement, or
+    DATA_FLOOR × the displacement the data would make where that is larger."""
+    return max(largest, DATA_FLOOR * interface.data)
+
+
+def traction_scale(interface: Interface, lam: np.ndarray, size: float) -> float:
+    """What the KKT check measures multipliers (tractions on Σ) against: the largest of them, or, when the
+    structure carries (almost) no stress and they are all round-off, STRESS_FLOOR × the stress displacements
+    of the scale ``size`` would make (modulus × size / Σ's length)."""
+    length = float(interface.weights.sum())
+    return max(float(np.abs(lam).max(initial=0.0)),
+               STRESS_FLOOR * interface.modulus * size / length if length > 0 else 0.0)
 
 
 def scale_free_ratio(value: float, scale: float) -> float:
@@ -76,15 +100,12 @@ def scale_free_ratio(value: float, scale: float) -> float:
 def kkt(interface: Interface, traces: np.ndarray, lam: np.ndarray, p: float | None, equilibrium: np.ndarray,
         largest: float) -> Constraints:
     """The KKT residuals from the blocks' traces ``(4, 2k)`` (local frames) under the multipliers
-    ``lam`` (bound ``p``), their equilibrium residuals and the largest nodal displacement."""
+    ``lam`` (bound ``p``), their equilibrium residuals and the largest nodal displacement; displacements
+    are measured against :func:`displacement_scale`."""
     gap = interface.gap(traces)
     lower, upper = interface.bounds(p)
-    # Multipliers are tractions on Σ: measured against the largest of them, or, when the structure carries
-    # (almost) no stress and they are all round-off, against STRESS_FLOOR × the stress its displacements
-    # would make (modulus × max|u| / Σ's length).
-    length = float(interface.weights.sum())
-    traction = max(float(np.abs(lam).max(initial=0.0)),
-                   STRESS_FLOOR * interface.modulus * largest / length if length > 0 else 0.0)
+    size = displacement_scale(interface, largest)
+    traction = traction_scale(interface, lam, size)
     slack = 1e-9 * np.abs(upper[np.isfinite(upper)]).max(initial=0.0)
     at_lower, at_upper = lam <= lower + slack, lam >= upper - slack
     violated = np.where(at_upper, np.maximum(-gap, 0.0), np.where(at_lower, np.maximum(gap, 0.0), np.abs(gap)))
@@ -97,12 +118,13 @@ def kkt(interface: Interface, traces: np.ndarray, lam: np.ndarray, p: float | No
     penetration = max(float(np.where(at_upper, 0.0, np.maximum(gap, 0.0))[contact].max(initial=0.0)),
                       float(held.max(initial=0.0)))  # every crack node, its rows dropped or not
     return Constraints(
-        penetration=scale_free_ratio(penetration, largest) if finite else nan,
-        gluing_gap=scale_free_ratio(float(violated[~contact].max(initial=0.0)), largest) if finite else nan,
+        penetration=scale_free_ratio(penetration, size) if finite else nan,
+        gluing_gap=scale_free_ratio(float(violated[~contact].max(initial=0.0)), size) if finite else nan,
         complementarity=scale_free_ratio(float(np.abs(np.where(at_upper, 0.0, lam * gap)[contact]).max(initial=0.0)),
-                                         traction * largest) if finite else nan,
+                                         traction * size) if finite else nan,
         multiplier_bounds=scale_free_ratio(max(bounds, 0.0), traction) if finite else nan,
         equilibrium=float(np.max(equilibrium, initial=0.0)),
         min_mu_c=float(mu_c.min(initial=0.0)),
         max_displacement=float(largest),
+        displacement_scale=float(size),
     )

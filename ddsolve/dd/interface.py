@@ -40,13 +40,15 @@ class Interface:
     """Multiplier layout and the maps between traces, gaps, multipliers and interface loads."""
 
     def __init__(self, weights: np.ndarray, crack: np.ndarray, contact: bool, fixed: np.ndarray | None = None,
-                 modulus: float = 0.0):
+                 modulus: float = 0.0, data: float = 0.0):
         """``weights`` and ``crack`` (bool) of the k multiplier nodes; ``contact``: non-penetration holds;
         ``fixed`` ``(4, 2k)``: the blocks' prescribed trace entries (:mod:`ddsolve.fem.supports`): a
         multiplier between two prescribed entries has nothing to enforce and does not exist; ``modulus``:
         the largest elastic modulus of the layers (the scale of the stresses a displacement makes, for the
-        KKT check)."""
+        KKT check); ``data``: the displacement the scene's data would make
+        (:func:`ddsolve.fem.assembly.data_displacement`, the KKT check's scale when the solution is zero)."""
         self.modulus = float(modulus)
+        self.data = float(data)
         self.weights = np.asarray(weights, dtype=np.float64)
         self.crack = np.asarray(crack, dtype=bool)
         k = len(self.weights)
@@ -184,11 +186,13 @@ class Interface:
         return out
 
 
-def for_mesh(sigma: SigmaLine, contact: bool, fixed: np.ndarray | None = None, modulus: float = 0.0) -> Interface:
+def for_mesh(sigma: SigmaLine, contact: bool, fixed: np.ndarray | None = None, modulus: float = 0.0,
+             data: float = 0.0) -> Interface:
     """The interface of a mesh's Σ (``contact``: the scene's non-penetration condition; ``fixed``: the
-    blocks' prescribed trace entries; ``modulus``: the layers' largest modulus; see :class:`Interface`)."""
+    blocks' prescribed trace entries; ``modulus``: the layers' largest modulus; ``data``: the displacement
+    the data would make; see :class:`Interface`)."""
     nodes = sigma.multiplier_nodes
-    return Interface(sigma.weights[nodes], sigma.crack[nodes], contact, fixed, modulus)
+    return Interface(sigma.weights[nodes], sigma.crack[nodes], contact, fixed, modulus, data)
 
 
 def _both_components(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

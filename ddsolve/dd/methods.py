@@ -13,7 +13,8 @@ The fast methods solve the dual problem in the W-scaled variable y = W^½ λ,
 where the scaling makes A's spectrum that of the Uzawa iteration operator C K⁻¹ Cᵀ W (so 2/λmax(A)
 is Uzawa's stable bound on θ) and ‖A y − b‖ the L²(Σ) norm of the constraint violation.  Their
 stopping rule ``kkt`` is the norm of the projected gradient (violated equalities, penetration,
-and contact forces on open crack faces) relative to its value for λ = 0, the uncoupled blocks.
+and contact forces on open crack faces) relative to its value for λ = 0, the uncoupled blocks (or to
+the gap the data would make, where the uncoupled blocks' gap is round-off: :func:`gap_scale`).
 """
 from __future__ import annotations
 
@@ -23,7 +24,7 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-from ddsolve.dd.constraints import Constraints, kkt, kkt_tolerance
+from ddsolve.dd.constraints import DATA_FLOOR, Constraints, displacement_scale, kkt, kkt_tolerance
 from ddsolve.dd.interface import Interface
 from ddsolve.errors import SolverError
 from ddsolve.problem.scene import Solver
@@ -95,17 +96,27 @@ class Progress:
 
 
 # --- the paper's Uzawa method ----------------------------------------------------------------
-def block_criterion(rule: str, step_energy: np.ndarray, energy: np.ndarray) -> float:
+def block_criterion(rule: str, step_energy: np.ndarray, energy: np.ndarray, floor: float = 0.0) -> float:
     """Stopping-rule value from the energies ‖xᵏ − xᵏ⁻¹‖² and ‖xᵏ‖² of the four blocks.
 
     ``paper``: max ‖Δx‖ / ‖x‖² (as printed in the paper); ``relative``: max ‖Δx‖ / ‖x‖.
-    A block with x = 0 contributes 0 if it did not move and ∞ otherwise.
+    ‖x‖² is taken no smaller than ``floor`` (the energy the data's displacement would have, so that a solution
+    that is zero, with data that is not, can stop: :func:`energy_floor`).  A block with ‖x‖ = 0 (and no
+    floor) contributes 0 if it did not move and ∞ otherwise.
     """
     step = np.sqrt(np.maximum(step_energy, 0.0))
+    energy = np.maximum(energy, floor)
     size = np.maximum(energy, 0.0) if rule == "paper" else np.sqrt(np.maximum(energy, 0.0))
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(step == 0.0, 0.0, step / size)
     return float(np.max(ratio))
+
+
+def energy_floor(interface: Interface) -> float:
+    """‖x‖² = xᵀ K x of a block whose displacements are DATA_FLOOR × the data's (the layers' modulus × their
+    square: ∫ εᵀ D ε over a domain of size L with ε ~ u / L), below which :func:`block_criterion` does not
+    measure a block (0 without data)."""
+    return interface.modulus * (DATA_FLOOR * interface.data) ** 2
 
 
 #: θ = AUTO_STEP / λmax for ``theta = "auto"``: below the stable bound 2/λmax with room for the
@@ -116,12 +127,14 @@ AUTO_STEP = 1.7
 DIVERGENCE_GROWTH = 1e6
 
 
-def uzawa(rounds: Rounds, interface: Interface, solver: Solver, progress: Progress) -> Outcome:
+def uzawa(rounds: Rounds, interface: Interface, solver: Solver, progress: Progress,
+          start: np.ndarray | None = None) -> Outcome:
     """The paper's projected Uzawa iteration λ ← P(λ + θ·gap), one round of block solves each.
 
     Blocks are solved for the load increments, so ‖xᵏ − xᵏ⁻¹‖ is computed from the increment
     itself (no cancellation) and ‖xᵏ‖² is updated from traces: ‖x + Δx‖² = ‖x‖² + 2 t·Δℓ + ‖Δx‖².
-    With ``stop = "kkt"`` the criterion is the dual one of the fast methods.
+    With ``stop = "kkt"`` the criterion is the dual one of the fast methods.  ``start``: the multipliers
+    to start from (0 by default; one more round then, for the uncoupled blocks' gap).
     """
     lower, upper = interface.bounds(solver.p)
     theta = solver.theta
@@ -133,7 +146,10 @@ def uzawa(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
     lam = np.zeros(interface.size)
     traces, energy = rounds.solve(interface.loads(lam), full=True)
     sqrt_w = np.sqrt(interface.row_weights)
-    scale = np.linalg.norm(sqrt_w * interface.gap(traces))
+    scale = gap_scale(interface, interface.gap(traces))
+    if start is not None:
+        lam = np.clip(start, lower, upper)
+        traces, energy = rounds.solve(interface.loads(lam), full=True)
     outcome = Outcome(lam, converged=False, iterations=0, details=details)
     steps: list[float] = []
     smallest_step = np.inf
@@ -149,7 +165,7 @@ def uzawa(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
             gradient = -sqrt_w * interface.gap(traces)
             criterion = kkt_criterion(sqrt_w * lam, gradient, sqrt_w * lower, sqrt_w * upper, scale)
         else:
-            criterion = block_criterion(solver.stop, step_energy, energy)
+            criterion = block_criterion(solver.stop, step_energy, energy, energy_floor(interface))
         outcome.history.append(criterion)
         outcome.iterations = iteration
         progress(iteration, criterion)
@@ -201,6 +217,14 @@ def projected_gradient(y: np.ndarray, gradient: np.ndarray, lower: np.ndarray, u
     return out
 
 
+def gap_scale(interface: Interface, gap: np.ndarray) -> float:
+    """What the ``kkt`` stopping rule measures the projected gradient against: ‖W^½ gap‖ of the uncoupled
+    blocks, or, where that is round-off (their data cancels on Σ), the norm of a gap of DATA_FLOOR × the
+    data's displacement on every row (the final check's floor, :func:`~ddsolve.dd.constraints.displacement_scale`)."""
+    floor = DATA_FLOOR * interface.data * np.sqrt(interface.row_weights.sum())
+    return max(float(np.linalg.norm(np.sqrt(interface.row_weights) * gap)), float(floor))
+
+
 def kkt_criterion(y, gradient, lower, upper, scale: float) -> float:
     """‖projected gradient‖ / ‖gradient at λ = 0‖ (0 when both vanish: nothing to couple)."""
     norm = float(np.linalg.norm(projected_gradient(y, gradient, lower, upper)))
@@ -221,7 +245,7 @@ class DualProblem:
         self.b = self.sqrt_w * interface.gap(initial)
         lower, upper = interface.bounds(solver.p)
         self.lower, self.upper = lower * self.sqrt_w, upper * self.sqrt_w
-        self.scale = float(np.linalg.norm(self.b))
+        self.scale = gap_scale(interface, interface.gap(initial))
 
     def apply(self, y: np.ndarray) -> np.ndarray:
         traces, _ = self.rounds.solve(self.interface.loads(y / self.sqrt_w), full=False)
@@ -415,8 +439,9 @@ def box_qp(A: np.ndarray, b: np.ndarray, lower: np.ndarray, upper: np.ndarray,
 #: At most this many refinement rounds after the final solve (each one a rank-0 solve and a round).
 MAX_REFINEMENTS = 3
 #: ``schur`` refines when the final solve's traces differ from its prediction by more than this,
-#: relative to the largest trace (MUMPS's own Schur complements: about 1e-11 on the slender strip;
-#: those inverted from the flexibility of blocks on two ranks: about 1e-8).
+#: relative to the largest trace or DATA_FLOOR × the data's displacement, if larger (MUMPS's own Schur
+#: complements: about 1e-11 on the slender strip; those inverted from the flexibility of blocks on two ranks:
+#: about 1e-8).
 PREDICTION_TOLERANCE = 1e-10
 
 
@@ -552,7 +577,8 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
     def refine(solved_traces: np.ndarray, required: bool) -> np.ndarray | None:
         nonlocal predicted, uncoupled, condensed
         mismatch = np.abs(solved_traces - predicted).max(initial=0.0)
-        if not required and mismatch <= PREDICTION_TOLERANCE * np.abs(solved_traces).max(initial=0.0):
+        size = displacement_scale(interface, float(np.abs(solved_traces).max(initial=0.0)))
+        if not required and mismatch <= PREDICTION_TOLERANCE * size:
             return None
         mark = time.perf_counter()
         uncoupled = uncoupled + (solved_traces - predicted)  # the model now agrees with the blocks at this λ
@@ -600,8 +626,9 @@ def final_solve(rounds: Rounds, interface: Interface, solver: Solver, outcome: O
 
 
 #: The methods whose criterion is relative to the uncoupled blocks' gap and that can start from given
-#: multipliers; :func:`checked_solve` lowers their tol when the final check finds their solution short.
-WARM_STARTS = ("fista", "mprgp", "feti")
+#: multipliers; :func:`checked_solve` lowers their tol when the final check finds their solution short
+#: (uzawa's with ``stop = "kkt"`` only: the other rules are not relative to that gap).
+WARM_STARTS = ("fista", "mprgp", "feti", "uzawa")
 #: At most this many times.
 TIGHTENINGS = 2
 
@@ -621,7 +648,9 @@ def checked_solve(method: str, rounds: Rounds, interface: Interface, solver: Sol
     tolerance, tol = kkt_tolerance(solver), solver.tol
     met = outcome.converged
     residuals = final_solve(rounds, interface, solver, outcome)
-    for _ in range(TIGHTENINGS if method in WARM_STARTS else 0):
+    warm = method in WARM_STARTS and (method != "uzawa" or solver.stop == "kkt")
+    theta = outcome.details.get("theta", solver.theta)  # uzawa's θ = "auto": found once
+    for _ in range(TIGHTENINGS if warm else 0):
         short = {name: getattr(residuals, name) for name in Constraints.NAMES
                  if not getattr(residuals, name) <= tolerance}
         left = solver.max_iterations - outcome.iterations
@@ -631,7 +660,7 @@ def checked_solve(method: str, rounds: Rounds, interface: Interface, solver: Sol
         progress.out(f"{method}: the final check found {', '.join(residuals.violations(tolerance))} (tolerance "
                      f"{tolerance:g}): going on with tol {tol:.2e}")
         done = outcome.iterations
-        more = run(rounds, interface, replace(solver, tol=tol, max_iterations=left),
+        more = run(rounds, interface, replace(solver, tol=tol, max_iterations=left, theta=theta),
                    lambda iteration, criterion, final=False: progress(done + iteration, criterion, final),
                    start=outcome.lam)
         more.iterations += done

@@ -615,6 +615,37 @@ def modulus(scene: Scene) -> float:
     return max(float(np.abs(elasticity(scene, layer)[0]).max()) for layer in LAYERS)
 
 
+def data_displacement(scene: Scene, halves, sigma: SigmaLine) -> float:
+    """The displacement the scene's data would make, whatever the supports make of it: the largest of the
+    prescribed values and of Σ's length × the largest strain of the data (an eigenstrain |ε₀|, a traction
+    / the layer's largest modulus), at the nodes of ``halves`` (whole halves or pieces of them: the largest
+    over the pieces is the whole's).  The scale of the KKT check where the solution itself is (near) zero
+    (a heated plate clamped all round); 0 for a scene without data.  Values that are not finite are left
+    out (assembly refuses them).  A scale, not a range check: the values at the nodes, where
+    :func:`driven_displacements` samples densely once, before any work, to refuse data out of range."""
+    def largest(expression: Expression | None, points: np.ndarray) -> float:
+        if expression is None or not len(points):
+            return 0.0
+        values = np.abs(expression(points[:, 0], points[:, 1]))
+        return float(values[np.isfinite(values)].max(initial=0.0))
+
+    prescribed, strain = 0.0, 0.0
+    for half in halves:
+        for layer in LAYERS:
+            stiffness = float(np.abs(elasticity(scene, layer)[0]).max())
+            thermal = thermal_of(scene, layer)
+            if thermal is not None:
+                strain = max(strain, float(np.abs(thermal[0]).max()) * largest(thermal[1], half.points))
+            for (name, boundary), load in scene.loads.items():
+                at = half.points[np.unique(half.edges(boundary))] if name == layer else half.points[:0]
+                strain = max(strain, *(largest(part, at) / stiffness for part in (load.x, load.y, load.pressure)))
+            for (name, boundary), displacement in scene.displacements.items():
+                at = half.points[np.unique(half.edges(boundary))] if name == layer else half.points[:0]
+                prescribed = max(prescribed, *(largest(part, at) for part in (displacement.x, displacement.y,
+                                                                              displacement.normal)))
+    return max(prescribed, strain * float(sigma.weights.sum()))
+
+
 def elasticity(scene: Scene, layer: str) -> tuple[np.ndarray, np.ndarray]:
     """(D, c) of a layer under the scene's plane model (see :func:`ddsolve.problem.materials.elasticity`)."""
     return materials.elasticity(scene.materials[layer], scene.model)

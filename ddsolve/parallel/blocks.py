@@ -91,6 +91,7 @@ class Block:
         self.kernel: np.ndarray | None = None  # a floating block's rigid motions (m, local rows), see make_floating
         self._fixed_rows = np.zeros(0, dtype=np.int64)
         self._fixed_matrix = None
+        self._load_sizes = (0.0, 0.0)  # the last solve's ‖f‖∞ (this rank's rows) and ‖E load‖∞, see residual
         # The trace entries this rank owns: their positions in the trace and their local rows.
         trace = system.trace_dofs
         mine = (trace >= system.first) & (trace < system.first + local)
@@ -250,6 +251,7 @@ class Block:
         b = self.rhs.getArray()
         b[:] = self.system.rhs if body else 0.0
         b[self.trace_rows] += load[self.trace_positions]
+        self._remember_loads(body, load)
         b[self._fixed_rows] = 0.0  # a floating block's fixed dofs (none otherwise): K⁺ b, see make_floating
         b /= self.scale
         try:
@@ -264,14 +266,26 @@ class Block:
                               f"-{self.ksp.getOptionsPrefix()}pc_* options")
         return self.x.getArray(readonly=True)
 
+    def _remember_loads(self, body: bool, load: np.ndarray) -> None:
+        """Keep the sizes of the two parts of b = f·[body] + E load for :meth:`residual`."""
+        self._load_sizes = (float(np.abs(self.system.rhs).max(initial=0.0)) if body else 0.0,
+                            float(np.abs(load).max(initial=0.0)))
+
     def residual(self) -> float:
-        """The last solve's relative residual ‖K x − b‖∞ / (‖K‖∞ ‖x‖∞ + ‖b‖∞) (a backward error:
-        round-off for a direct solve; collective over the block)."""
+        """The last solve's relative residual ‖K x − b‖∞ / (‖K‖∞ ‖x‖∞ + ‖f‖∞ + ‖E load‖∞), b = f + E load
+        (a backward error: round-off for a direct solve; each part of b on its own, as where the interface
+        loads cancel the body loads of a structure that does not move, b itself is round-off; collective over
+        the block)."""
         r = self.matrix.createVecLeft()
         self.matrix.mult(self.x, r)
         r.axpy(-1.0, self.rhs)
         norm = PETSc.NormType.INFINITY
-        size = self.matrix.norm(norm) * self.x.norm(norm) + self.rhs.norm(norm)
+        body, load = self._load_sizes
+        if self.mpi.size > 1:
+            from mpi4py import MPI
+
+            body = self.mpi.allreduce(body, op=MPI.MAX)
+        size = self.matrix.norm(norm) * self.x.norm(norm) + (body + load) / self.scale
         value = r.norm(norm)
         r.destroy()
         return value / size if value > 0.0 else 0.0
@@ -495,6 +509,7 @@ class Block:
         b = self.rhs.getArray()
         b[:] = self.system.rhs
         b[self.trace_rows] += load[self.trace_positions]
+        self._remember_loads(True, load)
         b /= self.scale
         return self.x.getArray(readonly=True)
 

@@ -100,14 +100,16 @@ def multiplier_vector(interface: Interface, multipliers: dict[str, np.ndarray], 
 
 
 def block_residual(system: assembly.BlockSystem, x: np.ndarray, load: np.ndarray) -> float:
-    """‖K x − f − E ℓ‖∞ / (‖K‖∞‖x‖∞ + ‖f + E ℓ‖∞) for a whole block system, its solution ``x`` and
-    the interface load ``ℓ`` on its trace (all in the block's frames)."""
+    """‖K x − f − E ℓ‖∞ / (‖K‖∞‖x‖∞ + ‖f‖∞ + ‖ℓ‖∞) for a whole block system, its solution ``x`` and
+    the interface load ``ℓ`` on its trace (all in the block's frames).  Each term is measured on its own: where
+    the interface loads cancel the body loads (a heated plate clamped all round, x ≈ 0), f + E ℓ is round-off."""
     b = system.rhs.copy()
     b[system.trace_dofs] += load
     residual = float(np.abs(assembly.csr_matvec(system, x) - b).max(initial=0.0))
     rows = np.repeat(np.arange(system.size), np.diff(system.indptr))
     norm = float(np.bincount(rows, np.abs(system.data), minlength=system.size).max(initial=0.0))
-    return scale_free_ratio(residual, norm * float(np.abs(x).max(initial=0.0)) + float(np.abs(b).max(initial=0.0)))
+    terms = [norm * np.abs(x).max(initial=0.0), np.abs(system.rhs).max(initial=0.0), np.abs(load).max(initial=0.0)]
+    return scale_free_ratio(residual, float(sum(terms)))
 
 
 def equilibrium_residuals(result: Result, scene: scenes.Scene, interface: Interface, lam: np.ndarray) -> np.ndarray:
@@ -128,7 +130,8 @@ def constraints(result: Result, equilibrium: np.ndarray | None = None) -> Constr
     and multipliers, each block's equilibrium from assembling the blocks again (unless given)."""
     scene = result.parsed_scene
     interface = for_mesh(result.mesh.sigma, scene.nonpenetration,
-                         supports.sigma_supports(scene, result.mesh).fixed, assembly.modulus(scene))
+                         supports.sigma_supports(scene, result.mesh).fixed, assembly.modulus(scene),
+                         assembly.data_displacement(scene, result.mesh.halves, result.mesh.sigma))
     frames = result.mesh.sigma.frames[result.multiplier_nodes]
     lam = multiplier_vector(interface, result.multipliers, frames)
     if equilibrium is None:

@@ -370,9 +370,17 @@ def reload(setup: "Setup", scene: Scene) -> None:
     systems = collective(setup.exchange.comm, lambda: local_systems(scene, setup.mesh, setup.exchange, setup.pieces))
     for block, system in zip(setup.blocks, systems):
         block.system = replace(block.system, rhs=system.rhs)
+    setup.interface = interface_of(scene, setup.mesh, setup.exchange.comm)  # the new data's displacement
     setup.phases = Phases()
     setup.phases.end("assembly")
     setup.phases.skip("factorization")
+
+
+def interface_of(scene: Scene, local: LocalMesh, comm: MPI.Comm) -> Interface:
+    """The scene's interface on every rank (collective): the displacement its data would make is the
+    largest over the ranks' halves or pieces (:func:`ddsolve.fem.assembly.data_displacement`)."""
+    data = comm.allreduce(assembly.data_displacement(scene, local.halves.values(), local.sigma), op=MPI.MAX)
+    return for_mesh(local.sigma, scene.nonpenetration, local.sigma_supports.fixed, assembly.modulus(scene), data)
 
 
 def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phases | None = None,
@@ -415,7 +423,7 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
     phases.hold("mesh", local.nbytes + pieces.extra_bytes(block_pieces.values(), local.halves.values()))
     phases.end("distribution")  # the pieces cut, and the halves dropped: assembly holds what it works on
     blocks = collective(comm, lambda: make_blocks(scene, local, exchange, FACTOR_PACKAGE[method], block_pieces))
-    interface = for_mesh(local.sigma, scene.nonpenetration, local.sigma_supports.fixed, assembly.modulus(scene))
+    interface = interface_of(scene, local, comm)
     hold_blocks(phases, blocks, factored=False)
     stages["Setup"].pop()
     phases.end("assembly")

@@ -32,7 +32,8 @@ MAX_ACTIVE_SET_STEPS = 100
 def contact_violation(penetration: np.ndarray, mu_c: np.ndarray, closed: np.ndarray, scale_u: float,
                       scale_mu: float) -> float:
     """The active-set step's stopping criterion: the largest penetration of an open crack vertex
-    relative to max|u|, or tension μᶜ < 0 on a closed one relative to max|λ| (0 when nothing is violated).
+    relative to the displacement scale ``scale_u``, or tension μᶜ < 0 on a closed one relative to the traction
+    scale ``scale_mu`` (those of the KKT check, :mod:`ddsolve.dd.constraints`; 0 when nothing is violated).
     The active set changes while it exceeds 1e-12."""
     def relative(values: np.ndarray, scale: float) -> float:
         largest = float(np.max(values, initial=0.0))
@@ -76,7 +77,8 @@ def solve(scene: Scene, mesh: Mesh, factors: np.ndarray | None = None) -> Result
     tips, table, _ = whole_mesh_checks(scene, mesh)  # the solver's checks: a structure that can move is refused
     systems = assembly.block_systems(scene, mesh, table=table)
     started = time.perf_counter()  # the solve phase: merging, factorizations, active-set steps
-    interface = for_mesh(mesh.sigma, scene.nonpenetration, table.fixed, assembly.modulus(scene))
+    interface = for_mesh(mesh.sigma, scene.nonpenetration, table.fixed, assembly.modulus(scene),
+                         assembly.data_displacement(scene, mesh.halves, mesh.sigma))
     contact_rows = interface.slices["mu_c"]
     closed = np.zeros(contact_rows.stop - contact_rows.start, dtype=bool)
     history, changes = [], []
@@ -97,8 +99,8 @@ def solve(scene: Scene, mesh: Mesh, factors: np.ndarray | None = None) -> Result
         traces = np.array([u[s.trace_dofs] for s, u in zip(systems, fields)])
         penetration = interface.gap(traces)[contact_rows]
         mu_c = lam[contact_rows]
-        scale_u = np.abs(x).max(initial=0.0)
-        scale_mu = np.abs(lam).max(initial=0.0)
+        scale_u = constraints.displacement_scale(interface, float(np.abs(x).max(initial=0.0)))
+        scale_mu = constraints.traction_scale(interface, lam, scale_u)
         stays = closed & (mu_c >= -1e-12 * scale_mu)
         enters = ~closed & (penetration > 1e-12 * scale_u)
         changed = closed != (stays | enters)
