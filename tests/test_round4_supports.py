@@ -162,6 +162,7 @@ def test_enf_on_point_supports_matches_corrected_beam_theory(tmp_path):
     assert result.reactions["layer1"]["pin"][1] + result.reactions["layer2"]["pin"][1] == pytest.approx(5e-4, rel=2e-3)
 
 
+@pytest.mark.solve
 def test_a_closed_tip_is_reported_as_zero_with_its_noise_level():
     """Example 1 (P = 13): the closed tip's G lies within its noise and is printed as 0; the open tip's is
     above it; G_I, G_II ≥ 0 and their sum is G at the open tip."""

@@ -117,6 +117,7 @@ def test_the_equilibrium_residual_measures_body_and_interface_loads_each_on_its_
 
 
 # --- the reference --------------------------------------------------------------------------------
+@pytest.mark.solve
 @pytest.mark.parametrize("model", ["plane_strain", "plane_stress"])
 def test_the_reference_solves_the_clamped_plate(model):
     """Converged (it said "too ill-conditioned for double precision"), the closed-form stress to 1e-12 of
@@ -136,6 +137,7 @@ LAYER = st.tuples(st.floats(1.0, 1e4), st.sampled_from([0.0, 0.2, 0.3, 0.45]), s
                   st.floats(1e-2, 1e3))
 
 
+@pytest.mark.solve
 @settings(derandomize=True, max_examples=10, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(model=MODELS, layers=st.tuples(LAYER, LAYER), cracked=st.booleans(), cooled=st.booleans())
 def test_generated_zero_solutions_are_solved_by_the_reference(model, layers, cracked, cooled):
