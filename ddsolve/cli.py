@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 from ddsolve import __version__
-from ddsolve.errors import DDSolveError, NotConvergedError, UsageError
+from ddsolve.errors import DDSolveError, DivergedError, NotConvergedError, UsageError
 from ddsolve.io import safe
 from ddsolve.mesh import gmsh_io
 from ddsolve.parallel.launch import mpiexec_command, supervise
@@ -54,6 +54,8 @@ def _load_scene(args, ranks: int = 1):
 
     loaded = scene.load(args.scene, args.set or [])
     check_read(args.command, args.set or [], loaded, ranks)
+    if args.command != "mesh":
+        runtime.check_out_of_core(loaded.solver.out_of_core, args.petsc)
     return loaded
 
 
@@ -89,8 +91,29 @@ def report_unused_options(comm, command: str) -> None:
         return
     common = [option for option in every[0] if all(option in other for other in every[1:])]
     if common:
-        print(f"ddsolve: warning: PETSc options not used (misspelt? the prefixes here are "
-              f"{', '.join(PREFIXES[command])}): {', '.join(common)}", file=sys.stderr, flush=True)
+        prefixes = f" the prefixes here are {', '.join(PREFIXES[command])}" if command in PREFIXES else ""
+        print(f"ddsolve: warning: PETSc options not used (misspelt?{prefixes}): {', '.join(common)}",
+              file=sys.stderr, flush=True)
+
+
+def _with_petsc_options_reported(args, petsc_options: list[str]) -> int:
+    """Run a command that hands options to PETSc; once its solves have ended on every rank (successfully, or
+    not converged or diverged on every rank), name the PETSc options nothing read (:func:`report_unused_options`;
+    after an error that stopped the run before its solves, they were not read for want of a solve).  The
+    launcher of ``-n N`` starts no PETSc: its ranks report."""
+    def report() -> None:
+        petsc = sys.modules.get("petsc4py.PETSc")
+        if petsc is not None and petsc.Sys.isInitialized() and not petsc.Sys.isFinalized():
+            report_unused_options(runtime.comm_world(), args.command)
+
+    try:
+        status = args.run(args, petsc_options)
+    except (NotConvergedError, DivergedError) as exc:
+        if exc.collective:  # every rank is here: none is waiting in a solve
+            report()
+        raise
+    report()
+    return status
 
 
 # --- commands -------------------------------------------------------------------------------
@@ -138,13 +161,7 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
     comm = MPI.COMM_WORLD
     scene = comm.bcast(collective(comm, lambda: _load_scene(args, comm.size), root_only=True), root=0)
     output = comm.bcast(collective(comm, lambda: check_outputs(args, scene), root_only=True), root=0)
-    try:
-        result = run.solve(scene, comm, output, progress=_root_print, gather=False)
-    except DDSolveError as exc:
-        if exc.collective:  # every rank is here: the others are not waiting in a solve
-            report_unused_options(comm, "solve")
-        raise
-    report_unused_options(comm, "solve")
+    result = run.solve(scene, comm, output, progress=_root_print, gather=False)
     if result is not None:
         print(f"{result.method}: converged after {result.iterations} iterations, {result.solves} rounds of "
               f"block solves, {result.wall_time:.3f} s on {result.ranks} ranks -> {output}", flush=True)
@@ -253,10 +270,7 @@ def cmd_reference(args, petsc_options: list[str]) -> int:
 
     scene = _load_scene(args)
     output = check_outputs(args, scene)
-    try:
-        result = run.reference(scene, output, progress=_root_print)
-    finally:
-        report_unused_options(None, "reference")
+    result = run.reference(scene, output, progress=_root_print)
     print(f"reference: {result.iterations} active-set steps, {result.wall_time:.3f} s -> {output}")
     print(estimate_line(result))
     _print_refinement(scene, result)
@@ -508,13 +522,15 @@ def _dispatch(argv: list[str]) -> int:
         raise
     except SystemExit as exc:  # --help: its text is printed; the final flush tells whether it was written
         return int(exc.code or 0)
-    args.own = own
+    args.own, args.petsc = own, petsc_options
     args.ranks_at = _ranks_positions(own)
     if args.command in READERS:  # a file anyone wrote: its numbers may overflow; what matters is checked
         import numpy as np
 
         with np.errstate(all="ignore"):
             return args.run(args, petsc_options)
+    if args.command in PETSC_COMMANDS:
+        return _with_petsc_options_reported(args, petsc_options)
     return args.run(args, petsc_options)
 
 

@@ -18,7 +18,7 @@ import traceback
 import unicodedata
 from pathlib import Path
 
-from ddsolve.environment import import_errors_explained
+from ddsolve.environment import check_out_of_core_folder, import_errors_explained
 from ddsolve.errors import DDSolveError, UsageError
 from ddsolve.mesh import gmsh_io
 from ddsolve.mesh.mesh import U_PLUS
@@ -114,6 +114,32 @@ def check_petsc_files(options: list[str]) -> None:
         except UsageError as error:
             error.collective = True  # every rank has the same options and sees the same files
             raise
+
+
+#: The MUMPS control (ICNTL) that asks for out-of-core factors (:data:`ddsolve.parallel.blocks.MUMPS_OUT_OF_CORE`).
+OUT_OF_CORE_OPTION = "mat_mumps_icntl_22"
+
+
+def petsc_options_given(options: list[str]) -> dict[str, str]:
+    """PETSc's options -> their values (without the dash): PETSc's own database once it has started, else
+    the command line's ``options`` and ``PETSC_OPTIONS``."""
+    petsc = sys.modules.get("petsc4py.PETSc")
+    if petsc is not None and petsc.Sys.isInitialized():
+        return {name: str(value) for name, value in petsc.Options().getAll().items()}
+    words = [*os.environ.get("PETSC_OPTIONS", "").split(), *options]
+    return {word[1:]: (following if not following.startswith("-") or is_number(following) else "")
+            for word, following in zip(words, [*words[1:], ""]) if word.startswith("-") and not is_number(word)}
+
+
+def check_out_of_core(scene_asks: bool, options: list[str] = ()) -> None:
+    """Before any work: when the scene (``solver.out_of_core``) or a PETSc option (``-PREFIX_mat_mumps_icntl_22
+    N``, N not 0) asks for out-of-core factors, refuse a ``MUMPS_OOC_TMPDIR`` where they cannot be written
+    (:func:`~ddsolve.environment.check_out_of_core_folder`)."""
+    asking = ["solver.out_of_core = true"] if scene_asks else []
+    asking += [f"-{name} {value}" for name, value in petsc_options_given(options).items()
+               if name.endswith(OUT_OF_CORE_OPTION) and value.strip() not in ("0", "")]
+    if asking:
+        check_out_of_core_folder(asking[0])
 
 
 def init_petsc(options: list[str]) -> None:
