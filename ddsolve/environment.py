@@ -136,6 +136,10 @@ def physical_memory() -> float:
 #: Linux's prctl request: the signal the kernel sends a process when its parent ends.
 PR_SET_PDEATHSIG = 1
 
+#: This process's parent when ddsolve was first imported, before the long imports of a command: a rank's
+#: launcher (mpiexec) even if it is killed meanwhile and the rank has been given to init.
+PARENT_AT_START = os.getppid()
+
 
 def end_with_parent(parent: int, signum: int = signal.SIGKILL) -> None:
     """Have the kernel send ``signum`` to this process when its parent (the process ``parent``) ends,

@@ -211,8 +211,41 @@ class Terminated(KeyboardInterrupt):
     """SIGTERM, turned into an exception so that temporary files are removed on the way out."""
 
 
-def _terminate(signum, _frame) -> None:
+#: Seconds after which a signal that came during an import is delivered again (:func:`_interrupt`).
+IMPORT_RETRY = 0.01
+
+
+def _importing(frame) -> bool:
+    """Whether ``frame`` (where a signal handler was called) runs inside an import: Python's import
+    machinery and the modules it initializes swallow some exceptions ("Exception ignored in: <module ...>")."""
+    while frame is not None:
+        if frame.f_code.co_filename.startswith("<frozen importlib"):
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _interrupt(signum, frame) -> None:
+    """SIGINT and SIGTERM as exceptions (KeyboardInterrupt, :class:`Terminated`); never inside an import,
+    where one could be printed and lost: there the signal is sent again IMPORT_RETRY seconds later, until
+    the import is over (the watchdog, :func:`watch_interrupts`, ends the process if that takes too long)."""
+    if _importing(frame):
+        timer = threading.Timer(IMPORT_RETRY, os.kill, (os.getpid(), signum))
+        timer.daemon = True
+        timer.start()
+        return
+    if signum == signal.SIGINT:
+        raise KeyboardInterrupt
     raise Terminated(signal.Signals(signum).name)
+
+
+def interrupts_ignored() -> None:
+    """The command's outcome is decided (its status is known): a later SIGINT or SIGTERM changes nothing,
+    and is ignored, so that it cannot end the process with another status as Python exits (which gives
+    the signals their default action back first)."""
+    with contextlib.suppress(ValueError):  # not the main thread: its handlers are not ours
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, signal.SIG_IGN)
 
 
 #: Seconds an interrupt may wait for the main thread (busy in a library call: gmsh, a factorization,
@@ -269,9 +302,10 @@ def guarded(call) -> int:
     """Run a command: a DDSolveError (or a missing petsc4py, mpi4py, h5py, gmsh...) becomes one line
     and its exit status, an interrupt or SIGTERM stops every rank, anything else is a bug (one
     traceback, abort)."""
-    end_with_launcher(os.getppid())
+    end_with_launcher()
     prepare_output()
-    signal.signal(signal.SIGTERM, _terminate)
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, _interrupt)
     watch_interrupts()
     try:
         with import_errors_explained():
@@ -292,6 +326,8 @@ def guarded(call) -> int:
         traceback.print_exc()
         abort(1)
         return 1
+    finally:
+        interrupts_ignored()
 
 
 #: ASCII spellings of the symbols in ddsolve's messages that are neither Greek letters (spelt by their
