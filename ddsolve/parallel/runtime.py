@@ -215,21 +215,23 @@ class Terminated(KeyboardInterrupt):
 IMPORT_RETRY = 0.01
 
 
-def _importing(frame) -> bool:
-    """Whether ``frame`` (where a signal handler was called) runs inside an import: Python's import
-    machinery and the modules it initializes swallow some exceptions ("Exception ignored in: <module ...>")."""
+def _swallowing(frame) -> bool:
+    """Whether ``frame`` (where a signal handler was called) runs where an exception can be printed and
+    lost instead of propagating: inside an import (Python's import machinery and the modules it
+    initializes: "Exception ignored in: <module ...>") or a finalizer (``__del__``)."""
     while frame is not None:
-        if frame.f_code.co_filename.startswith("<frozen importlib"):
+        if frame.f_code.co_filename.startswith("<frozen importlib") or frame.f_code.co_name == "__del__":
             return True
         frame = frame.f_back
     return False
 
 
 def _interrupt(signum, frame) -> None:
-    """SIGINT and SIGTERM as exceptions (KeyboardInterrupt, :class:`Terminated`); never inside an import,
-    where one could be printed and lost: there the signal is sent again IMPORT_RETRY seconds later, until
-    the import is over (the watchdog, :func:`watch_interrupts`, ends the process if that takes too long)."""
-    if _importing(frame):
+    """SIGINT and SIGTERM as exceptions (KeyboardInterrupt, :class:`Terminated`); never inside an import or
+    a finalizer, where one could be printed and lost (:func:`_swallowing`): there the signal is sent again
+    IMPORT_RETRY seconds later, until it is over (the watchdog, :func:`watch_interrupts`, ends the process
+    if that takes too long)."""
+    if _swallowing(frame):
         timer = threading.Timer(IMPORT_RETRY, os.kill, (os.getpid(), signum))
         timer.daemon = True
         timer.start()
