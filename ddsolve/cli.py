@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 from ddsolve import __version__
-from ddsolve.errors import DDSolveError, DivergedError, NotConvergedError, UsageError
+from ddsolve.errors import DDSolveError, NotConvergedError, UsageError
 from ddsolve.io import safe
 from ddsolve.mesh import gmsh_io
 from ddsolve.parallel.launch import mpiexec_command, supervise
@@ -81,39 +81,6 @@ def check_outputs(args, scene) -> Path:
     return output
 
 
-def report_unused_options(comm, command: str) -> None:
-    """A PETSc ``-options_left``-style warning on rank 0: the options no rank read (misspelt ones)."""
-    from ddsolve.parallel.blocks import unused_options
-
-    left = unused_options()
-    every = comm.gather(left, root=0) if comm is not None else [left]
-    if every is None or any(options is None for options in every):
-        return
-    common = [option for option in every[0] if all(option in other for other in every[1:])]
-    if common:
-        prefixes = f" the prefixes here are {', '.join(PREFIXES[command])}" if command in PREFIXES else ""
-        print(f"ddsolve: warning: PETSc options not used (misspelt?{prefixes}): {', '.join(common)}",
-              file=sys.stderr, flush=True)
-
-
-def _with_petsc_options_reported(args, petsc_options: list[str]) -> int:
-    """Run a command that hands options to PETSc; once its solves have ended on every rank (successfully, or
-    not converged or diverged on every rank), name the PETSc options nothing read (:func:`report_unused_options`;
-    after an error that stopped the run before its solves, they were not read for want of a solve).  The
-    launcher of ``-n N`` starts no PETSc: its ranks report."""
-    def report() -> None:
-        petsc = sys.modules.get("petsc4py.PETSc")
-        if petsc is not None and petsc.Sys.isInitialized() and not petsc.Sys.isFinalized():
-            report_unused_options(runtime.comm_world(), args.command)
-
-    try:
-        status = args.run(args, petsc_options)
-    except (NotConvergedError, DivergedError) as exc:
-        if exc.collective:  # every rank is here: none is waiting in a solve
-            report()
-        raise
-    report()
-    return status
 
 
 # --- commands -------------------------------------------------------------------------------
@@ -530,7 +497,7 @@ def _dispatch(argv: list[str]) -> int:
         with np.errstate(all="ignore"):
             return args.run(args, petsc_options)
     if args.command in PETSC_COMMANDS:
-        return _with_petsc_options_reported(args, petsc_options)
+        return runtime.unused_options_reported(lambda: args.run(args, petsc_options), PREFIXES.get(args.command, ()))
     return args.run(args, petsc_options)
 
 

@@ -17,9 +17,10 @@ import time
 import traceback
 import unicodedata
 from pathlib import Path
+from typing import Callable
 
 from ddsolve.environment import check_out_of_core_folder, import_errors_explained
-from ddsolve.errors import DDSolveError, UsageError
+from ddsolve.errors import DDSolveError, DivergedError, NotConvergedError, UsageError
 from ddsolve.mesh import gmsh_io
 from ddsolve.mesh.mesh import U_PLUS
 from ddsolve.parallel.launch import end_with_launcher, interrupt_line, leader, supervised, world_position
@@ -166,6 +167,42 @@ def init_petsc(options: list[str]) -> None:
 
     # A closed pipe on standard output is an error to report in one line (EPIPE), not a death by SIGPIPE.
     signal.signal(signal.SIGPIPE, signal.SIG_IGN)
+
+
+def report_unused_options(comm, prefixes: tuple[str, ...] = ()) -> None:
+    """A PETSc ``-options_left``-style warning on rank 0: the options no rank read (misspelt ones), with the
+    options prefixes of the command's solvers."""
+    from ddsolve.parallel.blocks import unused_options
+
+    left = unused_options()
+    every = comm.gather(left, root=0) if comm is not None else [left]
+    if every is None or any(options is None for options in every):
+        return
+    common = [option for option in every[0] if all(option in other for other in every[1:])]
+    if common:
+        named = f" the prefixes here are {', '.join(prefixes)}" if prefixes else ""
+        print(f"ddsolve: warning: PETSc options not used (misspelt?{named}): {', '.join(common)}",
+              file=sys.stderr, flush=True)
+
+
+def unused_options_reported(command: Callable[[], int], prefixes: tuple[str, ...] = ()) -> int:
+    """Run a command that hands options to PETSc (of ddsolve or of the experiments); once its solves have
+    ended on every rank (successfully, or not converged or diverged on every rank), name the PETSc options
+    nothing read (:func:`report_unused_options`; after an error that stopped the run before its solves they
+    went unread for want of a solve).  A launcher (``-n N``) starts no PETSc: its ranks report."""
+    def report() -> None:
+        petsc = sys.modules.get("petsc4py.PETSc")
+        if petsc is not None and petsc.Sys.isInitialized() and not petsc.Sys.isFinalized():
+            report_unused_options(comm_world(), prefixes)
+
+    try:
+        status = command()
+    except (NotConvergedError, DivergedError) as exc:
+        if exc.collective:  # every rank is here: none is waiting in a solve
+            report()
+        raise
+    report()
+    return status
 
 
 #: Variables by which a user sets the BLAS's threads himself (then :func:`limit_blas_threads` keeps them).
