@@ -8,8 +8,8 @@ The stages below it are subpackages (docs/architecture.md).  The face is importe
 import importlib
 
 from ddsolve.environment import find_petsc
-from ddsolve.errors import (DDSolveError, DivergedError, MeshError, NotConvergedError, SceneError, SolverError,
-                            UsageError)
+from ddsolve.errors import (ArgumentError, DDSolveError, DivergedError, MeshError, NotConvergedError, SceneError,
+                            SolverError, UsageError)
 
 __version__ = "0.1.0"
 
@@ -20,12 +20,13 @@ _FACE = {"Scene": "ddsolve.problem.scene", "Result": "ddsolve.post.result", "sol
          "reference": "ddsolve.api", "sweep": "ddsolve.api", "grow": "ddsolve.api",
          "load": "ddsolve.api"}
 
-__all__ = [*_FACE, "DDSolveError", "SceneError", "MeshError", "SolverError", "DivergedError", "NotConvergedError",
-           "UsageError", "__version__"]
+__all__ = [*_FACE, "DDSolveError", "ArgumentError", "SceneError", "MeshError", "SolverError", "DivergedError",
+           "NotConvergedError", "UsageError", "__version__"]
 
 
 def __getattr__(name: str):
     if name in _FACE:
+        importlib.import_module("ddsolve.api")  # the face in use: an uncaught ddsolve error is its one line
         return getattr(importlib.import_module(_FACE[name]), name)
     raise AttributeError(f"module 'ddsolve' has no attribute {name!r}")
 

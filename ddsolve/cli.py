@@ -66,8 +66,10 @@ def _default_output(args) -> Path:
 
 
 def _inputs(args, scene) -> list[Path]:
-    """The files a run reads: the scene file and its mesh or geometry file."""
-    return [path for path in (Path(args.scene), scene.mesh.file) if path is not None and path.is_file()]
+    """The files a run reads: the scene file, its mesh or geometry file and the files that one reaches."""
+    from ddsolve.io import inputs
+
+    return inputs.of_scene(scene, args.scene)
 
 
 def check_outputs(args, scene) -> Path:

@@ -18,6 +18,10 @@ class UsageError(DDSolveError):
     exit_status = 2
 
 
+class ArgumentError(DDSolveError, TypeError):
+    """An argument of a function of the Python API has the wrong type (``grow(limit="2")``)."""
+
+
 class SceneError(DDSolveError):
     """A scene file or an override is invalid."""
 

@@ -68,10 +68,11 @@ def cases(folder: Path) -> list[tuple[str, list[str], list[str]]]:
                        "Dzz": "[100.0, 100.0, 0.0]"}.items():
         out.append((f"materials.layer1.{key}", [_table("layer1", ANISOTROPIC)], [_table("layer1", ANISOTROPIC, key, value)]))
     heated = ["temperature.layer1=100.0"]
-    for key in ("alpha1", "alpha2"):
-        out.append((f"materials.layer1.{key}", [_table("layer1", ORTHOTROPIC), *heated],
-                    [_table("layer1", ORTHOTROPIC, key, "1e-5")]))
-    out += [("materials.layer1.alpha", heated, ["materials.layer1.alpha=1e-5"]),
+    for key, other in (("alpha1", "alpha2"), ("alpha2", "alpha1")):  # a heated layer gives an expansion
+        expanding = ORTHOTROPIC | {other: "2e-5"}
+        out.append((f"materials.layer1.{key}", [_table("layer1", expanding), *heated],
+                    [_table("layer1", expanding, key, "1e-5")]))
+    out += [("materials.layer1.alpha", ["materials.layer1.alpha=2e-5", *heated], ["materials.layer1.alpha=1e-5"]),
             ("temperature.layer1", ["materials.layer1.alpha=1e-5"], ["temperature.layer1=50.0"]),
             ("displacements.layer1.top.x", [], ["displacements.layer1.top.x=0.001"]),
             ("displacements.layer1.top.y", [], ["displacements.layer1.top.y=0.001"]),

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ddsolve.dd.interface import Interface
+from ddsolve.mesh.mesh import U_MINUS, U_PLUS
 from ddsolve.problem import scene as scenes
 
 #: The smallest tolerance of the final check: residuals at round-off level (with room for the
@@ -37,7 +38,7 @@ def kkt_tolerance(solver: scenes.Solver | None) -> float:
 class Constraints:
     """The KKT residuals of a result, each scale-free (0 for an exact solution)."""
 
-    penetration: float  # max (u⁻ − u⁺)·ν > 0 over crack nodes under non-penetration, / max|u|
+    penetration: float  # max (u⁻ − u⁺)·ν > 0 over every crack node under non-penetration (prescribed too), / max|u|
     gluing_gap: float  # max |gluing gap| over Σ (but the gap a multiplier at its bound ±p allows), / max|u|
     complementarity: float  # max |μᶜ [u]·ν| (but where μᶜ = p) / (max|λ| max|u|)
     multiplier_bounds: float  # max violation of 0 ≤ μᶜ ≤ p, |μ| ≤ p (a pull on closed crack faces), / max|λ|
@@ -92,9 +93,11 @@ def kkt(interface: Interface, traces: np.ndarray, lam: np.ndarray, p: float | No
     bounds = float(np.maximum(lower - lam, lam - upper).max(initial=0.0))
     finite = bool(np.all(np.isfinite(traces)) and np.all(np.isfinite(lam)) and np.isfinite(largest))
     nan = float("nan")
+    held = traces[U_MINUS, interface.prescribed_contact] - traces[U_PLUS, interface.prescribed_contact]
+    penetration = max(float(np.where(at_upper, 0.0, np.maximum(gap, 0.0))[contact].max(initial=0.0)),
+                      float(held.max(initial=0.0)))  # every crack node, its rows dropped or not
     return Constraints(
-        penetration=scale_free_ratio(float(np.where(at_upper, 0.0, np.maximum(gap, 0.0))[contact].max(initial=0.0)), largest)
-        if finite else nan,
+        penetration=scale_free_ratio(penetration, largest) if finite else nan,
         gluing_gap=scale_free_ratio(float(violated[~contact].max(initial=0.0)), largest) if finite else nan,
         complementarity=scale_free_ratio(float(np.abs(np.where(at_upper, 0.0, lam * gap)[contact]).max(initial=0.0)),
                                          traction * largest) if finite else nan,

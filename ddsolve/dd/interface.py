@@ -62,7 +62,12 @@ class Interface:
             "mu_minus": _both_components(all_vertices),
             "mu_plus": _both_components(all_vertices),
         }
+        #: The crack faces' normal entries (trace positions) that both faces prescribe, so that no contact row
+        #: holds them: the KKT check measures their penetration from the traces alone.
+        self.prescribed_contact = np.zeros(0, dtype=np.int64)
         if fixed is not None:
+            normals = 2 * contact_vertices + 1
+            self.prescribed_contact = normals[fixed[U_MINUS, normals] & fixed[U_PLUS, normals]]
             pairs = {"mu_c": (U_MINUS, U_PLUS), "mu_g": (U_MINUS, U_PLUS), "mu_minus": (U_MINUS, V_MINUS),
                      "mu_plus": (U_PLUS, V_PLUS)}
             for name, (vertices, components) in families.items():

@@ -5,7 +5,9 @@ A block's dof frame is (x, y) at every node but the Σ nodes that carry multipli
 components of both layers to zero, and wins where it meets a displaced boundary.  A boundary in
 ``[displacements.LAYER.NAME]`` fixes x and/or y, or the normal component (a straight boundary whose
 normal is along a dof axis: x or y away from Σ, Σ's tangent or normal at a multiplier node).  Where
-several boundaries meet, their conditions are combined; two that fix the same direction must agree.
+several boundaries meet, their conditions are combined; two that fix the same direction must agree.  A point
+support (a gmsh physical point of that name, or ``point = [x, y]``) fixes x and/or y at the vertex there,
+found by its coordinates (:func:`displaced_nodes`).
 
 At a Σ multiplier node the gluing ties the dofs of the blocks: every block at a glued vertex, the
 blocks of one face (u⁻ with v⁻, u⁺ with v⁺) at a crack vertex.  A dof that one block prescribes is
@@ -22,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ddsolve.errors import SceneError
-from ddsolve.mesh.mesh import BLOCKS, CLAMPED, CRACK, SIGMA, HalfMesh, Mesh, SigmaLine
+from ddsolve.mesh.mesh import BLOCKS, CLAMPED, CRACK, SIGMA, HalfMesh, Mesh, SigmaLine, point_nodes
 from ddsolve.problem.expressions import Expression
 from ddsolve.problem.scene import Displacement, Scene
 
@@ -54,15 +56,27 @@ def _conditions(scene: Scene, half: HalfMesh, layer: str
     clamped = np.zeros(len(half.points), dtype=bool)
     clamped[half.clamped()] = True
     for (name_layer, name), displacement in scene.displacements.items():
-        edges = half.edges(name)
-        if name_layer != layer or len(edges) == 0:
+        where = displaced_nodes(half, displacement) if name_layer == layer else ()
+        if len(where) == 0:
             continue
-        where = np.unique(edges)
+        edges = half.edges(name)
         parts = {"x": (displacement.x, np.array([1.0, 0.0])), "y": (displacement.y, np.array([0.0, 1.0]))}
         if displacement.normal is not None:
             parts = {"normal": (displacement.normal, _normal(half, edges, f"{displacement.key}.normal"))}
         given = {component: part for component, part in parts.items() if part[0] is not None}
         yield displacement, where[~clamped[where]], given
+
+
+def displaced_nodes(half: HalfMesh, displacement: Displacement) -> np.ndarray:
+    """The nodes of ``half`` a displacement prescribes: those of its boundary, or the vertex at its point
+    (``point``, or the mesh's named point of its name: :attr:`~ddsolve.mesh.mesh.HalfMesh.named_points`)."""
+    if displacement.point is not None:
+        return point_nodes(half.points, displacement.point)
+    name = displacement.boundary
+    if name in half.named_points:
+        return np.unique(np.concatenate([point_nodes(half.points, xy) for xy in half.named_points[name]]
+                                        + [np.unique(half.edges(name))]).astype(np.int64))
+    return np.unique(half.edges(name))
 
 
 def _rows(scene: Scene, half: HalfMesh, layer: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
@@ -202,11 +216,69 @@ def block_supports(scene: Scene, half: HalfMesh, sigma: SigmaLine, layer: str, b
 
 
 def check(scene: Scene, mesh: Mesh) -> SigmaSupports:
-    """Every displacement names a boundary of the mesh; returns the Σ table (:func:`sigma_supports`).
-    Whether the supports hold the structure is :func:`ddsolve.dd.kernels.of_scene`'s question."""
+    """Every displacement names a boundary or a named point of the mesh, or gives a point that is a vertex on
+    the boundary of a half (outer or Σ); returns the Σ table (:func:`sigma_supports`).  Whether the supports
+    hold the structure is :func:`ddsolve.dd.kernels.of_scene`'s question."""
     names = mesh.boundary_names()
+    spots = mesh.named_points
     for (_, name), displacement in scene.displacements.items():
-        if name not in names or name in (CLAMPED, SIGMA, CRACK):
+        if displacement.point is not None:
+            if name in names or name in spots or name in (SIGMA, CRACK):
+                raise SceneError(f"{displacement.key}: {name!r} names a boundary or a point of {mesh.origin}; give the "
+                                 "point support a name of its own")
+            _check_point(mesh, [displacement.point], f"{displacement.key}.point")
+        elif name in spots:
+            if displacement.normal is not None:
+                raise SceneError(f"{displacement.key}.normal: {name!r} is a point, which has no normal; give x and/or y")
+            _check_point(mesh, spots[name], f"{displacement.key}: the point {name!r} of {mesh.origin}")
+        elif name not in names or name in (CLAMPED, SIGMA, CRACK):
+            listed = ", ".join(n for n in names if n != CLAMPED)
+            points = f"; points: {', '.join(sorted(spots))}" if spots else ""
             raise SceneError(f"{displacement.key}: no boundary named {name!r} in {mesh.origin} "
-                             f"(boundaries: {', '.join(n for n in names if n != CLAMPED)})")
-    return sigma_supports(scene, mesh)
+                             f"(boundaries: {listed}{points})")
+    table = sigma_supports(scene, mesh)
+    check_prescribed_contact(scene, mesh, table)
+    return table
+
+
+def check_prescribed_contact(scene: Scene, mesh: Mesh, table: SigmaSupports) -> None:
+    """Under non-penetration, refuse prescribed displacements that push the crack faces through each other: at a
+    crack node where both faces' normal components are prescribed no contact row remains, so the data alone
+    decide, (u⁻ − u⁺)·ν > 0 (beyond round-off of the values) is an overlap no solve can undo."""
+    sigma = mesh.sigma
+    nodes = sigma.multiplier_nodes
+    normal = 2 * np.flatnonzero(sigma.crack[nodes]) + 1
+    if not scene.nonpenetration or not len(normal):
+        return
+    lower, upper = (next(b for b, spec in enumerate(BLOCKS) if spec.layer == "layer1" and spec.side == side)
+                    for side in (-1, +1))  # the faces that touch are layer 1's (the contact rows)
+    both = table.fixed[lower, normal] & table.fixed[upper, normal]
+    overlap = np.where(both, table.values[lower, normal] - table.values[upper, normal], 0.0)
+    scale = max(float(np.abs(table.values).max(initial=0.0)), 1e-300)
+    if overlap.max(initial=0.0) <= AGREE * scale:
+        return
+    worst = int(np.argmax(overlap))
+    node = nodes[normal[worst] // 2]
+    keys = [displacement.key for half in mesh.halves for layer in ("layer1", "layer2")
+            for displacement, where, _ in _conditions(scene, half, layer) if half.sigma[node] in where]
+    x, y = sigma.points[node]
+    raise SceneError(f"{', '.join(dict.fromkeys(keys)) or 'displacements'}: the prescribed displacements push "
+                     f"the crack faces through each other at ({x:.6g}, {y:.6g}): the lower face moves "
+                     f"{table.values[lower, normal[worst]]:.6g} along Σ's normal, the upper face "
+                     f"{table.values[upper, normal[worst]]:.6g} (an overlap of {overlap[worst]:.3g}), which "
+                     "contact.nonpenetration forbids: change the prescribed values")
+
+
+def _check_point(mesh: Mesh, points, what: str) -> None:
+    """Each of ``points`` is a vertex of a half of the layer, on that half's boundary (outer or Σ)."""
+    for xy in points:
+        found = False
+        for half in mesh.halves:
+            nodes = point_nodes(half.points, xy)
+            if len(nodes) and not np.isin(nodes, np.concatenate([half.boundary_edges.ravel(), half.sigma])).all():
+                raise SceneError(f"{what} at ({xy[0]:.6g}, {xy[1]:.6g}) is inside the {half.name} half, off its "
+                                 "boundary: a point support must lie on the boundary or on Σ")
+            found = found or len(nodes) > 0
+        if not found:
+            raise SceneError(f"{what} at ({xy[0]:.6g}, {xy[1]:.6g}) is not a vertex of the mesh (off the layer, or "
+                             "a mesh file without a vertex there): put it on a vertex of the boundary or of Σ")

@@ -7,11 +7,12 @@ import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Iterable, Mapping
 
 import h5py
 import numpy as np
 
-from ddsolve.errors import DDSolveError, SceneError
+from ddsolve.errors import ArgumentError, DDSolveError, SceneError
 from ddsolve.io import viewer as export
 from ddsolve.io.safe import check_targets, hdf5_image, recover, replace_together, same_file
 from ddsolve.mesh.mesh import BLOCKS, HalfMesh, Mesh, SigmaLine
@@ -31,10 +32,11 @@ RESULT_SUFFIXES = (".h5", ".hdf5")
 
 
 
-def check_result(path: Path, inputs: list[Path] = (), viewer: bool = True, named: str = "-o") -> None:
+def check_result(path: Path, inputs: Iterable[Path] | Mapping[Path, str] = (), viewer: bool | str = True,
+                 named: str = "-o") -> None:
     """Refuse a result (or sweep) file ``path`` that is not an HDF5 name, or whose set (with its viewer
-    files unless not ``viewer``) cannot be written or would replace one of the ``inputs``; ``named``: how
-    the messages name the path's argument."""
+    files unless not ``viewer``; a string: their format) cannot be written or would replace one of the
+    ``inputs``; ``named``: how the messages name the path's argument."""
     path = Path(path)
     if not path.name:
         raise DDSolveError(f"{named} {str(path)!r}: not a file name")
@@ -42,9 +44,16 @@ def check_result(path: Path, inputs: list[Path] = (), viewer: bool = True, named
         raise DDSolveError(f"{named} {path}: a result is an HDF5 file: give it the suffix .h5"
                            + (" (its viewer files are written beside it)" if viewer else "")
                            + ("; this name is an input of this run" if any(same_file(path, s) for s in inputs) else ""))
-    check_targets([path, *(export.viewer_paths(path.parent, path.stem) if viewer else [])], inputs)
+    fmt = viewer if isinstance(viewer, str) else "vtu"
+    check_targets([path, *(export.viewer_paths(path.parent, path.stem, fmt) if viewer else [])], inputs, named)
 
 
+
+
+def check_viewer(viewer: object, named: str = "--format") -> None:
+    """Refuse a viewer format that is not one of :data:`ddsolve.io.viewer.FORMATS`."""
+    if not isinstance(viewer, str) or viewer not in export.FORMATS:
+        raise ArgumentError(f"{named} must be one of {', '.join(map(repr, export.FORMATS))} (got {viewer!r:.40})")
 
 
 def write(path: Path, result: Result, viewer: str = "vtu", final: bool = False) -> list[Path]:
@@ -121,6 +130,7 @@ def half_datasets(half: HalfMesh, multiplier_nodes: np.ndarray, piece=None, skel
         sigma = numbered(half.sigma)
         out.update({f"{group}/sigma": sigma, f"{group}/interface": sigma[multiplier_nodes]})
         out.update({f"{group}/boundaries/{boundary}": numbered(edges) for boundary, edges in half.boundaries.items()})
+        out.update({f"{group}/named_points/{name}": xy for name, xy in half.named_points.items()})
     return out
 
 
@@ -159,7 +169,8 @@ def sigma_datasets(on: OnSigma, history: np.ndarray, active_set_changes: np.ndar
                 for layer, named in reactions.items() for name, force in named.items()})
     if fracture is not None:
         out.update({f"fracture/{key}": getattr(fracture, key) for key in FRACTURE_FIELDS + MODE_FIELDS
-                    + TOUGHNESS_FIELDS + OVERLAP_FIELDS})
+                    + TOUGHNESS_FIELDS + OVERLAP_FIELDS + NOISE_FIELDS})
+        out.update({f"fracture/reported/{key}": value for key, value in fracture.reported().items()})
         out.update({"fracture/arclength": sigma.arclength[nodes], "fracture/opening": on.opening,
                     "fracture/pressure": on.multipliers["mu_c"]})
     return out
@@ -308,7 +319,9 @@ def _read(f: h5py.File, path: Path) -> Result:
         on_sigma = _indices(_array(f, f"{group}/sigma", "i", (sigma_count,)), len(points), f"{group}/sigma")
         boundaries = {key: _indices(_array(f, f"{group}/boundaries/{key}", "i", (None, None)), len(points),
                                     f"{group}/boundaries/{key}") for key in f[group].get("boundaries", {})}
-        halves.append(HalfMesh(points, cells, side, on_sigma, boundaries))
+        named_points = {key: _array(f, f"{group}/named_points/{key}", "f", (None, 2))
+                        for key in f[group].get("named_points", {})}
+        halves.append(HalfMesh(points, cells, side, on_sigma, boundaries, named_points))
     mesh = Mesh(*halves, sigma, str(path))
     k = len(sigma.multiplier_nodes)
     solution = {spec.name: _array(f, f"solution/{spec.name}", "f", (len(mesh.half(spec.side).points), 2))
@@ -364,6 +377,8 @@ MODE_FIELDS = ("G_I", "G_II", "phase", "symmetric")
 TOUGHNESS_FIELDS = ("toughness", "critical_factor")
 #: Where the faces overlap, without non-penetration: absent from older files, read as none.
 OVERLAP_FIELDS = ("overlaps", "overlap_crack")
+#: G's noise level: absent from older files, read as NaN.
+NOISE_FIELDS = ("noise",)
 
 
 def _read_fracture(f):
@@ -373,4 +388,4 @@ def _read_fracture(f):
         return None
     return Fracture(**{key: _dataset(f, f"fracture/{key}")[()] for key in FRACTURE_FIELDS},
                     **{key: _dataset(f, f"fracture/{key}")[()] for key in MODE_FIELDS + TOUGHNESS_FIELDS
-                       + OVERLAP_FIELDS if f"fracture/{key}" in f})
+                       + OVERLAP_FIELDS + NOISE_FIELDS if f"fracture/{key}" in f})

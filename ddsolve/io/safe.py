@@ -13,7 +13,7 @@ import socket
 import tempfile
 import threading
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Iterable, Mapping
 
 from ddsolve.environment import process_exists
 from ddsolve.errors import DDSolveError
@@ -147,22 +147,24 @@ def check_name_length(path: Path) -> None:
                            f"most {limit - extra}): choose a shorter name")
 
 
-def check_targets(paths: list[Path], inputs: list[Path] = ()) -> None:
+def check_targets(paths: list[Path], inputs: Iterable[Path] | Mapping[Path, str] = (), named: str = "-o") -> None:
     """Refuse a set of output files that could not be written as a whole: an empty name, a name given
     twice, a name too long for its folder, an existing file that is not a regular file (a directory, a
-    device, a FIFO), one of the ``inputs``, or a folder that does not exist, cannot be reached or where no
-    file can be created."""
+    device, a FIFO), one of the ``inputs`` (paths, or paths with how the run reads each), or a folder that
+    does not exist, cannot be reached or where no file can be created; ``named``: how the messages name the
+    output's argument."""
+    reads = inputs if isinstance(inputs, Mapping) else dict.fromkeys(inputs, "")
     seen: dict[str, Path] = {}
     for path in map(Path, paths):
         if not path.name or str(path).endswith(os.sep):
-            raise DDSolveError(f"-o {str(path)!r}: not a file name")
+            raise DDSolveError(f"{named} {str(path)!r}: not a file name")
         key = os.path.abspath(path)
         if key in seen:
             raise DDSolveError(f"{path}: written twice in one set of result files")
         seen[key] = path
         check_name_length(path)
         try:
-            _check_target(path, inputs)
+            _check_target(path, reads, named)
         except OSError as exc:  # a folder on the way without search permission, a path too long...
             raise DDSolveError(f"{path}: cannot write ({os_reason(exc).lower()})") from None
     for folder, path in {Path(path).parent: Path(path) for path in reversed(paths)}.items():
@@ -180,16 +182,18 @@ def check_targets(paths: list[Path], inputs: list[Path] = ()) -> None:
             raise DDSolveError(f"{path}: cannot write in {folder} ({exc.strerror or exc})") from None
 
 
-def _check_target(path: Path, inputs: list[Path]) -> None:
-    """Refuse an existing ``path`` that is not a regular file, or one of the ``inputs``."""
+def _check_target(path: Path, reads: Mapping[Path, str], named: str) -> None:
+    """Refuse an existing ``path`` that is not a regular file, or one of the files the run ``reads`` (each
+    with how it is read)."""
     if path.is_symlink():
         return  # the link itself is replaced, never its target
     if path.exists() and not path.is_file():
         kind = "a directory" if path.is_dir() else "not a regular file"
-        raise DDSolveError(f"{path}: is {kind}; ddsolve replaces regular files only: choose another -o")
-    for source in inputs:
+        raise DDSolveError(f"{path}: is {kind}; ddsolve replaces regular files only: choose another {named}")
+    for source, how in reads.items():
         if same_file(path, source):
-            raise DDSolveError(f"{path}: is an input of this run ({source}); choose another -o")
+            raise DDSolveError(f"{path}: is an input of this run ({source}{', ' * bool(how)}{how}); "
+                               f"choose another {named}")
 
 
 @contextlib.contextmanager

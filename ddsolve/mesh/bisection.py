@@ -21,13 +21,13 @@ boundary edges projected.  Pure numpy; no gmsh, PETSc or MPI.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ddsolve.mesh.curves import Projector
 from ddsolve.mesh.element import CELL_EDGES, boundary_nodes, edge_keys, outer_edges
-from ddsolve.mesh.mesh import CLAMPED, SIGMA, Mesh, elevate, make_half, make_mesh
+from ddsolve.mesh.mesh import CLAMPED, SIGMA, Mesh, elevate, make_half, make_mesh, with_named_points
 
 
 #: Local vertices of the three edges of a cell, edge j opposite vertex j (edge 0 is the refinement edge).
@@ -58,6 +58,7 @@ class Triangulation:
     middles: tuple[np.ndarray, np.ndarray]
     degree: int
     origin: str
+    named_points: dict = field(default_factory=dict)  # the mesh's (HalfMesh.named_points), kept
 
 
 def triangulation(mesh: Mesh, longest_edge: bool = True) -> Triangulation:
@@ -94,7 +95,7 @@ def triangulation(mesh: Mesh, longest_edge: bool = True) -> Triangulation:
         _, first = np.unique(edge_keys(edges, len(points)), return_index=True)
         middles = (edges[first], where[first])
     tri = Triangulation(points, cells, side, boundaries, np.full(len(points), "", dtype=object),
-                        np.zeros(len(points), dtype=bool), middles, mesh.degree, mesh.origin)
+                        np.zeros(len(points), dtype=bool), middles, mesh.degree, mesh.origin, mesh.named_points)
     return replace(tri, singular=_singular(tri, mesh, numbers[-1][lower.sigma[corner]]))
 
 
@@ -259,7 +260,7 @@ def to_mesh(tri: Triangulation, project: Projector | None = None) -> Mesh:
     for side in (-1, 1):
         mine = {name: edges for (where, name), edges in boundaries.items() if where == side}
         halves.append(make_half(points, cells[tri.side == side], side, mine, tri.origin)[0])
-    return make_mesh(*halves, tri.origin)
+    return with_named_points(make_mesh(*halves, tri.origin), tri.named_points)
 
 
 def refine(mesh: Mesh, marked: np.ndarray, project: Projector | None = None, longest_edge: bool = True) -> Mesh:

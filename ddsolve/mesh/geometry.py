@@ -120,36 +120,54 @@ def _mesh_half(scene: Scene, side: int) -> HalfMesh:
     geometry = translated(scene.geometry, -shift)
     x0, x1, y0, y1 = geometry.box
     ys = geometry.sigma
+    stops = box_stops(scene, -shift)
     cracks = [tip for piece in geometry.cracks for tip in piece if x0 < tip < x1]
-    sigma_x = sorted({x0, *cracks, x1})
+    sigma_x = sorted({x0, *cracks, *stops["sigma"], x1})
     width, below, above = x1 - x0, ys - y0, y1 - ys
     lengths = [width, width, below, below, above, above]  # bottom, top, the four half-sides
+    sides = {"bottom": [(x, y0) for x in [x0, *stops["bottom"], x1]],
+             "top": [(x, y1) for x in [x1, *stops["top"][::-1], x0]],
+             "right_lower": [(x1, y) for y in [y0, *stops["right_lower"], ys]],
+             "left_lower": [(x0, y) for y in [ys, *stops["left_lower"][::-1], y0]],
+             "right_upper": [(x1, y) for y in [ys, *stops["right_upper"], y1]],
+             "left_upper": [(x0, y) for y in [y1, *stops["left_upper"][::-1], ys]]}
+    pieces = [np.linalg.norm(np.diff(np.array(chain), axis=0), axis=1) for chain in sides.values()]
     if options.size is None:
         P, M = options.sigma_vertices, options.boundary_vertices
         h_sigma = width / (P - 1)
         slope = FAR_FACTOR * 2.0 * (width + below + above) / M - h_sigma
-        counts = [*apportion(P - 1, np.diff(sigma_x)), *apportion(M, lengths)]
+        counts = [*apportion(P - 1, np.diff(sigma_x)),
+                  *(count for total, piece in zip(apportion(M, lengths), pieces)
+                    for count in apportion(max(int(total), len(piece)), piece))]
         size_field = (f"{h_sigma:.17f} {'+' if slope >= 0 else '-'} {abs(slope):.17f} * "
                       f"({_distance_to_sigma(ys, max(below, above))})^{GRADING_EXPONENT:.17f}")
     else:
         h = options.size
-        counts = [max(1, math.ceil(length / h - 1e-9)) for length in [*np.diff(sigma_x), *lengths]]
+        counts = [max(1, math.ceil(length / h - 1e-9)) for length in [*np.diff(sigma_x), *np.concatenate(pieces)]]
         size_field = f"{h:.17f}"
     with session(deterministic=True) as gmsh:
         geo = gmsh.model.geo
-        on_sigma = [geo.addPoint(x, ys, 0.0) for x in sigma_x]
-        sigma = [geo.addLine(a, b) for a, b in zip(on_sigma[:-1], on_sigma[1:])]
-        corners = [geo.addPoint(x, y, 0.0) for x, y in ((x0, y0), (x1, y0), (x1, y1), (x0, y1))]
-        bottom, top = geo.addLine(corners[0], corners[1]), geo.addLine(corners[2], corners[3])
-        edges = [geo.addLine(corners[1], on_sigma[-1]), geo.addLine(on_sigma[0], corners[0]),
-                 geo.addLine(on_sigma[-1], corners[2]), geo.addLine(corners[3], on_sigma[0])]
+        made: dict[tuple[float, float], int] = {}
+
+        def chain(coordinates) -> list[int]:
+            """The lines through ``coordinates`` in order (their points made once)."""
+            for xy in coordinates:
+                if xy not in made:
+                    made[xy] = geo.addPoint(xy[0], xy[1], 0.0)
+            return [geo.addLine(made[a], made[b]) for a, b in zip(coordinates[:-1], coordinates[1:])]
+
+        sigma = chain([(x, ys) for x in sigma_x])
+        lines = {name: chain(coordinates) for name, coordinates in sides.items()}
         if side < 0:
-            surface = geo.addPlaneSurface([geo.addCurveLoop([bottom, edges[0], *[-c for c in sigma[::-1]], edges[1]])])
+            loop = [*lines["bottom"], *lines["right_lower"], *[-c for c in sigma[::-1]], *lines["left_lower"]]
         else:
-            surface = geo.addPlaneSurface([geo.addCurveLoop([*sigma, edges[2], top, edges[3]])])
+            loop = [*sigma, *lines["right_upper"], *lines["top"], *lines["left_upper"]]
+        surface = geo.addPlaneSurface([geo.addCurveLoop(loop)])
+        bottom, top = lines["bottom"], lines["top"]
+        edges = [lines[name] for name in ("right_lower", "left_lower", "right_upper", "left_upper")]
         geo.synchronize()
         if options.grading is None:
-            for curve, count in zip([*sigma, bottom, top, *edges], counts):
+            for curve, count in zip([*sigma, *bottom, *top, *(c for piece in edges for c in piece)], counts):
                 gmsh.model.mesh.setTransfiniteCurve(curve, int(count) + 1)
             field = gmsh.model.mesh.field.add("MathEval")
             gmsh.model.mesh.field.setString(field, "F", size_field)
@@ -164,6 +182,26 @@ def _mesh_half(scene: Scene, side: int) -> HalfMesh:
         cells = position[np.asarray(nodes, dtype=np.int64).reshape(-1, 3)]
     half = _box_half(points, cells, side, geometry, options.degree, origin(scene))
     return replace(half, points=half.points + shift)
+
+
+def box_stops(scene: Scene, offset: np.ndarray) -> dict[str, list[float]]:
+    """Where the box's point supports (``[displacements.LAYER.NAME] point``, moved by ``offset``) cut its
+    lines, so that the mesh has a vertex at each: line name -> sorted coordinates along it (x on Σ, bottom
+    and top; y on the half-sides), its ends excluded."""
+    geometry = translated(scene.geometry, offset)
+    x0, x1, y0, y1 = geometry.box
+    ys = geometry.sigma
+    out: dict[str, set[float]] = {name: set() for name in ("sigma", "bottom", "top", "right_lower", "left_lower",
+                                                           "right_upper", "left_upper")}
+    for displacement in scene.displacements.values():
+        if displacement.point is None:
+            continue
+        x, y = (float(v) for v in np.asarray(displacement.point) + offset)
+        if y in (ys, y0, y1) and x0 < x < x1:
+            out["sigma" if y == ys else "bottom" if y == y0 else "top"].add(x)
+        elif x in (x0, x1) and y0 < y < y1 and y != ys:
+            out[f"{'left' if x == x0 else 'right'}_{'lower' if y < ys else 'upper'}"].add(y)
+    return {name: sorted(values) for name, values in out.items()}
 
 
 def local_origin(box) -> np.ndarray:

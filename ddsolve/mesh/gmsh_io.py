@@ -15,7 +15,8 @@ import numpy as np
 
 from ddsolve.environment import end_with_parent
 from ddsolve.errors import MeshError
-from ddsolve.mesh.mesh import CRACK, SIGMA, TOL, Mesh, elevate, make_half, make_mesh, merge_repeats
+from ddsolve.mesh.mesh import (CRACK, SIGMA, TOL, Mesh, elevate, make_half, make_mesh, merge_repeats, point_nodes,
+                               with_named_points)
 from ddsolve.mesh.sizing import SMALLEST, model_singular_points, node_positions, set_size_field
 from ddsolve.problem.scene import Scene, readable
 
@@ -26,8 +27,8 @@ T = TypeVar("T")
 REQUIRED_GROUPS = {2: ("lower", "upper"), 1: (SIGMA,)}
 
 
-#: gmsh element types: triangle, 6-node triangle, line, 3-node line.
-GMSH_TRIANGLE, GMSH_TRIANGLE6, GMSH_LINE, GMSH_LINE3 = 2, 9, 1, 8
+#: gmsh element types: triangle, 6-node triangle, line, 3-node line, point.
+GMSH_TRIANGLE, GMSH_TRIANGLE6, GMSH_LINE, GMSH_LINE3, GMSH_POINT = 2, 9, 1, 8, 15
 
 
 # --- gmsh in a child process -------------------------------------------------------------------
@@ -235,6 +236,7 @@ def _from_gmsh(scene: Scene) -> Mesh:
         curves = {name: _elements(gmsh, entities, (GMSH_LINE, GMSH_LINE3), position, where)
                   for (dim, name), entities in groups.items() if dim == 1}
         normals = _curve_normals(gmsh, groups[(1, SIGMA)], position, len(points)) if options.kind == "geo" else None
+        named_points = _named_points(gmsh, groups, points, position)
     cells = surfaces["lower"]
     if cells.shape[1] == 6 and options.degree == 1:
         raise MeshError(f"{where}: the file has 6-node (P2) triangles: set mesh.degree = 2, without mesh.refine "
@@ -257,7 +259,21 @@ def _from_gmsh(scene: Scene) -> Mesh:
         old = np.full(len(lower.points), -1, dtype=np.int64)
         old[renumbered[0][renumbered[0] >= 0]] = np.flatnonzero(renumbered[0] >= 0)
         exact = normals[old[lower.sigma]]
-    return make_mesh(*halves, where, exact_normals=exact)
+    return with_named_points(make_mesh(*halves, where, exact_normals=exact), named_points)
+
+
+def _named_points(gmsh, groups: dict[tuple[int, str], list[int]], points: np.ndarray, position: np.ndarray
+                  ) -> dict[str, np.ndarray]:
+    """The physical points: name -> the coordinates ``(k, 2)`` of the nodes of its point elements (a support
+    where a ``[displacements.LAYER.NAME]`` names it)."""
+    out = {}
+    for (dim, name), entities in groups.items():
+        if dim == 0:
+            tags = [np.asarray(nodes, dtype=np.int64) for entity in dict.fromkeys(entities)
+                    for nodes in gmsh.model.mesh.getElements(0, entity)[2]]
+            found = np.unique(np.concatenate(tags)) if tags else np.zeros(0, dtype=np.int64)
+            out[name] = np.unique(points[position[found]], axis=0).reshape(-1, 2)
+    return out
 
 
 def _bounded_curves(gmsh, groups: dict[tuple[int, str], list[int]], degree: int, length: float, where: str) -> None:
@@ -309,11 +325,11 @@ VERTICES_PER_BOUNDARY_NODE_SQUARED = 0.08
 
 
 def physical_groups(gmsh, where: str) -> dict[tuple[int, str], list[int]]:
-    """(dim, name) -> entity tags; the required groups must exist."""
+    """(dim, name) -> entity tags (points, curves, surfaces); the required groups must exist."""
     groups: dict[tuple[int, str], list[int]] = {}
     for dim, tag in gmsh.model.getPhysicalGroups():
         name = gmsh.model.getPhysicalName(dim, tag)
-        if dim in (1, 2) and name:
+        if dim in (0, 1, 2) and name:
             groups.setdefault((dim, name), []).extend(int(e) for e in gmsh.model.getEntitiesForPhysicalGroup(dim, tag))
     for dim, names in REQUIRED_GROUPS.items():
         for name in names:
@@ -405,5 +421,13 @@ def write_msh(mesh: Mesh, path: Path) -> None:
                                               edges.ravel())
             next_element += len(edges)
             gmsh.model.setPhysicalName(1, gmsh.model.addPhysicalGroup(1, [curve]), name)
+        for name, where in sorted(mesh.named_points.items()):
+            nodes = np.unique(np.concatenate([point_nodes(points, xy) for xy in where])) + 1
+            if len(nodes):
+                spot = gmsh.model.addDiscreteEntity(0)
+                gmsh.model.mesh.addElementsByType(spot, GMSH_POINT, np.arange(next_element, next_element + len(nodes)),
+                                                  nodes)
+                next_element += len(nodes)
+                gmsh.model.setPhysicalName(0, gmsh.model.addPhysicalGroup(0, [spot]), name)
         gmsh.option.setNumber("Mesh.MshFileVersion", 4.1)
         gmsh.write(str(path))

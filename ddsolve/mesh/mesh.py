@@ -13,7 +13,7 @@ No PETSc, MPI or gmsh here.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -31,13 +31,18 @@ TOL = 1e-10
 
 @dataclass(frozen=True, eq=False)
 class HalfMesh:
-    """One half: ``side`` −1 (lower, Ω₋) or +1 (upper, Ω₊); ``sigma`` its Σ nodes in Σ order."""
+    """One half: ``side`` −1 (lower, Ω₋) or +1 (upper, Ω₊); ``sigma`` its Σ nodes in Σ order.
+
+    ``named_points``: the geometry's named points (gmsh physical points), name -> coordinates ``(k, 2)``,
+    the same in both halves; each is a vertex of the half(s) whose boundary it lies on
+    (:func:`point_nodes` finds it by its coordinates, which refinement and distribution keep)."""
 
     points: np.ndarray
     cells: np.ndarray
     side: int
     sigma: np.ndarray
     boundaries: dict[str, np.ndarray] = field(default_factory=dict)
+    named_points: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def name(self) -> str:
@@ -108,7 +113,8 @@ def skeleton(half: HalfMesh) -> HalfMesh:
     number = np.full(len(half.points), -1, dtype=np.int64)
     number[kept] = np.arange(len(kept))
     bare = HalfMesh(half.points[kept], np.zeros((0, half.cells.shape[1]), dtype=half.cells.dtype), half.side,
-                    number[half.sigma], {name: number[edges] for name, edges in half.boundaries.items()})
+                    number[half.sigma], {name: number[edges] for name, edges in half.boundaries.items()},
+                    half.named_points)
     return known(bare, boundary_edges=number[half.boundary_edges], shape=half.shape)
 
 
@@ -205,6 +211,28 @@ class Mesh:
         """Names of the boundary parts loads may refer to (Σ and the cracks excluded)."""
         names = set(self.lower.boundaries) | set(self.upper.boundaries)
         return sorted(names - {SIGMA, CRACK})
+
+    @property
+    def named_points(self) -> dict[str, np.ndarray]:
+        """The geometry's named points (both halves hold them), name -> coordinates ``(k, 2)``."""
+        return self.lower.named_points
+
+
+def with_named_points(mesh: Mesh, named_points: dict[str, np.ndarray]) -> Mesh:
+    """``mesh`` with both halves holding ``named_points`` (a mesh remade from another keeps its points)."""
+    if not named_points:
+        return mesh
+    lower, upper = (replace(half, named_points=named_points) for half in mesh.halves)
+    return replace(mesh, lower=lower, upper=upper)
+
+
+def point_nodes(points: np.ndarray, point) -> np.ndarray:
+    """The indices of ``points`` (a half's nodes) at ``point`` (x, y), within TOL of their extent."""
+    point = np.asarray(point, dtype=np.float64)
+    if len(points) == 0:
+        return np.zeros(0, dtype=np.int64)
+    scale = max(float(np.ptp(points, axis=0).max()), 1e-300)
+    return np.flatnonzero(np.abs(points - point).max(axis=1) <= TOL * scale)
 
 
 # --- geometry helpers -------------------------------------------------------------------------

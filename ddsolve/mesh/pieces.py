@@ -114,7 +114,7 @@ def cut(half: HalfMesh, first: int, stop: int, rings: int = 2) -> Piece:
     local = np.full(n, -1, dtype=np.int64)
     local[nodes] = np.arange(len(nodes))
     piece = HalfMesh(half.points[nodes], local[half.cells[cell_ids]], half.side, local[half.sigma],
-                     {name: local[named] for name, named in half.boundaries.items()})
+                     {name: local[named] for name, named in half.boundaries.items()}, half.named_points)
     outer = local[edges[in_cells[edges].all(axis=1)]]
     return Piece(piece, nodes.astype(index_type(2 * n)), cell_stop - cell_first, outer, first, stop, cell_first, n,
                  len(half.cells), local[np.unique(edges)])
@@ -178,7 +178,7 @@ def of_lattice(grid: Lattice, first: int, stop: int, project: Projector | None =
     points = grid.points_of(np.array_split(nodes, share[1])[share[0]], project)
     mark("meshing", cells.nbytes + nodes.nbytes + points.nbytes)
     piece = HalfMesh(join(points), local[cells], grid.coarse.side, local[sigma],
-                     {name: local[named] for name, named in boundaries.items()})
+                     {name: local[named] for name, named in boundaries.items()}, grid.coarse.named_points)
     return Piece(piece, nodes.astype(index_type(2 * rows)), int(owned.sum()), local[outer], first, stop, 0, rows,
                  grid.cell_count * per_cell, local[np.unique(edges)])
 

@@ -307,7 +307,8 @@ class Lattice:
         its cells put in the order of their smallest node (:func:`cell_order`); its outer edges are the coarse
         half's cut, and ``shape`` (:func:`~ddsolve.mesh.mesh.shape_of` of all its cells, from the pieces'
         shapes) is kept."""
-        half = HalfMesh(points, cells[cell_order(cells)], self.coarse.side, self.sigma(), self.boundaries())
+        half = HalfMesh(points, cells[cell_order(cells)], self.coarse.side, self.sigma(), self.boundaries(),
+                        self.coarse.named_points)
         return known(half, boundary_edges=self.outer_edges(), **({"shape": shape} if shape is not None else {}))
 
     def skeleton(self, shape: Shape, project: Projector | None = None) -> HalfMesh:
@@ -317,7 +318,8 @@ class Lattice:
         kept = np.unique(np.concatenate([outer.ravel(), sigma, *(edges.ravel() for edges in boundaries.values())]))
         bare = HalfMesh(self.points_of(kept, project), np.zeros((0, 3 * self.degree), dtype=np.int64),
                         self.coarse.side, np.searchsorted(kept, sigma),
-                        {name: np.searchsorted(kept, edges) for name, edges in boundaries.items()})
+                        {name: np.searchsorted(kept, edges) for name, edges in boundaries.items()},
+                        self.coarse.named_points)
         return known(bare, boundary_edges=np.searchsorted(kept, outer), shape=shape)
 
     def owners(self, first: int, stop: int) -> np.ndarray:

@@ -73,8 +73,9 @@ def model_singular_points(gmsh, groups: dict[tuple[int, str], list[int]]) -> np.
 
     A point is singular where a crack curve ends on anything else (a crack tip, or a crack reaching
     the outer boundary), where Σ meets the outer boundary, where a clamped curve meets a free one
-    (the boundary condition changes), and where a half has a re-entrant corner (interior angle > π)
-    that is not inside the glued part of Σ (there the material continues into the other half).
+    (the boundary condition changes), where a half has a re-entrant corner (interior angle > π)
+    that is not inside the glued part of Σ (there the material continues into the other half), and at
+    the physical points (point supports).
     """
     crack, sigma, clamped = (set(groups.get((1, name), [])) for name in (CRACK, SIGMA, CLAMPED))
     halves = set(groups[(2, "lower")]) | set(groups[(2, "upper")])
@@ -97,6 +98,8 @@ def model_singular_points(gmsh, groups: dict[tuple[int, str], list[int]]) -> np.
                 or outer == {"clamped", "free"} \
                 or ("glued" not in roles and roles and _reentrant(gmsh, point, halves)):
             singular.append(gmsh.model.getValue(0, point, [])[:2])
+    for (dim, _), points in groups.items():  # physical points: point supports (point forces)
+        singular += [gmsh.model.getValue(0, point, [])[:2] for point in points if dim == 0]
     return np.array(singular, dtype=np.float64).reshape(-1, 2)
 
 

@@ -236,15 +236,23 @@ def eigenstrain_term(points: np.ndarray, cells: np.ndarray, xi: np.ndarray, grad
 
 def block_terms(scene, sigma: SigmaLine, tips: list[Tip], parts: dict[int, tuple]) -> np.ndarray:
     """Sum of the volume terms for every tip over ``parts``: block index -> (points, cells, u), cells of the
-    block's half (all, or those a rank owns) and the displacements ``(n, 2)`` (x, y) at the points."""
-    out = np.zeros(len(tips))
+    block's half (all, or those a rank owns) and the displacements ``(n, 2)`` (x, y) at the points; ``(2t,)``:
+    each tip's with its θ, then with its :func:`halved` one."""
+    contours = tips + [halved(tip) for tip in tips]
+    out = np.zeros(len(contours))
     if not tips:
         return out
     for index, (points, cells, u) in parts.items():
         layer = BLOCKS[index].layer
         out += volume_terms(points, cells, assembly.elasticity(scene, layer)[0], u,
-                            [theta(tip, sigma, points) for tip in tips], assembly.thermal_of(scene, layer))
+                            [theta(tip, sigma, points) for tip in contours], assembly.thermal_of(scene, layer))
     return out
+
+
+def halved(tip: Tip) -> Tip:
+    """The tip with the second θ contour: radii (inner/2, inner).  The exact G does not depend on the
+    contour; the two discrete ones differ by the discretization error, G's noise level (:func:`finish`)."""
+    return dataclasses.replace(tip, inner=0.5 * tip.inner, outer=tip.inner)
 
 
 def contact_terms(tips: list[Tip], on: OnSigma) -> np.ndarray:
@@ -290,28 +298,46 @@ def finish(tips: list[Tip], volume: np.ndarray, on: OnSigma, split: dict[str, np
 
     zones, zone_crack = located(contact_zones(on) if scene.nonpenetration else [])
     overlaps, overlap_crack = located([] if scene.nonpenetration else overlap_zones(on))
-    G = np.asarray(volume, dtype=np.float64) - contact
+    G, noise = release_and_noise(tips, np.asarray(volume, dtype=np.float64), contact, on)
     out = Fracture(
         points=np.array([tip.point for tip in tips]).reshape(-1, 2),
         directions=np.array([tip.direction for tip in tips]).reshape(-1, 2),
         crack=np.array([tip.crack for tip in tips], dtype=np.int64),
         inner=np.array([tip.inner for tip in tips]), outer=np.array([tip.outer for tip in tips]),
         spacing=np.array([tip.spacing for tip in tips]), G=G, contact=contact, zones=zones, zone_crack=zone_crack,
-        overlaps=overlaps, overlap_crack=overlap_crack, **(split or {}),
+        overlaps=overlaps, overlap_crack=overlap_crack, noise=noise, **(split or {}),
     )
     out.phase = np.where(out.released(), out.phase, np.nan)
     return judge(out, scene, factors)
+
+
+def release_and_noise(tips: list[Tip], volume: np.ndarray, contact: np.ndarray, on: OnSigma
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """G at each tip and its noise level: |G − G'|, G' the domain integral on the :func:`halved` contour
+    (``volume`` ``(2t,)`` from :func:`block_terms`), at least −G (the exact G is never negative: G = −dΠ/da
+    releases a constraint) and the rounding of the integral; NaN without the second contour."""
+    count = len(tips)
+    G = volume[:count] - contact
+    if len(volume) != 2 * count:
+        return G, np.full(count, np.nan)
+    other = volume[count:] - contact_terms([halved(tip) for tip in tips], on)
+    rounding = ROUNDING * np.maximum(np.abs(G), np.abs(other))
+    return G, np.maximum.reduce([np.abs(G - other), -G, rounding]) if count else np.zeros(0)
+
+
+#: The rounding of a domain integral relative to its value (its terms cancel to about this).
+ROUNDING = 1e-12
 
 
 def of_result(result, tips: list[Tip], factors: np.ndarray | None = None) -> Fracture:
     """G at ``tips`` from a result's four blocks (one process), with the toughness and the critical load
     factors (``factors``: see :func:`finish`)."""
     scene = result.parsed_scene
-    volume = np.zeros(len(tips))
+    volume = np.zeros(2 * len(tips))
     for spec in BLOCKS:
         half = result.half(spec.name)
         D, _ = assembly.elasticity(scene, spec.layer)
-        fields = [theta(tip, result.mesh.sigma, half.points) for tip in tips]
+        fields = [theta(tip, result.mesh.sigma, half.points) for tip in tips + [halved(tip) for tip in tips]]
         volume += volume_terms(half.points, half.cells, D, result.solution[spec.name], fields,
                                assembly.thermal_of(scene, spec.layer))
     return finish(tips, volume, result.on_sigma, mode_split(tips, result), scene, factors)

@@ -74,13 +74,14 @@ def tie(sigma: SigmaLine, entries: list[np.ndarray], own: list[np.ndarray]) -> l
 
 def boundary_sums(scene: Scene, half: HalfMesh, sigma: SigmaLine, layer: str, forces: np.ndarray
                   ) -> dict[str, np.ndarray]:
-    """Boundary name -> the sum ``(2,)`` in x, y of a block's support forces (in its dof frames) on it, each
-    projected on the directions that boundary prescribes at its node (a clamped side: both)."""
+    """Boundary (or point support) name -> the sum ``(2,)`` in x, y of a block's support forces (in its dof
+    frames) on it, each projected on the directions that boundary prescribes at its node (a clamped side:
+    both)."""
     vectors = np.einsum("nab,na->nb", supports.node_frames(half, sigma), forces)
     displaced = supports.projectors(scene, half, layer)
     return {name: displaced[name][1] @ vectors[displaced[name][0]].sum(axis=0) if name in displaced
             else vectors[half.nodes(name)].sum(axis=0)
-            for name in supported_boundaries(scene, set(half.boundaries), layer)}
+            for name in supported_boundaries(scene, set(half.boundaries) | set(displaced), layer)}
 
 
 def ordered(scene: Scene, parts: list[tuple[str, dict[str, np.ndarray]]]) -> dict[str, dict[str, np.ndarray]]:

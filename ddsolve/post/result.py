@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ddsolve.errors import ArgumentError, DDSolveError
 from ddsolve.fem import assembly
 from ddsolve.mesh.mesh import BLOCKS, HalfMesh, Mesh, SigmaLine
 from ddsolve.problem import scene as scenes
@@ -51,6 +52,26 @@ class Result:
     indicators: dict[str, np.ndarray] = field(default_factory=dict)
     levels: dict[str, np.ndarray] = field(default_factory=dict)
     held: OnSigma | None = None  # rank 0 of a run whose ranks wrote the result: all it holds (no mesh, no solution)
+    #: The files the run read (scene, mesh and the files it reaches) -> how: :meth:`save` never replaces them.
+    inputs: dict[Path, str] = field(default_factory=dict, compare=False)
+    #: The result file this result was last read from or saved to, if any.
+    path: Path | None = field(default=None, compare=False)
+
+    def __repr__(self) -> str:
+        """A few lines: what was solved, how, the energy, G and the file (the arrays are attributes)."""
+        try:
+            title = self.parsed_scene.title
+        except DDSolveError:  # a result file's scene that does not parse: the rest still describes it
+            title = "(scene not readable)"
+        state = "converged" if self.converged else "NOT converged"
+        G = self.G
+        tips = ("no crack tips" if len(G) == 0 else f"G at {len(G)} tip{'s' * (len(G) > 1)} "
+                + ", ".join(f"{g:.4e}" for g in G[:4]) + (", ..." if len(G) > 4 else ""))
+        unknowns = 4 * sum(len(half.points) for half in self.mesh.halves) if self.mesh is not None else None
+        size = "" if unknowns is None else f", {unknowns} unknowns"
+        return (f"<Result of {title!r}: {self.method}, {state} after {self.iterations} iterations on {self.ranks} "
+                f"rank{'s' * (self.ranks != 1)}{size}; energy {self.energy:.10e}; {tips}"
+                f"{'' if self.path is None else f'; file {self.path}'}>")
 
     @cached_property
     def parsed_scene(self) -> scenes.Scene:
@@ -86,11 +107,16 @@ class Result:
 
     def save(self, path: str | Path, viewer: str = "vtu") -> list[Path]:
         """Write the result set: the HDF5 file ``path`` and its viewer files (``vtu`` or ``xdmf``) beside
-        it, replaced together; returns the paths written."""
-        from ddsolve.io.hdf5 import check_result, write  # deferred, as meshio's Mesh.write: io is the stage above
+        it, replaced together (never over a file the run read: :attr:`inputs`); returns the paths written."""
+        from ddsolve.io.hdf5 import check_result, check_viewer, write  # deferred: io is the stage above
 
-        check_result(Path(path), named="save")
-        return write(Path(path), self, viewer)
+        if not isinstance(path, (str, Path)):
+            raise ArgumentError(f"save: path must be a file's path (got {type(path).__name__})")
+        check_viewer(viewer, "save: viewer")
+        check_result(Path(path), self.inputs, viewer=viewer, named="save path")
+        written = write(Path(path), self, viewer)
+        self.path = Path(path)
+        return written
 
     @classmethod
     def from_blocks(cls, scene: str, method: str, mesh: Mesh, fields: list[np.ndarray], interface, lam: np.ndarray,
@@ -104,6 +130,26 @@ class Result:
                     for spec, u in zip(BLOCKS, fields)}
         return cls(scene=scene, method=method, mesh=mesh, solution=solution,
                    multipliers=interface.split(lam, frames), **record)
+
+    def not_finite(self) -> list[str]:
+        """What of this result is not a finite number: its energy, G at a tip, a displacement or multiplier field
+        (what it holds: rank 0 of a run whose ranks wrote the result has no displacements)."""
+        fields = {f"the displacement of {name}": u for name, u in self.solution.items()}
+        fields |= {f"the multipliers {name}": values for name, values in self.multipliers.items()}
+        fields |= {"the energy": np.array([self.energy]) if "energy" in self.attrs else np.zeros(0), "G": self.G}
+        return [what for what, values in fields.items() if not np.all(np.isfinite(values))]
+
+    def claim(self) -> str:
+        """Withdraw ``converged`` from a result that is not finite (:meth:`not_finite`): every run's last step
+        before its result is written, so that no file says converged = true over NaN or inf.  Returns the
+        message set ("" when the result is finite)."""
+        bad = self.not_finite()
+        if not bad:
+            return ""
+        self.converged = False
+        self.message = (f"{self.method}: not converged: {', '.join(bad)} {'is' if len(bad) == 1 else 'are'} not "
+                        "finite (NaN or inf): the problem's values are beyond double precision")
+        return self.message
 
     @cached_property
     def on_sigma(self) -> OnSigma:
@@ -224,10 +270,11 @@ class Fracture:
     critical_factor: np.ndarray | None = None
     overlaps: np.ndarray | None = None
     overlap_crack: np.ndarray | None = None
+    noise: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         count = len(self.G)
-        for name in ("G_I", "G_II", "phase", "toughness", "critical_factor"):
+        for name in ("G_I", "G_II", "phase", "toughness", "critical_factor", "noise"):
             if getattr(self, name) is None:
                 setattr(self, name, np.full(count, np.nan))
         if self.symmetric is None:
@@ -237,10 +284,33 @@ class Fracture:
         if self.overlap_crack is None:
             self.overlap_crack = np.zeros(0, dtype=np.int64)
 
+    def __repr__(self) -> str:
+        return (f"<Fracture: {len(self.G)} tips, G {np.array2string(np.asarray(self.G), precision=4, threshold=8)}, "
+                f"{len(self.zones)} contact zones, {len(self.overlaps)} overlaps>")
+
     def released(self) -> np.ndarray:
         """Per tip whether G is a release rate: above RELEASE × the largest |G| of the tips."""
         G = np.asarray(self.G, dtype=float)
         return G > RELEASE * np.abs(G).max(initial=0.0)
+
+    def within_noise(self) -> np.ndarray:
+        """Per tip whether G is at most its noise level (``noise``, the discretization error:
+        :func:`ddsolve.post.fracture.release_and_noise`; NaN in older files: never)."""
+        return np.asarray(self.G, dtype=float) <= np.nan_to_num(np.asarray(self.noise, dtype=float), nan=-np.inf)
+
+    def reported(self) -> dict[str, np.ndarray]:
+        """G, G_I and G_II as reported: G is 0 where it is no release rate or within its noise; G_I and G_II are
+        clamped at 0 (a negative part is the split's error), 0 where G is, and where the split is resolved
+        (G_I + G_II as computed within SPLIT_DRIFT of G) scaled to sum to G.  The fields keep what was computed
+        (G the exact derivative of the discrete energy; G, G_I, G_II quadratics in a load factor)."""
+        zero = ~self.released() | self.within_noise()
+        G = np.where(zero, 0.0, np.asarray(self.G, dtype=float))
+        G_I, G_II = np.maximum(self.G_I, 0.0), np.maximum(self.G_II, 0.0)
+        total = G_I + G_II
+        resolved = ~zero & (np.abs(self.split_drift()) <= SPLIT_DRIFT) & (total > 0)
+        scale = np.where(resolved, G / np.where(total > 0, total, 1.0), np.where(zero, 0.0, 1.0))
+        return {"G": G, "G_I": np.where(np.isnan(self.G_I), np.nan, G_I * scale),
+                "G_II": np.where(np.isnan(self.G_II), np.nan, G_II * scale)}
 
     def modes(self) -> list[str]:
         """Per tip: «(G_I ..., G_II ..., ψ = ...°)» (NO_PHASE where ψ is NaN), with «by crack closure» where
@@ -250,14 +320,17 @@ class Fracture:
             return (f"; G_I + G_II is {drift:+.0%} off G: the split is not resolved, refine near this tip"
                     if abs(drift) > SPLIT_DRIFT else "")
 
+        shown = self.reported()
+        phase = np.where(self.within_noise(), np.nan, self.phase)
         return ["" if np.isnan(g1) else
                 f"(G_I {g1:.3e}, G_II {g2:.3e}, {f'ψ = {psi:.1f}°' if np.isfinite(psi) else NO_PHASE}"
                 f"{'' if by_symmetry else ', by crack closure'}{warning(drift)})"
-                for g1, g2, psi, by_symmetry, drift in zip(self.G_I, self.G_II, self.phase, self.symmetric,
+                for g1, g2, psi, by_symmetry, drift in zip(shown["G_I"], shown["G_II"], phase, self.symmetric,
                                                            self.split_drift())]
 
     def split_drift(self) -> np.ndarray:
-        """Per tip (G_I + G_II)/G − 1, where G is a release rate (:meth:`released`); 0 elsewhere."""
+        """Per tip (G_I + G_II)/G − 1 of the split as computed, where G is a release rate (:meth:`released`);
+        0 elsewhere."""
         G = np.asarray(self.G, dtype=float)
         released = self.released() & np.isfinite(self.G_I) & np.isfinite(self.G_II)
         return np.where(released, (np.asarray(self.G_I) + np.asarray(self.G_II)) / np.where(released, G, 1.0) - 1.0,
@@ -274,15 +347,23 @@ class Fracture:
 
         return [parts(*values) for values in zip(self.G, self.toughness, self.critical_factor)]
 
+    def quoted(self, G: float, noise: float) -> str:
+        """G as printed: the value (± its noise level where known), or 0 where within the noise."""
+        if not np.isfinite(noise):
+            return f"{G:.6e}"
+        if G <= noise:
+            return f"0 (G ≈ 0: computed {G:.3e}, within the discretization noise {noise:.2g})"
+        return f"{G:.6e} (± {noise:.2g})"
+
     def lines(self) -> list[str]:
         """One line per tip and one for the contact zones (without non-penetration: where the faces overlap),
         as printed after a solve."""
         lines = []
-        for (x, y), c, g, a, b, h, modes, growth in zip(self.points, self.crack, self.G, self.inner, self.outer,
-                                                         self.spacing, self.modes(), self.growth()):
+        for (x, y), c, g, n, a, b, h, modes, growth in zip(self.points, self.crack, self.G, self.noise, self.inner,
+                                                            self.outer, self.spacing, self.modes(), self.growth()):
             note = f"; only {a / h:.1f} elements within the inner radius: refine near this tip" \
                 if a < FEW_ELEMENTS * h else ""
-            lines.append(f"G at tip ({x:.6g}, {y:.6g}) of crack {c}: {g:.6e}{' ' * bool(modes)}{modes}"
+            lines.append(f"G at tip ({x:.6g}, {y:.6g}) of crack {c}: {self.quoted(g, n)}{' ' * bool(modes)}{modes}"
                          f"{'; ' * bool(growth)}{growth}   (θ radii {a:.4g}, {b:.4g}{note})")
         for title, zones, cracks in (("crack faces in contact (arc length along Σ): ", self.zones, self.zone_crack),
                                      ("crack faces overlap (no non-penetration condition; arc length along Σ): ",

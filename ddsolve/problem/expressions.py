@@ -123,6 +123,28 @@ def scaled(expression: Expression, factor: float) -> Expression:
     return Expression(f"{factor!r}*({expression.text})", ("*", factor, expression.tree), coefficients)
 
 
+def divisors(expression: Expression) -> list[Expression]:
+    """The parts of ``expression`` whose zeros may be its poles: every divisor that is not a constant and every
+    base that is not a constant raised to a power that is not a constant natural number.  Sums, products and
+    the functions here are finite wherever their operands are, so an expression can grow without bound only
+    towards a zero of one of these."""
+    found: list[Node] = []
+
+    def visit(node: Node) -> None:
+        if not isinstance(node, tuple):
+            return
+        operator, *operands = node
+        if operator == "inv" and _degree(operands[0]) != 0:
+            found.append(operands[0])
+        if operator == "^" and _degree(operands[0]) != 0 and _degree(node) is None:
+            found.append(operands[0])
+        for operand in operands:
+            visit(operand)
+
+    visit(expression.tree)
+    return [Expression(expression.text, node) for node in found]
+
+
 def _tokenize(text: str) -> list[tuple[str, str, int]]:
     tokens, position = [], 0
     while position < len(text):

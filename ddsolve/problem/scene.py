@@ -117,13 +117,16 @@ class Load:
 
 @dataclass(frozen=True)
 class Displacement:
-    """Prescribed displacement components on the boundary ``key`` names (``displacements.LAYER.NAME``):
-    x and y, or the normal component; each an expression in x and y, or None (that component is free)."""
+    """Prescribed displacement components on the boundary or named point ``key`` names
+    (``displacements.LAYER.NAME``), or at ``point`` (x, y), a mesh vertex on the boundary or Σ: x and y,
+    or the normal component (boundaries only); each an expression in x and y, or None (that component
+    is free)."""
 
     key: str
     x: Expression | None = None
     y: Expression | None = None
     normal: Expression | None = None
+    point: tuple[float, float] | None = None
 
     @property
     def boundary(self) -> str:
@@ -460,7 +463,8 @@ def _material_schema(raw: dict) -> dict:
 
 
 _LOAD = {"x": (_load_value, None), "y": (_load_value, None), "pressure": (_load_value, None)}
-_DISPLACEMENT = {"x": (_load_value, None), "y": (_load_value, None), "normal": (_load_value, None)}
+_DISPLACEMENT = {"x": (_load_value, None), "y": (_load_value, None), "normal": (_load_value, None),
+                 "point": (_fixed_numbers(2), None)}
 
 SCHEMA: dict[str, Any] = {
     "title": (_string, ""),
@@ -597,7 +601,7 @@ def _cross_checks(data: dict, raw: dict, origin: str) -> None:
                          f"apart, within the meshing tolerance {feature:.2g} ({GEOMETRIC_TOLERANCE:g} × the box "
                          "size): lengthen, move or remove the crack")
     counts = (mesh["sigma_vertices"], mesh["boundary_vertices"])
-    _adaptive_defaults(mesh, set(raw["mesh"]) if isinstance(raw.get("mesh"), dict) else set())
+    _adaptive_defaults(mesh, set(raw["mesh"]) if isinstance(raw.get("mesh"), dict) else set(), geometry)
     _mesh_refinement_checks(mesh, origin)
     if mesh["file"] is not None:
         extra = [name for name in ("sigma_vertices", "boundary_vertices") if mesh[name] is not None]
@@ -613,7 +617,7 @@ def _cross_checks(data: dict, raw: dict, origin: str) -> None:
             raise SceneError(f"{origin}: mesh.size excludes mesh.sigma_vertices and mesh.boundary_vertices")
     elif None in counts:
         missing = "mesh.sigma_vertices" if counts[0] is None else "mesh.boundary_vertices"
-        raise SceneError(f"{origin}: missing key {missing} (or give mesh.size or mesh.file)")
+        raise SceneError(f"{origin}: missing key {missing} (or give mesh.size, mesh.file or mesh.target_error)")
     else:
         sigma_spacing = (x1 - x0) / (counts[0] - 1)
         boundary_spacing = 2.0 * ((x1 - x0) + (y1 - y0)) / counts[1]
@@ -636,6 +640,7 @@ def _cross_checks(data: dict, raw: dict, origin: str) -> None:
                 raise SceneError(f"{origin}: loads.{layer}.{printable(name)}: pressure excludes x and y "
                                  "(a pressure acts along the normal)")
     _displacement_checks(data, origin)
+    _temperature_checks(data, origin)
     solver = data["solver"]
     if solver["method"] == "uzawa" and solver["theta"] is None:
         raise SceneError(f"{origin}: solver.theta is required by method uzawa")
@@ -682,6 +687,25 @@ def _toughness_checks(data: dict, origin: str) -> None:
                          f"{'' if cracks == 1 else 's'} of geometry.cracks (one per crack, in order along Σ)")
 
 
+def _temperature_checks(data: dict, origin: str) -> None:
+    """A temperature change acts through the layer's expansion coefficients: a layer heated (ΔT not zero) must
+    give them (``alpha``, or ``alpha1`` or ``alpha2``); a layer given by its matrix D takes none."""
+    for layer, change in data.get("temperature", {}).items():
+        if change is None or (change.constant and change(0.0, 0.0) == 0.0):
+            continue
+        table = data["materials"][layer]
+        if "D" in table:
+            raise SceneError(f"{origin}: temperature.{layer}: materials.{layer} is given by its matrix D, which takes "
+                             "no thermal expansion, so the temperature change would do nothing: give the layer by "
+                             "its constants with alpha, or leave the temperature change out")
+        given = [key for key in ("alpha", "alpha1", "alpha2") if table.get(key) is not None]
+        if not given:
+            names = "alpha" if "E" in table else "alpha1 or alpha2"
+            raise SceneError(f"{origin}: temperature.{layer}: materials.{layer} has no expansion coefficient, so the "
+                             f"temperature change would do nothing: give materials.{layer}.{names}, or leave the "
+                             "temperature change out")
+
+
 #: Components of a load and of a displacement on one boundary that act in the same direction.
 SAME_COMPONENT = {"x": ("x",), "y": ("y",), "normal": ("pressure", "x", "y")}
 
@@ -694,7 +718,9 @@ def _displacement_checks(data: dict, origin: str) -> None:
     for layer, tables in data.get("displacements", {}).items():
         for name, table in tables.items():
             key = f"displacements.{layer}.{printable(name)}"
-            given = [component for component, value in table.items() if value is not None]
+            given = [component for component, value in table.items() if value is not None and component != "point"]
+            if table.get("point") is not None:
+                _point_checks(data, table, key, given, origin)
             if not given:
                 raise SceneError(f"{origin}: {key}: give x, y or normal")
             if "normal" in given and len(given) > 1:
@@ -711,6 +737,36 @@ def _displacement_checks(data: dict, origin: str) -> None:
                 if loaded:
                     raise SceneError(f"{origin}: {key}.{component}: boundary {printable(name)!r} of {layer} is "
                                      f"also loaded in that direction (loads.{layer}.{printable(name)}.{loaded[0]})")
+
+
+def _point_checks(data: dict, table: dict, key: str, given: list[str], origin: str) -> None:
+    """A point support (``point = [x, y]``) fixes x and/or y (a point has no normal) and, in the box, lies
+    on its sides or on Σ (the mesher puts a vertex there; a file's mesh must have one).  A box point is
+    snapped onto its line and onto a corner, Σ's end or a crack tip within the meshing tolerance."""
+    if "normal" in given:
+        raise SceneError(f"{origin}: {key}.normal: a point has no normal; give x and/or y at the point")
+    if data["mesh"]["file"] is not None:
+        return
+    x, y = table["point"]
+    box = x0, x1, y0, y1 = data["geometry"]["box"]
+    sigma = data["geometry"]["sigma"]
+    feature = GEOMETRIC_TOLERANCE * max(x1 - x0, y1 - y0)
+    inside = x0 - feature <= x <= x1 + feature and y0 - feature <= y <= y1 + feature
+    tips = [x0, x1, *(tip for piece in data["geometry"]["cracks"] for tip in piece)]
+    lines = [(1, y0, [x0, x1]), (1, y1, [x0, x1]), (1, sigma, tips), (0, x0, [y0, sigma, y1]),
+             (0, x1, [y0, sigma, y1])]
+    point = [x, y]
+    for axis, value, stops in lines:
+        if inside and abs(point[axis] - value) <= feature:
+            point[axis] = value
+            along = min(stops, key=lambda stop: abs(point[1 - axis] - stop))
+            if abs(point[1 - axis] - along) <= feature:
+                point[1 - axis] = along
+            table["point"] = tuple(point)
+            return
+    where = "outside the box" if not inside else "inside a layer, off its boundary"
+    raise SceneError(f"{origin}: {key}.point = [{x:g}, {y:g}] is {where}: a point support must lie on a side of "
+                     f"geometry.box = {[float(v) for v in box]} or on Σ (y = {sigma:g})")
 
 
 #: The largest ratio of the largest to the smallest eigenvalue of a layer's elastic matrix: 2/√ε, which
@@ -743,15 +799,30 @@ def _check_conditioning(D, table: dict, model: str, where: str) -> None:
                      f"{CONDITIONING:.2g}): use nu {limit}")
 
 
-def _adaptive_defaults(mesh: dict, given: set[str]) -> None:
-    """``mesh.target_error`` alone chooses P2 elements and, where a size is given (the box or a .geo
-    file with ``mesh.size``), a graded first mesh; keys the scene writes stay."""
+def _adaptive_defaults(mesh: dict, given: set[str], geometry: dict) -> None:
+    """``mesh.target_error`` alone chooses P2 elements, on a box without a mesh size a coarse first mesh
+    (:func:`coarse_size`), and, where a size is given (the box or a .geo file with ``mesh.size``), a graded
+    first mesh; keys the scene writes stay."""
     if mesh["target_error"] is None:
         return
     if "degree" not in given:
         mesh["degree"] = ADAPTIVE_DEGREE
+    if mesh["file"] is None and mesh["size"] is None and (mesh["sigma_vertices"], mesh["boundary_vertices"]) == (
+            None, None):
+        mesh["size"] = coarse_size(geometry["box"], geometry["sigma"])
     if "grading" not in given and mesh["size"] is not None:
         mesh["grading"] = True
+
+
+#: The first mesh of an adaptive run on a box that gives no mesh size: elements of the box's width over
+#: COARSE[0], and at least COARSE[1] through the thinner half, whichever is smaller (the paper's square: 0.1).
+COARSE = (20, 2)
+
+
+def coarse_size(box: Sequence[float], sigma: float) -> float:
+    """The element size of an adaptive run's first mesh on ``box`` cut at ``sigma`` (:data:`COARSE`)."""
+    x0, x1, y0, y1 = box
+    return min((x1 - x0) / COARSE[0], min(sigma - y0, y1 - sigma) / COARSE[1])
 
 
 def _mesh_refinement_checks(mesh: dict, origin: str) -> None:
@@ -825,9 +896,19 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str, 
 
 def override_items(overrides: dict[str, Any] | Sequence[str]) -> list[str]:
     """``KEY=VALUE`` items from a dict of dotted keys and Python values (numbers, booleans, text, lists,
-    numpy scalars and arrays) or from items already written so."""
+    numpy scalars and arrays) or from items already written so (a list of them, or one)."""
+    if isinstance(overrides, str):
+        return [overrides]
+    if not isinstance(overrides, (dict, list, tuple)):
+        raise SceneError(f"overrides: a dict of dotted keys and values, or KEY=VALUE items (got "
+                         f"{type(overrides).__name__})")
+    wrong = [item for item in overrides if not isinstance(item, str)]
+    if wrong:
+        raise SceneError(f"overrides: {printable(repr(wrong[0]))[:40]} is not a " +
+                         ("dotted key (text such as 'solver.tol')" if isinstance(overrides, dict) else
+                          "KEY=VALUE item (text such as 'solver.tol=1e-10')"))
     if not isinstance(overrides, dict):
-        return [str(item) for item in overrides]
+        return list(overrides)
     items = []
     for key, value in overrides.items():
         value = value.tolist() if hasattr(value, "tolist") else value  # numpy scalars and arrays

@@ -603,6 +603,10 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
                 result.fracture = fracture.finish(local.tips, volume, shares.on, split, scene, factors)
             part, viewer = shares.files(result, output, block_cell_fields(setup, displacements))
         phases.end("output")  # G, its modes, the reactions and the files' contents included
+        withdrawn = comm.bcast(result.claim() if exchange.is_root else None, root=0)
+        if withdrawn and failure is None:  # written with converged = false, then raised on every rank
+            failure = NotConvergedError(withdrawn)
+            failure.collective = True
         memory = comm.gather((mine, phases), root=0)
         if exchange.is_root:
             timings = dict(phases.wall)

@@ -134,4 +134,5 @@ def solve(scene: Scene, mesh: Mesh, factors: np.ndarray | None = None) -> Result
     result.attrs["error_estimate"], result.indicators = estimated.relative, estimated.indicators
     result.fracture = fracture.of_result(result, tips, factors)
     result.reactions = reactions.reactions(scene, mesh, result.solution, table)
+    result.claim()
     return result

@@ -243,7 +243,7 @@ def check_cost(items: list[str], scenes: list, runs: list[dict], ranges: list[Ra
     seconds, previous = [], None
     for scene in scenes:  # what the loop below reuses: the factorization while only loads change
         reused = previous is not None and scene.mesh.target_error is None and \
-            (scene.geometry, scene.mesh, _blocks_key(scene)) == (previous.geometry, previous.mesh, _blocks_key(previous))
+            (_mesh_key(scene), _blocks_key(scene)) == (_mesh_key(previous), _blocks_key(previous))
         seconds.append(run_seconds(scene, ranks, factor=not reused))
         previous = scene
     total = sweep_seconds(sum(seconds), len(runs))
@@ -255,10 +255,11 @@ def check_cost(items: list[str], scenes: list, runs: list[dict], ranges: list[Ra
 
 
 def sweep(source, items: list[str], paired: bool, output: Path | None, comm, progress=print,
-          values: dict | None = None) -> list[dict] | None:
+          values: dict | None = None, named: str = "-o") -> list[dict] | None:
     """Run the sweep of ``source`` (a Scene, a scene file or a built-in name) on ``comm`` (every rank):
     ``items`` are ``--set`` items (ranges and fixed values), ``values`` more swept keys with their values
-    given (key -> sequence).  Writes ``output`` (if given) on rank 0 at the end.
+    given (key -> sequence).  Writes ``output`` (if given; ``named``: how messages name it) on rank 0 at
+    the end; it may be none of the files the scenes read.
 
     Returns the records on rank 0 (None elsewhere).
     """
@@ -276,13 +277,13 @@ def sweep(source, items: list[str], paired: bool, output: Path | None, comm, pro
     fixed, ranges, runs = collective(comm, arrange)  # the same on every rank, errors included
 
     def check():
+        from ddsolve.io import inputs
         from ddsolve.io.hdf5 import check_result
 
         scenes = load_scenes(source, fixed, runs)
         if output is not None:
-            inputs = [*([] if isinstance(source, Scene) else [Path(source)]),
-                      *{scene.mesh.file for scene in scenes if scene.mesh.file is not None}]
-            check_result(output, [path for path in inputs if path.is_file()], viewer=False)
+            check_result(output, inputs.of_scenes(scenes, None if isinstance(source, Scene) else source),
+                         viewer=False, named=named)
         return scenes
 
     scenes = comm.bcast(collective(comm, check, root_only=True), root=0)
@@ -294,8 +295,7 @@ def sweep(source, items: list[str], paired: bool, output: Path | None, comm, pro
     try:
         for number, (run, scene) in enumerate(zip(runs, scenes), 1):
             started = time.perf_counter()
-            same_mesh = previous is not None and mesh is not None and \
-                (scene.geometry, scene.mesh) == (previous.geometry, previous.mesh)
+            same_mesh = previous is not None and mesh is not None and _mesh_key(scene) == _mesh_key(previous)
             same_blocks = same_mesh and setup is not None and _blocks_key(scene) == _blocks_key(previous)
             if setup is not None and not same_blocks:
                 setup.destroy()
@@ -335,6 +335,11 @@ def sweep(source, items: list[str], paired: bool, output: Path | None, comm, pro
         if setup is not None:
             setup.destroy()
     return records if comm.rank == 0 else None
+
+
+def _mesh_key(scene) -> tuple:
+    """What the mesh depends on: the geometry and mesh keys, and the point supports (the box has a vertex at each)."""
+    return (scene.geometry, scene.mesh, sorted(d.point for d in scene.displacements.values() if d.point is not None))
 
 
 def _blocks_key(scene) -> tuple:
