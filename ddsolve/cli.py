@@ -83,8 +83,6 @@ def check_outputs(args, scene) -> Path:
     return output
 
 
-
-
 # --- commands -------------------------------------------------------------------------------
 def _launch(args, petsc_options: list[str], scene_checks: bool) -> None:
     """With ``-n N``: check what can be checked here (the rank count, the modules, and with
