@@ -54,6 +54,8 @@ def _load_scene(args, ranks: int = 1):
 
     loaded = scene.load(args.scene, args.set or [])
     check_read(args.command, args.set or [], loaded, ranks)
+    if args.command != "mesh":
+        runtime.check_out_of_core(loaded.solver.out_of_core, args.petsc)
     return loaded
 
 
@@ -79,20 +81,6 @@ def check_outputs(args, scene) -> Path:
         raise DDSolveError(f"-o {str(args.output)!r}: not a file name")
     io.check_result(output, _inputs(args, scene))
     return output
-
-
-def report_unused_options(comm, command: str) -> None:
-    """A PETSc ``-options_left``-style warning on rank 0: the options no rank read (misspelt ones)."""
-    from ddsolve.parallel.blocks import unused_options
-
-    left = unused_options()
-    every = comm.gather(left, root=0) if comm is not None else [left]
-    if every is None or any(options is None for options in every):
-        return
-    common = [option for option in every[0] if all(option in other for other in every[1:])]
-    if common:
-        print(f"ddsolve: warning: PETSc options not used (misspelt? the prefixes here are "
-              f"{', '.join(PREFIXES[command])}): {', '.join(common)}", file=sys.stderr, flush=True)
 
 
 # --- commands -------------------------------------------------------------------------------
@@ -140,13 +128,7 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
     comm = MPI.COMM_WORLD
     scene = comm.bcast(collective(comm, lambda: _load_scene(args, comm.size), root_only=True), root=0)
     output = comm.bcast(collective(comm, lambda: check_outputs(args, scene), root_only=True), root=0)
-    try:
-        result = run.solve(scene, comm, output, progress=_root_print, gather=False)
-    except DDSolveError as exc:
-        if exc.collective:  # every rank is here: the others are not waiting in a solve
-            report_unused_options(comm, "solve")
-        raise
-    report_unused_options(comm, "solve")
+    result = run.solve(scene, comm, output, progress=_root_print, gather=False)
     if result is not None:
         print(f"{result.method}: converged after {result.iterations} iterations, {result.solves} rounds of "
               f"block solves, {result.wall_time:.3f} s on {result.ranks} ranks -> {output}", flush=True)
@@ -255,10 +237,7 @@ def cmd_reference(args, petsc_options: list[str]) -> int:
 
     scene = _load_scene(args)
     output = check_outputs(args, scene)
-    try:
-        result = run.reference(scene, output, progress=_root_print)
-    finally:
-        report_unused_options(None, "reference")
+    result = run.reference(scene, output, progress=_root_print)
     print(f"reference: {result.iterations} active-set steps, {result.wall_time:.3f} s -> {output}")
     print(estimate_line(result))
     _print_refinement(scene, result)
@@ -511,13 +490,15 @@ def _dispatch(argv: list[str]) -> int:
         raise
     except SystemExit as exc:  # --help: its text is printed; the final flush tells whether it was written
         return int(exc.code or 0)
-    args.own = own
+    args.own, args.petsc = own, petsc_options
     args.ranks_at = _ranks_positions(own)
     if args.command in READERS:  # a file anyone wrote: its numbers may overflow; what matters is checked
         import numpy as np
 
         with np.errstate(all="ignore"):
             return args.run(args, petsc_options)
+    if args.command in PETSC_COMMANDS:
+        return runtime.unused_options_reported(lambda: args.run(args, petsc_options), PREFIXES.get(args.command, ()))
     return args.run(args, petsc_options)
 
 

@@ -92,6 +92,31 @@ def import_errors_explained() -> Iterator[None]:
         raise MissingDependencyError(_explain(module, error)) from None
 
 
+#: Where MUMPS writes out-of-core factors: the folder this variable names, else MUMPS's default folder.
+OUT_OF_CORE_VARIABLE, OUT_OF_CORE_DEFAULT = "MUMPS_OOC_TMPDIR", "/tmp"
+
+
+def check_out_of_core_folder(why: str) -> None:
+    """Refuse, in one line naming ``MUMPS_OOC_TMPDIR`` and its folder, a folder where MUMPS could not
+    create its out-of-core factor files (it would stop with its error -81 once the factorization has
+    begun); ``why``: what asked for out-of-core factors."""
+    import tempfile
+
+    folder = os.environ.get(OUT_OF_CORE_VARIABLE) or OUT_OF_CORE_DEFAULT
+    named = (f"{OUT_OF_CORE_VARIABLE}={folder}" if os.environ.get(OUT_OF_CORE_VARIABLE)
+             else f"{OUT_OF_CORE_VARIABLE} is unset and MUMPS's default folder {folder}")
+    try:
+        if not os.path.isdir(folder):
+            raise FileNotFoundError(0, "no such folder" if not os.path.exists(folder) else "not a folder")
+        handle, probe = tempfile.mkstemp(prefix=".ddsolve-probe.", dir=folder)
+        os.close(handle)
+        os.unlink(probe)
+    except OSError as exc:
+        reason = (exc.strerror or type(exc).__name__).lower()
+        raise DDSolveError(f"{named}: cannot hold MUMPS's out-of-core factors ({reason}), which {why} asks for: "
+                           f"set {OUT_OF_CORE_VARIABLE} to a folder you can write") from None
+
+
 #: Memory a rank needs before it holds any mesh (Python, numpy, PETSc, MPI), and per mesh vertex for
 #: a solve (assembly, factorizations, Schur complements; measured with 4 ranks at P = 400, M = 512).
 RANK_MEMORY = 100e6
@@ -110,6 +135,10 @@ def physical_memory() -> float:
 
 #: Linux's prctl request: the signal the kernel sends a process when its parent ends.
 PR_SET_PDEATHSIG = 1
+
+#: This process's parent when ddsolve was first imported, before the long imports of a command: a rank's
+#: launcher (mpiexec) even if it is killed meanwhile and the rank has been given to init.
+PARENT_AT_START = os.getppid()
 
 
 def end_with_parent(parent: int, signum: int = signal.SIGKILL) -> None:

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from ddsolve.errors import DDSolveError
-from ddsolve.parallel.runtime import Parser, guarded, init_petsc, split_arguments
+from ddsolve.parallel.runtime import Parser, guarded, init_petsc, split_arguments, unused_options_reported
 
 #: Experiments: command -> (module, function, one-line summary, what it writes).
 EXPERIMENTS = {
@@ -110,5 +110,7 @@ def main(argv: list[str] | None = None) -> int:
     def run() -> int:
         own, petsc_options = split_arguments(top, sys.argv[1:] if argv is None else argv, PETSC_COMMANDS)
         args = top.parse_args(own)
+        if args.command in PETSC_COMMANDS:
+            return unused_options_reported(lambda: args.run(args, petsc_options))
         return args.run(args, petsc_options)
     return guarded(run)

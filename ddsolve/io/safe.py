@@ -61,12 +61,21 @@ def _writer_gone(match: re.Match) -> bool:
     return pid != os.getpid() and not process_exists(pid)
 
 
+def _entries(folder: Path, pattern: str) -> list[Path]:
+    """The entries of ``folder`` that match ``pattern``; none if the folder cannot be listed or reached
+    (no read or search permission: then the files in it cannot be replaced either)."""
+    try:
+        return list(folder.glob(pattern))
+    except OSError:
+        return []
+
+
 def recover(paths: list[Path]) -> None:
     """Finish the sets that a run killed while renaming them left behind in the folders of ``paths``
     (their journals name every file, so the new set is put in place whole), then remove the temporary
-    and backup files of killed runs for ``paths``."""
+    and backup files of killed runs for ``paths``.  A folder that cannot be listed holds nothing to finish."""
     for folder in dict.fromkeys(Path(path).parent for path in paths):
-        for journal in folder.glob(".*.ddsolve~*.journal"):
+        for journal in _entries(folder, ".*.ddsolve~*.journal"):
             match = _SCRATCH.match(journal.name)
             if match and _writer_gone(match):
                 _roll_forward(journal)
@@ -95,7 +104,7 @@ def remove_stale(path: Path) -> list[Path]:
     """Remove the temporary and backup files that runs killed while writing ``path`` left behind
     (those of a process on this machine that no longer exists); returns them."""
     removed = []
-    for candidate in Path(path).parent.glob(f".{glob.escape(Path(path).name)}.ddsolve~*"):
+    for candidate in _entries(Path(path).parent, f".{glob.escape(Path(path).name)}.ddsolve~*"):
         match = _SCRATCH.match(candidate.name)
         if not match or match["name"] != Path(path).name or candidate.name.endswith(".journal") \
                 or not _writer_gone(match):
@@ -109,14 +118,41 @@ def remove_stale(path: Path) -> list[Path]:
 
 
 def same_file(path: Path, source: Path) -> bool:
-    return path.exists() and Path(source).exists() and os.path.samefile(path, source)
+    """Whether ``path`` and ``source`` are one existing file (False where either cannot be examined)."""
+    try:
+        return path.exists() and Path(source).exists() and os.path.samefile(path, source)
+    except OSError:
+        return False
+
+
+#: The longest process id Linux gives (``/proc/sys/kernel/pid_max`` at most 2²²): scratch names are sized for it.
+LONGEST_PID = 4194304
+
+
+def check_name_length(path: Path) -> None:
+    """Refuse an output name that the folder's file system cannot hold, with the scratch files written
+    beside it (``.NAME.ddsolve~HOST~PID~RANDOM.journal.tmp``, the longest), in one line naming it."""
+    try:
+        limit = os.pathconf(path.parent, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        limit = 255
+    tag = f"ddsolve~{host_tag()}~{LONGEST_PID}~{'f' * 8}"
+    longest = max(len(os.fsencode(_scratch(path, tag, "journal").name)) + len(".tmp"),
+                  len(os.fsencode(_scratch(path, tag, "tmp").name)))
+    extra = longest - len(os.fsencode(path.name))
+    if longest > limit:
+        name = path.name if len(path.name) <= 60 else f"{path.name[:40]}…{path.name[-12:]}"
+        raise DDSolveError(f"{path.parent / name}: file name too long ({len(os.fsencode(path.name))} bytes; its "
+                           f"file system holds {limit} and ddsolve's temporary files beside it add {extra}, so at "
+                           f"most {limit - extra}): choose a shorter name")
 
 
 def check_targets(paths: list[Path], inputs: Iterable[Path] | Mapping[Path, str] = (), named: str = "-o") -> None:
     """Refuse a set of output files that could not be written as a whole: an empty name, a name given
-    twice, an existing file that is not a regular file (a directory, a device, a FIFO), one of the
-    ``inputs`` (paths, or paths with how the run reads each), or a folder that does not exist or where no
-    file can be created; ``named``: how the messages name the output's argument."""
+    twice, a name too long for its folder, an existing file that is not a regular file (a directory, a
+    device, a FIFO), one of the ``inputs`` (paths, or paths with how the run reads each), or a folder that
+    does not exist, cannot be reached or where no file can be created; ``named``: how the messages name the
+    output's argument."""
     reads = inputs if isinstance(inputs, Mapping) else dict.fromkeys(inputs, "")
     seen: dict[str, Path] = {}
     for path in map(Path, paths):
@@ -126,17 +162,17 @@ def check_targets(paths: list[Path], inputs: Iterable[Path] | Mapping[Path, str]
         if key in seen:
             raise DDSolveError(f"{path}: written twice in one set of result files")
         seen[key] = path
-        if path.is_symlink():
-            continue  # the link itself is replaced, never its target
-        if path.exists() and not path.is_file():
-            kind = "a directory" if path.is_dir() else "not a regular file"
-            raise DDSolveError(f"{path}: is {kind}; ddsolve replaces regular files only: choose another {named}")
-        for source, how in reads.items():
-            if same_file(path, source):
-                raise DDSolveError(f"{path}: is an input of this run ({source}{', ' * bool(how)}{how}); "
-                                   f"choose another {named}")
+        check_name_length(path)
+        try:
+            _check_target(path, reads, named)
+        except OSError as exc:  # a folder on the way without search permission, a path too long...
+            raise DDSolveError(f"{path}: cannot write ({os_reason(exc).lower()})") from None
     for folder, path in {Path(path).parent: Path(path) for path in reversed(paths)}.items():
-        if not folder.is_dir():
+        try:
+            exists = folder.is_dir()
+        except OSError as exc:
+            raise DDSolveError(f"{path}: cannot write in {folder} ({os_reason(exc).lower()})") from None
+        if not exists:
             raise DDSolveError(f"{path}: output directory {folder} does not exist")
         try:
             handle, probe = tempfile.mkstemp(prefix=".ddsolve-probe.", dir=folder)
@@ -144,6 +180,20 @@ def check_targets(paths: list[Path], inputs: Iterable[Path] | Mapping[Path, str]
             os.unlink(probe)
         except OSError as exc:
             raise DDSolveError(f"{path}: cannot write in {folder} ({exc.strerror or exc})") from None
+
+
+def _check_target(path: Path, reads: Mapping[Path, str], named: str) -> None:
+    """Refuse an existing ``path`` that is not a regular file, or one of the files the run ``reads`` (each
+    with how it is read)."""
+    if path.is_symlink():
+        return  # the link itself is replaced, never its target
+    if path.exists() and not path.is_file():
+        kind = "a directory" if path.is_dir() else "not a regular file"
+        raise DDSolveError(f"{path}: is {kind}; ddsolve replaces regular files only: choose another {named}")
+    for source, how in reads.items():
+        if same_file(path, source):
+            raise DDSolveError(f"{path}: is an input of this run ({source}{', ' * bool(how)}{how}); "
+                               f"choose another {named}")
 
 
 @contextlib.contextmanager

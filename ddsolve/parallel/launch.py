@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 from typing import Mapping
 
-from ddsolve.environment import end_with_parent, process_exists
+from ddsolve.environment import PARENT_AT_START, end_with_parent, process_exists
 from ddsolve.errors import DDSolveError
 from ddsolve.io import safe
 from ddsolve.parallel.phases import LAUNCHED
@@ -116,11 +116,18 @@ def end_session(session: int) -> None:
         time.sleep(0.01)
 
 
-def end_with_launcher(parent: int) -> None:
-    """A rank that mpiexec (or its daemon, the rank's parent ``parent``) started ends when mpiexec ends,
-    however it ends: ranks would otherwise outlive a killed launcher, reparented to init."""
-    if any(name in os.environ for name in RANK_VARIABLES):
-        end_with_parent(parent)
+def end_with_launcher() -> None:
+    """A rank that mpiexec (or its daemon, the rank's parent) started ends when mpiexec ends, however it
+    ends: ranks would otherwise outlive a killed launcher, reparented to init.  The parent is the one the
+    rank had as ddsolve was imported (:data:`~ddsolve.environment.PARENT_AT_START`), so that a launcher
+    killed during the rank's imports ends it at once; under ``solve -n`` mpiexec also leads the rank's
+    session, and a rank whose session leader has ended before it was first imported ends at once too."""
+    if not any(name in os.environ for name in RANK_VARIABLES):
+        return
+    session = os.getsid(0)
+    if supervised() and session != PARENT_AT_START and not process_exists(session):
+        os._exit(128 + signal.SIGTERM)  # mpiexec ended before this rank began: nobody waits for it
+    end_with_parent(PARENT_AT_START)
 
 
 @functools.lru_cache(maxsize=None)
@@ -156,45 +163,53 @@ def provenance() -> dict[str, str]:
 
 
 
+def _identity(path: Path):
+    """What tells a replaced file from the one that was there (None: no file)."""
+    try:
+        info = os.stat(path, follow_symlinks=False)
+        return info.st_ino, info.st_mtime_ns, info.st_size
+    except OSError:
+        return None
+
+
 def supervise(command: list[str], env: dict, outputs: list[Path]) -> int:
     """Run the ranks' mpiexec and return its exit status.  SIGINT and SIGTERM are passed on to it once
     (Open MPI then stops every rank); afterwards the result set ``outputs`` is made whole if a rank was
     killed while renaming it (:func:`ddsolve.io.safe.recover`), and the status is 0 if the run replaced it
     (the signal came after its commit: the set is complete), else 130 or 143.  The interrupt's one line is
     printed here, not by the ranks: Open MPI may stop them before their output reaches it, and it gives
-    them SIGTERM whatever this process received."""
+    them SIGTERM whatever this process received.  Once mpiexec has ended, the status no longer depends on
+    a signal: later ones are ignored (Python's exit gives them their default action back, which would
+    end this process with 130 or 143 after a complete run)."""
     import subprocess
 
-
-    def identity(path: Path):
-        try:
-            info = os.stat(path, follow_symlinks=False)
-            return info.st_ino, info.st_mtime_ns, info.st_size
-        except OSError:
-            return None
-
-    before = identity(outputs[0])
+    before = _identity(outputs[0])
     signal.set_wakeup_fd(-1)  # the watchdog stays asleep: this process only waits for mpiexec
     launcher = os.getpid()  # mpiexec gets SIGTERM (and stops the ranks) when this process ends, however
-    job = subprocess.Popen(command, env=env, start_new_session=True,
-                           preexec_fn=lambda: end_with_parent(launcher, signal.SIGTERM))
     received: list[int] = []
+    job: list[subprocess.Popen] = []
 
     def forward(signum, _frame) -> None:
-        if not received:
-            job.send_signal(signum)
+        if not received and job:
+            job[0].send_signal(signum)
         received.append(signum)
 
-    for signum in (signal.SIGINT, signal.SIGTERM):
+    for signum in (signal.SIGINT, signal.SIGTERM):  # before mpiexec starts: no signal is left unforwarded
         signal.signal(signum, forward)
     try:
-        status = job.wait()
+        job.append(subprocess.Popen(command, env=env, start_new_session=True,
+                                    preexec_fn=lambda: end_with_parent(launcher, signal.SIGTERM)))
+        if received:  # came while mpiexec was being started
+            job[0].send_signal(received[0])
+        status = job[0].wait()
     finally:
-        if received:  # what the signal left of the job ends with it, before the result set is repaired
-            end_session(job.pid)
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, signal.SIG_IGN)
+        if received and job:  # what the signal left of the job ends with it, before the result set is repaired
+            end_session(job[0].pid)
     safe.recover(outputs)
     if received:
-        complete = identity(outputs[0]) != before
+        complete = _identity(outputs[0]) != before
         print(interrupt_line(received[0] == signal.SIGTERM, complete), file=sys.stderr, flush=True)
         return 0 if complete else (143 if received[0] == signal.SIGTERM else 130)
     return status if status >= 0 else 128 - status

@@ -17,9 +17,10 @@ import time
 import traceback
 import unicodedata
 from pathlib import Path
+from typing import Callable
 
-from ddsolve.environment import import_errors_explained
-from ddsolve.errors import DDSolveError, UsageError
+from ddsolve.environment import check_out_of_core_folder, import_errors_explained
+from ddsolve.errors import DDSolveError, DivergedError, NotConvergedError, UsageError
 from ddsolve.mesh import gmsh_io
 from ddsolve.mesh.mesh import U_PLUS
 from ddsolve.parallel.launch import end_with_launcher, interrupt_line, leader, supervised, world_position
@@ -116,6 +117,32 @@ def check_petsc_files(options: list[str]) -> None:
             raise
 
 
+#: The MUMPS control (ICNTL) that asks for out-of-core factors (:data:`ddsolve.parallel.blocks.MUMPS_OUT_OF_CORE`).
+OUT_OF_CORE_OPTION = "mat_mumps_icntl_22"
+
+
+def petsc_options_given(options: list[str]) -> dict[str, str]:
+    """PETSc's options -> their values (without the dash): PETSc's own database once it has started, else
+    the command line's ``options`` and ``PETSC_OPTIONS``."""
+    petsc = sys.modules.get("petsc4py.PETSc")
+    if petsc is not None and petsc.Sys.isInitialized():
+        return {name: str(value) for name, value in petsc.Options().getAll().items()}
+    words = [*os.environ.get("PETSC_OPTIONS", "").split(), *options]
+    return {word[1:]: (following if not following.startswith("-") or is_number(following) else "")
+            for word, following in zip(words, [*words[1:], ""]) if word.startswith("-") and not is_number(word)}
+
+
+def check_out_of_core(scene_asks: bool, options: list[str] = ()) -> None:
+    """Before any work: when the scene (``solver.out_of_core``) or a PETSc option (``-PREFIX_mat_mumps_icntl_22
+    N``, N not 0) asks for out-of-core factors, refuse a ``MUMPS_OOC_TMPDIR`` where they cannot be written
+    (:func:`~ddsolve.environment.check_out_of_core_folder`)."""
+    asking = ["solver.out_of_core = true"] if scene_asks else []
+    asking += [f"-{name} {value}" for name, value in petsc_options_given(options).items()
+               if name.endswith(OUT_OF_CORE_OPTION) and value.strip() not in ("0", "")]
+    if asking:
+        check_out_of_core_folder(asking[0])
+
+
 def init_petsc(options: list[str]) -> None:
     """PETSc without its signal handler: on a crash (SIGSEGV...) it calls MPI_Abort inside the handler,
     which can deadlock the crashed rank and with it the whole job; without it the rank dies of the
@@ -140,6 +167,42 @@ def init_petsc(options: list[str]) -> None:
 
     # A closed pipe on standard output is an error to report in one line (EPIPE), not a death by SIGPIPE.
     signal.signal(signal.SIGPIPE, signal.SIG_IGN)
+
+
+def report_unused_options(comm, prefixes: tuple[str, ...] = ()) -> None:
+    """A PETSc ``-options_left``-style warning on rank 0: the options no rank read (misspelt ones), with the
+    options prefixes of the command's solvers."""
+    from ddsolve.parallel.blocks import unused_options
+
+    left = unused_options()
+    every = comm.gather(left, root=0) if comm is not None else [left]
+    if every is None or any(options is None for options in every):
+        return
+    common = [option for option in every[0] if all(option in other for other in every[1:])]
+    if common:
+        named = f" the prefixes here are {', '.join(prefixes)}" if prefixes else ""
+        print(f"ddsolve: warning: PETSc options not used (misspelt?{named}): {', '.join(common)}",
+              file=sys.stderr, flush=True)
+
+
+def unused_options_reported(command: Callable[[], int], prefixes: tuple[str, ...] = ()) -> int:
+    """Run a command that hands options to PETSc (of ddsolve or of the experiments); once its solves have
+    ended on every rank (successfully, or not converged or diverged on every rank), name the PETSc options
+    nothing read (:func:`report_unused_options`; after an error that stopped the run before its solves they
+    went unread for want of a solve).  A launcher (``-n N``) starts no PETSc: its ranks report."""
+    def report() -> None:
+        petsc = sys.modules.get("petsc4py.PETSc")
+        if petsc is not None and petsc.Sys.isInitialized() and not petsc.Sys.isFinalized():
+            report_unused_options(comm_world(), prefixes)
+
+    try:
+        status = command()
+    except (NotConvergedError, DivergedError) as exc:
+        if exc.collective:  # every rank is here: none is waiting in a solve
+            report()
+        raise
+    report()
+    return status
 
 
 #: Variables by which a user sets the BLAS's threads himself (then :func:`limit_blas_threads` keeps them).
@@ -185,8 +248,43 @@ class Terminated(KeyboardInterrupt):
     """SIGTERM, turned into an exception so that temporary files are removed on the way out."""
 
 
-def _terminate(signum, _frame) -> None:
+#: Seconds after which a signal that came during an import is delivered again (:func:`_interrupt`).
+IMPORT_RETRY = 0.01
+
+
+def _swallowing(frame) -> bool:
+    """Whether ``frame`` (where a signal handler was called) runs where an exception can be printed and
+    lost instead of propagating: inside an import (Python's import machinery and the modules it
+    initializes: "Exception ignored in: <module ...>") or a finalizer (``__del__``)."""
+    while frame is not None:
+        if frame.f_code.co_filename.startswith("<frozen importlib") or frame.f_code.co_name == "__del__":
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _interrupt(signum, frame) -> None:
+    """SIGINT and SIGTERM as exceptions (KeyboardInterrupt, :class:`Terminated`); never inside an import or
+    a finalizer, where one could be printed and lost (:func:`_swallowing`): there the signal is sent again
+    IMPORT_RETRY seconds later, until it is over (the watchdog, :func:`watch_interrupts`, ends the process
+    if that takes too long)."""
+    if _swallowing(frame):
+        timer = threading.Timer(IMPORT_RETRY, os.kill, (os.getpid(), signum))
+        timer.daemon = True
+        timer.start()
+        return
+    if signum == signal.SIGINT:
+        raise KeyboardInterrupt
     raise Terminated(signal.Signals(signum).name)
+
+
+def interrupts_ignored() -> None:
+    """The command's outcome is decided (its status is known): a later SIGINT or SIGTERM changes nothing,
+    and is ignored, so that it cannot end the process with another status as Python exits (which gives
+    the signals their default action back first)."""
+    with contextlib.suppress(ValueError):  # not the main thread: its handlers are not ours
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, signal.SIG_IGN)
 
 
 #: Seconds an interrupt may wait for the main thread (busy in a library call: gmsh, a factorization,
@@ -243,9 +341,10 @@ def guarded(call) -> int:
     """Run a command: a DDSolveError (or a missing petsc4py, mpi4py, h5py, gmsh...) becomes one line
     and its exit status, an interrupt or SIGTERM stops every rank, anything else is a bug (one
     traceback, abort)."""
-    end_with_launcher(os.getppid())
+    end_with_launcher()
     prepare_output()
-    signal.signal(signal.SIGTERM, _terminate)
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, _interrupt)
     watch_interrupts()
     try:
         with import_errors_explained():
@@ -266,6 +365,8 @@ def guarded(call) -> int:
         traceback.print_exc()
         abort(1)
         return 1
+    finally:
+        interrupts_ignored()
 
 
 #: ASCII spellings of the symbols in ddsolve's messages that are neither Greek letters (spelt by their

@@ -7,6 +7,7 @@ before validation, so they are checked exactly like the file.
 """
 from __future__ import annotations
 
+import codecs
 import dataclasses
 import difflib
 import math
@@ -1022,6 +1023,24 @@ def readable(path: str | Path, what: str, error: type[DDSolveError] = DDSolveErr
     return Path(path)
 
 
+def utf8_text(path: Path, what: str, error: type[DDSolveError] = DDSolveError) -> str:
+    """The text of ``path`` (UTF-8; a byte-order mark, as some editors write, is dropped); else ``error``
+    in one line naming the file and, for bytes that are not UTF-8, where the first one is."""
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise error(f"{printable(str(path))}: cannot read {what} ({(exc.strerror or type(exc).__name__).lower()})") \
+            from None
+    start = len(codecs.BOM_UTF8) if data.startswith(codecs.BOM_UTF8) else 0
+    try:
+        return data[start:].decode("utf-8")
+    except UnicodeDecodeError as exc:
+        at = start + exc.start
+        line, column = data.count(b"\n", 0, at) + 1, at - data.rfind(b"\n", 0, at)
+        raise error(f"{printable(str(path))}: {what} is not UTF-8 text: byte 0x{data[at]:02x} at line {line}, "
+                    f"column {column} (byte offset {at}); save it as UTF-8") from None
+
+
 def load(source: str | Path, overrides: list[str] = ()) -> Scene:
     """Read a scene from a file path or a built-in name, apply overrides, validate; the scene file
     and its mesh file must be readable (:func:`readable`)."""
@@ -1032,10 +1051,7 @@ def load(source: str | Path, overrides: list[str] = ()) -> Scene:
     else:
         names = ", ".join(sorted(shipped))
         readable(path, "scene file", SceneError, f"no such scene file or built-in scene (built-in: {names})")
-        try:
-            text = path.read_text(encoding="utf-8-sig")  # a byte-order mark, as some editors write, is dropped
-        except (OSError, UnicodeDecodeError) as exc:
-            raise SceneError(f"{source}: cannot read scene file ({exc.__class__.__name__})") from None
+        text = utf8_text(path, "scene file", SceneError)
         base = path.parent
     scene = loads(text, overrides, origin=str(source), base=base)
     if scene.mesh.file is not None:

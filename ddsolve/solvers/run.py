@@ -12,10 +12,18 @@ from ddsolve.mesh import geometry
 from ddsolve.parallel.distribution import build_mesh
 from ddsolve.parallel.exchange import collective
 from ddsolve.parallel.phases import Phases, launch_age
+from ddsolve.parallel.runtime import check_out_of_core
 from ddsolve.post.result import Result
 from ddsolve.problem.scene import Scene
 from ddsolve.solvers import adapt, checks, critical, driver
 from ddsolve.solvers import reference as monolithic
+
+
+def _before_work(scene: Scene, ranks: int = 1) -> None:
+    """What the machine must offer a solve of ``scene`` on ``ranks`` ranks: the memory of its mesh, and a
+    folder for out-of-core factors if the scene or a PETSc option asks for them."""
+    checks.check_size(scene, ranks)
+    check_out_of_core(scene.solver.out_of_core)
 
 
 def solve(scene: Scene, comm, output: Path | None, progress: Callable[[str], None] = print,
@@ -27,7 +35,7 @@ def solve(scene: Scene, comm, output: Path | None, progress: Callable[[str], Non
     critical load factors found first, by solves of the scaled scene on the same mesh and factors
     (:func:`ddsolve.solvers.critical.factors`), so that the file written holds them; the search is the
     launch's phase ``critical_factors``."""
-    collective(comm, lambda: checks.check_size(scene, comm.size), root_only=True)
+    collective(comm, lambda: _before_work(scene, comm.size), root_only=True)
     if scene.mesh.target_error is not None:
         return adapt.solve(scene, comm, output, progress=progress)
     if not critical.needed(scene):
@@ -50,7 +58,7 @@ def reference(scene: Scene, output: Path | None = None, progress: Callable[[str]
     """The monolithic reference of ``scene`` on this process (adaptive when the scene asks); raises
     NotConvergedError, with the result, when its final check fails.  The critical load factors of a scene
     with a toughness and a temperature change come from reference solves of the scaled scene."""
-    checks.check_size(scene)
+    _before_work(scene)
     if scene.mesh.target_error is not None:  # adaptive, every level solved by the reference
         from mpi4py import MPI
 

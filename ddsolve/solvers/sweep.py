@@ -224,11 +224,14 @@ def _base_seconds(source, fixed: list[str], ranks: int) -> float | None:
 
 def check_cost(items: list[str], scenes: list, runs: list[dict], ranges: list[Range], ranks: int) -> None:
     """Refuse a sweep given a key it does not read (:func:`ddsolve.cli.check_read`), or that cannot
-    finish: one whose largest mesh does not fit in this machine's memory (:func:`ddsolve.cli.check_size`)
-    or whose runs take more than MAX_HOURS by :func:`sweep_seconds`."""
+    finish: one whose largest mesh does not fit in this machine's memory (:func:`ddsolve.cli.check_size`),
+    whose runs take more than MAX_HOURS by :func:`sweep_seconds`, or whose out-of-core factors have no
+    folder (:func:`ddsolve.parallel.runtime.check_out_of_core`)."""
     from ddsolve.mesh import geometry
+    from ddsolve.parallel.runtime import check_out_of_core
     from ddsolve.solvers.checks import check_read, check_size
 
+    check_out_of_core(any(scene.solver.out_of_core for scene in scenes))
     check_read("sweep", items, scenes[0], ranks)
 
     nodes = [geometry.estimated_vertices(scene) or 0.0 for scene in scenes]
