@@ -211,23 +211,25 @@ def cmd_grow(args, petsc_options: list[str]) -> int:
 
     from ddsolve.io.hdf5 import check_result
     from ddsolve.parallel.exchange import collective
-    from ddsolve.post import plots
     from ddsolve.solvers import grow
 
     comm = MPI.COMM_WORLD
     started = time.perf_counter()
     scene = comm.bcast(collective(comm, lambda: _load_scene(args, comm.size), root_only=True), root=0)
     output = _grow_output(args)
-    picture = output.with_suffix(".png")
     collective(comm, lambda: check_result(output, _inputs(args, scene), viewer=False), root_only=True)
     steps = grow.grow(scene, comm, args.limit, args.steps, args.tolerance, progress=_root_print, output=output,
-                      pictures=args.pictures)
+                      pictures=args.pictures, inputs=_inputs(args, scene))
     if steps is not None:
-        plots.growth_curves(grow.read(output), picture)
+        files = grow.Outputs(output)
         unstable = sum(step.unstable for step in steps)
+        for index, step in enumerate(steps):
+            for event in step.events:
+                print(f"event at step {index} (factor {step.state.control:.6g}): {event}", flush=True)
         print(f"grow: {len(steps)} steps written (the first at λ = 0), {sum(step.solves for step in steps)} solves"
               + (f", unstable growth at {unstable} steps" if unstable else ", stable growth") +
-              f", {time.perf_counter() - started:.1f} s on {comm.size} ranks -> {output}, {picture}", flush=True)
+              f", {time.perf_counter() - started:.1f} s on {comm.size} ranks -> {output}, {files.csv}, "
+              f"{files.curves}" + (f" and {args.pictures} step pictures" if args.pictures else ""), flush=True)
     return 0
 
 
@@ -432,17 +434,20 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--zip", action="store_true",
                    help="take the ranges side by side (same COUNT) instead of every combination")
     p = scene_command("grow", "quasi-static growth of the cracks along Σ (Griffith) as a load or displacement "
-                      "factor rises; one HDF5 file and a PNG of the curves", cmd_grow)
+                      "factor rises; an HDF5 file, a CSV and a PNG of the curve, pictures of steps", cmd_grow)
     p.add_argument("-n", dest="ranks", type=int, metavar="N", help="launch N ranks with mpiexec (as for solve)")
-    p.add_argument("-o", dest="output", help="HDF5 file of every step (default: SCENE-growth.h5; the curves "
-                   "go to the same name with .png)")
-    p.add_argument("--to", dest="limit", type=float, required=True, metavar="FACTOR",
-                   help="the control factor's last value (it multiplies the scene's loads or displacements)")
-    p.add_argument("--steps", type=int, default=20, help="equal control steps up to --to (default 20; the "
-                   "initiation factor is added)")
-    p.add_argument("--tolerance", type=float, default=1e-4, help="|G/G_c − 1| at a growing tip (default 1e-4)")
+    p.add_argument("-o", dest="output", help="HDF5 file of every step (default: SCENE-growth.h5; the curve "
+                   "goes to the same name with .csv and .png)")
+    p.add_argument("--to", dest="limit", type=float, metavar="FACTOR",
+                   help="the control factor's last value (it multiplies the scene's loads or displacements; "
+                   "default: 2 × the initiation factor)")
+    p.add_argument("--steps", type=int, default=20, help="equal control steps up to --to, 1 to 1000 (default 20; "
+                   "the initiation factor is added)")
+    p.add_argument("--tolerance", type=float, default=1e-4, help="|G/G_c − 1| at a growing tip, 1e-8 to 1 "
+                   "(default 1e-4)")
     p.add_argument("--pictures", type=int, default=3, metavar="K", help="pictures of the deformed structure at K "
-                   "steps spread over the run, the last included (OUT-step<k>.png; default 3, 0 for none)")
+                   "steps spread over the run, the last included (OUT-step<k>.png; default 3, 0 for none, at "
+                   "most 100)")
     p = scene_command("reference", "monolithic reference solve (one process)", cmd_reference)
     p.add_argument("-o", dest="output", help="result file (default: SCENE.h5)")
     p = scene_command("mesh", "mesh statistics per half (as the paper's Table 1); -o writes the mesh as gmsh .msh",

@@ -143,10 +143,23 @@ def describe(kernel: np.ndarray, frame: Frame) -> str:
                 return f"the structure can translate in {name}"
         motion = common[:, 0]
         return "the structure can " + _motion(motion, frame)
-    motion = kernel[:, 0].reshape(count, 3)
-    moving = [spec.name for spec, part in zip(BLOCKS, motion) if np.linalg.norm(part) > 1e-6]
-    first = motion[[spec.name for spec in BLOCKS].index(moving[0])]
-    return f"blocks {', '.join(moving)} can {_motion(first, frame)} relative to the rest"
+    motions = kernel.reshape(count, 3, -1)  # per block, the span of its part of every free motion
+    moving = [spec.name for spec, part in zip(BLOCKS, motions) if np.linalg.norm(part) > 1e-6]
+    span = motions[[spec.name for spec in BLOCKS].index(moving[0])]
+    return f"blocks {', '.join(moving)} can {_motions(span, frame)} relative to the rest"
+
+
+def _motions(span: np.ndarray, frame: Frame) -> str:
+    """The rigid motions of a block whose coefficients span ``span`` ``(3, m)``, in words: every motion,
+    both translations, one direction of translation, or a rotation about a point."""
+    basis = null_space(null_space(span.T, 3).T, 3)  # orthonormal basis of the span
+    if basis.shape[1] == 3:
+        return "translate and rotate freely"
+    if basis.shape[1] == 2 and np.linalg.norm(basis[2]) < 1e-6:
+        return "translate in x and y"
+    if basis.shape[1] == 2:
+        return f"{_motion(basis[:, 0], frame)} and {_motion(basis[:, 1], frame)}"
+    return _motion(basis[:, 0], frame)
 
 
 def _motion(coefficients: np.ndarray, frame: Frame) -> str:
@@ -187,8 +200,11 @@ def block_kernels(halves: dict[int, HalfMesh], sigma: SigmaLine, interface: Inte
             for spec, directions in zip(BLOCKS, constraints)]
     kernel = structure_kernel(rows, interface, sigma, frame)
     if kernel.shape[1]:
-        raise SceneError(f"{describe(kernel, frame)}: add a support (geometry.clamped, a clamped boundary in "
-                         "the mesh, or [displacements.LAYER.NAME])")
+        motion = describe(kernel, frame)
+        error = SceneError(f"{motion}: add a support (geometry.clamped, a clamped boundary in the mesh, or "
+                           "[displacements.LAYER.NAME])")
+        error.free_motion = motion  # what a caller that changes the cracks reports (ddsolve grow)
+        raise error
     return Kernels([null_space(block_rows, 3) for block_rows in rows], frame)
 
 

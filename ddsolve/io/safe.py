@@ -90,6 +90,9 @@ def _roll_forward(journal: Path) -> None:
         for temporary, target in entries["renames"]:
             if os.path.lexists(temporary):
                 os.replace(temporary, target)
+        for gone in entries.get("removals", []):
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(gone)
         for backup in entries["backups"]:
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(backup)
@@ -225,8 +228,10 @@ def commit_section():
         signal.raise_signal(signum)
 
 
-def replace_together(writers: dict[Path, Callable[[str], None]], final: bool = False, comm=None) -> None:
-    """Write a set of files so that they replace the previous ones together or not at all.
+def replace_together(writers: dict[Path, Callable[[str], None]], final: bool = False, comm=None,
+                     remove: list[Path] = ()) -> None:
+    """Write a set of files so that they replace the previous ones together or not at all (and remove
+    the files ``remove`` names, those of the previous set that the new one no longer has, with them).
 
     Each ``write(temporary)`` writes its file under a temporary name in the target's folder; only
     when every one has succeeded does the commit begin, with interrupts deferred (:func:`commit_section`):
@@ -244,8 +249,9 @@ def replace_together(writers: dict[Path, Callable[[str], None]], final: bool = F
     """
     global committed
     paths = [Path(path) for path in writers]
+    gone = [Path(path) for path in remove if Path(path) not in paths]
     root = comm is None or comm.rank == 0
-    tag = _on_all(comm, lambda: _begin(paths), root_only=True)
+    tag = _on_all(comm, lambda: _begin(paths + gone), root_only=True)
     temporaries = {path: _scratch(path, tag, "tmp") for path in paths}
     journal = _scratch(paths[0], tag, "journal")
     draft = journal.with_name(journal.name + ".tmp")  # the journal while it is written
@@ -255,7 +261,7 @@ def replace_together(writers: dict[Path, Callable[[str], None]], final: bool = F
         for path, write in reversed(list(zip(paths, writers.values()))):
             _on_all(comm, lambda: _create(path, temporaries[path]), root_only=True)
             _on_all(comm, lambda: _write(path, write, temporaries[path]))
-        _on_all(comm, lambda: _commit(paths, temporaries, tag, final), root_only=True)
+        _on_all(comm, lambda: _commit(paths, temporaries, tag, final, gone), root_only=True)
         committed = final
     finally:
         if root:
@@ -306,14 +312,16 @@ def _write(path: Path, write: Callable[[str], None], temporary: Path) -> None:
         raise DDSolveError(f"{path}: cannot write ({os_reason(exc)})") from None
 
 
-def _commit(paths: list[Path], temporaries: dict[Path, Path], tag: str, final: bool) -> None:
-    """The commit of a written set (see :func:`replace_together`)."""
+def _commit(paths: list[Path], temporaries: dict[Path, Path], tag: str, final: bool, gone: list[Path] = ()) -> None:
+    """The commit of a written set (see :func:`replace_together`): ``paths`` replaced, ``gone`` removed."""
     global committed
     journal = _scratch(paths[0], tag, "journal")
     draft = journal.with_name(journal.name + ".tmp")
-    backups = {path: _scratch(path, tag, "bak") for path in paths if os.path.lexists(path)}
+    gone = [path for path in gone if os.path.lexists(path)]
+    backups = {path: _scratch(path, tag, "bak") for path in [*paths, *gone] if os.path.lexists(path)}
     entries = json.dumps({"renames": [[str(temporaries[path].absolute()), str(path.absolute())] for path in paths],
-                          "backups": [str(backup.absolute()) for backup in backups.values()]})
+                          "backups": [str(backup.absolute()) for backup in backups.values()],
+                          "removals": [str(path.absolute()) for path in gone]})
     moved: set[Path] = set()  # previous versions renamed away (no hard links here)
     done: list[Path] = []
     try:
@@ -326,15 +334,19 @@ def _commit(paths: list[Path], temporaries: dict[Path, Path], tag: str, final: b
             for path in paths:
                 os.replace(temporaries[path], path)
                 done.append(path)
+            for path in gone:
+                if path not in moved:
+                    os.unlink(path)
+                done.append(path)
             journal.unlink()
             committed = final
     except OSError as exc:
-        for path in paths:  # undo: the previous set comes back
+        for path in [*paths, *gone]:  # undo: the previous set comes back
             if path in done and path not in backups:
                 os.unlink(path)
             elif path in done or path in moved:
                 os.replace(backups[path], path)
-        failed = next((path for path in paths if path not in done), paths[0])
+        failed = next((path for path in [*paths, *gone] if path not in done), paths[0])
         raise DDSolveError(f"{failed}: cannot replace ({exc.strerror or exc}); the previous files are kept") \
             from None
     finally:

@@ -103,10 +103,10 @@ def one_above_the_other(points: np.ndarray) -> bool:
     return bool(width > 2.0 * height)
 
 
-def deformed_layers(result: Result, path: Path, scale: float | None = None) -> float:
+def deformed_layers(result: Result, path: Path, scale: float | None = None, heading: str | None = None) -> float:
     """Both layers, displacements magnified by ``scale`` (from the data by default), cells coloured by
-    von Mises stress on a range that ignores the stress singularities (:func:`stress_ceiling`);
-    returns the scale."""
+    von Mises stress on a range that ignores the stress singularities (:func:`stress_ceiling`), under
+    ``heading`` (default: the scene's title); returns the scale."""
     plt = _pyplot()
     scale = magnification(result) if scale is None else scale
     stresses = layer_stresses(result)
@@ -133,7 +133,7 @@ def deformed_layers(result: Result, path: Path, scale: float | None = None) -> f
         ax.set_xlabel(f"x ({LENGTH})")
         ax.set_ylabel(f"y ({LENGTH})")
         ax.set_aspect("equal")
-    fig.suptitle(drawn_title(result), **PLAIN_TEXT)
+    fig.suptitle(drawn_title(result) if heading is None else heading, **PLAIN_TEXT)
     fig.savefig(path, dpi=130)
     plt.close(fig)
     return scale

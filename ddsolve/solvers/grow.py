@@ -30,8 +30,12 @@ is ∫ load d(displacement) either way.
 """
 from __future__ import annotations
 
+import csv
+import glob
+import io
 import math
 import numbers
+import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Callable
@@ -40,12 +44,14 @@ import numpy as np
 
 from ddsolve.errors import DDSolveError, SceneError, UsageError
 from ddsolve.fem import assembly, supports
+from ddsolve.io import safe
 from ddsolve.mesh import cracks as crack_mesh
 from ddsolve.mesh.mesh import BLOCKS, Mesh
 from ddsolve.parallel import distribution
 from ddsolve.parallel.exchange import collective
 from ddsolve.post import toughness
-from ddsolve.problem.scene import Scene
+from ddsolve.problem import expressions, materials
+from ddsolve.problem.scene import Load, Scene
 
 #: The most root-solve iterations of one step, and of rounds of steps at one control (growth of one tip
 #: changing the G of another).
@@ -55,6 +61,14 @@ MAX_ROUNDS = 10
 SMALLEST_MOVE = 1e-6
 #: The first trial advance of a growing tip, in Σ edges at the tip.
 FIRST_ADVANCE = 2.0
+#: The most control steps of a run (as sweeps have ``MAX_RUNS``): each is a record, a line and a root solve.
+MAX_STEPS = 1000
+#: The most pictures of the deformed structure (each step drawn is solved again).
+MAX_PICTURES = 100
+#: The smallest ``tolerance`` on |G/G_c − 1|: G itself is not computed closer.
+SMALLEST_TOLERANCE = 1e-8
+#: Without a limit the control rises to this multiple of the initiation factor.
+DEFAULT_MULTIPLE = 2.0
 
 
 @dataclass
@@ -73,6 +87,9 @@ class State:
     energy: float
     load: float
     displacement: float
+    #: every controlled boundary (``LAYER.NAME``): its force (x, y; the load, or the reaction where the
+    #: displacement is prescribed) and its mean displacement (x, y)
+    boundaries: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def ratio(self) -> np.ndarray:
@@ -112,17 +129,20 @@ def control_kind(scene: Scene) -> str:
     return "displacement" if moving else "load"
 
 
+def _parts(mesh: Mesh, layer: str, name: str):
+    """(block name, half, edges) of the boundary ``name`` of ``layer`` on every block that has it."""
+    for spec in BLOCKS:
+        half = mesh.half(spec.side)
+        if spec.layer == layer and name in half.boundaries:
+            yield spec.name, half, half.edges(name)
+
+
 def conjugate(scene: Scene, kind: str, mesh: Mesh, solution: dict[str, np.ndarray],
               forces: dict[str, dict[str, np.ndarray]]) -> float:
     """The control's work conjugate for a solution (``scene`` unscaled; see the module's docstring)."""
     if kind == "load":
-        work = 0.0
-        for (layer, name), load in scene.loads.items():
-            for spec in BLOCKS:
-                half = mesh.half(spec.side)
-                if spec.layer == layer and name in half.boundaries:
-                    work += float(assembly.boundary_load(half.points, half.edges(name), load) @ solution[spec.name].ravel())
-        return work
+        return sum(float(assembly.boundary_load(half.points, edges, load) @ solution[block].ravel())
+                   for (layer, name), load in scene.loads.items() for block, half, edges in _parts(mesh, layer, name))
     work = 0.0
     for (layer, name), prescribed in scene.displacements.items():
         reaction = forces.get(layer, {}).get(name)
@@ -131,6 +151,36 @@ def conjugate(scene: Scene, kind: str, mesh: Mesh, solution: dict[str, np.ndarra
         values = [0.0 if part is None else float(part(0.0, 0.0)) for part in (prescribed.x, prescribed.y)]
         work += float(np.dot(reaction, values))
     return work
+
+
+def controlled(scene: Scene, kind: str) -> list[tuple[str, str]]:
+    """The boundaries the control acts on: (layer, name) of every load, or of every non-zero prescribed
+    displacement."""
+    if kind == "load":
+        return list(scene.loads)
+    return [key for key, d in scene.displacements.items()
+            if any(part is not None and float(part(0.0, 0.0)) != 0.0 for part in (d.x, d.y))]
+
+
+def boundary_values(scene: Scene, kind: str, mesh: Mesh, solution: dict[str, np.ndarray],
+                    forces: dict[str, dict[str, np.ndarray]], control: float) -> dict[str, np.ndarray]:
+    """``LAYER.NAME`` -> (force x, force y, mean displacement x, mean displacement y) at every controlled
+    boundary of a solution at ``control``: the load's resultant, or the reaction of a prescribed
+    displacement, and ∫u ds over the boundary's length."""
+    unit = Load("unit", x=expressions.parse("1"))
+    out = {}
+    for layer, name in controlled(scene, kind):
+        force, moved, length = np.zeros(2), np.zeros(2), 0.0
+        for block, half, edges in _parts(mesh, layer, name):
+            weights = assembly.boundary_load(half.points, edges, unit).reshape(-1, 2)[:, 0]  # ∫φ ds per node
+            moved += weights @ solution[block]
+            length += float(weights.sum())
+            if kind == "load":
+                force += control * assembly.boundary_load(half.points, edges, scene.loads[layer, name]).reshape(-1, 2).sum(axis=0)
+        if kind == "displacement":
+            force = np.asarray(forces.get(layer, {}).get(name, np.full(2, np.nan)), dtype=np.float64)
+        out[f"{layer}.{name}"] = np.concatenate([force, moved / length if length > 0 else np.full(2, np.nan)])
+    return out
 
 
 class Growth:
@@ -172,7 +222,8 @@ class Growth:
         factor = control / unit.control
         return replace(unit, control=control, G=unit.G * factor ** 2, G_I=unit.G_I * factor ** 2,
                        G_II=unit.G_II * factor ** 2, energy=unit.energy * factor ** 2, load=unit.load * factor,
-                       displacement=unit.displacement * factor)
+                       displacement=unit.displacement * factor,
+                       boundaries={key: values * factor for key, values in unit.boundaries.items()})
 
     def result(self, mesh: Mesh, control: float):
         """The whole result on ``mesh`` (from :meth:`mesh_for`) at ``control`` (rank 0; None elsewhere)."""
@@ -204,7 +255,8 @@ class Growth:
                      heading=np.sign(np.einsum("ij,ij->i", fracture.directions, tangent)),
                      spacing=np.asarray(fracture.spacing), G=np.asarray(fracture.G), G_I=np.asarray(fracture.G_I),
                      G_II=np.asarray(fracture.G_II), G_c=np.asarray(fracture.toughness),
-                     energy=float(result.attrs["energy"]), load=load, displacement=displacement)
+                     energy=float(result.attrs["energy"]), load=load, displacement=displacement,
+                     boundaries=boundary_values(self.scene, self.kind, mesh, result.solution, result.reactions, control))
 
     # --- growth -------------------------------------------------------------------------------------
     def initiation(self, cracks: tuple) -> float:
@@ -217,6 +269,45 @@ class Growth:
 
             factors = critical.factors(self.scene, self.comm, self.mesh_for(cracks))
         return float(np.min(factors, initial=math.inf))
+
+    def control_range(self) -> tuple[float, float, str]:
+        """The control factors whose scaled loads or prescribed displacements a double-precision solve
+        represents (:data:`ddsolve.fem.assembly.DISPLACEMENT_RANGE` for the displacements they give, as
+        :func:`ddsolve.fem.assembly.check_range` checks a scene), and the key that sets the bound."""
+        orders = []  # (displacement of order at factor 1, key)
+        if self.kind == "load":
+            points = np.vstack([half.points for half in self.base.halves])
+            size = float(np.ptp(points, axis=0).max())
+            for (layer, name), load in self.scene.loads.items():
+                D, _ = materials.elasticity(self.scene.materials[layer], self.scene.model)
+                traction = max((assembly.load_extent(half.points, edges, load)
+                                for _, half, edges in _parts(self.base, layer, name)), default=0.0)
+                orders.append((traction * size / float(np.abs(D).max()), load.key))
+        else:
+            for key in controlled(self.scene, self.kind):
+                d = self.scene.displacements[key]
+                orders.append((max(abs(float(part(0.0, 0.0))) for part in (d.x, d.y) if part is not None), d.key))
+        orders = [(order, key) for order, key in orders if order > 0.0]
+        if not orders:
+            return 0.0, math.inf, ("", "")
+        low, high = assembly.DISPLACEMENT_RANGE
+        smallest, largest = min(orders), max(orders)
+        return low / smallest[0], high / largest[0], (smallest[1], largest[1])
+
+    def check_limit(self, limit: float, steps: int, option: str) -> None:
+        """Refuse a limit whose largest control or first step lies outside :meth:`control_range`."""
+        low, high, (small, large) = self.control_range()
+        if limit > high:
+            bad = f"{option} {limit:g}: scales {large} beyond what a double-precision solve represents (factors " \
+                  f"up to {high:.3g}): give {option} at most {high:.3g}"
+        elif limit / steps < low:
+            bad = f"{option} {limit:g} in {steps} steps: the first step {limit / steps:.3g} scales {small} below what " \
+                  f"a double-precision solve represents (factors from {low:.3g}): give {option} at least {low * steps:.3g}"
+        else:
+            return
+        error = UsageError(f"grow: {bad}")
+        error.collective = True
+        raise error
 
     def limit_of(self, state: State, tip: int) -> tuple[float, str]:
         """How far tip ``tip`` may advance, and what is there: one Σ edge before a support or Σ's end, or
@@ -300,7 +391,15 @@ class Growth:
                 step.events.append(f"end: cracks meet ({describe(trial_cracks)}), and fracture.toughness gives one "
                                    "value per crack: the merged crack has none")
                 return cracks, step
-            state = self.state(trial_cracks, control)
+            try:
+                state = self.state(trial_cracks, control)
+            except SceneError as exc:  # the merged crack frees a part: the run ends with the steps before
+                motion = getattr(exc, "free_motion", None)
+                if motion is None or len(trial_cracks) >= len(cracks):
+                    raise
+                step.events.append(f"end: the cracks would meet as {describe(trial_cracks)} and free a part: {motion}; "
+                                   "growth stops before they meet")
+                return cracks, step
             if len(trial_cracks) < len(cracks):  # two cracks met
                 step.state = state
                 step.events.append(f"cracks merge: {describe(trial_cracks)}")
@@ -394,15 +493,23 @@ def describe(cracks) -> str:
     return ", ".join(f"({a:.6g}, {b:.6g})" for a, b in cracks) or "none"
 
 
-def check_controls(limit: float, steps: int, tolerance: float, pictures: int) -> None:
+def check_controls(limit: float | None, steps: int, tolerance: float, pictures: int) -> None:
     """Raise UsageError for a bad ``--to``, ``--steps``, ``--tolerance`` or ``--pictures`` (every rank checks
-    the same values: the error is collective, reported once)."""
-    problems = [(not (math.isfinite(limit) and limit > 0.0), f"--to {limit:g}: the control's limit must be a "
-                 "positive number"),
-                (not isinstance(steps, numbers.Integral) or steps < 1, f"--steps {steps}: a whole number of steps, "
-                 "at least one"),
-                (not 0.0 < tolerance < 1.0, f"--tolerance {tolerance:g}: between 0 and 1"),
-                (pictures < 0, f"--pictures {pictures}: a number of pictures, 0 or more")]
+    the same values: the error is collective, reported once).  ``limit`` None: a multiple of initiation."""
+    def whole(value) -> bool:
+        return isinstance(value, numbers.Integral) and not isinstance(value, bool)
+
+    def number(value) -> bool:
+        return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+    problems = [(limit is not None and not (number(limit) and math.isfinite(limit) and limit > 0.0),
+                 f"--to {limit}: the control's limit must be a positive number"),
+                (not whole(steps) or not 1 <= steps <= MAX_STEPS, f"--steps {steps}: a whole number of steps, at "
+                 f"least one and at most {MAX_STEPS:,} (each is a record of the output and a root solve)"),
+                (not (number(tolerance) and SMALLEST_TOLERANCE <= tolerance < 1.0), f"--tolerance {tolerance}: "
+                 f"between {SMALLEST_TOLERANCE:g} (G is not computed closer) and 1"),
+                (not whole(pictures) or not 0 <= pictures <= MAX_PICTURES, f"--pictures {pictures}: a whole number "
+                 f"of pictures, 0 to {MAX_PICTURES} (each is a solve again)")]
     for bad, message in problems:
         if bad:
             error = UsageError(f"grow: {message}")
@@ -410,22 +517,45 @@ def check_controls(limit: float, steps: int, tolerance: float, pictures: int) ->
             raise error
 
 
-def grow(scene: Scene, comm, limit: float, steps: int, tolerance: float = 1e-4,
-         progress: Callable[[str], None] = print, output: Path | None = None, pictures: int = 0
-         ) -> list[Step] | None:
-    """Grow the cracks of ``scene`` as the control rises to ``limit`` in ``steps`` steps (every rank);
-    writes ``output`` (rank 0) and, with ``pictures``, that many pictures of the deformed structure at
-    steps spread over the run (``OUTPUT-step<k>.png``).  Returns the steps on rank 0, None elsewhere."""
+def default_limit(initiation: float) -> float:
+    """The limit without ``--to``: ``DEFAULT_MULTIPLE`` times the initiation factor; a UsageError where there
+    is none to multiply."""
+    if 0.0 < initiation < math.inf:
+        return DEFAULT_MULTIPLE * initiation
+    why = ("no tip reaches G_c at any control (G ≤ 0 at every tip)" if initiation == math.inf else
+           "the temperature change alone makes a tip grow (initiation at factor 0)" if initiation == 0.0 else
+           "the initiation factor is not a number")
+    error = UsageError(f"grow: without --to the control rises to {DEFAULT_MULTIPLE:g} × the initiation factor, "
+                       f"but {why}: give --to")
+    error.collective = True
+    raise error
+
+
+def grow(scene: Scene, comm, limit: float | None, steps: int, tolerance: float = 1e-4,
+         progress: Callable[[str], None] = print, output: Path | None = None, pictures: int = 0,
+         inputs: list[Path] = ()) -> list[Step] | None:
+    """Grow the cracks of ``scene`` as the control rises to ``limit`` (None: ``DEFAULT_MULTIPLE`` × the
+    initiation factor) in ``steps`` steps (every rank); with ``output`` writes its set of files
+    (:class:`Outputs`: the HDF5 file, the CSV and picture of the curves and ``pictures`` pictures of the
+    deformed structure at steps spread over the run), checked before any work (none may be one of
+    ``inputs``) and replaced together at the end.  Returns the steps on rank 0, None elsewhere."""
     check_controls(limit, steps, tolerance, pictures)
+    files = Outputs(Path(output)) if output is not None else None
+    if files is not None:
+        collective(comm, lambda: files.check(inputs), root_only=True)
     growth = Growth(scene, comm)
     cracks = tuple(tuple(piece) for piece in crack_mesh.intervals(growth.base))
     initiation = growth.initiation(cracks)
+    given = limit is not None
+    limit = limit if given else default_limit(initiation)
+    growth.check_limit(limit, steps, "--to" if given else f"the default limit ({DEFAULT_MULTIPLE:g} × initiation)")
     controls = [limit * k / steps for k in range(1, steps + 1)]
     if initiation < limit:  # a step of its own (one that falls within 1e-9 of it becomes it)
         controls = sorted([c for c in controls if abs(c - initiation) > 1e-9 * limit] + [initiation])
     if comm.rank == 0:
-        progress(f"grow: {growth.kind} control to {limit:g} in {len(controls)} control steps; cracks {describe(cracks)}; "
-                 f"initiation at {initiation:.6g}")
+        progress(f"grow: {growth.kind} control to {limit:g}" + ("" if given else f" ({DEFAULT_MULTIPLE:g} × "
+                 "initiation)") + f" in {len(controls)} control steps; cracks {describe(cracks)}; initiation at "
+                 f"{initiation:.6g}")
     records = [] if initiation == 0.0 else [Step(growth.state(cracks, 0.0))]  # 0: the temperature alone grows it
     for number, control in enumerate(controls, 1):
         before = len(records)
@@ -444,25 +574,78 @@ def grow(scene: Scene, comm, limit: float, steps: int, tolerance: float = 1e-4,
                 progress(line(number, len(controls), growth.kind, record))
         if any(event.startswith("end") for event in step.events):
             break
-    if output is not None:
-        collective(comm, lambda: write(output, scene, growth.kind, limit, tolerance, records), root_only=True)
-        draw(growth, records, output, pictures)
+    if files is not None:
+        files.commit(growth, records, limit, tolerance, pictures)
     return records if comm.rank == 0 else None
 
 
-def draw(growth: Growth, records: list[Step], output: Path, pictures: int) -> None:
+class Outputs:
+    """The set of files of a run on ``OUT.h5``: the HDF5 file, ``OUT.csv`` (the curve), ``OUT.png`` (the
+    curves) and ``OUT-step<k>.png`` (the deformed structure at step k); written together."""
+
+    def __init__(self, h5: Path):
+        self.h5 = h5
+        self.csv, self.curves = h5.with_suffix(".csv"), h5.with_suffix(".png")
+
+    def step(self, index: int) -> Path:
+        return self.h5.with_name(f"{self.h5.stem}-step{index}.png")
+
+    def step_pictures(self) -> list[Path]:
+        """The step pictures of this output present now (of an earlier run)."""
+        pattern = re.compile(re.escape(self.h5.stem) + r"-step[0-9]+\.png")
+        folder = self.h5.parent
+        if not folder.is_dir():
+            return []
+        return sorted(path for path in folder.glob(f"{glob.escape(self.h5.stem)}-step*.png")
+                      if pattern.fullmatch(path.name))
+
+    def check(self, inputs: list[Path] = ()) -> None:
+        """Refuse the set before any work: a name given twice, an input, a directory or FIFO at one of its
+        names (step pictures of an earlier run included: they are replaced or removed), an unwritable folder."""
+        safe.check_targets([self.h5, self.csv, self.curves, *self.step_pictures()], list(inputs))
+
+    def commit(self, growth: Growth, records: list[Step], limit: float, tolerance: float, pictures: int) -> None:
+        """Draw every picture (the step pictures' solves on every rank), then replace the previous set with
+        the new one at once on rank 0 (step pictures it no longer has removed with it)."""
+        from ddsolve.post import plots
+
+        images = draw(growth, records, pictures)
+
+        def work() -> None:
+            data = table(growth.scene, growth.kind, limit, tolerance, records)
+            curves = io.BytesIO()
+            plots.growth_curves(data, curves)
+            writers = {self.h5: lambda name: write_table(name, data), self.csv: lambda name: write_csv(name, data),
+                       self.curves: _bytes(curves.getvalue())}
+            writers.update({self.step(index): _bytes(image) for index, image in images.items()})
+            stale = [path for path in self.step_pictures() if path not in writers]
+            safe.replace_together(writers, final=True, remove=stale)
+
+        collective(growth.comm, work, root_only=True)
+
+
+def _bytes(data: bytes) -> Callable[[str], None]:
+    return lambda name: Path(name).write_bytes(data)
+
+
+def draw(growth: Growth, records: list[Step], pictures: int) -> dict[int, bytes]:
     """The deformed structure at ``pictures`` steps spread over the run (the last included), each solved
-    again, at one magnification (the last step's)."""
+    again, at one magnification (the last step's), titled with the step, the control and the crack lengths:
+    step index -> PNG (rank 0; empty elsewhere)."""
     from ddsolve.post import plots
 
     chosen = sorted({int(round(k)) for k in np.linspace(len(records) - 1, 0, pictures, endpoint=False)})
-    scale = None
+    scale, images = None, {}
     for index in reversed(chosen):
         state = records[index].state
         result = growth.result(growth.mesh_for(state.cracks), state.control)
-        path = output.with_name(f"{output.stem}-step{index}.png")
-        scale = collective(growth.comm, lambda: plots.deformed_layers(result, path, scale), root_only=True)
+        title = (f"{growth.scene.title or growth.scene.origin}: step {index}, λ = {state.control:.6g}, crack length"
+                 f"{'s' if len(state.cracks) > 1 else ''} " + ", ".join(f"{b - a:.6g}" for a, b in state.cracks))
+        image = io.BytesIO()
+        scale = collective(growth.comm, lambda: plots.deformed_layers(result, image, scale, title), root_only=True)
         scale = growth.comm.bcast(scale, root=0)
+        images[index] = image.getvalue()
+    return images if growth.comm.rank == 0 else {}
 
 
 def line(number: int, total: int, kind: str, step: Step) -> str:
@@ -474,13 +657,8 @@ def line(number: int, total: int, kind: str, step: Step) -> str:
             + (f"; {what}" if what else "") + f"; {step.solves} solves")
 
 
-def write(path: Path, scene: Scene, kind: str, limit: float, tolerance: float, steps: list[Step]) -> None:
-    """One HDF5 file with every step (``/growth/...``, see docs/growth.md)."""
-    import h5py
-
-    from ddsolve.io.safe import atomic
-    from ddsolve.parallel.launch import provenance
-
+def table(scene: Scene, kind: str, limit: float, tolerance: float, steps: list[Step]) -> dict:
+    """The datasets of a run as :func:`read` returns them (``attrs``, ``/growth`` by name, ``boundaries``)."""
     count = len(steps)
     cracks = max(len(s.state.cracks) for s in steps)
     tips = max(len(s.state.G) for s in steps)
@@ -492,27 +670,69 @@ def write(path: Path, scene: Scene, kind: str, limit: float, tolerance: float, s
             out[i, :len(values)] = values
         return out
 
-    def body(name: str) -> None:
-        with h5py.File(name, "w") as f:
-            for key, value in {**provenance(), "scene": scene.origin, "scene_text": scene.text, "control_kind": kind,
-                               "limit": limit, "tolerance": tolerance, "steps": count}.items():
-                f.attrs[key] = value
-            g = f.create_group("growth")
-            g["control"] = np.array([s.state.control for s in steps])
-            g["load"] = np.array([s.state.load for s in steps])
-            g["displacement"] = np.array([s.state.displacement for s in steps])
-            g["energy"] = np.array([s.state.energy for s in steps])
-            table = np.full((count, cracks, 2), np.nan)
-            for i, s in enumerate(steps):
-                table[i, :len(s.state.cracks)] = s.state.cracks
-            g["cracks"] = table
-            for name in ("G", "G_I", "G_II", "G_c", "tips"):
-                g[name] = per_tip(name)
-            g["unstable"] = np.array([s.unstable for s in steps])
-            g["solves"] = np.array([s.solves for s in steps], dtype=np.int64)
-            g["events"] = np.array(["; ".join(s.events) for s in steps], dtype=h5py.string_dtype())
+    data = {name: np.array([getattr(s.state, name) for s in steps])
+            for name in ("control", "load", "displacement", "energy")}
+    data["cracks"] = np.full((count, cracks, 2), np.nan)
+    for i, s in enumerate(steps):
+        data["cracks"][i, :len(s.state.cracks)] = s.state.cracks
+    data.update({name: per_tip(name) for name in ("G", "G_I", "G_II", "G_c", "tips")})
+    data["unstable"] = np.array([s.unstable for s in steps])
+    data["solves"] = np.array([s.solves for s in steps], dtype=np.int64)
+    data["events"] = np.array(["; ".join(s.events) for s in steps], dtype=object)
+    keys = list(dict.fromkeys(key for s in steps for key in s.state.boundaries))
+    values = {key: np.array([s.state.boundaries.get(key, np.full(4, np.nan)) for s in steps]).reshape(count, 4)
+              for key in keys}
+    data["boundaries"] = {key: {"force": v[:, :2], "displacement": v[:, 2:]} for key, v in values.items()}
+    data["attrs"] = {"scene": scene.origin, "scene_text": scene.text, "control_kind": kind, "limit": limit,
+                     "tolerance": tolerance, "steps": count}
+    return data
 
-    atomic(path, body, final=True)
+
+def write_table(name: str, data: dict) -> None:
+    """The HDF5 file of a run's :func:`table` (``/growth/...``, see docs/growth.md)."""
+    import h5py
+
+    from ddsolve.parallel.launch import provenance
+
+    with h5py.File(name, "w") as f:
+        for key, value in {**provenance(), **data["attrs"]}.items():
+            f.attrs[key] = value
+        g = f.create_group("growth")
+        for key, value in data.items():
+            if key == "events":
+                g[key] = np.array(list(value), dtype=h5py.string_dtype())
+            elif key == "boundaries":
+                for boundary, quantities in value.items():
+                    for quantity, array in quantities.items():
+                        g[f"boundaries/{boundary}/{quantity}"] = array
+            elif key != "attrs":
+                g[key] = value
+
+
+def write_csv(name: str, data: dict) -> None:
+    """The curve of a run as CSV: per step the control, load and displacement, the force and mean
+    displacement (x, y) of every controlled boundary, the crack intervals, the energy, and what happened."""
+    header = ["step", "control", "load", "displacement"]
+    columns = [np.arange(len(data["control"])), data["control"], data["load"], data["displacement"]]
+    for key, quantities in data["boundaries"].items():
+        for quantity, array in quantities.items():
+            header += [f"{key} {quantity} x", f"{key} {quantity} y"]
+            columns += [array[:, 0], array[:, 1]]
+    for c in range(data["cracks"].shape[1]):
+        header += [f"crack {c + 1} start", f"crack {c + 1} end"]
+        columns += [data["cracks"][:, c, 0], data["cracks"][:, c, 1]]
+    header += ["energy", "unstable", "events"]
+    columns += [data["energy"], data["unstable"].astype(int), data["events"]]
+    with open(name, "w", newline="") as out:
+        writer = csv.writer(out)
+        writer.writerow(header)
+        for row in zip(*columns):
+            writer.writerow([value if isinstance(value, str) else f"{value + 0.0:.10g}" for value in row])
+
+
+def write(path: Path, scene: Scene, kind: str, limit: float, tolerance: float, steps: list[Step]) -> None:
+    """The HDF5 file of a run alone (replaced whole)."""
+    safe.atomic(path, lambda name: write_table(name, table(scene, kind, limit, tolerance, steps)), final=True)
 
 
 def read(path: Path) -> dict:
@@ -524,7 +744,9 @@ def read(path: Path) -> dict:
     path = readable(path, "growth file")
     try:
         with h5py.File(path, "r") as f:
-            out = {name: f["growth"][name][()] for name in f["growth"]}
+            out = {name: f["growth"][name][()] for name in f["growth"] if name != "boundaries"}
+            out["boundaries"] = {key: {quantity: group[quantity][()] for quantity in group}
+                                 for key, group in f["growth"].get("boundaries", {}).items()}
             out["attrs"] = dict(f.attrs)
     except (OSError, KeyError) as exc:
         raise DDSolveError(f"{path}: not a growth file ({exc})") from None
