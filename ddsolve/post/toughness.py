@@ -5,7 +5,7 @@ or one per crack in order along Σ), or a mode-dependent law of G's split into m
 (:func:`ddsolve.post.fracture.mode_split`):
 
 - Benzeggagh–Kenane: G_c = G_Ic + (G_IIc − G_Ic)(G_II/G)^η;
-- Hutchinson–Suo: G_c(ψ) = G_Ic (1 + tan²((1 − λ)ψ)), ψ the phase angle.
+- Hutchinson–Suo: G_c(ψ) = G_Ic (1 + tan²((1 − λ)ψ)), ψ the phase angle (G_Ic where G ≈ 0 leaves ψ undefined).
 
 The contact problem is positively homogeneous: scaling every mechanical load by λ > 0 scales the solution
 by λ, G by λ² and keeps the mode mix, so without a temperature change a tip starts to grow at the load
@@ -38,7 +38,8 @@ def law(options: FractureOptions, crack: np.ndarray, G: np.ndarray, G_II: np.nda
         ) -> np.ndarray:
     """G_c of the toughness ``options`` at tips of cracks ``crack`` with G, G_II and the phase angle ψ
     (degrees); NaN where no toughness is given, or where the law needs a mode mix G does not define
-    (Benzeggagh–Kenane at G ≤ 0, Hutchinson–Suo where ψ is undefined: NaN at G ≈ 0)."""
+    (Benzeggagh–Kenane at G ≤ 0).  Hutchinson–Suo where ψ is undefined (G ≈ 0: no mode mix) gives its
+    least value G_Ic: such a tip's critical factor √(G_c/G) is then large or inf (G ≤ 0), never NaN."""
     crack, G = np.asarray(crack, dtype=np.int64), np.asarray(G, dtype=np.float64)
     if options.toughness is not None:
         if not isinstance(options.toughness, tuple):
@@ -48,8 +49,9 @@ def law(options: FractureOptions, crack: np.ndarray, G: np.ndarray, G_II: np.nda
         positive = G > 0
         ratio = np.where(positive, np.clip(np.asarray(G_II) / np.where(positive, G, 1.0), 0.0, 1.0), np.nan)
         return options.G_Ic + (options.G_IIc - options.G_Ic) * ratio ** options.eta
-    if options.law == "hutchinson-suo":
-        return options.G_Ic * (1.0 + np.tan((1.0 - options.lambda_) * np.radians(np.asarray(phase))) ** 2)
+    if options.law == "hutchinson-suo":  # no mode mix (G ≈ 0): the law's least toughness, G_Ic at ψ = 0
+        phase = np.nan_to_num(np.asarray(phase, dtype=np.float64), nan=0.0)
+        return options.G_Ic * (1.0 + np.tan((1.0 - options.lambda_) * np.radians(phase)) ** 2)
     return np.full(G.shape, np.nan)
 
 

@@ -8,7 +8,8 @@ change, so G, G_I and G_II are quadratics in λ: the solves at λ = 0, 1 and 2 g
 G(λ) = G_c(ψ(λ)) of that model is the first guess, and a solve there checks it.  Where the contact set
 changes, the root is refined in a bracket [λ_lo, λ_hi] with G < G_c at λ_lo (and every solve below it) and
 G ≥ G_c at λ_hi, by the root of the quadratic through the nearest solves, or by bisection when the bracket
-does not halve, until |G/G_c − 1| ≤ ``TOLERANCE``.  A tip with G ≥ G_c at λ = 0 grows under the temperature
+does not halve, until |G/G_c − 1| ≤ ``TOLERANCE`` (or, for a G_c far below the G of the temperature
+change, to what a solve resolves of G: :func:`resolved`).  A tip with G ≥ G_c at λ = 0 grows under the temperature
 change alone: factor 0; a tip that does not reach G_c below ``MAX_FACTOR``: inf.  Every solve gives G at
 every tip, so tips share them.
 """
@@ -21,7 +22,7 @@ import numpy as np
 from ddsolve.errors import DDSolveError, SolverError
 from ddsolve.mesh.mesh import Mesh
 from ddsolve.post import toughness
-from ddsolve.post.result import Fracture, Result
+from ddsolve.post.result import RELEASE, Fracture, Result
 from ddsolve.problem.scene import Scene
 from ddsolve.solvers import driver
 
@@ -112,6 +113,16 @@ def _first_root(model: Callable[[np.ndarray], np.ndarray], grid: np.ndarray) -> 
     return float(hi)
 
 
+def resolved(scene: Scene, found: dict[float, Fracture], lam: float, tip: int) -> float:
+    """How close to G_c the solve at ``lam`` can tell G at ``tip``, as |G/G_c − 1|: ``TOLERANCE``, or where
+    G_c is far below the tip's G of the temperature change alone (λ = 0) or at ``lam``, the part of them a
+    solve does not resolve (:data:`ddsolve.post.result.RELEASE`, what a result calls G ≈ 0): the root is
+    not sought below the noise of G, which would never settle it."""
+    G_c = float(toughness.resistance(scene, found[lam])[tip])
+    scale = max(abs(float(found[0.0].G[tip])), abs(float(found[lam].G[tip])))
+    return max(TOLERANCE, RELEASE * scale / G_c) if G_c > 0 else TOLERANCE
+
+
 def _tip_factor(scene: Scene, tip: int, found: dict[float, Fracture], at: Callable[[float], Fracture]) -> float:
     """The critical load factor of one tip, solving at new load factors (``at``) until it is found: the
     root of the quadratic model through the three solves nearest to the bracket (or, before there is one,
@@ -125,7 +136,7 @@ def _tip_factor(scene: Scene, tip: int, found: dict[float, Fracture], at: Callab
         if values[0] >= 0:  # λ = 0: G ≥ G_c under the temperature change alone
             return 0.0
         above = np.flatnonzero(values >= 0)
-        close = np.flatnonzero(np.abs(values) <= TOLERANCE)
+        close = np.flatnonzero(np.abs(values) <= np.array([resolved(scene, found, lam, tip) for lam in lams]))
         if close.size and (above.size == 0 or close[0] <= above[0]):
             return float(lams[close[0]])
         if above.size:
