@@ -67,7 +67,8 @@ def critical_factor(G: np.ndarray, G_c: np.ndarray) -> np.ndarray:
     G, G_c = np.broadcast_arrays(np.asarray(G, dtype=np.float64), np.asarray(G_c, dtype=np.float64))
     out = np.where(np.isnan(G), np.nan, np.inf)
     positive = G > 0
-    out[positive] = np.sqrt(G_c[positive] / G[positive])
+    with np.errstate(over="ignore"):  # a G of a few denormals: inf, it does not grow
+        out[positive] = np.sqrt(G_c[positive] / G[positive])
     return out
 
 

@@ -113,14 +113,15 @@ def _first_root(model: Callable[[np.ndarray], np.ndarray], grid: np.ndarray) -> 
     return float(hi)
 
 
-def resolved(scene: Scene, found: dict[float, Fracture], lam: float, tip: int) -> float:
-    """How close to G_c the solve at ``lam`` can tell G at ``tip``, as |G/G_c − 1|: ``TOLERANCE``, or where
-    G_c is far below the tip's G of the temperature change alone (λ = 0) or at ``lam``, the part of them a
-    solve does not resolve (:data:`ddsolve.post.result.RELEASE`, what a result calls G ≈ 0): the root is
-    not sought below the noise of G, which would never settle it."""
+def resolved(scene: Scene, found: dict[float, Fracture], lam: float, tip: int) -> bool:
+    """Whether the solve at ``lam`` puts G at ``tip`` at G_c: |G/G_c − 1| ≤ ``TOLERANCE``, or, where G_c is
+    far below the tip's G of the temperature change alone (λ = 0) or at ``lam``, |G − G_c| within the part
+    of them a solve does not resolve (:data:`ddsolve.post.result.RELEASE`, what a result calls G ≈ 0): the
+    root is not sought below the noise of G, which would never settle it."""
     G_c = float(toughness.resistance(scene, found[lam])[tip])
-    scale = max(abs(float(found[0.0].G[tip])), abs(float(found[lam].G[tip])))
-    return max(TOLERANCE, RELEASE * scale / G_c) if G_c > 0 else TOLERANCE
+    G = float(found[lam].G[tip])
+    scale = max(abs(float(found[0.0].G[tip])), abs(G))
+    return G > 0 and abs(G - G_c) <= max(TOLERANCE * G_c, RELEASE * scale)
 
 
 def _tip_factor(scene: Scene, tip: int, found: dict[float, Fracture], at: Callable[[float], Fracture]) -> float:
@@ -136,7 +137,7 @@ def _tip_factor(scene: Scene, tip: int, found: dict[float, Fracture], at: Callab
         if values[0] >= 0:  # λ = 0: G ≥ G_c under the temperature change alone
             return 0.0
         above = np.flatnonzero(values >= 0)
-        close = np.flatnonzero(np.abs(values) <= np.array([resolved(scene, found, lam, tip) for lam in lams]))
+        close = np.flatnonzero([resolved(scene, found, lam, tip) for lam in lams])
         if close.size and (above.size == 0 or close[0] <= above[0]):
             return float(lams[close[0]])
         if above.size:
