@@ -197,19 +197,21 @@ def fracture(G: np.ndarray) -> Fracture:
 
 
 @settings(derandomize=True, max_examples=40, deadline=None)
-@given(thermal=st.floats(-1e-6, 0.0), mechanical=st.floats(1e-9, 1e-3), noise=st.floats(0.0, 1e-8),
+@given(thermal=st.floats(-1e-6, 0.0), mechanical=st.floats(1e-9, 1e-3), noise=st.floats(0.0, 1e-10),
        exponent=st.floats(-14, -8))
 def test_the_critical_load_search_settles_with_a_small_toughness(thermal, mechanical, noise, exponent):
-    """G(λ) = G_T + λ² G_M with solver noise relative to its parts: the search finds λ_c = √((G_c − G_T)/G_M)
-    to what the noise allows, whatever the toughness (it failed at 1e-12: "no λ in 40 solves")."""
+    """G(λ) = G_T + λ² G_M at a tip, another tip at G = 1e-5, the solve's noise relative to the largest G:
+    the search finds λ_c = √((G_c − G_T)/G_M) to what the noise allows, whatever the toughness (it failed
+    on strip-disbonds heated with G_c = 1e-12: "no λ in 40 solves", "G/G_c − 1 jumps")."""
     G_c = 10.0 ** exponent
     scene = Scene.load("partial-closure", [f"fracture.toughness={G_c!r}", "materials.layer1.alpha=1e-5",
                                            "temperature.layer1=1.0"])
     rng = np.random.default_rng(0)
+    largest = 1e-5
 
     def evaluate(lam: float) -> Fracture:
         exact = thermal + lam ** 2 * mechanical
-        return fracture(np.array([exact + noise * (abs(thermal) + lam ** 2 * mechanical) * rng.standard_normal()]))
+        return fracture(np.array([exact + noise * largest * rng.uniform(-1.0, 1.0), largest]))
 
     try:
         found = critical.search(scene, evaluate)[0]
@@ -219,9 +221,8 @@ def test_the_critical_load_search_settles_with_a_small_toughness(thermal, mechan
     if expected > critical.MAX_FACTOR:
         assert found == math.inf
         return
-    allowed = max(critical.TOLERANCE, 2 * critical.RELEASE * (abs(thermal) + G_c) / G_c,
-                  4 * noise * (abs(thermal) + expected ** 2 * mechanical) / G_c)
-    assert abs(found ** 2 * mechanical + thermal - G_c) <= allowed * G_c * 1.01
+    off = max(critical.TOLERANCE * G_c, critical.RELEASE * max(-thermal, G_c), noise * largest) * 1.01
+    assert abs(found - expected) <= off / (2 * mechanical * expected) + 2 * critical.RESOLUTION * expected
 
 
 @FEW
