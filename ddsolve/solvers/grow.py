@@ -335,12 +335,18 @@ class Growth:
             ends[piece][end] = position + state.heading[tip] * distance
         ends.sort()
         merged: list[list[float]] = []
-        for a, b in ends:
-            if merged and a <= merged[-1][1] + 1e-12 * self.length:
+        for a, b in ends:  # a glued piece shorter than its Σ edges is no piece: the cracks meet
+            if merged and a - merged[-1][1] < max(self.edge_at(a), self.edge_at(merged[-1][1])):
                 merged[-1][1] = max(merged[-1][1], b)
             else:
                 merged.append([a, b])
         return tuple((float(a), float(b)) for a, b in merged)
+
+    def edge_at(self, s: float) -> float:
+        """The length of the Σ edge (corner to corner) of the mesh that holds arc length ``s``."""
+        corners = self.base.sigma.arclength[self.base.sigma.corner]
+        right = int(np.clip(np.searchsorted(corners, s), 1, len(corners) - 1))
+        return float(corners[right] - corners[right - 1])
 
     def at_control(self, cracks: tuple, control: float, tolerance: float, probe: bool = False
                    ) -> tuple[tuple, Step]:
