@@ -272,8 +272,9 @@ def grow(scene: Scene | str | Path, limit: float, steps: int = 20, tolerance: fl
     its loads or prescribed displacements rises to ``limit`` in ``steps`` steps (docs/growth.md).
 
     Returns the steps (:class:`ddsolve.solvers.grow.Step`: ``state`` with control, load, displacement,
-    cracks, G per tip; ``unstable``; ``events``) on every rank; ``output`` writes them to one HDF5 file
-    (the layout of ``ddsolve grow``), which may be none of the files the scene reads.
+    cracks, G per tip; ``unstable``; ``events``) on every rank; ``output`` writes them as ``ddsolve grow``
+    does (the HDF5 file with the CSV and picture of the curve beside it, replaced together), none of which
+    may be one of the files the scene reads.
     """
     from ddsolve.solvers import grow as growth
 
@@ -288,7 +289,8 @@ def grow(scene: Scene | str | Path, limit: float, steps: int = 20, tolerance: fl
     loaded, arguments = _agreed(comm, "grow", check)
     with _reported_once(comm):
         done = growth.grow(loaded, comm, arguments["limit"], arguments["steps"], arguments["tolerance"],
-                           progress=arguments["progress"], output=arguments["output"])
+                           progress=arguments["progress"], output=arguments["output"],
+                           inputs=inputs.of_scene(loaded, scene))
     return comm.bcast(done, root=0)
 
 

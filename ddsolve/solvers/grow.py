@@ -38,7 +38,7 @@ import numbers
 import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Iterable, Mapping
 
 import numpy as np
 
@@ -463,7 +463,7 @@ class Growth:
             error.collective = True
             raise error
         moved = ", ".join(f"tip {start.tips[i]:.6g} → {start.tips[i] + start.heading[i] * x:.6g}"
-                          for i, x in settled.items() if x > 0.0)
+                          for i, x in settled.items() if x > SMALLEST_MOVE * start.spacing[i])
         if moved:
             step.events.append(("unstable: " if step.unstable else "") + moved)
         step.events.extend(halted)
@@ -539,7 +539,7 @@ def default_limit(initiation: float) -> float:
 
 def grow(scene: Scene, comm, limit: float | None, steps: int, tolerance: float = 1e-4,
          progress: Callable[[str], None] = print, output: Path | None = None, pictures: int = 0,
-         inputs: list[Path] = ()) -> list[Step] | None:
+         inputs: Iterable[Path] | Mapping[Path, str] = ()) -> list[Step] | None:
     """Grow the cracks of ``scene`` as the control rises to ``limit`` (None: ``DEFAULT_MULTIPLE`` × the
     initiation factor) in ``steps`` steps (every rank); with ``output`` writes its set of files
     (:class:`Outputs`: the HDF5 file, the CSV and picture of the curves and ``pictures`` pictures of the
@@ -605,10 +605,10 @@ class Outputs:
         return sorted(path for path in folder.glob(f"{glob.escape(self.h5.stem)}-step*.png")
                       if pattern.fullmatch(path.name))
 
-    def check(self, inputs: list[Path] = ()) -> None:
+    def check(self, inputs: Iterable[Path] | Mapping[Path, str] = ()) -> None:
         """Refuse the set before any work: a name given twice, an input, a directory or FIFO at one of its
         names (step pictures of an earlier run included: they are replaced or removed), an unwritable folder."""
-        safe.check_targets([self.h5, self.csv, self.curves, *self.step_pictures()], list(inputs))
+        safe.check_targets([self.h5, self.csv, self.curves, *self.step_pictures()], inputs)
 
     def commit(self, growth: Growth, records: list[Step], limit: float, tolerance: float, pictures: int) -> None:
         """Draw every picture (the step pictures' solves on every rank), then replace the previous set with
