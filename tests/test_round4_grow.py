@@ -252,3 +252,30 @@ def test_without_a_limit_there_must_be_an_initiation():
             grow.default_limit(initiation)
     with pytest.raises(SceneError):
         grow.control_kind(Scene.load("partial-closure", ["loads={}"]))
+
+
+@FEW
+@given(free=st.lists(st.sampled_from(["x", "y", "rotation"]), min_size=1, max_size=3, unique=True),
+       block=st.integers(0, 3), mixing=st.floats(-2.0, 2.0))
+def test_the_free_motion_of_a_part_is_named_from_the_whole_kernel(free, block, mixing):
+    """A part that can move in several ways is named by all of them (a freed part said to "rotate about
+    (−181, −0.2)" could translate): every motion, both translations, or the one motion it has."""
+    from ddsolve.dd import kernels
+    from ddsolve.mesh.mesh import BLOCKS
+
+    frame = kernels.Frame(np.array([0.0, 0.0]), 2.0)
+    modes = np.eye(3)[[("x", "y", "rotation").index(name) for name in free]].T  # (3, m)
+    if modes.shape[1] > 1:  # any basis of the same span
+        modes = modes @ (np.eye(modes.shape[1]) + mixing * np.triu(np.ones((modes.shape[1],) * 2), 1))
+    whole = np.zeros((12, modes.shape[1]))
+    whole[3 * block:3 * block + 3] = modes
+    text = kernels.describe(whole, frame)
+    assert text.startswith(f"blocks {BLOCKS[block].name} can ")
+    if len(free) == 3:
+        assert "translate and rotate freely" in text
+    elif set(free) == {"x", "y"}:
+        assert "translate in x and y" in text
+    elif free == ["rotation"]:
+        assert "rotate about (0, 0)" in text
+    elif len(free) == 1:
+        assert f"translate along ({float(free == ['x']):.3g}, {float(free == ['y']):.3g})" in text

@@ -168,7 +168,9 @@ def _motion(coefficients: np.ndarray, frame: Frame) -> str:
     omega = omega / frame.length
     if abs(omega) * frame.length < 1e-6 * max(abs(tx), abs(ty)):
         direction = np.array([tx, ty]) / np.hypot(tx, ty)
-        return f"translate along ({direction[0]:.3g}, {direction[1]:.3g})"
+        if direction[0] < -1e-12 or (abs(direction[0]) <= 1e-12 and direction[1] < 0):
+            direction = -direction  # a line of motion: either sign
+        return f"translate along ({direction[0] + 0.0:.3g}, {direction[1] + 0.0:.3g})"
     # velocity (tx − ω(y − cy), ty + ω(x − cx)) vanishes at the centre of rotation
     x, y = frame.centre[0] - ty / omega, frame.centre[1] + tx / omega
     return f"rotate about ({x + 0.0:.6g}, {y + 0.0:.6g})"
