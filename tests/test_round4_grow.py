@@ -158,6 +158,7 @@ def test_the_set_is_checked_first_and_written_whole(tmp_path):
 
 
 # --- class 8: growth that cannot go on ---------------------------------------------------------------
+@pytest.mark.solve
 def test_merging_cracks_that_free_a_part_end_the_run_with_its_steps(tmp_path):
     """Two cracks that would crack the whole of Σ free the upper part: the run ends there with its steps,
     saying what moves, and a part that can move every way is not said to rotate about a far point."""

@@ -51,7 +51,7 @@ from ddsolve.parallel import distribution
 from ddsolve.parallel.exchange import collective
 from ddsolve.post import toughness
 from ddsolve.problem import expressions, materials
-from ddsolve.problem.scene import Load, Scene
+from ddsolve.problem.scene import LAYERS, Load, Scene
 
 #: The most root-solve iterations of one step, and of rounds of steps at one control (growth of one tip
 #: changing the G of another).
@@ -270,29 +270,26 @@ class Growth:
             factors = critical.factors(self.scene, self.comm, self.mesh_for(cracks))
         return float(np.min(factors, initial=math.inf))
 
-    def control_range(self) -> tuple[float, float, str]:
-        """The control factors whose scaled loads or prescribed displacements a double-precision solve
-        represents (:data:`ddsolve.fem.assembly.DISPLACEMENT_RANGE` for the displacements they give, as
-        :func:`ddsolve.fem.assembly.check_range` checks a scene), and the key that sets the bound."""
-        orders = []  # (displacement of order at factor 1, key)
-        if self.kind == "load":
-            points = np.vstack([half.points for half in self.base.halves])
-            size = float(np.ptp(points, axis=0).max())
-            for (layer, name), load in self.scene.loads.items():
-                D, _ = materials.elasticity(self.scene.materials[layer], self.scene.model)
-                traction = max((assembly.load_extent(half.points, edges, load)
-                                for _, half, edges in _parts(self.base, layer, name)), default=0.0)
-                orders.append((traction * size / float(np.abs(D).max()), load.key))
-        else:
-            for key in controlled(self.scene, self.kind):
-                d = self.scene.displacements[key]
-                orders.append((max(abs(float(part(0.0, 0.0))) for part in (d.x, d.y) if part is not None), d.key))
-        orders = [(order, key) for order, key in orders if order > 0.0]
+    def control_range(self) -> tuple[float, float, tuple[str, str]]:
+        """The control factors at which the scene, scaled, passes :func:`ddsolve.fem.assembly.check_range`:
+        the displacements the scaled loads or prescribed displacements drive
+        (:func:`ddsolve.fem.assembly.driven_displacements`, λ times those at 1) within DISPLACEMENT_RANGE and
+        their energies within ENERGY_RANGE (a temperature change, not scaled, keeps the structure's
+        displacements up at small factors); the keys that set the lower and upper bounds."""
+        size = float(np.ptp(np.vstack([half.points for half in self.base.halves]), axis=0).max())
+        scaled = {load.key for load in self.scene.loads.values()} | {d.key for d in self.scene.displacements.values()}
+        driven, stiffness = [], assembly.modulus(self.scene)
+        for layer in LAYERS:
+            layer_stiffness = float(np.abs(materials.elasticity(self.scene.materials[layer], self.scene.model)[0]).max())
+            driven += assembly.driven_displacements(self.scene, self.base, layer, size, layer, layer_stiffness)
+        orders = [(order, cause) for order, cause, _ in driven if cause in scaled]
+        fixed = max((order for order, cause, _ in driven if cause not in scaled), default=0.0)
         if not orders:
             return 0.0, math.inf, ("", "")
-        low, high = assembly.DISPLACEMENT_RANGE
-        smallest, largest = min(orders), max(orders)
-        return low / smallest[0], high / largest[0], (smallest[1], largest[1])
+        low = max(assembly.DISPLACEMENT_RANGE[0], math.sqrt(assembly.ENERGY_RANGE[0] / stiffness))
+        high = min(assembly.DISPLACEMENT_RANGE[1], math.sqrt(assembly.ENERGY_RANGE[1] / stiffness))
+        largest = max(orders)
+        return (0.0 if fixed >= low else low / largest[0]), high / largest[0], (largest[1], largest[1])
 
     def check_limit(self, limit: float, steps: int, option: str) -> None:
         """Refuse a limit whose largest control or first step lies outside :meth:`control_range`."""
