@@ -270,12 +270,12 @@ class Growth:
             factors = critical.factors(self.scene, self.comm, self.mesh_for(cracks))
         return float(np.min(factors, initial=math.inf))
 
-    def control_range(self) -> tuple[float, float, tuple[str, str]]:
+    def control_range(self) -> tuple[float, float, str]:
         """The control factors at which the scene, scaled, passes :func:`ddsolve.fem.assembly.check_range`:
         the displacements the scaled loads or prescribed displacements drive
         (:func:`ddsolve.fem.assembly.driven_displacements`, λ times those at 1) within DISPLACEMENT_RANGE and
         their energies within ENERGY_RANGE (a temperature change, not scaled, keeps the structure's
-        displacements up at small factors); the keys that set the lower and upper bounds."""
+        displacements up at small factors); and the key that drives the largest of them."""
         size = float(np.ptp(np.vstack([half.points for half in self.base.halves]), axis=0).max())
         scaled = {load.key for load in self.scene.loads.values()} | {d.key for d in self.scene.displacements.values()}
         driven, stiffness = [], assembly.modulus(self.scene)
@@ -285,20 +285,20 @@ class Growth:
         orders = [(order, cause) for order, cause, _ in driven if cause in scaled]
         fixed = max((order for order, cause, _ in driven if cause not in scaled), default=0.0)
         if not orders:
-            return 0.0, math.inf, ("", "")
+            return 0.0, math.inf, ""
         low = max(assembly.DISPLACEMENT_RANGE[0], math.sqrt(assembly.ENERGY_RANGE[0] / stiffness))
         high = min(assembly.DISPLACEMENT_RANGE[1], math.sqrt(assembly.ENERGY_RANGE[1] / stiffness))
         largest = max(orders)
-        return (0.0 if fixed >= low else low / largest[0]), high / largest[0], (largest[1], largest[1])
+        return (0.0 if fixed >= low else low / largest[0]), high / largest[0], largest[1]
 
     def check_limit(self, limit: float, steps: int, option: str) -> None:
         """Refuse a limit whose largest control or first step lies outside :meth:`control_range`."""
-        low, high, (small, large) = self.control_range()
+        low, high, key = self.control_range()
         if limit > high:
-            bad = f"{option} {limit:g}: scales {large} beyond what a double-precision solve represents (factors " \
+            bad = f"{option} {limit:g}: scales {key} beyond what a double-precision solve represents (factors " \
                   f"up to {high:.3g}): give {option} at most {high:.3g}"
         elif limit / steps < low:
-            bad = f"{option} {limit:g} in {steps} steps: the first step {limit / steps:.3g} scales {small} below what " \
+            bad = f"{option} {limit:g} in {steps} steps: the first step {limit / steps:.3g} scales {key} below what " \
                   f"a double-precision solve represents (factors from {low:.3g}): give {option} at least {low * steps:.3g}"
         else:
             return
