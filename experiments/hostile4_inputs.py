@@ -8,7 +8,7 @@ from __future__ import annotations
 from experiments.robustness import SMALL
 
 CLASSES = {
-    201: ("Inputs that scale the answer have no range",
+    201: ("Inputs that scale the answer have no range: prescribed displacements, α and ΔT",
           "the range check of moduli and loads takes each layer's displacement scale from the largest of its "
           "loads, prescribed displacements and eigenstrain αΔT (sampled densely) and bounds the energy "
           "stiffness × displacement², and a result whose energy, G or field is not finite is written with "
