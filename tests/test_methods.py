@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from ddsolve.dd.methods import box_qp, kkt_criterion, largest_eigenvalue, projected_gradient
+from ddsolve.dd.dual import kkt_criterion, largest_eigenvalue, projected_gradient
+from ddsolve.dd.schur import box_qp
 
 
 def random_problem(seed: int, n: int = 12):
