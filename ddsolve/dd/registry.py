@@ -84,11 +84,7 @@ def before_meshing(name: str, ranks_per_block: int) -> MethodOptions:
     return OPTIONS[WHOLE_BLOCKS if name not in METHODS and ranks_per_block <= 1 else name]
 
 
-def resolve(name: str, ranks_per_block: int, unknowns: int, sigma_vertices: int) -> str:
-    """The method ``solver.method = name`` stands for: itself, or ``auto``'s :func:`choose`."""
-    return name if name in METHODS else choose(ranks_per_block, unknowns, sigma_vertices)
-
-
+# --- auto: schur or feti ------------------------------------------------------------------------
 #: ``auto``'s method for whole blocks.
 WHOLE_BLOCKS = "schur"
 #: Per-block costs (seconds, n = block unknowns, c = columns, m = multiplier rounds) fitted by
