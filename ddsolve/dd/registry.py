@@ -39,7 +39,7 @@ class Method:
     run: Callable[..., Outcome]
     #: The blocks' factorization package by default: the iterative methods make one solve per round with one
     #: factorization, where PETSc's own Cholesky is about 3x faster than MUMPS; ``schur`` needs MUMPS for the
-    #: Schur complements, ``feti`` for a floating block's K⁺ (``./run bench factor`` measures both).
+    #: Schur complements (``./run bench factor`` measures both).
     factorization: str = "petsc"
     floating: str | None = None  # how it solves floating blocks (INTERIOR, GENERALIZED_INVERSE); None: it cannot
     schur_complements: bool = False  # it needs the blocks' Schur complements on Σ with their factorization
