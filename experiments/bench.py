@@ -83,7 +83,7 @@ def monolithic(scene: scenes.Scene, mesh, systems) -> tuple[Result, dict]:
     import dataclasses
 
     from ddsolve.dd.interface import for_mesh
-    from ddsolve.dd.methods import box_qp
+    from ddsolve.dd.schur import box_qp
     from ddsolve.fem import assembly
     from ddsolve.mesh.mesh import U_MINUS, U_PLUS
     from ddsolve.parallel.blocks import Block

@@ -840,7 +840,7 @@ def _limits(strong: list[dict], weak: list[dict]) -> list[str]:
         + (f"; in weak scaling it overtakes the block work at about {crossover} cores" if crossover else "") +
         "). `feti` needs neither: only block solves and products, rank 0's work per round is linear in the "
         "multipliers, and its rounds grow slowly with P. The default (`auto`) takes `schur` for whole blocks and, "
-        "for distributed blocks, whichever the model predicts cheaper (`methods.choose`, with the per-block laws "
+        "for distributed blocks, whichever the model predicts cheaper (`registry.choose`, with the per-block laws "
         "above): `feti` on every predicted configuration here. What remains: `feti`'s active-set steps grow "
         "slowly with P, and its Dirichlet factorization doubles the factorization work and memory.",
     ]

@@ -2,7 +2,10 @@
 import numpy as np
 import pytest
 
-from ddsolve.dd.methods import box_qp, kkt_criterion, largest_eigenvalue, projected_gradient
+from ddsolve.dd.dual import kkt_criterion, largest_eigenvalue, projected_gradient
+from ddsolve.dd import registry
+from ddsolve.dd.schur import box_qp
+from ddsolve.problem.method_options import AUTO, OPTIONS
 
 
 def random_problem(seed: int, n: int = 12):
@@ -43,3 +46,12 @@ def test_power_iteration_finds_the_largest_eigenvalue():
     A, *_ = random_problem(5, n=30)
     estimate = largest_eigenvalue(lambda v: A @ v, 30, iterations=500, tolerance=1e-12)
     assert estimate == pytest.approx(np.linalg.eigvalsh(A).max(), rel=1e-6)
+
+
+def test_every_method_a_scene_names_is_described_once_in_the_registry():
+    assert [AUTO.name, *registry.METHODS] == list(OPTIONS)
+    assert all(method.options is OPTIONS[name] for name, method in registry.METHODS.items())
+    assert registry.before_meshing(AUTO.name, 1) is OPTIONS[registry.WHOLE_BLOCKS]
+    assert registry.before_meshing(AUTO.name, 2) is AUTO
+    assert set(registry.floating_methods()) <= set(registry.METHODS)
+

@@ -22,7 +22,7 @@ from conftest import ddsolve
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from ddsolve.dd import constraints, methods
+from ddsolve.dd import constraints, dual, uzawa
 from ddsolve.dd.interface import Interface
 from experiments.hostile4_zero import LAYERS, PAPER_LAYERS, PRESSED_LAYERS, clamped_plate, pressed_plate
 from ddsolve.fem import assembly
@@ -93,19 +93,19 @@ def test_the_kkt_check_measures_a_zero_solution_against_the_data():
 def test_the_stopping_rules_take_the_same_floor_and_stay_zero_without_data():
     interface = Interface(np.array([0.5, 0.5]), np.array([False, True]), True, modulus=200.0, data=1e-3)
     floor = constraints.DATA_FLOOR * 1e-3 * np.sqrt(interface.row_weights.sum())
-    assert methods.gap_scale(interface, np.zeros(interface.size)) == pytest.approx(floor)
+    assert dual.gap_scale(interface, np.zeros(interface.size)) == pytest.approx(floor)
     gap = np.full(interface.size, 1.0)
-    assert methods.gap_scale(interface, gap) == pytest.approx(np.linalg.norm(np.sqrt(interface.row_weights)))
-    assert methods.gap_scale(Interface(np.array([0.5, 0.5]), np.array([False, True]), True),
+    assert dual.gap_scale(interface, gap) == pytest.approx(np.linalg.norm(np.sqrt(interface.row_weights)))
+    assert dual.gap_scale(Interface(np.array([0.5, 0.5]), np.array([False, True]), True),
                              np.zeros(interface.size)) == 0.0  # zero load: the criterion is exactly 0
     # uzawa's block rule: a block at ‖x‖ = 0 that moved is measured against the data's energy, not ∞
-    energy_floor = methods.energy_floor(interface)
+    energy_floor = uzawa.energy_floor(interface)
     assert energy_floor == pytest.approx(200.0 * (constraints.DATA_FLOOR * 1e-3) ** 2)
     steps, energies = np.array([1e-30, 0, 0, 0]), np.zeros(4)
-    assert methods.block_criterion("relative", steps, energies) == np.inf
-    floored = methods.block_criterion("relative", steps, energies, energy_floor)
+    assert uzawa.block_criterion("relative", steps, energies) == np.inf
+    floored = uzawa.block_criterion("relative", steps, energies, energy_floor)
     assert floored == pytest.approx(1e-15 / np.sqrt(energy_floor))
-    assert methods.block_criterion("relative", np.zeros(4), energies, energy_floor) == 0.0
+    assert uzawa.block_criterion("relative", np.zeros(4), energies, energy_floor) == 0.0
 
 
 def test_the_equilibrium_residual_measures_body_and_interface_loads_each_on_its_own():

@@ -104,7 +104,7 @@ class BlockServer:
 
 
 class ParallelRounds:
-    """Rank 0's implementation of :class:`~ddsolve.dd.methods.Rounds` over an :class:`Exchange`.
+    """Rank 0's implementation of :class:`~ddsolve.dd.dual.Rounds` over an :class:`Exchange`.
 
     Between rounds rank 0 is updating multipliers: that time is logged in the PETSc stage
     ``Update``, the rounds themselves in ``Rounds``.

@@ -8,6 +8,7 @@ import numpy as np
 
 from ddsolve.dd.constraints import Constraints, kkt, kkt_tolerance, scale_free_ratio
 from ddsolve.dd.interface import Interface, for_mesh
+from ddsolve.dd.registry import METHODS
 from ddsolve.errors import DDSolveError
 from ddsolve.fem import assembly, supports
 from ddsolve.mesh import element
@@ -136,7 +137,7 @@ def constraints(result: Result, equilibrium: np.ndarray | None = None) -> Constr
     lam = multiplier_vector(interface, result.multipliers, frames)
     if equilibrium is None:
         equilibrium = equilibrium_residuals(result, scene, interface, lam)
-    p = None if result.method == "reference" else scene.solver.p  # the reference has no multiplier bound
+    p = scene.solver.p if result.method in METHODS else None  # the reference (no contact method) has no bound
     return kkt(interface, local_traces(result), lam, p, equilibrium, largest_displacement(result.solution.values()))
 
 
@@ -147,7 +148,7 @@ def largest_displacement(fields) -> float:
 
 def tolerance_of(result: Result) -> float:
     """The tolerance the result's residuals are checked against (see :func:`kkt_tolerance`)."""
-    return kkt_tolerance(None if result.method == "reference" else result.parsed_scene.solver)
+    return kkt_tolerance(result.parsed_scene.solver if result.method in METHODS else None)
 
 
 #: A point within this fraction of a boundary edge's length outside a mesh still lies in its domain:

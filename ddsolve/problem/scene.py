@@ -27,13 +27,10 @@ except ModuleNotFoundError:  # Python < 3.11
 from ddsolve.errors import DDSolveError, SceneError
 from ddsolve.problem import expressions, materials
 from ddsolve.problem.expressions import Expression
+from ddsolve.problem.method_options import AUTO, OPTIONS
 
-METHODS = ("auto", "schur", "mprgp", "fista", "uzawa", "feti")
-#: ``auto``: ``schur`` or ``feti`` by problem size and ranks per block (:func:`ddsolve.dd.methods.choose`).
-DEFAULT_METHOD = "auto"
 STOP_RULES = ("paper", "relative", "kkt")
-#: Default stopping rule of each method and default tolerance of each rule.
-DEFAULT_STOP = {"uzawa": "paper", "schur": "kkt", "mprgp": "kkt", "fista": "kkt", "feti": "kkt", "auto": "kkt"}
+#: Default tolerance of each stopping rule (a method's default rule: :mod:`ddsolve.problem.method_options`).
 DEFAULT_TOL = {"paper": 1e-6, "relative": 1e-6, "kkt": 1e-8}
 LAYERS = ("layer1", "layer2")
 #: The sides of a box geometry, as boundary names.
@@ -494,7 +491,7 @@ SCHEMA: dict[str, Any] = {
     "temperature": {layer: (_load_value, None) for layer in LAYERS},
     "contact": {"nonpenetration": (_boolean, True)},
     "solver": {
-        "method": (_choice(METHODS), DEFAULT_METHOD),
+        "method": (_choice(tuple(OPTIONS)), AUTO.name),
         "theta": (_step, None),
         "p": (_positive(_number), None),
         "tol": (_positive(_number), None),
@@ -641,14 +638,15 @@ def _cross_checks(data: dict, raw: dict, origin: str) -> None:
                                  "(a pressure acts along the normal)")
     _displacement_checks(data, origin)
     _temperature_checks(data, origin)
-    solver = data["solver"]
-    if solver["method"] == "uzawa" and solver["theta"] is None:
-        raise SceneError(f"{origin}: solver.theta is required by method uzawa")
+    solver, method = data["solver"], OPTIONS[data["solver"]["method"]]
+    if method.step and solver["theta"] is None:
+        raise SceneError(f"{origin}: solver.theta is required by method {method.name}")
     if solver["stop"] is None:
-        solver["stop"] = DEFAULT_STOP[solver["method"]]
-    if solver["method"] != "uzawa" and solver["stop"] != "kkt":
-        raise SceneError(f"{origin}: solver.stop = {solver['stop']} is available for method uzawa only "
-                         f"(method {solver['method']} stops on kkt)")
+        solver["stop"] = method.stops[0]
+    if solver["stop"] not in method.stops:
+        takers = " and ".join(name for name, other in OPTIONS.items() if solver["stop"] in other.stops)
+        raise SceneError(f"{origin}: solver.stop = {solver['stop']} is available for method {takers} only "
+                         f"(method {method.name} stops on {' or '.join(method.stops)})")
     if solver["tol"] is None:
         solver["tol"] = DEFAULT_TOL[solver["stop"]]
     radii = data["fracture"]

@@ -49,6 +49,7 @@ OUT_OF_PLANE = {"plane_stress": ("E3", "nu13", "nu23", "Dzz"), "plane_strain": (
 
 def unread(command: str, path: list[str], scene, ranks: int) -> str | None:
     """Why ``command`` on ``ranks`` ranks would not read the key ``path`` of ``scene`` (None: it does)."""
+    from ddsolve.dd import registry
     from ddsolve.mesh.mesh import BLOCKS
 
     section, leaf = path[0], path[2:3]
@@ -68,14 +69,18 @@ def unread(command: str, path: list[str], scene, ranks: int) -> str | None:
         return ("a sweep file keeps no title" if section == "title" else "it gives only the out-of-plane stress or "
                 "strain, which a sweep file does not keep (solve and reference write it)")
     if section == "solver":
-        method = scene.solver.method
-        if method == "auto" and ranks // len(BLOCKS) <= 1:  # whole blocks: auto is schur
-            method = "schur"
-        if path[1:] == ["theta"] and method != "uzawa":
-            return f"it is the step of method uzawa, and method {method} takes none"
-        if path[1:] == ["max_iterations"] and method == "schur":
-            return "method schur is exact in a few rounds and iterates no further (uzawa, mprgp, fista and feti do)"
+        method = registry.before_meshing(scene.solver.method, ranks // len(BLOCKS))
+        if path[1:] == ["theta"] and not method.step:
+            return f"it is the step of method {_listed(registry.stepping_methods())}, and method {method.name} takes none"
+        if path[1:] == ["max_iterations"] and not method.iterates:
+            return (f"method {method.name} is exact in a few rounds and iterates no further "
+                    f"({_listed(registry.iterating_methods())} do)")
     return None
+
+
+def _listed(names: list[str]) -> str:
+    """``a, b and c``."""
+    return " and ".join([", ".join(names[:-1]), names[-1]] if len(names) > 1 else names)
 
 
 def _point_support(scene, path: list[str]) -> bool:

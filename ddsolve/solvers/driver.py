@@ -20,7 +20,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ddsolve.dd import kernels, methods
+from ddsolve.dd import dual, final_check, kernels, registry
 from ddsolve.dd.interface import Interface, for_mesh
 from ddsolve.errors import DDSolveError, DivergedError, NotConvergedError, SceneError
 from ddsolve.fem import assembly, supports
@@ -41,14 +41,7 @@ from ddsolve.post import analysis, estimate, fracture, plots, reactions
 from ddsolve.post.result import OnSigma, Result
 from ddsolve.problem.scene import Scene
 
-#: Default block factorization per method.  The iterative methods make one solve per round with one
-#: factorization, where PETSc's own Cholesky is about 3x faster than MUMPS; ``schur`` needs MUMPS for
-#: the Schur complements (``./run bench factor`` measures both).
-FACTOR_PACKAGE = {"uzawa": "petsc", "fista": "petsc", "mprgp": "petsc", "schur": "mumps", "feti": "mumps"}
 STAGES = ("Setup", "Factorization", "Rounds", "Update", "Output")
-#: The methods that solve floating blocks (a singular stiffness): ``schur`` by their interiors, ``feti`` by
-#: a generalized inverse and the kernels' coarse problem.
-FLOATING_METHODS = ("schur", "feti")
 
 
 
@@ -58,7 +51,7 @@ def run_method(scene: Scene, setup: "Setup", server: BlockServer, progress):
 
     def work(rounds):  # the multipliers, then the displacements for λ, checked
         method = scene.solver.method
-        return methods.checked_solve(method, rounds, interface, scene.solver, methods.Progress(method, out=progress))
+        return final_check.checked_solve(method, rounds, interface, scene.solver, dual.Progress(method, out=progress))
 
     outcome, rounds, failure = drive(setup, server, work)
     if failure is None and outcome is not None:
@@ -405,24 +398,25 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
     else:
         local = local_mesh(scene, comm, exchange, phases, whole_halves=keep_halves)
     scene = resolve(scene, comm.size, local)
-    method = scene.solver.method
+    method = registry.METHODS[scene.solver.method]
     phases.hold("mesh", local.nbytes)
     floating = local.kernels.floating
-    if floating and method not in FLOATING_METHODS:
-        error = SceneError(f"solver.method = {method}: blocks {local.kernels.names()} are floating (held only "
-                           f"through Σ, their stiffness singular), which {method} cannot solve: use "
-                           f"{' or '.join(FLOATING_METHODS)}")
+    if floating and not method.floating:
+        error = SceneError(f"solver.method = {method.name}: blocks {local.kernels.names()} are floating (held only "
+                           f"through Σ, their stiffness singular), which {method.name} cannot solve: use "
+                           f"{' or '.join(registry.floating_methods())}")
         error.collective = True  # every rank knows the supports
         raise error
     block_pieces = cut_pieces(local, exchange)
-    kernel_rows = {index: floating_kernel(scene, local, index, block_pieces[index], fixed=method == "feti")
+    kernel_rows = {index: floating_kernel(scene, local, index, block_pieces[index],
+                                          fixed=method.floating == registry.GENERALIZED_INVERSE)
                    for index in exchange.local_blocks if index in floating}
     whole_bytes = whole_mesh_bytes(local, exchange)
     if not keep_halves:
         local = replace(local, halves={BLOCKS[index].side: piece.half for index, piece in block_pieces.items()})
     phases.hold("mesh", local.nbytes + pieces.extra_bytes(block_pieces.values(), local.halves.values()))
     phases.end("distribution")  # the pieces cut, and the halves dropped: assembly holds what it works on
-    blocks = collective(comm, lambda: make_blocks(scene, local, exchange, FACTOR_PACKAGE[method], block_pieces))
+    blocks = collective(comm, lambda: make_blocks(scene, local, exchange, method.factorization, block_pieces))
     interface = interface_of(scene, local, comm)
     hold_blocks(phases, blocks, factored=False)
     stages["Setup"].pop()
@@ -433,9 +427,9 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
         for index, block in zip(exchange.local_blocks, blocks):
             if index in floating:
                 block.make_floating(*kernel_rows[index])
-            if not (block.floating and method == "schur"):  # schur inverts a floating block's interior only
-                block.factor(schur=method == "schur", out_of_core=scene.solver.out_of_core)
-            if method == "feti" or block.floating:
+            if not (block.floating and method.floating == registry.INTERIOR):  # its interior is inverted, not K
+                block.factor(schur=method.schur_complements, out_of_core=scene.solver.out_of_core)
+            if method.dirichlet or block.floating:
                 block.factor_dirichlet(out_of_core=scene.solver.out_of_core)
 
     collective(comm, factor)
@@ -478,11 +472,11 @@ def floating_kernel(scene: Scene, mesh: LocalMesh, index: int, piece: Piece, fix
 
 
 def resolve(scene: Scene, ranks: int, mesh: LocalMesh) -> Scene:
-    """The scene with ``auto`` replaced by the method :func:`ddsolve.dd.methods.choose` picks."""
-    if scene.solver.method != "auto":
+    """The scene with ``auto`` replaced by the method :func:`ddsolve.dd.registry.choose` picks."""
+    if scene.solver.method in registry.METHODS:
         return scene
     per_block = max(1, ranks // len(BLOCKS))
-    method = methods.choose(per_block, 2 * max(mesh.nodes.values()), int(mesh.sigma.corner.sum()))
+    method = registry.choose(per_block, 2 * max(mesh.nodes.values()), int(mesh.sigma.corner.sum()))
     return dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, method=method))
 
 
@@ -491,8 +485,8 @@ def bound(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, iterations: in
     setup = prepare(scene, comm, mesh)
     try:
         def work(rounds):
-            problem = methods.DualProblem(rounds, setup.interface, scene.solver)
-            return methods.largest_eigenvalue(problem.apply, setup.interface.size, iterations, tolerance=1e-9)
+            problem = dual.DualProblem(rounds, setup.interface, scene.solver)
+            return dual.largest_eigenvalue(problem.apply, setup.interface.size, iterations, tolerance=1e-9)
 
         estimate, _, failure = drive(setup, BlockServer(setup.blocks, setup.exchange), work)
         failure = comm.bcast(failure, root=0)

@@ -58,7 +58,7 @@ MAX_HOURS = 24.0
 #: P = 13 mesh of 86 nodes and 0.3-0.8 s for P = 200, 10,000 nodes): seconds for a run that reuses the
 #: mesh and the factorization, and seconds more per mesh node (P2 nodes counted); and, for writing the
 #: file again after every run, seconds per run already in it.  A run whose blocks change also factors
-#: them (:data:`ddsolve.dd.methods.COST_LAWS`).
+#: them (:data:`ddsolve.dd.registry.COST_LAWS`).
 RUN_SECONDS = 0.02
 NODE_SECONDS = 1e-5
 RECORD_SECONDS = 2e-5
@@ -92,7 +92,7 @@ def run_seconds(scene, ranks: int, factor: bool = True) -> float:
     """A lower estimate of one run's seconds on ``ranks`` ranks from the size of its mesh (when it can be
     known beforehand): the rounds, the error estimate and G, and with ``factor`` the factorization of the
     four blocks (each has about as many unknowns as the mesh has nodes)."""
-    from ddsolve.dd.methods import COST_LAWS
+    from ddsolve.dd.registry import COST_LAWS
     from ddsolve.mesh import geometry
     from ddsolve.mesh.mesh import BLOCKS
 

@@ -1,0 +1,119 @@
+"""The contact methods: one description each (:class:`Method`: the solver keys it reads, its rounds, what it
+needs of the blocks), the only place that tells one method from another, and ``auto``'s choice among them.
+
+The driver asks a method's description what to factor and whether it solves floating blocks; a scene is
+validated against the same descriptions' options (:mod:`ddsolve.problem.method_options`, which the problem
+stage can read)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+from ddsolve.dd import feti, gradient, schur, uzawa
+from ddsolve.dd.dual import Outcome
+from ddsolve.problem.method_options import OPTIONS, MethodOptions
+from ddsolve.problem.scene import Solver
+
+#: How a method solves a floating block (a singular stiffness, held only through Σ).
+INTERIOR = "its interior, from the traces the method predicts"
+GENERALIZED_INVERSE = "a generalized inverse K⁺ and the kernels' coarse problem"
+
+
+def _never(solver: Solver) -> bool:
+    return False
+
+
+def _always(solver: Solver) -> bool:
+    return True
+
+
+def _lower_tol(solver: Solver) -> str:
+    return "lower solver.tol"
+
+
+@dataclass(frozen=True)
+class Method:
+    """A contact method.  ``run(rounds, interface, solver, progress[, start])`` -> its multipliers."""
+
+    options: MethodOptions  # the solver keys it reads
+    run: Callable[..., Outcome]
+    #: The blocks' factorization package by default: the iterative methods make one solve per round with one
+    #: factorization, where PETSc's own Cholesky is about 3x faster than MUMPS; ``schur`` needs MUMPS for the
+    #: Schur complements (``./run bench factor`` measures both).
+    factorization: str = "petsc"
+    floating: str | None = None  # how it solves floating blocks (INTERIOR, GENERALIZED_INVERSE); None: it cannot
+    schur_complements: bool = False  # it needs the blocks' Schur complements on Σ with their factorization
+    dirichlet: bool = False  # it needs a Dirichlet solve on every block (its preconditioner)
+    #: Whether it can go on from its multipliers to a lower tol (its criterion relative to the uncoupled
+    #: blocks' gap), which :func:`~ddsolve.dd.final_check.checked_solve` asks when the final check finds it short.
+    resumes: Callable[[Solver], bool] = _never
+    remedy: Callable[[Solver], str] = _lower_tol  # what to change when its final check fails
+
+    @property
+    def name(self) -> str:
+        return self.options.name
+
+
+METHODS: dict[str, Method] = {method.name: method for method in (
+    Method(OPTIONS["schur"], schur.schur, "mumps", floating=INTERIOR, schur_complements=True, remedy=schur.remedy),
+    Method(OPTIONS["mprgp"], gradient.mprgp, resumes=_always),
+    Method(OPTIONS["fista"], gradient.fista, resumes=_always),
+    Method(OPTIONS["uzawa"], uzawa.uzawa, resumes=uzawa.resumes, remedy=uzawa.remedy),
+    Method(OPTIONS["feti"], feti.feti, "mumps", floating=GENERALIZED_INVERSE, dirichlet=True, resumes=_always))}
+
+
+def floating_methods() -> list[str]:
+    """The methods that solve floating blocks."""
+    return [name for name, method in METHODS.items() if method.floating]
+
+
+def iterating_methods() -> list[str]:
+    """The methods that iterate (read ``solver.max_iterations``), the paper's (the one with a step) first."""
+    return [method.name for method in sorted(METHODS.values(), key=lambda method: not method.options.step)
+            if method.options.iterates]
+
+
+def stepping_methods() -> list[str]:
+    """The methods that take a step ``solver.theta``."""
+    return [name for name, method in METHODS.items() if method.options.step]
+
+
+def before_meshing(name: str, ranks_per_block: int) -> MethodOptions:
+    """The options of the method ``solver.method = name`` stands for before the mesh is made: for ``auto`` on
+    whole blocks those of the method it takes for them; on distributed blocks ``auto`` chooses with the mesh."""
+    return OPTIONS[WHOLE_BLOCKS if name not in METHODS and ranks_per_block <= 1 else name]
+
+
+# --- auto: schur or feti ------------------------------------------------------------------------
+#: ``auto``'s method for whole blocks.
+WHOLE_BLOCKS = "schur"
+#: Per-block costs (seconds, n = block unknowns, c = columns, m = multiplier rounds) fitted by
+#: ``./run scaling`` on one rank (docs/scaling.md): the interface matrix of a distributed block by
+#: multi-column solves c·(n·2kΣ)^p; one block solve; a plain factorization; rank 0's dense solve of
+#: ``schur`` on nΣ ≈ 3P interface unknowns; the CG iterations of ``feti`` (about constant in P).
+COST_LAWS = {"columns": (1.16e-08, 1.09), "solve": (1.18e-07, 1.10), "factor": (3.46e-08, 1.49),
+             "rank0": (4.14e-09, 2.40)}
+FETI_ROUNDS = 60
+
+
+def predicted_costs(ranks_per_block: int, unknowns: int, sigma_vertices: int) -> dict[str, float]:
+    """Seconds of what ``schur`` and ``feti`` do beyond the factorization both need, with each block
+    on ``ranks_per_block`` ranks (block work shared ideally among them, as in the cost model)."""
+    law = {key: (lambda x, a=a, p=p: a * x ** p) for key, (a, p) in COST_LAWS.items()}
+    trace = 2 * sigma_vertices
+    share = 1.0 / ranks_per_block
+    schur = law["rank0"](3 * sigma_vertices)
+    if ranks_per_block > 1:  # no Schur complement from a distributed factorization: 2kΣ columns of solves
+        schur += share * law["columns"](unknowns * trace)
+    feti = share * (law["factor"](unknowns) + FETI_ROUNDS * law["solve"](unknowns))  # + the Dirichlet problem
+    return {"schur": schur, "feti": feti}
+
+
+def choose(ranks_per_block: int, unknowns: int, sigma_vertices: int) -> str:
+    """The default method: ``schur`` for whole blocks (exact in three rounds, its Schur complements come
+    with the factorization), else whichever :func:`predicted_costs` finds cheaper."""
+    if ranks_per_block == 1:
+        return WHOLE_BLOCKS
+    costs = predicted_costs(ranks_per_block, unknowns, sigma_vertices)
+    return min(costs, key=costs.get)
+

@@ -1,0 +1,221 @@
+"""The exact method (``schur``): the dual problem solved on rank 0 from the blocks' Schur complements on Σ,
+by a primal-dual active set method, refined from the final solve when it asks."""
+from __future__ import annotations
+
+import time
+from typing import Callable
+
+import numpy as np
+
+from ddsolve.dd.constraints import displacement_scale
+from ddsolve.dd.dual import DualProblem, Outcome, Progress, Rounds
+from ddsolve.dd.interface import Interface
+from ddsolve.errors import SolverError
+from ddsolve.problem.scene import Solver
+
+
+def box_qp(A: np.ndarray, b: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+           max_steps: int = 200, observe: Callable[[np.ndarray, int], None] | None = None) -> tuple[np.ndarray, int]:
+    """Minimize ½ yᵀAy − bᵀy over lower ≤ y ≤ upper (A dense SPD) by a primal-dual active set method.
+
+    Returns the solution and the number of active-set steps.  Each step solves the free rows
+    with the active ones at their bounds; the sets are updated from the signs of the gradient on
+    active rows and the bound violations on free rows, until they no longer change.
+    ``observe(y, changes)`` is called after each step with its solution and how many rows change set.
+    """
+    at_lower = np.zeros(len(b), dtype=bool)
+    at_upper = np.zeros(len(b), dtype=bool)
+    for step in range(1, max_steps + 1):
+        y = np.where(at_lower, lower, np.where(at_upper, upper, 0.0))
+        free = ~(at_lower | at_upper)
+        fixed = ~free
+        if free.any():
+            rhs = b[free] - A[np.ix_(free, fixed)] @ y[fixed]
+            y[free] = np.linalg.solve(A[np.ix_(free, free)], rhs)
+        gradient = A @ y - b
+        new_lower = (at_lower & (gradient >= 0)) | (free & (y < lower))
+        new_upper = (at_upper & (gradient <= 0)) | (free & (y > upper))
+        if observe is not None:
+            observe(y, int(np.sum(new_lower != at_lower) + np.sum(new_upper != at_upper)))
+        if np.array_equal(new_lower, at_lower) and np.array_equal(new_upper, at_upper):
+            return y, step
+        at_lower, at_upper = new_lower, new_upper
+    raise SolverError(f"the active-set QP solver did not settle in {max_steps} steps")
+
+
+#: ``schur`` refines when the final solve's traces differ from its prediction by more than this,
+#: relative to the largest trace or DATA_FLOOR × the data's displacement, if larger (MUMPS's own Schur
+#: complements: about 1e-11 on the slender strip; those inverted from the flexibility of blocks on two ranks:
+#: about 1e-8).
+PREDICTION_TOLERANCE = 1e-10
+
+
+def triangular_solve(L: np.ndarray, b: np.ndarray, transpose: bool = False, block: int = 128) -> np.ndarray:
+    """L⁻¹ b (or L⁻ᵀ b) for a lower triangular L, by blocks of rows: O(n²) work for one vector."""
+    n = len(b)
+    x = np.array(b, dtype=np.float64)
+    starts = list(range(0, n, block))
+    for start in (starts[::-1] if transpose else starts):
+        stop = min(start + block, n)
+        if transpose:
+            x[start:stop] = np.linalg.solve(L[start:stop, start:stop].T, x[start:stop] - L[stop:, start:stop].T @ x[stop:])
+        else:
+            x[start:stop] = np.linalg.solve(L[start:stop, start:stop], x[start:stop] - L[start:stop, :start] @ x[:start])
+    return x
+
+
+def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progress) -> Outcome:
+    """Exact solve from the blocks' Schur complements S_b on Σ; three rounds in all (one more for each
+    refinement the final solve asks for).
+
+    Rounds: one to collect S_b (from MUMPS with the factorization), one for the uncoupled traces
+    t⁰_b; :func:`~ddsolve.dd.final_check.final_solve` adds the final one.  Rank 0 assembles the interface stiffness
+    S = Σ_b P_bᵀ S_b P_b on the tied interface unknowns (every gluing constraint holds exactly),
+    with body loads Σ P_bᵀ S_b t⁰_b.  Eliminating it leaves the dual problem on the crack rows only,
+
+        A_c = W^½ B S⁻¹ Bᵀ W^½,  b_c = W^½ B S⁻¹ r,  y_c ≥ 0   (B z: the normal gap u⁻ − u⁺),
+
+    solved exactly by the active-set method; every multiplier then follows from the block residuals
+    ℓ_b = S_b (t_b − t⁰_b).  Should that violate a bound ±p, the full dual problem (A from
+    G_b = S_b⁻¹) is solved with all bounds.  Whether the result is exact is decided by the final
+    solve: when its traces differ from the predicted ones by more than :data:`PREDICTION_TOLERANCE`
+    (relative; S_b inverted from a distributed block's flexibility, a slender structure) or its KKT
+    check fails, ``refine`` repeats the rank-0 solve with t⁰ shifted by the difference between the
+    solved and the predicted traces, cumulatively (iterative refinement: the error of S_b enters squared).
+    """
+    schur_complements = rounds.schur_complements()
+    if rounds.floating:  # no K_b⁻¹ f_b for a floating block: its condensed load g_b, by its interior
+        condensed = rounds.condensed_loads(schur_complements)
+        least = [np.linalg.lstsq(S_b, g_b, rcond=None)[0] for S_b, g_b in zip(schur_complements, condensed)]
+        problem = DualProblem(rounds, interface, solver, initial=np.array(least))  # t⁰ for the criterion's scale
+    else:
+        problem = DualProblem(rounds, interface, solver)
+        condensed = np.einsum("bij,bj->bi", schur_complements, problem.initial_traces)
+    started = time.perf_counter()
+    exact = ExactDual(problem, schur_complements, floating=bool(rounds.floating))
+    uncoupled = problem.initial_traces  # t⁰ of rank 0's model, corrected by each refinement
+    y, predicted, steps = exact.solve(uncoupled, condensed)
+    progress(steps, exact.history[-1] if exact.history else 0.0, final=True)
+    outcome = Outcome(problem.multipliers(y), converged=True, iterations=steps, history=exact.history,
+                      active_set_changes=exact.changes,
+                      details={"rank0_solve_time": time.perf_counter() - started, "interface_unknowns": exact.size},
+                      held=predicted)
+
+    def refine(solved_traces: np.ndarray, required: bool) -> np.ndarray | None:
+        nonlocal predicted, uncoupled, condensed
+        mismatch = np.abs(solved_traces - predicted).max(initial=0.0)
+        size = displacement_scale(interface, float(np.abs(solved_traces).max(initial=0.0)))
+        if not required and mismatch <= PREDICTION_TOLERANCE * size:
+            return None
+        mark = time.perf_counter()
+        uncoupled = uncoupled + (solved_traces - predicted)  # the model now agrees with the blocks at this λ
+        condensed = condensed + np.einsum("bij,bj->bi", schur_complements, solved_traces - predicted)
+        y, predicted, more = exact.solve(uncoupled, condensed)
+        outcome.held = predicted
+        outcome.iterations += more
+        outcome.details["rank0_solve_time"] += time.perf_counter() - mark
+        return problem.multipliers(y)
+
+    outcome.refine = refine
+    return outcome
+
+
+class ExactDual:
+    """Rank 0's exact solve for :func:`schur`: the interface stiffness S = Σ_b P_bᵀ S_b P_b assembled on the tied
+    interface unknowns and factored, S = L Lᵀ, then the dual problem on the crack rows solved by :func:`box_qp`
+    (on every row when a bound ±p is active).  Every active-set step is recorded in ``history`` and ``changes``."""
+
+    def __init__(self, problem: DualProblem, schur_complements: np.ndarray, floating: bool):
+        interface = problem.interface
+        self.problem, self.interface, self.schur_complements, self.floating = problem, interface, schur_complements, floating
+        unknowns = interface.trace_unknowns()
+        size = int(unknowns.max()) + 1
+        contact = interface.slices["mu_c"]
+        normal = 2 * interface.vertex[contact] + 1
+        # The crack faces' normal unknowns go last: the contact forces act on them only, so with
+        # S = L Lᵀ, L⁻¹ Bᵀ lives in the last block of L and A_c = (L_cc⁻¹ B_cᵀ)ᵀ(L_cc⁻¹ B_cᵀ).
+        faces = np.concatenate([unknowns[0][normal], unknowns[1][normal]])
+        last = np.zeros(size, dtype=bool)
+        last[faces] = True
+        position = np.argsort(last, kind="stable").argsort()
+        unknowns, first = position[unknowns], size - len(faces)
+        stiffness = np.zeros((size, size))
+        for S_b, numbers in zip(schur_complements, unknowns):
+            stiffness[np.ix_(numbers, numbers)] += S_b
+        sqrt_w = problem.sqrt_w[contact]
+        jump = np.zeros((len(faces), len(normal)))  # B_cᵀ W^½: forces of a unit scaled contact multiplier
+        jump[unknowns[0][normal] - first, np.arange(len(normal))] += sqrt_w
+        jump[unknowns[1][normal] - first, np.arange(len(normal))] -= sqrt_w
+        import scipy.linalg  # here, on rank 0: importing it costs every rank 35 ms of its start-up
+
+        try:  # in place: the stiffness's memory (rank 0's largest array with the S_b) becomes L
+            self.L = scipy.linalg.cholesky(stiffness.T, lower=False, overwrite_a=True, check_finite=False).T
+        except np.linalg.LinAlgError:
+            raise SolverError("schur: the interface stiffness is not positive definite (a structure that can move "
+                              "rigidly?)") from None
+        del stiffness
+        self.forces = np.linalg.solve(self.L[first:, first:], jump) if len(faces) else np.zeros((0, 0))  # L_cc⁻¹ B_cᵀ
+        self.dual = self.forces.T @ self.forces
+        self.unknowns, self.size, self.first, self.contact = unknowns, size, first, contact
+        self.lower_c, self.upper_c = problem.lower[contact], problem.upper[contact]
+        self.history: list[float] = []
+        self.changes: list[int] = []
+
+    def solve(self, initial: np.ndarray, condensed: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+        """The scaled multipliers, their predicted traces and the active-set steps for uncoupled
+        traces ``initial`` and condensed loads ``condensed`` = S_b t⁰_b (only these with floating blocks)."""
+        problem, lower_c, upper_c = self.problem, self.lower_c, self.upper_c
+        body = np.zeros(self.size)
+        for g_b, numbers in zip(condensed, self.unknowns):
+            body[numbers] += g_b
+        loaded = triangular_solve(self.L, body)  # L⁻¹ body
+        y_c, steps = box_qp(self.dual, self.forces.T @ loaded[self.first:], lower_c, upper_c,
+                            observe=lambda y_c, changed: self.record(
+                                *self.contact_step(loaded, condensed, np.clip(y_c, lower_c, upper_c)), changed))
+        y, traces = self.contact_step(loaded, condensed, y_c)
+        if np.any(y < problem.lower) or np.any(y > problem.upper):  # a bound ±p is active: all bounds
+            y, traces, more = self.all_bounds(initial)
+            steps += more
+        return y, traces, steps
+
+    def contact_step(self, loaded: np.ndarray, condensed: np.ndarray, y_c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Every scaled multiplier and the traces S⁻¹(body − Bᵀ W^½ y_c) for the contact multipliers ``y_c``
+        (``loaded`` = L⁻¹ body)."""
+        rhs = loaded.copy()
+        rhs[self.first:] -= self.forces @ y_c
+        traces = triangular_solve(self.L, rhs, transpose=True)[self.unknowns]
+        loads = np.einsum("bij,bj->bi", self.schur_complements, traces) - condensed  # ℓ_b = S_b t_b − g_b
+        y = self.problem.sqrt_w * self.interface.multipliers(loads)
+        y[self.contact] = y_c
+        return y, traces
+
+    def record(self, y: np.ndarray, traces: np.ndarray, changed: int) -> None:
+        """History of one active-set step: the criterion of its solution projected onto the bounds
+        (the last step's is feasible already) and how many constraints changed state."""
+        self.history.append(self.problem.criterion(y, -self.problem.sqrt_w * self.interface.gap(traces)))
+        self.changes.append(changed)
+
+    def all_bounds(self, initial: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+        """The full dual problem (A from G_b = S_b⁻¹) with every bound, for uncoupled traces ``initial``: the
+        scaled multipliers, their traces and the active-set steps."""
+        problem, interface = self.problem, self.interface
+        if self.floating:
+            raise SolverError(f"schur: a multiplier bound solver.p = {problem.solver.p:g} is active, and its exact "
+                              "solve needs every block invertible, which floating blocks are not: use solver.method = "
+                              "\"feti\" or a larger solver.p")
+        flexibilities = np.linalg.inv(self.schur_complements)
+        A = interface.dual_matrix(flexibilities) / np.outer(problem.sqrt_w, problem.sqrt_w)
+        b = problem.sqrt_w * interface.gap(initial)
+
+        def full_step(y: np.ndarray) -> np.ndarray:
+            return initial + np.einsum("bij,bj->bi", flexibilities, interface.loads(y / problem.sqrt_w))
+
+        y, more = box_qp(A, b, problem.lower, problem.upper,
+                         observe=lambda y, changed: self.record(problem.project(y), full_step(problem.project(y)),
+                                                                changed))
+        return y, full_step(y), more
+
+
+def remedy(solver: Solver) -> str:
+    """What to change when schur's final check fails (with accurate block solves)."""
+    return "the interface problem is too ill-conditioned for an exact solve: try solver.method = \"mprgp\""
