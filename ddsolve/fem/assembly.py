@@ -26,14 +26,13 @@ from ddsolve.fem.elements import (coo_to_csr, element_dofs, element_stiffness, r
                                   stiffness, strain_operator, to_global)
 from ddsolve.fem.fields import (cell_energies, cell_means, cell_strains, cell_stresses, elasticity, energy,
                                 integrated_energies, quadrature_fields, quadrature_strains, voigt_strain, von_mises)
-from ddsolve.fem.loads import (HIGH_ORDER_POINTS, boundary_load, cell_temperatures, layer_loads, thermal_energy,
-                               thermal_load, thermal_of)
+from ddsolve.fem.loads import (HIGH_ORDER_POINTS, ThermalLoad, boundary_load, cell_temperatures, layer_loads,
+                               load_vector, thermal_energy, thermal_load, thermal_of)
 from ddsolve.fem.ranges import (CANDIDATES, CLOSING_STEPS, DISPLACEMENT_RANGE, ENERGY_RANGE, FINE_STEP, GROWTH,
                                 GROWTH_STEPS, LATTICE, LOAD_SAMPLES, SAMPLED_CELLS, STIFFNESS_RANGE, Growth,
                                 check_range, data_displacement, driven_displacements, field_extent, load_extent,
                                 modulus)
 from ddsolve.mesh.mesh import BLOCKS, HalfMesh, Mesh, SigmaLine, index_type
-from ddsolve.problem.expressions import Expression
 from ddsolve.problem.scene import Load, Scene
 
 
@@ -44,8 +43,8 @@ __all__ = ["BlockSystem", "ELEMENT_ENTRIES", "Pattern", "block_system", "block_s
            "strain_operator", "to_global",
            "cell_energies", "cell_means", "cell_strains", "cell_stresses", "elasticity", "energy",
            "integrated_energies", "quadrature_fields", "quadrature_strains", "voigt_strain", "von_mises",
-           "HIGH_ORDER_POINTS", "boundary_load", "cell_temperatures", "layer_loads", "thermal_energy", "thermal_load",
-           "thermal_of",
+           "HIGH_ORDER_POINTS", "ThermalLoad", "boundary_load", "cell_temperatures", "layer_loads", "load_vector",
+           "thermal_energy", "thermal_load", "thermal_of",
            "CANDIDATES", "CLOSING_STEPS", "DISPLACEMENT_RANGE", "ENERGY_RANGE", "FINE_STEP", "GROWTH", "GROWTH_STEPS",
            "LATTICE", "LOAD_SAMPLES", "SAMPLED_CELLS", "STIFFNESS_RANGE", "Growth", "check_range",
            "data_displacement", "driven_displacements", "field_extent", "load_extent", "modulus"]
@@ -220,7 +219,7 @@ def pattern(half: HalfMesh, rows: tuple[int, int] | None = None) -> Pattern:
 def block_system(name: str, half: HalfMesh, sigma: SigmaLine, D: np.ndarray, loads: list[Load],
                  rows: tuple[int, int] | None = None, shared: Pattern | None = None,
                  prescribed: tuple[np.ndarray, np.ndarray] | None = None,
-                 thermal: tuple[np.ndarray, Expression] | None = None) -> BlockSystem:
+                 thermal: ThermalLoad | None = None) -> BlockSystem:
     """Assemble a block (or its ``rows``): stiffness with prescribed dofs decoupled, the loads on the
     half's named boundaries, Σ dofs in local frames.  ``shared``: the half's :func:`pattern` for
     these rows, when another block of the half has made it.  ``prescribed``: (fixed, values) ``(n, 2)``
@@ -262,12 +261,12 @@ def block_system(name: str, half: HalfMesh, sigma: SigmaLine, D: np.ndarray, loa
     del matrices
     rhs = np.zeros(n)
     for load in loads:
-        rhs += boundary_load(half.points, half.edges(load.boundary), load)
+        rhs += load_vector(half, load)
     offset = 0.0
     if thermal is not None:
-        rhs += thermal_load(half.points, structure.cells, D, *thermal)
+        rhs += thermal.vector(half.points, structure.cells, D)
         owned = (structure.cells[:, 0] >= first // 2) & (structure.cells[:, 0] < last // 2)  # each cell once
-        offset += thermal_energy(half.points, structure.cells[owned], D, *thermal)
+        offset += thermal.energy(half.points, structure.cells[owned], D)
     if rotated:
         rhs = rotate_vector(rhs, nodes, frames)
     if lifted:

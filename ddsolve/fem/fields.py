@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ddsolve.fem.loads import cell_temperatures, thermal_of
+from ddsolve.fem.loads import thermal_of
 from ddsolve.mesh.element import TRIANGLE_RULES, element_geometry, field_gradients
 from ddsolve.problem import materials
 from ddsolve.problem.scene import Scene
@@ -39,7 +39,7 @@ def quadrature_fields(scene: Scene, layer: str, points: np.ndarray, cells: np.nd
         volume, strain = quadrature_strains(points, cells, u)
         return volume, strain, np.zeros(volume.shape)
     rule = TRIANGLE_RULES[6]
-    return (*quadrature_strains(points, cells, u, rule), cell_temperatures(points, cells, thermal[1], rule[0]))
+    return (*quadrature_strains(points, cells, u, rule), thermal.changes(points, cells, rule[0]))
 
 
 def cell_means(volume: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

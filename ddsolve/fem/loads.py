@@ -1,7 +1,10 @@
-"""The loads of a block as dof vectors: tractions and pressures on named boundaries (:func:`boundary_load`),
-the thermal load of a temperature change (:func:`thermal_load`, with its energy), and which of a scene's
-loads act on a half."""
+"""The loads of a block as dof vectors, one description per kind that assembly, reactions, G and the checks
+all use: a traction or pressure on a named boundary (a :class:`~ddsolve.problem.scene.Load`: its vector on
+a half, :func:`load_vector`), and a layer's temperature change (:class:`ThermalLoad`: its load vector, energy
+and eigenstrains).  Which of a scene's loads act on a half: :func:`layer_loads`, :func:`thermal_of`."""
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 
@@ -85,12 +88,40 @@ def cell_temperatures(points: np.ndarray, cells: np.ndarray, temperature: Expres
     return change
 
 
-def thermal_of(scene: Scene, layer: str) -> tuple[np.ndarray, Expression] | None:
-    """(eigenstrain per unit ΔT, ΔT) of a layer, or None when it has no temperature change or expansion."""
+class ThermalLoad(NamedTuple):
+    """A layer's temperature change ΔT acting through its eigenstrain per unit ΔT: ε₀ = ``eigenstrain`` × ΔT."""
+
+    eigenstrain: np.ndarray
+    temperature: Expression
+
+    def vector(self, points: np.ndarray, cells: np.ndarray, D: np.ndarray) -> np.ndarray:
+        """Its load ∫ Bᵀ D ε₀ over ``cells`` (:func:`thermal_load`)."""
+        return thermal_load(points, cells, D, *self)
+
+    def energy(self, points: np.ndarray, cells: np.ndarray, D: np.ndarray) -> float:
+        """½ ∫ ε₀ᵀ D ε₀ over ``cells`` (:func:`thermal_energy`)."""
+        return thermal_energy(points, cells, D, *self)
+
+    def changes(self, points: np.ndarray, cells: np.ndarray, xi: np.ndarray) -> np.ndarray:
+        """ΔT ``(m, q)`` at the reference points ``xi`` of every cell (:func:`cell_temperatures`)."""
+        return cell_temperatures(points, cells, self.temperature, xi)
+
+    def eigenstrains(self, points: np.ndarray, cells: np.ndarray, xi: np.ndarray) -> np.ndarray:
+        """ε₀ ``(m, q, 3)`` at the reference points ``xi`` of every cell."""
+        return self.changes(points, cells, xi)[..., None] * self.eigenstrain
+
+
+def thermal_of(scene: Scene, layer: str) -> ThermalLoad | None:
+    """A layer's thermal load, or None when it has no temperature change or expansion."""
     if layer not in scene.temperature:
         return None
     strain, _ = materials.thermal_strain(scene.materials[layer], scene.model)
-    return (strain, scene.temperature[layer]) if np.any(strain != 0.0) else None
+    return ThermalLoad(strain, scene.temperature[layer]) if np.any(strain != 0.0) else None
+
+
+def load_vector(half: HalfMesh, load: Load) -> np.ndarray:
+    """The consistent nodal vector ``(2n,)`` of a traction or pressure on its boundary of ``half``."""
+    return boundary_load(half.points, half.edges(load.boundary), load)
 
 
 def layer_loads(scene: Scene, layer: str, half: HalfMesh) -> list[Load]:

@@ -39,11 +39,8 @@ def load_extent(points: np.ndarray, edges: np.ndarray, load: Load | Displacement
         return largest
     start = np.concatenate([np.linspace(0.0, 1.0, LOAD_SAMPLES), gauss_interval(HIGH_ORDER_POINTS)[0]])
     offsets = np.linspace(-1.0, 1.0, 9)[:, None]  # 0 among them: each step keeps the best point so far
-    noun = "displacement" if isinstance(load, Displacement) else "load"
-    for component in ("x", "y", "pressure", "normal"):
-        part = getattr(load, component, None)
-        if part is None:
-            continue
+    noun = load.NOUN
+    for component, part in load.parts.items():
         key = f"{load.key}.{component}"
 
         def sample(at: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -221,14 +218,15 @@ def data_displacement(scene: Scene, halves, sigma: SigmaLine) -> float:
             stiffness = float(np.abs(elasticity(scene, layer)[0]).max())
             thermal = thermal_of(scene, layer)
             if thermal is not None:
-                strain = max(strain, float(np.abs(thermal[0]).max()) * largest(thermal[1], half.points))
+                strain = max(strain, float(np.abs(thermal.eigenstrain).max())
+                             * largest(thermal.temperature, half.points))
             for (name, boundary), load in scene.loads.items():
                 at = half.points[np.unique(half.edges(boundary))] if name == layer else half.points[:0]
-                strain = max(strain, *(largest(part, at) / stiffness for part in (load.x, load.y, load.pressure)))
+                strain = max(strain, *(largest(getattr(load, part), at) / stiffness for part in load.COMPONENTS))
             for (name, boundary), displacement in scene.displacements.items():
                 at = half.points[np.unique(half.edges(boundary))] if name == layer else half.points[:0]
-                prescribed = max(prescribed, *(largest(part, at) for part in (displacement.x, displacement.y,
-                                                                              displacement.normal)))
+                prescribed = max(prescribed, *(largest(getattr(displacement, part), at)
+                                               for part in displacement.COMPONENTS))
     return max(prescribed, strain * float(sigma.weights.sum()))
 
 
@@ -311,9 +309,10 @@ def driven_displacements(scene: Scene, mesh, layer: str, size: float, key: str, 
     with np.errstate(all="ignore"):  # an expansion beyond double precision is refused below, naming its key
         thermal = thermal_of(scene, layer)
     if thermal is not None:
-        change = max(field_extent(half.points, half.cells, thermal[1], f"temperature.{layer}") for half in mesh.halves)
+        change = max(field_extent(half.points, half.cells, thermal.temperature, f"temperature.{layer}")
+                     for half in mesh.halves)
         if change != 0.0:
-            strain = float(np.nan_to_num(np.abs(thermal[0]), nan=np.inf).max()) * change
+            strain = float(np.nan_to_num(np.abs(thermal.eigenstrain), nan=np.inf).max()) * change
             alpha = "alpha" if isinstance(scene.materials[layer], materials.Isotropic) else "alpha1, alpha2"
             cause = f"materials.{layer}.{alpha} with temperature.{layer}"
             out.append((strain * size, cause, f"{cause} up to {change:.3g} give eigenstrains of order {strain:.1g} "

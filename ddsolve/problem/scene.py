@@ -35,11 +35,12 @@ from ddsolve.problem.schema import (ADAPTIVE_DEGREE, DEFAULT_METHOD, DEFAULT_STO
                                     PAPER_BOX, PAPER_CRACK, REQUIRED, SCHEMA, SIDES, STOP_RULES, Invalid, Tables,
                                     check_table, layer_material)
 
+
 #: The public face of the problem stage's scene modules (schema, rules, overrides, reading), as before the split.
 __all__ = ["ADAPTIVE_DEGREE", "COARSE", "CONDITIONING", "DEFAULT_METHOD", "DEFAULT_STOP", "DEFAULT_TOL",
            "GEOMETRIC_TOLERANCE", "GRADING", "LAWS", "LAYERS", "MAX_ANGLE", "MAX_SPACING_RATIO", "METHODS",
            "OPTIONAL_TABLES", "PAPER_BOX", "PAPER_CRACK", "REPLACES", "REQUIRED", "SAME_COMPONENT", "SCHEMA", "SIDES",
-           "STOP_RULES", "Displacement", "FractureOptions", "Geometry", "Invalid", "Load", "MeshOptions", "Scene",
+           "STOP_RULES", "Components", "Displacement", "FractureOptions", "Geometry", "Invalid", "Load", "MeshOptions", "Scene",
            "Solver", "Tables", "apply_overrides", "builtin_folder", "builtin_scenes", "coarse_size", "dumps", "load",
            "loads", "override_items", "parse_override", "printable", "readable", "utf8_text"]
 
@@ -86,12 +87,34 @@ class MeshOptions:
         return "geo" if self.file.suffix.lower() == ".geo" else "file"
 
 
+class Components:
+    """A kind of boundary condition described once: its components (each an expression in x and y, or None)
+    by name, ``COMPONENTS``, and the noun messages use for it, ``NOUN``."""
+
+    COMPONENTS: tuple[str, ...] = ()
+    NOUN = ""
+
+    @property
+    def parts(self) -> dict[str, Expression]:
+        """The components the scene gives, by name in ``COMPONENTS`` order."""
+        return {name: getattr(self, name) for name in self.COMPONENTS if getattr(self, name) is not None}
+
+    def scaled(self, factor: float):
+        """This condition with every component times ``factor``."""
+        return dataclasses.replace(self, **{name: None if getattr(self, name) is None else
+                                            expressions.scaled(getattr(self, name), factor)
+                                            for name in self.COMPONENTS})
+
+
 @dataclass(frozen=True)
-class Load:
+class Load(Components):
     """A traction (x and y components) or a normal pressure on the boundary ``key`` names.
 
     Each part is an expression in x and y, or None (zero).  ``key`` is ``loads.LAYER.NAME``.
     """
+
+    COMPONENTS = ("x", "y", "pressure")
+    NOUN = "load"
 
     key: str
     x: Expression | None = None
@@ -104,11 +127,14 @@ class Load:
 
 
 @dataclass(frozen=True)
-class Displacement:
+class Displacement(Components):
     """Prescribed displacement components on the boundary or named point ``key`` names
     (``displacements.LAYER.NAME``), or at ``point`` (x, y), a mesh vertex on the boundary or Σ: x and y,
     or the normal component (boundaries only); each an expression in x and y, or None (that component
     is free)."""
+
+    COMPONENTS = ("x", "y", "normal")
+    NOUN = "displacement"
 
     key: str
     x: Expression | None = None
@@ -196,14 +222,9 @@ class Scene:
         ``factor``; the temperature change is kept.  The contact problem is positively homogeneous, so
         without a temperature change the solution scales by ``factor`` and G by its square.  ``text`` is
         the unscaled scene's: a scaled scene is solved, not saved."""
-        def times(table, fields):
-            return {key: dataclasses.replace(item, **{name: None if getattr(item, name) is None else
-                                                      expressions.scaled(getattr(item, name), factor)
-                                                      for name in fields})
-                    for key, item in table.items()}
-
-        return dataclasses.replace(self, loads=times(self.loads, ("x", "y", "pressure")),
-                                   displacements=times(self.displacements, ("x", "y", "normal")))
+        return dataclasses.replace(self, loads={key: load.scaled(factor) for key, load in self.loads.items()},
+                                   displacements={key: displacement.scaled(factor)
+                                                  for key, displacement in self.displacements.items()})
 
 
 def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str, source: str,

@@ -93,8 +93,7 @@ class Step:
 def control_kind(scene: Scene) -> str:
     """``load`` or ``displacement``: which mechanical action the control factor scales."""
     moving = [d.key for d in scene.displacements.values()
-              if any(part is not None and not (part.constant and float(part(0.0, 0.0)) == 0.0)
-                     for part in (d.x, d.y, d.normal))]
+              if any(not (part.constant and float(part(0.0, 0.0)) == 0.0) for part in d.parts.values())]
     if scene.loads and moving:
         raise SceneError(f"grow: the scene has loads ({next(iter(scene.loads.values())).key}) and non-zero "
                          f"prescribed displacements ({moving[0]}); the control scales one kind: keep one")
@@ -104,9 +103,8 @@ def control_kind(scene: Scene) -> str:
         for d in scene.displacements.values():
             if d.normal is not None and d.key in moving:
                 raise SceneError(f"grow: {d.key}.normal: displacement control takes x and y components")
-            for name in ("x", "y", "normal"):
-                part = getattr(d, name)
-                if part is not None and not part.constant:
+            for name, part in d.parts.items():
+                if not part.constant:
                     raise SceneError(f"grow: {d.key}.{name} varies along the boundary; displacement control needs "
                                      "constant prescribed displacements (their work conjugate is R·ū)")
     return "displacement" if moving else "load"
@@ -121,7 +119,7 @@ def conjugate(scene: Scene, kind: str, mesh: Mesh, solution: dict[str, np.ndarra
             for spec in BLOCKS:
                 half = mesh.half(spec.side)
                 if spec.layer == layer and name in half.boundaries:
-                    work += float(assembly.boundary_load(half.points, half.edges(name), load) @ solution[spec.name].ravel())
+                    work += float(assembly.load_vector(half, load) @ solution[spec.name].ravel())
         return work
     work = 0.0
     for (layer, name), prescribed in scene.displacements.items():
