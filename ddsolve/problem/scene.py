@@ -40,8 +40,8 @@ from ddsolve.problem.schema import (ADAPTIVE_DEGREE, DEFAULT_METHOD, DEFAULT_STO
 __all__ = ["ADAPTIVE_DEGREE", "COARSE", "CONDITIONING", "DEFAULT_METHOD", "DEFAULT_STOP", "DEFAULT_TOL",
            "GEOMETRIC_TOLERANCE", "GRADING", "LAWS", "LAYERS", "MAX_ANGLE", "MAX_SPACING_RATIO", "METHODS",
            "OPTIONAL_TABLES", "PAPER_BOX", "PAPER_CRACK", "REPLACES", "REQUIRED", "SAME_COMPONENT", "SCHEMA", "SIDES",
-           "STOP_RULES", "Components", "Displacement", "FractureOptions", "Geometry", "Invalid", "Load", "MeshOptions", "Scene",
-           "Solver", "Tables", "apply_overrides", "builtin_folder", "builtin_scenes", "coarse_size", "dumps", "load",
+           "STOP_RULES", "Components", "Displacement", "FractureOptions", "Geometry", "Invalid", "Load", "MeshOptions",
+           "Scene", "Solver", "Tables", "apply_overrides", "builtin_folder", "builtin_scenes", "coarse_size", "dumps", "load",
            "loads", "override_items", "parse_override", "printable", "readable", "utf8_text"]
 
 
@@ -93,6 +93,12 @@ class Components:
 
     COMPONENTS: tuple[str, ...] = ()
     NOUN = ""
+    key: str
+
+    @property
+    def boundary(self) -> str:
+        """The boundary (or named point) its key ends with: ``loads.LAYER.NAME`` -> NAME."""
+        return self.key.rsplit(".", 1)[1]
 
     @property
     def parts(self) -> dict[str, Expression]:
@@ -121,10 +127,6 @@ class Load(Components):
     y: Expression | None = None
     pressure: Expression | None = None
 
-    @property
-    def boundary(self) -> str:
-        return self.key.rsplit(".", 1)[1]
-
 
 @dataclass(frozen=True)
 class Displacement(Components):
@@ -141,10 +143,6 @@ class Displacement(Components):
     y: Expression | None = None
     normal: Expression | None = None
     point: tuple[float, float] | None = None
-
-    @property
-    def boundary(self) -> str:
-        return self.key.rsplit(".", 1)[1]
 
     @property
     def layer(self) -> str:
