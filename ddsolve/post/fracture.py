@@ -186,7 +186,7 @@ def _directions(tip: Tip, sigma: SigmaLine, points: np.ndarray) -> np.ndarray:
 
 # --- the integrals --------------------------------------------------------------------------------
 def volume_terms(points: np.ndarray, cells: np.ndarray, D: np.ndarray, u: np.ndarray, fields: list[np.ndarray],
-                 thermal: tuple[np.ndarray, object] | None = None) -> np.ndarray:
+                 thermal: assembly.ThermalLoad | None = None) -> np.ndarray:
     """∫ [σ_ij u_i,k θ_k,j − ½ σ:(ε − ε₀) div θ] + eigenstrain term, over the ``cells`` on ``points`` (a half,
     or the cells a rank owns of it), for each nodal θ ``(n, 2)`` in ``fields``.
 
@@ -205,7 +205,7 @@ def volume_terms(points: np.ndarray, cells: np.ndarray, D: np.ndarray, u: np.nda
     grad_u = element.field_gradients(u[cells], gradients)  # u_d,e
     strain = assembly.voigt_strain(grad_u)
     if thermal is not None:
-        strain = strain - assembly.cell_temperatures(points, cells, thermal[1], xi)[..., None] * thermal[0]
+        strain = strain - thermal.eigenstrains(points, cells, xi)
     s = strain @ D.T
     stress = np.stack([np.stack([s[..., 0], s[..., 2]], -1), np.stack([s[..., 2], s[..., 1]], -1)], -2)
     density = 0.5 * np.sum(s * strain, axis=-1)
@@ -222,7 +222,7 @@ def volume_terms(points: np.ndarray, cells: np.ndarray, D: np.ndarray, u: np.nda
 
 
 def eigenstrain_term(points: np.ndarray, cells: np.ndarray, xi: np.ndarray, gradients: np.ndarray, stress: np.ndarray,
-                     field: np.ndarray, thermal: tuple[np.ndarray, object]) -> np.ndarray:
+                     field: np.ndarray, thermal: assembly.ThermalLoad) -> np.ndarray:
     """σ : (∂ε₀/∂x_k) θ_k at the quadrature points ``(m, q)``: the part of −dΠ/da an eigenstrain that varies
     in space adds (Shih, Moran and Nakamura 1986, eq. 13: J = ∫ [σ_ij u_i,1 − W δ_1j] q_,j dA +
     ∫ σ_ij ∂ε₀_ij/∂x_1 q dA, with W the energy of ε − ε₀).  ε₀ = e ΔT; ∇ΔT from ΔT interpolated at the nodes."""
@@ -452,7 +452,7 @@ def mirror_nodes(tip: Tip, sigma: SigmaLine, half: HalfMesh) -> tuple[np.ndarray
 
 def mirror_terms(tip: Tip, sigma: SigmaLine, half: HalfMesh, D: np.ndarray, u: np.ndarray,
                  disc: tuple[np.ndarray, np.ndarray, np.ndarray], opposite: np.ndarray,
-                 thermal: tuple[np.ndarray, object] | None = None) -> np.ndarray | None:
+                 thermal: assembly.ThermalLoad | None = None) -> np.ndarray | None:
     """One block's share of :func:`mirror_split` ``(2,)``: the domain integrals of (u ± R u′)/2 on its ``half``,
     u′ the same layer's field on the other side at the images (``opposite`` ``(q, 2)``, x and y) of the nodes of
     ``disc`` (:func:`mirror_nodes`); None when the block's eigenstrain is not its own mirror image."""
@@ -507,7 +507,7 @@ def _straight_near(tip: Tip, sigma: SigmaLine) -> bool:
     return bool(off.max() <= STRAIGHT * reach and np.abs(sigma.normals[near] - normal).max() <= STRAIGHT)
 
 
-def mirrored_temperature(thermal: tuple[np.ndarray, object], points: np.ndarray, images: np.ndarray) -> bool:
+def mirrored_temperature(thermal: assembly.ThermalLoad, points: np.ndarray, images: np.ndarray) -> bool:
     """Whether a layer's eigenstrain e ΔT is its own mirror image: no shear in e, ΔT equal at ``points``
     and their ``images``."""
     strain, temperature = thermal

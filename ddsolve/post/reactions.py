@@ -28,10 +28,10 @@ def residual(scene: Scene, half: HalfMesh, layer: str, u: np.ndarray, nodes: np.
     out = np.bincount(assembly.element_dofs(cells).ravel(), forces.ravel(),
                       minlength=2 * len(half.points)).astype(np.float64, copy=False)  # none near: no weights, ints
     for load in assembly.layer_loads(scene, layer, half):
-        out -= assembly.boundary_load(half.points, half.edges(load.boundary), load)
+        out -= assembly.load_vector(half, load)
     thermal = assembly.thermal_of(scene, layer)
     if thermal is not None:
-        out -= assembly.thermal_load(half.points, cells, D, *thermal)
+        out -= thermal.vector(half.points, cells, D)
     return out.reshape(-1, 2)
 
 

@@ -110,8 +110,7 @@ class Step:
 def control_kind(scene: Scene) -> str:
     """``load`` or ``displacement``: which mechanical action the control factor scales."""
     moving = [d.key for d in scene.displacements.values()
-              if any(part is not None and not (part.constant and float(part(0.0, 0.0)) == 0.0)
-                     for part in (d.x, d.y, d.normal))]
+              if any(not (part.constant and float(part(0.0, 0.0)) == 0.0) for part in d.parts.values())]
     if scene.loads and moving:
         raise SceneError(f"grow: the scene has loads ({next(iter(scene.loads.values())).key}) and non-zero "
                          f"prescribed displacements ({moving[0]}); the control scales one kind: keep one")
@@ -121,9 +120,8 @@ def control_kind(scene: Scene) -> str:
         for d in scene.displacements.values():
             if d.normal is not None and d.key in moving:
                 raise SceneError(f"grow: {d.key}.normal: displacement control takes x and y components")
-            for name in ("x", "y", "normal"):
-                part = getattr(d, name)
-                if part is not None and not part.constant:
+            for name, part in d.parts.items():
+                if not part.constant:
                     raise SceneError(f"grow: {d.key}.{name} varies along the boundary; displacement control needs "
                                      "constant prescribed displacements (their work conjugate is R·ū)")
     return "displacement" if moving else "load"
@@ -141,8 +139,8 @@ def conjugate(scene: Scene, kind: str, mesh: Mesh, solution: dict[str, np.ndarra
               forces: dict[str, dict[str, np.ndarray]]) -> float:
     """The control's work conjugate for a solution (``scene`` unscaled; see the module's docstring)."""
     if kind == "load":
-        return sum(float(assembly.boundary_load(half.points, edges, load) @ solution[block].ravel())
-                   for (layer, name), load in scene.loads.items() for block, half, edges in _parts(mesh, layer, name))
+        return sum(float(assembly.load_vector(half, load) @ solution[block].ravel())
+                   for (layer, name), load in scene.loads.items() for block, half, _ in _parts(mesh, layer, name))
     work = 0.0
     for (layer, name), prescribed in scene.displacements.items():
         reaction = forces.get(layer, {}).get(name)

@@ -1,0 +1,317 @@
+"""Rules between a scene's keys, checked after each key has been checked alone; they fill in the
+defaults that depend on other keys (Σ's height, the cracks, the element degree of an adaptive run, ...)."""
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+from ddsolve.errors import SceneError
+from ddsolve.problem import materials
+from ddsolve.problem.method_options import OPTIONS
+from ddsolve.problem.reading import printable
+from ddsolve.problem.schema import (ADAPTIVE_DEGREE, DEFAULT_TOL, GEOMETRIC_TOLERANCE, GRADING, LAWS,
+                                    LAYERS, MAX_SPACING_RATIO, PAPER_CRACK, layer_material)
+
+
+def cross_checks(data: dict, raw: dict, origin: str) -> None:
+    """Rules between keys; fills in the defaults that depend on other keys."""
+    given = set(raw.get("geometry", {})) if isinstance(raw.get("geometry"), dict) else set()
+    _geometry_checks(data["geometry"], given, origin)
+    _mesh_checks(data["mesh"], data["geometry"], raw, given, origin)
+    _material_checks(data, origin)
+    _load_checks(data, origin)
+    _displacement_checks(data, origin)
+    _temperature_checks(data, origin)
+    _solver_checks(data, origin)
+    _radii_checks(data, origin)
+    _toughness_checks(data, origin)
+
+
+def _geometry_checks(geometry: dict, given: set[str], origin: str) -> None:
+    """The box, Σ's height and the cracks: Σ inside the box (its middle by default), the cracks (the paper's
+    with the paper's square) on Σ and farther apart than the meshing tolerance."""
+    if "crack" in given and "cracks" in given:
+        raise SceneError(f"{origin}: geometry.crack and geometry.cracks exclude each other (cracks = [[a, b], ...])")
+    x0, x1, y0, y1 = geometry["box"]
+    if geometry["sigma"] is None:
+        geometry["sigma"] = 0.5 * (y0 + y1)
+    elif not y0 < geometry["sigma"] < y1:
+        raise SceneError(f"{origin}: geometry.sigma = {geometry['sigma']:g} must lie strictly between the box's "
+                         f"y0 = {y0:g} and y1 = {y1:g}")
+    if "crack" in given:
+        geometry["cracks"] = [list(geometry["crack"])] if geometry["crack"] else []
+    elif "cracks" not in given:  # the paper's crack comes with the paper's square only
+        geometry["cracks"] = [] if "box" in given else [list(PAPER_CRACK)]
+    del geometry["crack"]
+    crack_key = "geometry.crack" if "crack" in given else "geometry.cracks"
+    for a, b in geometry["cracks"]:
+        if a < x0 or b > x1:
+            raise SceneError(f"{origin}: {crack_key}: the crack [{a:g}, {b:g}] leaves the box's "
+                             f"x range [{x0:g}, {x1:g}]")
+    breaks = sorted({x0, x1, *(tip for piece in geometry["cracks"] for tip in piece)})
+    shortest = min(b - a for a, b in zip(breaks[:-1], breaks[1:]))
+    feature = GEOMETRIC_TOLERANCE * max(x1 - x0, y1 - y0)
+    if shortest <= feature:
+        raise SceneError(f"{origin}: {crack_key}: two points of Σ (crack tips, box ends) are only {shortest:.2g} "
+                         f"apart, within the meshing tolerance {feature:.2g} ({GEOMETRIC_TOLERANCE:g} × the box "
+                         "size): lengthen, move or remove the crack")
+
+
+def _mesh_checks(mesh: dict, geometry: dict, raw: dict, given: set[str], origin: str) -> None:
+    """The mesh keys that exclude each other, the adaptive defaults, and the paper's family (P, M) with
+    consistent spacings."""
+    x0, x1, y0, y1 = geometry["box"]
+    counts = (mesh["sigma_vertices"], mesh["boundary_vertices"])
+    _adaptive_defaults(mesh, set(raw["mesh"]) if isinstance(raw.get("mesh"), dict) else set(), geometry)
+    _mesh_refinement_checks(mesh, origin)
+    if mesh["file"] is not None:
+        extra = [name for name in ("sigma_vertices", "boundary_vertices") if mesh[name] is not None]
+        if mesh["size"] is not None and not mesh["file"].lower().endswith(".geo"):
+            extra.append("size")
+        if extra:
+            raise SceneError(f"{origin}: mesh.file excludes mesh.{extra[0]} (a .geo file takes mesh.size)")
+        if mesh["file"].lower().endswith(".geo") and given:
+            raise SceneError(f"{origin}: geometry.{sorted(given)[0]} does not apply to a .geo geometry "
+                             "(its physical groups define it)")
+    elif mesh["size"] is not None:
+        if counts != (None, None):
+            raise SceneError(f"{origin}: mesh.size excludes mesh.sigma_vertices and mesh.boundary_vertices")
+    elif None in counts:
+        missing = "mesh.sigma_vertices" if counts[0] is None else "mesh.boundary_vertices"
+        raise SceneError(f"{origin}: missing key {missing} (or give mesh.size, mesh.file or mesh.target_error)")
+    else:
+        sigma_spacing = (x1 - x0) / (counts[0] - 1)
+        boundary_spacing = 2.0 * ((x1 - x0) + (y1 - y0)) / counts[1]
+        ratio = boundary_spacing / sigma_spacing
+        if not 1.0 / MAX_SPACING_RATIO <= ratio <= MAX_SPACING_RATIO:
+            raise SceneError(f"{origin}: mesh.boundary_vertices = {counts[1]} is inconsistent with "
+                             f"mesh.sigma_vertices = {counts[0]}: the boundary spacing (perimeter/M) must be "
+                             f"within a factor {MAX_SPACING_RATIO:g} of the Σ spacing (width/(P-1)), or the "
+                             "corner triangles degenerate")
+
+
+def _material_checks(data: dict, origin: str) -> None:
+    """Each layer's constants make an elastic matrix that double precision can factor."""
+    model = data["materials"]["model"]
+    for layer in LAYERS:
+        try:
+            D, _ = materials.elasticity(layer_material(data["materials"][layer]), model)
+        except materials.MaterialError as exc:
+            raise SceneError(f"{origin}: materials.{layer}: {exc}") from None
+        _check_conditioning(D, data["materials"][layer], model, f"{origin}: materials.{layer}")
+
+
+def _load_checks(data: dict, origin: str) -> None:
+    """A pressure acts along the normal: it excludes x and y on its boundary."""
+    for layer, tables in data.get("loads", {}).items():
+        for name, table in tables.items():
+            if table["pressure"] is not None and (table["x"] is not None or table["y"] is not None):
+                raise SceneError(f"{origin}: loads.{layer}.{printable(name)}: pressure excludes x and y "
+                                 "(a pressure acts along the normal)")
+
+
+def _solver_checks(data: dict, origin: str) -> None:
+    """The method's step, its stopping rule and the rule's tolerance."""
+    solver, method = data["solver"], OPTIONS[data["solver"]["method"]]
+    if method.step and solver["theta"] is None:
+        raise SceneError(f"{origin}: solver.theta is required by method {method.name}")
+    if solver["stop"] is None:
+        solver["stop"] = method.stops[0]
+    if solver["stop"] not in method.stops:
+        takers = " and ".join(name for name, other in OPTIONS.items() if solver["stop"] in other.stops)
+        raise SceneError(f"{origin}: solver.stop = {solver['stop']} is available for method {takers} only "
+                         f"(method {method.name} stops on {' or '.join(method.stops)})")
+    if solver["tol"] is None:
+        solver["tol"] = DEFAULT_TOL[solver["stop"]]
+
+
+def _radii_checks(data: dict, origin: str) -> None:
+    """The θ field's inner radius is below its outer one."""
+    radii = data["fracture"]
+    if None not in (radii["inner"], radii["outer"]) and radii["inner"] >= radii["outer"]:
+        raise SceneError(f"{origin}: fracture.inner = {radii['inner']:g} must be below fracture.outer = "
+                         f"{radii['outer']:g}")
+
+
+def _toughness_checks(data: dict, origin: str) -> None:
+    """``fracture.toughness`` and ``fracture.law`` exclude each other; a law has its keys and no other; a
+    per-crack toughness has one value per crack of a box (a mesh file's cracks are counted on its mesh)."""
+    options = data["fracture"]
+    constants = sorted({key for keys in LAWS.values() for key in keys})
+    given = [key for key in constants if options[key] is not None]
+    law = options["law"]
+    if options["toughness"] is not None and law is not None:
+        raise SceneError(f"{origin}: fracture.toughness and fracture.law exclude each other (one G_c, or a "
+                         "mode-dependent law)")
+    if law is None:
+        if given:
+            raise SceneError(f"{origin}: fracture.{given[0]} needs fracture.law (" + " or ".join(LAWS) + ")")
+    else:
+        missing = [key for key in LAWS[law] if options[key] is None]
+        if missing:
+            raise SceneError(f"{origin}: fracture.law = {law} needs fracture.{missing[0]} ("
+                             + ", ".join(f"fracture.{key}" for key in LAWS[law]) + ")")
+        extra = [key for key in given if key not in LAWS[law]]
+        if extra:
+            raise SceneError(f"{origin}: fracture.{extra[0]} does not apply to fracture.law = {law} (it takes "
+                             + ", ".join(f"fracture.{key}" for key in LAWS[law]) + ")")
+    values = options["toughness"]
+    cracks = len(data["geometry"]["cracks"])
+    if isinstance(values, tuple) and data["mesh"]["file"] is None and len(values) != cracks:
+        raise SceneError(f"{origin}: fracture.toughness lists {len(values)} values for the {cracks} crack"
+                         f"{'' if cracks == 1 else 's'} of geometry.cracks (one per crack, in order along Σ)")
+
+
+def _temperature_checks(data: dict, origin: str) -> None:
+    """A temperature change acts through the layer's expansion coefficients: a layer heated (ΔT not zero) must
+    give them (``alpha``, or ``alpha1`` or ``alpha2``); a layer given by its matrix D takes none."""
+    for layer, change in data.get("temperature", {}).items():
+        if change is None or (change.constant and change(0.0, 0.0) == 0.0):
+            continue
+        table = data["materials"][layer]
+        if "D" in table:
+            raise SceneError(f"{origin}: temperature.{layer}: materials.{layer} is given by its matrix D, which takes "
+                             "no thermal expansion, so the temperature change would do nothing: give the layer by "
+                             "its constants with alpha, or leave the temperature change out")
+        given = [key for key in ("alpha", "alpha1", "alpha2") if table.get(key) is not None]
+        if not given:
+            names = "alpha" if "E" in table else "alpha1 or alpha2"
+            raise SceneError(f"{origin}: temperature.{layer}: materials.{layer} has no expansion coefficient, so the "
+                             f"temperature change would do nothing: give materials.{layer}.{names}, or leave the "
+                             "temperature change out")
+
+
+#: Components of a load and of a displacement on one boundary that act in the same direction.
+SAME_COMPONENT = {"x": ("x",), "y": ("y",), "normal": ("pressure", "x", "y")}
+
+
+def _displacement_checks(data: dict, origin: str) -> None:
+    """A displacement gives x and y, or normal; it is not on a clamped side, nor on a boundary loaded in
+    the same component (a pressure acts along the normal; a normal displacement with x or y loads, or a
+    pressure with x or y displacements, mixes frames: refused too)."""
+    clamped = set(data["geometry"]["clamped"]) if data["mesh"]["file"] is None else set()
+    for layer, tables in data.get("displacements", {}).items():
+        for name, table in tables.items():
+            key = f"displacements.{layer}.{printable(name)}"
+            given = [component for component, value in table.items() if value is not None and component != "point"]
+            if table.get("point") is not None:
+                _point_checks(data, table, key, given, origin)
+            if not given:
+                raise SceneError(f"{origin}: {key}: give x, y or normal")
+            if "normal" in given and len(given) > 1:
+                raise SceneError(f"{origin}: {key}: normal excludes x and y (give the normal component, or x "
+                                 "and y)")
+            if name in clamped or name == "clamped":
+                raise SceneError(f"{origin}: {key}: boundary {printable(name)!r} is clamped (geometry.clamped); "
+                                 "remove it there to prescribe other values")
+            load = data.get("loads", {}).get(layer, {}).get(name)
+            for component in given if load is not None else ():
+                loaded = [part for part in SAME_COMPONENT[component] if load[part] is not None]
+                if component != "normal" and load["pressure"] is not None:
+                    loaded.append("pressure")
+                if loaded:
+                    raise SceneError(f"{origin}: {key}.{component}: boundary {printable(name)!r} of {layer} is "
+                                     f"also loaded in that direction (loads.{layer}.{printable(name)}.{loaded[0]})")
+
+
+def _point_checks(data: dict, table: dict, key: str, given: list[str], origin: str) -> None:
+    """A point support (``point = [x, y]``) fixes x and/or y (a point has no normal) and, in the box, lies
+    on its sides or on Σ (the mesher puts a vertex there; a file's mesh must have one).  A box point is
+    snapped onto its line and onto a corner, Σ's end or a crack tip within the meshing tolerance."""
+    if "normal" in given:
+        raise SceneError(f"{origin}: {key}.normal: a point has no normal; give x and/or y at the point")
+    if data["mesh"]["file"] is not None:
+        return
+    x, y = table["point"]
+    box = x0, x1, y0, y1 = data["geometry"]["box"]
+    sigma = data["geometry"]["sigma"]
+    feature = GEOMETRIC_TOLERANCE * max(x1 - x0, y1 - y0)
+    inside = x0 - feature <= x <= x1 + feature and y0 - feature <= y <= y1 + feature
+    tips = [x0, x1, *(tip for piece in data["geometry"]["cracks"] for tip in piece)]
+    lines = [(1, y0, [x0, x1]), (1, y1, [x0, x1]), (1, sigma, tips), (0, x0, [y0, sigma, y1]),
+             (0, x1, [y0, sigma, y1])]
+    point = [x, y]
+    for axis, value, stops in lines:
+        if inside and abs(point[axis] - value) <= feature:
+            point[axis] = value
+            along = min(stops, key=lambda stop: abs(point[1 - axis] - stop))
+            if abs(point[1 - axis] - along) <= feature:
+                point[1 - axis] = along
+            table["point"] = tuple(point)
+            return
+    where = "outside the box" if not inside else "inside a layer, off its boundary"
+    raise SceneError(f"{origin}: {key}.point = [{x:g}, {y:g}] is {where}: a point support must lie on a side of "
+                     f"geometry.box = {[float(v) for v in box]} or on Σ (y = {sigma:g})")
+
+
+#: The largest ratio of the largest to the smallest eigenvalue of a layer's elastic matrix: 2/√ε, which
+#: for an isotropic layer in plane strain (ratio 2/(1 − 2ν)) is 1 − 2ν ≥ √ε.  Measured with schur on
+#: partial-closure: 1 − 2ν = 2e-10 solves (P = 13 and 96), 2e-12 does not; 2e-16 fails in MUMPS.
+CONDITIONING = 2.0 / math.sqrt(2.0 ** -52)
+
+
+def _check_conditioning(D, table: dict, model: str, where: str) -> None:
+    """Refuse an elastic matrix so ill-conditioned (nearly incompressible) that its element matrices
+    cannot be factored in double precision, naming the key and its usable range."""
+    import numpy as np
+
+    if not np.all(np.isfinite(D)):
+        raise SceneError(f"{where}: the elastic matrix overflows a double (entries beyond 1.8e308): change the "
+                         "unit of stress")
+    eigenvalues = np.linalg.eigvalsh(D)
+    ratio = float(eigenvalues[-1] / eigenvalues[0])
+    if ratio <= CONDITIONING:
+        return
+    if "nu" not in table:
+        raise SceneError(f"{where}: the elastic matrix is too ill-conditioned for double precision (largest / "
+                         f"smallest eigenvalue {ratio:.2g}, at most {CONDITIONING:.2g}): the layer is nearly "
+                         "incompressible or nearly without stiffness in some direction")
+    nu = table["nu"]
+    limit = (f"at most {0.5 - 1.0 / CONDITIONING:.10f}" if nu > 0 else
+             f"at least {(1.0 - CONDITIONING) / (1.0 + CONDITIONING):.10f}")
+    raise SceneError(f"{where}.nu = {nu!r} is too close to {0.5 if nu > 0 else -1.0:g} for double precision in "
+                     f"{model} (the elastic matrix's largest / smallest eigenvalue is {ratio:.2g}, at most "
+                     f"{CONDITIONING:.2g}): use nu {limit}")
+
+
+def _adaptive_defaults(mesh: dict, given: set[str], geometry: dict) -> None:
+    """``mesh.target_error`` alone chooses P2 elements, on a box without a mesh size a coarse first mesh
+    (:func:`coarse_size`), and, where a size is given (the box or a .geo file with ``mesh.size``), a graded
+    first mesh; keys the scene writes stay."""
+    if mesh["target_error"] is None:
+        return
+    if "degree" not in given:
+        mesh["degree"] = ADAPTIVE_DEGREE
+    if mesh["file"] is None and mesh["size"] is None and (mesh["sigma_vertices"], mesh["boundary_vertices"]) == (
+            None, None):
+        mesh["size"] = coarse_size(geometry["box"], geometry["sigma"])
+    if "grading" not in given and mesh["size"] is not None:
+        mesh["grading"] = True
+
+
+#: The first mesh of an adaptive run on a box that gives no mesh size: elements of the box's width over
+#: COARSE[0], and at least COARSE[1] through the thinner half, whichever is smaller (the paper's square: 0.1).
+COARSE = (20, 2)
+
+
+def coarse_size(box: Sequence[float], sigma: float) -> float:
+    """The element size of an adaptive run's first mesh on ``box`` cut at ``sigma`` (:data:`COARSE`)."""
+    x0, x1, y0, y1 = box
+    return min((x1 - x0) / COARSE[0], min(sigma - y0, y1 - sigma) / COARSE[1])
+
+
+def _mesh_refinement_checks(mesh: dict, origin: str) -> None:
+    """mesh.grading and mesh.target_error need a geometry gmsh can mesh again; grading needs mesh.size."""
+    fixed = mesh["file"] is not None and not mesh["file"].lower().endswith(".geo")
+    if mesh["grading"] is True:
+        mesh["grading"] = GRADING[mesh["degree"]]
+    elif mesh["grading"] is False:
+        mesh["grading"] = None
+    for key in ("grading", "target_error"):
+        if mesh[key] is not None and fixed:
+            raise SceneError(f"{origin}: mesh.{key} needs a geometry to mesh (the built-in box or a .geo file); "
+                             f"mesh.file = {printable(mesh['file'])} is a fixed mesh")
+    if mesh["grading"] is not None and mesh["size"] is None:
+        raise SceneError(f"{origin}: mesh.grading needs mesh.size, the mesh size away from the singular points "
+                         "(the paper's family (P, M) has a grading of its own)")
+

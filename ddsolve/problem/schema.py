@@ -1,0 +1,387 @@
+"""The scene file's schema: every key's checker and default (``SCHEMA``), the constants scenes are
+checked against, and :func:`check_table`, which validates a raw table against its schema."""
+from __future__ import annotations
+
+import difflib
+import math
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from ddsolve.errors import SceneError
+from ddsolve.problem import expressions, materials
+from ddsolve.problem.expressions import Expression
+from ddsolve.problem.method_options import AUTO, OPTIONS
+from ddsolve.problem.reading import excerpt, printable
+
+STOP_RULES = ("paper", "relative", "kkt")
+#: Default tolerance of each stopping rule (a method's default rule: :mod:`ddsolve.problem.method_options`).
+DEFAULT_TOL = {"paper": 1e-6, "relative": 1e-6, "kkt": 1e-8}
+LAYERS = ("layer1", "layer2")
+#: The sides of a box geometry, as boundary names.
+SIDES = ("bottom", "top", "left", "right")
+#: The paper's geometry: the square, Σ at y = 0, the crack (−1/2, 1/2), clamped at x = ±1.
+PAPER_BOX = (-1.0, 1.0, -1.0, 1.0)
+PAPER_CRACK = (-0.5, 0.5)
+MAX_SPACING_RATIO = 10.0
+#: Points of a generated geometry closer than this fraction of the box's size cannot be meshed
+#: (gmsh's geometric tolerance).
+GEOMETRIC_TOLERANCE = 1e-8
+#: The grading exponent μ that ``mesh.grading = true`` chooses for each element degree p: mesh size
+#: h ∝ r^(1−μ) at distance r from a singular point, with μ below ½/p so that an r^½ singularity costs
+#: no convergence rate (see docs/accuracy.md).
+GRADING = {1: 0.4, 2: 0.2}
+#: The element degree of an adaptive run (``mesh.target_error``) whose scene does not set ``mesh.degree``:
+#: P2 converges as N^-1 on adapted meshes, P1 as N^-½ (docs/accuracy.md).
+ADAPTIVE_DEGREE = 2
+#: The mode-dependent toughness laws (``fracture.law``) and the keys each needs (docs/fracture.md).
+LAWS = {"benzeggagh-kenane": ("G_Ic", "G_IIc", "eta"), "hutchinson-suo": ("G_Ic", "lambda")}
+
+
+# ---------------------------------------------------------------------------------------------
+# Schema: a leaf is (checker, default); REQUIRED marks keys without a default.  A table is a dict,
+# a Tables (free names, each a table of one schema) or a function choosing the schema from the raw table.
+REQUIRED = object()
+
+
+class Invalid(ValueError):
+    """A value that is wrong in a way a ``must be ...`` phrase does not describe."""
+
+
+@dataclass(frozen=True)
+class Tables:
+    schema: dict
+
+
+def _number(value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise TypeError("a number")
+    if not math.isfinite(value):
+        raise ValueError("a finite number")
+    return float(value)
+
+
+def _integer(value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise TypeError("an integer")
+    return value
+
+
+def _boolean(value: Any) -> bool:
+    if not isinstance(value, bool):
+        raise TypeError("true or false")
+    return value
+
+
+def _string(value: Any) -> str:
+    if not isinstance(value, str):
+        raise TypeError("a string")
+    return _storable(value)
+
+
+def _storable(text: str) -> str:
+    """``text`` if every file format ddsolve writes can hold it: UTF-8 without NUL characters."""
+    if "\x00" in text:
+        raise ValueError("text without NUL characters (\\u0000)")
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        raise ValueError("valid Unicode text (it holds a lone surrogate or bytes that are not UTF-8)") from None
+    return text
+
+
+def _numbers(value: Any) -> tuple[float, ...]:
+    if not isinstance(value, list):
+        raise TypeError("a list of numbers")
+    return tuple(_number(v) for v in value)
+
+
+def _fixed_numbers(count: int) -> Callable[[Any], tuple[float, ...]]:
+    def checked(value: Any) -> tuple[float, ...]:
+        values = _numbers(value)
+        if len(values) != count:
+            raise ValueError(f"a list of {count} numbers")
+        return values
+    return checked
+
+
+def _matrix3(value: Any) -> tuple[tuple[float, ...], ...]:
+    if not isinstance(value, list) or len(value) != 3:
+        raise TypeError("a 3x3 matrix [[..], [..], [..]]")
+    try:
+        return tuple(_fixed_numbers(3)(row) for row in value)
+    except (TypeError, ValueError):
+        raise TypeError("a 3x3 matrix [[..], [..], [..]] of finite numbers") from None
+
+
+def _positive(check: Callable[[Any], Any]) -> Callable[[Any], Any]:
+    def checked(value: Any) -> Any:
+        value = check(value)
+        if value <= 0:
+            raise ValueError("> 0")
+        return value
+    return checked
+
+
+def _poisson(value: Any) -> float:
+    value = _number(value)
+    if not -1.0 < value < 0.5:
+        raise ValueError("in (-1, 0.5)")
+    return value
+
+
+def _step(value: Any) -> float | str:
+    if value == "auto":
+        return value
+    try:
+        return _positive(_number)(value)
+    except (TypeError, ValueError):
+        raise ValueError('a number > 0 or "auto" (2/λmax estimated by power iteration, with a margin)') from None
+
+
+def _choice(options: tuple[str, ...]) -> Callable[[Any], str]:
+    def checked(value: Any) -> str:
+        value = _string(value)
+        if value not in options:
+            raise ValueError("one of " + ", ".join(options))
+        return value
+    return checked
+
+
+def _interval(value: Any) -> tuple[float, ...]:
+    values = _numbers(value)
+    if values and (len(values) != 2 or not values[0] < values[1]):
+        raise ValueError("[a, b] with a < b, or []")
+    return values
+
+
+def _intervals(value: Any) -> tuple[tuple[float, float], ...]:
+    if not isinstance(value, list):
+        raise TypeError("a list of [a, b] intervals")
+    pieces = []
+    for item in value:
+        piece = _numbers(item) if isinstance(item, list) else None
+        if piece is None or len(piece) != 2 or not piece[0] < piece[1]:
+            raise ValueError("a list of [a, b] intervals with a < b")
+        pieces.append(piece)
+    pieces.sort()
+    for (_, b), (a, _) in zip(pieces[:-1], pieces[1:]):
+        if a <= b:
+            raise ValueError("a list of disjoint [a, b] intervals (they overlap or touch)")
+    return tuple(pieces)
+
+
+def _sides(value: Any) -> tuple[str, ...]:
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise TypeError("a list of side names (" + ", ".join(SIDES) + ")")
+    unknown = [v for v in value if v not in SIDES]
+    if unknown:
+        raise ValueError("a list of side names among " + ", ".join(SIDES) + f" ({unknown[0]!r} is not one)")
+    return tuple(dict.fromkeys(value))
+
+
+def _box(value: Any) -> tuple[float, ...]:
+    values = _fixed_numbers(4)(value)
+    if not (values[0] < values[1] and values[2] < values[3]):
+        raise ValueError("[x0, x1, y0, y1] with x0 < x1 and y0 < y1")
+    return values
+
+
+def _count(minimum: int) -> Callable[[Any], int]:
+    def checked(value: Any) -> int:
+        value = _integer(value)
+        if value < minimum:
+            raise ValueError(f"at least {minimum}")
+        return value
+    return checked
+
+
+def _degree(value: Any) -> int:
+    value = _integer(value)
+    if value not in (1, 2):
+        raise ValueError("1 (P1 triangles) or 2 (P2 triangles)")
+    return value
+
+
+def _grading(value: Any) -> bool | float:
+    """true (μ for the element degree, resolved later), false, or μ itself in (0, 1)."""
+    if isinstance(value, bool):
+        return value
+    value = _number(value)
+    if not 0.0 < value < 1.0:
+        raise ValueError("true, false or a grading exponent μ with 0 < μ < 1")
+    return value
+
+
+def _toughness(value: Any) -> float | tuple[float, ...]:
+    """G_c > 0 for every tip, or a list of them, one per crack."""
+    try:
+        return _positive(_number)(value) if not isinstance(value, list) else tuple(_positive(_number)(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError("a number > 0 (every tip) or a list of numbers > 0 (one per crack)") from None
+
+
+def _unit(value: Any) -> float:
+    value = _number(value)
+    if not 0.0 <= value <= 1.0:
+        raise ValueError("in [0, 1]")
+    return value
+
+
+#: The largest fibre angle in degrees (a double places it within 1e-10 degree; beyond, the angle loses meaning).
+MAX_ANGLE = 1e6
+
+
+def _angle(value: Any) -> float:
+    value = _number(value)
+    if abs(value) > MAX_ANGLE:
+        raise ValueError(f"an angle in degrees of magnitude at most {MAX_ANGLE:g} (a double cannot place a "
+                         "larger one: give it modulo 360)")
+    return value
+
+
+def _fraction(value: Any) -> float:
+    value = _number(value)
+    if not 0.0 < value < 1.0:
+        raise ValueError("a relative error between 0 and 1 (0.01 is 1 %)")
+    return value
+
+
+def _load_value(value: Any) -> Expression:
+    """A number, a list of polynomial coefficients in x (lowest degree first), or an expression string."""
+    if isinstance(value, str):
+        try:
+            return expressions.parse(value)
+        except expressions.ExpressionError as exc:
+            raise Invalid(f"bad expression {printable(excerpt(value, exc.position))!r}: {exc}") from None
+    if isinstance(value, list):
+        if len(value) > expressions.MAX_DEGREE + 1:
+            raise Invalid(f"{len(value)} polynomial coefficients, more than the {expressions.MAX_DEGREE + 1} of "
+                          f"degree {expressions.MAX_DEGREE} (the highest that quadrature integrates exactly)")
+        return expressions.polynomial_in_x(_numbers(value))
+    try:
+        return expressions.constant(_number(value))
+    except (TypeError, ValueError):
+        raise TypeError("a number, a list of coefficients in x or an expression string") from None
+
+
+ISOTROPIC = {"E": (_positive(_number), REQUIRED), "nu": (_poisson, REQUIRED), "alpha": (_number, None)}
+ORTHOTROPIC = {"E1": (_positive(_number), REQUIRED), "E2": (_positive(_number), REQUIRED),
+                "G12": (_positive(_number), REQUIRED), "nu12": (_number, REQUIRED), "angle": (_angle, 0.0),
+                "E3": (_positive(_number), None), "nu13": (_number, None), "nu23": (_number, None),
+                "alpha1": (_number, None), "alpha2": (_number, None)}
+ANISOTROPIC = {"D": (_matrix3, REQUIRED), "Dzz": (_fixed_numbers(3), [0.0, 0.0, 0.0])}
+
+
+def _material_schema(raw: dict) -> dict:
+    """The material's kind follows from its keys: D (a matrix), E1, E2, ... (orthotropic) or E, nu."""
+    if "D" in raw:
+        return ANISOTROPIC
+    if any(key in ORTHOTROPIC and key not in ISOTROPIC and not key.startswith("alpha") for key in raw):
+        return ORTHOTROPIC
+    return ISOTROPIC
+
+
+_LOAD = {"x": (_load_value, None), "y": (_load_value, None), "pressure": (_load_value, None)}
+_DISPLACEMENT = {"x": (_load_value, None), "y": (_load_value, None), "normal": (_load_value, None),
+                 "point": (_fixed_numbers(2), None)}
+
+SCHEMA: dict[str, Any] = {
+    "title": (_string, ""),
+    "geometry": {
+        "box": (_box, list(PAPER_BOX)),
+        "sigma": (_number, None),
+        "crack": (_interval, None),
+        "cracks": (_intervals, None),
+        "clamped": (_sides, ["left", "right"]),
+    },
+    "mesh": {
+        "file": (_string, None),
+        "sigma_vertices": (_count(5), None),
+        "boundary_vertices": (_count(8), None),
+        "size": (_positive(_number), None),
+        "degree": (_degree, 1),
+        "grading": (_grading, None),
+        "target_error": (_fraction, None),
+        "refine": (_count(0), None),
+    },
+    "materials": {
+        "model": (_choice(materials.MODELS), "plane_strain"),
+        **{layer: _material_schema for layer in LAYERS},
+    },
+    "loads": {layer: Tables(_LOAD) for layer in LAYERS},
+    "displacements": {layer: Tables(_DISPLACEMENT) for layer in LAYERS},
+    "temperature": {layer: (_load_value, None) for layer in LAYERS},
+    "contact": {"nonpenetration": (_boolean, True)},
+    "solver": {
+        "method": (_choice(tuple(OPTIONS)), AUTO.name),
+        "theta": (_step, None),
+        "p": (_positive(_number), None),
+        "tol": (_positive(_number), None),
+        "stop": (_choice(STOP_RULES), None),
+        "max_iterations": (_count(1), 20000),
+        "out_of_core": (_boolean, False),
+    },
+    "fracture": {"inner": (_positive(_number), None), "outer": (_positive(_number), None),
+                 "toughness": (_toughness, None), "law": (_choice(tuple(LAWS)), None),
+                 "G_Ic": (_positive(_number), None), "G_IIc": (_positive(_number), None),
+                 "eta": (_positive(_number), None), "lambda": (_unit, None)},
+}
+# Tables that exist only when the scene writes them (a boundary without a load is not integrated).
+OPTIONAL_TABLES = {("loads",), *(("loads", layer) for layer in LAYERS), ("displacements",),
+                   *(("displacements", layer) for layer in LAYERS), ("temperature",)}
+
+
+def check_table(raw: dict, schema: dict, path: tuple[str, ...], origin: str) -> dict:
+    """Validate one table against its schema; return the checked values (defaults filled in)."""
+    for key in raw:
+        if key not in schema:
+            dotted = printable(".".join((*path, key)))
+            close = difflib.get_close_matches(key, list(schema), n=1)
+            hint = f" (did you mean {'.'.join((*path, close[0]))}?)" if close else ""
+            valid = ", ".join(sorted(schema))
+            raise SceneError(f"{origin}: unknown key {dotted}{hint}; valid here: {valid}")
+    out = {}
+    for key, spec in schema.items():
+        dotted = printable(".".join((*path, key)))
+        if not isinstance(spec, tuple):  # a table
+            if key not in raw:
+                if (*path, key) in OPTIONAL_TABLES:
+                    continue
+                sub = {}
+            else:
+                sub = raw[key]
+                if not isinstance(sub, dict):
+                    raise SceneError(f"{origin}: {dotted} must be a table")
+            if isinstance(spec, Tables):
+                out[key] = {}
+                for name, table in sub.items():
+                    if not isinstance(table, dict):
+                        raise SceneError(f"{origin}: {printable('.'.join((*path, key, name)))} must be a table")
+                    out[key][name] = check_table(table, spec.schema, (*path, key, name), origin)
+            else:
+                out[key] = check_table(sub, spec if isinstance(spec, dict) else spec(sub), (*path, key), origin)
+            continue
+        check, default = spec
+        if key not in raw:
+            if default is REQUIRED:
+                raise SceneError(f"{origin}: missing key {dotted}")
+            out[key] = default if default is None else check(default)
+            continue
+        try:
+            out[key] = check(raw[key])
+        except Invalid as exc:
+            raise SceneError(f"{origin}: {dotted}: {exc}") from None
+        except (TypeError, ValueError) as exc:
+            raise SceneError(f"{origin}: {dotted} must be {exc} (got {printable(repr(raw[key]))})") from None
+    return out
+
+
+def layer_material(table: dict) -> materials.Material:
+    """A layer's material from its checked table (its kind follows from its keys)."""
+    table = {key: value for key, value in table.items() if not (key.startswith("alpha") and value is None)}
+    if "D" in table:
+        return materials.Anisotropic(D=table["D"], Dzz=table["Dzz"])
+    if "E1" in table:
+        return materials.Orthotropic(**table)
+    return materials.Isotropic(**table)
+
