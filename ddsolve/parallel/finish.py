@@ -14,6 +14,7 @@ reactions, the cell fields and the files.  One interface (:class:`Finisher`), tw
 from __future__ import annotations
 
 import time
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from pathlib import Path
 
@@ -37,10 +38,10 @@ def chosen(output: Path | None, gather: bool, comm: MPI.Comm) -> type[Finisher]:
     return OnRanks if output is not None and not gather and hdf5.parallel_available(comm) else Gathered
 
 
-class Finisher:
-    """What a solve does after its method, on every rank: made after the method (the displacements of the
-    last full solve on this rank's pieces, the error estimate's parts), then :meth:`collect`, :meth:`result`,
-    :meth:`write`.  ``setup``: the driver's :class:`~ddsolve.solvers.driver.Setup`; ``lam``: the multipliers
+class Finisher(ABC):
+    """What a solve does after its method, on every rank: made once the method has ended (the displacements of
+    the last full solve on this rank's pieces, the error estimate's parts), then :meth:`collect`,
+    :meth:`result` and :meth:`write` in turn.  ``setup``: the driver's :class:`~ddsolve.solvers.driver.Setup`; ``lam``: the multipliers
     (rank 0); ``output``: the result file, if any."""
 
     #: Whether the ranks keep their blocks' halves whole and the block server gathers the solutions to the
@@ -62,17 +63,17 @@ class Finisher:
             index: (piece.points, piece.cells[:piece.owned], self.displacements[index])
             for index, piece in self.pieces.items()}), root=0)
 
+    @abstractmethod
     def result(self, record: dict, factors: np.ndarray | None = None,
                refined_next: Callable[[Result], bool] | None = None) -> Result | None:
         """The result on rank 0 (None elsewhere) with ``record`` (its scalars and histories), the estimate,
         G and its modes (``factors``: the critical load factors, :func:`ddsolve.solvers.driver.solve`) and the
         reactions; the files' contents ready (collective)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def write(self, result: Result | None) -> float:
         """Write the result set to ``output`` (collective; ``result``: rank 0's, its timings complete but the
         writing's); the seconds the writing took."""
-        raise NotImplementedError
 
 
 class Gathered(Finisher):
