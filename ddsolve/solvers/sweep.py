@@ -265,31 +265,9 @@ def sweep(source, items: list[str], paired: bool, output: Path | None, comm, pro
     """
     from ddsolve.mesh import geometry
     from ddsolve.parallel.exchange import collective
-    from ddsolve.problem.scene import Scene
     from ddsolve.solvers import adapt, driver
 
-    def arrange():
-        per_run = _base_seconds(source, [item for item in items if _range(item) is None], comm.size)
-        fixed, ranges = parse(items, per_run)
-        ranges += [given_range(key, value) for key, value in (values or {}).items()]
-        return fixed, ranges, plan(ranges, paired, per_run)
-
-    fixed, ranges, runs = collective(comm, arrange)  # the same on every rank, errors included
-
-    def check():
-        from ddsolve.io import inputs
-        from ddsolve.io.hdf5 import check_result
-
-        scenes = load_scenes(source, fixed, runs)
-        if output is not None:
-            check_result(output, inputs.of_scenes(scenes, None if isinstance(source, Scene) else source),
-                         viewer=False, named=named)
-        return scenes
-
-    scenes = comm.bcast(collective(comm, check, root_only=True), root=0)
-    collective(comm, lambda: check_cost(items, scenes, runs, ranges, comm.size), root_only=True)
-    header = {"scene": source.origin if isinstance(source, Scene) else str(source), "fixed": " ".join(fixed), "keys": [r.key for r in ranges],
-              "mode": "zip" if paired else "product"}
+    runs, scenes, header = planned(source, items, paired, output, comm, values, named)
     records: list[dict] = []
     mesh = setup = previous = None
     try:
@@ -335,6 +313,38 @@ def sweep(source, items: list[str], paired: bool, output: Path | None, comm, pro
         if setup is not None:
             setup.destroy()
     return records if comm.rank == 0 else None
+
+
+def planned(source, items: list[str], paired: bool, output: Path | None, comm, values: dict | None,
+            named: str) -> tuple[list[dict], list, dict]:
+    """What :func:`sweep` will run, checked before the first solve, the same on every rank: the runs, their
+    scenes and the output file's header."""
+    from ddsolve.parallel.exchange import collective
+    from ddsolve.problem.scene import Scene
+
+    def arrange():
+        per_run = _base_seconds(source, [item for item in items if _range(item) is None], comm.size)
+        fixed, ranges = parse(items, per_run)
+        ranges += [given_range(key, value) for key, value in (values or {}).items()]
+        return fixed, ranges, plan(ranges, paired, per_run)
+
+    fixed, ranges, runs = collective(comm, arrange)  # the same on every rank, errors included
+
+    def check():
+        from ddsolve.io import inputs
+        from ddsolve.io.hdf5 import check_result
+
+        scenes = load_scenes(source, fixed, runs)
+        if output is not None:
+            check_result(output, inputs.of_scenes(scenes, None if isinstance(source, Scene) else source),
+                         viewer=False, named=named)
+        return scenes
+
+    scenes = comm.bcast(collective(comm, check, root_only=True), root=0)
+    collective(comm, lambda: check_cost(items, scenes, runs, ranges, comm.size), root_only=True)
+    header = {"scene": source.origin if isinstance(source, Scene) else str(source), "fixed": " ".join(fixed), "keys": [r.key for r in ranges],
+              "mode": "zip" if paired else "product"}
+    return runs, scenes, header
 
 
 def _mesh_key(scene) -> tuple:
