@@ -5,7 +5,7 @@
     scene = ddsolve.Scene.load("partial-closure").with_({"solver.tol": 1e-10})
     result = ddsolve.solve(scene)            # every rank of the communicator takes part
     print(result.energy, result.G)
-    result.save("ex1.h5")
+    ddsolve.save(result, "ex1.h5")
     again = ddsolve.load("ex1.h5")
 
 The command line is a layer over these functions; errors are :class:`ddsolve.DDSolveError` with the
@@ -188,7 +188,7 @@ def _silent(*_args, **_kwargs) -> None:
 
 
 def _read_by(result: Result, scene: Scene, source: Any) -> Result:
-    """``result`` with the files its run read noted (:meth:`Result.save` never writes over them)."""
+    """``result`` with the files its run read noted (:func:`ddsolve.io.save` never writes over them)."""
     if result is not None:
         result.inputs = inputs.of_scene(scene, source)
     return result
@@ -233,7 +233,7 @@ def reference(scene: Scene | str | Path, output: str | Path | None = None) -> Re
 
 
 def load(path: str | Path) -> Result:
-    """Read a result file written by :func:`solve`, :func:`reference`, :meth:`Result.save` or the CLI."""
+    """Read a result file written by :func:`solve`, :func:`reference`, :func:`ddsolve.io.save` or the CLI."""
     if not isinstance(path, (str, Path)):
         raise DDSolveError(f"load: a result file's path (got {type(path).__name__})")
     result = hdf5.read(Path(path))

@@ -441,6 +441,8 @@ def is_drawn(case: Case) -> bool:
 
 def measurements() -> dict:
     """Solve every case; keep the drawn results in results/delamination/; return the record."""
+    from ddsolve.io import save
+
     SHAPES.mkdir(parents=True, exist_ok=True)
     folder = Path(tempfile.mkdtemp(prefix="ddsolve-delamination-"))
     record = {"cases": [], "setup": {"length": LENGTH, "arm": ARM, "load": LOAD, "opening": OPENING,
@@ -458,9 +460,9 @@ def measurements() -> dict:
                   f"corrected beam theory {row['corrected']:.6e} ({row['G'] / row['corrected'] - 1:+.2%}), "
                   f"{row['seconds']:.1f} s", flush=True)
             if is_drawn(case):
-                result.save(SHAPES / f"shape-{case.specimen.lower()}.h5")
+                save(result, SHAPES / f"shape-{case.specimen.lower()}.h5")
         record["thermal"], thermal_result = thermal(folder)
-        thermal_result.save(SHAPES / "shape-thermal.h5")
+        save(thermal_result, SHAPES / "shape-thermal.h5")
         print(f"delamination: thermal strip: σxx {record['thermal']['stresses']} against "
               f"{record['thermal']['expected']:.6e}; G {record['thermal']['G']}", flush=True)
         record["thermal_clamped"] = clamped_thermal()

@@ -12,6 +12,7 @@ from conftest import MATERIALS, ddsolve
 from ddsolve.errors import SceneError
 from experiments.fracture import PLATE, example_scene, handbook, plate_scene
 from ddsolve.io import hdf5 as io
+from ddsolve.io import save
 from ddsolve.mesh import geometry
 from ddsolve.mesh.mesh import HalfMesh, make_mesh
 from ddsolve.post import fracture
@@ -235,7 +236,7 @@ def test_faces_without_non_penetration_overlap_rather_than_touch(tmp_path, monke
     assert "in contact" not in text
     assert f"crack faces overlap (no non-penetration condition; arc length along Σ): [{start:.4g}, {end:.4g}] on " \
            "crack 0" in text
-    linear.save(tmp_path / "linear.h5")
+    save(linear, tmp_path / "linear.h5")
     back = io.read(tmp_path / "linear.h5").fracture
     np.testing.assert_array_equal(back.overlaps, f.overlaps)
     assert len(back.zones) == 0 and back.overlap_crack.tolist() == [0]

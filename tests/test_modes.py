@@ -10,6 +10,7 @@ import pytest
 from conftest import ddsolve
 
 from ddsolve.io import hdf5 as io
+from ddsolve.io import save
 from ddsolve.mesh import geometry
 from ddsolve.post import analysis, fracture
 from ddsolve.problem import scene
@@ -145,7 +146,7 @@ def test_written_read_and_printed(tmp_path):
     the split reads as NaN; the printed line gives the split."""
     result = solved(scene.load("partial-closure", ["mesh.sigma_vertices=25", "mesh.boundary_vertices=48"]))
     path = tmp_path / "r.h5"
-    result.save(path)
+    save(result, path)
     back = io.read(path).fracture
     for key in ("G_I", "G_II", "phase", "symmetric"):
         np.testing.assert_array_equal(getattr(back, key), getattr(result.fracture, key))
@@ -182,7 +183,7 @@ def test_a_tip_that_releases_nothing_has_no_phase_angle(tmp_path):
     labels = plots.tip_labels(f)
     assert "ψ " in labels[0] and labels[1].endswith(UNDEFINED)
     assert not any("nan" in text for text in lines + labels)
-    result.save(tmp_path / "r.h5")
+    save(result, tmp_path / "r.h5")
     np.testing.assert_array_equal(io.read(tmp_path / "r.h5").fracture.phase, f.phase)
 
 

@@ -12,6 +12,7 @@ from conftest import ddsolve
 
 from ddsolve.errors import SceneError
 from ddsolve.io import hdf5 as io
+from ddsolve.io import save
 from ddsolve.mesh import geometry
 from ddsolve.post import toughness
 from ddsolve.problem import scene
@@ -113,7 +114,7 @@ def test_example_2_grows_at_the_square_root_of_the_toughness_ratio(tmp_path):
     for tip, factor in enumerate(factors):
         assert reference.solve(source.scaled(factor), mesh).fracture.G[tip] == pytest.approx(1e-4, rel=1e-10)
     path = tmp_path / "r.h5"
-    result.save(path)
+    save(result, path)
     back = io.read(path).fracture
     np.testing.assert_array_equal(back.toughness, fracture.toughness)
     np.testing.assert_array_equal(back.critical_factor, fracture.critical_factor)

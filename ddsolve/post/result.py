@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ddsolve.errors import ArgumentError, DDSolveError
+from ddsolve.errors import DDSolveError
 from ddsolve.fem import assembly
 from ddsolve.mesh.mesh import BLOCKS, HalfMesh, Mesh, SigmaLine
 from ddsolve.problem import scene as scenes
@@ -52,7 +52,7 @@ class Result:
     indicators: dict[str, np.ndarray] = field(default_factory=dict)
     levels: dict[str, np.ndarray] = field(default_factory=dict)
     held: OnSigma | None = None  # rank 0 of a run whose ranks wrote the result: all it holds (no mesh, no solution)
-    #: The files the run read (scene, mesh and the files it reaches) -> how: :meth:`save` never replaces them.
+    #: The files the run read (scene, mesh and the files it reaches) -> how: :func:`ddsolve.io.save` never replaces them.
     inputs: dict[Path, str] = field(default_factory=dict, compare=False)
     #: The result file this result was last read from or saved to, if any.
     path: Path | None = field(default=None, compare=False)
@@ -104,19 +104,6 @@ class Result:
         """``(zones, 2)``: where the crack faces touch, as arc length along Σ from its first node (none
         without non-penetration: see :attr:`Fracture.overlaps`)."""
         return self.fracture.zones if self.fracture is not None else np.zeros((0, 2))
-
-    def save(self, path: str | Path, viewer: str = "vtu") -> list[Path]:
-        """Write the result set: the HDF5 file ``path`` and its viewer files (``vtu`` or ``xdmf``) beside
-        it, replaced together (never over a file the run read: :attr:`inputs`); returns the paths written."""
-        from ddsolve.io.hdf5 import check_result, check_viewer, write  # deferred: io is the stage above
-
-        if not isinstance(path, (str, Path)):
-            raise ArgumentError(f"save: path must be a file's path (got {type(path).__name__})")
-        check_viewer(viewer, "save: viewer")
-        check_result(Path(path), self.inputs, viewer=viewer, named="save path")
-        written = write(Path(path), self, viewer)
-        self.path = Path(path)
-        return written
 
     @classmethod
     def from_blocks(cls, scene: str, method: str, mesh: Mesh, fields: list[np.ndarray], interface, lam: np.ndarray,
