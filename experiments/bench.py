@@ -126,7 +126,7 @@ def monolithic(scene: scenes.Scene, mesh, systems) -> tuple[Result, dict]:
     loads = np.array([assembly.csr_matvec(s, u)[s.trace_dofs] - s.rhs[s.trace_dofs] for s, u in zip(systems, fields)])
     lam = interface.multipliers(loads)
     lam[contact] = y / np.sqrt(interface.row_weights[contact]) if len(normal) else lam[contact]
-    result = Result.from_blocks(scene.text, "monolithic", mesh, fields, interface, lam, converged=True,
+    result = Result.from_blocks(scene, "monolithic", mesh, fields, interface, lam, converged=True,
                                 iterations=1, solves=2 if len(normal) else 1,
                                 wall_time=timings["factorization"] + timings["solve"], ranks=1, history=np.zeros(0),
                                 timings=timings, attrs=provenance())

@@ -55,7 +55,7 @@ def section(name: str, description: str, result, scale: float, constraints) -> s
 
     position, axis = along_sigma(result)
     crack = result.crack
-    touching = result.parsed_scene.nonpenetration
+    touching = result.scene.nonpenetration
     zones = ", ".join(f"[{position[a]:.2f}, {position[b]:.2f}]"
                       for a, b in (contact_zones if touching else overlap_zones)(result)) or "none"
     faces = f"faces in contact on {zones}" if touching else f"no non-penetration: faces overlap on {zones}"

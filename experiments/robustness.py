@@ -689,7 +689,7 @@ class Hostile:
                 if not (self.folder / output).exists():
                     return f"; nothing written to {output}"
                 result = io.read(self.folder / output)
-                return (f"; {output} written by {result.method} (tol {result.parsed_scene.solver.tol:g}, "
+                return (f"; {output} written by {result.method} (tol {result.scene.solver.tol:g}, "
                         f"{len(result.lower.points)} lower-half vertices)")
             return observe
 

@@ -243,7 +243,7 @@ def test_out_of_core_factors_solve_the_reference_problem(tmp_path, references, m
     ddsolve("solve", "partial-closure", *SMALL, *TIGHT[method], "--set", "solver.out_of_core=true", "-o", str(output),
             ranks=8 if method == "feti" else 4)
     result = io.read(output)
-    assert result.converged and result.parsed_scene.solver.out_of_core and result.attrs["factors_out_of_core"]
+    assert result.converged and result.scene.solver.out_of_core and result.attrs["factors_out_of_core"]
     assert analysis.compare(result, io.read(references["partial-closure"])).energy_error < 1e-8
 
 

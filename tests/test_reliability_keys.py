@@ -142,7 +142,7 @@ def observe(command: str, output: Path, stdout: str) -> dict:
     from ddsolve.post import analysis
     result = io.read(output)
     fields = analysis.cell_fields(result)
-    return {"title": result.parsed_scene.title, "method": result.method, "converged": bool(result.converged),
+    return {"title": result.scene.title, "method": result.method, "converged": bool(result.converged),
             "iterations": int(result.iterations), "points": len(result.lower.points) + len(result.upper.points),
             "energy": _digest(result.attrs.get("energy", np.nan)), "kkt_tolerance": float(result.attrs.get("kkt_tolerance", 0)),
             "out_of_core": bool(result.attrs.get("factors_out_of_core", False)),  # memory, not numbers

@@ -76,7 +76,7 @@ def moved(mesh, tip, step: float):
 
 def load_resultants(result) -> np.ndarray:
     """Σ over both layers of the traction loads' resultants (x, y)."""
-    source, total = result.parsed_scene, np.zeros(2)
+    source, total = result.scene, np.zeros(2)
     for (layer, name), load in source.loads.items():
         for half in result.mesh.halves:
             total += assembly.boundary_load(half.points, half.edges(name), load).reshape(-1, 2).sum(axis=0)
@@ -182,7 +182,7 @@ y = "{traction}"
 
 def reaction_traction(result) -> str:
     """A polynomial traction t_y(y) on ``left`` whose consistent nodal loads are layer 1's nodal reactions there."""
-    source = result.parsed_scene
+    source = result.scene
     from ddsolve.post import reactions
 
     rows, forces = [], []
@@ -254,7 +254,7 @@ def test_energy_with_a_displaced_boundary_is_half_the_work_of_the_reactions(degr
 
 def mechanical_energy(result) -> float:
     """½ Σ_b ∫ (ε(u_b) − ε₀)ᵀ D (ε(u_b) − ε₀) − the work of the tractions, element by element from the fields."""
-    source, total = result.parsed_scene, 0.0
+    source, total = result.scene, 0.0
     xi, weights = TRIANGLE_RULES[6]
     for spec in BLOCKS:
         half, u = result.mesh.half(spec.side), result.solution[spec.name].reshape(-1)

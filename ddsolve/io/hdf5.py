@@ -180,6 +180,7 @@ def attributes(result: Result) -> dict[str, dict]:
     """The attributes of a result file by group: the root's, /timings and /memory."""
     root = {key: getattr(result, key) for key in ("converged", "iterations", "solves", "method", "wall_time",
                                                     "ranks", "scene", "message")}
+    root["scene"] = result.scene.text  # the scene's canonical TOML text
     return {"": {**root, **result.attrs}, "timings": dict(result.timings),
             **({"memory": dict(result.memory)} if result.memory else {})}
 
@@ -341,12 +342,12 @@ def _read(f: h5py.File, path: Path) -> Result:
     scene_text = f.attrs["scene"]
     scene_text = scene_text.decode() if isinstance(scene_text, bytes) else str(scene_text)
     try:
-        scenes.loads(scene_text, origin="its scene")
+        scene = scenes.loads(scene_text, origin="its scene")
     except SceneError as exc:
         raise DDSolveError(str(exc)) from None
     known = {"converged", "iterations", "solves", "method", "wall_time", "ranks", "scene", "message"}
     return Result(
-        scene=scene_text, method=str(f.attrs["method"]),
+        scene=scene, method=str(f.attrs["method"]),
         converged=bool(f.attrs["converged"]), iterations=int(f.attrs["iterations"]),
         solves=int(f.attrs["solves"]), wall_time=float(f.attrs["wall_time"]),
         ranks=int(f.attrs["ranks"]), mesh=mesh, solution=solution, multipliers=multipliers,

@@ -386,7 +386,7 @@ def result_script(result: Result, folder: Path, files: dict[str, str], fields: d
                                                             if spec.layer == layer]))
                 for layer in LAYER_TITLES}
     points = np.vstack([result.lower.points, result.upper.points])
-    return paraview_script(result.parsed_scene.title, folder, files, ceilings, plots.magnification(result),
+    return paraview_script(result.scene.title, folder, files, ceilings, plots.magnification(result),
                            plots.one_above_the_other(points), analysis.sigma_is_graph(result))
 
 

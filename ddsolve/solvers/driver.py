@@ -592,12 +592,12 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
                 attrs={**launch.provenance(), **local.quality, "stop": scene.solver.stop, "tol": scene.solver.tol,
                        **outcome.details})
             if distributed:
-                result = Result(scene=scene.text, method=method, mesh=None, solution={},
+                result = Result(scene=scene, method=method, mesh=None, solution={},
                                 multipliers=shares.on.multipliers, held=shares.on, **record)
                 result.attrs["error_estimate"] = shares.relative
                 result.reactions = shares.reactions
             else:
-                result = Result.from_blocks(scene.text, method, mesh, solutions, interface, outcome.lam, **record)
+                result = Result.from_blocks(scene, method, mesh, solutions, interface, outcome.lam, **record)
                 estimated = estimate.combine(mesh, parts, result.solution, result.multipliers["mu_c"],
                                              assembly.modulus(scene))
                 result.attrs["error_estimate"], result.indicators = estimated.relative, estimated.indicators

@@ -124,7 +124,7 @@ def solve(scene: Scene, mesh: Mesh, factors: np.ndarray | None = None) -> Result
                f"{constraints.kkt_tolerance(None):g}): the problem is too ill-conditioned for double precision"
                if violations else "")
     result = Result.from_blocks(
-        scene.text, "reference", mesh, fields, interface, lam, converged=not violations, iterations=step,
+        scene, "reference", mesh, fields, interface, lam, converged=not violations, iterations=step,
         solves=step, wall_time=elapsed, ranks=1, history=np.array(history),
         active_set_changes=np.array(changes, dtype=np.int64),
         timings={"factorization": factorization, "total": elapsed}, message=message,
