@@ -402,6 +402,8 @@ def cmd_version(_args, petsc_options) -> int:
 def parser() -> argparse.ArgumentParser:
     """The command line; ``ddsolve --help`` lists the commands (the epilog).  The experiments have their
     own (:mod:`experiments.commands`)."""
+    from ddsolve.io import viewer
+
     top = Parser(prog="ddsolve", description="Domain decomposition (PETSc/MPI) for a two-layer "
                                   "elastic structure with a non-penetrating crack.",
                                   formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -459,7 +461,7 @@ def parser() -> argparse.ArgumentParser:
     p = command("export", "viewer files of a result for ParaView and meshio (layers, Σ, a ParaView script)",
                 cmd_export)
     p.add_argument("result")
-    p.add_argument("--format", choices=("vtu", "xdmf"), default="vtu", help="file format (default: vtu)")
+    p.add_argument("--format", choices=tuple(viewer.FORMATS), default="vtu", help="file format (default: vtu)")
     p.add_argument("-o", dest="output", metavar="DIR", help="folder for the files (default: the result's)")
     command("scenes", "list the built-in scenes", cmd_scenes)
     command("version", "versions of ddsolve, PETSc and MPI", cmd_version)

@@ -5,16 +5,19 @@ import random
 import re
 import shutil
 import subprocess
+from pathlib import Path
 
 import meshio
 import numpy as np
 import pytest
 from conftest import SMALL, ddsolve
 
+from ddsolve import cli
 from ddsolve.errors import DDSolveError
 from ddsolve.fem import assembly
 from ddsolve.io import hdf5 as io
 from ddsolve.io import safe
+from ddsolve.io import viewer
 from ddsolve.io.viewer import ViewerMesh, merged_upper_nodes, write_vtu
 from ddsolve.post import analysis
 from ddsolve.problem import materials
@@ -187,6 +190,27 @@ def test_per_cell_arrays_of_the_result_become_cell_arrays(results, tmp_path):
     result.cell_data["damage"] = {**damage_values, "u_plus": damage_values["u_plus"][:-1]}
     with pytest.raises(DDSolveError, match="cell data damage: .* upper half"):
         io.write_viewer(result, tmp_path, "bad", "vtu")
+
+
+@pytest.mark.mpi
+def test_a_registered_viewer_format_is_offered_checked_and_written(results, tmp_path, monkeypatch):
+    """A viewer format is a name and a writer in viewer.FORMATS: the command line's choices, the checks of
+    the outputs and the writers of the result set come from there."""
+    def write(meshes, folder, stem):
+        names = viewer.viewer_names(stem, "txt")
+        return {**{folder / names[mesh.name]: (lambda name, mesh=mesh: Path(name).write_text(mesh.name))
+                   for mesh in meshes}, folder / f"{stem}-all.txt": lambda name: Path(name).write_text("all")}
+
+    monkeypatch.setitem(viewer.FORMATS, "txt", viewer.ViewerFormat("txt", write, extra=("-all.txt",)))
+    assert cli.parser().parse_args(["export", "r.h5", "--format", "txt"]).format == "txt"
+    io.check_viewer("txt")
+    expected = [tmp_path / name for name in ("r-layer1.txt", "r-layer2.txt", "r-sigma.txt", "r-all.txt",
+                                             "r-paraview.py")]
+    assert viewer.viewer_paths(tmp_path, "r", "txt") == expected
+    written = io.write_viewer(io.read(results[1]), tmp_path, "r", "txt")
+    assert sorted(written) == sorted(expected) and (tmp_path / "r-sigma.txt").read_text() == "sigma"
+    with pytest.raises(DDSolveError, match="^save: viewer must be one of 'vtu', 'xdmf', 'txt' "):
+        io.check_viewer("png", "save: viewer")
 
 
 def test_a_failing_writer_keeps_the_previous_set_and_leaves_no_temporaries(tmp_path):
