@@ -215,7 +215,7 @@ def solve(scene: Scene | str | Path, comm=None, output: str | Path | None = None
     loaded, arguments = _agreed(comm, "solve", check)
     try:
         with _reported_once(comm):
-            result = run.solve(loaded, comm, arguments["output"], arguments["progress"])
+            result = run.decomposition(loaded, comm, arguments["output"], arguments["progress"])
     except NotConvergedError as error:  # raised on every rank; the result (written) is rank 0's
         error.result = _read_by(comm.bcast(getattr(error, "result", None), root=0), loaded, scene)
         raise

@@ -34,7 +34,7 @@ SCENES = {
 
 def gallery() -> None:
     """Solve, draw and describe every gallery scene."""
-    from ddsolve.io import hdf5 as io
+    from ddsolve.io import hdf5
     from ddsolve.post import analysis, plots
 
     RESULTS.mkdir(parents=True, exist_ok=True)
@@ -43,7 +43,7 @@ def gallery() -> None:
         path = RESULTS / f"{name}.h5"
         print(f"gallery: {name} -> {path}", flush=True)
         report.run(4, ["solve", name, "-o", str(path)])
-        result = io.read(path)
+        result = hdf5.read(path)
         scale = plots.deformed_layers(result, DOCS / f"gallery-{name}.png")
         plots.crack_faces(result, DOCS / f"gallery-{name}-crack.png")
         sections.append(section(name, description, result, scale, analysis.constraints(result)))

@@ -81,7 +81,7 @@ def test_energies_decrease_monotonically_under_refinement(name):
     mesh = structured_mesh(8, 4, geometry=Geometry())
     energies = []
     for round_ in range(4):
-        result = reference.solve(source, mesh)
+        result = reference.solve_monolithic(source, mesh)
         energies.append(float(result.attrs["energy"]))
         marked = adapt.cell_indicators(mesh, result.indicators)
         marked = marked > np.quantile(marked, 0.6)

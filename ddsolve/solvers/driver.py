@@ -24,7 +24,7 @@ from ddsolve.dd import kernels, methods
 from ddsolve.dd.interface import Interface, for_mesh
 from ddsolve.errors import DDSolveError, DivergedError, NotConvergedError, SceneError
 from ddsolve.fem import assembly, supports
-from ddsolve.io import hdf5 as io
+from ddsolve.io import hdf5
 from ddsolve.mesh import pieces
 from ddsolve.mesh.mesh import BLOCKS, U_PLUS, Mesh, partner
 from ddsolve.mesh.pieces import Piece
@@ -255,7 +255,7 @@ class OnRanks:
         return reactions.ordered(scene, [part for ranked in parts for part in ranked])
 
     def files(self, result: Result | None, output: Path, cell_fields: dict[int, analysis.CellFields]
-              ) -> tuple[io.Part, viewer.Distributed]:
+              ) -> tuple[hdf5.Part, viewer.Distributed]:
         """This rank's slabs of the result file and its shares of the viewer files (``result``: rank 0's;
         ``cell_fields``: of the cells it owns, :func:`block_cell_fields`); rank 0 adds the attributes once the
         launch's timings are complete."""
@@ -264,7 +264,7 @@ class OnRanks:
         datasets = {}
         for b, piece in self.pieces.items():  # a half's first block writes its mesh, its leader Σ and boundaries
             if b == min(c for c, spec in enumerate(BLOCKS) if spec.side == BLOCKS[b].side):
-                datasets.update(io.half_datasets(piece.half, nodes, piece, skeleton=b in exchange.led_blocks))
+                datasets.update(hdf5.half_datasets(piece.half, nodes, piece, skeleton=b in exchange.led_blocks))
         held = comm.allgather({BLOCKS[b].side: (piece.nodes[piece.half.sigma],
                                                 piece.points[piece.owned_nodes].min(axis=0, initial=np.inf),
                                                 piece.points[piece.owned_nodes].max(axis=0, initial=-np.inf))
@@ -277,7 +277,7 @@ class OnRanks:
         for b, piece in self.pieces.items():
             spec, fields = BLOCKS[b], cell_fields[b]
             u = self.displacements[b][piece.owned_nodes]
-            datasets.update(io.block_datasets(spec.name, u, fields.von_mises, self.indicators[b], piece=piece))
+            datasets.update(hdf5.block_datasets(spec.name, u, fields.von_mises, self.indicators[b], piece=piece))
             glue = viewer.Glue(halves_sigma[-1], halves_sigma[1], sigma.crack, local.nodes, local.cells,
                                self.on.traces[BLOCKS[partner(b)].name])
             shares[spec.layer] = viewer.layer_share(spec.layer, spec.side, piece.points[piece.owned_nodes], u,
@@ -287,7 +287,7 @@ class OnRanks:
         tops = comm.gather(tops, root=0)
         script = ""
         if exchange.is_root:
-            datasets.update(io.sigma_datasets(self.on, result.history, result.active_set_changes, result.levels,
+            datasets.update(hdf5.sigma_datasets(self.on, result.history, result.active_set_changes, result.levels,
                                               result.fracture, result.reactions))
             shares["sigma"] = viewer.sigma_mesh(self.on, local.half(-1).degree)
             ceilings = {layer: plots.stress_ceiling(np.concatenate([top[layer] for top in tops if layer in top]),
@@ -296,7 +296,7 @@ class OnRanks:
                                             ceilings, plots.scale_for(float((high - low).max()), self.on.largest),
                                             plots.one_above_the_other(np.array([low, high])),
                                             analysis.sigma_is_graph(self.on))
-        return io.Part(datasets), viewer.Distributed(shares, script)
+        return hdf5.Part(datasets), viewer.Distributed(shares, script)
 
 
 @dataclass
@@ -504,7 +504,7 @@ def bound(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, iterations: in
         setup.destroy()
 
 
-def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mesh: Mesh | None = None,
+def solve_decomposed(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mesh: Mesh | None = None,
           setup: Setup | None = None, gather: bool = True, factors: np.ndarray | None = None,
           refined_next: Callable[[Result], bool] | None = None) -> Result | None:
     """Run the domain decomposition for ``scene`` on ``comm``; write ``output``.
@@ -525,7 +525,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
     its modes and the reactions are not computed (``fracture`` stays None, ``reactions`` empty).
     """
     own = setup is None
-    distributed = output is not None and not gather and io.parallel_available(comm)
+    distributed = output is not None and not gather and hdf5.parallel_available(comm)
     if own:
         setup = prepare(scene, comm, mesh, Phases(launch_age() if mesh is None else 0.0), keep_halves=not distributed)
     else:
@@ -628,12 +628,12 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
             result.attrs["factors_out_of_core"] = any(ranked["out_of_core"] for ranked, _ in memory)
         if distributed:
             if exchange.is_root:
-                part.attrs = io.attributes(result)
+                part.attrs = hdf5.attributes(result)
             written = time.perf_counter()
-            io.write_distributed(output, part, viewer, comm, final=True)
+            hdf5.write_distributed(output, part, viewer, comm, final=True)
         elif output is not None:
             written = time.perf_counter()
-            collective(comm, lambda: io.write(output, result, final=True), root_only=True)
+            collective(comm, lambda: hdf5.write(output, result, final=True), root_only=True)
         if output is not None and result is not None:  # the launch's last phase, for whoever reports it
             result.timings["write"] = time.perf_counter() - written
         stages["Output"].pop()
