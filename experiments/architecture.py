@@ -82,8 +82,8 @@ def stage_graph() -> dict[tuple[str, str], int]:
 
 def architecture() -> None:
     """Draw docs/architecture.png: which stage imports which, as a matrix of module-import counts.  The
-    stages run bottom-up in both directions, so every import that points the right way lies below the
-    diagonal; one above it would point against the layering."""
+    stages run top-down in both directions, so every import that points the right way lies above the
+    diagonal; one below it would point against the layering."""
     from ddsolve.post.plots import _pyplot
 
     plt = _pyplot()

@@ -57,6 +57,12 @@ def test_no_import_cycle():
     assert not found, "import cycles: " + "; ".join(" -> ".join(cycle) for cycle in found)
 
 
+def test_every_module_is_in_a_known_stage():
+    unknown = sorted(f"{module}: stage {stage(module)!r}" for module in modules() if stage(module) not in STAGES)
+    assert not unknown, "new stages go into experiments.architecture.STAGES and docs/architecture.md's table:\n" + \
+        "\n".join(unknown)
+
+
 def test_stages_point_one_way():
     wrong = [f"{module} ({stage(module)}) imports {target} ({stage(target)})"
              for module, targets in import_graph().items() for target in targets
