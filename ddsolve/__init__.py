@@ -1,7 +1,7 @@
 """ddsolve: domain decomposition for a two-layer elastic structure with a non-penetrating crack.
 
 The public face (docs/api.md): :class:`Scene` (load, change), :func:`solve`, :func:`reference`,
-:func:`sweep`, :func:`grow`, :class:`Result` (save) and :func:`load`, and the errors, each with a one-line message.
+:func:`sweep`, :func:`grow`, :class:`Result`, :func:`save` and :func:`load`, and the errors, each with a one-line message.
 The stages below it are subpackages (docs/architecture.md).  The face is imported on first use, so
 ``import ddsolve.mesh`` (or the command line's help) needs nothing but the standard library and numpy.
 """
@@ -18,7 +18,7 @@ find_petsc()  # before any ddsolve module imports petsc4py
 #: The API's names -> the module that defines them.
 _FACE = {"Scene": "ddsolve.problem.scene", "Result": "ddsolve.post.result", "solve": "ddsolve.api",
          "reference": "ddsolve.api", "sweep": "ddsolve.api", "grow": "ddsolve.api",
-         "load": "ddsolve.api"}
+         "load": "ddsolve.api", "save": "ddsolve.io"}
 
 __all__ = [*_FACE, "DDSolveError", "ArgumentError", "SceneError", "MeshError", "SolverError", "DivergedError",
            "NotConvergedError", "UsageError", "__version__"]

@@ -5,7 +5,7 @@
     scene = ddsolve.Scene.load("partial-closure").with_({"solver.tol": 1e-10})
     result = ddsolve.solve(scene)            # every rank of the communicator takes part
     print(result.energy, result.G)
-    result.save("ex1.h5")
+    ddsolve.save(result, "ex1.h5")
     again = ddsolve.load("ex1.h5")
 
 The command line is a layer over these functions; errors are :class:`ddsolve.DDSolveError` with the
@@ -188,7 +188,7 @@ def _silent(*_args, **_kwargs) -> None:
 
 
 def _read_by(result: Result, scene: Scene, source: Any) -> Result:
-    """``result`` with the files its run read noted (:meth:`Result.save` never writes over them)."""
+    """``result`` with the files its run read noted (:func:`ddsolve.io.save` never writes over them)."""
     if result is not None:
         result.inputs = inputs.of_scene(scene, source)
     return result
@@ -215,7 +215,7 @@ def solve(scene: Scene | str | Path, comm=None, output: str | Path | None = None
     loaded, arguments = _agreed(comm, "solve", check)
     try:
         with _reported_once(comm):
-            result = run.solve(loaded, comm, arguments["output"], arguments["progress"])
+            result = run.decomposition(loaded, comm, arguments["output"], arguments["progress"])
     except NotConvergedError as error:  # raised on every rank; the result (written) is rank 0's
         error.result = _read_by(comm.bcast(getattr(error, "result", None), root=0), loaded, scene)
         raise
@@ -233,7 +233,7 @@ def reference(scene: Scene | str | Path, output: str | Path | None = None) -> Re
 
 
 def load(path: str | Path) -> Result:
-    """Read a result file written by :func:`solve`, :func:`reference`, :meth:`Result.save` or the CLI."""
+    """Read a result file written by :func:`solve`, :func:`reference`, :func:`ddsolve.io.save` or the CLI."""
     if not isinstance(path, (str, Path)):
         raise DDSolveError(f"load: a result file's path (got {type(path).__name__})")
     result = hdf5.read(Path(path))

@@ -74,12 +74,12 @@ def _inputs(args, scene) -> list[Path]:
 
 def check_outputs(args, scene) -> Path:
     """The result file of ``solve``/``reference`` and its viewer files, checked before any work."""
-    from ddsolve.io import hdf5 as io
+    from ddsolve.io import hdf5
 
     output = _default_output(args)
     if not output.name:
         raise DDSolveError(f"-o {str(args.output)!r}: not a file name")
-    io.check_result(output, _inputs(args, scene))
+    hdf5.check_result(output, _inputs(args, scene))
     return output
 
 
@@ -94,13 +94,13 @@ def _launch(args, petsc_options: list[str], scene_checks: bool) -> None:
     check_petsc_files(petsc_options)
     for module in ("petsc4py", "mpi4py", "h5py"):  # if one is missing, one line here, not one per rank
         importlib.import_module(module)
-    from ddsolve.io import viewer as export
+    from ddsolve.io import viewer
 
     if scene_checks:
         scene = _load_scene(args, args.ranks)
         check_size(scene, args.ranks)
         output = check_outputs(args, scene)
-        outputs = [output, *export.viewer_paths(output.parent, output.stem)]
+        outputs = [output, *viewer.viewer_paths(output.parent, output.stem)]
     else:
         outputs = [_grow_output(args)] if args.command == "grow" else [_sweep_output(args)]
     forwarded = [arg for i, arg in enumerate(args.own) if i not in args.ranks_at]
@@ -128,7 +128,7 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
     comm = MPI.COMM_WORLD
     scene = comm.bcast(collective(comm, lambda: _load_scene(args, comm.size), root_only=True), root=0)
     output = comm.bcast(collective(comm, lambda: check_outputs(args, scene), root_only=True), root=0)
-    result = run.solve(scene, comm, output, progress=_root_print, gather=False)
+    result = run.decomposition(scene, comm, output, progress=_root_print, gather=False)
     if result is not None:
         print(f"{result.method}: converged after {result.iterations} iterations, {result.solves} rounds of "
               f"block solves, {result.wall_time:.3f} s on {result.ranks} ranks -> {output}", flush=True)
@@ -259,10 +259,10 @@ def estimate_line(result) -> str:
 
 
 def cmd_compare(args, _petsc_options) -> int:
-    from ddsolve.io import hdf5 as io
+    from ddsolve.io import hdf5
     from ddsolve.post import analysis
 
-    result, reference = io.read(args.result), io.read(args.reference)
+    result, reference = hdf5.read(args.result), hdf5.read(args.reference)
     comparison = analysis.compare(result, reference, (args.result, args.reference))
     print(f"relative energy-norm error {comparison.energy_error:.3e}   "
           f"max nodal difference {comparison.max_difference:.3e} (max |u| {comparison.max_displacement:.3e})"
@@ -271,10 +271,10 @@ def cmd_compare(args, _petsc_options) -> int:
 
 
 def cmd_check(args, _petsc_options) -> int:
-    from ddsolve.io import hdf5 as io
+    from ddsolve.io import hdf5
     from ddsolve.post import analysis
 
-    result = io.read(args.result)
+    result = hdf5.read(args.result)
     c = analysis.constraints(result)
     tolerance = analysis.tolerance_of(result)
     violations = c.violations(tolerance)
@@ -311,11 +311,11 @@ def cmd_plot(args, _petsc_options) -> int:
 
     import numpy as np
 
-    from ddsolve.io import hdf5 as io
+    from ddsolve.io import hdf5
     from ddsolve.post import analysis, plots
 
     scale = _scale(args.scale)
-    result = io.read(args.result)
+    result = hdf5.read(args.result)
     stem = Path(args.result).with_suffix("")
     broken = next((name for name, u in result.solution.items() if not np.isfinite(u).all()), None)
     if broken is not None:
@@ -340,17 +340,17 @@ def cmd_plot(args, _petsc_options) -> int:
 
 
 def cmd_export(args, _petsc_options) -> int:
-    from ddsolve.io import hdf5 as io
-    from ddsolve.io import viewer as export
+    from ddsolve.io import hdf5
+    from ddsolve.io import viewer
 
-    result = io.read(args.result)
+    result = hdf5.read(args.result)
     folder = Path(args.output) if args.output is not None else Path(args.result).parent
     if not folder.is_dir():
         raise DDSolveError(f"-o {folder}: " + ("is a file, not a folder: give -o the folder for the viewer files"
                                                if folder.exists() else "no such directory"))
     stem = Path(args.result).stem
-    safe.check_targets(export.viewer_paths(folder, stem, args.format), [Path(args.result)])
-    written = io.write_viewer(result, folder, stem, args.format, final=True)
+    safe.check_targets(viewer.viewer_paths(folder, stem, args.format), [Path(args.result)])
+    written = hdf5.write_viewer(result, folder, stem, args.format, final=True)
     print("wrote " + ", ".join(map(str, written)))
     return 0
 
@@ -404,6 +404,8 @@ def cmd_version(_args, petsc_options) -> int:
 def parser() -> argparse.ArgumentParser:
     """The command line; ``ddsolve --help`` lists the commands (the epilog).  The experiments have their
     own (:mod:`experiments.commands`)."""
+    from ddsolve.io import viewer
+
     top = Parser(prog="ddsolve", description="Domain decomposition (PETSc/MPI) for a two-layer "
                                   "elastic structure with a non-penetrating crack.",
                                   formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -464,7 +466,7 @@ def parser() -> argparse.ArgumentParser:
     p = command("export", "viewer files of a result for ParaView and meshio (layers, Σ, a ParaView script)",
                 cmd_export)
     p.add_argument("result")
-    p.add_argument("--format", choices=("vtu", "xdmf"), default="vtu", help="file format (default: vtu)")
+    p.add_argument("--format", choices=tuple(viewer.FORMATS), default="vtu", help="file format (default: vtu)")
     p.add_argument("-o", dest="output", metavar="DIR", help="folder for the files (default: the result's)")
     command("scenes", "list the built-in scenes", cmd_scenes)
     command("version", "versions of ddsolve, PETSc and MPI", cmd_version)

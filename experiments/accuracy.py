@@ -73,11 +73,11 @@ def family_run(scene_name: str, family: str, degree: int, output: Path, comm) ->
             print(f"  {scene_name} {family} P{degree}: {line}", flush=True)
 
     # Warm up (imports, gmsh, the factorization path) so that the first level's time is its own.
-    driver.solve(scenes.load(scene_name, _overrides("graded", degree, 0.5)), comm, None, progress=_quiet)
+    driver.solve_decomposed(scenes.load(scene_name, _overrides("graded", degree, 0.5)), comm, None, progress=_quiet)
     rows = []
     if family == "adaptive":
         started = time.perf_counter()
-        result = adapt.solve(scenes.load(scene_name, _overrides(family, degree, None)), comm, None, progress=say)
+        result = adapt.solve_adaptively(scenes.load(scene_name, _overrides(family, degree, None)), comm, None, progress=say)
         if comm.rank == 0:
             levels = result.levels
             for i in range(len(levels["unknowns"])):
@@ -92,7 +92,7 @@ def family_run(scene_name: str, family: str, degree: int, output: Path, comm) ->
             started = time.perf_counter()
             mesh = distribution.build_mesh(scene, comm)
             meshed = time.perf_counter() - started
-            result = driver.solve(scene, comm, None, progress=_quiet, mesh=mesh)
+            result = driver.solve_decomposed(scene, comm, None, progress=_quiet, mesh=mesh)
             elapsed = time.perf_counter() - started
             if comm.rank == 0:
                 t = result.timings
@@ -178,7 +178,7 @@ def accuracy() -> dict:
 
 def acceptance(records: dict, exact: dict) -> list[dict]:
     """Whole ``ddsolve solve`` launches of graded P2 aimed at 1 % and 0.1 % on every scene."""
-    from ddsolve.io import hdf5 as io
+    from ddsolve.io import hdf5
 
     launches = []
     for scene_name in SCENES:
@@ -192,7 +192,7 @@ def acceptance(records: dict, exact: dict) -> list[dict]:
             mark = time.perf_counter()
             report.run(RANKS, command)
             whole = time.perf_counter() - mark
-            result = io.read(path)
+            result = hdf5.read(path)
             t = result.timings
             launch = {"scene": scene_name, "target": target, "size": float(f"{size:.4g}"),
                       "command": "./run solve -n 4 " + " ".join(command[1:]),

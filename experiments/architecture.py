@@ -11,12 +11,10 @@ PACKAGE = ROOT / "ddsolve"
 #: The stages from the bottom up: a module may import from its own stage and the stages before it.
 #: (The experiments, beside the package in experiments/, come after them all: nothing in it imports them.)
 STAGES = ("errors", "environment", "problem", "mesh", "fem", "dd", "post", "io", "parallel", "solvers", "api", "cli")
-#: The one import against the stages' direction, deferred into a method: ``Result.save`` writes the
-#: result through the io stage, as meshio's ``Mesh.write`` does; io imports nothing at load time that
-#: would need it, so the cycle exists only in a call.
-DEFERRED = {("ddsolve.post.result", "ddsolve.io.hdf5")}
+#: The stages that may import PETSc or MPI (petsc4py, mpi4py).
+PETSC = ("parallel", "solvers", "api", "cli")
 #: Stages that never import PETSc or MPI (testable without them).
-SERIAL = ("problem", "mesh", "fem", "dd", "post", "io")
+SERIAL = tuple(name for name in STAGES if name not in PETSC)
 
 
 def module_name(path: Path) -> str:
@@ -30,7 +28,9 @@ def modules() -> dict[str, Path]:
 
 
 def imports(path: Path) -> set[str]:
-    """Absolute names of every module (or module attribute) ``path`` imports, at any depth."""
+    """Absolute names of every module (or module attribute) ``path`` imports, at any depth.  ``from package
+    import module`` names the module, not the package whose ``__init__`` Python runs on the way (every
+    submodule's import does that)."""
     tree = ast.parse(path.read_text(encoding="utf-8"))
     package = module_name(path) if path.name == "__init__.py" else module_name(path).rpartition(".")[0]
     found = set()
@@ -42,13 +42,12 @@ def imports(path: Path) -> set[str]:
             if node.level:
                 parent = package.split(".")[:len(package.split(".")) - node.level + 1]
                 base = ".".join(parent + ([node.module] if node.module else []))
-            found.add(base)
-            found |= {f"{base}.{alias.name}" for alias in node.names}
+            found |= {base if alias.name == "*" else f"{base}.{alias.name}" for alias in node.names}
     return found
 
 
-def import_graph(deferred: bool = False) -> dict[str, set[str]]:
-    """ddsolve module -> the ddsolve modules it imports (``deferred``: with the allowed deferred one)."""
+def import_graph() -> dict[str, set[str]]:
+    """ddsolve module -> the ddsolve modules it imports (at module level or deferred into a function)."""
     known = modules()
     edges = {}
     for name, path in known.items():
@@ -56,7 +55,7 @@ def import_graph(deferred: bool = False) -> dict[str, set[str]]:
         for imported in imports(path):
             while imported and imported not in known:
                 imported = imported.rpartition(".")[0]
-            if imported and imported not in (name, "ddsolve") and (deferred or (name, imported) not in DEFERRED):
+            if imported and imported not in (name, "ddsolve"):
                 targets.add(imported)
         edges[name] = targets
     return edges
@@ -73,7 +72,7 @@ def stage(module: str) -> str:
 def stage_graph() -> dict[tuple[str, str], int]:
     """(stage, stage it imports) -> how many module imports make that arrow."""
     counts: dict[tuple[str, str], int] = {}
-    for module, targets in import_graph(deferred=True).items():
+    for module, targets in import_graph().items():
         for target in targets:
             key = (stage(module), stage(target))
             if key[0] != key[1]:
@@ -83,8 +82,8 @@ def stage_graph() -> dict[tuple[str, str], int]:
 
 def architecture() -> None:
     """Draw docs/architecture.png: which stage imports which, as a matrix of module-import counts.  The
-    stages run bottom-up in both directions, so every import that points the right way lies below the
-    diagonal; one above it would point against the layering."""
+    stages run top-down in both directions, so every import that points the right way lies above the
+    diagonal; one below it would point against the layering."""
     from ddsolve.post.plots import _pyplot
 
     plt = _pyplot()
@@ -113,11 +112,8 @@ def architecture() -> None:
     ax.set_xlim(-0.5, n - 0.5)
     ax.set_ylim(n - 0.5, -0.5)
     ax.set_xlabel("is imported by the stage on the left (number of module imports)")
-    deferred = ", ".join(f"{a.split('.')[-2]}.{a.split('.')[-1]} → {b.split('.')[-2]}.{b.split('.')[-1]}"
-                         for a, b in sorted(DEFERRED))
     ax.set_title("ddsolve's stages: who imports whom (every import, deferred ones too)\n"
-                 "blue: down the layers; red: against them (only Result.save's deferred import,\n"
-                 f"{deferred}); * a stage without PETSc or MPI", fontsize=10)
+                 "blue: down the layers; red: against them; * a stage without PETSc or MPI", fontsize=10)
     out = Path("docs") / "architecture.png"
     fig.savefig(out, dpi=110, bbox_inches="tight")
     plt.close(fig)

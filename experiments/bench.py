@@ -126,7 +126,7 @@ def monolithic(scene: scenes.Scene, mesh, systems) -> tuple[Result, dict]:
     loads = np.array([assembly.csr_matvec(s, u)[s.trace_dofs] - s.rhs[s.trace_dofs] for s, u in zip(systems, fields)])
     lam = interface.multipliers(loads)
     lam[contact] = y / np.sqrt(interface.row_weights[contact]) if len(normal) else lam[contact]
-    result = Result.from_blocks(scene.text, "monolithic", mesh, fields, interface, lam, converged=True,
+    result = Result.from_blocks(scene, "monolithic", mesh, fields, interface, lam, converged=True,
                                 iterations=1, solves=2 if len(normal) else 1,
                                 wall_time=timings["factorization"] + timings["solve"], ranks=1, history=np.zeros(0),
                                 timings=timings, attrs=provenance())
@@ -171,7 +171,7 @@ def bench_baseline(name: str, P: int, M: int, repeats: int, output: Path, comm) 
     for _ in range(repeats):
         monos = {label: collective(comm, lambda: timed(label, ordering), root_only=True)
                  for label, ordering in MONOLITHIC_ORDERINGS.items()}
-        dd = driver.solve(scene, comm, None, progress=lambda line: None, mesh=mesh)
+        dd = driver.solve_decomposed(scene, comm, None, progress=lambda line: None, mesh=mesh)
         if comm.rank == 0:
             for label, (reference, timings) in monos.items():
                 record[f"mono {label}"].append(timings)
@@ -228,7 +228,7 @@ def phase_account(scene: scenes.Scene, mesh, systems) -> dict[str, dict[str, flo
 
     PETSc.Log.begin()
     before = _event_seconds()
-    dd = driver.solve(scene, MPI.COMM_SELF, None, progress=lambda line: None, mesh=mesh)
+    dd = driver.solve_decomposed(scene, MPI.COMM_SELF, None, progress=lambda line: None, mesh=mesh)
     events = {phase: seconds - before[phase] for phase, seconds in _event_seconds().items()}
     t = dd.timings
     analysis = share(t["factorization_cpu"], t["factorization"], events["analysis"])
@@ -423,7 +423,7 @@ def bench_mesh(plan: str, P: int, M: int, output: Path, comm) -> None:
                     "mesh": {half.name: asdict(meshes.statistics(half)) for half in mesh.halves}, "runs": []}
     ref = None
     if comm.rank == 0:
-        ref = reference.solve(base, mesh)
+        ref = reference.solve_monolithic(base, mesh)
         record["reference_time"] = ref.wall_time
         record["reference_steps"] = ref.iterations
     comm.Barrier()
@@ -434,7 +434,7 @@ def bench_mesh(plan: str, P: int, M: int, output: Path, comm) -> None:
             continue
         scene = paper_scene(P, M, [f"solver.method={method}", f"solver.stop={stop}", f"solver.tol={tol}"])
         try:
-            result = driver.solve(scene, comm, None, progress=lambda line: None, mesh=mesh)
+            result = driver.solve_decomposed(scene, comm, None, progress=lambda line: None, mesh=mesh)
         except DDSolveError as exc:
             if comm.rank == 0:
                 print(f"  P={P} {method} {stop} {tol:g}: {exc}", flush=True)

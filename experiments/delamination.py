@@ -289,12 +289,13 @@ def cases() -> list[Case]:
 
 
 # --- solving -------------------------------------------------------------------------------------------
-def solve(source):
+def solve_case(source):
+    """A case's scene solved by the monolithic reference on its mesh."""
     from ddsolve.mesh import geometry
     from ddsolve.solvers import reference
 
     mesh = geometry.build(source)
-    return reference.solve(source, mesh)
+    return reference.solve_monolithic(source, mesh)
 
 
 def measure(case: Case, result, seconds: float) -> dict:
@@ -349,7 +350,7 @@ def thermal(folder: Path) -> tuple[dict, object]:
     source = scene.loads(text, origin="thermal", base=folder)
     mesh = geometry.build(source)
     started = time.perf_counter()
-    result = reference.solve(source, mesh)
+    result = reference.solve_monolithic(source, mesh)
     seconds = time.perf_counter() - started
     expected = mismatch_stress(layers, (alpha1, alpha2), dT)
     stresses = {}
@@ -365,7 +366,7 @@ def thermal(folder: Path) -> tuple[dict, object]:
     differences = []
     for tip, rate in zip(tips, result.fracture.G):
         step = THERMAL["steps"][0]
-        energies = [reference.solve(source, moved_mesh(mesh, tip, s)).attrs["energy"] for s in (step, -step)]
+        energies = [reference.solve_monolithic(source, moved_mesh(mesh, tip, s)).attrs["energy"] for s in (step, -step)]
         differences.append({"tip": float(tip.point[0]), "G": float(rate),
                             "fd": float(-(energies[0] - energies[1]) / (2.0 * step))})
     record = {"expected": expected, "stresses": stresses, "G": [float(g) for g in result.fracture.G],
@@ -389,11 +390,11 @@ def clamped_thermal() -> dict:
             f"[temperature]\nlayer1 = {THERMAL['dT']!r}\nlayer2 = {THERMAL['dT']!r}\n")
     source = scene.loads(text)
     mesh = geometry.build(source)
-    result = reference.solve(source, mesh)
+    result = reference.solve_monolithic(source, mesh)
     rows, step = [], THERMAL["steps"][0]
     for tip, rate, G_I, G_II in zip(fracture.find_tips(mesh), result.fracture.G, result.fracture.G_I,
                                     result.fracture.G_II):
-        energies = [reference.solve(source, moved_mesh(mesh, tip, s)).attrs["energy"] for s in (step, -step)]
+        energies = [reference.solve_monolithic(source, moved_mesh(mesh, tip, s)).attrs["energy"] for s in (step, -step)]
         rows.append({"G": float(rate), "G_I": float(G_I), "G_II": float(G_II),
                      "fd": float(-(energies[0] - energies[1]) / (2.0 * step))})
     return {"tips": rows, "points": result.fracture.points[:, 0].tolist()}
@@ -401,7 +402,7 @@ def clamped_thermal() -> dict:
 
 def cross_check(folder: Path, record: dict) -> dict:
     """ENF (upper arm floating) solved by ``ddsolve solve -n 2`` (schur): its G against the reference's."""
-    from ddsolve.io import hdf5 as io
+    from ddsolve.io import hdf5
 
     case = Case("ENF", "identical", 6.0)
     case.scene(folder, "enf-mpi")
@@ -409,7 +410,7 @@ def cross_check(folder: Path, record: dict) -> dict:
     started = time.perf_counter()
     report.run(RANKS, ["solve", str(folder / "enf-mpi.toml"), "-o", str(output)])
     seconds = time.perf_counter() - started
-    result = io.read(output)
+    result = hdf5.read(output)
     f = result.fracture
     reference_row = next(row for row in record["cases"] if row["specimen"] == "ENF" and row["layers"] == "identical"
                          and row["a"] == 6.0 and row["size"] == SIZE)
@@ -441,6 +442,8 @@ def is_drawn(case: Case) -> bool:
 
 def measurements() -> dict:
     """Solve every case; keep the drawn results in results/delamination/; return the record."""
+    from ddsolve.io import save
+
     SHAPES.mkdir(parents=True, exist_ok=True)
     folder = Path(tempfile.mkdtemp(prefix="ddsolve-delamination-"))
     record = {"cases": [], "setup": {"length": LENGTH, "arm": ARM, "load": LOAD, "opening": OPENING,
@@ -449,7 +452,7 @@ def measurements() -> dict:
     try:
         for index, case in enumerate(cases()):
             started = time.perf_counter()
-            result = solve(case.scene(folder, f"case{index}"))
+            result = solve_case(case.scene(folder, f"case{index}"))
             row = measure(case, result, time.perf_counter() - started)
             record["cases"].append(row)
             print(f"delamination: {case.specimen}, {case.layers}, a = {case.a:g}"
@@ -458,9 +461,9 @@ def measurements() -> dict:
                   f"corrected beam theory {row['corrected']:.6e} ({row['G'] / row['corrected'] - 1:+.2%}), "
                   f"{row['seconds']:.1f} s", flush=True)
             if is_drawn(case):
-                result.save(SHAPES / f"shape-{case.specimen.lower()}.h5")
+                save(result, SHAPES / f"shape-{case.specimen.lower()}.h5")
         record["thermal"], thermal_result = thermal(folder)
-        thermal_result.save(SHAPES / "shape-thermal.h5")
+        save(thermal_result, SHAPES / "shape-thermal.h5")
         print(f"delamination: thermal strip: σxx {record['thermal']['stresses']} against "
               f"{record['thermal']['expected']:.6e}; G {record['thermal']['G']}", flush=True)
         record["thermal_clamped"] = clamped_thermal()
@@ -487,12 +490,12 @@ def delamination() -> None:
 
 def draw(record: dict) -> None:
     """The pictures and the generated section of docs/delamination.md, from the record and the kept results."""
-    from ddsolve.io import hdf5 as io
+    from ddsolve.io import hdf5
 
-    shapes_plot({name: io.read(SHAPES / f"shape-{name.lower()}.h5") for name in ("DCB", "ELS", "ENF", "MMB")})
+    shapes_plot({name: hdf5.read(SHAPES / f"shape-{name.lower()}.h5") for name in ("DCB", "ELS", "ENF", "MMB")})
     length_plot(record)
     mmb_plot(record)
-    thermal_plot(io.read(SHAPES / "shape-thermal.h5"), record["thermal"])
+    thermal_plot(hdf5.read(SHAPES / "shape-thermal.h5"), record["thermal"])
     report.section(DOCS / "delamination.md", "delamination", text(record))
 
 

@@ -230,7 +230,7 @@ def checks(output: Path, comm) -> None:
         """Make the scene (rank 0 writes its .geo file), then solve it on every rank."""
         scene = make(*args, write=comm.rank == 0) if make is not scenes.load else make(*args)
         comm.Barrier()
-        return driver.solve(scene, comm, None, progress=lambda line: None)
+        return driver.solve_decomposed(scene, comm, None, progress=lambda line: None)
 
     record = {"finite_differences": [], "radii": [], "plate": [], "provenance": launch.provenance(),
               "fd_mesh": FD, "plate_setup": PLATE}
@@ -318,14 +318,14 @@ def fracture() -> None:
         sweeps[("stiffness", example)] = path
     faces = RESULTS / "fracture-example1.h5"
     report.run(RANKS, ["solve", "partial-closure", *_sets(SWEEP_MESH), "-o", str(faces)])
-    from ddsolve.io import hdf5 as io
+    from ddsolve.io import hdf5
     from ddsolve.post import plots
     from ddsolve.solvers import sweep
 
     data = {key: sweep.read(path) for key, path in sweeps.items()}
     length_plot(data, record)
     stiffness_plot(data)
-    plots.crack_faces(io.read(faces), DOCS / "fracture-faces.png")
+    plots.crack_faces(hdf5.read(faces), DOCS / "fracture-faces.png")
     report.section(DOCS / "fracture.md", "fracture-validation", validation_text(record))
     report.section(DOCS / "fracture.md", "fracture-sweeps", sweeps_text(data, record))
 

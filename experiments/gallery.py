@@ -34,7 +34,7 @@ SCENES = {
 
 def gallery() -> None:
     """Solve, draw and describe every gallery scene."""
-    from ddsolve.io import hdf5 as io
+    from ddsolve.io import hdf5
     from ddsolve.post import analysis, plots
 
     RESULTS.mkdir(parents=True, exist_ok=True)
@@ -43,7 +43,7 @@ def gallery() -> None:
         path = RESULTS / f"{name}.h5"
         print(f"gallery: {name} -> {path}", flush=True)
         report.run(4, ["solve", name, "-o", str(path)])
-        result = io.read(path)
+        result = hdf5.read(path)
         scale = plots.deformed_layers(result, DOCS / f"gallery-{name}.png")
         plots.crack_faces(result, DOCS / f"gallery-{name}-crack.png")
         sections.append(section(name, description, result, scale, analysis.constraints(result)))
@@ -55,7 +55,7 @@ def section(name: str, description: str, result, scale: float, constraints) -> s
 
     position, axis = along_sigma(result)
     crack = result.crack
-    touching = result.parsed_scene.nonpenetration
+    touching = result.scene.nonpenetration
     zones = ", ".join(f"[{position[a]:.2f}, {position[b]:.2f}]"
                       for a, b in (contact_zones if touching else overlap_zones)(result)) or "none"
     faces = f"faces in contact on {zones}" if touching else f"no non-penetration: faces overlap on {zones}"

@@ -213,7 +213,7 @@ def study(name: str) -> dict:
     from ddsolve.solvers import driver
 
     scene = Scene.load(name)
-    result = driver.solve(scene, MPI.COMM_SELF, None, progress=lambda line: None)
+    result = driver.solve_decomposed(scene, MPI.COMM_SELF, None, progress=lambda line: None)
     toughness = float(f"{float(np.max(result.fracture.G)):.3g}")
     return run(scene.with_({"fracture.toughness": toughness}), 3.0, 6, name)
 

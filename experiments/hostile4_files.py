@@ -20,7 +20,7 @@ CLASSES = {
     206: ("Inputs reached through other files", "the files a run reads are the scene file, its mesh or geometry file "
           "and every file those name (an XDMF mesh's heavy-data .h5 and binary items, a .geo's Include, Merge and "
           "ShapeFromFile), collected by one function (io.inputs) that the -o check of every command and every writer "
-          "of the API (output= of solve, reference, sweep, grow; Result.save, which keeps its run's inputs) use"),
+          "of the API (output= of solve, reference, sweep, grow; save, which keeps its run's inputs) use"),
     207: ("The API under MPI and with wrong types", "the API checks its arguments' types (ArgumentError, naming the "
           "argument) and overrides (a dict or KEY=VALUE items, one string being one item); solve, sweep and grow "
           "check on every rank the rank count, the arguments and a hash of the scene and of each argument against "
@@ -148,8 +148,8 @@ def measure(hostile) -> None:
     for label, before, code, kept in (
             ("API: solve('x.toml', output='box.h5') (XDMF mesh's arrays)", "exit 0, 1.5 s: box.h5 replaced",
              "import ddsolve; ddsolve.solve('x.toml', output='box.h5')", "box.h5"),
-            ("API: solve('x.toml').save('box.h5')", "exit 0, 1.5 s: box.h5 replaced",
-             "import ddsolve; ddsolve.solve('x.toml').save('box.h5')", "box.h5"),
+            ("API: save(solve('x.toml'), 'box.h5')", "exit 0, 1.5 s: box.h5 replaced",
+             "import ddsolve; ddsolve.save(ddsolve.solve('x.toml'), 'box.h5')", "box.h5"),
             ("API: grow(scene of fo.toml, 2.0, steps=2, output='fo.toml')", "exit 0, 1.1 s: fo.toml replaced by "
              "the growth file", "import ddsolve; ddsolve.grow(ddsolve.Scene.load('fo.toml'), 2.0, steps=2, "
              "output='fo.toml')", "fo.toml"),

@@ -99,5 +99,5 @@ def _first_mesh(path) -> str:
         return ""
     result = hdf5.read(path)
     unknowns = 4 * (len(result.lower.points) + len(result.upper.points))
-    return (f"; mesh.size = {result.parsed_scene.mesh.size:g} (P{result.parsed_scene.mesh.degree}, graded), "
+    return (f"; mesh.size = {result.scene.mesh.size:g} (P{result.scene.mesh.degree}, graded), "
             f"{unknowns:,} unknowns, estimated error {100 * result.error_estimate:.3g} %")

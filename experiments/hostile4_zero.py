@@ -64,12 +64,12 @@ def measure(hostile) -> None:
 
     def observe(completed) -> str:
         """Converged or not, the largest stress error against −0.5 and max |u| of the result in z.h5."""
-        from ddsolve.io import hdf5 as io
+        from ddsolve.io import hdf5
         from ddsolve.post import analysis
 
         if completed.returncode not in (0, 3):
             return ""
-        result = io.read(hostile.folder / "z.h5")
+        result = hdf5.read(hostile.folder / "z.h5")
         stress = max(float(abs(fields.stress[:, :2] + 0.5).max())
                      for fields in analysis.cell_fields(result).values())
         return (f"; converged = {str(result.converged).lower()}, |σ − (−EαΔT/(1 − 2ν))| ≤ {stress:.1e}, "

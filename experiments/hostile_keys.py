@@ -13,12 +13,12 @@ from experiments.robustness import SMALL
 def _unknowns(output: str):
     """A note on a run that wrote ``output``: its unknowns, estimated error and levels."""
     def observe(completed: subprocess.CompletedProcess, hostile) -> str:
-        from ddsolve.io import hdf5 as io
+        from ddsolve.io import hdf5
 
         path = hostile.folder / output
         if completed.returncode != 0 or not path.exists():
             return ""
-        result = io.read(path)
+        result = hdf5.read(path)
         levels = result.attrs.get("levels")
         return (f"; {4 * (len(result.lower.points) + len(result.upper.points)):,} unknowns, estimated error "
                 f"{100 * float(result.attrs['error_estimate']):.3g} %" + (f" after {levels} levels" if levels else ""))

@@ -95,7 +95,7 @@ def converges(scene, comm, mesh) -> tuple[bool, int]:
     from ddsolve.solvers import driver
 
     try:
-        result = driver.solve(scene, comm, None, progress=_quiet, mesh=mesh)
+        result = driver.solve_decomposed(scene, comm, None, progress=_quiet, mesh=mesh)
         return True, result.iterations
     except NotConvergedError:
         return False, SWEEP_MAX_ITERATIONS
@@ -215,7 +215,7 @@ FIGURES = (("fig1", "partial-closure", 500.0), ("fig3", "linear", 500.0), ("fig4
 
 def figures() -> None:
     """Deformed layers coloured by von Mises stress, and the normal jump along Σ (contact vs overlap)."""
-    from ddsolve.io import hdf5 as io
+    from ddsolve.io import hdf5
     from ddsolve.post import plots
 
     RESULTS.mkdir(exist_ok=True)
@@ -225,7 +225,7 @@ def figures() -> None:
         print(f"figures: {scene_name} -> {path}", flush=True)
         report.run(4, ["solve", scene_name, "--set", "mesh.sigma_vertices=96", "--set",
                           "mesh.boundary_vertices=144", "-o", str(path)])
-        results[scene_name] = io.read(path)
+        results[scene_name] = hdf5.read(path)
         plots.deformed_layers(results[scene_name], DOCS / f"{figure}-{scene_name}.png", scale)
     plots.interface_jumps([("Example 1 (non-penetration)", results["partial-closure"]),
                            ("linear problem (faces free)", results["linear"])], DOCS / "fig3-jump.png")

@@ -56,7 +56,7 @@ class Cases:
         self.references: dict[tuple, object] = {}
 
     def _reference(self, name: str, overrides: tuple[str, ...]):
-        from ddsolve.io import hdf5 as io
+        from ddsolve.io import hdf5
 
         key = (name, overrides)
         if key not in self.references:
@@ -66,13 +66,13 @@ class Cases:
                                 folder=self.folder)
             if completed.returncode != 0:
                 raise RuntimeError(completed.stderr)
-            self.references[key] = io.read(path)
+            self.references[key] = hdf5.read(path)
         return self.references[key]
 
     def against_reference(self, case: str, why: str, name: str, *settings: str, method: str = "schur",
                           test: str = "") -> None:
         """Solve with ``method`` on 4 ranks (``settings``: KEY=VALUE); the row shows rounds, error, penetration."""
-        from ddsolve.io import hdf5 as io
+        from ddsolve.io import hdf5
         from ddsolve.post import analysis
 
         path = self.folder / "dd.h5"
@@ -81,7 +81,7 @@ class Cases:
         if completed.returncode != 0:
             self.rows.append((case, f"fails: {completed.stderr.strip()}", why, test))
             return
-        result = io.read(path)
+        result = hdf5.read(path)
         reference = self._reference(name, tuple(s for s in settings if not s.startswith("solver.")))
         comparison = analysis.compare(result, reference)
         checks = analysis.constraints(result)
@@ -489,16 +489,16 @@ class Hostile:
     def error_against_reference(self, output: str, overrides: list[str]):
         """A note for a run that wrote ``output``: converged or not, and its energy error against the reference."""
         def observe(completed: subprocess.CompletedProcess) -> str:
-            from ddsolve.io import hdf5 as io
+            from ddsolve.io import hdf5
             from ddsolve.post import analysis
 
             if not (self.folder / output).exists() or completed.returncode not in (0, 3):
                 return ""
             reference, _ = self.run(["reference", "partial-closure", *SMALL, *overrides, "-o", "reference.h5"])
-            result = io.read(self.folder / output)
+            result = hdf5.read(self.folder / output)
             note = f"; written with converged = {str(result.converged).lower()}"
             if reference.returncode == 0:
-                error = analysis.compare(result, io.read(self.folder / "reference.h5")).energy_error
+                error = analysis.compare(result, hdf5.read(self.folder / "reference.h5")).energy_error
                 note += f", energy error {error:.1e} against the reference"
             return note
         return observe
@@ -684,12 +684,12 @@ class Hostile:
     def _options(self) -> None:
         def method_and_file(output: str):
             def observe(completed: subprocess.CompletedProcess) -> str:
-                from ddsolve.io import hdf5 as io
+                from ddsolve.io import hdf5
 
                 if not (self.folder / output).exists():
                     return f"; nothing written to {output}"
-                result = io.read(self.folder / output)
-                return (f"; {output} written by {result.method} (tol {result.parsed_scene.solver.tol:g}, "
+                result = hdf5.read(self.folder / output)
+                return (f"; {output} written by {result.method} (tol {result.scene.solver.tol:g}, "
                         f"{len(result.lower.points)} lower-half vertices)")
             return observe
 

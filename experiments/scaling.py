@@ -232,7 +232,7 @@ def _launch(ranks: int, settings: tuple[str, ...], name: str) -> dict:
 
     *sum* is the launch from the result's ``/timings`` (an adaptive run: its start-up, every level and
     the write); *solve phase* its factorizations and iterations (an adaptive run: of every level)."""
-    from ddsolve.io import hdf5 as io
+    from ddsolve.io import hdf5
     from ddsolve.parallel.phases import PHASES
 
     path = RESULTS / f"{name}.h5"
@@ -240,7 +240,7 @@ def _launch(ranks: int, settings: tuple[str, ...], name: str) -> dict:
     report.run(ranks, ["solve", "partial-closure", *[item for setting in settings for item in ("--set", setting)],
                        "-o", str(path)])
     launch = time.perf_counter() - started
-    result = io.read(path)
+    result = hdf5.read(path)
     timings = {key: float(value) for key, value in result.timings.items()}
     levels = getattr(result, "levels", None) or {}
     if "adaptive" in timings:

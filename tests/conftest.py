@@ -12,7 +12,7 @@ import meshio
 import numpy as np
 import pytest
 
-from ddsolve.io import viewer as export
+from ddsolve.io import viewer
 from ddsolve.mesh.geometry import split_box
 from ddsolve.mesh.mesh import Mesh
 from ddsolve.problem.scene import Geometry
@@ -42,7 +42,7 @@ RUNNERS = ("python", "mpiexec", "mpirun", "pvpython", "xvfb-run", "run", "bash",
 
 #: The in-process solves of a whole structure (the monolithic reference, the DD driver): a test that calls
 #: one is marked ``solve`` (or ``mpi``), which keeps ``-m unit`` the fast loop.
-STRUCTURE_SOLVES = (("ddsolve.solvers.reference", "solve"), ("ddsolve.solvers.driver", "solve"))
+STRUCTURE_SOLVES = (("ddsolve.solvers.reference", "solve_monolithic"), ("ddsolve.solvers.driver", "solve_decomposed"))
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
@@ -198,7 +198,7 @@ def refused(completed: subprocess.CompletedProcess, status: int, *fragments: str
 def previous_set(output: Path) -> dict[Path, bytes]:
     """Stand-ins for a previous result set at ``output`` (the .h5 and its viewer files)."""
     files = {path: f"previous {path.name}".encode() for path in
-             [output, *export.viewer_paths(output.parent, output.stem)]}
+             [output, *viewer.viewer_paths(output.parent, output.stem)]}
     for path, data in files.items():
         path.write_bytes(data)
     return files

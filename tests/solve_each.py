@@ -48,7 +48,7 @@ def main(folder: Path) -> None:
     for name, method, overrides in cases():
         scene = scenes.load(name, overrides)
         try:
-            driver.solve(scene, comm, folder / f"{name}-{method}.h5", progress=lambda *_: None)
+            driver.solve_decomposed(scene, comm, folder / f"{name}-{method}.h5", progress=lambda *_: None)
         except (NotConvergedError, DivergedError):
             pass
 

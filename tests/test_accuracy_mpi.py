@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from conftest import ddsolve, paper_references
 
-from ddsolve.io import hdf5 as io
+from ddsolve.io import hdf5
 from ddsolve.post import analysis
 from ddsolve.problem import scene
 
@@ -41,7 +41,7 @@ def p2_references(tmp_path_factory):
 def test_p2_dd_equals_the_reference(tmp_path, p2_references, name, method):
     output = tmp_path / "dd.h5"
     completed = ddsolve("solve", name, *P2, *METHODS[method], "-o", str(output), ranks=4)
-    result, reference = io.read(output), io.read(p2_references[name])
+    result, reference = hdf5.read(output), hdf5.read(p2_references[name])
     assert result.mesh.degree == 2 and result.lower.cells.shape[1] == 6 and result.converged
     error = analysis.compare(result, reference).energy_error
     assert error < (1e-10 if method == "schur" else 1e-8)
@@ -71,7 +71,7 @@ def test_graded_p2_gives_the_same_solution_on_1_2_4_and_8_ranks(tmp_path):
     for ranks in (1, 2, 4, 8):
         output = tmp_path / f"n{ranks}.h5"
         ddsolve("solve", path, "-o", str(output), ranks=ranks)
-        results[ranks] = io.read(output)
+        results[ranks] = hdf5.read(output)
     for ranks in (1, 2, 8):
         assert results[ranks].ranks == ranks
         assert np.array_equal(results[ranks].lower.points, results[4].lower.points)
@@ -96,7 +96,7 @@ def test_adaptive_refinement_reaches_the_target(tmp_path):
     output = tmp_path / "adaptive.h5"
     completed = ddsolve("solve", graded_scene(tmp_path, "partial-closure", 0.5), "--set", "mesh.grading=false",
                         "--set", "mesh.target_error=0.03", "-o", str(output), ranks=4)
-    result = io.read(output)
+    result = hdf5.read(output)
     levels = result.levels
     assert 2 <= len(levels["unknowns"]) <= 3 and np.all(np.diff(levels["unknowns"]) > 0)  # at most three solves
     assert levels["error_estimate"][-1] <= 0.03 < levels["error_estimate"][-2]
@@ -111,7 +111,7 @@ def test_target_error_works_on_the_gallery_scenes(tmp_path, name):
     output = tmp_path / f"{name}.h5"
     ddsolve("solve", name, "--set", "mesh.size=0.25", "--set", "mesh.degree=2", "--set", "mesh.target_error=0.02",
             "-o", str(output), ranks=2)
-    result = io.read(output)
+    result = hdf5.read(output)
     assert result.attrs["error_estimate"] <= 0.02 and len(result.levels["unknowns"]) <= 3
 
 

@@ -102,12 +102,12 @@ def test_arguments_of_the_wrong_type_are_one_line_errors():
 
 @pytest.mark.solve
 def test_a_result_is_written_only_under_an_hdf5_name(tmp_path):
-    """As ``-o`` is checked: the API's ``output`` and ``Result.save`` refuse another suffix, nothing written."""
+    """As ``-o`` is checked: the API's ``output`` and ``save`` refuse another suffix, nothing written."""
     scene = ddsolve.Scene.load("full-opening").with_({"mesh.sigma_vertices": 24, "mesh.boundary_vertices": 40})
     with pytest.raises(ddsolve.DDSolveError, match=r"^output .*o\.txt: a result is an HDF5 file: give it the suffix"):
         ddsolve.solve(scene, output=tmp_path / "o.txt")
     with pytest.raises(ddsolve.DDSolveError, match=r"^save .*noext: a result is an HDF5 file"):
-        ddsolve.reference(scene).save(tmp_path / "noext")
+        ddsolve.save(ddsolve.reference(scene), tmp_path / "noext")
     assert list(tmp_path.iterdir()) == []
 
 

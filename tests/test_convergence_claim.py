@@ -14,7 +14,7 @@ from solve_each import cases
 from ddsolve.cli import mpiexec_command
 from ddsolve.dd import constraints
 from ddsolve.dd.interface import Interface
-from ddsolve.io import hdf5 as io
+from ddsolve.io import hdf5
 from ddsolve.post import analysis
 
 HERE = Path(__file__).resolve().parent
@@ -39,7 +39,7 @@ def test_every_converged_result_of_every_method_passes_the_check(every_result):
         if not path.exists():  # diverged: uzawa's θ = 65 of the paper's scenes is above the bound of full closure
             assert method == "uzawa", (name, method)
             continue
-        result = io.read(path)
+        result = hdf5.read(path)
         checked = analysis.constraints(result)
         violations = checked.violations(analysis.tolerance_of(result))
         if result.converged:
@@ -59,9 +59,9 @@ def test_the_check_command_says_the_same(every_result):
 
 @pytest.mark.mpi
 def test_a_wrong_answer_fails_the_check_with_status_3(every_result, tmp_path):
-    result = io.read(every_result / "partial-closure-schur.h5")
+    result = hdf5.read(every_result / "partial-closure-schur.h5")
     result.solution["u_plus"] = result.solution["u_plus"] * 1.01  # no longer glued to v_plus
-    io.write(tmp_path / "wrong.h5", result)
+    hdf5.write(tmp_path / "wrong.h5", result)
     completed = ddsolve("check", str(tmp_path / "wrong.h5"), check=False)
     assert completed.returncode == 3
     lines = completed.stderr.strip().splitlines()

@@ -11,7 +11,7 @@ import pytest
 from conftest import ddsolve
 
 from experiments import delamination as d
-from ddsolve.io import hdf5 as io
+from ddsolve.io import hdf5
 
 E, NU, P, H = 200.0, 0.28, 1e-3, 1.0
 
@@ -124,7 +124,7 @@ def test_the_strip_geo_names_every_piece():
 
 def small(case: d.Case, tmp_path):
     case.size = 0.2
-    return d.measure(case, d.solve(case.scene(tmp_path, "case")), 0.0)
+    return d.measure(case, d.solve_case(case.scene(tmp_path, "case")), 0.0)
 
 
 @pytest.mark.solve
@@ -168,8 +168,8 @@ def test_mmb_mode_ratio_at_one_lever_length(tmp_path):
 def test_enf_on_two_ranks_equals_the_reference(tmp_path):
     """The ENF's upper half floats: `solve -n 2` (schur) gives the reference's G to 1e-8."""
     case = d.Case("ENF", "identical", 6.0, size=0.25)
-    expected = d.solve(case.scene(tmp_path, "enf"))
+    expected = d.solve_case(case.scene(tmp_path, "enf"))
     ddsolve("solve", str(tmp_path / "enf.toml"), "-o", str(tmp_path / "enf.h5"), ranks=2)
-    got = io.read(tmp_path / "enf.h5").fracture
+    got = hdf5.read(tmp_path / "enf.h5").fracture
     assert got.G[0] == pytest.approx(expected.fracture.G[0], rel=1e-8)
     assert math.isfinite(got.G_II[0]) and np.isclose(got.G_II[0], expected.fracture.G_II[0], rtol=1e-6)

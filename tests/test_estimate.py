@@ -143,7 +143,7 @@ def test_interpolation_reproduces_fields_of_the_element_on_curved_cells(degree):
 
 @pytest.mark.solve
 def test_reference_results_carry_the_estimate():
-    result = reference.solve(scene.load("partial-closure", ["mesh.sigma_vertices=13", "mesh.boundary_vertices=32"]),
+    result = reference.solve_monolithic(scene.load("partial-closure", ["mesh.sigma_vertices=13", "mesh.boundary_vertices=32"]),
                              geometry.build(scene.load("partial-closure", ["mesh.sigma_vertices=13",
                                                                            "mesh.boundary_vertices=32"])))
     assert 0.05 < result.attrs["error_estimate"] < 1.0
@@ -157,7 +157,7 @@ def test_compare_on_different_meshes_interpolates_the_coarse_solution(degree):
     """A coarse solution against a finer one: the distance is what the estimates say is between them."""
     def solve(P, M):
         sc = scene.load("linear", [f"mesh.sigma_vertices={P}", f"mesh.boundary_vertices={M}", f"mesh.degree={degree}"])
-        return reference.solve(sc, geometry.build(sc))
+        return reference.solve_monolithic(sc, geometry.build(sc))
 
     coarse, fine = solve(13, 32), solve(48, 80)
     assert analysis.compare(fine, fine).energy_error == 0.0
@@ -248,7 +248,7 @@ def test_a_rigid_motion_has_nothing_to_estimate():
     from ddsolve.solvers import adapt
 
     source = scene.loads(RIGID)
-    result = reference.solve(source, geometry.build(source))
+    result = reference.solve_monolithic(source, geometry.build(source))
     assert abs(result.attrs["energy"]) < 1e-15 and result.attrs["error_estimate"] == 0.0
-    adaptive = adapt.solve(source.with_({"mesh.target_error": 0.01}), MPI.COMM_SELF, None, progress=lambda line: None)
+    adaptive = adapt.solve_adaptively(source.with_({"mesh.target_error": 0.01}), MPI.COMM_SELF, None, progress=lambda line: None)
     assert len(adaptive.levels["unknowns"]) == 1 and adaptive.attrs["error_estimate"] == 0.0

@@ -5,16 +5,19 @@ import random
 import re
 import shutil
 import subprocess
+from pathlib import Path
 
 import meshio
 import numpy as np
 import pytest
 from conftest import SMALL, ddsolve
 
+from ddsolve import cli
 from ddsolve.errors import DDSolveError
 from ddsolve.fem import assembly
-from ddsolve.io import hdf5 as io
+from ddsolve.io import hdf5
 from ddsolve.io import safe
+from ddsolve.io import viewer
 from ddsolve.io.viewer import ViewerMesh, merged_upper_nodes, write_vtu
 from ddsolve.post import analysis
 from ddsolve.problem import materials
@@ -68,7 +71,7 @@ def test_a_vtu_file_keeps_the_vtk_rules_for_its_cell_arrays(tmp_path, cell_type,
 @pytest.mark.parametrize("degree", [1, 2])
 def test_meshio_reads_every_viewer_file_with_its_named_arrays(results, degree, fmt):
     path = results[degree]
-    result = io.read(path)
+    result = hdf5.read(path)
     fields = analysis.cell_fields(result)
     for layer, (minus, plus) in (("layer1", ("u_minus", "u_plus")), ("layer2", ("v_minus", "v_plus"))):
         mesh = meshio.read(path.with_name(f"p{degree}-{layer}.{fmt}"))
@@ -106,7 +109,7 @@ def test_meshio_reads_every_viewer_file_with_its_named_arrays(results, degree, f
 
 @pytest.mark.mpi
 def test_layer_mesh_is_one_mesh_with_separate_crack_faces(results):
-    result = io.read(results[1])
+    result = hdf5.read(results[1])
     mesh = meshio.read(results[1].with_name("p1-layer1.vtu"))
     sigma = result.mesh.sigma
     crack, glued = int(sigma.crack.sum()), int((~sigma.crack).sum())
@@ -125,7 +128,7 @@ def test_layer_mesh_is_one_mesh_with_separate_crack_faces(results):
 
 @pytest.mark.mpi
 def test_energy_density_integrates_to_the_strain_energy(results):
-    result = io.read(results[2])
+    result = hdf5.read(results[2])
     fields = analysis.cell_fields(result)
     laws = analysis.elasticities(result)
     for name, half in (("u_minus", result.lower), ("v_plus", result.upper)):
@@ -170,15 +173,15 @@ def test_plane_stress_result_has_its_strain_zz(tmp_path):
 
 @pytest.mark.mpi
 def test_per_cell_arrays_of_the_result_become_cell_arrays(results, tmp_path):
-    result = io.read(results[1])
+    result = hdf5.read(results[1])
     damage_values = {block: np.arange(len(result.half(block).cells), dtype=float) + (100 if block.endswith("plus") else 0)
                      for block in ("u_minus", "u_plus", "v_minus", "v_plus")}
     result.cell_data["damage"] = damage_values
     path = tmp_path / "with-cells.h5"
-    io.write(path, result)
-    again = io.read(path)
+    hdf5.write(path, result)
+    again = hdf5.read(path)
     assert np.array_equal(again.cell_data["damage"]["v_plus"], damage_values["v_plus"])
-    io.write_viewer(again, tmp_path, "with-cells", "xdmf")
+    hdf5.write_viewer(again, tmp_path, "with-cells", "xdmf")
     for fmt in ("vtu", "xdmf"):
         (estimated,) = meshio.read(tmp_path / f"with-cells-layer1.{fmt}").cell_data["error_indicator"]
         assert np.array_equal(estimated, np.concatenate([result.indicators["u_minus"], result.indicators["u_plus"]]))
@@ -186,7 +189,28 @@ def test_per_cell_arrays_of_the_result_become_cell_arrays(results, tmp_path):
         assert np.array_equal(values, np.concatenate([damage_values["v_minus"], damage_values["v_plus"]]))
     result.cell_data["damage"] = {**damage_values, "u_plus": damage_values["u_plus"][:-1]}
     with pytest.raises(DDSolveError, match="cell data damage: .* upper half"):
-        io.write_viewer(result, tmp_path, "bad", "vtu")
+        hdf5.write_viewer(result, tmp_path, "bad", "vtu")
+
+
+@pytest.mark.mpi
+def test_a_registered_viewer_format_is_offered_checked_and_written(results, tmp_path, monkeypatch):
+    """A viewer format is a name and a writer in viewer.FORMATS: the command line's choices, the checks of
+    the outputs and the writers of the result set come from there."""
+    def write(meshes, folder, stem):
+        names = viewer.viewer_names(stem, "txt")
+        return {**{folder / names[mesh.name]: (lambda name, mesh=mesh: Path(name).write_text(mesh.name))
+                   for mesh in meshes}, folder / f"{stem}-all.txt": lambda name: Path(name).write_text("all")}
+
+    monkeypatch.setitem(viewer.FORMATS, "txt", viewer.ViewerFormat("txt", write, extra=("-all.txt",)))
+    assert cli.parser().parse_args(["export", "r.h5", "--format", "txt"]).format == "txt"
+    hdf5.check_viewer("txt")
+    expected = [tmp_path / name for name in ("r-layer1.txt", "r-layer2.txt", "r-sigma.txt", "r-all.txt",
+                                             "r-paraview.py")]
+    assert viewer.viewer_paths(tmp_path, "r", "txt") == expected
+    written = hdf5.write_viewer(hdf5.read(results[1]), tmp_path, "r", "txt")
+    assert sorted(written) == sorted(expected) and (tmp_path / "r-sigma.txt").read_text() == "sigma"
+    with pytest.raises(DDSolveError, match="^save: viewer must be one of 'vtu', 'xdmf', 'txt' "):
+        hdf5.check_viewer("png", "save: viewer")
 
 
 def test_a_failing_writer_keeps_the_previous_set_and_leaves_no_temporaries(tmp_path):

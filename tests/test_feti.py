@@ -5,7 +5,7 @@ import pytest
 from conftest import ddsolve
 
 from experiments import delamination
-from ddsolve.io import hdf5 as io
+from ddsolve.io import hdf5
 from ddsolve.post import analysis
 
 
@@ -22,7 +22,7 @@ def test_feti_settles_on_the_enf_specimen(tmp_path):
     completed = ddsolve("solve", scene, "--set", "solver.method=feti", "--set", "solver.tol=1e-12",
                         "--set", "solver.max_iterations=400", "-o", str(tmp_path / "feti.h5"), ranks=2, check=False)
     assert completed.returncode == 0, completed.stderr
-    schur, feti = io.read(tmp_path / "schur.h5"), io.read(tmp_path / "feti.h5")
+    schur, feti = hdf5.read(tmp_path / "schur.h5"), hdf5.read(tmp_path / "feti.h5")
     assert feti.converged
     assert abs(feti.energy - schur.energy) <= 1e-8 * abs(schur.energy)
     assert analysis.compare(feti, schur).energy_error < 1e-8
@@ -43,7 +43,7 @@ def test_a_dual_method_meets_the_final_check_at_the_default_tolerance(tmp_path, 
                         ranks=2, check=False)
     assert completed.returncode == 0, completed.stderr
     assert "the final check found" in completed.stdout
-    schur, dual = io.read(tmp_path / "schur.h5"), io.read(tmp_path / "dual.h5")
+    schur, dual = hdf5.read(tmp_path / "schur.h5"), hdf5.read(tmp_path / "dual.h5")
     assert dual.converged and dual.attrs["tightened_tol"] < 1e-8
     assert max(dual.attrs[f"kkt_{name}"] for name in ("gluing_gap", "penetration")) <= dual.attrs["kkt_tolerance"]
     assert abs(dual.energy - schur.energy) <= 1e-6 * abs(schur.energy)

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from conftest import MATERIALS, both_layers, ddsolve, refused
 
-from ddsolve.io import hdf5 as io
+from ddsolve.io import hdf5
 from ddsolve.post import analysis
 
 #: A strip clamped on its bottom side only: the upper half (u_plus, v_plus) touches no support and is
@@ -37,7 +37,7 @@ def floating_reference(tmp_path_factory):
     folder = tmp_path_factory.mktemp("floating")
     scene = strip(folder)
     ddsolve("reference", str(scene), "-o", str(folder / "reference.h5"))
-    return scene, io.read(folder / "reference.h5")
+    return scene, hdf5.read(folder / "reference.h5")
 
 
 @pytest.mark.mpi
@@ -49,7 +49,7 @@ def test_floating_halves_equal_the_reference_on_every_rank_count(tmp_path, float
         output = tmp_path / f"n{ranks}.h5"
         ddsolve("solve", str(scene), "--set", f"solver.method={method}", "--set", "solver.tol=1e-12", "-o",
                 str(output), ranks=ranks)
-        result = io.read(output)
+        result = hdf5.read(output)
         assert result.converged and result.ranks == ranks
         assert analysis.compare(result, reference).energy_error < 1e-10, ranks
         assert abs(result.attrs["energy"] - reference.attrs["energy"]) <= 1e-10 * abs(reference.attrs["energy"])
@@ -131,14 +131,14 @@ def test_supported_strips_with_floating_halves_equal_the_reference(tmp_path, tex
     ranks give the reference's solution to 1e-10, and the reactions balance the load."""
     scene = supported_strip(tmp_path, text)
     ddsolve("reference", str(scene), "-o", str(tmp_path / "reference.h5"))
-    reference = io.read(tmp_path / "reference.h5")
+    reference = hdf5.read(tmp_path / "reference.h5")
     assert reference.converged
     for method in ("schur", "feti"):
         for ranks in (1, 2, 4, 8):
             output = tmp_path / f"{method}{ranks}.h5"
             completed = ddsolve("solve", str(scene), "--set", f"solver.method={method}", "--set", "solver.tol=1e-12",
                                 "-o", str(output), ranks=ranks)
-            result = io.read(output)
+            result = hdf5.read(output)
             comparison = analysis.compare(result, reference)
             assert result.converged and comparison.energy_error < 1e-10, (method, ranks)
             assert comparison.max_difference <= 1e-10 * comparison.max_displacement, (method, ranks)
@@ -175,7 +175,7 @@ def test_free_thermal_expansion_on_short_supports_carries_no_stress(tmp_path):
                                      ("solve", ["--set", "solver.method=feti", "--set", "solver.tol=1e-12"], 4)):
         output = tmp_path / f"{command}{ranks}.h5"
         ddsolve(command, str(scene), *heated, *options, "-o", str(output), ranks=ranks)
-        result = io.read(output)
+        result = hdf5.read(output)
         largest = max(np.abs(fields.stress).max() for fields in analysis.cell_fields(result).values())
         assert result.converged and largest <= 1e-12 * 200.0 * alpha * rise, (command, ranks, largest)
         assert np.abs(result.G).max() <= 1e-12 * 200.0 * (alpha * rise) ** 2, (command, ranks)

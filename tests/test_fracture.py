@@ -11,7 +11,7 @@ from conftest import MATERIALS, ddsolve
 
 from ddsolve.errors import SceneError
 from experiments.fracture import PLATE, example_scene, handbook, plate_scene
-from ddsolve.io import hdf5 as io
+from ddsolve.io import hdf5, save
 from ddsolve.mesh import geometry
 from ddsolve.mesh.mesh import HalfMesh, make_mesh
 from ddsolve.post import fracture
@@ -24,7 +24,7 @@ GRADED = {"h_tip": 0.01, "h_far": 0.1, "fine": 0.02, "grow": 0.12, "patch": 0.2}
 
 
 def solved(source: scene.Scene):
-    return reference.solve(source, geometry.build(source))
+    return reference.solve_monolithic(source, geometry.build(source))
 
 
 @pytest.mark.solve
@@ -51,11 +51,11 @@ def test_g_is_the_derivative_of_the_discrete_energy(name, degree):
     closed and overlapping tips)."""
     source = scene.load(name, [*SMALL, f"mesh.degree={degree}"])
     mesh = geometry.build(source)
-    result = reference.solve(source, mesh)
+    result = reference.solve_monolithic(source, mesh)
     G = result.fracture.G
     step = 1e-4
     for tip, rate in zip(fracture.find_tips(mesh), G):
-        energies = [reference.solve(source, moved(mesh, tip, s)).attrs["energy"] for s in (step, -step)]
+        energies = [reference.solve_monolithic(source, moved(mesh, tip, s)).attrs["energy"] for s in (step, -step)]
         assert -(energies[0] - energies[1]) / (2 * step) == pytest.approx(rate, abs=1e-6 * np.abs(G).max())
 
 
@@ -69,7 +69,7 @@ def test_curved_sigma_with_contact_needs_the_turning_normals(degree):
     source = scene.load("arc-bond", ["mesh.size=0.1", f"mesh.degree={degree}",
                                      "loads.layer1.bottom={pressure = 0.05}", "loads.layer1.top={pressure = 0.05}"])
     mesh = geometry.build(source)
-    result = reference.solve(source, mesh)
+    result = reference.solve_monolithic(source, mesh)
     assert len(result.fracture.zones) == 1
     sigma = mesh.sigma
     turning = np.gradient(sigma.normals, sigma.arclength, axis=0)
@@ -80,7 +80,7 @@ def test_curved_sigma_with_contact_needs_the_turning_normals(degree):
         energies = []
         for s in (step, -step):
             normals = sigma.normals + s * speed[:, None] * turning
-            energies.append(reference.solve(source, moved(mesh, tip, s, normals)).attrs["energy"])
+            energies.append(reference.solve_monolithic(source, moved(mesh, tip, s, normals)).attrs["energy"])
         assert -(energies[0] - energies[1]) / (2 * step) == pytest.approx(rate, abs=tolerance * scale)
         assert abs(contact) > 1000 * tolerance * scale
 
@@ -189,7 +189,7 @@ def test_parallel_solve_writes_and_prints_g(tmp_path, ranks):
     sets = [part for item in SMALL for part in ("--set", item)]
     run = ddsolve("solve", "partial-closure", *sets, "-o", str(out), ranks=ranks)
     ddsolve("reference", "partial-closure", *sets, "-o", str(ref))
-    dd, exact = io.read(out), io.read(ref)
+    dd, exact = hdf5.read(out), hdf5.read(ref)
     assert dd.fracture.G == pytest.approx(exact.fracture.G, abs=1e-8 * np.abs(exact.fracture.G).max())
     assert run.stdout.count("G at tip") == 2 and "crack faces in contact" in run.stdout
     np.testing.assert_array_equal(dd.fracture.points, [[-0.5, 0.0], [0.5, 0.0]])
@@ -235,8 +235,8 @@ def test_faces_without_non_penetration_overlap_rather_than_touch(tmp_path, monke
     assert "in contact" not in text
     assert f"crack faces overlap (no non-penetration condition; arc length along Σ): [{start:.4g}, {end:.4g}] on " \
            "crack 0" in text
-    linear.save(tmp_path / "linear.h5")
-    back = io.read(tmp_path / "linear.h5").fracture
+    save(linear, tmp_path / "linear.h5")
+    back = hdf5.read(tmp_path / "linear.h5").fracture
     np.testing.assert_array_equal(back.overlaps, f.overlaps)
     assert len(back.zones) == 0 and back.overlap_crack.tolist() == [0]
     saved = []
@@ -259,7 +259,7 @@ def test_two_ranks_say_where_free_faces_overlap(tmp_path):
     by the ranks holds the reference's overlap zone and no contact zone."""
     sets = [part for item in SMALL for part in ("--set", item)]
     run = ddsolve("solve", "linear", *sets, "-o", str(tmp_path / "dd.h5"), ranks=2)
-    dd = io.read(tmp_path / "dd.h5").fracture
+    dd = hdf5.read(tmp_path / "dd.h5").fracture
     exact = solved(scene.load("linear", SMALL)).fracture
     assert "crack faces in contact" not in run.stdout
     assert run.stdout.count("crack faces overlap (no non-penetration condition; arc length along Σ)") == 1

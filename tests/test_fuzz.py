@@ -22,8 +22,8 @@ from conftest import ddsolve, without_open_mpi_noise
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from ddsolve.io import hdf5 as io
-from ddsolve.io import viewer as export
+from ddsolve.io import hdf5
+from ddsolve.io import viewer
 from ddsolve.post import analysis
 from ddsolve.problem import scene as scene_module
 
@@ -103,7 +103,7 @@ def well_behaved(completed: subprocess.CompletedProcess) -> None:
 
 
 def converged_results_pass_the_check(folder: Path, output: str) -> None:
-    result = io.read(folder / output)
+    result = hdf5.read(folder / output)
     if result.converged:
         checked = analysis.constraints(result)
         assert not checked.violations(analysis.tolerance_of(result)), checked
@@ -124,7 +124,7 @@ def test_generated_scenes_and_command_lines(previous, tmp_path, ranks, items, pe
     written = completed.returncode in (0, 3)
     if written:
         converged_results_pass_the_check(folder, output)
-    kept = [output, *(p.name for p in export.viewer_paths(Path("."), Path(output).stem))] if written else []
+    kept = [output, *(p.name for p in viewer.viewer_paths(Path("."), Path(output).stem))] if written else []
     for name, data in before.items():  # every other file, and all of them after a failure, unchanged
         if name not in kept:
             assert (folder / name).read_bytes() == data, (name, arguments, completed.stderr)

@@ -9,7 +9,7 @@ import pytest
 from conftest import MATERIALS, ROOT, SMALL, ddsolve
 
 from ddsolve.errors import MeshError
-from ddsolve.io import hdf5 as io
+from ddsolve.io import hdf5
 from ddsolve.mesh import geometry, gmsh_io
 from ddsolve.post import analysis
 from ddsolve.problem import scene
@@ -27,7 +27,7 @@ def write_scene(folder, name, mesh, loads, extra=""):
 
 
 def energy(path) -> float:
-    return float(io.read(path).attrs["energy"])
+    return float(hdf5.read(path).attrs["energy"])
 
 
 def rotated_loads(example: int, angle: float) -> str:
@@ -57,7 +57,7 @@ def test_rotation_by_37_degrees_rotates_the_solution(tmp_path, example, name):
     scene_file = write_scene(tmp_path, "rotated", 'file = "rotated.msh"', rotated_loads(example, angle))
     ddsolve("reference", name, *SMALL, "-o", str(tmp_path / "plain.h5"))
     ddsolve("reference", str(scene_file), "-o", str(tmp_path / "turned.h5"))
-    plain, rotated = io.read(tmp_path / "plain.h5"), io.read(tmp_path / "turned.h5")
+    plain, rotated = hdf5.read(tmp_path / "plain.h5"), hdf5.read(tmp_path / "turned.h5")
     energy_difference = abs(energy(tmp_path / "turned.h5") / energy(tmp_path / "plain.h5") - 1.0)
     scale = max(np.abs(u).max() for u in plain.solution.values())
     largest = 0.0
@@ -100,7 +100,7 @@ def test_curved_sigma_and_the_strip_converge_from_above_without_penetration(tmp_
         output = tmp_path / f"{size}.h5"
         ddsolve("solve", name, "--set", f"mesh.size={size}", "-o", str(output), ranks=4)
         ddsolve("reference", name, "--set", f"mesh.size={size}", "-o", str(tmp_path / "ref.h5"))
-        result, reference = io.read(output), io.read(tmp_path / "ref.h5")
+        result, reference = hdf5.read(output), hdf5.read(tmp_path / "ref.h5")
         error, penetration = analysis.compare(result, reference).energy_error, analysis.constraints(result).penetration
         energies.append(energy(output))
         print(f"\n{name}, mesh.size = {size}: energy {energies[-1]:.10e}, DD against the reference {error:.1e}, "
@@ -117,7 +117,7 @@ GALLERY_SMALL = {"strip-disbonds": ["--set", "mesh.size=0.25"], "arc-bond": ["--
 @pytest.mark.parametrize("method", ["schur", "mprgp", "fista", "uzawa"])
 def test_every_method_on_1_2_4_8_ranks_gives_the_same_solution_on_the_gallery(tmp_path, name, method):
     ddsolve("reference", name, *GALLERY_SMALL[name], "-o", str(tmp_path / "ref.h5"))
-    reference = io.read(tmp_path / "ref.h5")
+    reference = hdf5.read(tmp_path / "ref.h5")
     if method == "uzawa" and name == "strip-disbonds":
         pytest.skip("Uzawa's stable step on the slender strip is 2/λmax ≈ 0.006: millions of iterations")
     options = ["--set", f"solver.method={method}"]
@@ -130,7 +130,7 @@ def test_every_method_on_1_2_4_8_ranks_gives_the_same_solution_on_the_gallery(tm
     for ranks in (1, 2, 4, 8) if method == "schur" else (1, 4):
         output = tmp_path / f"{ranks}.h5"
         ddsolve("solve", name, *GALLERY_SMALL[name], *options, "-o", str(output), ranks=ranks)
-        assert analysis.compare(io.read(output), reference).energy_error < (1e-10 if method == "schur" else 1e-6)
+        assert analysis.compare(hdf5.read(output), reference).energy_error < (1e-10 if method == "schur" else 1e-6)
 
 
 @pytest.mark.parametrize("edit, message", [
@@ -181,7 +181,7 @@ def test_loads_on_a_side_and_plane_stress_equal_plane_strain_with_modified_const
         ddsolve("reference", "partial-closure", *common, "--set", f"materials.model={model}",
                 "--set", f"materials.layer1={{E = {E1!r}, nu = {nu1!r}}}",
                 "--set", f"materials.layer2={{E = {E2!r}, nu = {nu2!r}}}", "-o", str(output))
-        results[model] = io.read(output)
+        results[model] = hdf5.read(output)
     difference = analysis.compare(results["plane_stress"], results["plane_strain"]).energy_error
     print(f"\nplane stress against plane strain with modified constants: {difference:.1e}")
     assert difference < 1e-12
@@ -194,7 +194,7 @@ def test_orthotropic_with_isotropic_constants_reproduces_the_isotropic_solution(
     ddsolve("reference", "partial-closure", *SMALL, "--set",
             f"materials.layer1={{E1 = {E}, E2 = {E}, G12 = {E / (2 * (1 + nu))!r}, nu12 = {nu}, angle = 30.0}}",
             "-o", str(tmp_path / "ortho.h5"))
-    difference = analysis.compare(io.read(tmp_path / "ortho.h5"), io.read(tmp_path / "iso.h5")).energy_error
+    difference = analysis.compare(hdf5.read(tmp_path / "ortho.h5"), hdf5.read(tmp_path / "iso.h5")).energy_error
     print(f"\northotropic input with isotropic constants against isotropic: {difference:.1e}")
     assert difference < 1e-12
 

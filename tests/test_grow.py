@@ -58,7 +58,7 @@ def test_dcb_opening_grows_stably_on_corrected_beam_theory(tmp_path):
     # the initiation step equals the critical factor a plain solve gives
     from ddsolve.solvers import driver
 
-    result = driver.solve(scene, comm(), None, progress=quiet)
+    result = driver.solve_decomposed(scene, comm(), None, progress=quiet)
     factor = toughness.critical_factor(result.fracture.G, toughness.resistance(scene, result.fracture))
     initiation = next(s for s in steps if s.events and s.events[0].startswith("initiation"))
     assert initiation.state.control == pytest.approx(float(factor.min()), rel=1e-6)

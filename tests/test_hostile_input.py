@@ -17,7 +17,7 @@ import pytest
 from conftest import SMALL, ddsolve, previous_set, refused, unchanged, without_open_mpi_noise
 
 from ddsolve.errors import DDSolveError, SceneError
-from ddsolve.io import hdf5 as io
+from ddsolve.io import hdf5
 from ddsolve.io import safe
 from ddsolve.post import analysis
 from ddsolve.problem import scene
@@ -49,7 +49,7 @@ def test_a_stopping_rule_met_too_early_is_not_called_converged(tmp_path, overrid
     completed = run("solve", "-n", "2", "partial-closure", *SMALL, "--set", "solver.method=uzawa", *overrides,
                     "-o", str(output))
     refused(completed, 3, "uzawa: not converged: the final solution violates", "gluing gap", 'solver.stop = "kkt"')
-    result = io.read(output)  # written, and honest about it
+    result = hdf5.read(output)  # written, and honest about it
     assert not result.converged and result.attrs["kkt_gluing_gap"] > 0.1
     refused(run("check", str(output)), 3, "KKT check failed", "converged = false")
 
@@ -60,7 +60,7 @@ def test_tiny_moduli_are_solved_as_accurately_as_ordinary_ones(tmp_path):
     tiny = [*SMALL, "--set", "materials.layer1.E=1e-20", "--set", "materials.layer2.E=1e-20"]
     ddsolve("solve", "partial-closure", *tiny, "-o", str(tmp_path / "dd.h5"), ranks=4)
     ddsolve("reference", "partial-closure", *tiny, "-o", str(tmp_path / "ref.h5"))
-    result, reference = io.read(tmp_path / "dd.h5"), io.read(tmp_path / "ref.h5")
+    result, reference = hdf5.read(tmp_path / "dd.h5"), hdf5.read(tmp_path / "ref.h5")
     assert result.converged and result.solves == 3
     assert analysis.compare(result, reference).energy_error < 1e-12
     assert result.attrs["kkt_equilibrium"] < 1e-14
@@ -139,7 +139,7 @@ EDITS = ["truncated", "wrong shape", "rows missing", "cell index", "strings", "s
 def test_a_broken_result_file_is_named_with_what_is_broken(tmp_path, result_file, edit):
     broken = corrupt(result_file, tmp_path / "broken.h5", edit)
     with pytest.raises(DDSolveError, match=r"broken.h5: not a ddsolve result file \(.+\)$") as raised:
-        io.read(broken)
+        hdf5.read(broken)
     assert "\n" not in str(raised.value)
 
 
@@ -317,7 +317,7 @@ def test_ddsolve_options_after_petsc_options_are_honoured(tmp_path):
                     "--set", "solver.method=mprgp", "-o", str(tmp_path / "out.h5"), "-u_minus_ksp_typo", "cg",
                     cwd=tmp_path)
     assert completed.returncode == 0, completed.stderr
-    assert io.read(tmp_path / "out.h5").method == "mprgp"
+    assert hdf5.read(tmp_path / "out.h5").method == "mprgp"
     assert not (tmp_path / "partial-closure.h5").exists()
     assert completed.stderr.strip() == ("ddsolve: warning: PETSc options not used (misspelt? the prefixes here "
                                         "are u_minus_, u_plus_, v_minus_, v_plus_): -u_minus_ksp_typo cg")

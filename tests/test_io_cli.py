@@ -6,7 +6,7 @@ from conftest import SMALL, ddsolve
 
 from ddsolve import cli
 from ddsolve.errors import UsageError
-from ddsolve.io import hdf5 as io
+from ddsolve.io import hdf5
 
 
 @pytest.fixture(scope="module")
@@ -31,21 +31,21 @@ def test_result_layout_and_round_trip(reference_file):
         assert f["interface/mu_g"].shape == (k, 2) and f["interface/mu_c"].shape == (k,)
         assert f["solution/u_minus"].shape == f["mesh/lower/points"].shape
         assert f.attrs["method"] == "reference"
-    result = io.read(reference_file)
+    result = hdf5.read(reference_file)
     copy = reference_file.with_name("copy.h5")
-    io.write(copy, result)
-    again = io.read(copy)
+    hdf5.write(copy, result)
+    again = hdf5.read(copy)
     assert again.scene == result.scene and np.array_equal(again.solution["v_plus"], result.solution["v_plus"])
 
 
 @pytest.mark.mpi
 def test_output_directory_must_exist_and_nothing_partial_is_left(tmp_path, reference_file):
-    result = io.read(reference_file)
+    result = hdf5.read(reference_file)
     from ddsolve.errors import DDSolveError
 
     with pytest.raises(DDSolveError, match="does not exist"):
-        io.write(tmp_path / "missing" / "out.h5", result)
-    io.write(tmp_path / "out.h5", result)
+        hdf5.write(tmp_path / "missing" / "out.h5", result)
+    hdf5.write(tmp_path / "out.h5", result)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out-layer1.vtu", "out-layer2.vtu", "out-paraview.py",
                                                           "out-sigma.vtu", "out.h5"]
 

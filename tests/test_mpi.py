@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from conftest import SMALL, ddsolve, paper_references, refused
 
-from ddsolve.io import hdf5 as io
+from ddsolve.io import hdf5
 from ddsolve.parallel.phases import PHASES
 from ddsolve.post import analysis
 
@@ -34,7 +34,7 @@ def references(tmp_path_factory):
 def test_dd_equals_the_reference(tmp_path, references, name, method):
     output = tmp_path / "dd.h5"
     ddsolve("solve", name, *SMALL, *TIGHT[method], "-o", str(output), ranks=4)
-    result, reference = io.read(output), io.read(references[name])
+    result, reference = hdf5.read(output), hdf5.read(references[name])
     assert result.converged and result.ranks == 4 and result.method == method
     if method == "uzawa":
         assert result.solves == result.iterations + 2
@@ -55,7 +55,7 @@ def test_dd_equals_the_reference(tmp_path, references, name, method):
 def test_contact_where_the_linear_problem_overlaps(references):
     from ddsolve.post.analysis import normal_jump
 
-    contact, linear = io.read(references["partial-closure"]), io.read(references["linear"])
+    contact, linear = hdf5.read(references["partial-closure"]), hdf5.read(references["linear"])
     crack = contact.crack
     assert normal_jump(linear)[crack].min() < 0.0  # the free faces overlap ...
     assert normal_jump(contact)[crack].min() > -1e-12 * np.abs(normal_jump(linear)).max()  # ... contact does not
@@ -71,7 +71,7 @@ def test_rank_counts_agree(tmp_path, method):
         output = tmp_path / f"n{ranks}.h5"
         ddsolve("solve", "partial-closure", *SMALL, "--set", f"solver.method={method}", "-o", str(output),
                 ranks=ranks)
-        results[ranks] = io.read(output)
+        results[ranks] = hdf5.read(output)
     assert len({(r.iterations, r.solves) for r in results.values()}) == 1
     for ranks in (1, 2):
         assert results[ranks].ranks == ranks
@@ -95,7 +95,7 @@ def test_max_iterations_writes_an_unconverged_result(tmp_path):
                         "-o", str(output), ranks=2, check=False)
     assert completed.returncode == 3
     assert "no convergence in 25 iterations" in completed.stderr
-    result = io.read(output)
+    result = hdf5.read(output)
     assert not result.converged and result.iterations == 25 and len(result.history) == 25
 
 
@@ -123,7 +123,7 @@ def test_eight_ranks_split_every_block_over_two(tmp_path, method, options):
         output = tmp_path / f"n{ranks}.h5"
         ddsolve("solve", "partial-closure", *SMALL, "--set", f"solver.method={method}", "-o", str(output),
                 *(options if ranks == 8 else []), ranks=ranks)
-        results[ranks] = io.read(output)
+        results[ranks] = hdf5.read(output)
     assert results[8].ranks == 8 and results[8].converged
     assert analysis.compare(results[8], results[4]).energy_error < 1e-8
     # the error estimate and G's volume terms, made by both ranks of each block on their pieces: those of 4 ranks
@@ -160,7 +160,7 @@ def test_at_eight_ranks_a_rank_holds_its_piece_of_the_mesh_and_of_the_solution(t
     output = tmp_path / "eight.h5"
     ddsolve("solve", "partial-closure", "--set", f"mesh.sigma_vertices={sigma_vertices}", "--set",
             f"mesh.boundary_vertices={sigma_vertices * 128 // 100}", "-o", str(output), ranks=8)
-    memory = io.read(output).memory
+    memory = hdf5.read(output).memory
     held = list(memory["held"])
     block_unknowns = memory["rank_unknowns"].reshape(4, 2).sum(axis=1).repeat(2)
     half = memory["whole_mesh_bytes"] / 2  # the halves are of one size here
@@ -183,7 +183,7 @@ def test_an_active_multiplier_bound_p_is_honoured_by_schur_and_mprgp(tmp_path):
         output = tmp_path / f"{method}.h5"
         ddsolve("solve", "partial-closure", *SMALL, "--set", f"solver.method={method}", "--set", "solver.p=0.005",
                 "--set", "solver.tol=1e-11", "-o", str(output), ranks=4)
-        results[method] = io.read(output)
+        results[method] = hdf5.read(output)
     multipliers = np.concatenate([np.ravel(v) for v in results["schur"].multipliers.values()])
     assert np.abs(multipliers).max() == pytest.approx(0.005)  # the bound is active
     assert analysis.compare(results["mprgp"], results["schur"]).energy_error < 1e-6
@@ -195,7 +195,7 @@ def test_the_launch_is_printed_phase_by_phase_and_every_rank_times_its_phases(tm
     completed = ddsolve("solve", "partial-closure", "--set", "mesh.sigma_vertices=100", "--set",
                         "mesh.boundary_vertices=128", "-o", str(output), ranks=2)  # MUMPS counts its factors in MB
     line = next(line for line in completed.stdout.splitlines() if line.startswith("launch "))
-    result = io.read(output)
+    result = hdf5.read(output)
     phases = [name for name in PHASES if name in result.timings and name != "write"]  # write: timed by the caller
     assert all(f"{name} {result.timings[name]:.2f}" in line for name in phases)
     printed = dict(re.findall(r"(\w+) (\d+\.\d\d)(?=,|;|$)", line.split(": ", 1)[1]))
@@ -225,7 +225,7 @@ def test_every_schur_complement_route_gives_the_same_answer(tmp_path):
         options = [f"-{block}_schur_complement" for block in ("u_minus", "v_minus", "u_plus", "v_plus")]
         ddsolve("solve", "partial-closure", *SMALL, *(w for o in options for w in (o, route)), "-o", str(output),
                 ranks=2)
-        results[route] = io.read(output)
+        results[route] = hdf5.read(output)
         assert results[route].converged and results[route].method == "schur" and results[route].solves == 3
     for route in ("inverse", "solves"):
         assert analysis.compare(results[route], results["factorization"]).energy_error < 1e-10
@@ -242,9 +242,9 @@ def test_out_of_core_factors_solve_the_reference_problem(tmp_path, references, m
     output = tmp_path / "ooc.h5"
     ddsolve("solve", "partial-closure", *SMALL, *TIGHT[method], "--set", "solver.out_of_core=true", "-o", str(output),
             ranks=8 if method == "feti" else 4)
-    result = io.read(output)
-    assert result.converged and result.parsed_scene.solver.out_of_core and result.attrs["factors_out_of_core"]
-    assert analysis.compare(result, io.read(references["partial-closure"])).energy_error < 1e-8
+    result = hdf5.read(output)
+    assert result.converged and result.scene.solver.out_of_core and result.attrs["factors_out_of_core"]
+    assert analysis.compare(result, hdf5.read(references["partial-closure"])).energy_error < 1e-8
 
 
 @pytest.mark.mpi
@@ -256,6 +256,6 @@ def test_the_contact_zone_does_not_depend_on_the_method(tmp_path):
         output = tmp_path / f"{method}.h5"
         ddsolve("solve", "partial-closure", "--set", "mesh.sigma_vertices=48", "--set", "mesh.boundary_vertices=80",
                 "--set", f"solver.method={method}", "-o", str(output), ranks=2)
-        zones[method] = io.read(output).fracture.zones
+        zones[method] = hdf5.read(output).fracture.zones
     assert len(zones["schur"]) == 1
     np.testing.assert_allclose(zones["mprgp"], zones["schur"])

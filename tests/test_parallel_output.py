@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from conftest import ddsolve
 
-from ddsolve.io import hdf5 as io
+from ddsolve.io import hdf5
 from ddsolve.io.viewer import VIEWER_MESHES
 
 MESH = ["--set", "mesh.sigma_vertices=40", "--set", "mesh.boundary_vertices=64"]
@@ -41,7 +41,7 @@ def test_the_ranks_write_the_file_the_serial_writer_writes(tmp_path, ranks):
     written = tmp_path / "dd.h5"
     ddsolve("solve", "partial-closure", *MESH, "-o", str(written), ranks=ranks)
     serial = tmp_path / "serial.h5"
-    io.write(serial, io.read(written))  # the same result by the one-process writer
+    hdf5.write(serial, hdf5.read(written))  # the same result by the one-process writer
     assert listing(written) == listing(serial)
     for mesh in VIEWER_MESHES:
         a, b = meshio.read(tmp_path / f"dd-{mesh}.vtu"), meshio.read(tmp_path / f"serial-{mesh}.vtu")
@@ -59,6 +59,6 @@ def test_the_ranks_write_the_file_the_serial_writer_writes(tmp_path, ranks):
 def test_rank_0_holds_its_blocks_and_sigma_at_output(tmp_path):
     output = tmp_path / "dd.h5"
     ddsolve("solve", "partial-closure", *MESH, "-o", str(output), ranks=4)
-    memory = io.read(output).memory
+    memory = hdf5.read(output).memory
     held = memory["rank_held_bytes"]
     assert len(held) == 4 and held[0] <= 0.6 * memory["whole_held_bytes"], (held, memory["whole_held_bytes"])

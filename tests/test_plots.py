@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from conftest import SMALL, ddsolve
 
-from ddsolve.io import hdf5 as io
+from ddsolve.io import hdf5
 from ddsolve.post import plots
 
 matplotlib.use("Agg")
@@ -23,10 +23,10 @@ def results(tmp_path_factory):
     for method in METHODS:
         path = folder / f"{method}.h5"
         ddsolve("solve", "partial-closure", *SMALL, "--set", f"solver.method={method}", "-o", str(path), ranks=1)
-        out[method] = io.read(path)
+        out[method] = hdf5.read(path)
     path = folder / "reference.h5"
     ddsolve("reference", "partial-closure", *SMALL, "-o", str(path))
-    out["reference"] = io.read(path)
+    out["reference"] = hdf5.read(path)
     return out
 
 

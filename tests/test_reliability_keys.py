@@ -138,11 +138,11 @@ def observe(command: str, output: Path, stdout: str) -> dict:
         timing = {"time", "setup_time", "factorization_time", "solve_time", "attrs", "message"}
         return {name: _digest(value) for name, value in sorted(data.items()) if name not in timing} | \
             {"message": [str(m) for m in data["message"]]}
-    from ddsolve.io import hdf5 as io
+    from ddsolve.io import hdf5
     from ddsolve.post import analysis
-    result = io.read(output)
+    result = hdf5.read(output)
     fields = analysis.cell_fields(result)
-    return {"title": result.parsed_scene.title, "method": result.method, "converged": bool(result.converged),
+    return {"title": result.scene.title, "method": result.method, "converged": bool(result.converged),
             "iterations": int(result.iterations), "points": len(result.lower.points) + len(result.upper.points),
             "energy": _digest(result.attrs.get("energy", np.nan)), "kkt_tolerance": float(result.attrs.get("kkt_tolerance", 0)),
             "out_of_core": bool(result.attrs.get("factors_out_of_core", False)),  # memory, not numbers
@@ -279,12 +279,12 @@ def test_the_prediction_uses_the_best_rate_of_the_element_degree():
 
 @pytest.mark.mpi
 def test_reference_honours_target_error_with_its_own_levels(tmp_path):
-    from ddsolve.io import hdf5 as io
+    from ddsolve.io import hdf5
 
     completed, _ = ddsolve_run(["reference", "partial-closure", *SET_SMALL, "--set", "mesh.degree=1", "--set",
                                 "mesh.target_error=0.2", "-o", "r.h5"], tmp_path)
     assert completed.returncode == 0, completed.stderr
-    result = io.read(tmp_path / "r.h5")
+    result = hdf5.read(tmp_path / "r.h5")
     assert result.method == "reference" and result.attrs["levels"] >= 2
     assert result.attrs["error_estimate"] <= 0.2 and len(result.levels["unknowns"]) == result.attrs["levels"]
 

@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 
 from ddsolve.errors import DDSolveError, MeshError
 from experiments.hostile_msh import MATERIALS, PAPER_LOADS, energy, geometries, msh_versions
-from ddsolve.io import hdf5 as io
+from ddsolve.io import hdf5
 from ddsolve.mesh import geometry, mesh
 from ddsolve.problem import scene
 from ddsolve.solvers import sweep
@@ -300,7 +300,7 @@ def test_fuzz_inputs_that_cannot_be_opened(kind, obstacle):
             target = folder / "plain" / target.name
         (folder / "s.toml").write_text(f'[mesh]\nfile = "{target}"\n{MATERIALS}')
         read = {"scene": lambda: scene.load(target), "mesh": lambda: scene.load(folder / "s.toml"),
-                "result": lambda: io.read(target), "sweep": lambda: sweep.read(target)}[kind]
+                "result": lambda: hdf5.read(target), "sweep": lambda: sweep.read(target)}[kind]
         with pytest.raises(DDSolveError) as caught:
             read()
         message = str(caught.value)

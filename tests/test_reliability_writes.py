@@ -16,7 +16,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from experiments import hostile_writes
-from ddsolve.io import hdf5 as io
+from ddsolve.io import hdf5
 from ddsolve.problem.scene import builtin_folder
 
 P48 = ["--set", "mesh.sigma_vertices=48", "--set", "mesh.boundary_vertices=80"]
@@ -82,7 +82,7 @@ def test_a_journal_left_by_a_killed_run_is_completed_by_the_next_read(tmp_path):
     assert child.returncode == -signal.SIGKILL
     assert [p.read_bytes() for p in paths] == [b"new 0", b"old", b"old"]  # killed between two renames
     with pytest.raises(Exception, match="not a ddsolve result file"):
-        io.read(paths[1])  # the read completes the set first: f1.h5 is the new (not HDF5) file
+        hdf5.read(paths[1])  # the read completes the set first: f1.h5 is the new (not HDF5) file
     assert [p.read_bytes() for p in paths] == [b"new 0", b"new 1", b"new 2"]
     assert not [p for p in tmp_path.iterdir() if ".ddsolve~" in p.name]
 

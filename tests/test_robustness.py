@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from ddsolve.errors import SceneError
-from ddsolve.io import hdf5 as io
+from ddsolve.io import hdf5
 from ddsolve.mesh import geometry
 from ddsolve.post import analysis
 from ddsolve.problem import scene
@@ -23,7 +23,7 @@ def solve_and_reference(tmp_path, name, *overrides, method_args=(), ranks=4):
     dd, ref = tmp_path / "dd.h5", tmp_path / "ref.h5"
     ddsolve("solve", name, *overrides, *method_args, "-o", str(dd), ranks=ranks)
     ddsolve("reference", name, *overrides, "-o", str(ref))
-    return io.read(dd), io.read(ref)
+    return hdf5.read(dd), hdf5.read(ref)
 
 
 # --- hard numerical cases ---------------------------------------------------------------------
@@ -74,7 +74,7 @@ def test_zero_load_gives_exactly_zero_without_division_by_zero(tmp_path, method)
                  "--set", f"solver.method={method}"]
     output = tmp_path / "zero.h5"
     ddsolve("solve", "partial-closure", *SMALL, *overrides, "-o", str(output), ranks=2)
-    result = io.read(output)
+    result = hdf5.read(output)
     assert result.converged and result.iterations <= 1
     assert all(np.all(values == 0.0) for values in result.solution.values())
     assert np.all(np.isfinite(result.history))
@@ -95,7 +95,7 @@ def test_scaled_loads_give_scaled_solutions_in_the_same_iterations(tmp_path, met
         ddsolve("solve", "partial-closure", *SMALL, "--set", f"solver.method={method}", "--set", "solver.p=1e300",
                 "--set", f"loads.layer1.bottom.y=[0.0, {c!r}]", "--set", f"loads.layer1.top.y=[0.0, {-c!r}]",
                 "-o", str(output), ranks=4)
-        results[factor] = io.read(output)
+        results[factor] = hdf5.read(output)
     iterations = [r.iterations for r in results.values()]
     exact = factors[1] == 2.0 ** 40
     assert max(iterations) - min(iterations) <= (0 if exact else 1)

@@ -125,7 +125,7 @@ def test_every_file_a_mesh_file_reaches_is_an_input_an_output_cannot_be(data, tm
 
 @pytest.mark.solve
 def test_the_api_writers_refuse_what_the_run_reads_and_names_that_are_not_hdf5(tmp_path):
-    """``output=`` of every writer and ``Result.save`` go through the -o check, with the run's inputs."""
+    """``output=`` of every writer and ``save`` go through the -o check, with the run's inputs."""
     scene, heavy = xdmf_scene(tmp_path)
     before = heavy.read_bytes()
     writers = {"solve": lambda out: api.solve(scene, output=out),
@@ -143,12 +143,12 @@ def test_the_api_writers_refuse_what_the_run_reads_and_names_that_are_not_hdf5(t
     assert result.inputs == {}  # a built-in scene: no file of the user's
     result.inputs = {heavy: "read through box.xdmf"}
     with pytest.raises(api.DDSolveError, match=r"^.*box\.h5: is an input of this run .*choose another save path$"):
-        result.save(heavy)
+        api.save(result, heavy)
     arrays = tmp_path / "box-xdmf.h5"  # the arrays of box.h5's XDMF viewer files, say read as a mesh
     arrays.write_bytes(b"arrays")
     result.inputs = {arrays: "read through box-lower.xdmf"}
     with pytest.raises(api.DDSolveError, match=r"^.*box-xdmf\.h5: is an input of this run"):
-        result.save(tmp_path / "box.h5", viewer="xdmf")
+        api.save(result, tmp_path / "box.h5", viewer="xdmf")
     assert heavy.read_bytes() == before and not (tmp_path / "g.txt").exists()
     assert api.reference(scene).inputs == {scene: "the scene file", tmp_path / "box.xdmf": "the mesh file",
                                            heavy: f"read through {tmp_path / 'box.xdmf'}"}
@@ -172,8 +172,9 @@ WRONG = st.one_of(
                                         st.one_of(st.text(max_size=4), st.integers(), st.floats()), min_size=1),
                         st.dictionaries(st.integers(), st.just([1.0, 2.0]), min_size=1))),
     st.tuples(st.just("sweep"), st.just("paired"), st.one_of(st.integers(), st.text(max_size=3), st.none())),
-    st.tuples(st.just("save"), st.sampled_from(["path", "viewer"]),
-              st.one_of(st.integers(), st.none(), st.sampled_from(["png", "VTU", ""]), st.lists(st.integers()))))
+    st.tuples(st.just("save"), st.sampled_from(["result", "path", "viewer"]),
+              st.one_of(st.integers(), st.none(), st.lists(st.integers()))),
+    st.tuples(st.just("save"), st.just("viewer"), st.sampled_from(["png", "VTU", ""])))
 
 
 @pytest.fixture(scope="module")
@@ -190,7 +191,7 @@ def test_arguments_of_the_wrong_type_are_one_line_errors_naming_them(wrong, smal
     calls = {"grow": lambda: api.grow(scene, **{**GOOD, name: value}),
              "sweep": lambda: api.sweep(scene, **{"parameters": {"materials.layer2.E": [100.0]}, name: value}),
              "solve": lambda: api.solve(scene, **{name: value}),
-             "save": lambda: small_result.save(**{"path": "unwritten.h5", "viewer": "vtu", name: value})}
+             "save": lambda: api.save(**{"result": small_result, "path": "unwritten.h5", "viewer": "vtu", name: value})}
     with pytest.raises(api.DDSolveError) as raised:
         calls[function]()
     message = str(raised.value)
@@ -294,6 +295,6 @@ def test_a_results_repr_is_one_short_line(small_result, tmp_path):
     assert "\n" not in text and len(text) < 300, text
     for part in ("Example 2: full opening", small_result.method, "converged", f"{small_result.energy:.10e}", "G at"):
         assert part in text, (part, text)
-    small_result.save(tmp_path / "r.h5")
+    api.save(small_result, tmp_path / "r.h5")
     again = api.load(tmp_path / "r.h5")
     assert repr(again).endswith(f"file {tmp_path / 'r.h5'}>") and len(repr(again.fracture)) < 200

@@ -26,7 +26,7 @@ from ddsolve.dd import constraints, dual, uzawa
 from ddsolve.dd.interface import Interface
 from experiments.hostile4_zero import LAYERS, PAPER_LAYERS, PRESSED_LAYERS, clamped_plate, pressed_plate
 from ddsolve.fem import assembly
-from ddsolve.io import hdf5 as io
+from ddsolve.io import hdf5
 from ddsolve.mesh import geometry
 from ddsolve.post import analysis
 from ddsolve.problem import scene
@@ -124,7 +124,7 @@ def test_the_reference_solves_the_clamped_plate(model):
     itself, max|u| below 1e-13 of the data's displacement (measured 1e-16)."""
     layers = PAPER_LAYERS
     source = scene.loads(clamped_plate(model))
-    result = reference.solve(source, geometry.build(source))
+    result = reference.solve_monolithic(source, geometry.build(source))
     assert result.converged, result.message
     error, stress = stress_errors(result, model, layers)
     assert error <= 1e-12 * stress
@@ -146,7 +146,7 @@ def test_generated_zero_solutions_are_solved_by_the_reference(model, layers, cra
     if not cracked and cooled:
         layers = tuple((*values[:3], -values[3]) for values in layers)
     source = scene.loads(clamped_plate(model, layers, "[-0.5, 0.5]" if cracked else "[]"))
-    result = reference.solve(source, geometry.build(source))
+    result = reference.solve_monolithic(source, geometry.build(source))
     assert result.converged, result.message
     error, stress = stress_errors(result, model, layers)
     assert error <= 1e-10 * stress
@@ -162,7 +162,7 @@ def solved(folder: Path, text: str, method: str, *extra: str, ranks: int = 1):
     command = "reference" if method == "reference" else "solve"
     completed = ddsolve(command, str(path), *options, "-o", str(output), ranks=None if ranks == 1 else ranks)
     assert "Traceback" not in completed.stderr and completed.returncode == 0
-    return io.read(output)
+    return hdf5.read(output)
 
 
 #: (method, options, ranks, stress bound, displacement bound): exact solves to round-off, the iterative ones to

@@ -7,7 +7,7 @@ import pytest
 from conftest import ddsolve
 
 from ddsolve.errors import SceneError
-from ddsolve.io import hdf5 as io
+from ddsolve.io import hdf5
 from ddsolve.problem import scene
 from ddsolve.solvers import sweep
 
@@ -92,7 +92,7 @@ def test_loads_sweep_reuses_the_factorization(tmp_path):
     np.testing.assert_allclose(G / G[0], np.array([[1.0], [4.0], [9.0]]) * np.ones((1, 2)), rtol=1e-8)
     ddsolve("solve", "full-opening", *SMALL, "--set", "loads.layer1.top.y=0.1", "--set", "loads.layer1.bottom.y=-0.1",
             "-o", str(tmp_path / "one.h5"), ranks=2)
-    single = io.read(tmp_path / "one.h5")
+    single = hdf5.read(tmp_path / "one.h5")
     np.testing.assert_allclose(G[1], single.fracture.G, rtol=1e-10)
     assert data["energy"][1] == pytest.approx(single.attrs["energy"], rel=1e-10)
 
@@ -109,7 +109,7 @@ def test_geometry_sweep_remeshes(tmp_path):
     np.testing.assert_allclose(data["tips/points"][:, :, 0], [[-0.3, 0.3], [-0.5, 0.5]])
     ddsolve("solve", "partial-closure", *SMALL, "--set", "geometry.crack=[-0.3, 0.3]", "-o", str(tmp_path / "a.h5"),
             ranks=4)
-    np.testing.assert_allclose(data["tips/G"][0], io.read(tmp_path / "a.h5").fracture.G, rtol=1e-10, atol=1e-18)
+    np.testing.assert_allclose(data["tips/G"][0], hdf5.read(tmp_path / "a.h5").fracture.G, rtol=1e-10, atol=1e-18)
     assert sorted(set(data["contact_zones/run"].tolist())) == [0, 1]
 
 

@@ -11,7 +11,7 @@ import pytest
 from conftest import ddsolve
 
 from ddsolve.errors import SceneError
-from ddsolve.io import hdf5 as io
+from ddsolve.io import hdf5, save
 from ddsolve.mesh import geometry
 from ddsolve.post import toughness
 from ddsolve.problem import scene
@@ -94,7 +94,7 @@ def test_a_per_crack_toughness_is_checked_against_a_mesh_file(mesh_file):
                                                            f'file = "{mesh_file}"')
     source = scene.loads(text, ["fracture.toughness=[1e-4, 2e-4]"])
     with pytest.raises(SceneError, match=r"fracture.toughness lists 2 values for the 1 crack of the mesh"):
-        reference.solve(source, geometry.build(source))
+        reference.solve_monolithic(source, geometry.build(source))
     toughness.check_cracks(source, 2)
 
 
@@ -105,21 +105,21 @@ def test_example_2_grows_at_the_square_root_of_the_toughness_ratio(tmp_path):
     printed line gives G/G_c and λ_c."""
     source = scene.load("full-opening", [*SMALL, "fracture.toughness=1e-4"])
     mesh = geometry.build(source)
-    result = reference.solve(source, mesh)
+    result = reference.solve_monolithic(source, mesh)
     fracture = result.fracture
     np.testing.assert_array_equal(fracture.toughness, 1e-4)
     factors = np.sqrt(1e-4 / fracture.G)
     np.testing.assert_allclose(fracture.critical_factor, factors, rtol=1e-15)
     for tip, factor in enumerate(factors):
-        assert reference.solve(source.scaled(factor), mesh).fracture.G[tip] == pytest.approx(1e-4, rel=1e-10)
+        assert reference.solve_monolithic(source.scaled(factor), mesh).fracture.G[tip] == pytest.approx(1e-4, rel=1e-10)
     path = tmp_path / "r.h5"
-    result.save(path)
-    back = io.read(path).fracture
+    save(result, path)
+    back = hdf5.read(path).fracture
     np.testing.assert_array_equal(back.toughness, fracture.toughness)
     np.testing.assert_array_equal(back.critical_factor, fracture.critical_factor)
     with h5py.File(path, "r+") as f:
         del f["fracture/toughness"], f["fracture/critical_factor"]
-    old = io.read(path).fracture
+    old = hdf5.read(path).fracture
     assert np.isnan(old.toughness).all() and np.isnan(old.critical_factor).all() and old.growth() == ["", ""]
     line = fracture.lines()[0]
     assert f"G/G_c = {fracture.G[0] / 1e-4:.6g}, grows at λ = {factors[0]:.6g}" in line
@@ -127,7 +127,7 @@ def test_example_2_grows_at_the_square_root_of_the_toughness_ratio(tmp_path):
 
 @pytest.mark.solve
 def test_without_a_toughness_nothing_is_judged():
-    fracture = reference.solve(source := scene.load("full-opening", SMALL), geometry.build(source)).fracture
+    fracture = reference.solve_monolithic(source := scene.load("full-opening", SMALL), geometry.build(source)).fracture
     assert np.isnan(fracture.toughness).all() and np.isnan(fracture.critical_factor).all()
     assert "G/G_c" not in fracture.lines()[0]
 
@@ -146,7 +146,7 @@ def test_a_temperature_change_kept_by_the_root_solve(law):
     unheated = math.sqrt(result.fracture.toughness[0] / result.fracture.G[0])
     assert abs(factors[0] - unheated) > 0.1 * factors[0]  # not the proportional λ_c
     for tip, factor in enumerate(factors):
-        at = reference.solve(source.scaled(factor), mesh).fracture
+        at = reference.solve_monolithic(source.scaled(factor), mesh).fracture
         assert abs(at.G[tip] / toughness.resistance(source, at)[tip] - 1.0) <= 1e-8
 
 
@@ -159,7 +159,7 @@ def test_the_domain_decomposition_finds_the_reference_factors():
     mesh = geometry.build(source)
     lines = []
     found = critical.factors(source, MPI.COMM_SELF, mesh, lines.append)
-    expected = critical.search(source, lambda lam: reference.solve(source.scaled(lam), mesh).fracture)
+    expected = critical.search(source, lambda lam: reference.solve_monolithic(source.scaled(lam), mesh).fracture)
     np.testing.assert_allclose(found, expected, rtol=1e-8)
     assert len(lines) == 1 and "solves of the scaled scene" in lines[0]
 
@@ -172,7 +172,7 @@ def test_solve_on_two_ranks_prints_and_writes_the_critical_factor(tmp_path):
     output = tmp_path / "t.h5"
     completed = ddsolve("solve", "-n", "2", "full-opening", *(w for item in items for w in ("--set", item)),
                         "-o", str(output))
-    result = io.read(output)
+    result = hdf5.read(output)
     fracture = result.fracture
     assert all(result.timings[phase] > 0 for phase in ("startup", "meshing", "factorization", "critical_factors"))
     assert "critical_factors" in next(line for line in completed.stdout.splitlines() if line.startswith("launch "))
@@ -194,7 +194,7 @@ def test_an_adaptive_solve_finds_the_factors_on_its_last_mesh_factored_once(monk
     source = scene.load("full-opening", [*SMALL, *HEATED, "fracture.toughness=1e-4", "mesh.target_error=0.05"])
     prepared, prepare = [], driver.prepare
     monkeypatch.setattr(driver, "prepare", lambda *args, **kwargs: prepared.append(1) or prepare(*args, **kwargs))
-    result = adapt.solve(source, MPI.COMM_SELF, None, progress=lambda line: None)
+    result = adapt.solve_adaptively(source, MPI.COMM_SELF, None, progress=lambda line: None)
     assert len(prepared) == len(result.levels["unknowns"]) + 1 and result.timings["critical_factors"] > 0
-    expected = critical.search(source, lambda lam: reference.solve(source.scaled(lam), result.mesh).fracture)
+    expected = critical.search(source, lambda lam: reference.solve_monolithic(source.scaled(lam), result.mesh).fracture)
     np.testing.assert_allclose(result.fracture.critical_factor, expected, rtol=1e-7)

@@ -13,7 +13,7 @@ import h5py
 import numpy as np
 
 from ddsolve.errors import ArgumentError, DDSolveError, SceneError
-from ddsolve.io import viewer as export
+from ddsolve.io.viewer import FORMATS, Distributed, distributed_files, padded, viewer_files, viewer_paths
 from ddsolve.io.safe import check_targets, hdf5_image, recover, replace_together, same_file
 from ddsolve.mesh.mesh import BLOCKS, HalfMesh, Mesh, SigmaLine
 from ddsolve.post import analysis
@@ -45,15 +45,15 @@ def check_result(path: Path, inputs: Iterable[Path] | Mapping[Path, str] = (), v
                            + (" (its viewer files are written beside it)" if viewer else "")
                            + ("; this name is an input of this run" if any(same_file(path, s) for s in inputs) else ""))
     fmt = viewer if isinstance(viewer, str) else "vtu"
-    check_targets([path, *(export.viewer_paths(path.parent, path.stem, fmt) if viewer else [])], inputs, named)
+    check_targets([path, *(viewer_paths(path.parent, path.stem, fmt) if viewer else [])], inputs, named)
 
 
 
 
 def check_viewer(viewer: object, named: str = "--format") -> None:
     """Refuse a viewer format that is not one of :data:`ddsolve.io.viewer.FORMATS`."""
-    if not isinstance(viewer, str) or viewer not in export.FORMATS:
-        raise ArgumentError(f"{named} must be one of {', '.join(map(repr, export.FORMATS))} (got {viewer!r:.40})")
+    if not isinstance(viewer, str) or viewer not in FORMATS:
+        raise ArgumentError(f"{named} must be one of {', '.join(map(repr, FORMATS))} (got {viewer!r:.40})")
 
 
 def write(path: Path, result: Result, viewer: str = "vtu", final: bool = False) -> list[Path]:
@@ -64,7 +64,7 @@ def write(path: Path, result: Result, viewer: str = "vtu", final: bool = False) 
     fields = analysis.cell_fields(result)
     part = result_part(result, fields)
     writers = {path: lambda name: write_part(name, part, since=started),
-               **export.viewer_files(result, path.parent, path.stem, viewer, fields)}
+               **viewer_files(result, path.parent, path.stem, viewer, fields)}
     replace_together(writers, final)
     return list(writers)
 
@@ -75,20 +75,20 @@ def parallel_available(comm) -> bool:
     return comm is not None and comm.size > 1 and bool(h5py.get_config().mpi)
 
 
-def write_distributed(path: Path, part: "Part", viewer: export.Distributed, comm, final: bool = False) -> list[Path]:
+def write_distributed(path: Path, part: "Part", viewer: Distributed, comm, final: bool = False) -> list[Path]:
     """Every rank of ``comm`` writes its ``part`` of the result file ``path`` and its share of the VTU
     viewer files (``viewer``) into the same files, collectively (parallel HDF5); rank 0 commits the
     set as :func:`replace_together` does.  The file reads as :func:`write`'s."""
     path, started = Path(path), time.perf_counter()
     writers = {path: lambda name: write_part(name, part, comm, since=started),
-               **export.distributed_files(viewer, path.parent, path.stem, comm)}
+               **distributed_files(viewer, path.parent, path.stem, comm)}
     replace_together(writers, final, comm)
     return list(writers)
 
 
 def write_viewer(result: Result, folder: Path, stem: str, viewer: str = "vtu", final: bool = False) -> list[Path]:
     """(Re)write the viewer files of ``result`` as ``folder/stem-*``; returns the paths written."""
-    writers = export.viewer_files(result, Path(folder), stem, viewer)
+    writers = viewer_files(result, Path(folder), stem, viewer)
     replace_together(writers, final)
     return list(writers)
 
@@ -144,7 +144,7 @@ def block_datasets(block: str, u: np.ndarray, von_mises: np.ndarray, indicator: 
     def cells(values):
         return values if piece is None else Slab(values, piece.cell_first, piece.cell_rows)
 
-    out = {f"solution/{block}": nodes(u), f"paraview/{block}/displacement": nodes(export.padded(u)),
+    out = {f"solution/{block}": nodes(u), f"paraview/{block}/displacement": nodes(padded(u)),
            f"paraview/{block}/von_mises": cells(von_mises)}
     if indicator is not None:
         out[f"error/indicator/{block}"] = cells(indicator)
@@ -180,6 +180,7 @@ def attributes(result: Result) -> dict[str, dict]:
     """The attributes of a result file by group: the root's, /timings and /memory."""
     root = {key: getattr(result, key) for key in ("converged", "iterations", "solves", "method", "wall_time",
                                                     "ranks", "scene", "message")}
+    root["scene"] = result.scene.text  # the scene's canonical TOML text
     return {"": {**root, **result.attrs}, "timings": dict(result.timings),
             **({"memory": dict(result.memory)} if result.memory else {})}
 
@@ -341,12 +342,12 @@ def _read(f: h5py.File, path: Path) -> Result:
     scene_text = f.attrs["scene"]
     scene_text = scene_text.decode() if isinstance(scene_text, bytes) else str(scene_text)
     try:
-        scenes.loads(scene_text, origin="its scene")
+        scene = scenes.loads(scene_text, origin="its scene")
     except SceneError as exc:
         raise DDSolveError(str(exc)) from None
     known = {"converged", "iterations", "solves", "method", "wall_time", "ranks", "scene", "message"}
     return Result(
-        scene=scene_text, method=str(f.attrs["method"]),
+        scene=scene, method=str(f.attrs["method"]),
         converged=bool(f.attrs["converged"]), iterations=int(f.attrs["iterations"]),
         solves=int(f.attrs["solves"]), wall_time=float(f.attrs["wall_time"]),
         ranks=int(f.attrs["ranks"]), mesh=mesh, solution=solution, multipliers=multipliers,

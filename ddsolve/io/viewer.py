@@ -2,10 +2,10 @@
 
 For a result ``NAME.h5``: ``NAME-layer1`` and ``NAME-layer2`` (each layer as one mesh of both
 halves: Σ nodes merged except on the cracks, whose faces keep a node each), ``NAME-sigma`` (the Σ
-nodes as a polyline) as VTU or XDMF (one Uniform grid per file; its arrays in ``NAME-xdmf.h5``),
-and ``NAME-paraview.py``, a ParaView script that shows them.  P2 results give quadratic triangles
-and quadratic Σ edges.  Nothing here writes: :func:`viewer_files` returns writers for
-:func:`ddsolve.io.safe.replace_together`.
+nodes as a polyline) in a registered format (:data:`FORMATS`: VTU, or XDMF with one Uniform grid per
+file and its arrays in ``NAME-xdmf.h5``), and ``NAME-paraview.py``, a ParaView script that shows them.
+P2 results give quadratic triangles and quadratic Σ edges.  Nothing here writes: :func:`viewer_files`
+returns writers for :func:`ddsolve.io.safe.replace_together`.
 """
 from __future__ import annotations
 
@@ -22,7 +22,6 @@ from ddsolve.mesh.mesh import BLOCKS
 from ddsolve.post import analysis, plots
 from ddsolve.post.result import OnSigma, Result
 
-FORMATS = ("vtu", "xdmf")
 LAYER_TITLES = {"layer1": "layer 1 (u)", "layer2": "layer 2 (v)"}
 #: meshio cell type -> XDMF topology type.
 _XDMF_TOPOLOGY = {"triangle": "Triangle", "triangle6": "Triangle_6", "line": "Polyline", "line3": "Edge_3"}
@@ -363,6 +362,56 @@ def write_heavy_data(meshes: list[ViewerMesh], name: str) -> None:
                 group.create_dataset(key, data=values, **options)
 
 
+def vtu_files(meshes: list[ViewerMesh], folder: Path, stem: str) -> dict[Path, Callable[[str], None]]:
+    """A VTU file per viewer mesh."""
+    names = viewer_names(stem, "vtu")
+    return {folder / names[mesh.name]: (lambda name, mesh=mesh: write_vtu(mesh, name)) for mesh in meshes}
+
+
+def xdmf_files(meshes: list[ViewerMesh], folder: Path, stem: str) -> dict[Path, Callable[[str], None]]:
+    """The arrays of every mesh in ``stem-xdmf.h5``, then an XDMF file per viewer mesh."""
+    heavy, names = f"{stem}-xdmf.h5", viewer_names(stem, "xdmf")
+    writers = {folder / heavy: lambda name: write_heavy_data(meshes, name)}
+    for mesh in meshes:
+        text = xdmf_text(mesh, heavy)
+        writers[folder / names[mesh.name]] = lambda name, text=text: Path(name).write_text(text, encoding="utf-8")
+    return writers
+
+
+# --- the registry of formats -------------------------------------------------------------------
+@dataclass(frozen=True)
+class ViewerFormat:
+    """A viewer file format, as meshio registers one: its ``name`` (the suffix of its files) and ``write``,
+    which gives path -> writer (called with a temporary name) of the viewer meshes' files in ``folder``
+    (one per mesh, :func:`viewer_names`, and ``extra``: the endings after the stem of any other file)."""
+
+    name: str
+    write: Callable[[list[ViewerMesh], Path, str], dict[Path, Callable[[str], None]]]
+    extra: tuple[str, ...] = ()
+
+
+#: Format name -> its :class:`ViewerFormat`: what ``save``, ``ddsolve export --format`` and the checks of
+#: the outputs offer.
+FORMATS: dict[str, ViewerFormat] = {}
+
+
+def register(viewer_format: ViewerFormat) -> ViewerFormat:
+    """Add a viewer format to :data:`FORMATS`."""
+    FORMATS[viewer_format.name] = viewer_format
+    return viewer_format
+
+
+register(ViewerFormat("vtu", vtu_files))
+register(ViewerFormat("xdmf", xdmf_files, extra=("-xdmf.h5",)))
+
+
+def viewer_format(fmt: str) -> ViewerFormat:
+    """The registered format ``fmt``."""
+    if fmt not in FORMATS:
+        raise DDSolveError(f"--format {fmt}: expected one of {', '.join(FORMATS)}")
+    return FORMATS[fmt]
+
+
 # --- the ParaView script -----------------------------------------------------------------------
 def paraview_script(title: str, folder: Path, files: dict[str, str], ceilings: dict[str, float], scale: float,
                     stacked: bool, graph: bool) -> str:
@@ -386,7 +435,7 @@ def result_script(result: Result, folder: Path, files: dict[str, str], fields: d
                                                             if spec.layer == layer]))
                 for layer in LAYER_TITLES}
     points = np.vstack([result.lower.points, result.upper.points])
-    return paraview_script(result.parsed_scene.title, folder, files, ceilings, plots.magnification(result),
+    return paraview_script(result.scene.title, folder, files, ceilings, plots.magnification(result),
                            plots.one_above_the_other(points), analysis.sigma_is_graph(result))
 
 
@@ -401,7 +450,7 @@ def viewer_names(stem: str, fmt: str = "vtu") -> dict[str, str]:
 
 def viewer_paths(folder: Path, stem: str, fmt: str = "vtu") -> list[Path]:
     """Every file :func:`viewer_files` writes for ``folder/stem`` in format ``fmt``."""
-    names = list(viewer_names(stem, fmt).values()) + ([f"{stem}-xdmf.h5"] if fmt == "xdmf" else [])
+    names = list(viewer_names(stem, fmt).values()) + [stem + ending for ending in viewer_format(fmt).extra]
     return [Path(folder) / name for name in names + [f"{stem}-paraview.py"]]
 
 
@@ -409,24 +458,14 @@ def viewer_files(result: Result, folder: Path, stem: str, fmt: str = "vtu",
                  fields: dict[str, analysis.CellFields] | None = None) -> dict[Path, Callable[[str], None]]:
     """Path -> writer (called with a temporary name) for every viewer file of ``result``; ``fields``:
     :func:`ddsolve.post.analysis.cell_fields` of the result if already computed."""
-    if fmt not in FORMATS:
-        raise DDSolveError(f"--format {fmt}: expected one of {', '.join(FORMATS)}")
+    write = viewer_format(fmt).write
     folder = Path(folder)
     fields = analysis.cell_fields(result) if fields is None else fields
     meshes = [layer_mesh(result, layer, fields) for layer in LAYER_TITLES] + [sigma_mesh(result.on_sigma,
                                                                                            result.mesh.degree)]
     names = viewer_names(stem, fmt)
     script = result_script(result, folder, names, fields)
-    writers: dict[Path, Callable[[str], None]] = {}
-    if fmt == "vtu":
-        for mesh in meshes:
-            writers[folder / names[mesh.name]] = lambda name, mesh=mesh: write_vtu(mesh, name)
-    else:
-        heavy = f"{stem}-xdmf.h5"
-        writers[folder / heavy] = lambda name: write_heavy_data(meshes, name)
-        for mesh in meshes:
-            text = xdmf_text(mesh, heavy)
-            writers[folder / names[mesh.name]] = lambda name, text=text: Path(name).write_text(text, encoding="utf-8")
+    writers = write(meshes, folder, stem)
     writers[folder / f"{stem}-paraview.py"] = lambda name: Path(name).write_text(script, encoding="utf-8")
     return writers
 

@@ -104,7 +104,7 @@ class Gathered(Finisher):
         if not self.exchange.is_root:
             return None
         scene, mesh, local = self.scene, self.mesh, self.local
-        result = Result.from_blocks(scene.text, scene.solver.method, mesh, self.solutions, self.setup.interface,
+        result = Result.from_blocks(scene, scene.solver.method, mesh, self.solutions, self.setup.interface,
                                     self.lam, **record)
         estimated = estimate.combine(mesh, self.parts, result.solution, result.multipliers["mu_c"],
                                      assembly.modulus(scene))
@@ -214,7 +214,7 @@ class OnRanks(Finisher):
         local, exchange, scene = self.local, self.exchange, self.scene
         result = None
         if exchange.is_root:
-            result = Result(scene=scene.text, method=scene.solver.method, mesh=None, solution={},
+            result = Result(scene=scene, method=scene.solver.method, mesh=None, solution={},
                             multipliers=self.on.multipliers, held=self.on, **record)
             result.attrs["error_estimate"] = self.relative
             result.reactions = self.reactions

@@ -21,7 +21,7 @@ from ddsolve.problem import scene as scenes
 
 def elasticities(result: Result) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Layer -> (D, c) of the result's scene (see :func:`ddsolve.problem.materials.elasticity`)."""
-    scene = result.parsed_scene
+    scene = result.scene
     return {layer: assembly.elasticity(scene, layer) for layer in scenes.LAYERS}
 
 
@@ -129,7 +129,7 @@ def equilibrium_residuals(result: Result, scene: scenes.Scene, interface: Interf
 def constraints(result: Result, equilibrium: np.ndarray | None = None) -> Constraints:
     """The KKT residuals of a result (:func:`kkt`): the interface conditions from its displacements
     and multipliers, each block's equilibrium from assembling the blocks again (unless given)."""
-    scene = result.parsed_scene
+    scene = result.scene
     interface = for_mesh(result.mesh.sigma, scene.nonpenetration,
                          supports.sigma_supports(scene, result.mesh).fixed, assembly.modulus(scene),
                          assembly.data_displacement(scene, result.mesh.halves, result.mesh.sigma))
@@ -148,7 +148,7 @@ def largest_displacement(fields) -> float:
 
 def tolerance_of(result: Result) -> float:
     """The tolerance the result's residuals are checked against (see :func:`kkt_tolerance`)."""
-    return kkt_tolerance(result.parsed_scene.solver if result.method in METHODS else None)
+    return kkt_tolerance(result.scene.solver if result.method in METHODS else None)
 
 
 #: A point within this fraction of a boundary edge's length outside a mesh still lies in its domain:
@@ -379,7 +379,7 @@ class CellFields:
 
 def cell_fields(result: Result) -> dict[str, CellFields]:
     """Block name -> its per-cell strains, stresses, von Mises stress and energy density."""
-    return {spec.name: block_cell_fields(result.parsed_scene, spec.layer, result.half(spec.name).points,
+    return {spec.name: block_cell_fields(result.scene, spec.layer, result.half(spec.name).points,
                                          result.half(spec.name).cells, result.solution[spec.name]) for spec in BLOCKS}
 
 

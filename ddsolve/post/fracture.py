@@ -332,7 +332,7 @@ ROUNDING = 1e-12
 def of_result(result, tips: list[Tip], factors: np.ndarray | None = None) -> Fracture:
     """G at ``tips`` from a result's four blocks (one process), with the toughness and the critical load
     factors (``factors``: see :func:`finish`)."""
-    scene = result.parsed_scene
+    scene = result.scene
     volume = np.zeros(2 * len(tips))
     for spec in BLOCKS:
         half = result.half(spec.name)
@@ -345,7 +345,7 @@ def of_result(result, tips: list[Tip], factors: np.ndarray | None = None) -> Fra
 
 def evaluate(result, inner: float | None = None, outer: float | None = None) -> Fracture:
     """G at every tip of a result (any source, one process); radii: given, else the scene's, else automatic."""
-    options = result.parsed_scene.fracture
+    options = result.scene.fracture
     tips = find_tips(result.mesh, inner if inner is not None else options.inner,
                      outer if outer is not None else options.outer)
     return of_result(result, tips)
@@ -371,7 +371,7 @@ def mode_split(tips: list[Tip], result) -> dict[str, np.ndarray]:
     """
     result = disc_result(result, tips)
     return split_modes(tips, [mirror_split(tip, result) for tip in tips], result.on_sigma,
-                       result.parsed_scene.nonpenetration, result.mesh.degree)
+                       result.scene.nonpenetration, result.mesh.degree)
 
 
 def split_modes(tips: list[Tip], mirrored: list[tuple[float, float] | None], on: OnSigma, nonpenetration: bool,
@@ -403,7 +403,7 @@ def mirror_split(tip: Tip, result) -> tuple[float, float] | None:
     shape functions); u_I = (u + R u(x′))/2, u_II = (u − R u(x′))/2.  θ is symmetric, so the cross term of
     the quadratic integral is odd and vanishes up to the interpolation: G_I + G_II = G.
     """
-    sigma, scene = result.mesh.sigma, result.parsed_scene
+    sigma, scene = result.mesh.sigma, result.scene
     laws = {spec.layer: assembly.elasticity(scene, spec.layer)[0] for spec in BLOCKS}
     if not mirrorable(tip, sigma, laws.values()):
         return None

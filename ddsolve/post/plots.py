@@ -55,7 +55,7 @@ PLAIN_TEXT = {"parse_math": False, "usetex": False}
 def drawn_title(result: Result) -> str:
     """The scene's title as a picture shows it (with PLAIN_TEXT): on one line, at most TITLE_LENGTH
     characters."""
-    words = "".join(char if char.isprintable() else " " for char in result.parsed_scene.title)
+    words = "".join(char if char.isprintable() else " " for char in result.scene.title)
     return words if len(words) <= TITLE_LENGTH else words[:TITLE_LENGTH - 1].rstrip() + "…"
 
 

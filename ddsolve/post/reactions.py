@@ -116,7 +116,7 @@ def reactions(scene: Scene, mesh: Mesh, solution: dict[str, np.ndarray],
 
 def of_result(result, table: supports.SigmaSupports | None = None) -> dict[str, dict[str, np.ndarray]]:
     """:func:`reactions` of a result."""
-    return reactions(result.parsed_scene, result.mesh, result.solution, table)
+    return reactions(result.scene, result.mesh, result.solution, table)
 
 
 def lines(values: dict[str, dict[str, np.ndarray]]) -> list[str]:

@@ -7,7 +7,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ddsolve.errors import ArgumentError, DDSolveError
 from ddsolve.fem import assembly
 from ddsolve.mesh.mesh import BLOCKS, HalfMesh, Mesh, SigmaLine
 from ddsolve.problem import scene as scenes
@@ -27,9 +26,10 @@ class Result:
     ``levels``: column -> ``(levels,)`` values of an adaptive run, one entry per mesh.
     ``reactions``: layer -> boundary -> the force ``(2,)`` its support exerts on the layer
     (:mod:`ddsolve.post.reactions`).
+    ``scene``: the scene solved (a result file holds its text, ``scene.text``).
     """
 
-    scene: str
+    scene: scenes.Scene
     method: str
     converged: bool
     iterations: int
@@ -52,17 +52,14 @@ class Result:
     indicators: dict[str, np.ndarray] = field(default_factory=dict)
     levels: dict[str, np.ndarray] = field(default_factory=dict)
     held: OnSigma | None = None  # rank 0 of a run whose ranks wrote the result: all it holds (no mesh, no solution)
-    #: The files the run read (scene, mesh and the files it reaches) -> how: :meth:`save` never replaces them.
+    #: The files the run read (scene, mesh and the files it reaches) -> how: :func:`ddsolve.io.save` never replaces them.
     inputs: dict[Path, str] = field(default_factory=dict, compare=False)
     #: The result file this result was last read from or saved to, if any.
     path: Path | None = field(default=None, compare=False)
 
     def __repr__(self) -> str:
         """A few lines: what was solved, how, the energy, G and the file (the arrays are attributes)."""
-        try:
-            title = self.parsed_scene.title
-        except DDSolveError:  # a result file's scene that does not parse: the rest still describes it
-            title = "(scene not readable)"
+        title = self.scene.title
         state = "converged" if self.converged else "NOT converged"
         G = self.G
         tips = ("no crack tips" if len(G) == 0 else f"G at {len(G)} tip{'s' * (len(G) > 1)} "
@@ -72,11 +69,6 @@ class Result:
         return (f"<Result of {title!r}: {self.method}, {state} after {self.iterations} iterations on {self.ranks} "
                 f"rank{'s' * (self.ranks != 1)}{size}; energy {self.energy:.10e}; {tips}"
                 f"{'' if self.path is None else f'; file {self.path}'}>")
-
-    @cached_property
-    def parsed_scene(self) -> scenes.Scene:
-        """The scene of this result, parsed once (``scene`` is its canonical TOML text)."""
-        return scenes.loads(self.scene, origin="the result's scene")
 
     @property
     def energy(self) -> float:
@@ -105,21 +97,8 @@ class Result:
         without non-penetration: see :attr:`Fracture.overlaps`)."""
         return self.fracture.zones if self.fracture is not None else np.zeros((0, 2))
 
-    def save(self, path: str | Path, viewer: str = "vtu") -> list[Path]:
-        """Write the result set: the HDF5 file ``path`` and its viewer files (``vtu`` or ``xdmf``) beside
-        it, replaced together (never over a file the run read: :attr:`inputs`); returns the paths written."""
-        from ddsolve.io.hdf5 import check_result, check_viewer, write  # deferred: io is the stage above
-
-        if not isinstance(path, (str, Path)):
-            raise ArgumentError(f"save: path must be a file's path (got {type(path).__name__})")
-        check_viewer(viewer, "save: viewer")
-        check_result(Path(path), self.inputs, viewer=viewer, named="save path")
-        written = write(Path(path), self, viewer)
-        self.path = Path(path)
-        return written
-
     @classmethod
-    def from_blocks(cls, scene: str, method: str, mesh: Mesh, fields: list[np.ndarray], interface, lam: np.ndarray,
+    def from_blocks(cls, scene: scenes.Scene, method: str, mesh: Mesh, fields: list[np.ndarray], interface, lam: np.ndarray,
                     **record) -> "Result":
         """The one way a run makes its result: the four blocks' nodal displacements ``fields`` (in the order
         of BLOCKS, Σ nodes in their (tangent, normal) frames) and the multipliers ``lam`` of ``interface``,

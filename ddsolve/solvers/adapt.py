@@ -4,7 +4,7 @@ Level 0 is the scene's mesh (:func:`ddsolve.parallel.distribution.build_mesh`). 
 above the target, rank 0 refines the present mesh by newest-vertex bisection
 (:mod:`ddsolve.mesh.bisection`, new boundary vertices on the geometry's curves, :mod:`ddsolve.mesh.curves`)
 and broadcasts it; every level is an ordinary domain-decomposition solve
-(:func:`ddsolve.solvers.driver.solve`) with its error estimate.
+(:func:`ddsolve.solvers.driver.solve_decomposed`) with its error estimate.
 
 The marking aims at the target in one step (:func:`plan`): bisecting a cell multiplies its share of η²
 by 2^-p for degree p (each child carries 2^-(p+1): η_K² ∝ h_K^(2p+2) where the solution is smooth), and
@@ -31,7 +31,7 @@ import numpy as np
 from mpi4py import MPI
 
 from ddsolve.errors import DDSolveError, NotConvergedError
-from ddsolve.io import hdf5 as io
+from ddsolve.io import hdf5
 from ddsolve.mesh import bisection, curves
 from ddsolve.mesh.mesh import BLOCKS, SIGMA, Mesh, signed_areas
 from ddsolve.parallel import distribution
@@ -88,11 +88,11 @@ def _silent(_line: str) -> None:
     pass
 
 
-def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, level=None) -> Result | None:
+def solve_adaptively(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, level=None) -> Result | None:
     """Refine until the estimated relative energy-norm error is at most ``scene.mesh.target_error``.
 
     ``level(mesh, scene, refined_next)`` solves one level (on every rank; the result on rank 0): by default
-    the domain decomposition (:func:`ddsolve.solvers.driver.solve`, which asks ``refined_next`` for the
+    the domain decomposition (:func:`ddsolve.solvers.driver.solve_decomposed`, which asks ``refined_next`` for the
     decision after the level, :class:`NextLevel`, as soon as the estimate is known, and leaves out G, its
     modes and the reactions of a level that is refined next); ``reference`` passes the monolithic solve.  Prints a
     line per level on rank 0 (via ``progress``); writes the last level's result with the level table and, for
@@ -109,7 +109,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, lev
     decomposed = level is None
     if decomposed:
         def level(mesh: Mesh, solved: Scene, refined_next: Callable[[Result], bool] | None) -> Result | None:
-            return driver.solve(solved, comm, None, progress=_silent, mesh=mesh, refined_next=refined_next)
+            return driver.solve_decomposed(solved, comm, None, progress=_silent, mesh=mesh, refined_next=refined_next)
     project = curves.projector(scene)
     startup, started = launch_age(), time.perf_counter()
     refined, rows, result, message, refining = None, [], None, "", 0.0
@@ -150,7 +150,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, lev
         result.timings["startup"] = startup  # the levels' own phases start at 0
     if output is not None:
         written = time.perf_counter()
-        collective(comm, lambda: io.write(output, result, final=True), root_only=True)
+        collective(comm, lambda: hdf5.write(output, result, final=True), root_only=True)
         if result is not None:
             result.timings["write"] = time.perf_counter() - written
     if message:

@@ -209,7 +209,7 @@ def factors(scene: Scene, comm, mesh: Mesh, progress: Callable[[str], None] | No
     try:
         def solve(scaled: Scene) -> Result | None:
             driver.reload(setup, scaled)
-            return driver.solve(scaled, comm, None, progress=_quiet, setup=setup)
+            return driver.solve_decomposed(scaled, comm, None, progress=_quiet, setup=setup)
 
         return roots(scene, comm, solve, progress)
     finally:

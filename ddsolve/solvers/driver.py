@@ -274,7 +274,7 @@ def bound(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, iterations: in
         setup.destroy()
 
 
-def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mesh: Mesh | None = None,
+def solve_decomposed(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mesh: Mesh | None = None,
           setup: Setup | None = None, gather: bool = True, factors: np.ndarray | None = None,
           refined_next: Callable[[Result], bool] | None = None) -> Result | None:
     """Run the domain decomposition for ``scene`` on ``comm``; write ``output``.

@@ -227,7 +227,7 @@ class Growth:
         """The whole result on ``mesh`` (from :meth:`mesh_for`) at ``control`` (rank 0; None elsewhere)."""
         from ddsolve.solvers import driver
 
-        result = driver.solve(self.scene.scaled(control), self.comm, None, progress=lambda line: None, mesh=mesh)
+        result = driver.solve_decomposed(self.scene.scaled(control), self.comm, None, progress=lambda line: None, mesh=mesh)
         self.solves += 1
         return result
 

@@ -71,7 +71,7 @@ def merged_system(systems: list[BlockSystem], numbers: list[np.ndarray]) -> Bloc
     return BlockSystem("reference", indptr, indices, data, rhs, np.zeros(0, dtype=np.int64), size, block_size=1)
 
 
-def solve(scene: Scene, mesh: Mesh, factors: np.ndarray | None = None) -> Result:
+def solve_monolithic(scene: Scene, mesh: Mesh, factors: np.ndarray | None = None) -> Result:
     """Solve the scene's discrete problem exactly; return it in the result schema (``factors``: the tips'
     critical load factors where a root solve found them, see :func:`ddsolve.post.toughness.judge`)."""
     tips, table, _ = whole_mesh_checks(scene, mesh)  # the solver's checks: a structure that can move is refused
@@ -124,7 +124,7 @@ def solve(scene: Scene, mesh: Mesh, factors: np.ndarray | None = None) -> Result
                f"{constraints.kkt_tolerance(None):g}): the problem is too ill-conditioned for double precision"
                if violations else "")
     result = Result.from_blocks(
-        scene.text, "reference", mesh, fields, interface, lam, converged=not violations, iterations=step,
+        scene, "reference", mesh, fields, interface, lam, converged=not violations, iterations=step,
         solves=step, wall_time=elapsed, ranks=1, history=np.array(history),
         active_set_changes=np.array(changes, dtype=np.int64),
         timings={"factorization": factorization, "total": elapsed}, message=message,

@@ -26,20 +26,20 @@ def _before_work(scene: Scene, ranks: int = 1) -> None:
     check_out_of_core(scene.solver.out_of_core)
 
 
-def solve(scene: Scene, comm, output: Path | None, progress: Callable[[str], None] = print,
+def decomposition(scene: Scene, comm, output: Path | None, progress: Callable[[str], None] = print,
           gather: bool = True) -> Result | None:
     """The domain decomposition of ``scene`` on every rank of ``comm``, adaptive when the scene asks;
     ``output`` written.  The result on rank 0, None elsewhere; not ``gather``: the ranks write their
     parts of ``output`` and rank 0's result holds only Σ, the scalars and G (see
-    :func:`ddsolve.solvers.driver.solve`).  A scene with a toughness and a temperature change has its
+    :func:`ddsolve.solvers.driver.solve_decomposed`).  A scene with a toughness and a temperature change has its
     critical load factors found first, by solves of the scaled scene on the same mesh and factors
     (:func:`ddsolve.solvers.critical.factors`), so that the file written holds them; the search is the
     launch's phase ``critical_factors``."""
     collective(comm, lambda: _before_work(scene, comm.size), root_only=True)
     if scene.mesh.target_error is not None:
-        return adapt.solve(scene, comm, output, progress=progress)
+        return adapt.solve_adaptively(scene, comm, output, progress=progress)
     if not critical.needed(scene):
-        return driver.solve(scene, comm, output, progress=progress, gather=gather)
+        return driver.solve_decomposed(scene, comm, output, progress=progress, gather=gather)
     phases = Phases(launch_age())
     mesh = build_mesh(scene, comm)  # whole on every rank: the scaled scenes' prescribed values need both halves
     phases.end("meshing")
@@ -49,7 +49,7 @@ def solve(scene: Scene, comm, output: Path | None, progress: Callable[[str], Non
         driver.reload(setup, scene)
         setup.phases = phases
         phases.end("critical_factors")
-        return driver.solve(scene, comm, output, progress=progress, gather=gather, setup=setup, factors=found)
+        return driver.solve_decomposed(scene, comm, output, progress=progress, gather=gather, setup=setup, factors=found)
     finally:
         setup.destroy()
 
@@ -62,13 +62,13 @@ def reference(scene: Scene, output: Path | None = None, progress: Callable[[str]
     if scene.mesh.target_error is not None:  # adaptive, every level solved by the reference
         from mpi4py import MPI
 
-        result = adapt.solve(scene, MPI.COMM_SELF, output, progress=progress,
-                             level=lambda mesh, solved, _refined_next: monolithic.solve(solved, mesh))
+        result = adapt.solve_adaptively(scene, MPI.COMM_SELF, output, progress=progress,
+                             level=lambda mesh, solved, _refined_next: monolithic.solve_monolithic(solved, mesh))
     else:
         mesh = geometry.build(scene)
-        found = critical.search(scene, lambda lam: monolithic.solve(scene.scaled(lam), mesh).fracture, progress) \
+        found = critical.search(scene, lambda lam: monolithic.solve_monolithic(scene.scaled(lam), mesh).fracture, progress) \
             if critical.needed(scene) else None
-        result = monolithic.solve(scene, mesh, found)
+        result = monolithic.solve_monolithic(scene, mesh, found)
         if output is not None:
             hdf5.write(output, result, final=True)
     if not result.converged:

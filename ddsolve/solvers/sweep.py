@@ -292,8 +292,8 @@ def sweep(source, items: list[str], paired: bool, output: Path | None, comm, pro
                 elif not adaptive:
                     setup = driver.prepare(scene, comm, mesh)
                 try:
-                    result = (adapt.solve(scene, comm, None, progress=lambda line: None) if adaptive else
-                              driver.solve(scene, comm, None, progress=lambda line: None, setup=setup))
+                    result = (adapt.solve_adaptively(scene, comm, None, progress=lambda line: None) if adaptive else
+                              driver.solve_decomposed(scene, comm, None, progress=lambda line: None, setup=setup))
                 except NotConvergedError as exc:
                     result = getattr(exc, "result", None)
                     record["message"] = str(exc)
