@@ -7,7 +7,7 @@ reactions, the cell fields and the files.  One interface (:class:`Finisher`), tw
   of its blocks' halves (:mod:`ddsolve.mesh.pieces`) and writes its slabs of the files; rank 0's result
   holds the Σ data, the scalars and G.
 
-:func:`chosen` says which; the driver (:func:`ddsolve.solvers.driver.solve`) makes it from its setup
+:func:`chosen` says which; the driver (:func:`ddsolve.solvers.driver.solve_decomposed`) makes it from its setup
 (:class:`ddsolve.solvers.driver.Setup`) after the method, then calls :meth:`Finisher.collect`,
 :meth:`Finisher.result` and :meth:`Finisher.write` in turn, on every rank.
 """
@@ -67,7 +67,7 @@ class Finisher(ABC):
     def result(self, record: dict, factors: np.ndarray | None = None,
                refined_next: Callable[[Result], bool] | None = None) -> Result | None:
         """The result on rank 0 (None elsewhere) with ``record`` (its scalars and histories), the estimate,
-        G and its modes (``factors``: the critical load factors, :func:`ddsolve.solvers.driver.solve`) and the
+        G and its modes (``factors``: the critical load factors, :func:`ddsolve.solvers.driver.solve_decomposed`) and the
         reactions; the files' contents ready (collective)."""
 
     @abstractmethod
