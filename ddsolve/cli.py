@@ -211,7 +211,7 @@ def cmd_grow(args, petsc_options: list[str]) -> int:
 
     from ddsolve.io.hdf5 import check_result
     from ddsolve.parallel.exchange import collective
-    from ddsolve.solvers import grow
+    from ddsolve.solvers import grow, growth_files
 
     comm = MPI.COMM_WORLD
     started = time.perf_counter()
@@ -221,7 +221,7 @@ def cmd_grow(args, petsc_options: list[str]) -> int:
     steps = grow.grow(scene, comm, args.limit, args.steps, args.tolerance, progress=_root_print, output=output,
                       pictures=args.pictures, inputs=_inputs(args, scene))
     if steps is not None:
-        files = grow.Outputs(output)
+        files = growth_files.Outputs(output)
         unstable = sum(step.unstable for step in steps)
         for index, step in enumerate(steps):
             for event in step.events:

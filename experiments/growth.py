@@ -118,13 +118,13 @@ def run(scene, limit: float, steps: int, name: str) -> dict:
     from mpi4py import MPI
 
     from ddsolve.post import plots
-    from ddsolve.solvers import grow
+    from ddsolve.solvers import grow, growth_files
 
     started = time.perf_counter()
     path = RESULTS / f"{name}.h5"
     grow.grow(scene, MPI.COMM_SELF, limit, steps, TOLERANCE, progress=lambda line: print(line, flush=True),
               output=path)
-    data = grow.read(path)
+    data = growth_files.read(path)
     plots.growth_curves(data, (DOCS / f"growth-{name}.png") if name in DRAWN else path.with_suffix(".png"))
     data["seconds"] = time.perf_counter() - started
     print(f"growth: {name}: {len(data['control']) - 1} steps, {int(data['solves'].sum())} solves, "

@@ -71,12 +71,12 @@ def _files(hostile, stem: str):
 def _output(hostile, stem: str):
     """A note on a growth file: its steps, its last event and its boundaries."""
     def observe(completed) -> str:
-        from ddsolve.solvers import grow
+        from ddsolve.solvers import growth_files
 
         path = hostile.folder / f"{stem}.h5"
         if completed.returncode != 0 or not path.exists():
             return ""
-        data = grow.read(path)
+        data = growth_files.read(path)
         last = next((event for event in data["events"][::-1] if event), "")
         return (f"; {len(data['control'])} steps, last event «{last[:160]}»; boundaries "
                 f"{', '.join(data['boundaries']) or 'none'}")

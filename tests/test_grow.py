@@ -14,7 +14,7 @@ from experiments import growth as experiment
 from ddsolve.post import toughness
 from ddsolve.problem import expressions
 from ddsolve.problem.scene import Scene
-from ddsolve.solvers import grow
+from ddsolve.solvers import grow, growth_files
 
 #: Coarse P2 strips: the DCB's stable branch still follows corrected beam theory to well under 1 %.
 SIZE = 0.25
@@ -62,7 +62,7 @@ def test_dcb_opening_grows_stably_on_corrected_beam_theory(tmp_path):
     factor = toughness.critical_factor(result.fracture.G, toughness.resistance(scene, result.fracture))
     initiation = next(s for s in steps if s.events and s.events[0].startswith("initiation"))
     assert initiation.state.control == pytest.approx(float(factor.min()), rel=1e-6)
-    data = grow.read(tmp_path / "dcb.h5")
+    data = growth_files.read(tmp_path / "dcb.h5")
     count = len(steps)
     assert data["control"].shape == data["load"].shape == data["energy"].shape == (count,)
     assert data["cracks"].shape == (count, 1, 2) and data["G"].shape == (count, 1)
@@ -177,7 +177,7 @@ def test_grow_command_on_two_ranks(tmp_path):
     assert "initiation" in completed.stdout and "stable growth" in completed.stdout
     assert output.with_suffix(".png").stat().st_size > 0
     assert len(list(tmp_path.glob("dcb-step*.png"))) == 2
-    data = grow.read(output)
+    data = growth_files.read(output)
     assert data["cracks"][-1, 0, 1] > experiment.DCB_CRACK
     bad = ddsolve("grow", str(tmp_path / "dcb-displacement-0.25.toml"), "--to", "-1", check=False)
     refused(bad, 2, "--to")

@@ -18,7 +18,7 @@ from ddsolve.io import safe
 from ddsolve.post import toughness
 from ddsolve.post.result import Fracture
 from ddsolve.problem.scene import Scene
-from ddsolve.solvers import critical, grow
+from ddsolve.solvers import critical, grow, growth_files
 
 FEW = settings(derandomize=True, max_examples=25, deadline=None)
 PARTIAL = ["mesh.sigma_vertices=13", "mesh.boundary_vertices=16", "fracture.toughness=4.61e-7"]
@@ -103,7 +103,7 @@ def test_every_path_of_the_set_is_checked_before_work(tmp_path_factory, obstacle
         os.mkfifo(target)
     elif obstacle == "file" and target != scene:
         target.write_text("earlier")
-    files = grow.Outputs(folder / "g.h5")
+    files = growth_files.Outputs(folder / "g.h5")
     named = {files.csv.name, files.curves.name} | {p.name for p in files.step_pictures()}
     bad = (obstacle in ("directory", "fifo") and name in named and target != scene) or scene.name in named
     try:
@@ -135,7 +135,7 @@ def test_the_set_is_checked_first_and_written_whole(tmp_path):
     assert "(2 × initiation)" in done.stdout and "event at step" in done.stdout
     first = sorted(p.name for p in tmp_path.iterdir())
     assert {"g.h5", "g.csv", "g.png"} <= set(first) and sum("-step" in name for name in first) == 3
-    data = grow.read(out)
+    data = growth_files.read(out)
     initiation = next(c for c, e in zip(data["control"], data["events"]) if e.startswith("initiation"))
     assert math.isclose(data["attrs"]["limit"], grow.DEFAULT_MULTIPLE * initiation, rel_tol=1e-12)
     for forces in data["boundaries"].values():
@@ -187,7 +187,7 @@ toughness = 1e-9
     last = steps[-1].events[-1]
     assert last.startswith("end: the cracks would meet as (0, 6) and free a part: blocks u_plus, v_plus can "
                            "translate and rotate freely"), last
-    assert len(grow.read(tmp_path / "d.h5")["control"]) == len(steps)
+    assert len(growth_files.read(tmp_path / "d.h5")["control"]) == len(steps)
 
 
 def fracture(G: np.ndarray) -> Fracture:

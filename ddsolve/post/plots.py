@@ -276,7 +276,7 @@ def convergence(results: list[tuple[str, Result]], path: Path) -> list[Curve]:
 
 
 def growth_curves(growth: dict, path: Path) -> None:
-    """The curves of a growth file (:func:`ddsolve.solvers.grow.read`): load against displacement, every
+    """The curves of a growth file (:func:`ddsolve.solvers.growth_files.read`): load against displacement, every
     crack's length against the load, and G/G_c at the tips against their crack's length (the R-curve);
     unstable steps are marked.  The title gives the tolerance every growing tip meets."""
     plt = _pyplot()
