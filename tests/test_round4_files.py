@@ -17,6 +17,7 @@ from hypothesis import strategies as st
 
 import ddsolve as api
 from ddsolve.io import hdf5, inputs
+from experiments.hostile4_files import XDMF_SCENE
 
 #: The SMALL mesh as overrides of the API.
 SMALL_KEYS = {"mesh.sigma_vertices": 13, "mesh.boundary_vertices": 32}
@@ -30,24 +31,7 @@ def xdmf_scene(folder: Path) -> tuple[Path, Path]:
     meshio.write(folder / "box.xdmf", meshio.Mesh(points, [("triangle", cells)]))
     assert b"box.h5:/" in (folder / "box.xdmf").read_bytes()
     scene = folder / "x.toml"
-    scene.write_text(textwrap.dedent("""\
-        [geometry]
-        crack = [-0.5, 0.5]
-        [mesh]
-        file = "box.xdmf"
-        [materials.layer1]
-        E = 200.0
-        nu = 0.28
-        [materials.layer2]
-        E = 112.0
-        nu = 0.32
-        [loads.layer1.bottom]
-        y = [0.0, 0.078125]
-        [loads.layer1.top]
-        y = [0.0, -0.078125]
-        [fracture]
-        toughness = 1e-6
-        """))
+    scene.write_text(XDMF_SCENE)
     return scene, folder / "box.h5"
 
 

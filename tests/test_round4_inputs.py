@@ -24,6 +24,7 @@ from ddsolve.fem import assembly, supports
 from ddsolve.post.result import Result
 from ddsolve.problem import expressions, scene
 from ddsolve.problem.scene import Geometry
+from experiments.hostile4_inputs import DCB_GEO
 
 FUZZ = settings(derandomize=True, max_examples=25, deadline=None)
 #: The paper's square, heated, on the structured mesh (no crack): a scene for the range checks.
@@ -248,17 +249,6 @@ def test_target_error_alone_on_a_box_starts_from_a_coarse_mesh(width, height, wh
 
 
 # --- end to end: the command line (MPI) ---------------------------------------------------------------------------
-DCB_GEO = """lc = 0.5;
-Point(1) = {0, -1, 0, lc}; Point(2) = {10, -1, 0, lc}; Point(3) = {10, 0, 0, lc}; Point(4) = {10, 1, 0, lc};
-Point(5) = {0, 1, 0, lc}; Point(6) = {0, 0, 0, lc}; Point(7) = {3, 0, 0, lc};
-Line(1) = {1, 2}; Line(2) = {2, 3}; Line(3) = {3, 4}; Line(4) = {4, 5}; Line(5) = {5, 6}; Line(6) = {6, 1};
-Line(7) = {6, 7}; Line(8) = {7, 3};
-Curve Loop(1) = {1, 2, -8, -7, 6}; Plane Surface(1) = {1};
-Curve Loop(2) = {7, 8, 3, 4, 5}; Plane Surface(2) = {2};
-Physical Surface("lower") = {1}; Physical Surface("upper") = {2};
-Physical Curve("sigma") = {7, 8}; Physical Curve("crack") = {7}; Physical Curve("clamped") = {2, 3};
-Physical Curve("left_lower") = {6}; Physical Curve("left_upper") = {5};
-"""
 #: A double cantilever whose arms' ends are pushed through each other (δ = 0.02).
 CLOSING = """[mesh]
 file = "dcb.geo"

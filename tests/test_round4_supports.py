@@ -19,24 +19,10 @@ from ddsolve.mesh.gmsh_io import session, write_msh
 from ddsolve.post.result import Fracture
 from ddsolve.problem import scene
 from ddsolve.solvers import reference
+from experiments.hostile4_supports import STRIP as STRIP_SCENE
 
-#: A strip (0, 4) x (-0.5, 0.5) with an edge crack (0, 1), clamped on the right, and a point support of layer 1.
-STRIP = """
-[geometry]
-box = [0.0, 4.0, -0.5, 0.5]
-cracks = [[0.0, 1.0]]
-clamped = ["right"]
-[mesh]
-size = 0.25
-[materials.layer1]
-E = 200.0
-nu = 0.28
-[materials.layer2]
-E = 112.0
-nu = 0.32
-[loads.layer1.top]
-y = -1e-3
-[displacements.layer1.spot]
+#: The strip of the point supports' examples, with a point support of layer 1 at {x}, {y}.
+STRIP = STRIP_SCENE + """[displacements.layer1.spot]
 point = [{x}, {y}]
 y = 0.0
 """
