@@ -376,7 +376,9 @@ def cmd_mesh(args, _petsc_options) -> int:
           f"degree {mesh.degree}, boundaries: {', '.join(mesh.boundary_names())}")
     if args.output is not None:
         safe.atomic(Path(args.output), lambda name: gmsh_io.write_msh(mesh, Path(name)), final=True)
-        print(f"wrote {args.output} (gmsh, physical groups lower, upper, {', '.join(sorted(mesh.lower.boundaries.keys() | mesh.upper.boundaries.keys()))})")
+        groups = sorted(mesh.lower.boundaries.keys() | mesh.upper.boundaries.keys()
+                        | mesh.lower.named_points.keys() | mesh.upper.named_points.keys())
+        print(f"wrote {args.output} (gmsh, physical groups lower, upper, {', '.join(groups)})")
     return 0
 
 
