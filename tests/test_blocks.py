@@ -174,3 +174,33 @@ def test_out_of_core_factors_give_the_in_core_answers_and_leave_no_files(system,
     assert np.allclose(answers[1][0], answers[0][0], rtol=1e-12, atol=1e-15 * np.abs(answers[0][0]).max())
     if schur:
         assert np.allclose(answers[1][1], answers[0][1], rtol=1e-12, atol=1e-12 * np.abs(answers[0][1]).max())
+
+
+@pytest.mark.skipif(default_factor_package("mumps") != "mumps", reason="PETSc without MUMPS")
+@pytest.mark.parametrize("route", ["factorization", "inverse", "solves", "one by one"])
+def test_a_floating_blocks_schur_complement_is_its_condensed_stiffness_by_every_route(system, route):
+    """A block with no support (K singular, K_II not): MUMPS's partial factorization (``factorization``),
+    multi-column Dirichlet solves (the other routes) and single Dirichlet solves (an iterative Dirichlet
+    solver) all give K_ΣΣ − K_ΣI K_II⁻¹ K_IΣ, singular on the rigid motions."""
+    K = dense(system)
+    trace = system.trace_dofs
+    inner = np.setdiff1d(np.arange(system.size), trace)
+    expected = K[np.ix_(trace, trace)] - K[np.ix_(trace, inner)] @ np.linalg.solve(K[np.ix_(inner, inner)],
+                                                                                   K[np.ix_(inner, trace)])
+    options = PETSc.Options()
+    settings = ({"u_minus_dirichlet_ksp_type": "cg", "u_minus_dirichlet_pc_type": "jacobi",
+                 "u_minus_dirichlet_ksp_rtol": 1e-14, "u_minus_schur_complement": "solves"} if route == "one by one"
+                else {"u_minus_schur_complement": route})
+    try:
+        for key, value in settings.items():
+            options[key] = value
+        block = Block(system, factor_package="mumps")
+        block.make_floating(np.zeros((3, system.size)))
+        block.factor(schur=True)
+        block.factor_dirichlet()
+        S = block.schur_complement()
+    finally:
+        for key in settings:
+            options.delValue(key)
+    assert np.abs(S - expected).max() < 1e-8 * np.abs(expected).max()
+    block.destroy()

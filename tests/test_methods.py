@@ -55,3 +55,17 @@ def test_every_method_a_scene_names_is_described_once_in_the_registry():
     assert registry.before_meshing(AUTO.name, 2) is AUTO
     assert set(registry.floating_methods()) <= set(registry.METHODS)
 
+
+
+def test_least_squares_of_a_singular_interface_stiffness_is_the_least_norm_solution():
+    """schur's t⁰ of a floating block: S⁺ g by one shifted Cholesky factorization, as by an SVD."""
+    from ddsolve.dd.schur import least_squares
+
+    rng = np.random.default_rng(3)
+    kernel = rng.standard_normal((40, 3))
+    basis = np.linalg.qr(np.hstack([kernel, rng.standard_normal((40, 37))]))[0][:, 3:]
+    S = basis @ np.diag(rng.uniform(1.0, 1e4, 37)) @ basis.T
+    g = rng.standard_normal(40)
+    assert np.allclose(least_squares(S, g, kernel), np.linalg.lstsq(S, g, rcond=None)[0], rtol=1e-9, atol=1e-12)
+    assert np.allclose(least_squares(S[:3, :3] + np.eye(3), g[:3], np.zeros((3, 0))),
+                       np.linalg.solve(S[:3, :3] + np.eye(3), g[:3]))

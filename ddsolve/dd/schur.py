@@ -64,6 +64,20 @@ def triangular_solve(L: np.ndarray, b: np.ndarray, transpose: bool = False, bloc
     return x
 
 
+def least_squares(S: np.ndarray, g: np.ndarray, kernel: np.ndarray) -> np.ndarray:
+    """The least-squares solution of least norm of S t = g for a symmetric positive semidefinite S whose
+    null space is spanned by the columns of ``kernel`` (none: S invertible), by one Cholesky factorization:
+    with Z an orthonormal basis of the kernel, t = (S + s Z Zᵀ)⁻¹ (g − Z Zᵀ g) is orthogonal to Z and
+    solves S t = g − Z Zᵀ g (s: S's largest diagonal entry, which keeps the shifted matrix's scale)."""
+    import scipy.linalg  # here, on rank 0 (see ExactDual)
+
+    Z = np.linalg.qr(kernel)[0] if kernel.shape[1] else kernel
+    shift = float(np.abs(np.diag(S)).max(initial=1.0))
+    projected = g - Z @ (Z.T @ g)
+    return scipy.linalg.cho_solve(scipy.linalg.cho_factor(S + shift * Z @ Z.T, check_finite=False), projected,
+                                  check_finite=False)
+
+
 def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progress) -> Outcome:
     """Exact solve from the blocks' Schur complements S_b on Σ; three rounds in all (one more for each
     refinement the final solve asks for).
@@ -86,7 +100,8 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
     schur_complements = rounds.schur_complements()
     if rounds.floating:  # no K_b⁻¹ f_b for a floating block: its condensed load g_b, by its interior
         condensed = rounds.condensed_loads(schur_complements)
-        least = [np.linalg.lstsq(S_b, g_b, rcond=None)[0] for S_b, g_b in zip(schur_complements, condensed)]
+        least = [least_squares(S_b, g_b, kernel) for S_b, g_b, kernel in
+                 zip(schur_complements, condensed, rounds.kernel_traces)]
         problem = DualProblem(rounds, interface, solver, initial=np.array(least))  # t⁰ for the criterion's scale
     else:
         problem = DualProblem(rounds, interface, solver)

@@ -14,6 +14,7 @@ import functools
 import math
 import os
 import re
+from typing import Callable
 
 import numpy as np
 from petsc4py import PETSc
@@ -139,6 +140,10 @@ class Block:
         asks); ``inverse`` (MUMPS, one rank): a plain factorization (AMF), then :meth:`inverse_entries`;
         ``solves``: a plain factorization, then :meth:`flexibility`.  Blocks on several ranks, or not
         factored by MUMPS, use ``solves``.
+
+        A floating block's K is singular and never solved with: with the ``factorization`` route MUMPS
+        eliminates its interior only (K_II is invertible) and hands over S; with another route nothing is
+        factored here and :meth:`schur_complement` takes S from the Dirichlet factorization.
         """
         pc = self.ksp.getPC()
         if schur:
@@ -150,6 +155,8 @@ class Block:
                            and _petsc_c() is not None)
             self.route = route if whole_mumps else "solves"
         schur = schur and self.route == "factorization"
+        if self.floating and self._fixed_matrix is None and not schur:  # K singular: nothing to factor
+            return
         controls = {MUMPS_OUT_OF_CORE: 1} if out_of_core else {}
         try:
             if schur:
@@ -166,7 +173,8 @@ class Block:
                 # otherwise every later solve factors it again.
                 factor = pc.getFactorMatrix().handle
                 self._schur = _schur_complement(factor, len(self.trace_dofs))
-                _call("MatFactorFactorizeSchurComplement", factor)
+                if not self.floating:  # a floating block's S is singular: K is never solved with
+                    _call("MatFactorFactorizeSchurComplement", factor)
         except PETSc.Error as exc:
             raise SolverError(f"block {self.name}: solver setup failed: "
                               f"{petsc_failure(exc, self.ksp.getOptionsPrefix())}") from None
@@ -373,6 +381,8 @@ class Block:
                 return stored
             if np.abs(stored - stored.T).max() <= 1e-12 * np.abs(stored).max():
                 return 0.5 * (stored + stored.T)
+        if self.floating:
+            return self.interface_stiffness()
         flexibility = self.inverse_entries() if self.route == "inverse" else self.flexibility()
         return np.linalg.inv(flexibility) if self.is_leader else None
 
@@ -405,32 +415,41 @@ class Block:
 
     def flexibility(self) -> np.ndarray | None:
         """Dense (2k, 2k) interface flexibility E K⁻¹ Eᵀ on the leader, by multi-column solves."""
+        def columns_of(units: PETSc.Mat, solve: Callable[[PETSc.Mat, PETSc.Mat], None]) -> np.ndarray:
+            X = _dense_like(units)
+            solve(units, X)
+            out = X.getDenseArray()[self.trace_rows, :] / self.scale
+            X.destroy()
+            return out
+
+        return self._trace_columns(self.ksp, columns_of, lambda unit: self.solve(unit, body=False)[self.trace_rows])
+
+    def _trace_columns(self, ksp: PETSc.KSP, columns_of: Callable, one_column: Callable[[np.ndarray], np.ndarray]
+                       ) -> np.ndarray | None:
+        """A dense (2k, 2k) matrix on the leader, symmetrized, whose columns for unit traces are computed
+        _CHUNK at a time from a dense matrix of unit columns at the trace rows by ``columns_of(units,
+        solve)`` (``solve(B, X)``: X = (factored operator of ``ksp``)⁻¹ B) when ``ksp`` is a direct solver,
+        one by one by ``one_column(unit trace)`` (this rank's trace rows) otherwise."""
         k = len(self.trace_dofs)
         out = np.empty((k, k)) if self.is_leader else None
-        comm = self.matrix.getComm()
         local, n = len(self.system.rhs), self.system.size
+        direct = ksp.getType() == PETSc.KSP.Type.PREONLY and ksp.getPC().getType() in _FACTOR_TYPES
         for start in range(0, k, _CHUNK):
             columns = np.arange(start, min(start + _CHUNK, k))
-            if self.is_direct():
-                B = PETSc.Mat().createDense(((local, n), (None, len(columns))), comm=comm)
-                B.setUp()
-                dense = B.getDenseArray()
+            if direct:
+                units = PETSc.Mat().createDense(((local, n), (None, len(columns))), comm=self.matrix.getComm())
+                units.setUp()
                 chosen = (self.trace_positions >= columns[0]) & (self.trace_positions <= columns[-1])
-                dense[self.trace_rows[chosen], self.trace_positions[chosen] - columns[0]] = 1.0
-                B.assemble()
-                X = PETSc.Mat().createDense(((local, n), (None, len(columns))), comm=comm)
-                X.setUp()
-                X.assemble()
-                self.ksp.getPC().getFactorMatrix().matSolve(B, X)
-                block = X.getDenseArray()[self.trace_rows, :] / self.scale
-                B.destroy()
-                X.destroy()
+                units.getDenseArray()[self.trace_rows[chosen], self.trace_positions[chosen] - columns[0]] = 1.0
+                units.assemble()
+                block = columns_of(units, ksp.getPC().getFactorMatrix().matSolve)
+                units.destroy()
             else:
                 unit = np.zeros(k)
                 block = np.empty((len(self.trace_rows), len(columns)))
                 for j, column in enumerate(columns):
                     unit[column] = 1.0
-                    block[:, j] = self.solve(unit, body=False)[self.trace_rows]
+                    block[:, j] = one_column(unit)
                     unit[column] = 0.0
             gathered = self._gather_trace(block)
             if self.is_leader:
@@ -464,19 +483,27 @@ class Block:
         self.ksp.setOperators(self._fixed_matrix)
 
     def interface_stiffness(self) -> np.ndarray | None:
-        """S = K_ΣΣ − K_ΣI K_II⁻¹ K_IΣ on the leader, one Dirichlet solve per trace entry (only K_II is
-        inverted: a floating block's S, singular on its kernel)."""
-        k = len(self.trace_dofs)
-        unit = np.zeros(k)
-        columns = []
-        for column in range(k):
-            unit[column] = 1.0
-            columns.append(self.dirichlet(unit))
-            unit[column] = 0.0
-        if not self.is_leader:
-            return None
-        out = np.column_stack(columns)
-        return 0.5 * (out + out.T)
+        """S = K_ΣΣ − K_ΣI K_II⁻¹ K_IΣ on the leader from the Dirichlet factorization (only K_II is inverted:
+        a floating block's S, singular on its kernel): multi-column solves X = (−K_II⁻¹ K_IΣ T, T) for unit
+        traces T, then the trace rows of K X."""
+        def columns_of(units: PETSc.Mat, solve: Callable[[PETSc.Mat, PETSc.Mat], None]) -> np.ndarray:
+            held = self.matrix.matMult(units)  # K T
+            values = held.getDenseArray()
+            values *= -1.0
+            values[self.trace_rows, :] = units.getDenseArray()[self.trace_rows, :]
+            X = _dense_like(units)
+            solve(held, X)
+            forces = self.matrix.matMult(X)
+            out = forces.getDenseArray()[self.trace_rows, :] * self.scale
+            for mat in (held, X, forces):
+                mat.destroy()
+            return out
+
+        def one_column(unit: np.ndarray) -> np.ndarray:
+            self.dirichlet(unit)
+            return self._work.getArray(readonly=True)[self.trace_rows] * self.scale
+
+        return self._trace_columns(self._dirichlet, columns_of, one_column)
 
     def _held_solve(self, trace: np.ndarray) -> None:
         """self.x = (K_II⁻¹(f_I − K_IΣ t), t) for trace displacements ``t`` (on every rank of the block)."""
@@ -644,6 +671,14 @@ def _call(function: str, *args) -> None:
     code = getattr(_petsc_c(), function)(*(ctypes.c_void_p(a) if isinstance(a, int) else a for a in args))
     if code != 0:
         raise SolverError(f"PETSc {function} failed with error {code}")
+
+
+def _dense_like(B: PETSc.Mat) -> PETSc.Mat:
+    """An assembled dense matrix with the layout of ``B`` (the solution of a multi-column solve)."""
+    X = PETSc.Mat().createDense(B.getSizes(), comm=B.getComm())
+    X.setUp()
+    X.assemble()
+    return X
 
 
 def _schur_complement(factor_handle: int, size: int) -> np.ndarray:

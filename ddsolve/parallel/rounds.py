@@ -54,7 +54,7 @@ class BlockServer:
         try:
             for i, (index, block) in enumerate(zip(self.exchange.local_blocks, self.blocks)):
                 if command == SCHUR:
-                    value = block.interface_stiffness() if block.floating else block.schur_complement()
+                    value = block.schur_complement()
                 elif command in (DIRICHLET, DIAGONAL, CONDENSED, KERNEL_WORK):
                     trace = (block.dirichlet(loads[i]) if command == DIRICHLET else block.trace_diagonal()
                              if command == DIAGONAL else self._floating_value(block, command))

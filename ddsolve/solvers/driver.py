@@ -203,8 +203,7 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
         for index, block in zip(exchange.local_blocks, blocks):
             if index in floating:
                 block.make_floating(*kernel_rows[index])
-            if not (block.floating and method.floating == registry.INTERIOR):  # its interior is inverted, not K
-                block.factor(schur=method.schur_complements, out_of_core=scene.solver.out_of_core)
+            block.factor(schur=method.schur_complements, out_of_core=scene.solver.out_of_core)
             if method.dirichlet or block.floating:
                 block.factor_dirichlet(out_of_core=scene.solver.out_of_core)
 
