@@ -130,13 +130,24 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
     output = comm.bcast(collective(comm, lambda: check_outputs(args, scene), root_only=True), root=0)
     result = run.decomposition(scene, comm, output, progress=_root_print, gather=False)
     if result is not None:
-        print(f"{result.method}: converged after {result.iterations} iterations, {result.solves} rounds of "
-              f"block solves, {result.wall_time:.3f} s on {result.ranks} ranks -> {output}", flush=True)
+        print(f"{result.method}: converged after {result.iterations} iterations{active_set_part(result)}, "
+              f"{result.solves} rounds of block solves, {result.wall_time:.3f} s on {result.ranks} ranks -> {output}",
+              flush=True)
         print(estimate_line(result), flush=True)
         print(launch_line(result), flush=True)
         _print_refinement(scene, result)
         _print_fracture(result)
     return 0
+
+
+def active_set_part(result) -> str:
+    """`` (S active-set steps[, T s each])`` when the method counts its active-set steps (and times them)."""
+    steps = int(result.attrs.get("active_set_steps", 0))
+    if not steps:
+        return ""
+    seconds = result.attrs.get("active_set_time")
+    each = f", {float(seconds) / steps:.2g} s each" if seconds is not None else ""
+    return f" ({steps} active-set step{'s' if steps > 1 else ''}{each})"
 
 
 def launch_line(result) -> str:

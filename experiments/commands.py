@@ -62,6 +62,12 @@ def cmd_bench(args, petsc_options) -> int:
         bench.baseline(meshes(args.meshes or "400:512,800:1024"), ranks=args.ranks, repeats=args.repeats,
                        busy=args.busy, output=output)
         print(f"wrote {output}, docs/methods.md (bench-baseline section)")
+    elif args.what == "contact":
+        from experiments import contact
+
+        output = Path(args.output or "results/bench-contact.h5")
+        contact.contact(output)
+        print(f"wrote {output}, docs/methods.md (bench-contact section), docs/bench-contact.png")
     else:
         args.output = args.output or "results/bench-methods.h5"
         bench.methods(meshes(args.meshes), Path(args.output), Path("docs"))
@@ -85,18 +91,19 @@ def parser() -> argparse.ArgumentParser:
     for name, (_, _, summary, written) in EXPERIMENTS.items():
         sub.add_parser(name, description=f"{summary}; writes {written}").set_defaults(run=cmd_experiment)
     summary = ("`bench methods`: every method and tolerance; `bench baseline`: the default method against one MUMPS "
-               "factorization of the whole problem; `bench factor`: block factorizations")
+               "factorization of the whole problem; `bench contact`: every method against the length of Σ in contact "
+               "(ENF, ELS, a closed strip); `bench factor`: block factorizations")
     p = sub.add_parser("bench", description=summary)
     p.set_defaults(run=cmd_bench)
-    p.add_argument("what", choices=("methods", "baseline", "factor"))
+    p.add_argument("what", choices=("methods", "baseline", "contact", "factor"))
     p.add_argument("--meshes", help="comma-separated P:M pairs (default: Table 1 and 400:512; baseline: "
                    "400:512,800:1024)")
     p.add_argument("-n", dest="ranks", type=int, metavar="N",
                    help="ranks of the DD in `bench baseline` (default: 4, or fewer if there are fewer cores)")
     p.add_argument("--repeats", type=int, default=3, help="side-by-side pairs per case in `bench baseline`")
     p.add_argument("--busy", action="store_true", help="`bench baseline` with a second process keeping a core busy")
-    p.add_argument("-o", dest="output", help="HDF5 file of `methods` (default results/bench-methods.h5) or "
-                   "`baseline` (default results/bench-baseline.h5)")
+    p.add_argument("-o", dest="output", help="HDF5 file of `methods` (default results/bench-methods.h5), "
+                   "`baseline` (default results/bench-baseline.h5) or `contact` (default results/bench-contact.h5)")
     listing = [(name, summary) for name, (_, _, summary, _) in EXPERIMENTS.items()] + [("bench", summary)]
     width = max(len(name) for name, _ in listing) + 2
     top.epilog = ("experiments (each reruns its measurements and rewrites its part of docs/ and results/):\n"

@@ -32,6 +32,27 @@ def test_box_qp_satisfies_the_kkt_conditions(seed):
     assert np.allclose(y, z, atol=1e-8)
 
 
+@pytest.mark.parametrize("seed", range(4))
+def test_box_qp_steps_through_the_inverse_when_few_rows_are_active_and_a_warm_start_settles_at_once(seed):
+    """Few active rows among many: the steps through H = A⁻¹ reach the minimizer projected gradient descent
+    finds; started from its own solution the method checks it in one step."""
+    rng = np.random.default_rng(seed)
+    n = 80
+    X = rng.standard_normal((n, n))
+    A = X @ X.T + 0.5 * np.eye(n)
+    y_star = rng.standard_normal(n)
+    b = A @ y_star
+    lower = np.full(n, -np.inf)
+    lower[rng.choice(n, 6, replace=False)] = 0.5  # a few bounds, some of them active
+    upper = np.full(n, np.inf)
+    seen = []
+    y, steps = box_qp(A, b, lower, upper, observe=lambda y, changed: seen.append(changed))
+    assert steps >= 2 and seen[-1] == 0
+    assert np.abs(projected_gradient(y, A @ y - b, lower, upper)).max() < 1e-9 * np.abs(b).max()
+    again, one = box_qp(A, b, lower, upper, start=y)
+    assert one == 1 and np.allclose(again, y, rtol=1e-10, atol=1e-10)
+
+
 def test_kkt_criterion_is_scale_free_and_zero_for_nothing_to_do():
     A, b, lower, upper = random_problem(3)
     y = np.zeros_like(b)

@@ -14,22 +14,45 @@ from ddsolve.errors import SolverError
 from ddsolve.problem.scene import Solver
 
 
-def box_qp(A: np.ndarray, b: np.ndarray, lower: np.ndarray, upper: np.ndarray,
-           max_steps: int = 200, observe: Callable[[np.ndarray, int], None] | None = None) -> tuple[np.ndarray, int]:
+def box_qp(A: np.ndarray, b: np.ndarray, lower: np.ndarray, upper: np.ndarray, max_steps: int = 200,
+           observe: Callable[[np.ndarray, int], None] | None = None, start: np.ndarray | None = None
+           ) -> tuple[np.ndarray, int]:
     """Minimize ½ yᵀAy − bᵀy over lower ≤ y ≤ upper (A dense SPD) by a primal-dual active set method.
 
-    Returns the solution and the number of active-set steps.  Each step solves the free rows
-    with the active ones at their bounds; the sets are updated from the signs of the gradient on
-    active rows and the bound violations on free rows, until they no longer change.
-    ``observe(y, changes)`` is called after each step with its solution and how many rows change set.
+    Returns the solution and the number of active-set steps.  Each step solves for the free rows with
+    the active ones at their bounds; the sets are updated from the signs of the gradient on active rows
+    and the bound violations on free rows, until they no longer change.  The first step starts from the
+    rows ``start`` (a previous solution) holds at a bound, or from none: the unconstrained minimizer,
+    whose violations make the second step's set.  A step costs the factorization of the smaller of the
+    two sets' blocks: A_ff directly, or, once the active set is the smaller, H_aa of H = A⁻¹ (factored
+    once): y = H(b + Eₐμ) with H_aa μ = y_a − (Hb)_a.  ``observe(y, changes)`` is called after each
+    step with its solution and how many rows change set.
     """
-    at_lower = np.zeros(len(b), dtype=bool)
-    at_upper = np.zeros(len(b), dtype=bool)
+    import scipy.linalg  # on rank 0 only (see ExactDual)
+
+    if start is None:
+        at_lower = np.zeros(len(b), dtype=bool)
+        at_upper = np.zeros(len(b), dtype=bool)
+    else:
+        at_lower, at_upper = start <= lower, start >= upper
+    inverse = loaded = None  # H = A⁻¹ and H b, made at the first step whose active set is the smaller
     for step in range(1, max_steps + 1):
         y = np.where(at_lower, lower, np.where(at_upper, upper, 0.0))
         free = ~(at_lower | at_upper)
         fixed = ~free
-        if free.any():
+        if inverse is None and 0 < fixed.sum() < free.sum():
+            factor = scipy.linalg.cho_factor(A, check_finite=False)
+            inverse = scipy.linalg.cho_solve(factor, np.eye(len(b)), check_finite=False)
+            loaded = scipy.linalg.cho_solve(factor, b, check_finite=False)
+        if inverse is not None and fixed.sum() < free.sum():
+            y_fixed = y[fixed]
+            if fixed.any():
+                mu = np.linalg.solve(inverse[np.ix_(fixed, fixed)], y_fixed - loaded[fixed])
+                y = loaded + inverse[:, fixed] @ mu
+            else:
+                y = loaded.copy()
+            y[fixed] = y_fixed
+        elif free.any():
             rhs = b[free] - A[np.ix_(free, fixed)] @ y[fixed]
             y[free] = np.linalg.solve(A[np.ix_(free, free)], rhs)
         gradient = A @ y - b
@@ -113,7 +136,8 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
     progress(steps, exact.history[-1] if exact.history else 0.0, final=True)
     outcome = Outcome(problem.multipliers(y), converged=True, iterations=steps, history=exact.history,
                       active_set_changes=exact.changes,
-                      details={"rank0_solve_time": time.perf_counter() - started, "interface_unknowns": exact.size},
+                      details={"rank0_solve_time": time.perf_counter() - started, "interface_unknowns": exact.size,
+                               "active_set_steps": exact.steps, "active_set_time": exact.step_time},
                       held=predicted)
 
     def refine(solved_traces: np.ndarray, required: bool) -> np.ndarray | None:
@@ -129,6 +153,7 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
         outcome.held = predicted
         outcome.iterations += more
         outcome.details["rank0_solve_time"] += time.perf_counter() - mark
+        outcome.details.update(active_set_steps=exact.steps, active_set_time=exact.step_time)
         return problem.multipliers(y)
 
     outcome.refine = refine
@@ -175,6 +200,9 @@ class ExactDual:
         self.lower_c, self.upper_c = problem.lower[contact], problem.upper[contact]
         self.history: list[float] = []
         self.changes: list[int] = []
+        self.last_c: np.ndarray | None = None  # the last contact multipliers: the next solve starts from their set
+        self.last: np.ndarray | None = None  # ... and the last multipliers with every bound
+        self.steps, self.step_time = 0, 0.0  # active-set steps so far and their seconds (with their traces)
 
     def solve(self, initial: np.ndarray, condensed: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
         """The scaled multipliers, their predicted traces and the active-set steps for uncoupled
@@ -184,13 +212,17 @@ class ExactDual:
         for g_b, numbers in zip(condensed, self.unknowns):
             body[numbers] += g_b
         loaded = triangular_solve(self.L, body)  # L⁻¹ body
-        y_c, steps = box_qp(self.dual, self.forces.T @ loaded[self.first:], lower_c, upper_c,
+        mark = time.perf_counter()
+        y_c, steps = box_qp(self.dual, self.forces.T @ loaded[self.first:], lower_c, upper_c, start=self.last_c,
                             observe=lambda y_c, changed: self.record(
                                 *self.contact_step(loaded, condensed, np.clip(y_c, lower_c, upper_c)), changed))
+        self.last_c = y_c
         y, traces = self.contact_step(loaded, condensed, y_c)
         if np.any(y < problem.lower) or np.any(y > problem.upper):  # a bound ±p is active: all bounds
             y, traces, more = self.all_bounds(initial)
             steps += more
+        self.steps += steps
+        self.step_time += time.perf_counter() - mark
         return y, traces, steps
 
     def contact_step(self, loaded: np.ndarray, condensed: np.ndarray, y_c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -225,9 +257,10 @@ class ExactDual:
         def full_step(y: np.ndarray) -> np.ndarray:
             return initial + np.einsum("bij,bj->bi", flexibilities, interface.loads(y / problem.sqrt_w))
 
-        y, more = box_qp(A, b, problem.lower, problem.upper,
+        y, more = box_qp(A, b, problem.lower, problem.upper, start=self.last,
                          observe=lambda y, changed: self.record(problem.project(y), full_step(problem.project(y)),
                                                                 changed))
+        self.last = y
         return y, full_step(y), more
 
 
