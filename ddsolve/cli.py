@@ -48,12 +48,12 @@ def _root_print(*args, **kwargs) -> None:
         print(*args, **kwargs, flush=True)
 
 
-def _load_scene(args, ranks: int = 1):
+def _load_scene(args):
     """The scene of ``args`` (with its ``--set`` items, each of which the command must read)."""
     from ddsolve.problem import scene
 
     loaded = scene.load(args.scene, args.set or [])
-    check_read(args.command, args.set or [], loaded, ranks)
+    check_read(args.command, args.set or [], loaded)
     if args.command != "mesh":
         runtime.check_out_of_core(loaded.solver.out_of_core, args.petsc)
     return loaded
@@ -97,7 +97,7 @@ def _launch(args, petsc_options: list[str], scene_checks: bool) -> None:
     from ddsolve.io import viewer
 
     if scene_checks:
-        scene = _load_scene(args, args.ranks)
+        scene = _load_scene(args)
         check_size(scene, args.ranks)
         output = check_outputs(args, scene)
         outputs = [output, *viewer.viewer_paths(output.parent, output.stem)]
@@ -126,7 +126,7 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
     from ddsolve.solvers import run
 
     comm = MPI.COMM_WORLD
-    scene = comm.bcast(collective(comm, lambda: _load_scene(args, comm.size), root_only=True), root=0)
+    scene = comm.bcast(collective(comm, lambda: _load_scene(args), root_only=True), root=0)
     output = comm.bcast(collective(comm, lambda: check_outputs(args, scene), root_only=True), root=0)
     result = run.decomposition(scene, comm, output, progress=_root_print, gather=False)
     if result is not None:
@@ -226,7 +226,7 @@ def cmd_grow(args, petsc_options: list[str]) -> int:
 
     comm = MPI.COMM_WORLD
     started = time.perf_counter()
-    scene = comm.bcast(collective(comm, lambda: _load_scene(args, comm.size), root_only=True), root=0)
+    scene = comm.bcast(collective(comm, lambda: _load_scene(args), root_only=True), root=0)
     output = _grow_output(args)
     collective(comm, lambda: check_result(output, _inputs(args, scene), viewer=False), root_only=True)
     steps = grow.grow(scene, comm, args.limit, args.steps, args.tolerance, progress=_root_print, output=output,

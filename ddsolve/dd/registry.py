@@ -11,6 +11,7 @@ from typing import Callable
 
 from ddsolve.dd import feti, gradient, schur, uzawa
 from ddsolve.dd.dual import Outcome
+from ddsolve.mesh.mesh import BLOCKS
 from ddsolve.problem.method_options import OPTIONS, MethodOptions
 from ddsolve.problem.scene import Solver
 
@@ -78,42 +79,39 @@ def stepping_methods() -> list[str]:
     return [name for name, method in METHODS.items() if method.options.step]
 
 
-def before_meshing(name: str, ranks_per_block: int) -> MethodOptions:
-    """The options of the method ``solver.method = name`` stands for before the mesh is made: for ``auto`` on
-    whole blocks those of the method it takes for them; on distributed blocks ``auto`` chooses with the mesh."""
-    return OPTIONS[WHOLE_BLOCKS if name not in METHODS and ranks_per_block <= 1 else name]
-
-
 # --- auto: schur or feti ------------------------------------------------------------------------
-#: ``auto``'s method for whole blocks.
-WHOLE_BLOCKS = "schur"
 #: Per-block costs (seconds, n = block unknowns, c = columns, m = multiplier rounds) fitted by
 #: ``./run scaling`` on one rank (docs/scaling.md): the interface matrix of a distributed block by
 #: multi-column solves c·(n·2kΣ)^p; one block solve; a plain factorization; rank 0's dense solve of
-#: ``schur`` on nΣ ≈ 3P interface unknowns; the CG iterations of ``feti`` (about constant in P).
+#: ``schur`` on its interface unknowns (3 per Σ node); the CG iterations of ``feti`` (about constant in P);
+#: and, fitted to ``./run bench contact``'s steps, one active-set step of ``schur``'s contact problem on its
+#: crack rows (a dense factorization of at most that size).
 COST_LAWS = {"columns": (1.16e-08, 1.09), "solve": (1.18e-07, 1.10), "factor": (3.46e-08, 1.49),
-             "rank0": (4.14e-09, 2.40)}
+             "rank0": (4.14e-09, 2.40), "contact_step": (1.25e-09, 2.30)}
 FETI_ROUNDS = 60
+#: With non-penetration on the crack, ``schur`` takes at most this many active-set steps (the most
+#: ``./run bench contact`` measured: 24, the ENF) and ``feti`` this many times its rounds without contact.
+CONTACT_STEPS, FETI_CONTACT_ROUNDS = 25, 9.0
 
 
-def predicted_costs(ranks_per_block: int, unknowns: int, sigma_vertices: int) -> dict[str, float]:
-    """Seconds of what ``schur`` and ``feti`` do beyond the factorization both need, with each block
-    on ``ranks_per_block`` ranks (block work shared ideally among them, as in the cost model)."""
+def predicted_costs(ranks: int, unknowns: int, sigma_nodes: int, crack_rows: int = 0) -> dict[str, float]:
+    """Seconds of what ``schur`` and ``feti`` do on ``ranks`` ranks beyond the factorization both need, for
+    blocks of ``unknowns``, ``sigma_nodes`` on Σ and ``crack_rows`` contact multipliers (0: no contact): the
+    block work of a rank's blocks shared ideally among a block's ranks, as in the cost model."""
     law = {key: (lambda x, a=a, p=p: a * x ** p) for key, (a, p) in COST_LAWS.items()}
-    trace = 2 * sigma_vertices
-    share = 1.0 / ranks_per_block
-    schur = law["rank0"](3 * sigma_vertices)
-    if ranks_per_block > 1:  # no Schur complement from a distributed factorization: 2kΣ columns of solves
-        schur += share * law["columns"](unknowns * trace)
-    feti = share * (law["factor"](unknowns) + FETI_ROUNDS * law["solve"](unknowns))  # + the Dirichlet problem
+    per_block = max(1, ranks // len(BLOCKS))
+    share = max(1, len(BLOCKS) // ranks) / per_block  # the blocks of a rank, over the ranks of a block
+    schur = law["rank0"](3 * sigma_nodes) + (CONTACT_STEPS * law["contact_step"](crack_rows) if crack_rows else 0.0)
+    if per_block > 1:  # no Schur complement from a distributed factorization: 2kΣ columns of solves
+        schur += share * law["columns"](unknowns * 2 * sigma_nodes)
+    rounds = FETI_ROUNDS * (FETI_CONTACT_ROUNDS if crack_rows else 1.0)
+    feti = share * (law["factor"](unknowns) + rounds * law["solve"](unknowns))  # + the Dirichlet problem
     return {"schur": schur, "feti": feti}
 
 
-def choose(ranks_per_block: int, unknowns: int, sigma_vertices: int) -> str:
-    """The default method: ``schur`` for whole blocks (exact in three rounds, its Schur complements come
-    with the factorization), else whichever :func:`predicted_costs` finds cheaper."""
-    if ranks_per_block == 1:
-        return WHOLE_BLOCKS
-    costs = predicted_costs(ranks_per_block, unknowns, sigma_vertices)
+def choose(ranks: int, unknowns: int, sigma_nodes: int, crack_rows: int = 0) -> str:
+    """The default method: whichever of ``schur`` and ``feti`` :func:`predicted_costs` finds cheaper (``schur``,
+    exact in three rounds with its Schur complements from the factorization, for every structure measured
+    on whole blocks; ``feti`` where rank 0's dense interface problem outgrows the block work)."""
+    costs = predicted_costs(ranks, unknowns, sigma_nodes, crack_rows)
     return min(costs, key=costs.get)
-

@@ -47,10 +47,10 @@ NOT_MESHING = ("title", "materials", "loads", "displacements", "temperature", "c
 OUT_OF_PLANE = {"plane_stress": ("E3", "nu13", "nu23", "Dzz"), "plane_strain": ("Dzz",)}
 
 
-def unread(command: str, path: list[str], scene, ranks: int) -> str | None:
-    """Why ``command`` on ``ranks`` ranks would not read the key ``path`` of ``scene`` (None: it does)."""
+def unread(command: str, path: list[str], scene) -> str | None:
+    """Why ``command`` would not read the key ``path`` of ``scene`` (None: it does)."""
     from ddsolve.dd import registry
-    from ddsolve.mesh.mesh import BLOCKS
+    from ddsolve.problem.method_options import OPTIONS
 
     section, leaf = path[0], path[2:3]
     if command == "mesh":
@@ -69,7 +69,7 @@ def unread(command: str, path: list[str], scene, ranks: int) -> str | None:
         return ("a sweep file keeps no title" if section == "title" else "it gives only the out-of-plane stress or "
                 "strain, which a sweep file does not keep (solve and reference write it)")
     if section == "solver":
-        method = registry.before_meshing(scene.solver.method, ranks // len(BLOCKS))
+        method = OPTIONS[scene.solver.method]
         if path[1:] == ["theta"] and not method.step:
             return f"it is the step of method {_listed(registry.stepping_methods())}, and method {method.name} takes none"
         if path[1:] == ["max_iterations"] and not method.iterates:
@@ -89,7 +89,7 @@ def _point_support(scene, path: list[str]) -> bool:
     return displacement is not None and displacement.point is not None
 
 
-def check_read(command: str, items: list[str], scene, ranks: int = 1) -> None:
+def check_read(command: str, items: list[str], scene) -> None:
     """Refuse a ``--set`` item whose key (or a key of the table it sets) ``command`` would not read
     (:func:`unread`): every key a command is given is honoured or refused."""
     from ddsolve.problem.scene import parse_override, printable
@@ -101,7 +101,7 @@ def check_read(command: str, items: list[str], scene, ranks: int = 1) -> None:
 
     for item in items:
         for path in leaves(*parse_override(item)):
-            why = unread(command, path, scene, ranks)
+            why = unread(command, path, scene)
             if why is not None:
                 raise SceneError(f"--set {printable(item)}: {printable('.'.join(path))} is not read by {command}: "
                                  f"{why}; leave it out")

@@ -250,8 +250,9 @@ def resolve(scene: Scene, ranks: int, mesh: LocalMesh) -> Scene:
     """The scene with ``auto`` replaced by the method :func:`ddsolve.dd.registry.choose` picks."""
     if scene.solver.method in registry.METHODS:
         return scene
-    per_block = max(1, ranks // len(BLOCKS))
-    method = registry.choose(per_block, 2 * max(mesh.nodes.values()), int(mesh.sigma.corner.sum()))
+    sigma = mesh.sigma
+    crack_rows = int(sigma.crack[sigma.multiplier_nodes].sum()) if scene.nonpenetration else 0
+    method = registry.choose(ranks, 2 * max(mesh.nodes.values()), len(sigma.multiplier_nodes), crack_rows)
     return dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, method=method))
 
 

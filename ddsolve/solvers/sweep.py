@@ -232,7 +232,7 @@ def check_cost(items: list[str], scenes: list, runs: list[dict], ranges: list[Ra
     from ddsolve.solvers.checks import check_read, check_size
 
     check_out_of_core(any(scene.solver.out_of_core for scene in scenes))
-    check_read("sweep", items, scenes[0], ranks)
+    check_read("sweep", items, scenes[0])
 
     nodes = [geometry.estimated_vertices(scene) or 0.0 for scene in scenes]
     largest = int(np.argmax(nodes))
