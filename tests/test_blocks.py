@@ -64,11 +64,11 @@ def test_schur_complement_from_mumps_is_the_condensed_stiffness(system):
 
 
 @pytest.mark.skipif(default_factor_package("mumps") != "mumps", reason="PETSc without MUMPS")
-@pytest.mark.parametrize("route", ["inverse", "solves"])
+@pytest.mark.parametrize("route", ["dirichlet", "inverse", "solves"])
 def test_every_schur_route_gives_the_condensed_stiffness(system, route):
-    """``-u_minus_schur_complement inverse`` (MUMPS's entries of K⁻¹) and ``solves`` (multi-column solves)
-    after a plain factorization give the Schur complement of ``factorization``, and solves afterwards are
-    still ordinary ones."""
+    """``-u_minus_schur_complement dirichlet`` (multi-column solves of the Dirichlet problem), ``inverse``
+    (MUMPS's entries of K⁻¹) and ``solves`` (multi-column solves) after a plain factorization give the Schur
+    complement of ``factorization``, and solves afterwards are still ordinary ones."""
     reference = Block(system, factor_package="mumps")
     reference.factor(schur=True)
     assert reference.route == "factorization"
@@ -92,7 +92,7 @@ def test_every_schur_route_gives_the_condensed_stiffness(system, route):
     block.destroy()
 
 
-def test_a_route_the_package_cannot_take_falls_back_to_solves_and_a_bad_route_is_refused(system):
+def test_a_route_the_package_cannot_take_falls_back_to_dirichlet_and_a_bad_route_is_refused(system):
     from ddsolve.errors import SolverError
 
     options = PETSc.Options()
@@ -100,10 +100,10 @@ def test_a_route_the_package_cannot_take_falls_back_to_solves_and_a_bad_route_is
         options["u_minus_schur_complement"] = "inverse"
         plain = Block(system, factor_package="petsc")
         plain.factor(schur=True)  # PETSc's Cholesky has no entries of the inverse
-        assert plain.route == "solves"
+        assert plain.route == "dirichlet"
         options["u_minus_schur_complement"] = "lu"
         with pytest.raises(SolverError, match=r"^-u_minus_schur_complement lu: unknown, use one of factorization, "
-                                              r"inverse, solves$"):
+                                              r"dirichlet, inverse, solves$"):
             plain.factor(schur=True)
         plain.destroy()
     finally:

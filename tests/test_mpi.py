@@ -217,17 +217,18 @@ def test_the_launch_is_printed_phase_by_phase_and_every_rank_times_its_phases(tm
 
 @pytest.mark.mpi
 def test_every_schur_complement_route_gives_the_same_answer(tmp_path):
-    """``-<block>_schur_complement``: the Schur complements from the factorization, from MUMPS's entries of
-    K⁻¹ or from multi-column solves give the same solution; a bad value is refused in one line naming it."""
+    """``-<block>_schur_complement``: the Schur complements from the factorization, from the Dirichlet problem's
+    multi-column solves, from MUMPS's entries of K⁻¹ or from multi-column solves give the same solution; a bad
+    value is refused in one line naming it."""
     results = {}
-    for route in ("factorization", "inverse", "solves"):
+    for route in ("factorization", "dirichlet", "inverse", "solves"):
         output = tmp_path / f"{route}.h5"
         options = [f"-{block}_schur_complement" for block in ("u_minus", "v_minus", "u_plus", "v_plus")]
         ddsolve("solve", "partial-closure", *SMALL, *(w for o in options for w in (o, route)), "-o", str(output),
                 ranks=2)
         results[route] = hdf5.read(output)
         assert results[route].converged and results[route].method == "schur" and results[route].solves == 3
-    for route in ("inverse", "solves"):
+    for route in ("dirichlet", "inverse", "solves"):
         assert analysis.compare(results[route], results["factorization"]).energy_error < 1e-10
         assert results[route].attrs["energy"] == pytest.approx(results["factorization"].attrs["energy"], rel=1e-10)
     refused(ddsolve("solve", "partial-closure", *SMALL, "-v_plus_schur_complement", "lu", "-o", str(tmp_path / "x.h5"),

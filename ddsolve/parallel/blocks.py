@@ -26,7 +26,7 @@ _FACTOR_TYPES = ("cholesky", "lu")
 _CHUNK = 64  # right-hand sides per multi-column solve when the flexibility is built by solves
 #: How :meth:`Block.schur_complement` gets S, chosen per block by the PETSc option
 #: ``-<block>_schur_complement`` (see :meth:`Block.factor`); the first is the default.
-SCHUR_ROUTES = ("factorization", "inverse", "solves")
+SCHUR_ROUTES = ("factorization", "dirichlet", "inverse", "solves")
 _NONE = np.zeros(0)
 
 
@@ -87,7 +87,7 @@ class Block:
             raise SolverError(message) from None
         self.rhs, self.x = self.matrix.createVecLeft(), self.matrix.createVecRight()
         self._schur: np.ndarray | None = None  # as stored by MUMPS (one triangle valid)
-        self.route = "solves"  # how schur_complement gets S (see factor)
+        self.route = "dirichlet"  # how schur_complement gets S (see factor)
         self._dirichlet = self._dirichlet_matrix = self._work = None  # see factor_dirichlet
         self.kernel: np.ndarray | None = None  # a floating block's rigid motions (m, local rows), see make_floating
         self._fixed_rows = np.zeros(0, dtype=np.int64)
@@ -137,13 +137,15 @@ class Block:
         :meth:`schur_complement` will get S.  ``factorization`` (the default; MUMPS, one rank): MUMPS
         computes the Schur complement on the trace dofs with the factorization, so
         :meth:`schur_complement` costs no extra solves (MUMPS then orders by AMD whatever ICNTL(7)
-        asks); ``inverse`` (MUMPS, one rank): a plain factorization (AMF), then :meth:`inverse_entries`;
-        ``solves``: a plain factorization, then :meth:`flexibility`.  Blocks on several ranks, or not
-        factored by MUMPS, use ``solves``.
+        asks); ``dirichlet``: a plain factorization and one of the Dirichlet problem, then
+        :meth:`interface_stiffness` (S itself, nothing inverted); ``inverse`` (MUMPS, one rank): a plain
+        factorization (AMF), then :meth:`inverse_entries`, inverted; ``solves``: a plain factorization,
+        then :meth:`flexibility`, inverted.  Blocks on several ranks, or not factored by MUMPS, take
+        ``dirichlet`` unless ``solves`` is asked.
 
         A floating block's K is singular and never solved with: with the ``factorization`` route MUMPS
-        eliminates its interior only (K_II is invertible) and hands over S; with another route nothing is
-        factored here and :meth:`schur_complement` takes S from the Dirichlet factorization.
+        eliminates its interior only (K_II is invertible) and hands over S; otherwise it takes
+        ``dirichlet`` (a singular flexibility has no inverse) and nothing more is factored here.
         """
         pc = self.ksp.getPC()
         if schur:
@@ -153,7 +155,11 @@ class Block:
                 raise SolverError(f"-{prefix}schur_complement {route}: unknown, use one of {', '.join(SCHUR_ROUTES)}")
             whole_mumps = (self.mpi.size == 1 and self.is_direct() and pc.getFactorSolverType() == "mumps"
                            and _petsc_c() is not None)
-            self.route = route if whole_mumps else "solves"
+            if not whole_mumps and route != "solves" or self.floating and route != "factorization":
+                route = "dirichlet"
+            self.route = route
+            if route == "dirichlet":
+                self.factor_dirichlet(out_of_core)
         schur = schur and self.route == "factorization"
         if self.floating and self._fixed_matrix is None and not schur:  # K singular: nothing to factor
             return
@@ -182,7 +188,9 @@ class Block:
     def factor_dirichlet(self, out_of_core: bool = False) -> None:
         """Set up the Dirichlet problem: K with the trace dofs held (their rows and columns replaced by
         the identity), KSP prefix ``<name>_dirichlet_``, for :meth:`dirichlet` (the FETI preconditioner);
-        ``out_of_core`` as for :meth:`factor`."""
+        ``out_of_core`` as for :meth:`factor`.  Once: a block set up already keeps its factorization."""
+        if self._dirichlet is not None:
+            return
         self._dirichlet_matrix = self.matrix.duplicate(copy=True)
         rows = (self.trace_rows + self.system.first).astype(PETSc.IntType)
         self._dirichlet_matrix.zeroRowsColumns(rows, diag=1.0)
@@ -365,8 +373,8 @@ class Block:
         triangle of a symmetric Schur complement (which one may depend on the version) and PETSc's
         dense matrix starts zeroed, so the triangle is the one with nonzeros off the diagonal; a
         matrix filled on both sides must be symmetric.  Otherwise (distributed blocks, other
-        packages, or a stored matrix that fits none of these) it is the inverse of :meth:`flexibility`
-        (by the route :meth:`factor` chose).
+        packages, or a stored matrix that fits none of these) by the route :meth:`factor` chose: from the
+        Dirichlet factorization (:meth:`interface_stiffness`), or the inverse of the flexibility.
         """
         if self._schur is not None:  # handed over once, filled in place (S is large: (2k)² doubles)
             stored, self._schur = self._schur, None
@@ -381,7 +389,7 @@ class Block:
                 return stored
             if np.abs(stored - stored.T).max() <= 1e-12 * np.abs(stored).max():
                 return 0.5 * (stored + stored.T)
-        if self.floating:
+        if self.route == "dirichlet" or self.floating:
             return self.interface_stiffness()
         flexibility = self.inverse_entries() if self.route == "inverse" else self.flexibility()
         return np.linalg.inv(flexibility) if self.is_leader else None
