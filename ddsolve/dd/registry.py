@@ -102,8 +102,8 @@ def predicted_costs(ranks: int, unknowns: int, sigma_nodes: int, crack_rows: int
     per_block = max(1, ranks // len(BLOCKS))
     share = max(1, len(BLOCKS) // ranks) / per_block  # the blocks of a rank, over the ranks of a block
     schur = law["rank0"](3 * sigma_nodes) + (CONTACT_STEPS * law["contact_step"](crack_rows) if crack_rows else 0.0)
-    if per_block > 1:  # no Schur complement from a distributed factorization: 2kΣ columns of solves
-        schur += share * law["columns"](unknowns * 2 * sigma_nodes)
+    if per_block > 1:  # no Schur complement from a distributed factorization: the Dirichlet problem's, 2kΣ columns
+        schur += share * (law["factor"](unknowns) + law["columns"](unknowns * 2 * sigma_nodes))
     rounds = FETI_ROUNDS * (FETI_CONTACT_ROUNDS if crack_rows else 1.0)
     feti = share * (law["factor"](unknowns) + rounds * law["solve"](unknowns))  # + the Dirichlet problem
     return {"schur": schur, "feti": feti}
