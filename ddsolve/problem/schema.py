@@ -368,9 +368,11 @@ def check_table(raw: dict, schema: dict, path: tuple[str, ...], origin: str) -> 
     for key in raw:
         if key not in schema:
             dotted = printable(".".join((*path, key)))
-            if isinstance(raw[key], dict) and REGIONS[0] in schema:
-                raise SceneError(f"{origin}: {dotted}: no region of that name (the regions of Ω, bottom to top: "
-                                 f"{', '.join(REGIONS)})")
+            if isinstance(raw[key], dict) and path[:1] == ("materials",) and len(path) in (2, 3):
+                raise SceneError(f"{origin}: {dotted}: " + (
+                    f"no region of that name (the regions of Ω, bottom to top: {', '.join(REGIONS)})"
+                    if len(path) == 2 else "a region's table holds a material's keys, not another table (the "
+                    "regions' tables sit in their layer's: materials.LAYER.REGION)"))
             close = difflib.get_close_matches(key, list(schema), n=1)
             hint = f" (did you mean {'.'.join((*path, close[0]))}?)" if close else ""
             valid = ", ".join(sorted(schema))
