@@ -119,7 +119,8 @@ def test_a_region_with_the_layers_own_values_changes_nothing():
 
 def test_the_regions_swap_with_the_layer_default():
     """Layer 1 = A with B below Σ is layer 1 = B with A above it, block by block, bit for bit."""
-    first = scene.load("partial-closure", [*SMALL_SET, "materials.layer1.lower.E=20.0", "materials.layer1.lower.nu=0.3"])
+    first = scene.load("partial-closure", [*SMALL_SET, "materials.layer1.lower.E=20.0",
+                                           "materials.layer1.lower.nu=0.3"])
     second = scene.load("partial-closure", [*SMALL_SET, "materials.layer1.E=20.0", "materials.layer1.nu=0.3",
                                             "materials.layer1.upper.E=200.0", "materials.layer1.upper.nu=0.28"])
     assert same_systems(systems(first), systems(second))

@@ -250,9 +250,9 @@ def check_range(scene: Scene, mesh) -> None:
 
     Each block's stiffness is the largest entry of its elastic matrix (its layer's material in its region); the
     structure's displacements (the layers are glued) are of the order of the largest of what drives them
-    (:func:`driven_displacements`): (largest traction on a block) × (size of the mesh) / its stiffness, the largest prescribed value, (largest eigenstrain
-    αΔT) × (size of the mesh).  Blocks are scaled to order one (:class:`ddsolve.parallel.blocks.Block`), so only
-    the ranges matter: stiffnesses within STIFFNESS_RANGE, displacements within DISPLACEMENT_RANGE (their
+    (:func:`driven_displacements`): (largest traction on a block) × (size of the mesh) / its stiffness, the
+    largest prescribed value, (largest eigenstrain αΔT) × (size of the mesh).  Blocks are scaled to order one
+    (:class:`ddsolve.parallel.blocks.Block`), so only the ranges matter: stiffnesses within STIFFNESS_RANGE, displacements within DISPLACEMENT_RANGE (their
     squares must not overflow) and the energy stiffness × displacement² within ENERGY_RANGE.  A load, a
     displacement or a temperature change that is not finite or singular is refused first (:func:`load_extent`,
     :func:`field_extent`).

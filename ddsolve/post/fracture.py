@@ -424,7 +424,8 @@ def mirror_split(tip: Tip, result) -> tuple[float, float] | None:
         for j, spec in enumerate(blocks):
             block = spec.layer, spec.region
             terms = mirror_terms(tip, sigma, half, assembly.elasticity(scene, *block)[0], result.solution[spec.name],
-                                 (field, nodes, images), mirrored[:, 2 * j:2 * j + 2], assembly.thermal_of(scene, *block))
+                                 (field, nodes, images), mirrored[:, 2 * j:2 * j + 2],
+                                 assembly.thermal_of(scene, *block))
             if terms is None:
                 return None
             parts += terms

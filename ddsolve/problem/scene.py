@@ -39,8 +39,8 @@ from ddsolve.problem.schema import (ADAPTIVE_DEGREE, DEFAULT_TOL, GEOMETRIC_TOLE
 #: The public face of the problem stage's scene modules (schema, rules, overrides, reading), as before the split.
 __all__ = ["ADAPTIVE_DEGREE", "COARSE", "CONDITIONING", "DEFAULT_TOL",
            "GEOMETRIC_TOLERANCE", "GRADING", "LAWS", "LAYERS", "MAX_ANGLE", "MAX_SPACING_RATIO",
-           "OPTIONAL_TABLES", "PAPER_BOX", "PAPER_CRACK", "REGIONS", "REPLACES", "REQUIRED", "SAME_COMPONENT", "SCHEMA", "SIDES",
-           "STOP_RULES", "Components", "Displacement", "FractureOptions", "Geometry", "Invalid", "Load", "MeshOptions",
+           "OPTIONAL_TABLES", "PAPER_BOX", "PAPER_CRACK", "REGIONS", "REPLACES", "REQUIRED", "SAME_COMPONENT", "SCHEMA",
+           "SIDES", "STOP_RULES", "Components", "Displacement", "FractureOptions", "Geometry", "Invalid", "Load", "MeshOptions",
            "Scene", "Solver", "Tables", "apply_overrides", "builtin_folder", "builtin_scenes", "coarse_size", "dumps", "load",
            "loads", "override_items", "parse_override", "printable", "readable", "utf8_text"]
 

@@ -274,14 +274,13 @@ ORTHOTROPIC = {"E1": (_positive(_number), REQUIRED), "E2": (_positive(_number), 
 ANISOTROPIC = {"D": (_matrix3, REQUIRED), "Dzz": (_fixed_numbers(3), [0.0, 0.0, 0.0])}
 
 
-#: Each kind's keys that name it (the expansion coefficients decide nothing: ``alpha1`` may come with E1, ...).
+#: The kinds of material in the order their keys decide (a matrix first), with the noun messages use.
 _NAMING = ((ANISOTROPIC, "a matrix"), (ORTHOTROPIC, "an orthotropic"), (ISOTROPIC, "an isotropic"))
 
 
 def _kind(raw: dict) -> dict | None:
-    """The kind (schema) a material table's keys name, or None when they name none (only α keys, or none)."""
-    if "D" in raw:
-        return ANISOTROPIC
+    """The kind (schema) a material table's keys name: the first kind of which it has a key no other kind has
+    (the expansion coefficients name none); None when they name none (only α keys, or no key)."""
     for kind, _ in _NAMING:
         others = {key for other, _ in _NAMING if other is not kind for key in other}
         if any(key in kind and key not in others and not key.startswith("alpha") for key in raw):

@@ -275,7 +275,8 @@ class Growth:
         driven, stiffness = [], assembly.modulus(self.scene)
         for layer, region in ((layer, region) for layer in LAYERS for region in REGIONS):
             block_stiffness = float(np.abs(assembly.elasticity(self.scene, layer, region)[0]).max())
-            driven += assembly.driven_displacements(self.scene, self.base, (layer, region), size, layer, block_stiffness)
+            driven += assembly.driven_displacements(self.scene, self.base, (layer, region), size, layer,
+                                                    block_stiffness)
         orders = [(order, cause) for order, cause, _ in driven if cause in scaled]
         fixed = max((order for order, cause, _ in driven if cause not in scaled), default=0.0)
         if not orders:
