@@ -65,7 +65,7 @@ def _materials(regions: dict[str, tuple]) -> str:
 
 
 def dcb_scene(folder: Path, a: float, size: float, degree: int = 2, loading: str = "moment"):
-    """The bi-material DCB's scene (its .geo written into ``folder``): the arms' end faces bent apart by
+    """The bi-material DCB's scene (its .toml and .geo written into ``folder``): the arms' end faces bent apart by
     couples MOMENT (``moment``: σxx linear across each face) or pulled apart by forces LOAD (``force``),
     half on each layer."""
     from ddsolve.problem import scene
@@ -80,11 +80,13 @@ def dcb_scene(folder: Path, a: float, size: float, degree: int = 2, loading: str
                     for side, part in parts.items())
     text = (f'title = "bi-material DCB, a = {a:g}, {loading} loading"\n[mesh]\nfile = "dcb.geo"\nsize = {size!r}\n'
             f"degree = {degree}\ngrading = true\n{_materials(DCB_REGIONS)}{loads}")
+    (folder / "dcb.toml").write_text(text)
     return scene.loads(text, origin="bi-material DCB", base=folder)
 
 
 def bimetal_scene(folder: Path, size: float, degree: int = 2):
-    """The thermal bilayer's scene: x = 0 a symmetry plane, the point (0, 0) held in y."""
+    """The thermal bilayer's scene (its .toml and .geo written into ``folder``): x = 0 a symmetry plane, the
+    point (0, 0) held in y."""
     from ddsolve.problem import scene
 
     (folder / "bimetal.geo").write_text(strip_geo(LENGTH, ARM, [], {"pin": [("left", -0.2 * PIN, 0.2 * PIN)]}))
@@ -92,6 +94,7 @@ def bimetal_scene(folder: Path, size: float, degree: int = 2):
                        for name, extra in (("left_lower", ""), ("left_upper", ""), ("pin", "y = 0.0\n")))
     text = (f'title = "thermal bilayer"\n[mesh]\nfile = "bimetal.geo"\nsize = {size!r}\ndegree = {degree}\n'
             f"{_materials(BIMETAL_REGIONS)}[temperature]\nlayer1 = {HEATING!r}\nlayer2 = {HEATING!r}\n{supports}")
+    (folder / "bimetal.toml").write_text(text)
     return scene.loads(text, origin="thermal bilayer", base=folder)
 
 
