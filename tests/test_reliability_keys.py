@@ -72,7 +72,7 @@ def cases(folder: Path) -> list[tuple[str, list[str], list[str]]]:
         for key, value in values.items():
             context = [_table("layer1", base), *extra]
             out.append((f"materials.layer1.{key}", context, [_table("layer1", base, key, value)]))
-            out.append((f"materials.layer1.upper.{key}", context, [f"materials.layer1.upper.{key}={value}"]))
+            out.append((f"materials.layer1.upper.{key}", context, [_table("layer1.upper", base, key, value)]))
     out += [("materials.layer1.upper.E", [], ["materials.layer1.upper.E=150.0"]),
             ("materials.layer2.lower.nu", [], ["materials.layer2.lower.nu=0.2"]),
             ("materials.layer1.upper.alpha", ["materials.layer1.alpha=2e-5", *heated],
