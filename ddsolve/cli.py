@@ -185,10 +185,13 @@ def _print_refinement(scene, result) -> None:
 
 
 def _print_fracture(result) -> None:
-    """G at every crack tip and the contact zones, then the reactions, after a solve."""
-    from ddsolve.post import reactions
+    """G at every crack tip (and why it is not split into modes, where it is not), the contact zones, then the
+    reactions, after a solve."""
+    from ddsolve.post import fracture, reactions
 
-    for line in (result.fracture.lines() if result.fracture is not None else []) + reactions.lines(result.reactions):
+    lines = result.fracture.lines() if result.fracture is not None else []
+    note = fracture.split_note(result.scene) if len(lines) else None
+    for line in lines + ([note] if note else []) + reactions.lines(result.reactions):
         print(line, flush=True)
 
 

@@ -291,12 +291,12 @@ def test_a_piece_assembles_the_rows_of_the_whole_half(degree):
     mesh = geometry.build(source)
     table = supports.sigma_supports(source, mesh)
     spec = "layer1"
-    D, _ = assembly.elasticity(source, spec)
 
     def system(on, rows, block):
+        D, _ = assembly.elasticity(source, spec, on.name)
         return assembly.block_system("u", on, mesh.sigma, D, assembly.layer_loads(source, spec, on), rows,
                                      None, supports.block_supports(source, on, mesh.sigma, spec, block, table),
-                                     assembly.thermal_of(source, spec))
+                                     assembly.thermal_of(source, spec, on.name))
 
     assert assembly.layer_loads(source, spec, mesh.upper)  # the upper half is loaded, the lower one displaced
     for block, half in enumerate(mesh.halves):

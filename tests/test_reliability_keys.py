@@ -61,17 +61,22 @@ def cases(folder: Path) -> list[tuple[str, list[str], list[str]]]:
            ("materials.model", [], ['materials.model="plane_stress"']),
            ("materials.layer1.E", [], ["materials.layer1.E=150.0"]),
            ("materials.layer2.nu", [], ["materials.layer2.nu=0.2"])]
-    for key, value in {"E1": "300.0", "E2": "120.0", "G12": "50.0", "nu12": "0.25", "angle": "30.0", "E3": "150.0",
-                       "nu13": "0.2", "nu23": "0.2"}.items():
-        out.append((f"materials.layer1.{key}", [_table("layer1", ORTHOTROPIC)], [_table("layer1", ORTHOTROPIC, key, value)]))
-    for key, value in {"D": "[[300.0, 80.0, 0.0], [80.0, 250.0, 0.0], [0.0, 0.0, 90.0]]",
-                       "Dzz": "[100.0, 100.0, 0.0]"}.items():
-        out.append((f"materials.layer1.{key}", [_table("layer1", ANISOTROPIC)], [_table("layer1", ANISOTROPIC, key, value)]))
     heated = ["temperature.layer1=100.0"]
-    for key, other in (("alpha1", "alpha2"), ("alpha2", "alpha1")):  # a heated layer gives an expansion
-        expanding = ORTHOTROPIC | {other: "2e-5"}
-        out.append((f"materials.layer1.{key}", [_table("layer1", expanding), *heated],
-                    [_table("layer1", expanding, key, "1e-5")]))
+    laws = [(ORTHOTROPIC, [], {"E1": "300.0", "E2": "120.0", "G12": "50.0", "nu12": "0.25", "angle": "30.0",
+                               "E3": "150.0", "nu13": "0.2", "nu23": "0.2"}),
+            (ANISOTROPIC, [], {"D": "[[300.0, 80.0, 0.0], [80.0, 250.0, 0.0], [0.0, 0.0, 90.0]]",
+                               "Dzz": "[100.0, 100.0, 0.0]"}),
+            *((ORTHOTROPIC | {other: "2e-5"}, heated, {key: "1e-5"})  # a heated layer gives an expansion
+              for key, other in (("alpha1", "alpha2"), ("alpha2", "alpha1")))]
+    for base, extra, values in laws:  # each key of each kind, on the layer and on a region of it
+        for key, value in values.items():
+            context = [_table("layer1", base), *extra]
+            out.append((f"materials.layer1.{key}", context, [_table("layer1", base, key, value)]))
+            out.append((f"materials.layer1.upper.{key}", context, [_table("layer1.upper", base, key, value)]))
+    out += [("materials.layer1.upper.E", [], ["materials.layer1.upper.E=150.0"]),
+            ("materials.layer2.lower.nu", [], ["materials.layer2.lower.nu=0.2"]),
+            ("materials.layer1.upper.alpha", ["materials.layer1.alpha=2e-5", *heated],
+             ["materials.layer1.upper.alpha=1e-5"])]
     out += [("materials.layer1.alpha", ["materials.layer1.alpha=2e-5", *heated], ["materials.layer1.alpha=1e-5"]),
             ("temperature.layer1", ["materials.layer1.alpha=1e-5"], ["temperature.layer1=50.0"]),
             ("displacements.layer1.top.x", [], ["displacements.layer1.top.x=0.001"]),
@@ -104,7 +109,7 @@ def schema_leaves() -> set[str]:
     """Every leaf key of the schema (load tables under one boundary name, each material kind)."""
     from ddsolve.problem import scene
 
-    def walk(schema: dict, path: tuple[str, ...]):
+    def walk(schema: dict, path: tuple[str, ...], kinds=({"E": 1, "nu": 0}, {"E1": 1}, {"D": 1})):
         for key, spec in schema.items():
             if isinstance(spec, tuple):
                 yield ".".join((*path, key))
@@ -112,9 +117,9 @@ def schema_leaves() -> set[str]:
                 yield from walk(spec.schema, (*path, key, "NAME"))
             elif isinstance(spec, dict):
                 yield from walk(spec, (*path, key))
-            else:  # a material: every kind
-                for kind in ({"E": 1, "nu": 0}, {"E1": 1}, {"D": 1}):
-                    yield from walk(spec(kind), (*path, key))
+            else:  # a material: every kind; its regions' tables: the layer's kind
+                for kind in kinds:
+                    yield from walk(spec(kind), (*path, key), (kind,))
 
     return set(walk(scene.SCHEMA, ()))
 
@@ -340,9 +345,9 @@ def test_sweep_honours_target_error(tmp_path):
 
 
 def test_the_cases_cover_every_key_of_the_schema(tmp_path):
-    covered = {key.replace("layer2", "layer1") for key, _, _ in cases(tmp_path)}
-    expected = {key.replace("layer2", "layer1").replace(".NAME.point", ".pin.point").replace(".NAME", ".top")
-                for key in schema_leaves()}
+    covered = {key.replace("layer2", "layer1").replace(".lower.", ".upper.") for key, _, _ in cases(tmp_path)}
+    expected = {key.replace("layer2", "layer1").replace(".lower.", ".upper.").replace(".NAME.point", ".pin.point")
+                .replace(".NAME", ".top") for key in schema_leaves()}
     assert expected == covered
 
 

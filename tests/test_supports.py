@@ -258,10 +258,10 @@ def mechanical_energy(result) -> float:
     xi, weights = TRIANGLE_RULES[6]
     for spec in BLOCKS:
         half, u = result.mesh.half(spec.side), result.solution[spec.name].reshape(-1)
-        D, _ = assembly.elasticity(source, spec.layer)
+        D, _ = assembly.elasticity(source, spec.layer, spec.region)
         det, gradients = element_geometry(half.points, half.cells, xi)
         strain = np.einsum("mqij,mj->mqi", assembly.strain_operator(gradients), u[assembly.element_dofs(half.cells)])
-        thermal = assembly.thermal_of(source, spec.layer)  # ε₀ = e ΔT at the points
+        thermal = assembly.thermal_of(source, spec.layer, spec.region)  # ε₀ = e ΔT at the points
         elastic = strain - (assembly.cell_temperatures(half.points, half.cells, thermal[1], xi)[..., None] * thermal[0]
                             if thermal is not None else 0.0)
         total += 0.5 * np.einsum("mq,q,mqi,ij,mqj->", det, weights, elastic, D, elastic)

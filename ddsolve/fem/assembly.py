@@ -305,12 +305,12 @@ def block_systems(scene: Scene, mesh: Mesh, which: list[int] | None = None,
     for index in range(len(BLOCKS)) if which is None else which:
         spec = BLOCKS[index]
         half = mesh.half(spec.side)
-        D, _ = elasticity(scene, spec.layer)
+        D, _ = elasticity(scene, spec.layer, spec.region)
         if spec.side not in patterns:
             patterns[spec.side] = pattern(half, rows)
         prescribed = supports.block_supports(scene, half, mesh.sigma, spec.layer, index, table)
         systems.append(block_system(spec.name, half, mesh.sigma, D, layer_loads(scene, spec.layer, half), rows,
-                                    patterns[spec.side], prescribed, thermal_of(scene, spec.layer)))
+                                    patterns[spec.side], prescribed, thermal_of(scene, spec.layer, spec.region)))
     return systems
 
 

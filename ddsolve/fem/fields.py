@@ -1,5 +1,5 @@
-"""Fields of a solution: strains, stresses and energies at quadrature points and per cell, and a layer's
-elastic matrices under the scene's plane model."""
+"""Fields of a solution: strains, stresses and energies at quadrature points and per cell, and a block's
+elastic matrices (its layer's material in its region) under the scene's plane model."""
 from __future__ import annotations
 
 import numpy as np
@@ -10,9 +10,10 @@ from ddsolve.problem import materials
 from ddsolve.problem.scene import Scene
 
 
-def elasticity(scene: Scene, layer: str) -> tuple[np.ndarray, np.ndarray]:
-    """(D, c) of a layer under the scene's plane model (see :func:`ddsolve.problem.materials.elasticity`)."""
-    return materials.elasticity(scene.materials[layer], scene.model)
+def elasticity(scene: Scene, layer: str, region: str) -> tuple[np.ndarray, np.ndarray]:
+    """(D, c) of ``layer`` in ``region`` under the scene's plane model (:meth:`Scene.material`,
+    :func:`ddsolve.problem.materials.elasticity`)."""
+    return materials.elasticity(scene.material(layer, region), scene.model)
 
 
 def voigt_strain(grad_u: np.ndarray) -> np.ndarray:
@@ -29,12 +30,12 @@ def quadrature_strains(points: np.ndarray, cells: np.ndarray, u: np.ndarray, rul
     return det * weights, voigt_strain(field_gradients(u[cells], gradients))
 
 
-def quadrature_fields(scene: Scene, layer: str, points: np.ndarray, cells: np.ndarray, u: np.ndarray
+def quadrature_fields(scene: Scene, layer: str, region: str, points: np.ndarray, cells: np.ndarray, u: np.ndarray
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`quadrature_strains` of ``layer``'s field u ``(n, 2)`` and its ΔT ``(m, q)`` at the same points:
-    the element rule's (ΔT zero) without a thermal load, else the rule of :func:`thermal_load` and
+    """:func:`quadrature_strains` of the field u ``(n, 2)`` of ``layer`` in ``region`` and its ΔT ``(m, q)`` at the
+    same points: the element rule's (ΔT zero) without a thermal load, else the rule of :func:`thermal_load` and
     :func:`thermal_energy`."""
-    thermal = thermal_of(scene, layer)
+    thermal = thermal_of(scene, layer, region)
     if thermal is None:
         volume, strain = quadrature_strains(points, cells, u)
         return volume, strain, np.zeros(volume.shape)

@@ -111,11 +111,12 @@ class ThermalLoad(NamedTuple):
         return self.changes(points, cells, xi)[..., None] * self.eigenstrain
 
 
-def thermal_of(scene: Scene, layer: str) -> ThermalLoad | None:
-    """A layer's thermal load, or None when it has no temperature change or expansion."""
+def thermal_of(scene: Scene, layer: str, region: str) -> ThermalLoad | None:
+    """The thermal load of ``layer`` in ``region`` (the layer's temperature change through the region's
+    material), or None when it has no temperature change or expansion there."""
     if layer not in scene.temperature:
         return None
-    strain, _ = materials.thermal_strain(scene.materials[layer], scene.model)
+    strain, _ = materials.thermal_strain(scene.material(layer, region), scene.model)
     return ThermalLoad(strain, scene.temperature[layer]) if np.any(strain != 0.0) else None
 
 

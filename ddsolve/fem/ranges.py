@@ -15,7 +15,7 @@ from ddsolve.mesh.element import TRIANGLE_RULES, edge_shapes, gauss_interval, sh
 from ddsolve.mesh.mesh import SigmaLine
 from ddsolve.problem import expressions, materials
 from ddsolve.problem.expressions import Expression
-from ddsolve.problem.scene import LAYERS, Displacement, Load, Scene
+from ddsolve.problem.scene import LAYERS, REGIONS, Displacement, Load, Scene
 
 
 #: A load is checked at LOAD_SAMPLES points of each edge (endpoints included) and at the quadrature points;
@@ -194,8 +194,8 @@ def _in_triangle(at: np.ndarray) -> np.ndarray:
 
 
 def modulus(scene: Scene) -> float:
-    """The largest entry of the layers' elastic matrices: the scale of the stress a strain makes."""
-    return max(float(np.abs(elasticity(scene, layer)[0]).max()) for layer in LAYERS)
+    """The largest entry of the blocks' elastic matrices: the scale of the stress a strain makes."""
+    return max(float(np.abs(elasticity(scene, layer, region)[0]).max()) for layer in LAYERS for region in REGIONS)
 
 
 def data_displacement(scene: Scene, halves, sigma: SigmaLine) -> float:
@@ -215,8 +215,8 @@ def data_displacement(scene: Scene, halves, sigma: SigmaLine) -> float:
     prescribed, strain = 0.0, 0.0
     for half in halves:
         for layer in LAYERS:
-            stiffness = float(np.abs(elasticity(scene, layer)[0]).max())
-            thermal = thermal_of(scene, layer)
+            stiffness = float(np.abs(elasticity(scene, layer, half.name)[0]).max())
+            thermal = thermal_of(scene, layer, half.name)
             if thermal is not None:
                 strain = max(strain, float(np.abs(thermal.eigenstrain).max())
                              * largest(thermal.temperature, half.points))
@@ -248,27 +248,28 @@ def check_range(scene: Scene, mesh) -> None:
     """Refuse moduli, loads, prescribed displacements and thermal eigenstrains a double-precision solve cannot
     represent, naming their keys.
 
-    Each layer's stiffness is the largest entry of its elastic matrix; the structure's displacements (the layers
-    are glued) are of the order of the largest of what drives them (:func:`driven_displacements`): (largest
-    traction on a layer) × (size of the mesh) / its stiffness, the largest prescribed value, (largest eigenstrain
-    αΔT) × (size of the mesh).  Blocks are scaled to order one (:class:`ddsolve.parallel.blocks.Block`), so only
-    the ranges matter: stiffnesses within STIFFNESS_RANGE, displacements within DISPLACEMENT_RANGE (their
+    Each block's stiffness is the largest entry of its elastic matrix (its layer's material in its region); the
+    structure's displacements (the layers are glued) are of the order of the largest of what drives them
+    (:func:`driven_displacements`): (largest traction on a block) × (size of the mesh) / its stiffness, the
+    largest prescribed value, (largest eigenstrain αΔT) × (size of the mesh).  Blocks are scaled to order one
+    (:class:`ddsolve.parallel.blocks.Block`), so only the ranges matter: stiffnesses within STIFFNESS_RANGE, displacements within DISPLACEMENT_RANGE (their
     squares must not overflow) and the energy stiffness × displacement² within ENERGY_RANGE.  A load, a
     displacement or a temperature change that is not finite or singular is refused first (:func:`load_extent`,
     :func:`field_extent`).
     """
     size = float(np.ptp(np.vstack([half.points for half in mesh.halves]), axis=0).max())
     driven, stiffest = [], (0.0, "")
-    for layer in LAYERS:
-        key = f"materials.{layer}" + (".E" if isinstance(scene.materials[layer], materials.Isotropic) else "")
+    for layer, region in ((layer, region) for layer in LAYERS for region in REGIONS):
+        material = scene.material(layer, region)
+        key = scene.material_key(layer, region) + (".E" if isinstance(material, materials.Isotropic) else "")
         with np.errstate(all="ignore"):
-            D, _ = materials.elasticity(scene.materials[layer], scene.model)
+            D, _ = materials.elasticity(material, scene.model)
         stiffness = float(np.abs(D).max())
         low, high = STIFFNESS_RANGE
         if not low <= stiffness <= high:
             raise SceneError(f"{key}: the elastic matrix has entries of {stiffness:.3g}, outside the range a "
                              f"double-precision solve represents ({low:g} to {high:g}): change the unit of stress")
-        driven += driven_displacements(scene, mesh, layer, size, key, stiffness)
+        driven += driven_displacements(scene, mesh, (layer, region), size, key, stiffness)
         stiffest = max(stiffest, (stiffness, key))
     if not driven:
         return
@@ -285,16 +286,18 @@ def check_range(scene: Scene, mesh) -> None:
                          "of the moduli and of what drives the displacements")
 
 
-def driven_displacements(scene: Scene, mesh, layer: str, size: float, key: str, stiffness: float
+def driven_displacements(scene: Scene, mesh, block: tuple[str, str], size: float, key: str, stiffness: float
                          ) -> list[tuple[float, str, str]]:
-    """The orders of the displacements of ``layer`` (whose elastic matrix ``key`` has the largest entry
-    ``stiffness``, on a mesh of ``size``) that each of its loads, prescribed displacements and its eigenstrain
-    makes, each with the keys that make it and the message that refuses it outside DISPLACEMENT_RANGE; those
-    driven by zero are left out."""
+    """The orders of the displacements of the ``block`` (layer, region) (whose elastic matrix ``key`` has the
+    largest entry ``stiffness``, on a mesh of ``size``) that each of its loads, prescribed displacements and its
+    eigenstrain makes, each with the keys that make it and the message that refuses it outside
+    DISPLACEMENT_RANGE; those driven by zero are left out."""
+    layer, region = block
     out = []
     outside = "outside the range a double-precision solve represents ({:g} to {:g})".format(*DISPLACEMENT_RANGE)
     for (name, boundary), load in [*scene.loads.items(), *scene.displacements.items()]:
-        halves = [half for half in mesh.halves if name == layer and boundary in half.boundaries]
+        halves = [half for half in mesh.halves
+                  if name == layer and half.name == region and boundary in half.boundaries]
         value = max((load_extent(half.points, half.edges(boundary), load) for half in halves), default=0.0)
         if value == 0.0:
             continue
@@ -307,14 +310,14 @@ def driven_displacements(scene: Scene, mesh, layer: str, size: float, key: str, 
             out.append((value, load.key, f"{load.key}: prescribed values up to {value:.3g}, {outside}: change the "
                         "unit of length"))
     with np.errstate(all="ignore"):  # an expansion beyond double precision is refused below, naming its key
-        thermal = thermal_of(scene, layer)
+        thermal = thermal_of(scene, layer, region)
     if thermal is not None:
         change = max(field_extent(half.points, half.cells, thermal.temperature, f"temperature.{layer}")
-                     for half in mesh.halves)
+                     for half in mesh.halves if half.name == region)
         if change != 0.0:
             strain = float(np.nan_to_num(np.abs(thermal.eigenstrain), nan=np.inf).max()) * change
-            alpha = "alpha" if isinstance(scene.materials[layer], materials.Isotropic) else "alpha1, alpha2"
-            cause = f"materials.{layer}.{alpha} with temperature.{layer}"
+            alpha = "alpha" if isinstance(scene.material(layer, region), materials.Isotropic) else "alpha1, alpha2"
+            cause = f"{scene.material_key(layer, region)}.{alpha} with temperature.{layer}"
             out.append((strain * size, cause, f"{cause} up to {change:.3g} give eigenstrains of order {strain:.1g} "
                         f"and, on a domain of size {size:.3g}, displacements of order {strain * size:.1g}, {outside}: "
                         "change the units of the expansion coefficient and the temperature"))

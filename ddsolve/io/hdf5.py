@@ -177,11 +177,15 @@ def sigma_datasets(on: OnSigma, history: np.ndarray, active_set_changes: np.ndar
 
 
 def attributes(result: Result) -> dict[str, dict]:
-    """The attributes of a result file by group: the root's, /timings and /memory."""
+    """The attributes of a result file by group: the root's, /timings, /materials (each block's: the key that
+    gives it and its constants) and /memory."""
     root = {key: getattr(result, key) for key in ("converged", "iterations", "solves", "method", "wall_time",
                                                     "ranks", "scene", "message")}
     root["scene"] = result.scene.text  # the scene's canonical TOML text
-    return {"": {**root, **result.attrs}, "timings": dict(result.timings),
+    scene = result.scene
+    blocks = {spec.name: f"{scene.material_key(spec.layer, spec.region)}: {scene.material(spec.layer, spec.region)!r}"
+              for spec in BLOCKS}
+    return {"": {**root, **result.attrs}, "timings": dict(result.timings), "materials": blocks,
             **({"memory": dict(result.memory)} if result.memory else {})}
 
 

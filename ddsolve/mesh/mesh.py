@@ -19,6 +19,7 @@ from functools import cached_property
 import numpy as np
 
 from ddsolve.errors import MeshError
+from ddsolve.problem.schema import REGIONS
 from ddsolve.mesh.element import (CELL_EDGES, EDGE_RULE, crowded_edges, edge_keys, edge_points, edge_shapes,
                                   outer_edges)
 
@@ -46,7 +47,8 @@ class HalfMesh:
 
     @property
     def name(self) -> str:
-        return "lower" if self.side < 0 else "upper"
+        """Its region of Ω (:data:`ddsolve.problem.schema.REGIONS`), which selects the layers' materials there."""
+        return region_of(self.side)
 
     @property
     def degree(self) -> int:
@@ -593,11 +595,21 @@ def quality(mesh: Mesh) -> dict:
             "sigma_vertices": int(mesh.sigma.corner.sum()), "boundary_vertices": boundary_vertex_count(mesh)}
 
 
+def region_of(side: int) -> str:
+    """The region of Ω of a half: ``lower`` (side −1) or ``upper`` (+1)."""
+    return REGIONS[0] if side < 0 else REGIONS[1]
+
+
 @dataclass(frozen=True)
 class BlockSpec:
     name: str
     layer: str
     side: int  # -1: lower half, +1: upper half
+
+    @property
+    def region(self) -> str:
+        """The block's region of Ω: with its layer, it selects the block's material."""
+        return region_of(self.side)
 
 
 BLOCKS = (

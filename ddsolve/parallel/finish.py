@@ -167,8 +167,10 @@ class OnRanks(Finisher):
         shares and splits the tips whose disc is not mirror-symmetric by crack closure, from Σ's data."""
         local, exchange, comm, scene = self.local, self.exchange, self.exchange.comm, self.scene
         sigma, tips = local.sigma, local.tips
-        laws = {spec.layer: assembly.elasticity(scene, spec.layer)[0] for spec in BLOCKS}
-        mirrorable = [fracture.mirrorable(tip, sigma, laws.values()) for tip in tips]
+        if scene.dissimilar_layers(thermal=False):  # every rank: no split (fracture.split_note)
+            return None
+        laws = [assembly.elasticity(scene, spec.layer, spec.region)[0] for spec in BLOCKS]
+        mirrorable = [fracture.mirrorable(tip, sigma, scene) for tip in tips]
         shared = exchange.groups[0].size > 1  # the blocks' ranks own parts of their halves: ask where it may be
         boxes = comm.allgather({b: analysis.owned_box(piece) for b, piece in self.pieces.items()}
                                if shared and any(mirrorable) else {})
@@ -194,8 +196,8 @@ class OnRanks(Finisher):
         for (i, b), answered in replies.items():
             spec, values = BLOCKS[b], analysis.nearest_answer(len(discs[i, b][2]), answered)
             terms = None if values is None else fracture.mirror_terms(
-                tips[i], sigma, self.pieces[b].owned_half, laws[spec.layer], self.displacements[b], discs[i, b],
-                values, assembly.thermal_of(scene, spec.layer))
+                tips[i], sigma, self.pieces[b].owned_half, laws[b], self.displacements[b], discs[i, b],
+                values, assembly.thermal_of(scene, spec.layer, spec.region))
             if terms is None:  # the images leave the other half, or the eigenstrain is not symmetric
                 failed[i] += 1
             else:
@@ -327,8 +329,9 @@ def block_indicators(setup, displacements: dict[int, np.ndarray], collect: bool 
     out = {}
     for index, group in zip(setup.exchange.local_blocks, setup.exchange.groups):
         spec, piece = BLOCKS[index], setup.pieces[index]
-        mine = estimate.block_indicators(piece.points, piece.cells, assembly.elasticity(setup.scene, spec.layer)[0],
-                                         displacements[index], piece.outer_edges)[:, :piece.owned]
+        D, _ = assembly.elasticity(setup.scene, spec.layer, spec.region)
+        mine = estimate.block_indicators(piece.points, piece.cells, D, displacements[index],
+                                         piece.outer_edges)[:, :piece.owned]
         whole = collect_owned(group, piece, setup.mesh.cells[spec.side], {"indicators": mine.T}) if collect else \
             {"indicators": mine.T}
         if whole is not None:
@@ -339,8 +342,8 @@ def block_indicators(setup, displacements: dict[int, np.ndarray], collect: bool 
 def block_cell_fields(setup, displacements: dict[int, np.ndarray]) -> dict[int, analysis.CellFields]:
     """The cell fields of the last full solve on the cells this rank owns (local block -> its
     :class:`~ddsolve.post.analysis.CellFields`)."""
-    return {index: analysis.block_cell_fields(setup.scene, BLOCKS[index].layer, piece.points, piece.owned_cells,
-                                              displacements[index])
+    return {index: analysis.block_cell_fields(setup.scene, BLOCKS[index].layer, BLOCKS[index].region, piece.points,
+                                              piece.owned_cells, displacements[index])
             for index, piece in setup.pieces.items()}
 
 

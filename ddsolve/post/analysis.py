@@ -20,9 +20,10 @@ from ddsolve.problem import scene as scenes
 
 
 def elasticities(result: Result) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Layer -> (D, c) of the result's scene (see :func:`ddsolve.problem.materials.elasticity`)."""
+    """Block name -> (D, c) of the result's scene: the block's layer's material in its region (see
+    :func:`ddsolve.problem.materials.elasticity`)."""
     scene = result.scene
-    return {layer: assembly.elasticity(scene, layer) for layer in scenes.LAYERS}
+    return {spec.name: assembly.elasticity(scene, spec.layer, spec.region) for spec in BLOCKS}
 
 
 def block_energies(result: Result, difference: dict[str, np.ndarray] | None = None) -> np.ndarray:
@@ -35,7 +36,7 @@ def block_energies(result: Result, difference: dict[str, np.ndarray] | None = No
         field = result.solution[spec.name]
         if difference is not None:
             field = field - difference[spec.name]
-        out.append(assembly.energy(half.points, half.cells, laws[spec.layer][0], field))
+        out.append(assembly.energy(half.points, half.cells, laws[spec.name][0], field))
     return np.array(out)
 
 
@@ -379,19 +380,20 @@ class CellFields:
 
 def cell_fields(result: Result) -> dict[str, CellFields]:
     """Block name -> its per-cell strains, stresses, von Mises stress and energy density."""
-    return {spec.name: block_cell_fields(result.scene, spec.layer, result.half(spec.name).points,
+    return {spec.name: block_cell_fields(result.scene, spec.layer, spec.region, result.half(spec.name).points,
                                          result.half(spec.name).cells, result.solution[spec.name]) for spec in BLOCKS}
 
 
-def block_cell_fields(scene: scenes.Scene, layer: str, points: np.ndarray, cells: np.ndarray, u: np.ndarray
-                      ) -> CellFields:
+def block_cell_fields(scene: scenes.Scene, layer: str, region: str, points: np.ndarray, cells: np.ndarray,
+                      u: np.ndarray) -> CellFields:
     """The :class:`CellFields` of one block's ``cells`` (a half's, or those a rank owns of it): displacements
-    ``u`` ``(n, 2)`` of ``layer`` at ``points``; stresses are mechanical, σ = D (ε − ε₀), with the thermal
-    eigenstrain ε₀."""
-    D, c = assembly.elasticity(scene, layer)
-    expansion, relieved = materials.thermal_strain(scene.materials[layer], scene.model)
-    out_of_plane = materials.out_of_plane_strain(scene.materials[layer], scene.model)
-    volume, strains, change = assembly.quadrature_fields(scene, layer, points, cells, u)
+    ``u`` ``(n, 2)`` of ``layer`` in ``region`` at ``points``, with that block's material; stresses are
+    mechanical, σ = D (ε − ε₀), with the thermal eigenstrain ε₀."""
+    material = scene.material(layer, region)
+    D, c = assembly.elasticity(scene, layer, region)
+    expansion, relieved = materials.thermal_strain(material, scene.model)
+    out_of_plane = materials.out_of_plane_strain(material, scene.model)
+    volume, strains, change = assembly.quadrature_fields(scene, layer, region, points, cells, u)
     area, strain = assembly.cell_means(volume, strains)
     mean_change = np.einsum("mq,mq->m", volume, change) / area
     eigenstrain = mean_change[:, None] * expansion

@@ -362,7 +362,7 @@ def combine(mesh: Mesh, parts: dict[str, np.ndarray], solution: dict[str, np.nda
 
 def of_scene(scene: Scene, mesh: Mesh, solution: dict[str, np.ndarray], mu_c: np.ndarray) -> Estimate:
     """The whole estimate in one process, for displacements in (x, y)."""
-    laws = {spec.layer: elasticity(scene, spec.layer)[0] for spec in BLOCKS}
-    parts = {spec.name: half_indicators(mesh.half(spec.side), laws[spec.layer], solution[spec.name])
+    laws = {spec.name: elasticity(scene, spec.layer, spec.region)[0] for spec in BLOCKS}
+    parts = {spec.name: half_indicators(mesh.half(spec.side), laws[spec.name], solution[spec.name])
              for spec in BLOCKS}
     return combine(mesh, parts, solution, mu_c, max(float(np.abs(D).max()) for D in laws.values()))

@@ -243,9 +243,9 @@ def block_terms(scene, sigma: SigmaLine, tips: list[Tip], parts: dict[int, tuple
     if not tips:
         return out
     for index, (points, cells, u) in parts.items():
-        layer = BLOCKS[index].layer
-        out += volume_terms(points, cells, assembly.elasticity(scene, layer)[0], u,
-                            [theta(tip, sigma, points) for tip in contours], assembly.thermal_of(scene, layer))
+        block = BLOCKS[index].layer, BLOCKS[index].region
+        out += volume_terms(points, cells, assembly.elasticity(scene, *block)[0], u,
+                            [theta(tip, sigma, points) for tip in contours], assembly.thermal_of(scene, *block))
     return out
 
 
@@ -336,10 +336,10 @@ def of_result(result, tips: list[Tip], factors: np.ndarray | None = None) -> Fra
     volume = np.zeros(2 * len(tips))
     for spec in BLOCKS:
         half = result.half(spec.name)
-        D, _ = assembly.elasticity(scene, spec.layer)
+        D, _ = assembly.elasticity(scene, spec.layer, spec.region)
         fields = [theta(tip, result.mesh.sigma, half.points) for tip in tips + [halved(tip) for tip in tips]]
         volume += volume_terms(half.points, half.cells, D, result.solution[spec.name], fields,
-                               assembly.thermal_of(scene, spec.layer))
+                               assembly.thermal_of(scene, spec.layer, spec.region))
     return finish(tips, volume, result.on_sigma, mode_split(tips, result), scene, factors)
 
 
@@ -356,8 +356,9 @@ def evaluate(result, inner: float | None = None, outer: float | None = None) -> 
 MIRROR = 1e-10
 
 
-def mode_split(tips: list[Tip], result) -> dict[str, np.ndarray]:
-    """G_I, G_II, the phase angle (degrees) and ``symmetric`` (how each tip was split) at every tip.
+def mode_split(tips: list[Tip], result) -> dict[str, np.ndarray] | None:
+    """G_I, G_II, the phase angle (degrees) and ``symmetric`` (how each tip was split) at every tip; None where
+    the regions below and above Σ have different elastic laws (:func:`split_note`).
 
     Where the θ disc is mirror-symmetric about Σ (Σ straight there, both layers' laws unchanged by the
     reflection: always for isotropic layers) the fields split into a part symmetric about Σ (opening,
@@ -369,6 +370,8 @@ def mode_split(tips: list[Tip], result) -> dict[str, np.ndarray]:
     90° counter-clockwise from it): atan(√(G_II/G_I)) signed like K_II/K_I.  :func:`finish` leaves ψ
     undefined (NaN) at a tip whose G is no release rate: there G_I and G_II are noise, and so is their angle.
     """
+    if result.scene.dissimilar_layers(thermal=False):
+        return None
     result = disc_result(result, tips)
     return split_modes(tips, [mirror_split(tip, result) for tip in tips], result.on_sigma,
                        result.scene.nonpenetration, result.mesh.degree)
@@ -404,8 +407,7 @@ def mirror_split(tip: Tip, result) -> tuple[float, float] | None:
     the quadratic integral is odd and vanishes up to the interpolation: G_I + G_II = G.
     """
     sigma, scene = result.mesh.sigma, result.scene
-    laws = {spec.layer: assembly.elasticity(scene, spec.layer)[0] for spec in BLOCKS}
-    if not mirrorable(tip, sigma, laws.values()):
+    if not mirrorable(tip, sigma, scene):
         return None
     from ddsolve.errors import DDSolveError
     from ddsolve.post.analysis import interpolate
@@ -420,18 +422,34 @@ def mirror_split(tip: Tip, result) -> tuple[float, float] | None:
         except DDSolveError:  # the mirror image of the disc leaves the other half
             return None
         for j, spec in enumerate(blocks):
-            terms = mirror_terms(tip, sigma, half, laws[spec.layer], result.solution[spec.name], (field, nodes, images),
-                                 mirrored[:, 2 * j:2 * j + 2], assembly.thermal_of(scene, spec.layer))
+            block = spec.layer, spec.region
+            terms = mirror_terms(tip, sigma, half, assembly.elasticity(scene, *block)[0], result.solution[spec.name],
+                                 (field, nodes, images), mirrored[:, 2 * j:2 * j + 2],
+                                 assembly.thermal_of(scene, *block))
             if terms is None:
                 return None
             parts += terms
     return float(parts[0]), float(parts[1])
 
 
-def mirrorable(tip: Tip, sigma: SigmaLine, laws) -> bool:
-    """Whether the tip's θ disc can be split by mirror symmetry: Σ straight there and every layer's law
-    (``laws``: the Hooke matrices) unchanged by the reflection about it."""
-    return _straight_near(tip, sigma) and all(mirrored_law(D, reflection(tip, sigma)) for D in laws)
+def mirrorable(tip: Tip, sigma: SigmaLine, scene: Scene) -> bool:
+    """Whether the tip's θ disc can be split by mirror symmetry: Σ straight there, every block's law unchanged
+    by the reflection about it, and each layer's material the same in both regions (thermal strain too)."""
+    laws = [assembly.elasticity(scene, spec.layer, spec.region)[0] for spec in BLOCKS]
+    return (_straight_near(tip, sigma) and all(mirrored_law(D, reflection(tip, sigma)) for D in laws)
+            and not scene.dissimilar_layers())
+
+
+def split_note(scene: Scene) -> str | None:
+    """Why G is not split into modes I and II, or None where it is: the layers whose regions below and above
+    Σ have different elastic laws (an interface crack between different materials: its near-tip field
+    oscillates and G_I, G_II depend on the distance behind the tip, docs/fracture.md)."""
+    layers = scene.dissimilar_layers(thermal=False)
+    if not layers:
+        return None
+    return (f"G is not split into modes I and II: {' and '.join(layers)} {'has' if len(layers) == 1 else 'have'} "
+            "different elastic laws below and above Σ, where the split of an interface crack's G is not defined "
+            "classically (docs/fracture.md)")
 
 
 def reflection(tip: Tip, sigma: SigmaLine) -> np.ndarray:

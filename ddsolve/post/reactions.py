@@ -18,18 +18,19 @@ from ddsolve.problem.scene import LAYERS, Scene
 
 
 def residual(scene: Scene, half: HalfMesh, layer: str, u: np.ndarray, nodes: np.ndarray) -> np.ndarray:
-    """``(n, 2)``: K u − f of ``layer``'s block on ``half`` in x and y, exact at ``nodes`` (elsewhere partial)."""
+    """``(n, 2)``: K u − f of ``layer``'s block on ``half`` (its region) in x and y, exact at ``nodes`` (elsewhere
+    partial)."""
     near = np.zeros(len(half.points), dtype=bool)
     near[nodes] = True
     cells = half.cells[near[half.cells].any(axis=1)]
-    D, _ = assembly.elasticity(scene, layer)
+    D, _ = assembly.elasticity(scene, layer, half.name)
     forces = np.einsum("mij,mj->mi", assembly.element_stiffness(half.points, cells, D),
                        u.reshape(-1)[assembly.element_dofs(cells)])
     out = np.bincount(assembly.element_dofs(cells).ravel(), forces.ravel(),
                       minlength=2 * len(half.points)).astype(np.float64, copy=False)  # none near: no weights, ints
     for load in assembly.layer_loads(scene, layer, half):
         out -= assembly.load_vector(half, load)
-    thermal = assembly.thermal_of(scene, layer)
+    thermal = assembly.thermal_of(scene, layer, half.name)
     if thermal is not None:
         out -= thermal.vector(half.points, cells, D)
     return out.reshape(-1, 2)

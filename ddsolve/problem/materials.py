@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Union
+from typing import Sequence, Union
 
 import numpy as np
 
@@ -117,6 +117,21 @@ def expansion(material) -> np.ndarray:
     a1, a2 = material.alpha1, material.alpha2
     return np.array([a1 * cos ** 2 + a2 * sin ** 2, a1 * sin ** 2 + a2 * cos ** 2, a2, 0.0, 0.0,
                      2.0 * (a1 - a2) * sin * cos])
+
+
+def same_law(first: Material, second: Material, model: str = "plane_strain", thermal: bool = True) -> bool:
+    """Whether two materials have the same plane law under ``model``: equal (D, c), and with ``thermal`` equal
+    thermal strains (e, s) too."""
+    def law(material: Material) -> tuple[np.ndarray, ...]:
+        return (*elasticity(material, model), *(thermal_strain(material, model) if thermal else ()))
+
+    return all(np.array_equal(a, b) for a, b in zip(law(first), law(second)))
+
+
+def differing(groups: dict[str, Sequence[Material]], model: str = "plane_strain", thermal: bool = True) -> list[str]:
+    """The keys of ``groups`` whose materials do not all have the same plane law (:func:`same_law`)."""
+    return [key for key, group in groups.items()
+            if not all(same_law(group[0], other, model, thermal) for other in group[1:])]
 
 
 def check_positive_definite(D: np.ndarray, name: str) -> None:

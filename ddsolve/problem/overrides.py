@@ -13,7 +13,7 @@ except ModuleNotFoundError:  # Python < 3.11
 from ddsolve.errors import SceneError
 from ddsolve.problem.expressions import Expression
 from ddsolve.problem.reading import excerpt, printable
-from ddsolve.problem.schema import ANISOTROPIC, ISOTROPIC, ORTHOTROPIC
+from ddsolve.problem.schema import ANISOTROPIC, ISOTROPIC, ORTHOTROPIC, REGIONS
 
 
 def override_items(overrides: dict[str, Any] | Sequence[str]) -> list[str]:
@@ -95,12 +95,12 @@ def apply_overrides(raw: dict, overrides: list[str]) -> dict:
 
 
 def _other_laws(path: list[str]) -> tuple[str, ...]:
-    """The keys of the other material laws, which a key that fixes a layer's law replaces
+    """The keys of the other material laws, which a key that fixes a layer's (or a region's) law replaces
     (``--set materials.layer1.E1=...`` makes an isotropic layer orthotropic; α keys decide nothing)."""
-    if len(path) != 3 or path[0] != "materials":
+    if path[0] != "materials" or not (len(path) == 3 or len(path) == 4 and path[2] in REGIONS):
         return ()
     laws = [ISOTROPIC, ORTHOTROPIC, ANISOTROPIC]
-    mine = [law for law in laws if path[2] in law and not path[2].startswith("alpha")]
+    mine = [law for law in laws if path[-1] in law and not path[-1].startswith("alpha")]
     return tuple(key for law in laws if mine and law is not mine[0] for key in law if key not in mine[0])
 
 

@@ -10,7 +10,7 @@ from ddsolve.problem import materials
 from ddsolve.problem.method_options import OPTIONS
 from ddsolve.problem.reading import printable
 from ddsolve.problem.schema import (ADAPTIVE_DEGREE, DEFAULT_TOL, GEOMETRIC_TOLERANCE, GRADING, LAWS,
-                                    LAYERS, MAX_SPACING_RATIO, PAPER_CRACK, layer_material)
+                                    LAYERS, MAX_SPACING_RATIO, PAPER_CRACK, REGIONS, layer_material)
 
 
 def cross_checks(data: dict, raw: dict, origin: str) -> None:
@@ -25,6 +25,7 @@ def cross_checks(data: dict, raw: dict, origin: str) -> None:
     _solver_checks(data, origin)
     _radii_checks(data, origin)
     _toughness_checks(data, origin)
+    _split_checks(data, origin)
 
 
 def _geometry_checks(geometry: dict, given: set[str], origin: str) -> None:
@@ -91,14 +92,44 @@ def _mesh_checks(mesh: dict, geometry: dict, raw: dict, given: set[str], origin:
 
 
 def _material_checks(data: dict, origin: str) -> None:
-    """Each layer's constants make an elastic matrix that double precision can factor."""
+    """Each layer's constants, and each region's that override them, make an elastic matrix that double
+    precision can factor."""
     model = data["materials"]["model"]
     for layer in LAYERS:
-        try:
-            D, _ = materials.elasticity(layer_material(data["materials"][layer]), model)
-        except materials.MaterialError as exc:
-            raise SceneError(f"{origin}: materials.{layer}: {exc}") from None
-        _check_conditioning(D, data["materials"][layer], model, f"{origin}: materials.{layer}")
+        table = data["materials"][layer]
+        given = [(f"materials.{layer}", table)] + [(f"materials.{layer}.{region}", table[region])
+                                                   for region in REGIONS if region in table]
+        for key, material in given:
+            try:
+                D, _ = materials.elasticity(layer_material(material), model)
+            except materials.MaterialError as exc:
+                raise SceneError(f"{origin}: {key}: {exc}") from None
+            _check_conditioning(D, material, model, f"{origin}: {key}")
+
+
+def acting_tables(data: dict, layer: str) -> dict[str, tuple[str, dict]]:
+    """Region -> the key and the checked table of the material that acts there in ``layer``: the region's
+    own table where the scene gives one, else the layer's."""
+    table = data["materials"][layer]
+    return {region: (f"materials.{layer}.{region}", table[region]) if region in table else
+            (f"materials.{layer}", table) for region in REGIONS}
+
+
+def dissimilar_layers(data: dict, thermal: bool = True) -> list[str]:
+    """The layers whose regions have different plane laws (stiffness, and with ``thermal`` thermal strain)."""
+    return materials.differing({layer: [layer_material(table) for _, table in acting_tables(data, layer).values()]
+                                for layer in LAYERS}, data["materials"]["model"], thermal)
+
+
+def _split_checks(data: dict, origin: str) -> None:
+    """A mode-dependent toughness law needs G's split into modes, which regions of different elastic laws on the two
+    sides of Σ leave undefined (the near-tip field of an interface crack between them oscillates)."""
+    law = data["fracture"]["law"]
+    dissimilar = dissimilar_layers(data, thermal=False)
+    if law is not None and dissimilar:
+        raise SceneError(f"{origin}: fracture.law = {law} needs G's split into modes I and II, which is not defined "
+                         f"between the different materials of the regions of materials.{dissimilar[0]} (below and "
+                         "above Σ): give one toughness, fracture.toughness")
 
 
 def _load_checks(data: dict, origin: str) -> None:
@@ -168,17 +199,18 @@ def _temperature_checks(data: dict, origin: str) -> None:
     for layer, change in data.get("temperature", {}).items():
         if change is None or (change.constant and change(0.0, 0.0) == 0.0):
             continue
-        table = data["materials"][layer]
+        acting = list(acting_tables(data, layer).values())
+        if any(table.get(key) is not None for _, table in acting for key in ("alpha", "alpha1", "alpha2")):
+            continue
+        key, table = next(((key, table) for key, table in acting if "D" not in table), acting[0])
         if "D" in table:
-            raise SceneError(f"{origin}: temperature.{layer}: materials.{layer} is given by its matrix D, which takes "
+            raise SceneError(f"{origin}: temperature.{layer}: {key} is given by its matrix D, which takes "
                              "no thermal expansion, so the temperature change would do nothing: give the layer by "
                              "its constants with alpha, or leave the temperature change out")
-        given = [key for key in ("alpha", "alpha1", "alpha2") if table.get(key) is not None]
-        if not given:
-            names = "alpha" if "E" in table else "alpha1 or alpha2"
-            raise SceneError(f"{origin}: temperature.{layer}: materials.{layer} has no expansion coefficient, so the "
-                             f"temperature change would do nothing: give materials.{layer}.{names}, or leave the "
-                             "temperature change out")
+        names = "alpha" if "E" in table else "alpha1 or alpha2"
+        raise SceneError(f"{origin}: temperature.{layer}: {key} has no expansion coefficient, so the "
+                         f"temperature change would do nothing: give {key}.{names}, or leave the "
+                         "temperature change out")
 
 
 #: Components of a load and of a displacement on one boundary that act in the same direction.

@@ -32,15 +32,15 @@ from ddsolve.problem.reading import printable, readable, utf8_text
 from ddsolve.problem.rules import COARSE, CONDITIONING, SAME_COMPONENT, coarse_size, cross_checks
 from ddsolve.problem.schema import (ADAPTIVE_DEGREE, DEFAULT_TOL, GEOMETRIC_TOLERANCE,
                                     GRADING, LAWS, LAYERS, MAX_ANGLE, MAX_SPACING_RATIO, OPTIONAL_TABLES,
-                                    PAPER_BOX, PAPER_CRACK, REQUIRED, SCHEMA, SIDES, STOP_RULES, Invalid, Tables,
-                                    check_table, layer_material)
+                                    PAPER_BOX, PAPER_CRACK, REGIONS, REQUIRED, SCHEMA, SIDES, STOP_RULES, Invalid,
+                                    Tables, check_table, layer_material, region_materials)
 
 
 #: The public face of the problem stage's scene modules (schema, rules, overrides, reading), as before the split.
 __all__ = ["ADAPTIVE_DEGREE", "COARSE", "CONDITIONING", "DEFAULT_TOL",
            "GEOMETRIC_TOLERANCE", "GRADING", "LAWS", "LAYERS", "MAX_ANGLE", "MAX_SPACING_RATIO",
-           "OPTIONAL_TABLES", "PAPER_BOX", "PAPER_CRACK", "REPLACES", "REQUIRED", "SAME_COMPONENT", "SCHEMA", "SIDES",
-           "STOP_RULES", "Components", "Displacement", "FractureOptions", "Geometry", "Invalid", "Load", "MeshOptions",
+           "OPTIONAL_TABLES", "PAPER_BOX", "PAPER_CRACK", "REGIONS", "REPLACES", "REQUIRED", "SAME_COMPONENT", "SCHEMA",
+           "SIDES", "STOP_RULES", "Components", "Displacement", "FractureOptions", "Geometry", "Invalid", "Load", "MeshOptions",
            "Scene", "Solver", "Tables", "apply_overrides", "builtin_folder", "builtin_scenes", "coarse_size", "dumps", "load",
            "loads", "override_items", "parse_override", "printable", "readable", "utf8_text"]
 
@@ -182,6 +182,7 @@ class Scene:
     title: str
     geometry: Geometry
     mesh: MeshOptions
+    #: layer -> its material, the default of each of its regions (:meth:`material`)
     materials: dict[str, materials.Material]
     model: str  # plane_strain | plane_stress
     loads: dict[tuple[str, str], Load]  # (layer, boundary name) -> load
@@ -192,6 +193,8 @@ class Scene:
     displacements: dict[tuple[str, str], Displacement] = field(default_factory=dict)
     #: layer -> temperature change ΔT (an expression in x and y); absent: no thermal load.
     temperature: dict[str, Expression] = field(default_factory=dict)
+    #: (layer, region) -> the material of a region that overrides its layer's (``[materials.LAYER.REGION]``).
+    regions: dict[tuple[str, str], materials.Material] = field(default_factory=dict)
     text: str = field(repr=False, default="")
     #: The text the scene was read from and the ``--set`` items applied to it, in order: what
     #: :meth:`with_` reads again, so that defaults that follow other keys follow the new values too.
@@ -214,6 +217,20 @@ class Scene:
         default that follows another key (``mesh.target_error`` chooses P2) follows the new value."""
         items = override_items(overrides) + override_items(more)
         return loads(self.source or self.text, [*self.overrides, *items], origin=self.origin, base=self.base)
+
+    def material(self, layer: str, region: str) -> materials.Material:
+        """The material of ``layer`` in ``region`` (:data:`REGIONS`): the region's own, else the layer's."""
+        return self.regions.get((layer, region), self.materials[layer])
+
+    def material_key(self, layer: str, region: str) -> str:
+        """The scene key that gives :meth:`material`: ``materials.LAYER.REGION`` or ``materials.LAYER``."""
+        return f"materials.{layer}.{region}" if (layer, region) in self.regions else f"materials.{layer}"
+
+    def dissimilar_layers(self, thermal: bool = True) -> list[str]:
+        """The layers whose regions have different plane laws: stiffness, and with ``thermal`` thermal strain
+        (:func:`ddsolve.problem.materials.same_law`)."""
+        return materials.differing({layer: [self.material(layer, region) for region in REGIONS] for layer in LAYERS},
+                                   self.model, thermal)
 
     def scaled(self, factor: float) -> Scene:
         """This scene with every mechanical load (tractions, pressures, prescribed displacements) times
@@ -252,6 +269,7 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str, 
                           clamped=tuple(geometry["clamped"]), given=given),
         mesh=MeshOptions(**mesh),
         materials={layer: layer_material(data["materials"][layer]) for layer in LAYERS},
+        regions=region_materials(data["materials"]),
         model=data["materials"]["model"],
         loads=loads,
         nonpenetration=data["contact"]["nonpenetration"],

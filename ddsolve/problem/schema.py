@@ -17,6 +17,8 @@ STOP_RULES = ("paper", "relative", "kkt")
 #: Default tolerance of each stopping rule (a method's default rule: :mod:`ddsolve.problem.method_options`).
 DEFAULT_TOL = {"paper": 1e-6, "relative": 1e-6, "kkt": 1e-8}
 LAYERS = ("layer1", "layer2")
+#: The regions of Ω, bottom to top: below Σ and above it (a gmsh file's physical surfaces of these names).
+REGIONS = ("lower", "upper")
 #: The sides of a box geometry, as boundary names.
 SIDES = ("bottom", "top", "left", "right")
 #: The paper's geometry: the square, Σ at y = 0, the crack (−1/2, 1/2), clamped at x = ±1.
@@ -272,13 +274,41 @@ ORTHOTROPIC = {"E1": (_positive(_number), REQUIRED), "E2": (_positive(_number), 
 ANISOTROPIC = {"D": (_matrix3, REQUIRED), "Dzz": (_fixed_numbers(3), [0.0, 0.0, 0.0])}
 
 
+#: The kinds of material in the order their keys decide (a matrix first), with the noun messages use.
+_NAMING = ((ANISOTROPIC, "a matrix"), (ORTHOTROPIC, "an orthotropic"), (ISOTROPIC, "an isotropic"))
+
+
+def _kind(raw: dict) -> dict | None:
+    """The kind (schema) a material table's keys name: the first kind of which it has a key no other kind has
+    (the expansion coefficients name none); None when they name none (only α keys, or no key)."""
+    for kind, _ in _NAMING:
+        others = {key for other, _ in _NAMING if other is not kind for key in other}
+        if any(key in kind and key not in others and not key.startswith("alpha") for key in raw):
+            return kind
+    return None
+
+
 def _material_schema(raw: dict) -> dict:
-    """The material's kind follows from its keys: D (a matrix), E1, E2, ... (orthotropic) or E, nu."""
-    if "D" in raw:
-        return ANISOTROPIC
-    if any(key in ORTHOTROPIC and key not in ISOTROPIC and not key.startswith("alpha") for key in raw):
-        return ORTHOTROPIC
-    return ISOTROPIC
+    """A layer's material: its kind follows from its keys (D: a matrix; E1, E2, ...: orthotropic; else E, nu),
+    and each region of Ω (:data:`REGIONS`) may override its keys in a table of that name."""
+    kind = _kind(raw) or ISOTROPIC
+    return {**kind, **{region: _region_schema(raw, kind) for region in REGIONS}}
+
+
+def _region_schema(layer: dict, kind: dict) -> Callable[[dict], dict]:
+    """The schema of a region's table in a ``layer`` table of ``kind``: of the same kind (its keys name no other),
+    the layer's keys are its defaults; of another kind it is a whole material (no key comes from the layer)."""
+    def schema(raw: dict) -> dict:
+        own = _kind(raw) or kind
+        if own is kind:
+            return {key: (check, layer.get(key, default)) for key, (check, default) in kind.items()}
+        missing = [key for key, (_, default) in own.items() if default is REQUIRED and key not in raw]
+        if missing:
+            noun = next(noun for other, noun in _NAMING if other is own)
+            raise Invalid(f"names keys of {noun} material, not the layer's kind, so it must be a whole material: "
+                          f"missing {', '.join(missing)}")
+        return own
+    return schema
 
 
 _LOAD = {"x": (_load_value, None), "y": (_load_value, None), "pressure": (_load_value, None)}
@@ -328,6 +358,7 @@ SCHEMA: dict[str, Any] = {
 }
 # Tables that exist only when the scene writes them (a boundary without a load is not integrated).
 OPTIONAL_TABLES = {("loads",), *(("loads", layer) for layer in LAYERS), ("displacements",),
+                   *(("materials", layer, region) for layer in LAYERS for region in REGIONS),
                    *(("displacements", layer) for layer in LAYERS), ("temperature",)}
 
 
@@ -336,6 +367,11 @@ def check_table(raw: dict, schema: dict, path: tuple[str, ...], origin: str) -> 
     for key in raw:
         if key not in schema:
             dotted = printable(".".join((*path, key)))
+            if isinstance(raw[key], dict) and path[:1] == ("materials",) and len(path) in (2, 3):
+                raise SceneError(f"{origin}: {dotted}: " + (
+                    f"no region of that name (the regions of Ω, bottom to top: {', '.join(REGIONS)})"
+                    if len(path) == 2 else "a region's table holds a material's keys, not another table (the "
+                    "regions' tables sit in their layer's: materials.LAYER.REGION)"))
             close = difflib.get_close_matches(key, list(schema), n=1)
             hint = f" (did you mean {'.'.join((*path, close[0]))}?)" if close else ""
             valid = ", ".join(sorted(schema))
@@ -359,7 +395,8 @@ def check_table(raw: dict, schema: dict, path: tuple[str, ...], origin: str) -> 
                         raise SceneError(f"{origin}: {printable('.'.join((*path, key, name)))} must be a table")
                     out[key][name] = check_table(table, spec.schema, (*path, key, name), origin)
             else:
-                out[key] = check_table(sub, spec if isinstance(spec, dict) else spec(sub), (*path, key), origin)
+                out[key] = check_table(sub, spec if isinstance(spec, dict) else _chosen(spec, sub, dotted, origin),
+                                       (*path, key), origin)
             continue
         check, default = spec
         if key not in raw:
@@ -376,12 +413,27 @@ def check_table(raw: dict, schema: dict, path: tuple[str, ...], origin: str) -> 
     return out
 
 
+def _chosen(spec: Callable[[dict], dict], raw: dict, dotted: str, origin: str) -> dict:
+    """The schema ``spec`` chooses for the table ``raw`` (at ``dotted``), its refusal as a scene error."""
+    try:
+        return spec(raw)
+    except Invalid as exc:
+        raise SceneError(f"{origin}: {dotted}: {exc}") from None
+
+
 def layer_material(table: dict) -> materials.Material:
-    """A layer's material from its checked table (its kind follows from its keys)."""
-    table = {key: value for key, value in table.items() if not (key.startswith("alpha") and value is None)}
+    """A layer's (or a region's) material from its checked table (its kind follows from its keys; the regions'
+    tables in it are left out)."""
+    table = {key: value for key, value in table.items()
+             if key not in REGIONS and not (key.startswith("alpha") and value is None)}
     if "D" in table:
         return materials.Anisotropic(D=table["D"], Dzz=table["Dzz"])
     if "E1" in table:
         return materials.Orthotropic(**table)
     return materials.Isotropic(**table)
 
+
+def region_materials(tables: dict) -> dict[tuple[str, str], materials.Material]:
+    """(layer, region) -> the material of each region that a checked ``materials`` table overrides."""
+    return {(layer, region): layer_material(tables[layer][region])
+            for layer in LAYERS for region in REGIONS if region in tables[layer]}

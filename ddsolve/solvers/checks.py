@@ -52,7 +52,7 @@ def unread(command: str, path: list[str], scene) -> str | None:
     from ddsolve.dd import registry
     from ddsolve.problem.method_options import OPTIONS
 
-    section, leaf = path[0], path[2:3]
+    section, leaf = path[0], path[2:][-1:]  # a material's key: materials.LAYER.KEY or materials.LAYER.REGION.KEY
     if command == "mesh":
         if section == "displacements" and _point_support(scene, path):
             return None  # the mesh carries a vertex at the point, named as the support is

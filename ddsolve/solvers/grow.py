@@ -45,8 +45,8 @@ from ddsolve.mesh.mesh import BLOCKS, Mesh
 from ddsolve.parallel import distribution
 from ddsolve.parallel.exchange import collective
 from ddsolve.post import toughness
-from ddsolve.problem import expressions, materials
-from ddsolve.problem.scene import LAYERS, Load, Scene
+from ddsolve.problem import expressions
+from ddsolve.problem.scene import LAYERS, REGIONS, Load, Scene
 from ddsolve.solvers.growth_files import Outputs
 
 #: The most root-solve iterations of one step, and of rounds of steps at one control (growth of one tip
@@ -273,9 +273,10 @@ class Growth:
         size = float(np.ptp(np.vstack([half.points for half in self.base.halves]), axis=0).max())
         scaled = {load.key for load in self.scene.loads.values()} | {d.key for d in self.scene.displacements.values()}
         driven, stiffness = [], assembly.modulus(self.scene)
-        for layer in LAYERS:
-            layer_stiffness = float(np.abs(materials.elasticity(self.scene.materials[layer], self.scene.model)[0]).max())
-            driven += assembly.driven_displacements(self.scene, self.base, layer, size, layer, layer_stiffness)
+        for layer, region in ((layer, region) for layer in LAYERS for region in REGIONS):
+            block_stiffness = float(np.abs(assembly.elasticity(self.scene, layer, region)[0]).max())
+            driven += assembly.driven_displacements(self.scene, self.base, (layer, region), size, layer,
+                                                    block_stiffness)
         orders = [(order, cause) for order, cause, _ in driven if cause in scaled]
         fixed = max((order for order, cause, _ in driven if cause not in scaled), default=0.0)
         if not orders:

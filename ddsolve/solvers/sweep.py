@@ -355,8 +355,8 @@ def _mesh_key(scene) -> tuple:
 def _blocks_key(scene) -> tuple:
     """What the assembled and factored blocks depend on besides the mesh (loads excluded; prescribed
     displacements decide which dofs the blocks hold, and their values the Σ supports)."""
-    return (scene.materials, scene.model, scene.nonpenetration, scene.solver.method, scene.solver.out_of_core,
-            scene.displacements)
+    return (scene.materials, scene.regions, scene.model, scene.nonpenetration, scene.solver.method,
+            scene.solver.out_of_core, scene.displacements)
 
 
 def _numbers(result) -> dict:
