@@ -206,7 +206,7 @@ def table(runs: list[Run], rows: list[dict]) -> str:
               "free):", "", "| case | default method | active-set steps | Σ in contact | solve phase, contact (s) | "
               "solve phase, faces free (s) | contact / free | reference solve (s) | default / reference (solve) | "
               "launches: default / reference | error |", "|---|---|---|---|---|---|---|---|---|---|---|"]
-    lines += [f"| {row['specimen']}, a = {row['crack']:g}, size {row['size']:g} | {row['method']} | {row['steps']} | "
+    lines += [f"| {row['specimen']}, crack {row['crack']:g}, size {row['size']:g} | {row['method']} | {row['steps']} | "
               f"{row['contact_length']:.2f} | {row['contact_solve']:.2f} | {row['free_solve']:.2f} | "
               f"{row['contact_solve'] / row['free_solve']:.2f} | {row['reference_solve']:.2f} | "
               f"{row['contact_solve'] / row['reference_solve']:.2f} | "

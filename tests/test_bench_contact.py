@@ -35,7 +35,7 @@ def test_the_page_has_a_row_per_run_and_the_acceptance_ratios():
              "reference_launch": 18.0}]
     text = contact.table(runs, rows)
     assert len(re.findall(r"^\| ENF \| 12\.5 \|", text, flags=re.M)) == 2
-    assert "| ENF, a = 12.5, size 0.1 | schur | 24 | 0.50 | 2.00 | 1.00 | 2.00 | 16.00 | 0.12 | 0.17 | 5.0e-10 |" in text
+    assert "| ENF, crack 12.5, size 0.1 | schur | 24 | 0.50 | 2.00 | 1.00 | 2.00 | 16.00 | 0.12 | 0.17 | 5.0e-10 |" in text
     for line in text.splitlines():
         if line.startswith("|"):
             header = next(h for h in text.splitlines() if h.startswith("|") and h.count("|") == line.count("|"))
