@@ -71,66 +71,19 @@ def paper_scene(P: int, M: int, overrides: list[str] = (), name: str = "partial-
 
 # --- the strongest baseline: one MUMPS factorization of the glued system ---------------------
 def monolithic(scene: scenes.Scene, mesh, systems) -> tuple[Result, dict]:
-    """The glued problem in one process: tied unknowns share one number (``reference.merged_system``),
-    the crack faces' normal unknowns stay apart; one MUMPS factorization, which also gives their
-    Schur complement S; contact by the active set on the small dense dual problem of the crack
-    (A = W^½ B S⁻¹ Bᵀ W^½, B the normal jump), then one solve with the contact forces.
+    """The glued problem in one process by the monolithic reference
+    (:func:`ddsolve.solvers.reference.solve_assembled`: one MUMPS factorization, which also gives the Schur
+    complement on the crack's jumps, the contact as the crack's small dense dual problem, then one solve with
+    the contact forces) from the assembled ``systems``.
 
     Returns the result and its timings: ``merge`` (the glued matrix), ``factorization`` and
     ``solve`` (solves and the dense contact problem); ``factorization + solve`` is the solve phase;
     ``merge_cpu``, ``factorization_cpu`` and ``solve_cpu`` are CPU seconds.
     """
-    import dataclasses
-
-    from ddsolve.dd.interface import for_mesh
-    from ddsolve.dd.schur import box_qp
-    from ddsolve.fem import assembly
-    from ddsolve.mesh.mesh import U_MINUS, U_PLUS
-    from ddsolve.parallel.blocks import Block
-    from ddsolve.parallel.launch import provenance
-    from ddsolve.post.result import Result
     from ddsolve.solvers import reference
 
-    interface = for_mesh(mesh.sigma, scene.nonpenetration)
-    contact = interface.slices["mu_c"]
-    started, cpu = time.perf_counter(), time.process_time()
-    numbers = reference.numbering(systems, interface, np.zeros(contact.stop - contact.start, dtype=bool))
-    unknowns = interface.trace_unknowns()
-    normal = 2 * interface.vertex[contact] + 1
-    faces = np.concatenate([unknowns[U_MINUS][normal], unknowns[U_PLUS][normal]])  # crack normal unknowns
-    system = dataclasses.replace(reference.merged_system(systems, numbers), trace_dofs=faces)
-    block = Block(system, factor_package="mumps")
-    timings = {"merge": time.perf_counter() - started, "merge_cpu": time.process_time() - cpu}
-    started, cpu = time.perf_counter(), time.process_time()
-    block.factor(schur=len(faces) > 0)
-    timings["factorization"] = time.perf_counter() - started
-    timings["factorization_cpu"] = time.process_time() - cpu
-    started, cpu = time.perf_counter(), time.process_time()
-    x = block.solve(np.zeros(len(faces)), body=True).copy()
-    y = np.zeros(len(normal))
-    if len(normal):
-        count = len(normal)
-        jump = np.hstack([np.eye(count), -np.eye(count)])  # B: u⁻·ν − u⁺·ν
-        sqrt_w = np.sqrt(interface.row_weights[contact])
-        flexibility = np.linalg.inv(block.schur_complement())
-        scaled = sqrt_w[:, None] * jump
-        lower, upper = interface.bounds(scene.solver.p)
-        y, _ = box_qp(scaled @ flexibility @ scaled.T, scaled @ x[faces], sqrt_w * lower[contact],
-                      sqrt_w * upper[contact])
-        x = block.solve(-scaled.T @ y, body=True)  # the contact forces −Bᵀ W μ on the faces
-    x = x.copy()
-    timings["solve"] = time.perf_counter() - started
-    timings["solve_cpu"] = time.process_time() - cpu
-    block.destroy()
-    fields = [x[number] for number in numbers]
-    loads = np.array([assembly.csr_matvec(s, u)[s.trace_dofs] - s.rhs[s.trace_dofs] for s, u in zip(systems, fields)])
-    lam = interface.multipliers(loads)
-    lam[contact] = y / np.sqrt(interface.row_weights[contact]) if len(normal) else lam[contact]
-    result = Result.from_blocks(scene, "monolithic", mesh, fields, interface, lam, converged=True,
-                                iterations=1, solves=2 if len(normal) else 1,
-                                wall_time=timings["factorization"] + timings["solve"], ranks=1, history=np.zeros(0),
-                                timings=timings, attrs=provenance())
-    return result, timings
+    result = reference.solve_assembled(scene, mesh, systems)
+    return result, result.timings
 
 
 #: Orderings of the monolithic baseline: MUMPS's own choice (its defaults: what a user gets) and AMF

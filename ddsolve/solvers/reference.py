@@ -1,45 +1,51 @@
 """The monolithic reference: the same discrete problem as one system, solved exactly.
 
 All nodal equalities are imposed by giving tied degrees of freedom one unknown (u⁻ = u⁺ on glued
-vertices, u± = v± everywhere on Σ); non-penetration on crack vertices is handled by a primal-dual
-active set method: an active vertex ties the normal displacements of the two crack faces, an
-inactive one leaves them free; the contact multiplier μᶜ comes from the block residuals.  Each
-active-set step is one sparse Cholesky factorization (KSP prefix ``reference_``).
+vertices, u± = v± everywhere on Σ).  At a crack vertex under non-penetration the lower face's normal
+displacement is the upper face's plus the jump j = [u]·ν, an unknown of its own, so that the glued system
+K x = f holds every crack face free.  It is factored once by MUMPS (KSP prefix ``reference_``), which
+returns with the factors the Schur complement S_j of K on the jumps.  With y = W^½ μᶜ, non-penetration
+is the small dense dual problem of the crack
+
+    min ½ yᵀ A y − bᵀ y over y ≥ 0,   A = W^½ S_j⁻¹ W^½,   b = W^½ j⁰
+
+(j⁰ the jumps of the unconstrained solution x⁰ = K⁻¹ f), solved by the primal-dual active set method
+:func:`ddsolve.dd.schur.box_qp`: whatever the active set, its steps cost dense solves of the crack's size
+and no sparse work.  One more solve with the contact forces −W μᶜ on the jumps gives the displacements.
+The jumps are eliminated last and exactly inside the sparse factorization, so S_j⁻¹ is the flexibility
+of the crack's opening alone, as well conditioned as the crack's own stiffness (the bending of the layers
+never enters it, as it would in the flexibility of the two faces' separate displacements).
 """
 from __future__ import annotations
 
-import time
+import dataclasses
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ddsolve.dd import constraints
 from ddsolve.dd.interface import Interface, for_mesh
-from ddsolve.errors import SolverError
-from ddsolve.fem import assembly
+from ddsolve.dd.schur import box_qp
+from ddsolve.fem import assembly, supports
 from ddsolve.fem.assembly import BlockSystem, coo_to_csr
 from ddsolve.mesh import mesh as meshes
-from ddsolve.mesh.mesh import Mesh
+from ddsolve.mesh.mesh import U_MINUS, V_MINUS, Mesh
 from ddsolve.parallel.blocks import Block
 from ddsolve.parallel.distribution import whole_mesh_checks
 from ddsolve.parallel.launch import provenance
+from ddsolve.parallel.phases import Phases
 from ddsolve.post import analysis, estimate, fracture, reactions
 from ddsolve.post.result import Result
 from ddsolve.problem.scene import Scene
 
-MAX_ACTIVE_SET_STEPS = 100
-
-
-def contact_violation(penetration: np.ndarray, mu_c: np.ndarray, closed: np.ndarray, scale_u: float,
-                      scale_mu: float) -> float:
-    """The active-set step's stopping criterion: the largest penetration of an open crack vertex
-    relative to the displacement scale ``scale_u``, or tension μᶜ < 0 on a closed one relative to the traction
-    scale ``scale_mu`` (those of the KKT check, :mod:`ddsolve.dd.constraints`; 0 when nothing is violated).
-    The active set changes while it exceeds 1e-12."""
-    def relative(values: np.ndarray, scale: float) -> float:
-        largest = float(np.max(values, initial=0.0))
-        return largest / scale if largest > 0.0 else 0.0
-
-    return max(relative(penetration[~closed], scale_u), relative(-mu_c[closed], scale_mu))
+#: The phases of the solve, each with its wall and CPU seconds in the result's timings.
+PHASES = ("merge", "factorization", "solve")
+#: The blocks holding the lower crack face, whose normal displacement is the upper face's plus the jump.
+LOWER_FACE = (U_MINUS, V_MINUS)
+#: The solve with the contact forces is refined while its jumps differ from the dense model's by more than this,
+#: relative to the displacement scale (the ENF of issue 39: 2e-12 before a refinement, 3e-16 after).
+REFINEMENT_TOLERANCE = 1e-14
+MAX_REFINEMENTS = 3
 
 
 def numbering(systems: list[BlockSystem], interface: Interface, closed: np.ndarray) -> list[np.ndarray]:
@@ -57,81 +63,194 @@ def numbering(systems: list[BlockSystem], interface: Interface, closed: np.ndarr
     return numbers
 
 
-def merged_system(systems: list[BlockSystem], numbers: list[np.ndarray]) -> BlockSystem:
-    """Pᵀ diag(K_b) P and Pᵀ f for the numbering P."""
-    size = int(max(n.max() for n in numbers)) + 1
+def jump_numbering(systems: list[BlockSystem], interface: Interface) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """The numbering with the crack faces' normal displacements tied, and the second unknown of every block
+    dof (−1 for none): on the lower face's blocks, the jump of its contact row, numbered last in row order."""
+    contact = interface.slices["mu_c"]
+    numbers = numbering(systems, interface, np.ones(contact.stop - contact.start, dtype=bool))
+    first = int(max(n.max(initial=-1) for n in numbers)) + 1
+    normal = 2 * interface.vertex[contact] + 1
+    jumps = []
+    for index, system in enumerate(systems):
+        jump = np.full(system.size, -1, dtype=np.int64)
+        if index in LOWER_FACE:
+            jump[system.trace_dofs[normal]] = first + np.arange(len(normal))
+        jumps.append(jump)
+    return numbers, jumps
+
+
+def merged_system(systems: list[BlockSystem], numbers: list[np.ndarray],
+                  jumps: list[np.ndarray] | None = None) -> BlockSystem:
+    """Tᵀ diag(K_b) T and Tᵀ f for the map T that gives block dof i the value of unknown ``numbers[b][i]``,
+    plus that of unknown ``jumps[b][i]`` where it is not −1."""
+    jumps = jumps if jumps is not None else [np.full(len(n), -1, dtype=np.int64) for n in numbers]
+    size = int(max(max(n.max(), j.max()) for n, j in zip(numbers, jumps))) + 1
     rows, cols, values, rhs = [], [], [], np.zeros(size)
-    for system, number in zip(systems, numbers):
+    for system, number, jump in zip(systems, numbers, jumps):
         local_rows = np.repeat(np.arange(system.size), np.diff(system.indptr))
-        rows.append(number[local_rows])
-        cols.append(number[system.indices])
-        values.append(system.data)
+        maps = ((number, number), (jump, number), (number, jump), (jump, jump)) if (jump >= 0).any() else ((number, number),)
+        for row_map, col_map in maps:
+            kept = (row_map[local_rows] >= 0) & (col_map[system.indices] >= 0)
+            rows.append(row_map[local_rows[kept]])
+            cols.append(col_map[system.indices[kept]])
+            values.append(system.data[kept])
         rhs += np.bincount(number, system.rhs, minlength=size)
+        second = jump >= 0
+        rhs += np.bincount(jump[second], system.rhs[second], minlength=size)
     indptr, indices, data = coo_to_csr(size, np.concatenate(rows), np.concatenate(cols), np.concatenate(values))
     return BlockSystem("reference", indptr, indices, data, rhs, np.zeros(0, dtype=np.int64), size, block_size=1)
+
+
+class FaceProblem:
+    """The crack's dual problem min ½ yᵀAy − bᵀy over y ≥ 0 (y = W^½ μᶜ) from the Schur complement S_j = L Lᵀ
+    on the jumps and the unconstrained jumps j⁰: A = (L⁻¹ W^½)ᵀ(L⁻¹ W^½), b = W^½ j⁰.  Records, per active-set
+    step, its largest penetration of an open vertex and tension μᶜ < 0 (unscaled) and how many vertices
+    changed state."""
+
+    def __init__(self, stiffness: np.ndarray, unconstrained: np.ndarray, sqrt_w: np.ndarray):
+        forces = np.linalg.solve(np.linalg.cholesky(stiffness), np.diag(sqrt_w))
+        self.A, self.b, self.sqrt_w = forces.T @ forces, sqrt_w * unconstrained, sqrt_w
+        self.violations: list[tuple[float, float]] = []
+        self.changes: list[int] = []
+
+    def jumps(self, y: np.ndarray) -> np.ndarray:
+        """The jumps the model predicts under the scaled multipliers ``y``."""
+        return (self.b - self.A @ y) / self.sqrt_w
+
+    def solve(self) -> np.ndarray:
+        """The solution by :func:`box_qp` (its first step ties every crack vertex)."""
+        return box_qp(self.A, self.b, np.zeros(len(self.b)), np.full(len(self.b), np.inf), observe=self._record)[0]
+
+    def _record(self, y: np.ndarray, changed: int) -> None:
+        self.violations.append((float(np.max(self.jumps(y)[y == 0.0], initial=0.0)),
+                                float(np.max(-y / self.sqrt_w, initial=0.0))))
+        self.changes.append(changed)
+
+    def refine(self, y: np.ndarray, mismatch: np.ndarray) -> np.ndarray:
+        """The solution once the model's jumps are shifted by ``mismatch`` (the solved jumps less the predicted
+        ones: iterative refinement): the equations of ``y``'s active set solved again, or the whole problem where
+        that set no longer holds."""
+        self.b = self.b + self.sqrt_w * mismatch
+        closed = y > 0.0
+        corrected = np.zeros_like(y)
+        corrected[closed] = np.linalg.solve(self.A[np.ix_(closed, closed)], self.b[closed])
+        if np.all(corrected[closed] > 0.0) and np.all(self.jumps(corrected)[~closed] <= 0.0):
+            return corrected
+        return self.solve()
+
+
+@dataclass
+class GluedSolution:
+    """The glued problem solved: every block's displacements, the scaled contact multipliers y = W^½ μᶜ, the
+    crack's dual problem (None without contact rows), the sparse solves and the refinements among them,
+    whether MUMPS kept the factors on disk, and the wall and CPU seconds of :data:`PHASES`."""
+
+    out_of_core: bool
+    fields: list[np.ndarray] = field(default_factory=list)
+    y: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    face: FaceProblem | None = None
+    solves: int = 1
+    refinements: int = 0
+    timings: dict[str, float] = field(default_factory=dict)
+
+
+def solve_glued(systems: list[BlockSystem], interface: Interface, out_of_core: bool = False) -> GluedSolution:
+    """One factorization of the glued system (with S_j on the jumps when there is contact), the unconstrained
+    solve, then with contact the crack's dual problem and the solve with its forces (see the module)."""
+    phases = Phases()
+    numbers, jumps = jump_numbering(systems, interface)
+    sqrt_w = np.sqrt(interface.row_weights[interface.slices["mu_c"]])
+    merged = merged_system(systems, numbers, jumps)
+    block = Block(dataclasses.replace(merged, trace_dofs=merged.size - len(sqrt_w) + np.arange(len(sqrt_w))))
+    phases.end("merge")
+    try:
+        block.factor(schur=len(sqrt_w) > 0, out_of_core=out_of_core)
+        phases.end("factorization")
+        x = block.solve(np.zeros(len(sqrt_w)), body=True).copy()
+        solved = GluedSolution(block.out_of_core())
+        if len(sqrt_w):
+            solved.face = FaceProblem(block.schur_complement(), x[block.trace_dofs], sqrt_w)
+            x = contact_solve(block, x, interface, solved)
+    finally:
+        block.destroy()
+    solved.fields = [x[number] + np.where(jump >= 0, x[jump], 0.0) for number, jump in zip(numbers, jumps)]
+    phases.end("solve")
+    solved.timings = {**{name: phases.wall[name] for name in PHASES},
+                      **{f"{name}_cpu": phases.cpu[name] for name in PHASES}}
+    return solved
+
+
+def contact_solve(block: Block, unconstrained: np.ndarray, interface: Interface, solved: GluedSolution) -> np.ndarray:
+    """The glued solution under contact from the ``unconstrained`` one: ``solved.face`` solved, then the solve
+    with the contact forces −W μᶜ on the jumps, refined while its jumps differ from the model's by more than
+    :data:`REFINEMENT_TOLERANCE` (relative to the KKT check's displacement scale), at most
+    :data:`MAX_REFINEMENTS` times."""
+    face = solved.face
+    solved.y = face.solve()
+    x = unconstrained
+    while solved.y.any():
+        x = block.solve(-face.sqrt_w * solved.y, body=True).copy()
+        solved.solves += 1
+        mismatch = x[block.trace_dofs] - face.jumps(solved.y)
+        scale = constraints.displacement_scale(interface, float(np.abs(x).max()))
+        if np.abs(mismatch).max() <= REFINEMENT_TOLERANCE * scale or solved.refinements == MAX_REFINEMENTS:
+            return x
+        solved.y = face.refine(solved.y, mismatch)
+        solved.refinements += 1
+    return unconstrained
+
+
+def contact_violation(penetration: float, tension: float, scale_u: float, scale_mu: float) -> float:
+    """An active-set step's violation of the contact conditions: its largest penetration of an open crack
+    vertex relative to the displacement scale ``scale_u``, or tension μᶜ < 0 on a closed one relative to the
+    traction scale ``scale_mu`` (those of the KKT check, :mod:`ddsolve.dd.constraints`; 0 when nothing is
+    violated)."""
+    return max(constraints.scale_free_ratio(penetration, scale_u), constraints.scale_free_ratio(tension, scale_mu))
+
+
+def solve_assembled(scene: Scene, mesh: Mesh, systems: list[BlockSystem],
+                    table: supports.SigmaSupports | None = None) -> Result:
+    """The scene's discrete problem from its assembled ``systems`` (Σ supports ``table``, made from the mesh if
+    not given), with the KKT check; timings per phase of :data:`PHASES` (wall and ``_cpu``), ``total`` their sum."""
+    table = table if table is not None else supports.sigma_supports(scene, mesh)
+    interface = for_mesh(mesh.sigma, scene.nonpenetration, table.fixed, assembly.modulus(scene),
+                         assembly.data_displacement(scene, mesh.halves, mesh.sigma))
+    solved = solve_glued(systems, interface, out_of_core=scene.solver.out_of_core)
+    fields, contact = solved.fields, interface.slices["mu_c"]
+    steps, changes = (solved.face.violations, solved.face.changes) if solved.face else ([(0.0, 0.0)], [0])
+    lam = interface.multipliers(np.array([assembly.csr_matvec(s, u)[s.trace_dofs] - s.rhs[s.trace_dofs]
+                                          for s, u in zip(systems, fields)]))
+    lam[contact] = solved.y / np.sqrt(interface.row_weights[contact])  # exactly 0 on open vertices
+    traces = np.array([u[s.trace_dofs] for s, u in zip(systems, fields)])
+    largest = analysis.largest_displacement(u.reshape(-1, 2) for u in fields)
+    checked = constraints.kkt(interface, traces, lam, None,
+                              np.array([analysis.block_residual(s, u, load)
+                                        for s, u, load in zip(systems, fields, interface.loads(lam))]), largest)
+    violations = checked.violations(constraints.kkt_tolerance(None))
+    message = (f"reference: the solution violates {', '.join(violations)} (scale-free tolerance "
+               f"{constraints.kkt_tolerance(None):g}): the problem is too ill-conditioned for double precision"
+               if violations else "")
+    scale_u = constraints.displacement_scale(interface, largest)
+    scale_mu = constraints.traction_scale(interface, lam, scale_u)
+    energy = sum(0.5 * u @ assembly.csr_matvec(s, u) - s.rhs @ u + s.energy_offset for s, u in zip(systems, fields))
+    total = sum(solved.timings[name] for name in PHASES)
+    return Result.from_blocks(
+        scene, "reference", mesh, fields, interface, lam, converged=not violations, iterations=len(steps),
+        solves=solved.solves, wall_time=total, ranks=1,
+        history=np.array([contact_violation(*step, scale_u, scale_mu) for step in steps]),
+        active_set_changes=np.array(changes, dtype=np.int64),
+        timings={**solved.timings, "total": total}, message=message,
+        attrs={**provenance(), **meshes.quality(mesh), "closed_vertices": int(np.count_nonzero(solved.y)),
+               "energy": float(energy), "factors_out_of_core": solved.out_of_core, "refined": solved.refinements,
+               "kkt_tolerance": constraints.kkt_tolerance(None),
+               **{f"kkt_{name}": getattr(checked, name) for name in constraints.Constraints.NAMES}})
 
 
 def solve_monolithic(scene: Scene, mesh: Mesh, factors: np.ndarray | None = None) -> Result:
     """Solve the scene's discrete problem exactly; return it in the result schema (``factors``: the tips'
     critical load factors where a root solve found them, see :func:`ddsolve.post.toughness.judge`)."""
     tips, table, _ = whole_mesh_checks(scene, mesh)  # the solver's checks: a structure that can move is refused
-    systems = assembly.block_systems(scene, mesh, table=table)
-    started = time.perf_counter()  # the solve phase: merging, factorizations, active-set steps
-    interface = for_mesh(mesh.sigma, scene.nonpenetration, table.fixed, assembly.modulus(scene),
-                         assembly.data_displacement(scene, mesh.halves, mesh.sigma))
-    contact_rows = interface.slices["mu_c"]
-    closed = np.zeros(contact_rows.stop - contact_rows.start, dtype=bool)
-    history, changes = [], []
-    factorization = 0.0
-    for step in range(1, MAX_ACTIVE_SET_STEPS + 1):
-        numbers = numbering(systems, interface, closed)
-        block = Block(merged_system(systems, numbers))
-        mark = time.perf_counter()
-        block.factor(out_of_core=scene.solver.out_of_core)
-        factorization += time.perf_counter() - mark
-        x = block.solve(np.zeros(0), body=True).copy()
-        out_of_core = block.out_of_core()  # what MUMPS did (a PETSc option may override the scene)
-        block.destroy()
-        fields = [x[number] for number in numbers]
-        loads = np.array([assembly.csr_matvec(s, u)[s.trace_dofs] - s.rhs[s.trace_dofs]
-                          for s, u in zip(systems, fields)])
-        lam = interface.multipliers(loads)
-        traces = np.array([u[s.trace_dofs] for s, u in zip(systems, fields)])
-        penetration = interface.gap(traces)[contact_rows]
-        mu_c = lam[contact_rows]
-        scale_u = constraints.displacement_scale(interface, float(np.abs(x).max(initial=0.0)))
-        scale_mu = constraints.traction_scale(interface, lam, scale_u)
-        stays = closed & (mu_c >= -1e-12 * scale_mu)
-        enters = ~closed & (penetration > 1e-12 * scale_u)
-        changed = closed != (stays | enters)
-        history.append(contact_violation(penetration, mu_c, closed, scale_u, scale_mu))
-        changes.append(int(changed.sum()))
-        if not changed.any():
-            break
-        closed = stays | enters
-    else:
-        raise SolverError(f"reference: the active set did not settle in {MAX_ACTIVE_SET_STEPS} steps")
-    elapsed = time.perf_counter() - started
-    lam[contact_rows][~closed] = 0.0  # open rows carry no pressure: exactly, not the residuals' round-off
-    energy = sum(0.5 * u @ assembly.csr_matvec(s, u) - s.rhs @ u + s.energy_offset
-                 for s, u in zip(systems, fields))
-    checked = constraints.kkt(interface, traces, lam, None,
-                           np.array([analysis.block_residual(s, u, load)
-                                     for s, u, load in zip(systems, fields, interface.loads(lam))]),
-                           analysis.largest_displacement(u.reshape(-1, 2) for u in fields))
-    violations = checked.violations(constraints.kkt_tolerance(None))
-    message = (f"reference: the solution violates {', '.join(violations)} (scale-free tolerance "
-               f"{constraints.kkt_tolerance(None):g}): the problem is too ill-conditioned for double precision"
-               if violations else "")
-    result = Result.from_blocks(
-        scene, "reference", mesh, fields, interface, lam, converged=not violations, iterations=step,
-        solves=step, wall_time=elapsed, ranks=1, history=np.array(history),
-        active_set_changes=np.array(changes, dtype=np.int64),
-        timings={"factorization": factorization, "total": elapsed}, message=message,
-        attrs={**provenance(), **meshes.quality(mesh), "closed_vertices": int(closed.sum()), "energy": float(energy),
-               "factors_out_of_core": out_of_core,
-               "kkt_tolerance": constraints.kkt_tolerance(None),
-               **{f"kkt_{name}": getattr(checked, name) for name in constraints.Constraints.NAMES}})
+    result = solve_assembled(scene, mesh, assembly.block_systems(scene, mesh, table=table), table)
     estimated = estimate.of_scene(scene, mesh, result.solution, result.multipliers["mu_c"])
     result.attrs["error_estimate"], result.indicators = estimated.relative, estimated.indicators
     result.fracture = fracture.of_result(result, tips, factors)
