@@ -117,9 +117,13 @@ class FaceProblem:
         """The jumps the model predicts under the scaled multipliers ``y``."""
         return (self.b - self.A @ y) / self.sqrt_w
 
-    def solve(self) -> np.ndarray:
-        """The solution by :func:`box_qp` (its first step ties every crack vertex)."""
-        return box_qp(self.A, self.b, np.zeros(len(self.b)), np.full(len(self.b), np.inf), observe=self._record)[0]
+    def solve(self, start: np.ndarray | None = None) -> np.ndarray:
+        """The solution by :func:`box_qp`, its first active set that of ``start`` (a previous solution: the rows
+        it holds at 0 stay open) or, without one, the unconstrained solution's: open where j⁰ ≤ 0, closed where
+        the faces penetrate."""
+        start = np.maximum(self.b, 0.0) if start is None else start
+        return box_qp(self.A, self.b, np.zeros(len(self.b)), np.full(len(self.b), np.inf), observe=self._record,
+                      start=start)[0]
 
     def _record(self, y: np.ndarray, changed: int) -> None:
         self.violations.append((float(np.max(self.jumps(y)[y == 0.0], initial=0.0)),
@@ -128,15 +132,9 @@ class FaceProblem:
 
     def refine(self, y: np.ndarray, mismatch: np.ndarray) -> np.ndarray:
         """The solution once the model's jumps are shifted by ``mismatch`` (the solved jumps less the predicted
-        ones: iterative refinement): the equations of ``y``'s active set solved again, or the whole problem where
-        that set no longer holds."""
+        ones: iterative refinement), starting from ``y``'s active set."""
         self.b = self.b + self.sqrt_w * mismatch
-        closed = y > 0.0
-        corrected = np.zeros_like(y)
-        corrected[closed] = np.linalg.solve(self.A[np.ix_(closed, closed)], self.b[closed])
-        if np.all(corrected[closed] > 0.0) and np.all(self.jumps(corrected)[~closed] <= 0.0):
-            return corrected
-        return self.solve()
+        return self.solve(start=y)
 
 
 @dataclass
