@@ -36,7 +36,8 @@ def tied_solution(systems, interface) -> tuple[list[np.ndarray], np.ndarray]:
         K[np.repeat(np.arange(merged.size), np.diff(merged.indptr)), merged.indices] = merged.data
         x = np.linalg.solve(K, merged.rhs)
         fields = [x[number] for number in numbers]
-        loads = np.array([assembly.csr_matvec(s, u)[s.trace_dofs] - s.rhs[s.trace_dofs] for s, u in zip(systems, fields)])
+        loads = np.array([assembly.csr_matvec(s, u)[s.trace_dofs] - s.rhs[s.trace_dofs]
+                          for s, u in zip(systems, fields)])
         mu = interface.multipliers(loads)[contact]
         gap = interface.gap(np.array([u[s.trace_dofs] for s, u in zip(systems, fields)]))[contact]
         settled = np.where(closed, mu >= -1e-10 * np.abs(mu).max(initial=0.0), gap > 1e-12 * np.abs(x).max())
@@ -44,6 +45,14 @@ def tied_solution(systems, interface) -> tuple[list[np.ndarray], np.ndarray]:
             return fields, closed
         closed = settled
     raise AssertionError("the tied active set did not settle")
+
+
+def recording(calls: list, function, what):
+    """``function`` that first appends ``what`` of its arguments to ``calls``."""
+    def recorded(*args, **options):
+        calls.append(what(*args, **options))
+        return function(*args, **options)
+    return recorded
 
 
 def energy_error(systems, fields, expected) -> float:
@@ -89,9 +98,8 @@ def test_the_reference_equals_the_dd_on_a_floating_half(floating_scene):
 @pytest.mark.solve
 def test_one_factorization_whatever_the_active_set_steps(monkeypatch):
     factored, solves = [], []
-    factor, solve = Block.factor, Block.solve
-    monkeypatch.setattr(Block, "factor", lambda block, *a, **k: (factored.append(block.name), factor(block, *a, **k))[1])
-    monkeypatch.setattr(Block, "solve", lambda block, *a, **k: (solves.append(block.name), solve(block, *a, **k))[1])
+    monkeypatch.setattr(Block, "factor", recording(factored, Block.factor, lambda block, *_, **__: block.name))
+    monkeypatch.setattr(Block, "solve", recording(solves, Block.solve, lambda block, *_, **__: block.name))
     source = scenes.load("partial-closure")  # P = 96: five active-set steps
     result = reference.solve_monolithic(source, geometry.build(source))
     assert result.converged and result.iterations >= 3 and result.attrs["closed_vertices"] > 0
@@ -112,8 +120,7 @@ def face(count: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def test_the_face_problem_starts_from_the_unconstrained_penetrations(monkeypatch):
     stiffness, unconstrained, sqrt_w = face(8, 1)
     starts = []
-    box_qp = reference.box_qp
-    monkeypatch.setattr(reference, "box_qp", lambda *a, start, **k: (starts.append(start), box_qp(*a, start=start, **k))[1])
+    monkeypatch.setattr(reference, "box_qp", recording(starts, reference.box_qp, lambda *_, start, **__: start))
     reference.FaceProblem(stiffness, unconstrained, sqrt_w).solve()
     assert np.array_equal(starts[0] > 0.0, unconstrained > 0.0)  # closed where the faces penetrate, open elsewhere
     apart = reference.FaceProblem(stiffness, -np.abs(unconstrained), sqrt_w)
