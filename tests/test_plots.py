@@ -17,7 +17,7 @@ METHODS = ("schur", "mprgp", "fista", "uzawa")
 
 @pytest.fixture(scope="module")
 def results(tmp_path_factory):
-    """Example 1 on a small mesh by every method (one rank) and by the reference."""
+    """Example 1 on a small mesh by every method (one rank), and by the reference."""
     folder = tmp_path_factory.mktemp("plots")
     out = {}
     for method in METHODS:
@@ -25,7 +25,9 @@ def results(tmp_path_factory):
         ddsolve("solve", "partial-closure", *SMALL, "--set", f"solver.method={method}", "-o", str(path), ranks=1)
         out[method] = hdf5.read(path)
     path = folder / "reference.h5"
-    ddsolve("reference", "partial-closure", *SMALL, "-o", str(path))
+    # On the paper's mesh (P = 96) the reference's active set moves for five steps; on the small mesh its first
+    # step, from the unconstrained solution's penetrations, is already the contact zone.
+    ddsolve("reference", "partial-closure", "-o", str(path))
     out["reference"] = hdf5.read(path)
     return out
 
