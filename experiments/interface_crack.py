@@ -82,7 +82,6 @@ def griffith(ratio: float, size: float, width: float = WIDTH) -> dict[str, float
     """The solved half model against :func:`closed_form`: G, ε, ψ at l = 2a, G from |K| (the interaction
     integral's, against the domain integral's G), the tip's Σ spacing and the unknowns."""
     from ddsolve.mesh import geometry
-    from ddsolve.post import fracture as tips
     from ddsolve.post import interface_crack
     from ddsolve.problem import scene
     from ddsolve.solvers import reference
@@ -94,7 +93,7 @@ def griffith(ratio: float, size: float, width: float = WIDTH) -> dict[str, float
     return {"ratio": ratio, "size": size, "width": width, "G": float(fracture.G[0]), "theory": exact["G"],
             "error": float(fracture.G[0]) / exact["G"] - 1.0, "epsilon": epsilon, "epsilon_theory": exact["epsilon"],
             "phase": interface_crack.phase(K, epsilon, 2.0), "phase_theory": exact["phase"],
-            "G_of_K": float(interface_crack.release(np.array([K]), epsilon, tips.interface_pair(source))[0]),
+            "G_of_K": float(interface_crack.release(np.array([K]), epsilon, interface_crack.interface_pair(source))[0]),
             "spacing": float(fracture.spacing[0]),
             "unknowns": 4 * sum(len(half.points) for half in result.mesh.halves)}
 

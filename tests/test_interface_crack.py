@@ -103,8 +103,9 @@ def annulus_integral(pair: Bimaterial, epsilon: float, K: complex, inner: float 
         x, y = R * np.cos(A), R * np.sin(A)
         grads = interface_crack.tip_gradients(x, y, *(pair.upper if side > 0 else pair.lower), epsilon, side)
         grad = K.real * grads[0] + K.imag * grads[1]
-        voigt = K.real * stresses(x, y, pair, epsilon, side)[0] + K.imag * stresses(x, y, pair, epsilon, side)[1]
-        sigma = np.stack([np.stack([voigt[..., 0], voigt[..., 2]], -1), np.stack([voigt[..., 2], voigt[..., 1]], -1)], -2)
+        unit = stresses(x, y, pair, epsilon, side)
+        voigt = K.real * unit[0] + K.imag * unit[1]
+        sigma = fracture.tensor(voigt)
         density = 0.5 * (voigt[..., 0] * grad[..., 0, 0] + voigt[..., 1] * grad[..., 1, 1]
                          + voigt[..., 2] * (grad[..., 0, 1] + grad[..., 1, 0]))
         slope = -1.0 / (outer - inner)
@@ -142,8 +143,8 @@ def test_the_phase_turns_by_epsilon_ln_l():
 @pytest.mark.unit
 def test_the_reference_length_is_a_positive_key_and_a_law_needs_a_pair():
     text = _text(10.0)
-    assert fracture.reference_length(scene.loads(text)) == 1.0
-    assert fracture.reference_length(scene.loads(text, ["fracture.reference_length=2.0"])) == 2.0
+    assert interface_crack.reference_length(scene.loads(text)) == 1.0
+    assert interface_crack.reference_length(scene.loads(text, ["fracture.reference_length=2.0"])) == 2.0
     with pytest.raises(SceneError, match="fracture.reference_length"):
         scene.loads(text, ["fracture.reference_length=-1.0"])
     law = ["fracture.law=hutchinson-suo", "fracture.G_Ic=1e-6", "fracture.lambda=0.3"]
@@ -178,7 +179,7 @@ def test_equal_materials_keep_the_classical_split_and_epsilon_zero():
 
     source = scene.loads(_text(1.0))
     result = reference.solve_monolithic(source, geometry.build(source)).fracture
-    assert fracture.interface_pair(source) is None and result.symmetric[0] and result.epsilon[0] == 0.0
+    assert interface_crack.interface_pair(source) is None and result.symmetric[0] and result.epsilon[0] == 0.0
     assert np.isnan(result.K).all() and abs(result.phase[0]) < 0.5  # pure mode I up to the coarse mesh
 
 

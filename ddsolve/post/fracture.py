@@ -26,12 +26,13 @@ the scene's ``[fracture] inner, outer`` override them.
 
 G splits into opening and sliding (:func:`mode_split`): by the domain integral of the parts of the fields
 symmetric and antisymmetric about Σ where the θ disc is mirror-symmetric, else by virtual crack closure of
-the tip's gluing forces (docs/fracture.md, "Modes I and II").  No PETSc or MPI here.
+the tip's gluing forces (docs/fracture.md, "Modes I and II"); between regions of different materials (an
+interface crack) by K from the interaction integral and the phase ψ at a reference length
+(:mod:`ddsolve.post.interface_crack`).  No PETSc or MPI here.
 """
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 from dataclasses import dataclass
 
@@ -44,10 +45,8 @@ from ddsolve.mesh.mesh import BLOCKS, SIGMA, HalfMesh, Mesh, SigmaLine, partner
 from ddsolve.post import interface_crack
 from ddsolve.post.result import Fracture, OnSigma
 from ddsolve.post.toughness import judge
-from ddsolve.problem import materials
 from ddsolve.problem.materials import Bimaterial
 from ddsolve.problem.scene import Scene
-from ddsolve.problem.schema import LAYERS, REGIONS
 
 #: Σ turns by more than this between two edges at a kink (a smooth curve turns by h·κ per edge).
 KINK_DEGREES = 10.0
@@ -226,7 +225,9 @@ def interaction_terms(points: np.ndarray, cells: np.ndarray, D: np.ndarray, u: n
         return out
     for i, (field, gradients) in enumerate(zip(fields, auxiliary)):
         grad_theta = sampled.gradient(field)
-        near = np.any(grad_theta != 0.0, axis=(-1, -2)) | (thermal is not None)
+        # where ∇θ = 0 only an eigenstrain's gradient term is left: skip those points without one
+        near = np.ones(grad_theta.shape[:2], dtype=bool) if thermal is not None else np.any(grad_theta != 0.0,
+                                                                                              axis=(-1, -2))
         for k, grad_aux in enumerate(gradients(sampled.points[near])):
             stress = assembly.voigt_strain(grad_aux) @ D.T
             momentum = (np.matmul(grad_aux.swapaxes(-1, -2), tensor(sampled.stress[near]))
@@ -306,11 +307,11 @@ def eigenstrain_term(points: np.ndarray, cells: np.ndarray, xi: np.ndarray, grad
 def block_terms(scene, sigma: SigmaLine, tips: list[Tip], parts: dict[int, tuple]) -> np.ndarray:
     """Sum of the volume terms for every tip over ``parts``: block index -> (points, cells, u), cells of the
     block's half (all, or those a rank owns) and the displacements ``(n, 2)`` (x, y) at the points; ``(2t,)``:
-    each tip's with its θ, then with its :func:`halved` one; between different materials
-    (:func:`interface_pair`) ``(4t,)``: then each tip's interaction integrals with the tip fields of K = 1
-    and K = i (:mod:`ddsolve.post.interface_crack`; NaN where Σ is not straight in the disc)."""
+    each tip's with its θ, then with its :func:`halved` one; between different materials with a pair
+    (:func:`ddsolve.post.interface_crack.interface_pair`) ``(4t,)``: then each tip's interaction integrals
+    with the tip fields of K = 1 and K = i (NaN where Σ is not straight in the disc)."""
     contours = tips + [halved(tip) for tip in tips]
-    pair = interface_pair(scene)
+    pair = interface_crack.interface_pair(scene)
     crack = isinstance(pair, Bimaterial)
     out = np.zeros(len(contours) + (2 * len(tips) if crack else 0))
     if not tips:
@@ -322,42 +323,13 @@ def block_terms(scene, sigma: SigmaLine, tips: list[Tip], parts: dict[int, tuple
         fields = [theta(tip, sigma, points) for tip in contours]
         out[:len(contours)] += volume_terms(points, cells, D, u, fields, thermal)
         if crack:
-            auxiliary = [tip_fields(tip, sigma, pair, spec.side) for tip in tips]
+            auxiliary = [interface_crack.tip_fields(tip, sigma, pair, spec.side) for tip in tips]
             out[len(contours):] += interaction_terms(points, cells, D, u, fields[:len(tips)], auxiliary,
                                                      thermal).ravel()
     if crack:
-        straight = np.repeat([_straight_near(tip, sigma) for tip in tips], 2)
+        straight = np.repeat([straight_near(tip, sigma) for tip in tips], 2)
         out[len(contours):] = np.where(straight, out[len(contours):], np.nan)
     return out
-
-
-def interface_pair(scene: Scene) -> Bimaterial | str | None:
-    """The effective isotropic pair below and above Σ where the regions of a layer have different elastic laws
-    (:func:`ddsolve.problem.materials.interface_pair`), or why there is none; None where every layer has one
-    law on both sides (the mirror or closure split)."""
-    if not scene.dissimilar_layers(thermal=False):
-        return None
-    laws = {region: [assembly.elasticity(scene, layer, region)[0] for layer in LAYERS] for region in REGIONS}
-    return materials.interface_pair(laws["lower"], laws["upper"])
-
-
-def tip_frame(tip: Tip, sigma: SigmaLine) -> int:
-    """1 where the tip frame's y (the extension turned 90° counter-clockwise) points into the upper region, else −1."""
-    return 1 if sigma.normals[tip.node] @ np.array([-tip.direction[1], tip.direction[0]]) > 0.0 else -1
-
-
-def tip_epsilon(tip: Tip, sigma: SigmaLine, pair: Bimaterial) -> float:
-    """ε at the tip, material 1 on the side of its frame's y."""
-    return interface_crack.oscillation(pair, upper_first=tip_frame(tip, sigma) > 0)
-
-
-def tip_fields(tip: Tip, sigma: SigmaLine, pair: Bimaterial, side: int):
-    """The gradients of the tip fields of K = 1 and K = i in the region on ``side`` of Σ (−1 below), as a function
-    of the quadrature points (:func:`interaction_terms`)."""
-    frame_side = side * tip_frame(tip, sigma)
-    material = pair.lower if side < 0 else pair.upper
-    return functools.partial(interface_crack.global_gradients, tip=tip.point, direction=tip.direction,
-                             material=material, epsilon=tip_epsilon(tip, sigma, pair), side=frame_side)
 
 
 def halved(tip: Tip) -> Tip:
@@ -389,7 +361,9 @@ def finish(tips: list[Tip], volume: np.ndarray, on: OnSigma, split: dict[str, np
     """G = volume terms − contact terms, and the contact zones (without the ``scene``'s non-penetration: the
     zones where the faces overlap), from the Σ data ``on`` of a result
     (:attr:`ddsolve.post.result.Result.on_sigma`); ``split``: G's split into modes I and II
-    (:func:`mode_split`), or none, its ψ left undefined (NaN) where G is no release rate
+    (:func:`mode_split`), or none (``volume`` with the interaction integrals of :func:`block_terms`: the
+    interface crack's, :func:`ddsolve.post.interface_crack.interface_split`), its ψ left undefined (NaN)
+    where G is no release rate
     (:meth:`~ddsolve.post.result.Fracture.released`); the scene's toughness and the critical load factors
     (``factors`` where a root solve found them: :func:`ddsolve.post.toughness.judge`)."""
     from ddsolve.post.analysis import contact_zones, overlap_zones
@@ -413,7 +387,7 @@ def finish(tips: list[Tip], volume: np.ndarray, on: OnSigma, split: dict[str, np
     interaction = volume[2 * len(tips):] if tips and len(volume) == 4 * len(tips) else None
     G, noise = release_and_noise(tips, volume if interaction is None else volume[:2 * len(tips)], contact, on)
     if interaction is not None:
-        split = interface_split(tips, G, interaction.reshape(-1, 2), sigma, scene)
+        split = interface_crack.interface_split(tips, G, interaction.reshape(-1, 2), sigma, scene)
     out = Fracture(
         points=np.array([tip.point for tip in tips]).reshape(-1, 2),
         directions=np.array([tip.direction for tip in tips]).reshape(-1, 2),
@@ -421,39 +395,10 @@ def finish(tips: list[Tip], volume: np.ndarray, on: OnSigma, split: dict[str, np
         inner=np.array([tip.inner for tip in tips]), outer=np.array([tip.outer for tip in tips]),
         spacing=np.array([tip.spacing for tip in tips]), G=G, contact=contact, zones=zones, zone_crack=zone_crack,
         overlaps=overlaps, overlap_crack=overlap_crack, noise=noise, **(split or {}),
-        reference_length=reference_length(scene),
+        reference_length=interface_crack.reference_length(scene),
     )
     out.phase = np.where(out.released(), out.phase, np.nan)
     return judge(out, scene, factors)
-
-
-def reference_length(scene: Scene) -> float:
-    """The length l of the phase ψ = arg(K l^{iε}): ``fracture.reference_length``, else 1 (ψ = arg K)."""
-    given = scene.fracture.reference_length
-    return 1.0 if given is None else float(given)
-
-
-def interface_split(tips: list[Tip], G: np.ndarray, interaction: np.ndarray, sigma: SigmaLine, scene: Scene
-                    ) -> dict[str, np.ndarray]:
-    """G's split at the tips of an interface crack between different materials from the interaction integrals
-    ``(t, 2)`` (:func:`block_terms`): ε, K = K₁ + iK₂ ``(t, 2)``, ψ = arg(K l^{iε}) (degrees) at the scene's
-    :func:`reference_length` and G_I = G cos²ψ, G_II = G sin²ψ (docs/fracture.md)."""
-    pair, length = interface_pair(scene), reference_length(scene)
-    count = len(tips)
-    out = {"G_I": np.full(count, np.nan), "G_II": np.full(count, np.nan), "phase": np.full(count, np.nan),
-           "symmetric": np.zeros(count, dtype=bool), "epsilon": np.full(count, np.nan),
-           "K": np.full((count, 2), np.nan)}
-    for i, tip in enumerate(tips):
-        epsilon = tip_epsilon(tip, sigma, pair)
-        out["epsilon"][i] = epsilon
-        if not np.all(np.isfinite(interaction[i])):
-            continue
-        K = interface_crack.intensity(interaction[i], epsilon, pair)
-        out["K"][i] = K.real, K.imag
-        psi = interface_crack.phase(K, epsilon, length)
-        out["phase"][i] = psi
-        out["G_I"][i], out["G_II"][i] = G[i] * math.cos(math.radians(psi)) ** 2, G[i] * math.sin(math.radians(psi)) ** 2
-    return out
 
 
 def release_and_noise(tips: list[Tip], volume: np.ndarray, contact: np.ndarray, on: OnSigma
@@ -497,8 +442,10 @@ MIRROR = 1e-10
 
 
 def mode_split(tips: list[Tip], result) -> dict[str, np.ndarray] | None:
-    """G_I, G_II, the phase angle (degrees) and ``symmetric`` (how each tip was split) at every tip; None where
-    the regions below and above Σ have different elastic laws (:func:`split_note`).
+    """G_I, G_II, the phase angle (degrees), ``symmetric`` (how each tip was split) and ε = 0 at every tip; None
+    where the regions below and above Σ have different elastic laws (an interface crack: :func:`finish` splits
+    it by :func:`ddsolve.post.interface_crack.interface_split` where it has a pair, else not at all,
+    :func:`split_note`).
 
     Where the θ disc is mirror-symmetric about Σ (Σ straight there, both layers' laws unchanged by the
     reflection: always for isotropic layers) the fields split into a part symmetric about Σ (opening,
@@ -576,15 +523,16 @@ def mirrorable(tip: Tip, sigma: SigmaLine, scene: Scene) -> bool:
     """Whether the tip's θ disc can be split by mirror symmetry: Σ straight there, every block's law unchanged
     by the reflection about it, and each layer's material the same in both regions (thermal strain too)."""
     laws = [assembly.elasticity(scene, spec.layer, spec.region)[0] for spec in BLOCKS]
-    return (_straight_near(tip, sigma) and all(mirrored_law(D, reflection(tip, sigma)) for D in laws)
+    return (straight_near(tip, sigma) and all(mirrored_law(D, reflection(tip, sigma)) for D in laws)
             and not scene.dissimilar_layers())
 
 
 def split_note(scene: Scene) -> str | None:
     """Why G is not split into modes I and II, or None where it is: layers whose regions below and above Σ have
-    different elastic laws with no effective isotropic pair (:func:`interface_pair`: orthotropic regions, or
-    layers whose pairs are not proportional), where the split of an interface crack's G is not defined here."""
-    pair = interface_pair(scene)
+    different elastic laws with no effective isotropic pair (orthotropic regions, or layers whose pairs are not
+    proportional: :func:`ddsolve.post.interface_crack.interface_pair`), where an interface crack's G is not
+    split."""
+    pair = interface_crack.interface_pair(scene)
     if not isinstance(pair, str):
         return None
     layers = scene.dissimilar_layers(thermal=False)
@@ -657,7 +605,7 @@ def closure_split(tip: Tip, on: OnSigma, degree: int) -> tuple[float, float]:
     return float(normal), float(tangential)
 
 
-def _straight_near(tip: Tip, sigma: SigmaLine) -> bool:
+def straight_near(tip: Tip, sigma: SigmaLine) -> bool:
     """Σ is the straight line through the tip within the θ disc (and one edge beyond)."""
     reach = tip.outer + np.linalg.norm(np.diff(sigma.points, axis=0), axis=1).max()
     near = np.linalg.norm(sigma.points - tip.point, axis=1) <= reach

@@ -17,11 +17,17 @@ they carry the same near-tip field and K is that of one sheet of the summed stif
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 
+from ddsolve.fem import assembly
+from ddsolve.mesh.mesh import SigmaLine
+from ddsolve.problem import materials
 from ddsolve.problem.materials import Bimaterial
+from ddsolve.problem.scene import Scene
+from ddsolve.problem.schema import LAYERS, REGIONS
 
 #: The complex step of the auxiliary field's derivatives (exact to rounding for any small step).
 STEP = 1e-30
@@ -94,3 +100,64 @@ def intensity(terms: np.ndarray, epsilon: float, pair: Bimaterial) -> complex:
 def phase(K: complex, epsilon: float, length: float) -> float:
     """ψ = arg(K l^{iε}) in degrees at the reference length l."""
     return math.degrees(np.angle(K * length ** (1j * epsilon)))
+
+
+# --- the tips of a scene -------------------------------------------------------------------------
+def interface_pair(scene: Scene) -> Bimaterial | str | None:
+    """The effective isotropic pair below and above Σ where the regions of a layer have different elastic laws
+    (:func:`ddsolve.problem.materials.interface_pair`), or why there is none; None where every layer has one
+    law on both sides (the mirror or closure split)."""
+    if not scene.dissimilar_layers(thermal=False):
+        return None
+    laws = {region: [assembly.elasticity(scene, layer, region)[0] for layer in LAYERS] for region in REGIONS}
+    return materials.interface_pair(laws["lower"], laws["upper"])
+
+
+def tip_frame(tip, sigma: SigmaLine) -> int:
+    """1 where the tip's frame's y (its extension turned 90° counter-clockwise) points into the upper region,
+    else −1 (``tip``: a :class:`ddsolve.post.fracture.Tip`)."""
+    return 1 if sigma.normals[tip.node] @ np.array([-tip.direction[1], tip.direction[0]]) > 0.0 else -1
+
+
+def tip_epsilon(tip, sigma: SigmaLine, pair: Bimaterial) -> float:
+    """ε at the tip, material 1 on the side of its frame's y."""
+    return oscillation(pair, upper_first=tip_frame(tip, sigma) > 0)
+
+
+def tip_fields(tip, sigma: SigmaLine, pair: Bimaterial, side: int):
+    """The gradients of the tip fields of K = 1 and K = i in the region on ``side`` of Σ (−1 below), as a function
+    of the quadrature points (:func:`ddsolve.post.fracture.interaction_terms`)."""
+    frame_side = side * tip_frame(tip, sigma)
+    material = pair.lower if side < 0 else pair.upper
+    return functools.partial(global_gradients, tip=tip.point, direction=tip.direction,
+                             material=material, epsilon=tip_epsilon(tip, sigma, pair), side=frame_side)
+
+
+def reference_length(scene: Scene) -> float:
+    """The length l of the phase ψ = arg(K l^{iε}): ``fracture.reference_length``, else 1 (ψ = arg K)."""
+    given = scene.fracture.reference_length
+    return 1.0 if given is None else float(given)
+
+
+def interface_split(tips: list, G: np.ndarray, interaction: np.ndarray, sigma: SigmaLine, scene: Scene
+                    ) -> dict[str, np.ndarray]:
+    """G's split at the tips of an interface crack between different materials from the interaction integrals
+    ``(t, 2)`` (:func:`ddsolve.post.fracture.block_terms`): ε, K = K₁ + iK₂ ``(t, 2)``, ψ = arg(K l^{iε})
+    (degrees) at the scene's :func:`reference_length` and G_I = G cos²ψ, G_II = G sin²ψ (docs/fracture.md)."""
+    pair, length = interface_pair(scene), reference_length(scene)
+    count = len(tips)
+    out = {"G_I": np.full(count, np.nan), "G_II": np.full(count, np.nan), "phase": np.full(count, np.nan),
+           "symmetric": np.zeros(count, dtype=bool), "epsilon": np.full(count, np.nan),
+           "K": np.full((count, 2), np.nan)}
+    for i, tip in enumerate(tips):
+        epsilon = tip_epsilon(tip, sigma, pair)
+        out["epsilon"][i] = epsilon
+        if not np.all(np.isfinite(interaction[i])):
+            continue
+        K = intensity(interaction[i], epsilon, pair)
+        out["K"][i] = K.real, K.imag
+        psi = phase(K, epsilon, length)
+        out["phase"][i] = psi
+        out["G_I"][i] = G[i] * math.cos(math.radians(psi)) ** 2
+        out["G_II"][i] = G[i] * math.sin(math.radians(psi)) ** 2
+    return out

@@ -302,8 +302,8 @@ class Fracture:
 
     def modes(self) -> list[str]:
         """Per tip: «(G_I ..., G_II ..., ψ = ...°)» (NO_PHASE where ψ is NaN), with «by crack closure» where
-        not split by symmetry, the reference length, ε and K of an interface crack, and a warning where G_I + G_II is more than SPLIT_DRIFT off G
-        (:meth:`split_drift`); empty where there is no split (a result written before it)."""
+        not split by symmetry, the reference length, ε and K of an interface crack, and a warning where
+        G_I + G_II is more than SPLIT_DRIFT off G (:meth:`split_drift`); empty where there is no split (a result written before it)."""
         def warning(drift: float) -> str:
             return (f"; G_I + G_II is {drift:+.0%} off G: the split is not resolved, refine near this tip"
                     if abs(drift) > SPLIT_DRIFT else "")
