@@ -387,7 +387,8 @@ def finish(tips: list[Tip], volume: np.ndarray, on: OnSigma, split: dict[str, np
     interaction = volume[2 * len(tips):] if tips and len(volume) == 4 * len(tips) else None
     G, noise = release_and_noise(tips, volume if interaction is None else volume[:2 * len(tips)], contact, on)
     if interaction is not None:
-        split = interface_crack.interface_split(tips, G, interaction.reshape(-1, 2), sigma, scene)
+        closed = [_behind(tip, on, scene.nonpenetration)[2] for tip in tips]
+        split = interface_crack.interface_split(tips, G, interaction.reshape(-1, 2), sigma, scene, np.array(closed))
     out = Fracture(
         points=np.array([tip.point for tip in tips]).reshape(-1, 2),
         directions=np.array([tip.direction for tip in tips]).reshape(-1, 2),

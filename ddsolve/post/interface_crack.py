@@ -139,11 +139,12 @@ def reference_length(scene: Scene) -> float:
     return 1.0 if given is None else float(given)
 
 
-def interface_split(tips: list, G: np.ndarray, interaction: np.ndarray, sigma: SigmaLine, scene: Scene
-                    ) -> dict[str, np.ndarray]:
+def interface_split(tips: list, G: np.ndarray, interaction: np.ndarray, sigma: SigmaLine, scene: Scene,
+                    closed: np.ndarray) -> dict[str, np.ndarray]:
     """G's split at the tips of an interface crack between different materials from the interaction integrals
     ``(t, 2)`` (:func:`ddsolve.post.fracture.block_terms`): ε, K = K₁ + iK₂ ``(t, 2)``, ψ = arg(K l^{iε})
-    (degrees) at the scene's :func:`reference_length` and G_I = G cos²ψ, G_II = G sin²ψ (docs/fracture.md)."""
+    (degrees) at the scene's :func:`reference_length` and G_I = G cos²ψ, G_II = G sin²ψ (docs/fracture.md).
+    A ``closed`` tip (its faces touch at the crack node nearest it) slides only: G_I = 0, ψ = ±90°."""
     pair, length = interface_pair(scene), reference_length(scene)
     count = len(tips)
     out = {"G_I": np.full(count, np.nan), "G_II": np.full(count, np.nan), "phase": np.full(count, np.nan),
@@ -157,7 +158,9 @@ def interface_split(tips: list, G: np.ndarray, interaction: np.ndarray, sigma: S
         K = intensity(interaction[i], epsilon, pair)
         out["K"][i] = K.real, K.imag
         psi = phase(K, epsilon, length)
+        if closed[i]:
+            psi = math.copysign(90.0, psi)
         out["phase"][i] = psi
-        out["G_I"][i] = G[i] * math.cos(math.radians(psi)) ** 2
-        out["G_II"][i] = G[i] * math.sin(math.radians(psi)) ** 2
+        out["G_I"][i] = 0.0 if closed[i] else G[i] * math.cos(math.radians(psi)) ** 2
+        out["G_II"][i] = G[i] if closed[i] else G[i] * math.sin(math.radians(psi)) ** 2
     return out
