@@ -202,3 +202,26 @@ def test_dd_equals_the_reference_for_an_interface_crack(tmp_path):
     assert np.allclose(dd.G, ref.G, rtol=1e-6) and np.allclose(dd.epsilon, ref.epsilon, rtol=1e-12)
     assert np.allclose(dd.K, ref.K, rtol=1e-5, atol=1e-8 * np.abs(ref.K).max())
     assert np.allclose(dd.phase[ref.released()], ref.phase[ref.released()], atol=1e-4)
+
+
+@pytest.mark.unit
+def test_the_split_at_l_sums_to_g_and_a_closed_tip_slides_only():
+    from types import SimpleNamespace
+
+    source = scene.loads(_text(10.0), ["fracture.reference_length=2.0"])
+    pair = interface_crack.interface_pair(source)
+    tips = [SimpleNamespace(node=0, direction=np.array([1.0, 0.0])), SimpleNamespace(node=0, direction=np.array(
+        [-1.0, 0.0]))]
+    sigma = SimpleNamespace(normals=np.array([[0.0, 1.0]]))
+    epsilon = interface_crack.oscillation(pair)
+    K = -1.0 + 2.0j
+    scale = 2.0 / (interface_crack.modulus(pair) * math.cosh(math.pi * epsilon) ** 2)
+    interaction = np.array([[scale * K.real, scale * K.imag]] * 2)
+    G = np.array([3.0, 3.0])
+    split = interface_crack.interface_split(tips, G, interaction, sigma, source, np.array([False, True]))
+    assert split["epsilon"] == pytest.approx([epsilon, -epsilon])  # the left tip's frame has material 1 below
+    assert split["K"][0] == pytest.approx([K.real, K.imag])
+    psi = math.degrees(np.angle(K * 2.0 ** (1j * epsilon)))
+    assert split["phase"][0] == pytest.approx(psi) and split["G_I"][0] + split["G_II"][0] == pytest.approx(3.0)
+    assert split["G_I"][0] == pytest.approx(3.0 * math.cos(math.radians(psi)) ** 2)
+    assert split["G_I"][1] == 0.0 and split["G_II"][1] == 3.0 and abs(split["phase"][1]) == 90.0
