@@ -108,7 +108,8 @@ def solved(source):
 
 def dcb(a: float, size: float, degree: int = 2, loading: str = "moment") -> dict:
     """G of the bi-material DCB at crack length ``a`` against beam theory (``moment`` loading: exact; ``force``:
-    corrected with χ = CHI_I), the crack's opening at its mouth (positive: the arms open) and the G_I reported."""
+    corrected with χ = CHI_I), the crack's opening at its mouth (positive: the arms open), the G_I reported and the
+    interface crack's ε and ψ (at the scene's reference length, docs/fracture.md)."""
     with tempfile.TemporaryDirectory() as folder:
         result = solved(dcb_scene(Path(folder), a, size, degree, loading))
     moduli = {region: 2.0 * plane_strain_modulus(E, nu) for region, (E, nu) in DCB_REGIONS.items()}
@@ -118,7 +119,8 @@ def dcb(a: float, size: float, degree: int = 2, loading: str = "moment") -> dict
     opening = float(result.solution["u_plus"][result.upper.sigma[mouth], 1]
                     - result.solution["u_minus"][result.lower.sigma[mouth], 1])
     return {"a": a, "G": G, "theory": theory, "error": G / theory - 1.0, "opening": opening,
-            "G_I": float(result.fracture.G_I[0])}
+            "G_I": float(result.fracture.G_I[0]), "epsilon": float(result.fracture.epsilon[0]),
+            "phase": float(result.fracture.phase[0])}
 
 
 def measured_curvature(result) -> float:
@@ -151,7 +153,8 @@ def main() -> None:
                 row = dcb(a, size, loading=loading)
                 implied = f"; the χ it implies {implied_correction(row):.3f}" if loading == "force" else ""
                 print(f"bi-material DCB, {loading} loading, size {size:g}, a = {a:g}: G {row['G']:.6e}, beam theory "
-                      f"{row['theory']:.6e} ({row['error']:+.2%}){implied}; G_I {row['G_I']} (not split)", flush=True)
+                      f"{row['theory']:.6e} ({row['error']:+.2%}){implied}; ε {row['epsilon']:.4f}, "
+                      f"ψ {row['phase']:.2f}° at l = 1", flush=True)
         row = bimetal(size)
         print(f"thermal bilayer, size {size:g}: curvature {row['curvature']:.6e}, Timoshenko {row['theory']:.6e} "
               f"({row['error']:+.3%})", flush=True)

@@ -102,6 +102,8 @@ def cases(folder: Path) -> list[tuple[str, list[str], list[str]]]:
     out += [("fracture.law", [], kenane), ("fracture.G_Ic", kenane, ["fracture.G_Ic=2e-4"]),
             ("fracture.G_IIc", kenane, ["fracture.G_IIc=5e-4"]), ("fracture.eta", kenane, ["fracture.eta=2.0"]),
             ("fracture.lambda", suo, ["fracture.lambda=0.6"])]
+    interface = ["materials.layer2.nu=0.28", "materials.layer1.upper.E=2000.0", "materials.layer2.upper.E=1120.0"]
+    out += [("fracture.reference_length", interface + suo, ["fracture.reference_length=0.01"])]  # ψ, so G_c
     return out
 
 

@@ -169,7 +169,7 @@ def sigma_datasets(on: OnSigma, history: np.ndarray, active_set_changes: np.ndar
                 for layer, named in reactions.items() for name, force in named.items()})
     if fracture is not None:
         out.update({f"fracture/{key}": getattr(fracture, key) for key in FRACTURE_FIELDS + MODE_FIELDS
-                    + TOUGHNESS_FIELDS + OVERLAP_FIELDS + NOISE_FIELDS})
+                    + TOUGHNESS_FIELDS + OVERLAP_FIELDS + NOISE_FIELDS + INTERFACE_FIELDS})
         out.update({f"fracture/reported/{key}": value for key, value in fracture.reported().items()})
         out.update({"fracture/arclength": sigma.arclength[nodes], "fracture/opening": on.opening,
                     "fracture/pressure": on.multipliers["mu_c"]})
@@ -384,6 +384,9 @@ TOUGHNESS_FIELDS = ("toughness", "critical_factor")
 OVERLAP_FIELDS = ("overlaps", "overlap_crack")
 #: G's noise level: absent from older files, read as NaN.
 NOISE_FIELDS = ("noise",)
+#: An interface crack between different materials: ε, K (t, 2) and the reference length of ψ; absent from
+#: older files, read as NaN (and l = 1).
+INTERFACE_FIELDS = ("epsilon", "K", "reference_length")
 
 
 def _read_fracture(f):
@@ -393,4 +396,4 @@ def _read_fracture(f):
         return None
     return Fracture(**{key: _dataset(f, f"fracture/{key}")[()] for key in FRACTURE_FIELDS},
                     **{key: _dataset(f, f"fracture/{key}")[()] for key in MODE_FIELDS + TOUGHNESS_FIELDS
-                       + OVERLAP_FIELDS + NOISE_FIELDS if f"fracture/{key}" in f})
+                       + OVERLAP_FIELDS + NOISE_FIELDS + INTERFACE_FIELDS if f"fracture/{key}" in f})

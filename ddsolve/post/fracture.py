@@ -26,7 +26,9 @@ the scene's ``[fracture] inner, outer`` override them.
 
 G splits into opening and sliding (:func:`mode_split`): by the domain integral of the parts of the fields
 symmetric and antisymmetric about Σ where the θ disc is mirror-symmetric, else by virtual crack closure of
-the tip's gluing forces (docs/fracture.md, "Modes I and II").  No PETSc or MPI here.
+the tip's gluing forces (docs/fracture.md, "Modes I and II"); between regions of different materials (an
+interface crack) by K from the interaction integral and the phase ψ at a reference length
+(:mod:`ddsolve.post.interface_crack`).  No PETSc or MPI here.
 """
 from __future__ import annotations
 
@@ -40,8 +42,10 @@ from ddsolve.errors import SceneError
 from ddsolve.fem import assembly
 from ddsolve.mesh import element
 from ddsolve.mesh.mesh import BLOCKS, SIGMA, HalfMesh, Mesh, SigmaLine, partner
+from ddsolve.post import interface_crack
 from ddsolve.post.result import Fracture, OnSigma
 from ddsolve.post.toughness import judge
+from ddsolve.problem.materials import Bimaterial
 from ddsolve.problem.scene import Scene
 
 #: Σ turns by more than this between two edges at a kink (a smooth curve turns by h·κ per edge).
@@ -194,31 +198,97 @@ def volume_terms(points: np.ndarray, cells: np.ndarray, D: np.ndarray, u: np.nda
     eigenstrain ε₀ = e ΔT of ``thermal`` (e, ΔT) (zero without), so ½ σ:(ε − ε₀) is the in-plane energy density.
     """
     out = np.zeros(len(fields))
-    support = np.zeros(len(points), dtype=bool)
-    for field in fields:
-        support |= np.any(field != 0.0, axis=1)
-    cells = cells[support[cells].any(axis=1)]
-    if len(cells) == 0:
+    sampled = Sampled.of(points, cells, D, u, fields, thermal)
+    if sampled is None:
         return out
-    xi, weights = element.quadrature(cells.shape[1])
-    det, gradients = element.element_geometry(points, cells, xi)
-    grad_u = element.field_gradients(u[cells], gradients)  # u_d,e
-    strain = assembly.voigt_strain(grad_u)
-    if thermal is not None:
-        strain = strain - thermal.eigenstrains(points, cells, xi)
-    s = strain @ D.T
-    stress = np.stack([np.stack([s[..., 0], s[..., 2]], -1), np.stack([s[..., 2], s[..., 1]], -1)], -2)
-    density = 0.5 * np.sum(s * strain, axis=-1)
-    momentum = np.matmul(grad_u.swapaxes(-1, -2), stress)  # σ_ij u_i,k as (k, j)
-    volume = det * weights
+    density = 0.5 * np.sum(sampled.stress * sampled.strain, axis=-1)
+    momentum = np.matmul(sampled.grad_u.swapaxes(-1, -2), tensor(sampled.stress))  # σ_ij u_i,k as (k, j)
     for i, field in enumerate(fields):
-        grad_theta = element.field_gradients(field[cells], gradients)  # θ_k,j
+        grad_theta = sampled.gradient(field)  # θ_k,j
         integrand = (momentum * grad_theta).sum(axis=(-1, -2)) - density * (grad_theta[..., 0, 0]
                                                                            + grad_theta[..., 1, 1])
         if thermal is not None:
-            integrand = integrand + eigenstrain_term(points, cells, xi, gradients, s, field, thermal)
-        out[i] = float(np.sum(volume * integrand))
+            integrand = integrand + sampled.eigenstrain(sampled.stress, field, thermal)
+        out[i] = float(np.sum(sampled.volume * integrand))
     return out
+
+
+def interaction_terms(points: np.ndarray, cells: np.ndarray, D: np.ndarray, u: np.ndarray, fields: list[np.ndarray],
+                      auxiliary: list, thermal: assembly.ThermalLoad | None = None) -> np.ndarray:
+    """``(len(fields), 2)``: the interaction integrals of ``u`` with the two auxiliary fields of each θ in
+    ``fields`` (``auxiliary``: for each, a function of the quadrature points ``(m, q, 2)`` giving their
+    gradients ``(2, m, q, 2, 2)``, :func:`ddsolve.post.interface_crack.global_gradients`), over ``cells`` as
+    :func:`volume_terms`: ∫ [σ_ij ũ_i,k + σ̃_ij u_i,k] θ_k,j − σ̃:(ε − ε₀) div θ + σ̃ : ∂ε₀/∂x_k θ_k."""
+    out = np.zeros((len(fields), 2))
+    sampled = Sampled.of(points, cells, D, u, fields, thermal)
+    if sampled is None:
+        return out
+    for i, (field, gradients) in enumerate(zip(fields, auxiliary)):
+        grad_theta = sampled.gradient(field)
+        # where ∇θ = 0 only an eigenstrain's gradient term is left: skip those points without one
+        near = np.ones(grad_theta.shape[:2], dtype=bool) if thermal is not None else np.any(grad_theta != 0.0,
+                                                                                              axis=(-1, -2))
+        for k, grad_aux in enumerate(gradients(sampled.points[near])):
+            stress = assembly.voigt_strain(grad_aux) @ D.T
+            momentum = (np.matmul(grad_aux.swapaxes(-1, -2), tensor(sampled.stress[near]))
+                        + np.matmul(sampled.grad_u[near].swapaxes(-1, -2), tensor(stress)))
+            integrand = ((momentum * grad_theta[near]).sum(axis=(-1, -2))
+                         - np.sum(stress * sampled.strain[near], axis=-1) * (grad_theta[near][..., 0, 0]
+                                                                            + grad_theta[near][..., 1, 1]))
+            if thermal is not None:
+                integrand = integrand + sampled.eigenstrain(stress.reshape(sampled.stress.shape), field,
+                                                            thermal)[near]
+            out[i, k] = float(np.sum(sampled.volume[near] * integrand))
+    return out
+
+
+def tensor(voigt: np.ndarray) -> np.ndarray:
+    """``(..., 2, 2)`` stress tensors from Voigt ``(..., 3)``."""
+    return np.stack([np.stack([voigt[..., 0], voigt[..., 2]], -1), np.stack([voigt[..., 2], voigt[..., 1]], -1)], -2)
+
+
+@dataclass(frozen=True)
+class Sampled:
+    """A block's field at the quadrature points of the cells where any θ is non-zero: the cells, the reference
+    rule, det J × weight ``volume`` ``(m, q)``, the shape gradients, the points ``(m, q, 2)``, u_d,e, the strain
+    ε − ε₀ and the stress D (ε − ε₀)."""
+
+    points_of: np.ndarray
+    cells: np.ndarray
+    xi: np.ndarray
+    volume: np.ndarray
+    shape_gradients: np.ndarray
+    points: np.ndarray
+    grad_u: np.ndarray
+    strain: np.ndarray
+    stress: np.ndarray
+
+    @classmethod
+    def of(cls, points: np.ndarray, cells: np.ndarray, D: np.ndarray, u: np.ndarray, fields: list[np.ndarray],
+           thermal: assembly.ThermalLoad | None) -> Sampled | None:
+        support = np.zeros(len(points), dtype=bool)
+        for field in fields:
+            support |= np.any(field != 0.0, axis=1)
+        cells = cells[support[cells].any(axis=1)]
+        if len(cells) == 0:
+            return None
+        xi, weights = element.quadrature(cells.shape[1])
+        det, gradients = element.element_geometry(points, cells, xi)
+        shapes, _ = element.shape_functions(cells.shape[1], xi)
+        grad_u = element.field_gradients(u[cells], gradients)  # u_d,e
+        strain = assembly.voigt_strain(grad_u)
+        if thermal is not None:
+            strain = strain - thermal.eigenstrains(points, cells, xi)
+        return cls(points, cells, xi, det * weights, gradients, np.einsum("qk,mkd->mqd", shapes, points[cells]),
+                   grad_u, strain, strain @ D.T)
+
+    def gradient(self, field: np.ndarray) -> np.ndarray:
+        """θ_k,j ``(m, q, 2, 2)`` of a nodal field."""
+        return element.field_gradients(field[self.cells], self.shape_gradients)
+
+    def eigenstrain(self, stress: np.ndarray, field: np.ndarray, thermal: assembly.ThermalLoad) -> np.ndarray:
+        """:func:`eigenstrain_term` with ``stress`` ``(m, q, 3)``."""
+        return eigenstrain_term(self.points_of, self.cells, self.xi, self.shape_gradients, stress, field, thermal)
 
 
 def eigenstrain_term(points: np.ndarray, cells: np.ndarray, xi: np.ndarray, gradients: np.ndarray, stress: np.ndarray,
@@ -237,15 +307,28 @@ def eigenstrain_term(points: np.ndarray, cells: np.ndarray, xi: np.ndarray, grad
 def block_terms(scene, sigma: SigmaLine, tips: list[Tip], parts: dict[int, tuple]) -> np.ndarray:
     """Sum of the volume terms for every tip over ``parts``: block index -> (points, cells, u), cells of the
     block's half (all, or those a rank owns) and the displacements ``(n, 2)`` (x, y) at the points; ``(2t,)``:
-    each tip's with its θ, then with its :func:`halved` one."""
+    each tip's with its θ, then with its :func:`halved` one; between different materials with a pair
+    (:func:`ddsolve.post.interface_crack.interface_pair`) ``(4t,)``: then each tip's interaction integrals
+    with the tip fields of K = 1 and K = i (NaN where Σ is not straight in the disc)."""
     contours = tips + [halved(tip) for tip in tips]
-    out = np.zeros(len(contours))
+    pair = interface_crack.interface_pair(scene)
+    crack = isinstance(pair, Bimaterial)
+    out = np.zeros(len(contours) + (2 * len(tips) if crack else 0))
     if not tips:
         return out
     for index, (points, cells, u) in parts.items():
-        block = BLOCKS[index].layer, BLOCKS[index].region
-        out += volume_terms(points, cells, assembly.elasticity(scene, *block)[0], u,
-                            [theta(tip, sigma, points) for tip in contours], assembly.thermal_of(scene, *block))
+        spec = BLOCKS[index]
+        D = assembly.elasticity(scene, spec.layer, spec.region)[0]
+        thermal = assembly.thermal_of(scene, spec.layer, spec.region)
+        fields = [theta(tip, sigma, points) for tip in contours]
+        out[:len(contours)] += volume_terms(points, cells, D, u, fields, thermal)
+        if crack:
+            auxiliary = [interface_crack.tip_fields(tip, sigma, pair, spec.side) for tip in tips]
+            out[len(contours):] += interaction_terms(points, cells, D, u, fields[:len(tips)], auxiliary,
+                                                     thermal).ravel()
+    if crack:
+        straight = np.repeat([straight_near(tip, sigma) for tip in tips], 2)
+        out[len(contours):] = np.where(straight, out[len(contours):], np.nan)
     return out
 
 
@@ -278,7 +361,9 @@ def finish(tips: list[Tip], volume: np.ndarray, on: OnSigma, split: dict[str, np
     """G = volume terms − contact terms, and the contact zones (without the ``scene``'s non-penetration: the
     zones where the faces overlap), from the Σ data ``on`` of a result
     (:attr:`ddsolve.post.result.Result.on_sigma`); ``split``: G's split into modes I and II
-    (:func:`mode_split`), or none, its ψ left undefined (NaN) where G is no release rate
+    (:func:`mode_split`), or none (``volume`` with the interaction integrals of :func:`block_terms`: the
+    interface crack's, :func:`ddsolve.post.interface_crack.interface_split`), its ψ left undefined (NaN)
+    where G is no release rate
     (:meth:`~ddsolve.post.result.Fracture.released`); the scene's toughness and the critical load factors
     (``factors`` where a root solve found them: :func:`ddsolve.post.toughness.judge`)."""
     from ddsolve.post.analysis import contact_zones, overlap_zones
@@ -298,7 +383,12 @@ def finish(tips: list[Tip], volume: np.ndarray, on: OnSigma, split: dict[str, np
 
     zones, zone_crack = located(contact_zones(on) if scene.nonpenetration else [])
     overlaps, overlap_crack = located([] if scene.nonpenetration else overlap_zones(on))
-    G, noise = release_and_noise(tips, np.asarray(volume, dtype=np.float64), contact, on)
+    volume = np.asarray(volume, dtype=np.float64)
+    interaction = volume[2 * len(tips):] if tips and len(volume) == 4 * len(tips) else None
+    G, noise = release_and_noise(tips, volume if interaction is None else volume[:2 * len(tips)], contact, on)
+    if interaction is not None:
+        closed = [_behind(tip, on, scene.nonpenetration)[2] for tip in tips]
+        split = interface_crack.interface_split(tips, G, interaction.reshape(-1, 2), sigma, scene, np.array(closed))
     out = Fracture(
         points=np.array([tip.point for tip in tips]).reshape(-1, 2),
         directions=np.array([tip.direction for tip in tips]).reshape(-1, 2),
@@ -306,6 +396,7 @@ def finish(tips: list[Tip], volume: np.ndarray, on: OnSigma, split: dict[str, np
         inner=np.array([tip.inner for tip in tips]), outer=np.array([tip.outer for tip in tips]),
         spacing=np.array([tip.spacing for tip in tips]), G=G, contact=contact, zones=zones, zone_crack=zone_crack,
         overlaps=overlaps, overlap_crack=overlap_crack, noise=noise, **(split or {}),
+        reference_length=interface_crack.reference_length(scene),
     )
     out.phase = np.where(out.released(), out.phase, np.nan)
     return judge(out, scene, factors)
@@ -332,15 +423,10 @@ ROUNDING = 1e-12
 def of_result(result, tips: list[Tip], factors: np.ndarray | None = None) -> Fracture:
     """G at ``tips`` from a result's four blocks (one process), with the toughness and the critical load
     factors (``factors``: see :func:`finish`)."""
-    scene = result.scene
-    volume = np.zeros(2 * len(tips))
-    for spec in BLOCKS:
-        half = result.half(spec.name)
-        D, _ = assembly.elasticity(scene, spec.layer, spec.region)
-        fields = [theta(tip, result.mesh.sigma, half.points) for tip in tips + [halved(tip) for tip in tips]]
-        volume += volume_terms(half.points, half.cells, D, result.solution[spec.name], fields,
-                               assembly.thermal_of(scene, spec.layer, spec.region))
-    return finish(tips, volume, result.on_sigma, mode_split(tips, result), scene, factors)
+    volume = block_terms(result.scene, result.mesh.sigma, tips, {
+        index: (result.half(spec.name).points, result.half(spec.name).cells, result.solution[spec.name])
+        for index, spec in enumerate(BLOCKS)})
+    return finish(tips, volume, result.on_sigma, mode_split(tips, result), result.scene, factors)
 
 
 def evaluate(result, inner: float | None = None, outer: float | None = None) -> Fracture:
@@ -357,8 +443,10 @@ MIRROR = 1e-10
 
 
 def mode_split(tips: list[Tip], result) -> dict[str, np.ndarray] | None:
-    """G_I, G_II, the phase angle (degrees) and ``symmetric`` (how each tip was split) at every tip; None where
-    the regions below and above Σ have different elastic laws (:func:`split_note`).
+    """G_I, G_II, the phase angle (degrees), ``symmetric`` (how each tip was split) and ε = 0 at every tip; None
+    where the regions below and above Σ have different elastic laws (an interface crack: :func:`finish` splits
+    it by :func:`ddsolve.post.interface_crack.interface_split` where it has a pair, else not at all,
+    :func:`split_note`).
 
     Where the θ disc is mirror-symmetric about Σ (Σ straight there, both layers' laws unchanged by the
     reflection: always for isotropic layers) the fields split into a part symmetric about Σ (opening,
@@ -383,7 +471,7 @@ def split_modes(tips: list[Tip], mirrored: list[tuple[float, float] | None], on:
     virtual crack closure) and Σ's data ``on``."""
     count = len(tips)
     out = {"G_I": np.full(count, np.nan), "G_II": np.full(count, np.nan), "phase": np.full(count, np.nan),
-           "symmetric": np.zeros(count, dtype=bool)}
+           "symmetric": np.zeros(count, dtype=bool), "epsilon": np.zeros(count)}
     for i, tip in enumerate(tips):
         out["symmetric"][i] = mirrored[i] is not None
         G_I, G_II = mirrored[i] if mirrored[i] is not None else closure_split(tip, on, degree)
@@ -436,20 +524,22 @@ def mirrorable(tip: Tip, sigma: SigmaLine, scene: Scene) -> bool:
     """Whether the tip's θ disc can be split by mirror symmetry: Σ straight there, every block's law unchanged
     by the reflection about it, and each layer's material the same in both regions (thermal strain too)."""
     laws = [assembly.elasticity(scene, spec.layer, spec.region)[0] for spec in BLOCKS]
-    return (_straight_near(tip, sigma) and all(mirrored_law(D, reflection(tip, sigma)) for D in laws)
+    return (straight_near(tip, sigma) and all(mirrored_law(D, reflection(tip, sigma)) for D in laws)
             and not scene.dissimilar_layers())
 
 
 def split_note(scene: Scene) -> str | None:
-    """Why G is not split into modes I and II, or None where it is: the layers whose regions below and above
-    Σ have different elastic laws (an interface crack between different materials: its near-tip field
-    oscillates and G_I, G_II depend on the distance behind the tip, docs/fracture.md)."""
-    layers = scene.dissimilar_layers(thermal=False)
-    if not layers:
+    """Why G is not split into modes I and II, or None where it is: layers whose regions below and above Σ have
+    different elastic laws with no effective isotropic pair (orthotropic regions, or layers whose pairs are not
+    proportional: :func:`ddsolve.post.interface_crack.interface_pair`), where an interface crack's G is not
+    split."""
+    pair = interface_crack.interface_pair(scene)
+    if not isinstance(pair, str):
         return None
+    layers = scene.dissimilar_layers(thermal=False)
     return (f"G is not split into modes I and II: {' and '.join(layers)} {'has' if len(layers) == 1 else 'have'} "
-            "different elastic laws below and above Σ, where the split of an interface crack's G is not defined "
-            "classically (docs/fracture.md)")
+            f"different elastic laws below and above Σ and {pair}, where the split of an interface crack's G is "
+            "not defined (docs/fracture.md)")
 
 
 def reflection(tip: Tip, sigma: SigmaLine) -> np.ndarray:
@@ -516,7 +606,7 @@ def closure_split(tip: Tip, on: OnSigma, degree: int) -> tuple[float, float]:
     return float(normal), float(tangential)
 
 
-def _straight_near(tip: Tip, sigma: SigmaLine) -> bool:
+def straight_near(tip: Tip, sigma: SigmaLine) -> bool:
     """Σ is the straight line through the tip within the θ disc (and one edge beyond)."""
     reach = tip.outer + np.linalg.norm(np.diff(sigma.points, axis=0), axis=1).max()
     near = np.linalg.norm(sigma.points - tip.point, axis=1) <= reach

@@ -229,6 +229,10 @@ class Fracture:
     touching node), ``zone_crack`` the crack of each; with non-penetration only.  Without it the faces do
     not touch but may overlap: ``overlaps`` ``(o, 2)`` and ``overlap_crack`` the same for the runs of
     overlapping nodes (empty with non-penetration, and in files written before them).
+    An interface crack between different materials (:mod:`ddsolve.post.interface_crack`): ``epsilon`` ε per
+    tip (material 1 on the side of the tip frame's y; 0 where each layer has one law on both sides of Σ),
+    ``K`` ``(t, 2)`` the complex stress intensity (K₁, K₂) and ψ = arg(K l^{iε}) at ``reference_length`` l,
+    G_I = G cos²ψ, G_II = G sin²ψ; K is NaN where the classical split applies, and in older files.
     """
 
     points: np.ndarray
@@ -250,10 +254,15 @@ class Fracture:
     overlaps: np.ndarray | None = None
     overlap_crack: np.ndarray | None = None
     noise: np.ndarray | None = None
+    epsilon: np.ndarray | None = None
+    K: np.ndarray | None = None
+    reference_length: float = 1.0
 
     def __post_init__(self) -> None:
         count = len(self.G)
-        for name in ("G_I", "G_II", "phase", "toughness", "critical_factor", "noise"):
+        if self.K is None:
+            self.K = np.full((count, 2), np.nan)
+        for name in ("G_I", "G_II", "phase", "toughness", "critical_factor", "noise", "epsilon"):
             if getattr(self, name) is None:
                 setattr(self, name, np.full(count, np.nan))
         if self.symmetric is None:
@@ -293,19 +302,25 @@ class Fracture:
 
     def modes(self) -> list[str]:
         """Per tip: «(G_I ..., G_II ..., ψ = ...°)» (NO_PHASE where ψ is NaN), with «by crack closure» where
-        not split by symmetry and a warning where G_I + G_II is more than SPLIT_DRIFT off G
-        (:meth:`split_drift`); empty where there is no split (a result written before it)."""
+        not split by symmetry, the reference length, ε and K of an interface crack, and a warning where
+        G_I + G_II is more than SPLIT_DRIFT off G (:meth:`split_drift`); empty where there is no split (a result written before it)."""
         def warning(drift: float) -> str:
             return (f"; G_I + G_II is {drift:+.0%} off G: the split is not resolved, refine near this tip"
                     if abs(drift) > SPLIT_DRIFT else "")
+
+        def method(by_symmetry: bool, epsilon: float, K: np.ndarray) -> str:
+            if np.all(np.isfinite(K)):
+                return (f" at l = {self.reference_length:g}, ε = {epsilon:.4f}, K = ({K[0]:.4e}, {K[1]:.4e}) "
+                        "by the interaction integral")
+            return "" if by_symmetry else ", by crack closure"
 
         shown = self.reported()
         phase = np.where(self.within_noise(), np.nan, self.phase)
         return ["" if np.isnan(g1) else
                 f"(G_I {g1:.3e}, G_II {g2:.3e}, {f'ψ = {psi:.1f}°' if np.isfinite(psi) else NO_PHASE}"
-                f"{'' if by_symmetry else ', by crack closure'}{warning(drift)})"
-                for g1, g2, psi, by_symmetry, drift in zip(shown["G_I"], shown["G_II"], phase, self.symmetric,
-                                                           self.split_drift())]
+                f"{method(by_symmetry, epsilon, K)}{warning(drift)})"
+                for g1, g2, psi, by_symmetry, epsilon, K, drift in zip(
+                    shown["G_I"], shown["G_II"], phase, self.symmetric, self.epsilon, self.K, self.split_drift())]
 
     def split_drift(self) -> np.ndarray:
         """Per tip (G_I + G_II)/G − 1 of the split as computed, where G is a release rate (:meth:`released`);

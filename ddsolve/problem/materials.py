@@ -134,6 +134,43 @@ def differing(groups: dict[str, Sequence[Material]], model: str = "plane_strain"
             if not all(same_law(group[0], other, model, thermal) for other in group[1:])]
 
 
+@dataclass(frozen=True)
+class Bimaterial:
+    """The isotropic pair of an interface crack: shear modulus μ and Kolosov constant κ below and above Σ
+    (of the sheets' stiffnesses summed over the layers, :func:`interface_pair`)."""
+
+    lower: tuple[float, float]
+    upper: tuple[float, float]
+
+
+#: Laws this close (relative to the largest entry) are equal, isotropic, or proportional.
+LAW_TOLERANCE = 1e-10
+
+
+def interface_pair(lower: Sequence[np.ndarray], upper: Sequence[np.ndarray]) -> Bimaterial | str:
+    """The effective isotropic pair of the layers' in-plane laws D (one per layer) below and above Σ, or why
+    there is none.  The layers are tied along Σ; where each layer's pair is the same pair times one factor
+    (equal Poisson's ratios in a region), every layer carries the same near-tip field and the structure's is
+    that of one sheet of the summed stiffness.  Orthotropic laws, and layers whose pairs are not
+    proportional, have no such pair."""
+    for D in (*lower, *upper):
+        scale = np.abs(D).max()
+        if (max(abs(D[0, 2]), abs(D[1, 2]), abs(D[0, 0] - D[1, 1]), abs(2.0 * D[2, 2] - D[0, 0] + D[0, 1]))
+                > LAW_TOLERANCE * scale):
+            return "a region's material is not isotropic"
+    factors = [np.abs(D).max() / np.abs(lower[0]).max() for D in lower]
+    for group, first in ((lower, lower[0]), (upper, upper[0])):
+        for D, factor in zip(group, factors):
+            if np.abs(D - factor * first).max() > LAW_TOLERANCE * np.abs(D).max():
+                return "the layers' pairs of materials below and above Σ are not proportional"
+
+    def constants(D: np.ndarray) -> tuple[float, float]:
+        shear, lame = float(D[2, 2]), float(D[0, 1])  # κ = (3μ + λ)/(μ + λ): 3 − 4ν, or (3 − ν)/(1 + ν) in plane stress
+        return shear, (3.0 * shear + lame) / (shear + lame)
+
+    return Bimaterial(constants(sum(lower)), constants(sum(upper)))
+
+
 def check_positive_definite(D: np.ndarray, name: str) -> None:
     """Raise MaterialError unless ``D`` is symmetric positive definite (to round-off)."""
     scale = np.abs(D).max(initial=0.0)

@@ -123,13 +123,20 @@ def dissimilar_layers(data: dict, thermal: bool = True) -> list[str]:
 
 def _split_checks(data: dict, origin: str) -> None:
     """A mode-dependent toughness law needs G's split into modes, which regions of different elastic laws on the two
-    sides of Σ leave undefined (the near-tip field of an interface crack between them oscillates)."""
+    sides of Σ leave undefined unless they have an effective isotropic pair (an interface crack: its phase ψ,
+    :func:`ddsolve.problem.materials.interface_pair`)."""
     law = data["fracture"]["law"]
     dissimilar = dissimilar_layers(data, thermal=False)
-    if law is not None and dissimilar:
+    if law is None or not dissimilar:
+        return
+    model = data["materials"]["model"]
+    laws = {region: [materials.elasticity(layer_material(acting_tables(data, layer)[region][1]), model)[0]
+                     for layer in LAYERS] for region in REGIONS}
+    pair = materials.interface_pair(laws["lower"], laws["upper"])
+    if isinstance(pair, str):
         raise SceneError(f"{origin}: fracture.law = {law} needs G's split into modes I and II, which is not defined "
                          f"between the different materials of the regions of materials.{dissimilar[0]} (below and "
-                         "above Σ): give one toughness, fracture.toughness")
+                         f"above Σ) where {pair}: give one toughness, fracture.toughness")
 
 
 def _load_checks(data: dict, origin: str) -> None:

@@ -165,7 +165,8 @@ class FractureOptions:
     """Radii of the θ field of the energy release rate (None: from the geometry, see ddsolve.post.fracture),
     and the toughness G_c (see :mod:`ddsolve.post.toughness`): ``toughness`` one value for every tip or one
     per crack in order along Σ, or a mode-dependent ``law`` (:data:`LAWS`) with its constants ``G_Ic``,
-    ``G_IIc``, ``eta`` (Benzeggagh–Kenane) or ``G_Ic``, ``lambda_`` (Hutchinson–Suo; the key ``lambda``)."""
+    ``G_IIc``, ``eta`` (Benzeggagh–Kenane) or ``G_Ic``, ``lambda_`` (Hutchinson–Suo; the key ``lambda``);
+    ``reference_length`` l of an interface crack's phase ψ = arg(K l^{iε}) (None: 1)."""
 
     inner: float | None = None
     outer: float | None = None
@@ -175,6 +176,7 @@ class FractureOptions:
     G_IIc: float | None = None
     eta: float | None = None
     lambda_: float | None = None
+    reference_length: float | None = None
 
 
 @dataclass(frozen=True)

@@ -354,7 +354,8 @@ SCHEMA: dict[str, Any] = {
     "fracture": {"inner": (_positive(_number), None), "outer": (_positive(_number), None),
                  "toughness": (_toughness, None), "law": (_choice(tuple(LAWS)), None),
                  "G_Ic": (_positive(_number), None), "G_IIc": (_positive(_number), None),
-                 "eta": (_positive(_number), None), "lambda": (_unit, None)},
+                 "eta": (_positive(_number), None), "lambda": (_unit, None),
+                 "reference_length": (_positive(_number), None)},
 }
 # Tables that exist only when the scene writes them (a boundary without a load is not integrated).
 OPTIONAL_TABLES = {("loads",), *(("loads", layer) for layer in LAYERS), ("displacements",),
