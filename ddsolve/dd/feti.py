@@ -193,6 +193,15 @@ class Subspace:
         y[b] = held
         return y, g
 
+    def holding(self, held: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The minimizer over the subspace with the ``held`` rows kept at their values in ``y`` and the
+        others unbounded (an active-set step), and A y − b."""
+        f = -self.V.T @ self.g0
+        c = f + np.linalg.lstsq(self.V[held], y[held] - self.y0[held] - self.V[held] @ f, rcond=None)[0]
+        new, g = self.y0 + self.V @ c, self.g0 + self.AV @ c
+        new[held] = y[held]
+        return new, g
+
     def point(self) -> tuple[np.ndarray, np.ndarray]:
         """The minimizer y over the subspace within all bounds, and A y − b."""
         y, g = self.minimizer(self.bounded)
@@ -234,9 +243,12 @@ def feti(rounds: Rounds, interface: Interface, solver: Solver, progress: Progres
     every change of the active set.  Where the minimizer with only the held rows bounded leaves the
     bounds, an expansion step adds its projection onto them as a direction: the rows it crosses are held
     together, not one per iteration.  An iteration takes two rounds (the Dirichlet solves, then A z), an
-    expansion one more.  Converged: the KKT criterion (the projected gradient of the Lagrangian) is below
-    ``tol``.  ``start``: the multipliers to start from (0 by default: the crack faces free), moved onto
-    the bounds and the coarse constraint Gᵀy = e.
+    expansion one more.  Where rows are held and released in turn (a long zone of crack faces pressed
+    together whose early iterates dip below zero: more reversals than :data:`FLICKER` × the bounded rows),
+    the iterations go on as active-set steps on a new subspace (:meth:`Iterations.steps`).  Converged:
+    the KKT criterion (the projected gradient of the Lagrangian) is below ``tol``.  ``start``: the
+    multipliers to start from (0 by default: the crack faces free), moved onto the bounds and the coarse
+    constraint Gᵀy = e.
     """
     problem = DualProblem(rounds, interface, solver)
     precondition = DirichletPreconditioner(rounds, interface, problem.sqrt_w)
@@ -246,45 +258,139 @@ def feti(rounds: Rounds, interface: Interface, solver: Solver, progress: Progres
     return outcome
 
 
+#: ``feti`` leaves its bounded iterations for active-set steps once the rows that change set and change
+#: back in the next iteration outnumber this share of the bounded rows
+FLICKER = 0.5
+
+
+class Iterations:
+    """:func:`feti`'s iterations: the problem, its preconditioner and coarse space, the subspace of the
+    directions so far, the iterate and the outcome."""
+
+    def __init__(self, problem: DualProblem, coarse: Coarse, precondition: Callable[[np.ndarray], np.ndarray],
+                 progress: Progress, start: np.ndarray | None, capacity: int = 400):
+        self.problem, self.coarse, self.precondition, self.progress = problem, coarse, precondition, progress
+        self.lower, self.upper, self.solver = problem.lower, problem.upper, problem.solver
+        self.y = coarse.inside(problem.start(start), self.lower, self.upper)
+        self.g = problem.apply(self.y) - problem.b if np.any(self.y) else -problem.b
+        self.space = Subspace(problem, self.y, self.g, capacity, lambda v: coarse.project(v, v != 0.0))
+        self.outcome = Outcome(self.y, converged=False, iterations=0)
+        self.expansions = self.reversals = 0
+        self.step_iterations: list[int] = []  # the iteration each active-set step started at
+
+    def free(self) -> np.ndarray:
+        return (self.y > self.lower) & (self.y < self.upper)
+
+    def pulled(self, gradient: np.ndarray) -> np.ndarray:
+        """The rows at a bound that ``gradient`` pulls off it."""
+        return ((self.y <= self.lower) & (gradient < 0)) | ((self.y >= self.upper) & (gradient > 0))
+
+    def held(self) -> np.ndarray:
+        """The rows at a bound that the gradient of the Lagrangian keeps there."""
+        free = self.free()
+        return ~free & ~self.pulled(self.coarse.residual(self.g, free))
+
+    def record(self, criterion: float, changed: np.ndarray) -> None:
+        self.outcome.iterations += 1
+        self.outcome.history.append(criterion)
+        self.outcome.active_set_changes.append(int(np.count_nonzero(changed)))
+        self.progress(self.outcome.iterations, criterion)
+
+    def out_of_iterations(self) -> bool:
+        return self.outcome.iterations >= self.solver.max_iterations
+
+    def bounded(self) -> bool:
+        """Iterations on the whole subspace within the bounds; True when they ended on the flicker rule."""
+        lower, upper, space, coarse = self.lower, self.upper, self.space, self.coarse
+        previous, started = np.zeros(len(lower), dtype=bool), False
+        while True:
+            free = self.free()
+            gradient = coarse.residual(self.g, free)  # the Lagrangian's: less its part carried by rigid motions
+            criterion = self.problem.criterion(self.y, gradient)
+            if started:
+                self.record(criterion, previous)
+            started = True
+            if not criterion >= self.solver.tol or self.out_of_iterations():
+                self.outcome.converged = criterion < self.solver.tol
+                return False
+            if self.reversals > FLICKER * np.count_nonzero(space.bounded):
+                return True
+            projected = projected_gradient(self.y, gradient, lower, upper)
+            face = free | released(projected, free)
+            if not (space.add(inward(coarse, self.precondition(-projected), self.y, face, lower, upper))
+                    or space.add(inward(coarse, -projected, self.y, face, lower, upper))):
+                self.outcome.message = (f"feti: no new direction at iteration {self.outcome.iterations} "
+                                        f"(criterion {criterion:.3e}, tol {self.solver.tol:g})")
+                return False
+            unheld, _ = space.minimizer(space.bounded & ~free)
+            if np.any(unheld < lower) or np.any(unheld > upper):  # expansion
+                space.add(coarse.inside(unheld, lower, upper) - unheld)
+                self.expansions += 1
+            self.y, self.g = space.point()
+            changed = free != self.free()
+            self.reversals += int(np.count_nonzero(changed & previous))
+            previous = changed
+
+    def steps(self) -> None:
+        """Active-set steps on the same subspace: CG on the free rows, the held ones fixed and the others
+        unbounded, to a tenth of the smaller of its starting residual and the KKT residual reached (once the
+        sets repeat, to ``tol``); then the rows past a bound held, the minimizer within all bounds taken,
+        and its rows at a bound held in the next step, until the sets repeat and the criterion meets tol."""
+        lower, upper, space, coarse, problem = self.lower, self.upper, self.space, self.coarse, self.problem
+        scale = max(problem.scale, np.finfo(float).tiny)
+        space.rebase(self.y, self.g)  # the bounded iterations' directions, each a row held and released in turn
+        held, reached, settled = self.held(), np.inf, False
+        unchanged = np.zeros(len(lower), dtype=bool)
+        while not self.out_of_iterations():
+            free = ~held
+            r = -coarse.project(np.where(free, self.g, 0.0), free)
+            if not np.isfinite(r).all():
+                return
+            self.step_iterations.append(self.outcome.iterations)
+            goal = self.solver.tol * scale if settled else max(self.solver.tol * scale,
+                                                                 0.1 * min(np.linalg.norm(r), reached))
+            while np.linalg.norm(r) > goal and not self.out_of_iterations():
+                if not space.add(coarse.project(np.where(free, self.precondition(r), 0.0), free)):
+                    self.outcome.message = f"feti: no new direction at iteration {self.outcome.iterations}"
+                    return
+                self.y, self.g = space.holding(held, self.y)
+                r = -coarse.project(np.where(free, self.g, 0.0), free)
+                self.record(problem.criterion(np.clip(self.y, lower, upper), coarse.residual(self.g, free)), unchanged)
+            gradient = coarse.residual(self.g, free)
+            reached = min(reached, float(np.linalg.norm(self.y - np.clip(self.y - gradient, lower, upper))))
+            new_held = (held & ~self.pulled(gradient)) | (free & ((self.y < lower) | (self.y > upper)))
+            if np.array_equal(new_held, held):
+                if settled and problem.criterion(self.y, gradient) < self.solver.tol:
+                    self.outcome.converged = True
+                    return
+                settled = True
+                continue
+            settled = False
+            moved = coarse.feasible(np.where(new_held, np.clip(self.y, lower, upper), self.y), ~new_held)
+            if np.any(moved != self.y):
+                space.add(moved - self.y)
+            self.y, self.g = space.point()
+            held = self.held()
+
+
 def minimize(problem: DualProblem, coarse: Coarse, precondition: Callable[[np.ndarray], np.ndarray],
-             progress: Progress, start: np.ndarray | None = None, capacity: int = 400) -> tuple[Outcome, np.ndarray]:
+             progress: Progress, start: np.ndarray | None = None) -> tuple[Outcome, np.ndarray]:
     """:func:`feti`'s iterations; returns the outcome and the free rows of its multipliers."""
-    solver, lower, upper = problem.solver, problem.lower, problem.upper
-    y = coarse.inside(problem.start(start), lower, upper)
-    g = problem.apply(y) - problem.b if np.any(y) else -problem.b
-    space = Subspace(problem, y, g, capacity, lambda v: coarse.project(v, v != 0.0))
-    outcome = Outcome(y, converged=False, iterations=0)
-    expansions = 0
-    while True:
-        free = (y > lower) & (y < upper)
-        gradient = coarse.residual(g, free)  # the Lagrangian's: g less its part carried by the rigid motions
-        criterion = problem.criterion(y, gradient)
-        if outcome.iterations:
-            outcome.history.append(criterion)
-            progress(outcome.iterations, criterion)
-        if not criterion >= solver.tol or outcome.iterations >= solver.max_iterations:
-            break
-        projected = projected_gradient(y, gradient, lower, upper)
-        face = free | released(projected, free)
-        if not (space.add(inward(coarse, precondition(-projected), y, face, lower, upper))
-                or space.add(inward(coarse, -projected, y, face, lower, upper))):
-            outcome.message = (f"feti: no new direction at iteration {outcome.iterations} "
-                               f"(criterion {criterion:.3e}, tol {solver.tol:g})")
-            break
-        unheld, _ = space.minimizer(space.bounded & ~free)
-        if np.any(unheld < lower) or np.any(unheld > upper):
-            space.add(coarse.inside(unheld, lower, upper) - unheld)
-            expansions += 1
-        y, g = space.point()
-        outcome.iterations += 1
-        outcome.active_set_changes.append(int(np.count_nonzero(free != ((y > lower) & (y < upper)))))
-    outcome.converged = criterion < solver.tol
-    if not np.isfinite(criterion):
+    run = Iterations(problem, coarse, precondition, progress, start)
+    if run.bounded():
+        run.steps()
+    outcome = run.outcome
+    final = outcome.history[-1] if outcome.history else 0.0
+    if not np.isfinite(final):
         outcome.message, outcome.diverged = f"feti broke down at iteration {outcome.iterations}", True
     elif not outcome.converged and not outcome.message:
-        outcome.message = no_convergence("feti", solver, outcome.history)
-    progress(outcome.iterations, outcome.history[-1] if outcome.history else 0.0, final=True)
-    outcome.lam = problem.multipliers(y)
-    outcome.details.update(expansions=expansions, restarts=space.restarts, held_rows=int(np.count_nonzero(~free)),
+        outcome.message = no_convergence("feti", problem.solver, outcome.history)
+    progress(outcome.iterations, final, final=True)
+    outcome.lam = problem.multipliers(run.y)
+    free = run.free()
+    starts = run.step_iterations + [outcome.iterations]
+    outcome.details.update(expansions=run.expansions, restarts=run.space.restarts,
+                           bounded_iterations=starts[0], active_set_steps=len(run.step_iterations),
+                           step_iterations=np.diff(starts).astype(np.int64), held_rows=int(np.count_nonzero(~free)),
                            set_changes=int(sum(outcome.active_set_changes)))
     return outcome, free
