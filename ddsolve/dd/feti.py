@@ -262,6 +262,9 @@ def feti(rounds: Rounds, interface: Interface, solver: Solver, progress: Progres
 #: back in the next iteration outnumber this share of the bounded rows
 FLICKER = 0.5
 
+#: iterations without halving the criterion after which ``feti`` computes its gradient afresh
+STAGNATION = 10
+
 
 class Iterations:
     """:func:`feti`'s iterations: the problem, its preconditioner and coarse space, the subspace of the
@@ -296,13 +299,20 @@ class Iterations:
         self.outcome.active_set_changes.append(int(np.count_nonzero(changed)))
         self.progress(self.outcome.iterations, criterion)
 
+    def replace_residual(self) -> None:
+        """A y − b afresh (one round) and a new subspace from y: the sums g₀ + A V c carry round-off that
+        stops the criterion some way above 1e-11 once the basis is long."""
+        self.g = self.problem.apply(self.y) - self.problem.b
+        self.space.rebase(self.y, self.g)
+        self.space.restarts += 1
+
     def out_of_iterations(self) -> bool:
         return self.outcome.iterations >= self.solver.max_iterations
 
     def bounded(self) -> bool:
         """Iterations on the whole subspace within the bounds; True when they ended on the flicker rule."""
         lower, upper, space, coarse = self.lower, self.upper, self.space, self.coarse
-        previous, started = np.zeros(len(lower), dtype=bool), False
+        previous, started, best, since = np.zeros(len(lower), dtype=bool), False, np.inf, 0
         while True:
             free = self.free()
             gradient = coarse.residual(self.g, free)  # the Lagrangian's: less its part carried by rigid motions
@@ -315,6 +325,12 @@ class Iterations:
                 return False
             if self.reversals > FLICKER * np.count_nonzero(space.bounded):
                 return True
+            if criterion < 0.5 * best:
+                best, since = criterion, 0
+            elif since >= STAGNATION:
+                self.replace_residual()
+                best, since = criterion, 0
+            since += 1
             projected = projected_gradient(self.y, gradient, lower, upper)
             face = free | released(projected, free)
             if not (space.add(inward(coarse, self.precondition(-projected), self.y, face, lower, upper))
