@@ -1,10 +1,12 @@
-"""FETI: Dirichlet-preconditioned dual iterations on an active set, with the natural coarse space of the
-floating blocks (TFETI)."""
+"""FETI: Dirichlet-preconditioned conjugate gradients on the dual problem, the bounds enforced on the whole
+Krylov subspace, with the natural coarse space of the floating blocks (TFETI)."""
 from __future__ import annotations
+
+from typing import Callable
 
 import numpy as np
 
-from ddsolve.dd.dual import DualProblem, Outcome, Progress, Rounds, no_convergence
+from ddsolve.dd.dual import DualProblem, Outcome, Progress, Rounds, no_convergence, projected_gradient
 from ddsolve.dd.interface import Interface
 from ddsolve.problem.scene import Solver
 
@@ -75,12 +77,23 @@ class Coarse:
         return np.linalg.lstsq(G.T @ G, G.T @ v[free], rcond=None)[0]
 
     def feasible(self, y: np.ndarray, free: np.ndarray) -> np.ndarray:
+        """y moved onto Gᵀy = e by a least-squares change on the ``free`` rows."""
         if not self.G.shape[1]:
             return y
         G = self.G[free]
         step = np.zeros_like(y)
         step[free] = G @ np.linalg.lstsq(G.T @ G, self.e - self.G.T @ y, rcond=None)[0]
         return y + step
+
+    def inside(self, y: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
+        """y moved onto Gᵀy = e within the bounds: corrected on the rows strictly inside them, and where the
+        correction pushes a row past a bound, that row held at the bound and the others corrected again."""
+        y = np.clip(y, lower, upper)
+        while True:
+            moved = self.feasible(y, (y > lower) & (y < upper))
+            y = np.clip(moved, lower, upper)
+            if np.array_equal(y, moved):
+                return y
 
     def project(self, v: np.ndarray, free: np.ndarray) -> np.ndarray:
         if not self.G.shape[1]:
@@ -107,82 +120,293 @@ class Coarse:
         return traces
 
 
+def nearest_within(f: np.ndarray, rows: np.ndarray, low: np.ndarray,
+                   high: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The c nearest f with low ≤ rows·c ≤ high, and the masks of the rows that hold it at their lower and
+    upper bounds: a least-distance problem, solved as Lawson and Hanson's nonnegative least squares
+    (the minimal |x| with E x ≥ h from the u ≥ 0 nearest [Eᵀ; hᵀ]u = (0, …, 0, 1))."""
+    from scipy.optimize import nnls  # here, on rank 0: importing it costs every rank start-up time
+    norms = np.linalg.norm(rows, axis=1)
+    sides = [(1.0, low, np.isfinite(low) & (norms > 0)), (-1.0, high, np.isfinite(high) & (norms > 0))]
+    E = np.vstack([side * rows[keep] / norms[keep, None] for side, _, keep in sides])
+    h = np.concatenate([side * (bound[keep] - rows[keep] @ f) / norms[keep] for side, bound, keep in sides])
+    at_low, at_high = np.zeros(len(low), dtype=bool), np.zeros(len(low), dtype=bool)
+    if not np.any(h > 0):  # f is within
+        return f.copy(), at_low, at_high
+    size = float(np.abs(h).max())
+    M = np.vstack([E.T, h / size])
+    u, _ = nnls(M, np.eye(len(f) + 1)[-1])
+    r = M @ u
+    c = f - size * r[:-1] / (r[-1] - 1.0)
+    count = int(sides[0][2].sum())
+    at_low[sides[0][2]], at_high[sides[1][2]] = u[:count] > 0, u[count:] > 0
+    return c, at_low, at_high
+
+
+#: a direction whose A-norm² is less than this share of its own before orthogonalization adds nothing
+INDEPENDENT = 1e-14
+
+
+class Subspace:
+    """The iterate y = y₀ + V c over an A-orthonormal basis V of the directions so far, with A V kept: the
+    minimizer of the dual energy ½|c|² + cᵀVᵀ(A y₀ − b) over the bounds is the point of the bounds' polytope
+    in c nearest −Vᵀ(A y₀ − b) (:func:`nearest_within`), and costs no round.  Without bounds this is
+    conjugate gradients.  Every direction must satisfy Gᵀv = 0 (``on_constraint`` removes the round-off)."""
+
+    def __init__(self, problem: DualProblem, y: np.ndarray, g: np.ndarray, capacity: int,
+                 on_constraint: Callable[[np.ndarray], np.ndarray]):
+        self.problem, self.capacity, self.on_constraint = problem, capacity, on_constraint
+        self.bounded = np.isfinite(problem.lower) | np.isfinite(problem.upper)
+        self.restarts = 0
+        self.rebase(y, g)
+
+    def rebase(self, y: np.ndarray, g: np.ndarray) -> None:
+        self.y0, self.g0 = y, g
+        self.V, self.AV = np.zeros((len(y), 0)), np.zeros((len(y), 0))
+
+    def add(self, z: np.ndarray) -> bool:
+        """Appends direction z, A-orthogonalized (one round); False when it adds nothing new."""
+        if self.V.shape[1] >= self.capacity:
+            self.rebase(*self.point())
+            self.restarts += 1
+        known = 0.0  # |A-components of z along V|²
+        for _ in range(2):
+            h = self.AV.T @ z
+            z, known = z - self.V @ h, known + float(h @ h)
+        z = self.on_constraint(z)  # off Gᵀz = 0 by round-off, it would grow with every direction built on it
+        q = self.problem.apply(z)
+        norm = float(z @ q)
+        if not norm > INDEPENDENT * (norm + known):
+            return False
+        self.V = np.column_stack([self.V, z / np.sqrt(norm)])
+        self.AV = np.column_stack([self.AV, q / np.sqrt(norm)])
+        return True
+
+    def minimizer(self, constrained: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The minimizer y over the subspace within the bounds of the ``constrained`` rows, and A y − b."""
+        lower, upper, b = self.problem.lower, self.problem.upper, constrained
+        c, at_low, at_high = nearest_within(
+            -self.V.T @ self.g0, self.V[b], lower[b] - self.y0[b], upper[b] - self.y0[b])
+        y, g = self.y0 + self.V @ c, self.g0 + self.AV @ c
+        held = y[b]
+        held[at_low], held[at_high] = lower[b][at_low], upper[b][at_high]  # exactly, not to round-off
+        y[b] = held
+        return y, g
+
+    def holding(self, held: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The minimizer over the subspace with the ``held`` rows kept at their values in ``y`` and the
+        others unbounded (an active-set step), and A y − b."""
+        f = -self.V.T @ self.g0
+        c = f + np.linalg.lstsq(self.V[held], y[held] - self.y0[held] - self.V[held] @ f, rcond=None)[0]
+        new, g = self.y0 + self.V @ c, self.g0 + self.AV @ c
+        new[held] = y[held]
+        return new, g
+
+    def point(self) -> tuple[np.ndarray, np.ndarray]:
+        """The minimizer y over the subspace within all bounds, and A y − b."""
+        y, g = self.minimizer(self.bounded)
+        return np.clip(y, self.problem.lower, self.problem.upper), g
+
+
+def released(projected: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """The rows at a bound that the next direction may move off it: those whose projected gradient pulls
+    them off at least as hard as the largest free gradient (at least the one pulled hardest).  Releasing
+    every row pulled at all let the delamination specimens' crack faces, all pressed together before the
+    first step, move apart and then be held again one by one."""
+    pulled = ~free & (projected != 0.0)
+    if pulled.any():
+        bar = min(np.abs(projected[pulled]).max(), np.abs(projected[free]).max(initial=0.0))
+        pulled &= np.abs(projected) >= bar
+    return pulled
+
+
+def inward(coarse: Coarse, v: np.ndarray, y: np.ndarray, face: np.ndarray, lower: np.ndarray,
+           upper: np.ndarray) -> np.ndarray:
+    """v on the ``face`` rows and on Gᵀv = 0, without the rows at a bound that it would push past it."""
+    while True:
+        v = coarse.project(np.where(face, v, 0.0), face)
+        outward = face & (((y <= lower) & (v < 0)) | ((y >= upper) & (v > 0)))
+        if not outward.any():
+            return v
+        face = face & ~outward
+
+
 def feti(rounds: Rounds, interface: Interface, solver: Solver, progress: Progress,
          start: np.ndarray | None = None) -> Outcome:
-    """The dual problem by a primal-dual active set method whose steps are solved by conjugate
-    gradients on the free multipliers, preconditioned by FETI's Dirichlet preconditioner.
+    """The dual problem by conjugate gradients on a growing subspace, preconditioned by FETI's Dirichlet
+    preconditioner on the free multipliers, with the bounds enforced on the whole subspace.
 
-    Only block solves and products: a CG iteration takes two rounds (the Dirichlet solves of the
-    preconditioner, then the solves of A p), so its cost per round is that of ``mprgp``, and the
-    preconditioner keeps the iterations nearly independent of the mesh.  Each active-set step fixes
-    the multipliers at their bounds where the sets say so and solves for the others; the sets
-    change by the signs of the gradient (active rows) and the bound violations (free rows), as in
-    ``box_qp``.  Converged: the sets did not change, the multipliers are feasible and the KKT
-    criterion (on the free rows: the CG residual) is below ``tol``; the CG of a step stops at
-    ``tol`` then, or while the sets still move at 1e-1 of the smaller of its starting residual and the
-    natural residual ‖y − P(y − ∇L)‖ of the best step so far (an inexact Newton step whose forcing only
-    tightens: relative to its own start it loosened after every change of the sets, which then followed the
-    CG's error and never settled on the ENF specimen).  ``start``: the multipliers to start from (the
-    least-squares solution of the coarse problem by default).
+    Each iteration adds one direction: the preconditioned projected gradient on the free rows and on the
+    rows at a bound pulled off it hardest (:func:`released`), projected by the coarse space of the
+    floating blocks.  The iterate is the minimizer over the span of all directions so far within the
+    bounds (a dense least-distance problem of the basis' size on rank 0), so the Krylov space survives
+    every change of the active set.  Where the minimizer with only the held rows bounded leaves the
+    bounds, an expansion step adds its projection onto them as a direction: the rows it crosses are held
+    together, not one per iteration.  An iteration takes two rounds (the Dirichlet solves, then A z), an
+    expansion one more.  Where rows are held and released in turn (a long zone of crack faces pressed
+    together whose early iterates dip below zero: more reversals than :data:`FLICKER` × the bounded rows),
+    the iterations go on as active-set steps on a new subspace (:meth:`Iterations.steps`).  Converged:
+    the KKT criterion (the projected gradient of the Lagrangian) is below ``tol``.  ``start``: the
+    multipliers to start from (0 by default: the crack faces free), moved onto the bounds and the coarse
+    constraint Gᵀy = e.
     """
     problem = DualProblem(rounds, interface, solver)
     precondition = DirichletPreconditioner(rounds, interface, problem.sqrt_w)
-    coarse = Coarse(rounds, interface, problem.sqrt_w)  # floating blocks: y on Gᵀy = e, steps projected
-    lower, upper, scale = problem.lower, problem.upper, max(problem.scale, np.finfo(float).tiny)
-    y = coarse.feasible(problem.start(start), np.ones(interface.size, dtype=bool))  # by default λ₀ = G(GᵀG)⁻¹e
-    g = problem.apply(y) - problem.b if np.any(y) else -problem.b  # A y − b
-    at_lower, at_upper = (y <= lower) & (g >= 0), (y >= upper) & (g <= 0)
-    outcome = Outcome(y, converged=False, iterations=0)
-    settled, steps = False, 0
-    reached = np.inf  # the smallest natural residual ‖y − P(y − ∇L)‖ at the end of a step so far
-    while outcome.iterations < solver.max_iterations:
-        steps += 1
-        free = ~(at_lower | at_upper)
-        target = coarse.feasible(np.where(at_lower, lower, np.where(at_upper, upper, y)), free)
-        if np.any(target != y):  # the fixed multipliers go to their bounds
-            g = g + problem.apply(target - y)
-            y = target
-        r = -coarse.project(np.where(free, g, 0.0), free)
-        # An inexact step solves to a tenth of the KKT residual already reached, not of its own starting
-        # residual: moving a few rows to their bounds makes that jump by orders of magnitude, which would
-        # loosen every step after a change back to ~1e-3 and decide the next sets on the CG's error.
-        goal = solver.tol * scale if settled else max(solver.tol * scale, 1e-1 * min(np.linalg.norm(r), reached))
-        z = coarse.project(np.where(free, precondition(r), 0.0), free) if np.linalg.norm(r) > goal else r
-        p, rz = z, r @ z
-        while np.linalg.norm(r) > goal and outcome.iterations < solver.max_iterations:
-            q = problem.apply(p)
-            alpha = rz / (p @ q)
-            y, g = y + alpha * p, g + alpha * q
-            r = -coarse.project(np.where(free, g, 0.0), free)
-            outcome.iterations += 1
-            outcome.history.append(problem.criterion(np.clip(y, lower, upper), coarse.residual(g, free)))
-            progress(outcome.iterations, outcome.history[-1])
-            if not np.isfinite(outcome.history[-1]):
-                outcome.message, outcome.diverged = f"feti broke down at iteration {outcome.iterations}", True
-                outcome.lam = problem.multipliers(y)
-                return outcome
-            if np.linalg.norm(r) <= goal:
-                break
-            z = coarse.project(np.where(free, precondition(r), 0.0), free)
-            rz, previous = r @ z, rz
-            p = z + (rz / previous) * p
-        gradient = coarse.residual(g, free)  # the Lagrangian's: g less its part carried by the rigid motions
-        reached = min(reached, float(np.linalg.norm(y - np.clip(y - gradient, lower, upper))))
-        new_lower = (at_lower & (gradient >= 0)) | (free & (y < lower))
-        new_upper = (at_upper & (gradient <= 0)) | (free & (y > upper))
-        if np.array_equal(new_lower, at_lower) and np.array_equal(new_upper, at_upper):
-            criterion = problem.criterion(y, gradient)
-            if settled and criterion < solver.tol:
-                outcome.converged = True
-                break
-            settled = True
-        else:
-            settled = False
-        at_lower, at_upper = new_lower, new_upper
-    if not outcome.converged:
-        outcome.message = no_convergence("feti", solver, outcome.history)
-    progress(outcome.iterations, outcome.history[-1] if outcome.history else 0.0, final=True)
-    outcome.lam = problem.multipliers(y)
-    outcome.details["active_set_steps"] = steps
-    outcome.held = coarse.held(interface, outcome.lam, problem.sqrt_w, ~(at_lower | at_upper))
+    coarse = Coarse(rounds, interface, problem.sqrt_w)
+    outcome, free = minimize(problem, coarse, precondition, progress, start)
+    outcome.held = coarse.held(interface, outcome.lam, problem.sqrt_w, free)
     return outcome
+
+
+#: ``feti`` leaves its bounded iterations for active-set steps once the rows that change set and change
+#: back in the next iteration outnumber this share of the bounded rows
+FLICKER = 0.5
+
+#: iterations without halving the criterion after which ``feti`` computes its gradient afresh
+STAGNATION = 10
+
+
+class Iterations:
+    """:func:`feti`'s iterations: the problem, its preconditioner and coarse space, the subspace of the
+    directions so far, the iterate and the outcome."""
+
+    def __init__(self, problem: DualProblem, coarse: Coarse, precondition: Callable[[np.ndarray], np.ndarray],
+                 progress: Progress, start: np.ndarray | None, capacity: int = 400):
+        self.problem, self.coarse, self.precondition, self.progress = problem, coarse, precondition, progress
+        self.lower, self.upper, self.solver = problem.lower, problem.upper, problem.solver
+        self.y = coarse.inside(problem.start(start), self.lower, self.upper)
+        self.g = problem.apply(self.y) - problem.b if np.any(self.y) else -problem.b
+        self.space = Subspace(problem, self.y, self.g, capacity, lambda v: coarse.project(v, v != 0.0))
+        self.outcome = Outcome(self.y, converged=False, iterations=0)
+        self.expansions = self.reversals = 0
+        self.step_iterations: list[int] = []  # the iteration each active-set step started at
+
+    def free(self) -> np.ndarray:
+        return (self.y > self.lower) & (self.y < self.upper)
+
+    def pulled(self, gradient: np.ndarray) -> np.ndarray:
+        """The rows at a bound that ``gradient`` pulls off it."""
+        return ((self.y <= self.lower) & (gradient < 0)) | ((self.y >= self.upper) & (gradient > 0))
+
+    def held(self) -> np.ndarray:
+        """The rows at a bound that the gradient of the Lagrangian keeps there."""
+        free = self.free()
+        return ~free & ~self.pulled(self.coarse.residual(self.g, free))
+
+    def record(self, criterion: float, changed: np.ndarray) -> None:
+        self.outcome.iterations += 1
+        self.outcome.history.append(criterion)
+        self.outcome.active_set_changes.append(int(np.count_nonzero(changed)))
+        self.progress(self.outcome.iterations, criterion)
+
+    def replace_residual(self) -> None:
+        """A y − b afresh (one round) and a new subspace from y: the sums g₀ + A V c carry round-off that
+        stops the criterion some way above 1e-11 once the basis is long."""
+        self.g = self.problem.apply(self.y) - self.problem.b
+        self.space.rebase(self.y, self.g)
+        self.space.restarts += 1
+
+    def out_of_iterations(self) -> bool:
+        return self.outcome.iterations >= self.solver.max_iterations
+
+    def bounded(self) -> bool:
+        """Iterations on the whole subspace within the bounds; True when they ended on the flicker rule."""
+        lower, upper, space, coarse = self.lower, self.upper, self.space, self.coarse
+        previous, started, best, since = np.zeros(len(lower), dtype=bool), False, np.inf, 0
+        while True:
+            free = self.free()
+            gradient = coarse.residual(self.g, free)  # the Lagrangian's: less its part carried by rigid motions
+            criterion = self.problem.criterion(self.y, gradient)
+            if started:
+                self.record(criterion, previous)
+            started = True
+            if not criterion >= self.solver.tol or self.out_of_iterations():
+                self.outcome.converged = criterion < self.solver.tol
+                return False
+            if self.reversals > FLICKER * np.count_nonzero(space.bounded):
+                return True
+            if criterion < 0.5 * best:
+                best, since = criterion, 0
+            elif since >= STAGNATION:
+                self.replace_residual()
+                best, since = criterion, 0
+            since += 1
+            projected = projected_gradient(self.y, gradient, lower, upper)
+            face = free | released(projected, free)
+            if not (space.add(inward(coarse, self.precondition(-projected), self.y, face, lower, upper))
+                    or space.add(inward(coarse, -projected, self.y, face, lower, upper))):
+                self.outcome.message = (f"feti: no new direction at iteration {self.outcome.iterations} "
+                                        f"(criterion {criterion:.3e}, tol {self.solver.tol:g})")
+                return False
+            unheld, _ = space.minimizer(space.bounded & ~free)
+            if np.any(unheld < lower) or np.any(unheld > upper):  # expansion
+                space.add(coarse.inside(unheld, lower, upper) - unheld)
+                self.expansions += 1
+            self.y, self.g = space.point()
+            changed = free != self.free()
+            self.reversals += int(np.count_nonzero(changed & previous))
+            previous = changed
+
+    def steps(self) -> None:
+        """Active-set steps on the same subspace: CG on the free rows, the held ones fixed and the others
+        unbounded, to a tenth of the smaller of its starting residual and the KKT residual reached (once the
+        sets repeat, to ``tol``); then the rows past a bound held, the minimizer within all bounds taken,
+        and its rows at a bound held in the next step, until the sets repeat and the criterion meets tol."""
+        lower, upper, space, coarse, problem = self.lower, self.upper, self.space, self.coarse, self.problem
+        scale = max(problem.scale, np.finfo(float).tiny)
+        space.rebase(self.y, self.g)  # the bounded iterations' directions, each a row held and released in turn
+        held, reached, settled = self.held(), np.inf, False
+        unchanged = np.zeros(len(lower), dtype=bool)
+        while not self.out_of_iterations():
+            free = ~held
+            r = -coarse.project(np.where(free, self.g, 0.0), free)
+            if not np.isfinite(r).all():
+                return
+            self.step_iterations.append(self.outcome.iterations)
+            goal = self.solver.tol * scale if settled else max(self.solver.tol * scale,
+                                                                 0.1 * min(np.linalg.norm(r), reached))
+            while np.linalg.norm(r) > goal and not self.out_of_iterations():
+                if not space.add(coarse.project(np.where(free, self.precondition(r), 0.0), free)):
+                    self.outcome.message = f"feti: no new direction at iteration {self.outcome.iterations}"
+                    return
+                self.y, self.g = space.holding(held, self.y)
+                r = -coarse.project(np.where(free, self.g, 0.0), free)
+                self.record(problem.criterion(np.clip(self.y, lower, upper), coarse.residual(self.g, free)), unchanged)
+            gradient = coarse.residual(self.g, free)
+            reached = min(reached, float(np.linalg.norm(self.y - np.clip(self.y - gradient, lower, upper))))
+            new_held = (held & ~self.pulled(gradient)) | (free & ((self.y < lower) | (self.y > upper)))
+            if np.array_equal(new_held, held):
+                if settled and problem.criterion(self.y, gradient) < self.solver.tol:
+                    self.outcome.converged = True
+                    return
+                settled = True
+                continue
+            settled = False
+            moved = coarse.feasible(np.where(new_held, np.clip(self.y, lower, upper), self.y), ~new_held)
+            if np.any(moved != self.y):
+                space.add(moved - self.y)
+            self.y, self.g = space.point()
+            held = self.held()
+
+
+def minimize(problem: DualProblem, coarse: Coarse, precondition: Callable[[np.ndarray], np.ndarray],
+             progress: Progress, start: np.ndarray | None = None) -> tuple[Outcome, np.ndarray]:
+    """:func:`feti`'s iterations; returns the outcome and the free rows of its multipliers."""
+    run = Iterations(problem, coarse, precondition, progress, start)
+    if run.bounded():
+        run.steps()
+    outcome = run.outcome
+    final = outcome.history[-1] if outcome.history else 0.0
+    if not np.isfinite(final):
+        outcome.message, outcome.diverged = f"feti broke down at iteration {outcome.iterations}", True
+    elif not outcome.converged and not outcome.message:
+        outcome.message = no_convergence("feti", problem.solver, outcome.history)
+    progress(outcome.iterations, final, final=True)
+    outcome.lam = problem.multipliers(run.y)
+    free = run.free()
+    starts = run.step_iterations + [outcome.iterations]
+    outcome.details.update(expansions=run.expansions, restarts=run.space.restarts,
+                           bounded_iterations=starts[0], active_set_steps=len(run.step_iterations),
+                           step_iterations=np.diff(starts).astype(np.int64), held_rows=int(np.count_nonzero(~free)),
+                           set_changes=int(sum(outcome.active_set_changes)))
+    return outcome, free
