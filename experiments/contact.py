@@ -89,10 +89,10 @@ def launch(arguments: list[str], ranks: int | None) -> tuple[int, float]:
 
     command = mpiexec_command(ranks, arguments, "ddsolve") if ranks else [sys.executable, "-m", "ddsolve", *arguments]
     started = time.perf_counter()
-    completed = subprocess.run(command, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    completed = subprocess.run(command, cwd=ROOT, capture_output=True, text=True)
     elapsed = time.perf_counter() - started
     if completed.returncode not in MEASURED_EXITS:
-        raise DDSolveError(f"{' '.join(arguments)}: exit {completed.returncode}: {completed.stderr.strip()[-300:]}")
+        raise DDSolveError(f"{' '.join(arguments)}: exit {completed.returncode}: {(completed.stderr or completed.stdout).strip()[-300:]}")
     return completed.returncode, elapsed
 
 

@@ -839,8 +839,8 @@ def _limits(strong: list[dict], weak: list[dict]) -> list[str]:
         f"({strong[0]['rank0']:.1f} s at P = 1600"
         + (f"; in weak scaling it overtakes the block work at about {crossover} cores" if crossover else "") +
         "). `feti` needs neither: only block solves and products, rank 0's work per round is linear in the "
-        "multipliers, and its rounds grow slowly with P. The default (`auto`) takes `schur` for whole blocks and, "
-        "for distributed blocks, whichever the model predicts cheaper (`registry.choose`, with the per-block laws "
-        "above): `feti` on every predicted configuration here. What remains: `feti`'s active-set steps grow "
+        "multipliers, and its rounds grow slowly with P. The default (`auto`) takes whichever the model predicts "
+        "cheaper (`registry.choose`, with the per-block laws above and the contact steps of `./run bench contact`): "
+        "`schur` on whole blocks, `feti` on every predicted configuration of distributed blocks here. What remains: `feti`'s active-set steps grow "
         "slowly with P, and its Dirichlet factorization doubles the factorization work and memory.",
     ]
