@@ -158,11 +158,14 @@ class Block:
             if not whole_mumps and route != "solves" or self.floating and route != "factorization":
                 route = "dirichlet"
             self.route = route
-            if route == "dirichlet":
-                self.factor_dirichlet(out_of_core)
-        schur = schur and self.route == "factorization"
-        if self.floating and self._fixed_matrix is None and not schur:  # K singular: nothing to factor
-            return
+        if not (self.floating and self._fixed_matrix is None and self.route != "factorization"):
+            self._factor_operator(schur and self.route == "factorization", out_of_core)  # else K singular: no factor
+        if schur and self.route == "dirichlet":
+            self.factor_dirichlet(out_of_core)
+
+    def _factor_operator(self, schur: bool, out_of_core: bool) -> None:
+        """Factor the KSP's operator (with MUMPS's Schur complement on the trace when ``schur``)."""
+        pc = self.ksp.getPC()
         controls = {MUMPS_OUT_OF_CORE: 1} if out_of_core else {}
         try:
             if schur:
@@ -208,7 +211,8 @@ class Block:
                                        **({MUMPS_OUT_OF_CORE: 1} if out_of_core else {})}):
                 ksp.setUp()
         except PETSc.Error as exc:
-            raise SolverError(f"block {self.name}: Dirichlet problem setup failed (PETSc error {exc.ierr})") from None
+            raise SolverError(f"block {self.name}: Dirichlet problem setup failed: "
+                              f"{petsc_failure(exc, ksp.getOptionsPrefix())}") from None
         self._work = self.matrix.createVecLeft()
 
     def dirichlet(self, trace: np.ndarray) -> np.ndarray | None:
