@@ -70,80 +70,8 @@ def test_the_iterations_give_the_dense_active_set_solution(monkeypatch, flicker)
     assert flicker or outcome.details["active_set_steps"] > 0
 
 
-ENF_GEO = """lc = 1.0;
-Point(1) = {0.0, 0.0, 0, lc}; Point(2) = {12.5, 0.0, 0, lc}; Point(3) = {50.0, 0.0, 0, lc};
-Point(4) = {0.0, -1.0, 0, lc}; Point(5) = {0.02, -1.0, 0, lc}; Point(6) = {49.98, -1.0, 0, lc};
-Point(7) = {50.0, -1.0, 0, lc}; Point(8) = {50.0, 1.0, 0, lc}; Point(9) = {25.1, 1.0, 0, lc};
-Point(10) = {24.9, 1.0, 0, lc}; Point(11) = {0.0, 1.0, 0, lc};
-Line(1) = {1, 2}; Line(2) = {2, 3}; Line(3) = {4, 5}; Line(4) = {5, 6}; Line(5) = {6, 7}; Line(6) = {7, 3};
-Line(7) = {3, 8}; Line(8) = {8, 9}; Line(9) = {9, 10}; Line(10) = {10, 11}; Line(11) = {1, 4};
-Line(12) = {11, 1};
-Curve Loop(1) = {3, 4, 5, 6, -2, -1, 11}; Plane Surface(1) = {1};
-Curve Loop(2) = {1, 2, 7, 8, 9, 10, 12}; Plane Surface(2) = {2};
-Physical Surface("lower") = {1}; Physical Surface("upper") = {2};
-Physical Curve("crack") = {1}; Physical Curve("sigma") = {1, 2}; Physical Curve("pin") = {3};
-Physical Curve("bottom") = {4}; Physical Curve("roller") = {5}; Physical Curve("right_lower") = {6};
-Physical Curve("right_upper") = {7}; Physical Curve("top") = {8, 10}; Physical Curve("load") = {9};
-Physical Curve("left_lower") = {11}; Physical Curve("left_upper") = {12};
-"""
-
-#: The issue's ENF: span 50, arms 1 thick, crack 12.5 long, pin and roller on 0.02-long bottom segments,
-#: the upper half held only through Σ (floating), the load on the middle of the top.
-ENF = """[mesh]
-file = "enf.geo"
-size = 0.4
-degree = 2
-grading = true
-[materials.layer1]
-E = 200.0
-nu = 0.28
-[materials.layer2]
-E = 200.0
-nu = 0.28
-[displacements.layer1.roller]
-y = 0.0
-[displacements.layer2.roller]
-y = 0.0
-[displacements.layer1.pin]
-x = 0.0
-y = 0.0
-[displacements.layer2.pin]
-x = 0.0
-y = 0.0
-[loads.layer1.load]
-y = -0.0025
-[loads.layer2.load]
-y = -0.0025
-"""
-
-#: The clamped strip 20 long and 1 thick with the crack [2, 18] pressed shut by a top traction.
-STRIP = """[geometry]
-box = [0.0, 20.0, -0.5, 0.5]
-sigma = 0.0
-crack = [2.0, 18.0]
-clamped = ["left", "right"]
-[mesh]
-size = 0.1
-degree = 2
-[materials.layer1]
-E = 200.0
-nu = 0.28
-[materials.layer2]
-E = 200.0
-nu = 0.28
-[loads.layer1.top]
-y = -1e-3
-[loads.layer2.top]
-y = -1e-3
-"""
-
-FREE = "\n[contact]\nnonpenetration = false\n"
-
-
-def solved(folder, name: str, text: str, method: str = "feti"):
-    scene = folder / f"{name}.toml"
-    scene.write_text(text)
-    output = folder / f"{name}-{method}.h5"
+def solved(scene, method: str = "feti"):
+    output = scene.with_suffix(f".{method}.h5")
     if method == "reference":
         ddsolve("reference", str(scene), "-o", str(output))
     else:
@@ -153,14 +81,15 @@ def solved(folder, name: str, text: str, method: str = "feti"):
 
 
 @pytest.mark.mpi
-@pytest.mark.parametrize("name, text, factor", [("enf", ENF, 3.0), ("strip", STRIP, 4.5)])
-def test_contact_takes_a_small_multiple_of_the_iterations_with_the_faces_free(tmp_path, name, text, factor):
-    """At tol 1e-11 the ENF at size 0.4 took 280 iterations with contact against 49 with the faces free,
-    and the strip at size 0.1 113 against 23; now 48 against 25, and 63 against 16."""
-    if name == "enf":
-        (tmp_path / "enf.geo").write_text(ENF_GEO)
-    contact, free = solved(tmp_path, name, text), solved(tmp_path, f"{name}-free", text + FREE)
-    reference = solved(tmp_path, name, text, "reference")
+@pytest.mark.parametrize("specimen, crack, size, factor", [("ENF", 12.5, 0.4, 3.0), ("closed strip", 16.0, 0.1, 4.5)])
+def test_contact_takes_a_small_multiple_of_the_iterations_with_the_faces_free(tmp_path, specimen, crack, size, factor):
+    """The scenes of ``./run bench contact``: at tol 1e-11 the ENF at size 0.4 took 280 iterations with contact
+    against 49 with the faces free, and the strip at size 0.1 113 against 23; now 48 against 25, and 63 against 16."""
+    from experiments.contact import scene_file
+
+    scene, free_scene = (scene_file(tmp_path, specimen, crack, size, free=free) for free in (False, True))
+    contact, free = solved(scene), solved(free_scene)
+    reference = solved(scene, "reference")
     assert contact.converged and free.converged
     assert contact.attrs["held_rows"] > 0 and free.attrs["held_rows"] == 0
     assert contact.iterations <= factor * free.iterations, (contact.iterations, free.iterations)

@@ -83,11 +83,11 @@ def stepping_methods() -> list[str]:
 #: Per-block costs (seconds, n = block unknowns, c = columns, m = multiplier rounds) fitted by
 #: ``./run scaling`` on one rank (docs/scaling.md): the interface matrix of a distributed block by
 #: multi-column solves c·(n·2kΣ)^p; one block solve; a plain factorization; rank 0's dense solve of
-#: ``schur`` on its interface unknowns (3 per Σ node); the CG iterations of ``feti`` (about constant in P);
-#: and, fitted to ``./run bench contact``'s steps, one active-set step of ``schur``'s contact problem on its
-#: crack rows (a dense factorization of at most that size).
+#: ``schur`` on its interface unknowns (3 per Σ node); rank 0's update per round of an iterative method on its
+#: multipliers (6 per Σ node); and, fitted to ``./run bench contact``'s steps, one active-set step of
+#: ``schur``'s contact problem on its crack rows (a dense factorization of at most that size).
 COST_LAWS = {"columns": (1.16e-08, 1.09), "solve": (1.18e-07, 1.10), "factor": (3.46e-08, 1.49),
-             "rank0": (4.14e-09, 2.40), "contact_step": (1.25e-09, 2.30)}
+             "rank0": (4.14e-09, 2.40), "update": (2.3e-07, 1.0), "contact_step": (1.25e-09, 2.30)}
 #: ``feti``'s rounds, fitted on Example 1 with its contact (rounds against P: 19.2·P^0.16, docs/scaling.md);
 #: long pressed zones take more (``./run bench contact``: 2.5× its rounds with the faces free on the ENF, 6.9× on
 #: the closed strip, 1.35× on Example 1), which Σ's length alone does not predict: the model keeps Example 1's.
@@ -107,7 +107,8 @@ def predicted_costs(ranks: int, unknowns: int, sigma_nodes: int, crack_rows: int
     schur = law["rank0"](3 * sigma_nodes) + (CONTACT_STEPS * law["contact_step"](crack_rows) if crack_rows else 0.0)
     if per_block > 1:  # no Schur complement from a distributed factorization: the Dirichlet problem's, 2kΣ columns
         schur += share * (law["factor"](unknowns) + law["columns"](unknowns * 2 * sigma_nodes))
-    feti = share * (law["factor"](unknowns) + FETI_ROUNDS * law["solve"](unknowns))  # + the Dirichlet problem
+    feti = (share * (law["factor"](unknowns) + FETI_ROUNDS * law["solve"](unknowns))  # + the Dirichlet problem
+            + FETI_ROUNDS * law["update"](6 * sigma_nodes))
     return {"schur": schur, "feti": feti}
 
 
