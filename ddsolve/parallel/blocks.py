@@ -127,7 +127,7 @@ class Block:
         return self.mpi.rank == 0
 
     def is_direct(self) -> bool:
-        return self.ksp.getType() == PETSc.KSP.Type.PREONLY and self.ksp.getPC().getType() in _FACTOR_TYPES
+        return _is_direct(self.ksp)
 
     def factor(self, schur: bool = False, out_of_core: bool = False) -> None:
         """Set up the solver (factorization for direct solvers); with ``out_of_core`` MUMPS keeps the factors
@@ -218,6 +218,10 @@ class Block:
     def dirichlet(self, trace: np.ndarray) -> np.ndarray | None:
         """S t on the leader: the trace forces that hold the trace displacements ``t`` (given on every
         rank of the block) with no load inside, by one Dirichlet solve and two products with K."""
+        return self._gather_trace(self._held_forces(trace))
+
+    def _held_forces(self, trace: np.ndarray) -> np.ndarray:
+        """This rank's rows of :meth:`dirichlet`'s trace forces."""
         held = self._work
         values = held.getArray()
         values[:] = 0.0
@@ -231,7 +235,7 @@ class Block:
         except PETSc.Error as exc:
             raise SolverError(f"block {self.name}: Dirichlet solve failed (PETSc error {exc.ierr})") from None
         self.matrix.mult(self.x, held)
-        return self._gather_trace(held.getArray(readonly=True)[self.trace_rows] * self.scale)
+        return held.getArray(readonly=True)[self.trace_rows] * self.scale
 
     def trace_diagonal(self) -> np.ndarray | None:
         """The diagonal of K at the trace dofs, on the leader (the stiffness scaling of the preconditioner)."""
@@ -445,7 +449,7 @@ class Block:
         k = len(self.trace_dofs)
         out = np.empty((k, k)) if self.is_leader else None
         local, n = len(self.system.rhs), self.system.size
-        direct = ksp.getType() == PETSc.KSP.Type.PREONLY and ksp.getPC().getType() in _FACTOR_TYPES
+        direct = _is_direct(ksp)
         for start in range(0, k, _CHUNK):
             columns = np.arange(start, min(start + _CHUNK, k))
             if direct:
@@ -511,11 +515,7 @@ class Block:
                 mat.destroy()
             return out
 
-        def one_column(unit: np.ndarray) -> np.ndarray:
-            self.dirichlet(unit)
-            return self._work.getArray(readonly=True)[self.trace_rows] * self.scale
-
-        return self._trace_columns(self._dirichlet, columns_of, one_column)
+        return self._trace_columns(self._dirichlet, columns_of, self._held_forces)
 
     def _held_solve(self, trace: np.ndarray) -> None:
         """self.x = (K_II⁻¹(f_I − K_IΣ t), t) for trace displacements ``t`` (on every rank of the block)."""
@@ -683,6 +683,11 @@ def _call(function: str, *args) -> None:
     code = getattr(_petsc_c(), function)(*(ctypes.c_void_p(a) if isinstance(a, int) else a for a in args))
     if code != 0:
         raise SolverError(f"PETSc {function} failed with error {code}")
+
+
+def _is_direct(ksp: PETSc.KSP) -> bool:
+    """Whether ``ksp`` applies a factorization (no Krylov iterations)."""
+    return ksp.getType() == PETSc.KSP.Type.PREONLY and ksp.getPC().getType() in _FACTOR_TYPES
 
 
 def _dense_like(B: PETSc.Mat) -> PETSc.Mat:
