@@ -415,7 +415,8 @@ def summary(record: dict) -> list[list[str]]:
     out = []
     for label, row in cases:
         if "ψ(2a)" in label:
-            values = [f"{row['phase_theory']:.3f}°", f"{row['phase']:.3f}°", f"{row['phase'] - row['phase_theory']:+.3f}°"]
+            values = [f"{row['phase_theory']:.3f}°", f"{row['phase']:.3f}°",
+                      f"{row['phase'] - row['phase_theory']:+.3f}°"]
         else:
             closed, computed = (row["theory"], row["curvature"]) if "curvature" in row else (row["theory"], row["G"])
             values = [f"{closed:.6e}", f"{computed:.6e}", _percent(row["error"], 3)]
@@ -465,11 +466,11 @@ def _griffith(record: dict) -> list[str]:
 def _dcb(record: dict) -> list[str]:
     force = finest(by_loading(record, "force"))
     out = ["", "### Bi-material DCB", "",
-           f"The strip (0, L) × (−h, h), h = {ARM:g}, cracked along Σ over (0, a), clamped at x = L (L = 20, or a + 10h "
-           f"where that is longer); the arm above Σ E = {regions.DCB_REGIONS['upper'][0]:g}, below "
+           f"The strip (0, L) × (−h, h), h = {ARM:g}, cracked along Σ over (0, a), clamped at x = L (L = 20, or "
+           f"a + 10h where that is longer); the arm above Σ E = {regions.DCB_REGIONS['upper'][0]:g}, below "
            f"E = {regions.DCB_REGIONS['lower'][0]:g} (ν = {regions.DCB_REGIONS['upper'][1]:g}), so ε = "
-           f"{force[0]['epsilon']:.4f}. Beam theory with each arm's own stiffness (plane strain, per unit width, summed "
-           "over the layers): G = M²/2 · (1/(E′I)₊ + 1/(E′I)₋), M the moment at the tip. **By end couples** M this "
+           f"{force[0]['epsilon']:.4f}. Beam theory with each arm's own stiffness (plane strain, per unit width, "
+           "summed over the layers): G = M²/2 · (1/(E′I)₊ + 1/(E′I)₋), M the moment at the tip. **By end couples** M this "
            "is exact once the tip's field is steady (the energy per length far behind the tip minus far ahead). "
            "**By end forces** P, M = P(a + χh) with the root rotation χ of the arms at the tip: Kanninen's beams on "
            "an elastic foundation (Kanninen 1973), here two beams tied by the springs of their halves, stiffness "
@@ -503,13 +504,16 @@ def _enf(record: dict) -> list[str]:
            f"{LOAD_WIDTH:g} on the top, M = R(a + χ_II h) with R the roller's reaction (read from the solution) and "
            f"the homogeneous ENF's χ_II = {CHI_II:g} (Bao et al. 1992). With identical arms (both E = "
            f"{ARMS['identical']['upper'][0]:g}) this is the standard ENF, and the setup gives it within "
-           f"{worst(finest(by_arms(record, 'identical'))):.2%}. Between the dissimilar arms the shared curvature "
-           "does not hold under shear: each arm's root rotates by its own amount, so the arms open over the crack "
-           f"(the largest gap {max(row['gap'] for row in three):.1e} of the largest displacement, against "
-           f"{max(row['gap'] for row in finest(by_arms(record, 'identical'))):.1e} with identical arms) and touch "
-           f"only over the first {max(row['contact'] for row in three):.2g}h at the mouth, where the roller's force "
-           "passes from the lower arm to the upper one. The homogeneous correction does not carry over, and the "
-           "shear part of a tip correction depends on the tip's field, without a closed form (Li, Wang and "
+           f"{worst(finest(by_arms(record, 'identical'))):.2%}. Dissimilar arms open over the crack, bent by a couple "
+           f"(the largest gap {max(row['gap'] for row in finest(record['bending'])):.1e} of the largest displacement) "
+           f"as at three points ({max(row['gap'] for row in three):.1e}, against "
+           f"{max(row['gap'] for row in finest(by_arms(record, 'identical'))):.1e} with identical arms): each arm's "
+           "root rotates by its own amount. Bent by a couple that changes nothing, each arm's couple being its share "
+           "by construction; at three points the roller's force reaches the upper arm only through the contact at "
+           f"the mouth (the first {min(row['contact'] for row in three):.2g}–"
+           f"{max(row['contact'] for row in three):.2g}h), so the arms' shares are set there by their compliances as "
+           "cantilevers, root rotations included, not by one shared curvature. The homogeneous correction does "
+           "not carry over, and the shear part of a tip correction depends on the tip's field, without a closed form (Li, Wang and "
            "Thouless 2004): the computed G implies χ ≈ "
            f"{np.mean([row['implied_chi'] for row in three]):.2f} at every a/h and mesh, so the tip-corrected rows "
            "miss by the amount shown, falling as 1/a; the slope of √G against a, where χ cancels, is within "
@@ -542,8 +546,9 @@ def _thermal(record: dict) -> list[str]:
             "(Suo and Hutchinson 1990; Hutchinson and Suo 1992), G_ss = Σ ∫ E′/2 (ε₀ + κy − (1 + ν)αΔT)² dy with "
             f"ε₀ = {state['strain']:.6e}, −κ = w″ = {state['curvature']:.6e} (Timoshenko's) minimizing it, "
             "summed over the layers: "
-            f"G_ss = {record['edge'][0]['theory']:.6e}. The heated upper arm presses on the lower one behind the "
-            "tip (a contact zone: the tip slides, ψ = ±90°), which leaves G_ss unchanged. mesh.size "
+            f"G_ss = {record['edge'][0]['theory']:.6e}. The faces touch behind the tip (a contact zone: the tip "
+            "slides only, ψ = ±90°), which leaves G_ss unchanged: far behind, the free layers press on nothing. "
+            "mesh.size "
             f"{EDGE_SIZE:g}:", "", "![Edge delamination](stacks-thermal.png)", ""]
     out += table(["c/h", "unknowns", "G", "G_ss", "G/G_ss − 1", "ψ at l = 1", "contact zones", "wall time"],
                  [[f"{row['crack']:g}", f"{row['unknowns']:,}", f"{row['G']:.6e}", f"{row['theory']:.6e}",

@@ -89,9 +89,10 @@ def synthetic_record(seed: int = 0) -> dict:
            for s in stacks.BEAM_SIZES for loading, cracks in (("moment", stacks.MOMENT_CRACKS),
                                                               ("force", stacks.FORCE_CRACKS)) for a in cracks]
     return {"provenance": {"git_commit": "0123456789abcdef"}, "griffith": griffith, "dcb": dcb,
-            "bending": [row(a=a, size=s, gap=1e-9, contact=0.0) for s in stacks.BEAM_SIZES for a in stacks.MOMENT_CRACKS],
-            "enf": [row(a=a, size=s, arms=arms, gap=1e-3, contact=0.2, implied_chi=0.6, simple=1e-6 * a * a, reaction=5e-4)
-                    for arms in stacks.ARMS for s in stacks.BEAM_SIZES for a in stacks.ENF_CRACKS],
+            "bending": [row(a=a, size=s, gap=1e-2, contact=0.0) for s in stacks.BEAM_SIZES
+                        for a in stacks.MOMENT_CRACKS],
+            "enf": [row(a=a, size=s, arms=arms, gap=1e-3, contact=0.2, implied_chi=0.6, simple=1e-6 * a * a,
+                        reaction=5e-4) for arms in stacks.ARMS for s in stacks.BEAM_SIZES for a in stacks.ENF_CRACKS],
             "curvature": [row(size=s, curvature=-1e-3) for s in stacks.BEAM_SIZES],
             "edge": [row(crack=c, size=stacks.EDGE_SIZE, zones=1) for c in stacks.EDGE_CRACKS]}
 
