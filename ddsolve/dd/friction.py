@@ -37,7 +37,7 @@ def coulomb(interface: Interface, tresca: Callable[[Interface, np.ndarray | None
     """Coulomb's problem by the fixed point of Tresca problems (module docstring): ``tresca(interface with the
     bounds g, start)`` solves one from the multipliers ``start`` (None: from zero).  The outcome of the last,
     with ``coulomb_iterations`` (the Tresca problems solved) and their iterations summed."""
-    slip, start, total, history = np.zeros(len(interface.slip)), None, 0, []
+    slip, start, total, history = np.zeros(len(interface.friction_values)), None, 0, []
     for iteration in range(1, MAX_FIXED_POINT + 1):
         outcome = tresca(interface.with_slip(slip), start)
         total += outcome.iterations

@@ -122,7 +122,7 @@ class Interface:
 
     def _friction_rows(self, friction: np.ndarray, coulomb: bool) -> None:
         """The μ_t rows' data: ``is_friction``, Coulomb's μ or Tresca's g per row, the row of the contact
-        multiplier at the same vertex (−1: none) and ``slip``, the bound g of the rows (Coulomb: 0 until a
+        multiplier at the same vertex (−1: none) and ``slip``, the bound g of the rows (Coulomb: None until a
         fixed-point iteration gives it, :meth:`with_slip`)."""
         rows = self.slices.get("mu_t", slice(self.size, self.size))
         self.is_friction = np.zeros(self.size, dtype=bool)
@@ -132,7 +132,7 @@ class Interface:
         normal = np.full(len(self.weights), -1)
         normal[self.vertex[self.slices["mu_c"]]] = np.arange(self.size)[self.slices["mu_c"]]
         self.normal_row = normal[self.vertex[rows]]
-        self.slip = np.zeros(len(self.friction_values)) if self.coulomb else self.friction_values.copy()
+        self.slip = None if self.coulomb else self.friction_values.copy()
 
     @property
     def friction(self) -> bool:
@@ -146,8 +146,9 @@ class Interface:
         return out
 
     def slip_bounds(self, lam: np.ndarray) -> np.ndarray:
-        """g of each μ_t row for the multipliers ``lam``: Coulomb's μ max(μᶜ, 0) at the same vertex, Tresca's given g."""
-        if not self.coulomb:
+        """g of each μ_t row: Tresca's (given, or a Coulomb fixed point's iterate, :meth:`with_slip`), else Coulomb's
+        μ max(μᶜ, 0) at the same vertex of the multipliers ``lam``."""
+        if self.slip is not None:
             return self.slip
         normal = np.where(self.normal_row >= 0, lam[np.maximum(self.normal_row, 0)], 0.0)
         return self.friction_values * np.maximum(normal, 0.0)
@@ -157,13 +158,13 @@ class Interface:
         return 2 * len(self.weights)
 
     def bounds(self, p: float | None) -> tuple[np.ndarray, np.ndarray]:
-        """Lower and upper bounds of λ: μᶜ in [0, p], μ_t in [−g, g] (g: :attr:`slip`, at most p), the others in
-        [−p, p] (p = None: unbounded)."""
+        """Lower and upper bounds of λ: μᶜ in [0, p], μ_t in [−g, g] (g: :attr:`slip`, 0 where Coulomb's is not
+        set yet; at most p), the others in [−p, p] (p = None: unbounded)."""
         p = np.inf if p is None else p
         lower = np.full(self.size, -p)
         lower[self.is_contact] = 0.0
         upper = np.full(self.size, p)
-        upper[self.is_friction] = np.minimum(self.slip, p)
+        upper[self.is_friction] = np.minimum(0.0 if self.slip is None else self.slip, p)
         lower[self.is_friction] = -upper[self.is_friction]
         return lower, upper
 
