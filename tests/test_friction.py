@@ -189,3 +189,9 @@ def test_the_result_file_keeps_the_tangential_traction_and_the_slip_zones(tmp_pa
     assert np.array_equal(back.multipliers["mu_t"], result.multipliers["mu_t"])
     assert analysis.friction_zones(back) == analysis.friction_zones(result)
     assert analysis.constraints(back).violations(1e-7) == []
+
+
+@pytest.mark.unit
+def test_a_tresca_bound_makes_the_solution_no_longer_proportional_to_the_loads():
+    assert scene().proportional and scene(**{"contact.friction": 0.5}).proportional  # Coulomb scales with the loads
+    assert not scene(**{"contact.slip_bound": 0.5}).proportional  # a given traction does not: critical factors by root solve

@@ -268,10 +268,16 @@ class Scene:
         return materials.differing({layer: [self.material(layer, region) for region in REGIONS] for layer in LAYERS},
                                    self.model, thermal)
 
+    @property
+    def proportional(self) -> bool:
+        """Whether the solution scales with the mechanical loads (:meth:`scaled`): no temperature change, and no
+        Tresca bound on the crack faces' friction (a given traction, which does not scale; Coulomb's does)."""
+        return not self.temperature and (self.friction is None or self.friction.coulomb)
+
     def scaled(self, factor: float) -> Scene:
         """This scene with every mechanical load (tractions, pressures, prescribed displacements) times
-        ``factor``; the temperature change is kept.  The contact problem is positively homogeneous, so
-        without a temperature change the solution scales by ``factor`` and G by its square.  ``text`` is
+        ``factor``; the temperature change (and a Tresca bound) is kept.  The contact problem is positively
+        homogeneous, so where the scene is :attr:`proportional` the solution scales by ``factor`` and G by its square.  ``text`` is
         the unscaled scene's: a scaled scene is solved, not saved."""
         return dataclasses.replace(self, loads={key: load.scaled(factor) for key, load in self.loads.items()},
                                    displacements={key: displacement.scaled(factor)
