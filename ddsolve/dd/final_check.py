@@ -6,8 +6,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from ddsolve.dd.constraints import Constraints, kkt, kkt_tolerance
 from ddsolve.dd import friction
+from ddsolve.dd.constraints import Constraints, kkt, kkt_tolerance
 from ddsolve.dd.dual import Outcome, Progress, Rounds, no_convergence
 from ddsolve.dd.interface import Interface
 from ddsolve.dd.registry import METHODS

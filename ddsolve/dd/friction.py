@@ -21,9 +21,15 @@ from ddsolve.dd.interface import Interface
 MAX_FIXED_POINT = 50
 
 
+def relative_change(old: np.ndarray, new: np.ndarray) -> float:
+    """‖new − old‖ / ‖new‖ of the slip bounds (0 when both vanish, inf when only ``new`` does)."""
+    step, size = float(np.linalg.norm(new - old)), float(np.linalg.norm(new))
+    return 0.0 if step == 0.0 else (step / size if size > 0.0 else np.inf)
+
+
 def settled(old: np.ndarray, new: np.ndarray, tol: float) -> bool:
     """Whether the slip bounds ``new`` are within the relative tolerance ``tol`` of ``old``."""
-    return float(np.linalg.norm(new - old)) <= tol * float(np.linalg.norm(new))
+    return relative_change(old, new) <= tol
 
 
 def no_fixed_point(label: str, change: float) -> str:
@@ -43,8 +49,8 @@ def coulomb(interface: Interface, tresca: Callable[[Interface, np.ndarray | None
         total += outcome.iterations
         history += outcome.history
         new = interface.slip_bounds(outcome.lam)
-        change = float(np.linalg.norm(new - slip)) / max(float(np.linalg.norm(new)), np.finfo(float).tiny)
-        if outcome.diverged or not outcome.converged or settled(slip, new, tol):
+        change = relative_change(slip, new)
+        if outcome.diverged or not outcome.converged or change <= tol:
             break
         slip, start = new, outcome.lam
     else:

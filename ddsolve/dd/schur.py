@@ -9,7 +9,7 @@ import numpy as np
 
 from ddsolve.dd.constraints import displacement_scale
 from ddsolve.dd.dual import DualProblem, Outcome, Progress, Rounds
-from ddsolve.dd.friction import MAX_FIXED_POINT, no_fixed_point, settled
+from ddsolve.dd.friction import MAX_FIXED_POINT, no_fixed_point, relative_change, settled
 from ddsolve.dd.interface import Interface
 from ddsolve.errors import SolverError
 from ddsolve.problem.scene import Solver
@@ -250,7 +250,7 @@ class ExactDual:
             new = interface.slip_bounds(lam)
             if settled(slip, new, problem.solver.tol):
                 break
-            slip = new
+            change, slip = relative_change(slip, new), new
             self.upper_c[friction_rows] = np.minimum(slip * sqrt_w, cap)
             self.lower_c[friction_rows] = -self.upper_c[friction_rows]
             y_c, more = box_qp(self.dual, self.forces.T @ loaded[self.first:], self.lower_c, self.upper_c, start=y_c,
@@ -259,7 +259,7 @@ class ExactDual:
                                    changed))
             steps += more
         else:
-            raise SolverError(no_fixed_point("schur", float(np.linalg.norm(new - slip) / np.linalg.norm(new))))
+            raise SolverError(no_fixed_point("schur", change))
         problem.lower[self.contact], problem.upper[self.contact] = self.lower_c, self.upper_c
         self.coulomb_iterations = iteration
         return y_c, steps
