@@ -3,11 +3,14 @@ conditions, Coulomb's fixed point, G with friction against the closed form, the 
 bad input."""
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
 import pytest
 from mpi4py import MPI
+
+from conftest import ddsolve, refused
 
 from ddsolve.dd import friction
 from ddsolve.dd.constraints import kkt
@@ -195,3 +198,34 @@ def test_the_result_file_keeps_the_tangential_traction_and_the_slip_zones(tmp_pa
 def test_a_tresca_bound_makes_the_solution_no_longer_proportional_to_the_loads():
     assert scene().proportional and scene(**{"contact.friction": 0.5}).proportional  # Coulomb scales with the loads
     assert not scene(**{"contact.slip_bound": 0.5}).proportional  # a given traction does not: critical factors by root solve
+
+
+@pytest.mark.unit
+def test_a_per_crack_list_of_another_length_than_the_mesh_cracks_is_refused_naming_the_key():
+    with pytest.raises(SceneError, match=r"^contact.friction lists 2 values for the 3 cracks of the mesh"):
+        scenes.Friction(True, (0.5, 0.2)).per_crack(3)
+    assert scenes.Friction(False, 0.5).per_crack(2) == (0.5, 0.5)
+
+
+@pytest.mark.solve
+def test_a_per_crack_list_puts_friction_on_its_crack_only():
+    from ddsolve.dd.interface import for_mesh
+    from ddsolve.parallel import distribution
+
+    two = scene(**{"geometry.cracks": [[-4.0, -2.0], [1.0, 3.0]], "contact.slip_bound": [0.5, 0.0], **SMALL})
+    sigma = distribution.build_mesh(two, MPI.COMM_SELF).sigma
+    interface = for_mesh(sigma, True, friction=two.friction)
+    x = sigma.points[sigma.multiplier_nodes, 0][interface.vertex[interface.slices["mu_t"]]]
+    assert len(x) > 0 and np.all((x > -4.0) & (x < -2.0))
+    assert np.all(interface.bounds(None)[1][interface.slices["mu_t"]] == 0.5)
+
+
+@pytest.mark.mpi
+def test_the_command_line_says_the_coulomb_problems_and_where_the_faces_slip_and_the_reference_refuses(tmp_path):
+    out = ddsolve("solve", str(SCENE), "--set", "contact.friction=0.5", "--set", "mesh.size=2.0", "-o",
+                  str(tmp_path / "closed.h5")).stdout
+    assert re.search(r"schur: converged after \d+ iterations \(\d+ active-set steps, [^)]*\), "
+                     r"Coulomb friction in \d+ Tresca problems", out)
+    assert "crack faces slip (contact.friction; arc length along Σ): [9" in out
+    refused(ddsolve("reference", str(SCENE), "--set", "contact.slip_bound=0.5", check=False), 1, "contact.slip_bound",
+            "reference")
