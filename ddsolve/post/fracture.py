@@ -16,6 +16,10 @@ the node's normal: a node moving by θ_k·τ_k along a curved Σ sees its normal
 (dν/ds)(θ_k·τ_k), and the last sum (λ_k = w_k μᶜ_k, the nodal contact force) accounts for that; it is
 zero on a straight Σ and wherever the faces do not touch.
 
+With friction on the crack faces (``contact.friction``, ``contact.slip_bound``) G is −dΠ/da less the rate of
+frictional dissipation: the friction tractions μ_t are taken as loads on the faces inside θ's support, which adds
+the face term −Σ_k μ_t,k s_k ẇ_k (s the slip, w_k the node's weight; :func:`friction_terms`).
+
 Discretely this is exact: θ is interpolated with the element's own basis (P1 or P2 nodes) and
 integrated with the element quadrature, so G is the derivative of the discrete energy Π_h with
 respect to moving the mesh nodes by θ (tests/test_fracture.py checks it against finite differences).
