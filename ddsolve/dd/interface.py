@@ -12,19 +12,30 @@ multiplier  vertices                gap it enforces      admissible set
 μᵍ (x, y)   glued (not crack)       u⁻ − u⁺ = 0          −p ≤ μᵍ ≤ p
 μ⁻ (x, y)   all                     u⁻ − v⁻ = 0          −p ≤ μ⁻ ≤ p
 μ⁺ (x, y)   all                     u⁺ − v⁺ = 0          −p ≤ μ⁺ ≤ p
+μ_t         crack, with friction    (u⁻ − u⁺)·τ = 0      −g ≤ μ_t ≤ g (and |μ_t| ≤ p)
+            (x only: tangential)    unless |μ_t| = g
 ==========  ======================  ===================  ========================
 
 With the lumped weights w (∫Σ φ_k ds: half the length of the Σ edges at a P1 vertex) the discrete coupling is
 gap = Σ_b C_b t_b and block b receives the nodal force −C_bᵀ W λ on its trace.  μᶜ exists only
 when the scene has a crack and non-penetration; without it the crack faces are simply free.
+
+μ_t exists only on crack vertices with friction (``contact.friction`` μ or ``contact.slip_bound`` g > 0): the
+tangential traction between the faces, the lower face receiving −μ_t τ and the upper +μ_t τ.  Its box is
+Tresca's (g given) or, for Coulomb, g = μ × the contact pressure μᶜ of a fixed-point iteration
+(:mod:`ddsolve.dd.friction`).  The dual problem's optimality makes the slip s = (u⁻ − u⁺)·τ vanish where
+|μ_t| < g and have the sign of μ_t where |μ_t| = g: the friction on each face opposes its slip relative to
+the other.
 """
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
 
 from ddsolve.mesh.mesh import BLOCKS, U_MINUS, U_PLUS, V_MINUS, V_PLUS, SigmaLine
+from ddsolve.problem.scene import Friction
 
 
 @dataclass(frozen=True)
@@ -40,13 +51,14 @@ class Interface:
     """Multiplier layout and the maps between traces, gaps, multipliers and interface loads."""
 
     def __init__(self, weights: np.ndarray, crack: np.ndarray, contact: bool, fixed: np.ndarray | None = None,
-                 modulus: float = 0.0, data: float = 0.0):
+                 modulus: float = 0.0, data: float = 0.0, friction: np.ndarray | None = None, coulomb: bool = False):
         """``weights`` and ``crack`` (bool) of the k multiplier nodes; ``contact``: non-penetration holds;
         ``fixed`` ``(4, 2k)``: the blocks' prescribed trace entries (:mod:`ddsolve.fem.supports`): a
         multiplier between two prescribed entries has nothing to enforce and does not exist; ``modulus``:
         the largest elastic modulus of the layers (the scale of the stresses a displacement makes, for the
         KKT check); ``data``: the displacement the scene's data would make
-        (:func:`ddsolve.fem.assembly.data_displacement`, the KKT check's scale when the solution is zero)."""
+        (:func:`ddsolve.fem.assembly.data_displacement`, the KKT check's scale when the solution is zero);
+        ``friction`` ``(k,)``: Coulomb's μ (``coulomb``) or Tresca's bound g at each node (0: none)."""
         self.modulus = float(modulus)
         self.data = float(data)
         self.weights = np.asarray(weights, dtype=np.float64)
@@ -64,6 +76,10 @@ class Interface:
             "mu_minus": _both_components(all_vertices),
             "mu_plus": _both_components(all_vertices),
         }
+        friction = np.zeros(k) if friction is None else np.asarray(friction, dtype=np.float64)
+        sliding = contact_vertices[friction[contact_vertices] > 0]
+        if len(sliding):
+            families["mu_t"] = (sliding, np.zeros(len(sliding), dtype=np.int64))
         #: The crack faces' normal entries (trace positions) that both faces prescribe, so that no contact row
         #: holds them: the KKT check measures their penetration from the traces alone.
         self.prescribed_contact = np.zeros(0, dtype=np.int64)
@@ -71,7 +87,7 @@ class Interface:
             normals = 2 * contact_vertices + 1
             self.prescribed_contact = normals[fixed[U_MINUS, normals] & fixed[U_PLUS, normals]]
             pairs = {"mu_c": (U_MINUS, U_PLUS), "mu_g": (U_MINUS, U_PLUS), "mu_minus": (U_MINUS, V_MINUS),
-                     "mu_plus": (U_PLUS, V_PLUS)}
+                     "mu_plus": (U_PLUS, V_PLUS), "mu_t": (U_MINUS, U_PLUS)}
             for name, (vertices, components) in families.items():
                 entries = 2 * vertices + components
                 kept = ~(fixed[pairs[name][0], entries] & fixed[pairs[name][1], entries])
@@ -88,29 +104,69 @@ class Interface:
         self.row_weights = self.weights[self.vertex]
         self.is_contact = np.zeros(self.size, dtype=bool)
         self.is_contact[self.slices["mu_c"]] = True
+        self._friction_rows(friction, coulomb)
 
         # (family, block, sign): gap rows are u⁻ − u⁺ (c, g), u⁻ − v⁻ (−), u⁺ − v⁺ (+).
         signs = [("mu_c", U_MINUS, 1.0), ("mu_c", U_PLUS, -1.0),
                  ("mu_g", U_MINUS, 1.0), ("mu_g", U_PLUS, -1.0),
                  ("mu_minus", U_MINUS, 1.0), ("mu_minus", V_MINUS, -1.0),
-                 ("mu_plus", U_PLUS, 1.0), ("mu_plus", V_PLUS, -1.0)]
+                 ("mu_plus", U_PLUS, 1.0), ("mu_plus", V_PLUS, -1.0),
+                 ("mu_t", U_MINUS, 1.0), ("mu_t", U_PLUS, -1.0)]
         self.couplings = []
         for block in range(len(BLOCKS)):
-            rows = np.concatenate([np.arange(self.size)[self.slices[f]] for f, b, _ in signs if b == block])
+            rows = np.concatenate([np.arange(self.size)[self.slices[f]] for f, b, _ in signs
+                                   if b == block and f in self.slices])
             sign = np.concatenate([np.full(self.slices[f].stop - self.slices[f].start, s)
-                                   for f, b, s in signs if b == block])
+                                   for f, b, s in signs if b == block and f in self.slices])
             self.couplings.append(Coupling(rows, self.trace_index[rows], sign))
+
+    def _friction_rows(self, friction: np.ndarray, coulomb: bool) -> None:
+        """The μ_t rows' data: ``is_friction``, Coulomb's μ or Tresca's g per row, the row of the contact
+        multiplier at the same vertex (−1: none) and ``slip``, the bound g of the rows (Coulomb: None until a
+        fixed-point iteration gives it, :meth:`with_slip`)."""
+        rows = self.slices.get("mu_t", slice(self.size, self.size))
+        self.is_friction = np.zeros(self.size, dtype=bool)
+        self.is_friction[rows] = True
+        self.coulomb = bool(coulomb)
+        self.friction_values = friction[self.vertex[rows]]
+        normal = np.full(len(self.weights), -1)
+        normal[self.vertex[self.slices["mu_c"]]] = np.arange(self.size)[self.slices["mu_c"]]
+        self.normal_row = normal[self.vertex[rows]]
+        self.slip = None if self.coulomb else self.friction_values.copy()
+
+    @property
+    def friction(self) -> bool:
+        """Whether any crack vertex carries a friction multiplier μ_t."""
+        return bool(self.is_friction.any())
+
+    def with_slip(self, slip: np.ndarray) -> Interface:
+        """This interface with the bounds ``slip`` (one per μ_t row) on its friction multipliers."""
+        out = copy.copy(self)
+        out.slip = np.asarray(slip, dtype=np.float64)
+        return out
+
+    def slip_bounds(self, lam: np.ndarray) -> np.ndarray:
+        """g of each μ_t row: Tresca's (given, or a Coulomb fixed point's iterate, :meth:`with_slip`), else Coulomb's
+        μ max(μᶜ, 0) at the same vertex of the multipliers ``lam``."""
+        if self.slip is not None:
+            return self.slip
+        normal = np.where(self.normal_row >= 0, lam[np.maximum(self.normal_row, 0)], 0.0)
+        return self.friction_values * np.maximum(normal, 0.0)
 
     @property
     def trace_size(self) -> int:
         return 2 * len(self.weights)
 
     def bounds(self, p: float | None) -> tuple[np.ndarray, np.ndarray]:
-        """Lower and upper bounds of λ: μᶜ in [0, p], the others in [−p, p] (p = None: unbounded)."""
+        """Lower and upper bounds of λ: μᶜ in [0, p], μ_t in [−g, g] (g: :attr:`slip`, 0 where Coulomb's is not
+        set yet; at most p), the others in [−p, p] (p = None: unbounded)."""
         p = np.inf if p is None else p
         lower = np.full(self.size, -p)
         lower[self.is_contact] = 0.0
-        return lower, np.full(self.size, p)
+        upper = np.full(self.size, p)
+        upper[self.is_friction] = np.minimum(0.0 if self.slip is None else self.slip, p)
+        lower[self.is_friction] = -upper[self.is_friction]
+        return lower, upper
 
     def gap(self, traces: np.ndarray) -> np.ndarray:
         """Constraint values Σ_b C_b t_b for traces ``(4, 2k)``."""
@@ -138,8 +194,8 @@ class Interface:
             lam[rows] = loads[block][self.trace_index[rows]] / self.row_weights[rows]
         minus = np.zeros(self.trace_size)  # indexed by trace position
         minus[self.trace_index[self.slices["mu_minus"]]] = lam[self.slices["mu_minus"]]
-        for name in ("mu_c", "mu_g"):
-            rows = self.slices[name]
+        for name in ("mu_c", "mu_g", "mu_t"):
+            rows = self.slices.get(name, slice(0, 0))
             traces = self.trace_index[rows]
             lam[rows] = -loads[U_MINUS][traces] / self.row_weights[rows] - minus[traces]
         return lam
@@ -171,13 +227,17 @@ class Interface:
         return np.array([lower, upper, lower, upper])
 
     def split(self, lam: np.ndarray, frames: np.ndarray | None = None) -> dict[str, np.ndarray]:
-        """Per-node arrays: mu_c ``(k,)``, mu_g, mu_minus, mu_plus ``(k, 2)``; 0 where absent.
+        """Per-node arrays: mu_c ``(k,)``, mu_g, mu_minus, mu_plus ``(k, 2)``; 0 where absent; with friction
+        mu_t ``(k,)`` (the tangential traction, along τ) too.
 
         The vectors are in the nodes' local frames, or in (x, y) when their ``frames`` ``(k, 2, 2)`` are given.
         """
         k = len(self.weights)
         out = {"mu_c": np.zeros(k)}
         out["mu_c"][self.vertex[self.slices["mu_c"]]] = lam[self.slices["mu_c"]]
+        if self.friction:
+            out["mu_t"] = np.zeros(k)
+            out["mu_t"][self.vertex[self.slices["mu_t"]]] = lam[self.slices["mu_t"]]
         for name in ("mu_g", "mu_minus", "mu_plus"):
             values = np.zeros((k, 2))
             rows = self.slices[name]
@@ -187,12 +247,24 @@ class Interface:
 
 
 def for_mesh(sigma: SigmaLine, contact: bool, fixed: np.ndarray | None = None, modulus: float = 0.0,
-             data: float = 0.0) -> Interface:
+             data: float = 0.0, friction: Friction | None = None) -> Interface:
     """The interface of a mesh's Σ (``contact``: the scene's non-penetration condition; ``fixed``: the
     blocks' prescribed trace entries; ``modulus``: the layers' largest modulus; ``data``: the displacement
-    the data would make; see :class:`Interface`)."""
+    the data would make; ``friction``: the scene's, on its cracks in order along Σ; see :class:`Interface`)."""
     nodes = sigma.multiplier_nodes
-    return Interface(sigma.weights[nodes], sigma.crack[nodes], contact, fixed, modulus, data)
+    values = None if friction is None else friction_values(sigma, friction)[nodes]
+    return Interface(sigma.weights[nodes], sigma.crack[nodes], contact, fixed, modulus, data, values,
+                     friction is not None and friction.coulomb)
+
+
+def friction_values(sigma: SigmaLine, friction: Friction) -> np.ndarray:
+    """``(s,)``: the scene's friction value (μ or g) of each Σ node's crack, 0 off the cracks; the cracks are the
+    runs of crack nodes in order along Σ."""
+    values = np.zeros(len(sigma.points))
+    runs = sigma.pieces(sigma.crack)
+    for value, (first, last) in zip(friction.per_crack(len(runs)), runs):
+        values[first:last + 1] = value
+    return values
 
 
 def _both_components(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -149,7 +149,8 @@ def interface_of(scene: Scene, local: LocalMesh, comm: MPI.Comm) -> Interface:
     """The scene's interface on every rank (collective): the displacement its data would make is the
     largest over the ranks' halves or pieces (:func:`ddsolve.fem.assembly.data_displacement`)."""
     data = comm.allreduce(assembly.data_displacement(scene, local.halves.values(), local.sigma), op=MPI.MAX)
-    return for_mesh(local.sigma, scene.nonpenetration, local.sigma_supports.fixed, assembly.modulus(scene), data)
+    return for_mesh(local.sigma, scene.nonpenetration, local.sigma_supports.fixed, assembly.modulus(scene), data,
+                    scene.friction)
 
 
 def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phases | None = None,
