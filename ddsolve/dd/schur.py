@@ -7,6 +7,7 @@ from typing import Callable
 
 import numpy as np
 
+from ddsolve.dd import cohesive
 from ddsolve.dd.constraints import displacement_scale
 from ddsolve.dd.dual import DualProblem, Outcome, Progress, Rounds
 from ddsolve.dd.friction import MAX_FIXED_POINT, no_fixed_point, relative_change, settled
@@ -140,7 +141,8 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
                       details={"rank0_solve_time": time.perf_counter() - started, "interface_unknowns": exact.size,
                                "active_set_steps": exact.steps, "active_set_time": exact.step_time,
                                **({"coulomb_iterations": exact.coulomb_iterations} if exact.coulomb_iterations else {})},
-                      held=predicted)
+                      held=predicted, state=exact.state)
+    record_bond(outcome, exact)
 
     def refine(solved_traces: np.ndarray, required: bool) -> np.ndarray | None:
         nonlocal predicted, uncoupled, condensed
@@ -158,10 +160,20 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
         outcome.details.update(active_set_steps=exact.steps, active_set_time=exact.step_time)
         if exact.coulomb_iterations:
             outcome.details["coulomb_iterations"] = exact.coulomb_iterations
+        outcome.state = exact.state
+        record_bond(outcome, exact)
         return problem.multipliers(y)
 
     outcome.refine = refine
     return outcome
+
+
+def record_bond(outcome: Outcome, exact: ExactDual) -> None:
+    """The bond's linear problems and damage (where it has any) in ``outcome``'s details."""
+    if exact.interface.bond is not None:
+        outcome.details["bond_solves"] = exact.bond_solves
+    if exact.state is not None:
+        outcome.details["damage"] = exact.state.damage
 
 
 class ExactDual:
@@ -210,11 +222,20 @@ class ExactDual:
         self.last_c: np.ndarray | None = None  # the last contact multipliers: the next solve starts from their set
         self.last: np.ndarray | None = None  # ... and the last multipliers with every bound
         self.steps, self.step_time = 0, 0.0  # active-set steps so far and their seconds (with their traces)
+        self.full: tuple[np.ndarray, np.ndarray] | None = None  # the blocks' flexibilities and the full dual matrix
+        self.state: Interface | None = None  # the bond's last state (its damage), :meth:`bonded`
+        self.bond_solves = 0  # the linear problems of the bond's last fixed point
 
     def solve(self, initial: np.ndarray, condensed: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
         """The scaled multipliers, their predicted traces and the active-set steps for uncoupled
         traces ``initial`` and condensed loads ``condensed`` = S_b t⁰_b (only these with floating blocks)."""
         problem, lower_c, upper_c = self.problem, self.lower_c, self.upper_c
+        if self.interface.bond is not None:
+            mark = time.perf_counter()
+            y, traces, steps = self.bonded(initial)
+            self.steps += steps
+            self.step_time += time.perf_counter() - mark
+            return y, traces, steps
         body = np.zeros(self.size)
         for g_b, numbers in zip(condensed, self.unknowns):
             body[numbers] += g_b
@@ -264,6 +285,43 @@ class ExactDual:
         self.coulomb_iterations = iteration
         return y_c, steps
 
+    def full_dual(self) -> tuple[np.ndarray, np.ndarray]:
+        """The blocks' flexibilities G_b = S_b⁻¹ and the full dual matrix A (W-scaled), made once."""
+        if self.floating:
+            raise SolverError("schur: interface.law needs the full dual problem, which needs every block invertible, "
+                              "which floating blocks are not: use solver.method = \"mprgp\"")
+        if self.full is None:
+            flexibilities = np.linalg.inv(self.schur_complements)
+            sqrt_w = self.problem.sqrt_w
+            self.full = flexibilities, self.interface.dual_matrix(flexibilities) / np.outer(sqrt_w, sqrt_w)
+        return self.full
+
+    def bonded(self, initial: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+        """A bond's problem on rank 0 (:mod:`ddsolve.dd.cohesive`): the full dual problem with the compliance c
+        on the bond's rows, A + diag(c), and every bound; with damage, the secant fixed point of such problems,
+        each from the last multipliers' active set and no block solve.  The scaled multipliers, their traces and
+        the active-set steps in all."""
+        flexibilities, A = self.full_dual()
+        problem, interface = self.problem, self.interface
+        b = problem.sqrt_w * interface.gap(initial)
+        steps = 0
+
+        def linear(state: Interface, start: np.ndarray | None) -> Outcome:
+            nonlocal steps
+            y, more = bond_qp(A, b, state, problem.solver.p, problem.sqrt_w, start)
+            steps += more
+            return Outcome(y / problem.sqrt_w, converged=True, iterations=more)
+
+        if interface.bond.law == "elastic":
+            outcome, self.state, self.bond_solves = linear(interface, None), None, 1
+        else:
+            outcome = cohesive.secant(interface, linear, "schur")
+            if not outcome.converged:
+                raise SolverError(outcome.message)
+            self.state, self.bond_solves = outcome.state, outcome.details["bond_solves"]
+        traces = initial + np.einsum("bij,bj->bi", flexibilities, interface.loads(outcome.lam))
+        return problem.sqrt_w * outcome.lam, traces, steps
+
     def contact_step(self, loaded: np.ndarray, condensed: np.ndarray, y_c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Every scaled multiplier and the traces S⁻¹(body − Bᵀ W^½ y_c) for the contact multipliers ``y_c``
         (``loaded`` = L⁻¹ body)."""
@@ -301,6 +359,21 @@ class ExactDual:
                                                                 changed))
         self.last = y
         return y, full_step(y), more
+
+
+def bond_qp(A: np.ndarray, b: np.ndarray, state: Interface, p: float | None, sqrt_w: np.ndarray,
+            start: np.ndarray | None) -> tuple[np.ndarray, int]:
+    """The full dual problem of ``state`` (its bond's compliance on the diagonal, its bounds) by :func:`box_qp`,
+    rows whose bounds are equal (a broken vertex's tangential row) held there; from the active set of the
+    multipliers ``start``.  The scaled multipliers and the active-set steps."""
+    lower, upper = (bound * sqrt_w for bound in state.bounds(p))
+    stiff = A + np.diag(state.compliance)
+    held = lower == upper
+    y = np.where(held, lower, 0.0)
+    free = ~held
+    y[free], steps = box_qp(stiff[np.ix_(free, free)], b[free] - stiff[np.ix_(free, held)] @ y[held], lower[free],
+                            upper[free], start=None if start is None else (sqrt_w * start)[free])
+    return y, steps
 
 
 def remedy(solver: Solver) -> str:

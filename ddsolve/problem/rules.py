@@ -27,6 +27,7 @@ def cross_checks(data: dict, raw: dict, origin: str) -> None:
     _toughness_checks(data, origin)
     _split_checks(data, origin)
     _friction_checks(data, origin)
+    _bond_checks(data["interface"], origin)
 
 
 def _geometry_checks(geometry: dict, given: set[str], origin: str) -> None:
@@ -217,6 +218,38 @@ def _friction_checks(data: dict, origin: str) -> None:
     if isinstance(values, tuple) and data["mesh"]["file"] is None and len(values) != cracks:
         raise SceneError(f"{origin}: contact.{given[0]} lists {len(values)} values for the {cracks} crack"
                          f"{'' if cracks == 1 else 's'} of geometry.cracks (one per crack, in order along Σ)")
+
+
+#: The bilinear law's default initial slope makes the opening at the peak this fraction of the opening where the
+#: traction vanishes (δ₀ = BOND_OPENING δ_f, δ_f = 2G_c/σ_c): k = σ_c²/(2 BOND_OPENING G_c).
+BOND_OPENING = 1e-3
+
+
+def _bond_checks(bond: dict, origin: str) -> None:
+    """``[interface]``: a law and the keys it needs (elastic: stiffness; bilinear: strength and toughness, the
+    stiffness by default from :data:`BOND_OPENING`; the mixed-mode rule with G_IIc, eta and shear_strength), and no
+    key without a law that reads it."""
+    given = [key for key, value in bond.items() if value is not None and key != "law"]
+    law = bond["law"]
+    needs = {None: (), "elastic": ("stiffness",), "bilinear": ("strength", "toughness")}[law]
+    reads = {None: (), "elastic": ("stiffness",), "bilinear": tuple(key for key in bond if key != "law")}[law]
+    if bond["mode_mix"] is not None:
+        needs += ("G_IIc", "eta", "shear_strength")
+    for key in needs:
+        if bond[key] is None:
+            raise SceneError(f"{origin}: interface.{key} is needed by interface.law = \"{law}\""
+                             + (f" with interface.mode_mix" if key in ("G_IIc", "eta", "shear_strength") else ""))
+    for key in given:
+        if key not in reads or (key in ("G_IIc", "eta", "shear_strength") and bond["mode_mix"] is None):
+            raise SceneError(f"{origin}: interface.{key} is not read " + (
+                "without interface.law (\"elastic\" or \"bilinear\")" if law is None else
+                f"by interface.law = \"{law}\"" + ("" if law == "elastic" else " without interface.mode_mix")))
+    if law == "bilinear" and bond["stiffness"] is None:
+        bond["stiffness"] = bond["strength"] ** 2 / (2.0 * BOND_OPENING * bond["toughness"])
+    if law == "bilinear" and bond["strength"] ** 2 / bond["stiffness"] >= 2.0 * bond["toughness"]:
+        raise SceneError(f"{origin}: interface.stiffness = {bond['stiffness']:g} is too small for the strength and "
+                         "toughness: the elastic opening at the peak must be below the opening 2 G_c/σ_c where the "
+                         f"traction vanishes (stiffness > {bond['strength'] ** 2 / (2.0 * bond['toughness']):g})")
 
 
 def _temperature_checks(data: dict, origin: str) -> None:

@@ -40,7 +40,7 @@ from ddsolve.problem.schema import (ADAPTIVE_DEGREE, DEFAULT_TOL, GEOMETRIC_TOLE
 __all__ = ["ADAPTIVE_DEGREE", "COARSE", "CONDITIONING", "DEFAULT_TOL",
            "GEOMETRIC_TOLERANCE", "GRADING", "LAWS", "LAYERS", "MAX_ANGLE", "MAX_SPACING_RATIO",
            "OPTIONAL_TABLES", "PAPER_BOX", "PAPER_CRACK", "REGIONS", "REPLACES", "REQUIRED", "SAME_COMPONENT", "SCHEMA",
-           "SIDES", "STOP_RULES", "Components", "Displacement", "FractureOptions", "Friction", "Geometry", "Invalid", "Load", "MeshOptions",
+           "SIDES", "STOP_RULES", "Components", "Displacement", "Bond", "FractureOptions", "Friction", "Geometry", "Invalid", "Load", "MeshOptions",
            "Scene", "Solver", "Tables", "apply_overrides", "builtin_folder", "builtin_scenes", "coarse_size", "dumps", "load",
            "loads", "override_items", "parse_override", "printable", "readable", "utf8_text"]
 
@@ -212,6 +212,28 @@ class Friction:
 
 
 @dataclass(frozen=True)
+class Bond:
+    """The traction–separation law of ``[interface]`` on the bonded part of Σ (:mod:`ddsolve.dd.cohesive`):
+    ``elastic`` (traction = ``stiffness`` × jump, no damage) or ``bilinear`` (peak ``strength`` σ_c, area
+    ``toughness`` G_c, initial slope ``stiffness``; mixed mode by Benzeggagh–Kenane with ``G_IIc``, ``eta`` and
+    ``shear_strength``)."""
+
+    law: str
+    stiffness: float
+    strength: float | None = None
+    toughness: float | None = None
+    mode_mix: str | None = None
+    G_IIc: float | None = None
+    eta: float | None = None
+    shear_strength: float | None = None
+
+    @classmethod
+    def of(cls, table: dict) -> Bond | None:
+        """From the checked ``interface`` table (its stiffness filled in); None without a law."""
+        return None if table["law"] is None else cls(**table)
+
+
+@dataclass(frozen=True)
 class Scene:
     title: str
     geometry: Geometry
@@ -231,6 +253,8 @@ class Scene:
     regions: dict[tuple[str, str], materials.Material] = field(default_factory=dict)
     #: Friction on the crack faces in contact (``contact.friction`` or ``contact.slip_bound``); None: they slide freely.
     friction: Friction | None = None
+    #: The cohesive (or elastic) bond on the bonded part of Σ (``[interface]``); None: a rigid bond.
+    bond: Bond | None = None
     text: str = field(repr=False, default="")
     #: The text the scene was read from and the ``--set`` items applied to it, in order: what
     #: :meth:`with_` reads again, so that defaults that follow other keys follow the new values too.
@@ -316,6 +340,7 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str, 
         loads=loads,
         nonpenetration=data["contact"]["nonpenetration"],
         friction=Friction.of(data["contact"]),
+        bond=Bond.of(data["interface"]),
         solver=Solver(**data["solver"]),
         fracture=FractureOptions(**{"lambda_" if key == "lambda" else key: value
                                     for key, value in data["fracture"].items()}),

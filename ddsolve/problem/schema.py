@@ -36,6 +36,9 @@ GRADING = {1: 0.4, 2: 0.2}
 #: P2 converges as N^-1 on adapted meshes, P1 as N^-½ (docs/accuracy.md).
 ADAPTIVE_DEGREE = 2
 #: The mode-dependent toughness laws (``fracture.law``) and the keys each needs (docs/fracture.md).
+#: The traction–separation laws of ``[interface]`` on the bonded part of Σ, and their mixed-mode rules.
+BOND_LAWS = ("elastic", "bilinear")
+MODE_MIXES = ("benzeggagh-kenane",)
 LAWS = {"benzeggagh-kenane": ("G_Ic", "G_IIc", "eta"), "hutchinson-suo": ("G_Ic", "lambda")}
 
 
@@ -370,6 +373,10 @@ SCHEMA: dict[str, Any] = {
                  "G_Ic": (_positive(_number), None), "G_IIc": (_positive(_number), None),
                  "eta": (_positive(_number), None), "lambda": (_unit, None),
                  "reference_length": (_positive(_number), None)},
+    "interface": {"law": (_choice(BOND_LAWS), None), "stiffness": (_positive(_number), None),
+                  "strength": (_positive(_number), None), "toughness": (_positive(_number), None),
+                  "mode_mix": (_choice(MODE_MIXES), None), "G_IIc": (_positive(_number), None),
+                  "eta": (_positive(_number), None), "shear_strength": (_positive(_number), None)},
 }
 # Tables that exist only when the scene writes them (a boundary without a load is not integrated).
 OPTIONAL_TABLES = {("loads",), *(("loads", layer) for layer in LAYERS), ("displacements",),

@@ -150,7 +150,7 @@ def interface_of(scene: Scene, local: LocalMesh, comm: MPI.Comm) -> Interface:
     largest over the ranks' halves or pieces (:func:`ddsolve.fem.assembly.data_displacement`)."""
     data = comm.allreduce(assembly.data_displacement(scene, local.halves.values(), local.sigma), op=MPI.MAX)
     return for_mesh(local.sigma, scene.nonpenetration, local.sigma_supports.fixed, assembly.modulus(scene), data,
-                    scene.friction)
+                    scene.friction, scene.bond)
 
 
 def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phases | None = None,
@@ -251,6 +251,8 @@ def resolve(scene: Scene, ranks: int, mesh: LocalMesh) -> Scene:
     """The scene with ``auto`` replaced by the method :func:`ddsolve.dd.registry.choose` picks."""
     if scene.solver.method in registry.METHODS:
         return scene
+    if scene.bond is not None:  # a bond's problem is solved on rank 0, with the blocks' Schur complements
+        return dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, method="schur"))
     sigma = mesh.sigma
     crack_rows = int(sigma.crack[sigma.multiplier_nodes].sum()) if scene.nonpenetration else 0
     method = registry.choose(ranks, 2 * max(mesh.nodes.values()), len(sigma.multiplier_nodes), crack_rows)

@@ -1,0 +1,108 @@
+"""A bond on the bonded part of Σ: an elastic layer or a cohesive law, and the damage fixed point of a load step.
+
+``[interface]`` sets the law of the μᵍ rows (the gluing u⁻ − u⁺ of layer 1's two halves; the gluing of the layers'
+halves, μ⁻ and μ⁺, stays rigid).  The traction is t = k(1 − d) δ on the jump δ = u⁺ − u⁻ in the local frame:
+
+- ``elastic``: d = 0 for ever (a compliant adhesive layer of stiffness k, in tension and compression alike);
+- ``bilinear``: d grows with the effective opening δₑ = √(⟨δₙ⟩² + δₜ²) (the opening's positive part and the
+  slide) once it passes δ₀ = σ_c/k, to 1 at δ_f = 2G_c/σ_c (the area under the law is G_c), and never heals:
+
+      d = δ_f (δₘ − δ₀) / (δₘ (δ_f − δ₀)),   δₘ the largest δₑ of the history.
+
+  With ``mode_mix = "benzeggagh-kenane"`` (Camanho–Dávila), B = δₜ²/(δₙ² + δₜ²) sets
+  δ₀ = √(δ₀ₙ² + (δ₀ₜ² − δ₀ₙ²) B^η) (δ₀ₙ = σ_c/k, δ₀ₜ = τ_c/k) and G_c(B) = G_Ic + (G_IIc − G_Ic) B^η,
+  δ_f = 2 G_c(B)/(k δ₀); without it the law is the same in both modes.  A pressed normal row (δₙ < 0) keeps the
+  undamaged k (non-penetration by a penalty), and a broken vertex (d = 1) keeps it as a contact row.
+
+A load step is a nonlinear problem on Σ only.  It is solved by the secant fixed point: solve the linear problem
+with the springs k(1 − d) of the current damage, update d from the new jumps (never below the history's), repeat
+until no vertex's damage changes by more than :data:`DAMAGE_TOLERANCE` and no normal row changes from opening to
+pressed.  Unloading follows the secant (d is kept).
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from ddsolve.dd.dual import Outcome
+from ddsolve.dd.interface import Interface
+from ddsolve.problem.scene import Bond
+
+#: The fixed point has converged when no vertex's damage changes by more than this.
+DAMAGE_TOLERANCE = 1e-6
+#: At most this many linear solves per load step.
+MAX_SECANT = 500
+
+
+def jumps(interface: Interface, lam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The slide δₜ and the opening δₙ ``(k,)`` of every vertex from the bond's multipliers ``lam``, δ = c λ
+    with the opening positive (μᵍ·ν < 0 pulls the faces together); 0 where a row is broken or absent."""
+    compliance = interface.compliance
+    out = []
+    for component, sign in ((0, 1.0), (1, -1.0)):
+        rows = interface.bond_rows(component)
+        values = np.zeros(len(interface.weights))
+        values[interface.vertex[rows]] = sign * compliance[rows] * lam[rows]
+        out.append(values)
+    return out[0], out[1]
+
+
+def law_openings(bond: Bond, slide: np.ndarray, opening: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """δ₀ and δ_f of every vertex at its mode mix (module docstring)."""
+    k = bond.stiffness
+    if bond.mode_mix is None:
+        start = np.full(len(slide), bond.strength / k)
+        return start, np.full(len(slide), 2.0 * bond.toughness / bond.strength)
+    normal, shear = np.maximum(opening, 0.0) ** 2, slide ** 2
+    mix = np.divide(shear, normal + shear, out=np.zeros(len(slide)), where=normal + shear > 0.0) ** bond.eta
+    first, second = bond.strength / k, bond.shear_strength / k
+    start = np.sqrt(first ** 2 + (second ** 2 - first ** 2) * mix)
+    toughness = bond.toughness + (bond.G_IIc - bond.toughness) * mix
+    return start, 2.0 * toughness / (k * start)
+
+
+def damage_of(bond: Bond, slide: np.ndarray, opening: np.ndarray) -> np.ndarray:
+    """The damage the jumps alone make (0 for the elastic law), in [0, 1]."""
+    if bond.law == "elastic":
+        return np.zeros(len(slide))
+    effective = np.sqrt(np.maximum(opening, 0.0) ** 2 + slide ** 2)
+    start, end = law_openings(bond, slide, opening)
+    past = effective > start
+    out = np.zeros(len(slide))
+    out[past] = end[past] * (effective[past] - start[past]) / (effective[past] * (end[past] - start[past]))
+    return np.clip(out, 0.0, 1.0)
+
+
+def traction(bond: Bond, damage: np.ndarray, jump: np.ndarray) -> np.ndarray:
+    """The law's traction k(1 − d) δ for a jump along one component (a pressed normal jump takes ``damage`` 0)."""
+    return bond.stiffness * (1.0 - damage) * jump
+
+
+def secant(interface: Interface, solve: Callable[[Interface, np.ndarray | None], Outcome], label: str) -> Outcome:
+    """A load step of the bond (module docstring) from the history's damage ``interface.damage``: ``solve(the
+    interface with the current damage, start)`` solves one linear problem from the multipliers ``start``.  The
+    outcome of the last, its iterations summed, with ``bond_solves`` (the linear problems) and ``damage`` (the
+    vertices' new damage, the history for the next step) in its details."""
+    history, state, start = interface.damage, interface, None
+    total, record = 0, []
+    for solves in range(1, MAX_SECANT + 1):
+        outcome = solve(state, start)
+        total += outcome.iterations
+        record += outcome.history
+        if outcome.diverged or not outcome.converged:
+            break
+        slide, opening = jumps(state, outcome.lam)
+        damage = np.maximum(history, damage_of(interface.bond, slide, opening))
+        pressed = opening < 0.0
+        change = float(np.abs(damage - state.damage).max(initial=0.0))
+        if change <= DAMAGE_TOLERANCE and np.array_equal(pressed, state.pressed):
+            break
+        state, start = interface.with_damage(damage, pressed), outcome.lam
+    else:
+        outcome.converged = False
+        outcome.message = (f"{label}: the bond's damage found no fixed point in {MAX_SECANT} solves (largest change "
+                           f"{change:.3e})")
+    outcome.iterations, outcome.history, outcome.state = total, record, state
+    outcome.details.update(bond_solves=solves, damage=state.damage)
+    return outcome
