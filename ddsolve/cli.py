@@ -232,15 +232,19 @@ def cmd_grow(args, petsc_options: list[str]) -> int:
 
     from ddsolve.io.hdf5 import check_result
     from ddsolve.parallel.exchange import collective
-    from ddsolve.solvers import grow, growth_files
+    from ddsolve.solvers import bond_growth, grow, growth_files
 
     comm = MPI.COMM_WORLD
     started = time.perf_counter()
     scene = comm.bcast(collective(comm, lambda: _load_scene(args), root_only=True), root=0)
     output = _grow_output(args)
     collective(comm, lambda: check_result(output, _inputs(args, scene), viewer=False), root_only=True)
-    steps = grow.grow(scene, comm, args.limit, args.steps, args.tolerance, progress=_root_print, output=output,
-                      pictures=args.pictures, inputs=_inputs(args, scene))
+    if bond_growth.damaging(scene):
+        steps = bond_growth.grow(scene, comm, args.limit, args.steps, progress=_root_print, output=output,
+                                 pictures=args.pictures, inputs=_inputs(args, scene))
+    else:
+        steps = grow.grow(scene, comm, args.limit, args.steps, args.tolerance, progress=_root_print, output=output,
+                          pictures=args.pictures, inputs=_inputs(args, scene))
     if steps is not None:
         files = growth_files.Outputs(output)
         unstable = sum(step.unstable for step in steps)

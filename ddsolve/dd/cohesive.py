@@ -21,15 +21,17 @@ pressed.  Unloading follows the secant (d is kept).
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 
 from ddsolve.dd.dual import Outcome
-from ddsolve.dd.interface import Interface
+from ddsolve.dd.interface import BROKEN, Interface
 from ddsolve.problem.scene import Bond
 
-#: The fixed point has converged when no vertex's damage changes by more than this.
+#: The fixed point has converged when no vertex's traction changes by more than this times the strength (by the
+#: change of its damage).
 DAMAGE_TOLERANCE = 1e-6
 #: At most this many linear solves per load step.
 MAX_SECANT = 500
@@ -74,9 +76,52 @@ def damage_of(bond: Bond, slide: np.ndarray, opening: np.ndarray) -> np.ndarray:
     return np.clip(out, 0.0, 1.0)
 
 
-def traction(bond: Bond, damage: np.ndarray, jump: np.ndarray) -> np.ndarray:
-    """The law's traction k(1 − d) δ for a jump along one component (a pressed normal jump takes ``damage`` 0)."""
-    return bond.stiffness * (1.0 - damage) * jump
+def softening(bond: Bond, damage: np.ndarray) -> np.ndarray:
+    """How far along the softening branch each vertex is, (δₘ − δ₀)/(δ_f − δ₀) in [0, 1], from its damage (the
+    pure mode I law's openings; 0 for the elastic law): the damage d is near 1 on most of that branch when
+    δ₀ ≪ δ_f, this moves with the traction."""
+    if bond.law == "elastic":
+        return np.zeros(len(damage))
+    start, end = bond.strength / bond.stiffness, 2.0 * bond.toughness / bond.strength
+    largest = start * end / (end - damage * (end - start))
+    return np.clip((largest - start) / (end - start), 0.0, 1.0)
+
+
+@dataclass
+class Response:
+    """The law at the jumps of m vertices: ``traction`` ``(m, 2)`` (the multipliers μᵍ, tangential and normal:
+    k(1 − d)(u⁻ − u⁺), k(u⁻ − u⁺)·ν where pressed), its derivative ``tangent`` ``(m, 2, 2)`` in the jump u⁻ − u⁺,
+    the ``damage`` and whether the normal row is ``pressed``."""
+
+    traction: np.ndarray
+    tangent: np.ndarray
+    damage: np.ndarray
+    pressed: np.ndarray
+
+
+def response(bond: Bond, history: np.ndarray, gap: np.ndarray) -> Response:
+    """The law at the jumps ``gap`` ``(m, 2)`` = u⁻ − u⁺ (tangential, normal) from the damage ``history``: the
+    damage max(history, d(δ)); where it grows, the tangent has the damage's derivative (with δ₀ and δ_f of the
+    present mode mix held: a quasi-Newton tangent under Benzeggagh–Kenane)."""
+    k = bond.stiffness
+    slide, opening = gap[:, 0], -gap[:, 1]
+    fresh = damage_of(bond, slide, opening)
+    damage = np.maximum(history, fresh)
+    pressed = opening < 0.0
+    secant_stiffness = k * (1.0 - damage)
+    normal = np.where(pressed, k, secant_stiffness)
+    traction = np.column_stack([secant_stiffness * slide, normal * gap[:, 1]])
+    tangent = np.zeros((len(gap), 2, 2))
+    tangent[:, 0, 0], tangent[:, 1, 1] = secant_stiffness, normal
+    growing = (fresh > history) & (fresh < 1.0)
+    if growing.any():
+        effective = np.sqrt(np.maximum(opening, 0.0) ** 2 + slide ** 2)[growing]
+        start, end = (value[growing] for value in law_openings(bond, slide, opening))
+        slope = end * start / (effective ** 2 * (end - start))  # d'(δₑ)
+        direction = np.column_stack([slide[growing], -np.maximum(opening[growing], 0.0)]) / effective[:, None]
+        acted = np.column_stack([slide[growing], np.where(pressed[growing], 0.0, gap[growing, 1])])
+        tangent[growing] -= k * slope[:, None, None] * acted[:, :, None] * direction[:, None, :]
+    return Response(traction, tangent, damage, pressed)
 
 
 def secant(interface: Interface, solve: Callable[[Interface, np.ndarray | None], Outcome], label: str) -> Outcome:
@@ -93,16 +138,18 @@ def secant(interface: Interface, solve: Callable[[Interface, np.ndarray | None],
         if outcome.diverged or not outcome.converged:
             break
         slide, opening = jumps(state, outcome.lam)
-        damage = np.maximum(history, damage_of(interface.bond, slide, opening))
-        pressed = opening < 0.0
-        change = float(np.abs(damage - state.damage).max(initial=0.0))
-        if change <= DAMAGE_TOLERANCE and np.array_equal(pressed, state.pressed):
+        broken = state.damage >= BROKEN  # its jump is not seen in its multipliers: it stays broken
+        damage = np.where(broken, 1.0, np.maximum(history, damage_of(interface.bond, slide, opening)))
+        pressed = np.where(broken, state.pressed, opening < 0.0)
+        effective = np.hypot(np.maximum(opening, 0.0), slide)
+        change = float((np.abs(damage - state.damage) * effective).max(initial=0.0)) * interface.bond.stiffness
+        if change <= DAMAGE_TOLERANCE * interface.bond.strength and np.array_equal(pressed, state.pressed):
             break
         state, start = interface.with_damage(damage, pressed), outcome.lam
     else:
         outcome.converged = False
-        outcome.message = (f"{label}: the bond's damage found no fixed point in {MAX_SECANT} solves (largest change "
-                           f"{change:.3e})")
+        outcome.message = (f"{label}: the bond's damage found no fixed point in {MAX_SECANT} solves (largest change of "
+                           f"a traction {change:.3e})")
     outcome.iterations, outcome.history, outcome.state = total, record, state
-    outcome.details.update(bond_solves=solves, damage=state.damage)
+    outcome.details.update(bond_solves=solves, damage=state.damage, pressed=state.pressed.astype(np.int8))
     return outcome

@@ -173,7 +173,7 @@ def record_bond(outcome: Outcome, exact: ExactDual) -> None:
     if exact.interface.bond is not None:
         outcome.details["bond_solves"] = exact.bond_solves
     if exact.state is not None:
-        outcome.details["damage"] = exact.state.damage
+        outcome.details.update(damage=exact.state.damage, pressed=exact.state.pressed.astype(np.int8))
 
 
 class ExactDual:
@@ -222,7 +222,7 @@ class ExactDual:
         self.last_c: np.ndarray | None = None  # the last contact multipliers: the next solve starts from their set
         self.last: np.ndarray | None = None  # ... and the last multipliers with every bound
         self.steps, self.step_time = 0, 0.0  # active-set steps so far and their seconds (with their traces)
-        self.full: tuple[np.ndarray, np.ndarray] | None = None  # the blocks' flexibilities and the full dual matrix
+        self.springs: SpringDual | None = None  # a bond's interface stiffness, made at its first solve
         self.state: Interface | None = None  # the bond's last state (its damage), :meth:`bonded`
         self.bond_solves = 0  # the linear problems of the bond's last fixed point
 
@@ -232,7 +232,7 @@ class ExactDual:
         problem, lower_c, upper_c = self.problem, self.lower_c, self.upper_c
         if self.interface.bond is not None:
             mark = time.perf_counter()
-            y, traces, steps = self.bonded(initial)
+            y, traces, steps = self.bonded(initial, condensed)
             self.steps += steps
             self.step_time += time.perf_counter() - mark
             return y, traces, steps
@@ -285,42 +285,13 @@ class ExactDual:
         self.coulomb_iterations = iteration
         return y_c, steps
 
-    def full_dual(self) -> tuple[np.ndarray, np.ndarray]:
-        """The blocks' flexibilities G_b = S_b⁻¹ and the full dual matrix A (W-scaled), made once."""
-        if self.floating:
-            raise SolverError("schur: interface.law needs the full dual problem, which needs every block invertible, "
-                              "which floating blocks are not: use solver.method = \"mprgp\"")
-        if self.full is None:
-            flexibilities = np.linalg.inv(self.schur_complements)
-            sqrt_w = self.problem.sqrt_w
-            self.full = flexibilities, self.interface.dual_matrix(flexibilities) / np.outer(sqrt_w, sqrt_w)
-        return self.full
-
-    def bonded(self, initial: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-        """A bond's problem on rank 0 (:mod:`ddsolve.dd.cohesive`): the full dual problem with the compliance c
-        on the bond's rows, A + diag(c), and every bound; with damage, the secant fixed point of such problems,
-        each from the last multipliers' active set and no block solve.  The scaled multipliers, their traces and
-        the active-set steps in all."""
-        flexibilities, A = self.full_dual()
-        problem, interface = self.problem, self.interface
-        b = problem.sqrt_w * interface.gap(initial)
-        steps = 0
-
-        def linear(state: Interface, start: np.ndarray | None) -> Outcome:
-            nonlocal steps
-            y, more = bond_qp(A, b, state, problem.solver.p, problem.sqrt_w, start)
-            steps += more
-            return Outcome(y / problem.sqrt_w, converged=True, iterations=more)
-
-        if interface.bond.law == "elastic":
-            outcome, self.state, self.bond_solves = linear(interface, None), None, 1
-        else:
-            outcome = cohesive.secant(interface, linear, "schur")
-            if not outcome.converged:
-                raise SolverError(outcome.message)
-            self.state, self.bond_solves = outcome.state, outcome.details["bond_solves"]
-        traces = initial + np.einsum("bij,bj->bi", flexibilities, interface.loads(outcome.lam))
-        return problem.sqrt_w * outcome.lam, traces, steps
+    def bonded(self, initial: np.ndarray, condensed: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+        """A bond's problem on rank 0 by Newton's method on the interface stiffness (:class:`SpringDual`), with no
+        block solve: the scaled multipliers, their traces and the active-set steps in all."""
+        if self.springs is None:
+            self.springs = SpringDual(self.problem, self.schur_complements)
+        y, traces, steps, self.state, self.bond_solves = self.springs.newton(condensed)
+        return y, traces, steps
 
     def contact_step(self, loaded: np.ndarray, condensed: np.ndarray, y_c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Every scaled multiplier and the traces S⁻¹(body − Bᵀ W^½ y_c) for the contact multipliers ``y_c``
@@ -361,19 +332,114 @@ class ExactDual:
         return y, full_step(y), more
 
 
-def bond_qp(A: np.ndarray, b: np.ndarray, state: Interface, p: float | None, sqrt_w: np.ndarray,
-            start: np.ndarray | None) -> tuple[np.ndarray, int]:
-    """The full dual problem of ``state`` (its bond's compliance on the diagonal, its bounds) by :func:`box_qp`,
-    rows whose bounds are equal (a broken vertex's tangential row) held there; from the active set of the
-    multipliers ``start``.  The scaled multipliers and the active-set steps."""
-    lower, upper = (bound * sqrt_w for bound in state.bounds(p))
-    stiff = A + np.diag(state.compliance)
-    held = lower == upper
-    y = np.where(held, lower, 0.0)
-    free = ~held
-    y[free], steps = box_qp(stiff[np.ix_(free, free)], b[free] - stiff[np.ix_(free, held)] @ y[held], lower[free],
-                            upper[free], start=None if start is None else (sqrt_w * start)[free])
-    return y, steps
+#: Newton's method on a bond has converged when no jump changes by more than this times the strength's elastic
+#: opening σ_c/k (the elastic law: the largest jump's).
+NEWTON_TOLERANCE = 1e-10
+#: At most this many Newton steps per load step.
+MAX_NEWTON = 100
+
+
+class SpringDual:
+    """``schur``'s solve of a bond on rank 0: the interface stiffness on the faces' unknowns (each layer's lower
+    face u⁻ = v⁻ tied, and its upper face u⁺ = v⁺), S = Σ_b P_bᵀ S_b P_b, with the bond's law between the faces
+    of each bonded vertex, linearized (:func:`ddsolve.dd.cohesive.response`: springs w K_t and a prestress) and
+    solved by Newton's method; the crack's rows (contact, friction) by :func:`box_qp` on their dual
+    A_c = J M⁻¹ Jᵀ of each linearized stiffness M, as :class:`ExactDual` does."""
+
+    def __init__(self, problem: DualProblem, schur_complements: np.ndarray):
+        interface = problem.interface
+        self.problem, self.interface, self.schur_complements = problem, interface, schur_complements
+        lower = np.arange(interface.trace_size)
+        self.half = interface.trace_size
+        self.unknowns = np.array([lower, lower + self.half, lower, lower + self.half])
+        size = 2 * self.half
+        self.base = np.zeros((size, size))
+        for S_b, numbers in zip(schur_complements, self.unknowns):
+            self.base[np.ix_(numbers, numbers)] += S_b
+        self.crack = np.flatnonzero(interface.is_contact | interface.is_friction)
+        entries = interface.trace_index[self.crack]
+        self.faces = np.zeros((size, len(self.crack)))  # J: the faces' forces of a unit scaled crack multiplier
+        self.faces[entries, np.arange(len(self.crack))] = problem.sqrt_w[self.crack]
+        self.faces[entries + self.half, np.arange(len(self.crack))] = -problem.sqrt_w[self.crack]
+        rows = np.arange(interface.size)[interface.slices["mu_g"]]
+        self.vertices = np.unique(interface.vertex[rows])  # the bonded vertices, and their rows per component
+        self.rows = np.full((len(self.vertices), 2), -1)
+        self.rows[np.searchsorted(self.vertices, interface.vertex[rows]), interface.component[rows]] = rows
+        self.last: np.ndarray | None = None  # the crack rows' last multipliers: the next solve starts from their set
+        self.traces: np.ndarray | None = None  # the last load step's traces: Newton's start
+
+    def gaps(self, traces: np.ndarray) -> np.ndarray:
+        """``(m, 2)``: u⁻ − u⁺ of the bonded vertices (0 in a component without a row)."""
+        entries = 2 * self.vertices[:, None] + np.arange(2)
+        out = traces[0][entries] - traces[1][entries]
+        return np.where(self.rows >= 0, out, 0.0)
+
+    def newton(self, condensed: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, Interface, int]:
+        """The bond's problem for the condensed loads ``condensed`` = S_b t⁰_b from the history's damage: the scaled
+        multipliers, their traces, the active-set steps, the final state (damage, pressed rows) and the Newton
+        steps (each a dense factorization of the interface stiffness)."""
+        interface, bond = self.interface, self.interface.bond
+        history = interface.damage[self.vertices]
+        scale = bond.stiffness * NEWTON_TOLERANCE
+        traces, steps = self.traces, 0
+        for solves in range(1, MAX_NEWTON + 1):
+            gap = np.zeros((len(self.vertices), 2)) if traces is None else self.gaps(traces)
+            law = cohesive.response(bond, history, gap)
+            prestress = law.traction - np.einsum("mij,mj->mi", law.tangent, gap)
+            y, new, more = self.linear(law.tangent, prestress, condensed)
+            steps += more
+            change = np.abs(self.gaps(new) - gap).max(initial=0.0)
+            reach = bond.strength / bond.stiffness if bond.strength else np.abs(self.gaps(new)).max(initial=0.0)
+            traces = new
+            if change * bond.stiffness <= scale * bond.stiffness * reach:
+                break
+        else:
+            raise SolverError(f"schur: Newton's method on the bond found no solution in {MAX_NEWTON} steps (largest "
+                              f"change of a jump {change:.3e})")
+        law = cohesive.response(bond, history, self.gaps(traces))
+        present = self.rows >= 0
+        y[self.rows[present]] = (self.problem.sqrt_w[self.rows[present]] * law.traction[present])
+        damage, pressed = interface.damage.copy(), interface.pressed.copy()
+        damage[self.vertices], pressed[self.vertices] = law.damage, law.pressed
+        self.traces = traces
+        return y, traces, steps, interface.with_damage(damage, pressed), solves
+
+    def linear(self, tangent: np.ndarray, prestress: np.ndarray, condensed: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, int]:
+        """The linearized problem: the bonded rows' multipliers K_t (u⁻ − u⁺) + prestress (``tangent`` ``(m, 2, 2)``,
+        ``prestress`` ``(m, 2)``); its scaled multipliers, traces and active-set steps."""
+        import scipy.linalg  # on rank 0 only (see ExactDual)
+
+        matrix, body = self.base.copy(), np.zeros(len(self.base))
+        for g_b, numbers in zip(condensed, self.unknowns):
+            body[numbers] += g_b
+        weights = self.interface.weights[self.vertices]
+        lower = 2 * self.vertices[:, None] + np.arange(2)  # the vertices' entries on the lower and upper faces
+        upper = lower + self.half
+        for i in range(2):
+            held = self.rows[:, i] >= 0
+            np.subtract.at(body, lower[held, i], weights[held] * prestress[held, i])
+            np.add.at(body, upper[held, i], weights[held] * prestress[held, i])
+            for j in range(2):
+                both = held & (self.rows[:, j] >= 0)
+                spring = weights[both] * tangent[both, i, j]
+                for a, b, sign in ((lower, lower, 1.0), (upper, upper, 1.0), (lower, upper, -1.0), (upper, lower, -1.0)):
+                    np.add.at(matrix, (a[both, i], b[both, j]), sign * spring)
+        factor = scipy.linalg.lu_factor(matrix, check_finite=False)
+        free = scipy.linalg.lu_solve(factor, body, check_finite=False)
+        steps, y_c = 0, np.zeros(len(self.crack))
+        if len(self.crack):
+            flexible = scipy.linalg.lu_solve(factor, self.faces, check_finite=False)
+            bounds = self.interface.bounds(None)
+            lower_c, upper_c = (bound[self.crack] * self.problem.sqrt_w[self.crack] for bound in bounds)
+            y_c, steps = box_qp(self.faces.T @ flexible, self.faces.T @ free, lower_c, upper_c, start=self.last)
+            self.last = y_c
+            free = free - flexible @ y_c
+        traces = free[self.unknowns]
+        loads = np.einsum("bij,bj->bi", self.schur_complements, traces) - condensed  # ℓ_b = S_b t_b − g_b
+        y = self.problem.sqrt_w * self.interface.multipliers(loads)
+        y[self.crack] = y_c
+        return y, traces, steps
 
 
 def remedy(solver: Solver) -> str:
