@@ -29,7 +29,7 @@ from ddsolve.solvers.growth_files import Outputs
 
 #: The largest advance of a vertex along the law's softening branch in one step
 #: (:func:`ddsolve.dd.cohesive.softening`); a step that moves more, or whose solve fails, is halved.
-DAMAGE_STEP = 0.1
+DAMAGE_STEP = 0.5
 #: The most halvings of the step size --to/--steps.
 HALVINGS = 12
 
@@ -82,9 +82,10 @@ class BondGrowth:
         self.solves += 1
         return result
 
-    def step(self, control: float, damage: np.ndarray, pressed: np.ndarray) -> tuple[State, np.ndarray, np.ndarray, int]:
-        """The state at ``control`` from ``damage`` and ``pressed``: the state, the new damage and pressed rows and
-        the block solves it took (every rank)."""
+    def step(self, control: float, damage: np.ndarray, pressed: np.ndarray
+             ) -> tuple[State, np.ndarray, np.ndarray, tuple[int, int]]:
+        """The state at ``control`` from ``damage`` and ``pressed``: the state, the new damage and pressed rows, and
+        the block solves and linear problems on Σ it took (every rank)."""
         result = self.result(self.base, control, (damage, pressed))
 
         def numbers():
@@ -92,7 +93,8 @@ class BondGrowth:
                 raise DDSolveError(f"grow: the bond's step at factor {control:.6g} did not converge: {result.message}")
             new = np.asarray(result.attrs.get("damage", damage))
             opening = np.asarray(result.attrs.get("pressed", pressed)).astype(bool)
-            return self.state(control, result, new), new, opening, int(result.solves)
+            return (self.state(control, result, new), new, opening,
+                    (int(result.solves), int(result.attrs.get("bond_solves", 0))))
 
         return self.comm.bcast(collective(self.comm, numbers, root_only=True), root=0)
 
@@ -145,7 +147,7 @@ def climb(growth: BondGrowth, limit: float, steps: int, progress: Callable[[str]
     damage, pressed = np.zeros(k), np.zeros(k, dtype=bool)
     state, damage, pressed, solves = growth.step(0.0, damage, pressed)
     growth.history[0.0] = (np.zeros(k), np.zeros(k, dtype=bool))
-    records, control, largest = [Step(state, solves=solves)], 0.0, limit / steps
+    records, control, largest = [Step(state, solves=solves[0], bond_solves=solves[1])], 0.0, limit / steps
     size = largest
     while control < limit * (1.0 - 1e-12):
         target = min(control + size, limit)
@@ -165,7 +167,7 @@ def climb(growth: BondGrowth, limit: float, steps: int, progress: Callable[[str]
                                                 ("the crack grows", np.sum(new >= BROKEN) > np.sum(damage >= BROKEN)))
                   if happened]
         growth.history[target] = (damage, pressed)
-        records.append(Step(state, events=events, solves=solves))
+        records.append(Step(state, events=events, solves=solves[0], bond_solves=solves[1]))
         control, damage, pressed = target, new, opening
         if growth.comm.rank == 0:
             progress(line(len(records) - 1, growth.kind, records[-1]))
@@ -180,4 +182,4 @@ def line(number: int, kind: str, step: Step) -> str:
     return (f"grow {number}: {kind} factor {state.control:.6g}, load {state.load:.6e}, displacement "
             f"{state.displacement:.6e}; cracks {cracks}; process zone {state.process_zone:.4g}; largest damage "
             f"{state.damage.max(initial=0.0):.6f}" + (f"; {'; '.join(step.events)}" if step.events else "")
-            + f"; {step.solves} block solves")
+            + f"; {step.solves} block solves, {step.bond_solves} on Σ")

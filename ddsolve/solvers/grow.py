@@ -105,6 +105,7 @@ class Step:
     unstable: bool = False
     events: list[str] = field(default_factory=list)
     solves: int = 0
+    bond_solves: int = 0  # a damaging bond's run: the linear problems on Σ of its nonlinear one (Newton's steps)
 
 
 def control_kind(scene: Scene) -> str:

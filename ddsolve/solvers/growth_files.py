@@ -121,6 +121,7 @@ def table(scene: Scene, kind: str, limit: float, tolerance: float, steps: list) 
     if steps[0].state.damage is not None:  # a damaging bond's run
         data["damage"] = np.array([s.state.damage for s in steps])
         data["process_zone"] = np.array([s.state.process_zone for s in steps])
+        data["bond_solves"] = np.array([s.bond_solves for s in steps], dtype=np.int64)
     data["attrs"] = {"scene": scene.origin, "scene_text": scene.text, "control_kind": kind, "limit": limit,
                      "tolerance": tolerance, "steps": count}
     return data
