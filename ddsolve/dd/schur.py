@@ -335,8 +335,11 @@ class ExactDual:
 #: Newton's method on a bond has converged when no jump changes by more than this times the strength's elastic
 #: opening σ_c/k (the elastic law: the largest jump's).
 NEWTON_TOLERANCE = 1e-10
-#: At most this many Newton steps per load step.
-MAX_NEWTON = 100
+#: At most this many Newton steps per load step (per attempt).
+MAX_NEWTON = 60
+#: The secant iteration a failed Newton attempt falls back to: at most this many solves, converged when no
+#: traction changes by more than this times the strength.
+MAX_SECANT, SECANT_TOLERANCE = 2000, 1e-4
 
 
 class SpringDual:
@@ -376,26 +379,20 @@ class SpringDual:
 
     def newton(self, condensed: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, Interface, int]:
         """The bond's problem for the condensed loads ``condensed`` = S_b t⁰_b from the history's damage: the scaled
-        multipliers, their traces, the active-set steps, the final state (damage, pressed rows) and the Newton
-        steps (each a dense factorization of the interface stiffness)."""
+        multipliers, their traces, the active-set steps, the final state (damage, pressed rows) and the linear
+        problems solved (each a dense factorization of the interface stiffness).  Newton's method from the last
+        step's traces; where it fails (a vertex that breaks unloads its neighbours at once: the kinks of the law),
+        the monotone secant iteration (:meth:`secant`) and Newton's method again from there."""
         interface, bond = self.interface, self.interface.bond
         history = interface.damage[self.vertices]
-        scale = bond.stiffness * NEWTON_TOLERANCE
-        traces, steps = self.traces, 0
-        for solves in range(1, MAX_NEWTON + 1):
-            gap = np.zeros((len(self.vertices), 2)) if traces is None else self.gaps(traces)
-            law = cohesive.response(bond, history, gap)
-            prestress = law.traction - np.einsum("mij,mj->mi", law.tangent, gap)
-            y, new, more = self.linear(law.tangent, prestress, condensed)
-            steps += more
-            change = np.abs(self.gaps(new) - gap).max(initial=0.0)
-            reach = bond.strength / bond.stiffness if bond.strength else np.abs(self.gaps(new)).max(initial=0.0)
-            traces = new
-            if change * bond.stiffness <= scale * bond.stiffness * reach:
-                break
-        else:
-            raise SolverError(f"schur: Newton's method on the bond found no solution in {MAX_NEWTON} steps (largest "
-                              f"change of a jump {change:.3e})")
+        y, traces, steps, solves = self.iterate(history, condensed, self.traces)
+        if y is None:
+            start, more_steps, more = self.secant(history, condensed, traces)
+            y, traces, steps, solves = self.iterate(history, condensed, start)
+            steps, solves = steps + more_steps, solves + more + MAX_NEWTON
+        if y is None:
+            raise SolverError(f"schur: Newton's method on the bond found no solution in {MAX_NEWTON} steps, after "
+                              "the secant iteration too")
         law = cohesive.response(bond, history, self.gaps(traces))
         present = self.rows >= 0
         y[self.rows[present]] = (self.problem.sqrt_w[self.rows[present]] * law.traction[present])
@@ -403,6 +400,44 @@ class SpringDual:
         damage[self.vertices], pressed[self.vertices] = law.damage, law.pressed
         self.traces = traces
         return y, traces, steps, interface.with_damage(damage, pressed), solves
+
+    def iterate(self, history: np.ndarray, condensed: np.ndarray, traces: np.ndarray | None
+                ) -> tuple[np.ndarray | None, np.ndarray, int, int]:
+        """Newton's method from ``traces`` (None: the undeformed faces): the scaled multipliers (None if it did not
+        converge in :data:`MAX_NEWTON` steps), the traces, the active-set steps and the Newton steps."""
+        bond, steps = self.interface.bond, 0
+        for solves in range(1, MAX_NEWTON + 1):
+            gap = np.zeros((len(self.vertices), 2)) if traces is None else self.gaps(traces)
+            law = cohesive.response(bond, history, gap)
+            prestress = law.traction - np.einsum("mij,mj->mi", law.tangent, gap)
+            y, traces, more = self.linear(law.tangent, prestress, condensed)
+            steps += more
+            change = np.abs(self.gaps(traces) - gap).max(initial=0.0)
+            reach = bond.strength / bond.stiffness if bond.strength else np.abs(self.gaps(traces)).max(initial=0.0)
+            if change <= NEWTON_TOLERANCE * reach:
+                return y, traces, steps, solves
+        return None, traces, steps, MAX_NEWTON
+
+    def secant(self, history: np.ndarray, condensed: np.ndarray, traces: np.ndarray
+               ) -> tuple[np.ndarray, int, int]:
+        """The monotone secant iteration from the ``history``: solve with the springs k(1 − d), raise d to the
+        damage of the new jumps, never lowering it, until no traction changes by more than
+        :data:`SECANT_TOLERANCE` σ_c: an increasing bounded sequence, which converges.  The traces, the active-set
+        steps and the solves."""
+        bond, damage, steps = self.interface.bond, history.copy(), 0
+        traces = None
+        for solves in range(1, MAX_SECANT + 1):
+            gap = np.zeros((len(self.vertices), 2)) if traces is None else self.gaps(traces)
+            raised = np.maximum(damage, cohesive.response(bond, damage, gap).damage)
+            effective = np.hypot(np.maximum(-gap[:, 1], 0.0), gap[:, 0])
+            if traces is not None and (np.abs(raised - damage) * effective).max(initial=0.0) * bond.stiffness \
+                    <= SECANT_TOLERANCE * bond.strength:
+                break
+            damage = raised
+            law = cohesive.response(bond, damage, gap)  # no growth beyond ``damage``: the secant springs
+            _, traces, more = self.linear(law.tangent, np.zeros_like(gap), condensed)
+            steps += more
+        return traces, steps, solves
 
     def linear(self, tangent: np.ndarray, prestress: np.ndarray, condensed: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, int]:
