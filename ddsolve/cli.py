@@ -131,7 +131,7 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
     result = run.decomposition(scene, comm, output, progress=_root_print, gather=False)
     if result is not None:
         print(f"{result.method}: converged after {result.iterations} iterations{active_set_part(result)}"
-              f"{coulomb_part(result)}, "
+              f"{coulomb_part(result)}{bond_part(result)}, "
               f"{result.solves} rounds of block solves, {result.wall_time:.3f} s on {result.ranks} ranks -> {output}",
               flush=True)
         print(estimate_line(result), flush=True)
@@ -155,6 +155,12 @@ def coulomb_part(result) -> str:
     """``, Coulomb friction in N Tresca problems`` when the method iterated Coulomb's friction to its fixed point."""
     count = int(result.attrs.get("coulomb_iterations", 0))
     return f", Coulomb friction in {count} Tresca problem{'s' if count > 1 else ''}" if count else ""
+
+
+def bond_part(result) -> str:
+    """``, the bond in N linear problems on Σ`` when the scene has a bond law (``[interface]``)."""
+    count = int(result.attrs.get("bond_solves", 0))
+    return f", the bond in {count} linear problem{'s' if count > 1 else ''} on Σ" if count else ""
 
 
 def launch_line(result) -> str:

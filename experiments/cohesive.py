@@ -43,6 +43,7 @@ def dcb_scene(bond: bool, size: float = SIZE, toughness: float = TOUGHNESS):
            f"[fracture]\ntoughness = {toughness!r}\n")
     text = (f'title = "{name}"\n[mesh]\nfile = "{name}.geo"\nsize = {size!r}\ndegree = 2\n{materials}{displacements}'
             f'{law}[solver]\nmethod = "schur"\n')
+    (folder / f"{name}.toml").write_text(text)  # for the command line: ddsolve grow FOLDER/dcb-bond.toml --to F
     return scenes.loads(text, origin=name, base=folder)
 
 

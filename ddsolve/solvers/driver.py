@@ -138,7 +138,7 @@ def reload(setup: "Setup", scene: Scene) -> None:
         setup.mesh = replace(local, sigma_supports=supports.sigma_supports(scene, whole_mesh))
     systems = collective(setup.exchange.comm, lambda: local_systems(scene, setup.mesh, setup.exchange, setup.pieces))
     for block, system in zip(setup.blocks, systems):
-        block.system = replace(block.system, rhs=system.rhs)
+        block.system = replace(block.system, rhs=system.rhs, energy_offset=system.energy_offset)  # both the data's
     setup.interface = interface_of(scene, setup.mesh, setup.exchange.comm)  # the new data's displacement
     setup.phases = Phases()
     setup.phases.end("assembly")
