@@ -157,6 +157,16 @@ def test_elastic_bond_tends_to_the_rigid_one_and_schur_equals_mprgp():
 
 
 @pytest.mark.solve
+def test_newton_on_schur_and_the_secant_fixed_point_of_mprgp_agree_on_a_damaged_bond():
+    from experiments import cohesive as experiment
+
+    both = experiment.bilinear_methods()
+    assert 0.5 < both["largest_damage"] < 1.0  # softening, not broken
+    assert both["energy_difference"] < 1e-8 and both["damage_difference"] < 1e-6
+    assert both["schur"]["rounds"] == 3 and both["schur"]["bond_solves"] < 10
+
+
+@pytest.mark.solve
 def test_old_results_are_unchanged_without_an_interface_table():
     import ddsolve
 
