@@ -114,7 +114,8 @@ def test_keys_of_the_interface_table():
     scene = scenes.loads(base + '[interface]\nlaw = "bilinear"\nstrength = 2.0\ntoughness = 0.5\n')
     assert scene.bond.stiffness == pytest.approx(2.0 ** 2 / (2e-3 * 0.5))  # δ₀ = 10⁻³ δ_f
     assert scenes.loads(base).bond is None
-    bad = {'law = "bilinear"\nstrength = 0.0\ntoughness = 1.0': "interface.strength",
+    bad = {'law = "elastic"\nstiffness = 1.0\n[contact]\nfriction = 0.5': "contact.friction",
+           'law = "bilinear"\nstrength = 0.0\ntoughness = 1.0': "interface.strength",
            'law = "bilinear"\nstrength = -1.0\ntoughness = 1.0': "interface.strength",
            'law = "bilinear"\nstrength = 1.0\ntoughness = 0.0': "interface.toughness",
            'law = "bilinear"\nstrength = 1.0': "interface.toughness",

@@ -28,6 +28,11 @@ def cross_checks(data: dict, raw: dict, origin: str) -> None:
     _split_checks(data, origin)
     _friction_checks(data, origin)
     _bond_checks(data["interface"], origin)
+    coulomb = data["contact"]["friction"]
+    if data["interface"]["law"] is not None and coulomb is not None and max(
+            coulomb if isinstance(coulomb, tuple) else (coulomb,), default=0.0) > 0.0:
+        raise SceneError(f"{origin}: contact.friction (Coulomb) is not solved with interface.law: give the crack "
+                         "faces Tresca's contact.slip_bound, or no friction")
 
 
 def _geometry_checks(geometry: dict, given: set[str], origin: str) -> None:
