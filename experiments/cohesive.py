@@ -82,7 +82,7 @@ def bilinear_methods(strength: float = 0.002, toughness: float = 1e-6) -> dict:
                                                     f"interface.strength={strength!r}",
                                                     f"interface.toughness={toughness!r}"])
         result = ddsolve.solve(scene, progress=lambda line: None)
-        out[method] = {"energy": float(result.attrs["energy"]), "damage": np.asarray(result.attrs["damage"]),
+        out[method] = {"energy": float(result.attrs["energy"]), "damage": np.asarray(result.multipliers["damage"]),
                        "bond_solves": int(result.attrs["bond_solves"]), "iterations": result.iterations,
                        "rounds": result.solves}
     schur, mprgp = out["schur"], out["mprgp"]

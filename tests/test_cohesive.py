@@ -174,7 +174,7 @@ def test_old_results_are_unchanged_without_an_interface_table():
     scene = ddsolve.Scene.load("full-opening", ['solver.method="schur"'])
     assert scene.bond is None and "interface" not in scene.text
     result = ddsolve.solve(scene, progress=lambda line: None)
-    assert "bond_solves" not in result.attrs and "damage" not in result.attrs
+    assert "bond_solves" not in result.attrs and "damage" not in result.multipliers and "pressed" not in result.multipliers
 
 
 @pytest.mark.solve

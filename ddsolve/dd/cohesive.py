@@ -151,5 +151,5 @@ def secant(interface: Interface, solve: Callable[[Interface, np.ndarray | None],
         outcome.message = (f"{label}: the bond's damage found no fixed point in {MAX_SECANT} solves (largest change of "
                            f"a traction {change:.3e})")
     outcome.iterations, outcome.history, outcome.state = total, record, state
-    outcome.details.update(bond_solves=solves, damage=state.damage, pressed=state.pressed.astype(np.int8))
+    outcome.details["bond_solves"] = solves
     return outcome

@@ -276,13 +276,15 @@ class Interface:
 
     def split(self, lam: np.ndarray, frames: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """Per-node arrays: mu_c ``(k,)``, mu_g, mu_minus, mu_plus ``(k, 2)``; 0 where absent; with friction
-        mu_t ``(k,)`` (the tangential traction, along τ) too.
+        mu_t ``(k,)`` (the tangential traction, along τ) too; with a bond law its ``damage`` and ``pressed`` ``(k,)``.
 
         The vectors are in the nodes' local frames, or in (x, y) when their ``frames`` ``(k, 2, 2)`` are given.
         """
         k = len(self.weights)
         out = {"mu_c": np.zeros(k)}
         out["mu_c"][self.vertex[self.slices["mu_c"]]] = lam[self.slices["mu_c"]]
+        if self.bond is not None:  # the bond's state: its damage, and its pressed normal rows (0 or 1)
+            out["damage"], out["pressed"] = self.damage.copy(), self.pressed.astype(np.float64)
         if self.friction:
             out["mu_t"] = np.zeros(k)
             out["mu_t"][self.vertex[self.slices["mu_t"]]] = lam[self.slices["mu_t"]]

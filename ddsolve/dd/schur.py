@@ -169,11 +169,9 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
 
 
 def record_bond(outcome: Outcome, exact: ExactDual) -> None:
-    """The bond's linear problems and damage (where it has any) in ``outcome``'s details."""
+    """The bond's linear problems (where it has one) in ``outcome``'s details."""
     if exact.interface.bond is not None:
         outcome.details["bond_solves"] = exact.bond_solves
-    if exact.state is not None:
-        outcome.details.update(damage=exact.state.damage, pressed=exact.state.pressed.astype(np.int8))
 
 
 class ExactDual:

@@ -23,6 +23,8 @@ from ddsolve.problem import scene as scenes
 MULTIPLIERS = ("mu_c", "mu_g", "mu_minus", "mu_plus")
 #: The friction multiplier (the tangential traction between the crack faces), written with friction only.
 FRICTION = ("mu_t",)
+#: A bond law's (``[interface]``) per multiplier node: its damage and whether its normal row is pressed (0 or 1).
+BOND = ("damage", "pressed")
 #: A dataset of a result file holds at most this many times the file's size (ddsolve does not
 #: compress them): a larger claim is a damaged header, not read.
 READ_LIMIT = 16
@@ -164,7 +166,8 @@ def sigma_datasets(on: OnSigma, history: np.ndarray, active_set_changes: np.ndar
     out = {f"sigma/{key}": getattr(sigma, key) for key in SIGMA_FIELDS}
     out.update({"interface/x": sigma.points[nodes, 0], "interface/points": sigma.points[nodes],
                 "interface/normal": sigma.normals[nodes], "interface/crack": sigma.crack[nodes],
-                **{f"interface/{name}": on.multipliers[name] for name in MULTIPLIERS + FRICTION if name in on.multipliers},
+                **{f"interface/{name}": on.multipliers[name] for name in MULTIPLIERS + FRICTION + BOND
+                   if name in on.multipliers},
                 **({"interface/friction_state": analysis.friction_state(on, friction)} if "mu_t" in on.multipliers else {}),
                 "history/criterion": np.asarray(history, dtype=np.float64),
                 "history/active_set_changes": np.asarray(active_set_changes, dtype=np.int64),
@@ -336,7 +339,8 @@ def _read(f: h5py.File, path: Path) -> Result:
     solution = {spec.name: _array(f, f"solution/{spec.name}", "f", (len(mesh.half(spec.side).points), 2))
                 for spec in BLOCKS}
     multipliers = {name: _array(f, f"interface/{name}", "f", (k,) if name == "mu_c" else (k, 2)) for name in MULTIPLIERS}
-    multipliers.update({name: _array(f, f"interface/{name}", "f", (k,)) for name in FRICTION if f"interface/{name}" in f})
+    multipliers.update({name: _array(f, f"interface/{name}", "f", (k,)) for name in FRICTION + BOND
+                        if f"interface/{name}" in f})
     for name, kind, shape in (("x", "f", (k,)), ("points", "f", (k, 2)), ("normal", "f", (k, 2)), ("crack", "b", (k,))):
         _array(f, f"interface/{name}", kind, shape)  # derived from the above: only their form is checked
     cell_data = {}

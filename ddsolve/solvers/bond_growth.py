@@ -91,8 +91,8 @@ class BondGrowth:
         def numbers():
             if not result.converged:
                 raise DDSolveError(f"grow: the bond's step at factor {control:.6g} did not converge: {result.message}")
-            new = np.asarray(result.attrs.get("damage", damage))
-            opening = np.asarray(result.attrs.get("pressed", pressed)).astype(bool)
+            new = np.asarray(result.multipliers["damage"])
+            opening = np.asarray(result.multipliers["pressed"]) > 0.5
             return (self.state(control, result, new), new, opening,
                     (int(result.solves), int(result.attrs.get("bond_solves", 0))))
 

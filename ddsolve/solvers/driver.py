@@ -51,6 +51,8 @@ def run_method(scene: Scene, setup: "Setup", server: BlockServer, progress):
         return final_check.checked_solve(method, rounds, interface, scene.solver, dual.Progress(method, out=progress))
 
     outcome, rounds, failure = drive(setup, server, work)
+    if outcome is not None and outcome.state is not None:  # rank 0: the state its multipliers solve (a bond's damage)
+        setup.interface = outcome.state
     if failure is None and outcome is not None:
         if outcome.diverged:
             failure = DivergedError(outcome.message)
