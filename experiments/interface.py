@@ -442,7 +442,7 @@ def enf_page(record: dict) -> list[str]:
            f"The standard ENF of [stacks.md](stacks.md) (identical arms E = 200, ν = 0.28, h = {ARM:g}, span "
            "40, a roller at the lower left corner and a pin at the lower right one: points, since a segment would "
            "hold the ends' rotation; the midspan load P a Gaussian on the top), `contact.friction = μ` between the "
-           "arms. The arms touch at the mouth only, where the roller's reaction R = P/2 reaches the upper arm; "
+           "arms. The arms touch at the mouth only, where half the roller's reaction R = P/2 passes to the upper arm; "
            "the faces there slide, the upper arm's lower face outwards against the lower arm's upper face, and "
            "friction holds them back. **Beam theory** (Euler beams, friction fully developed where it acts, the "
            "model of Gradin, Gustafson and Hojo 1991; Carlsson, Gillespie and Pipes 1986 examine the same effect; "
