@@ -446,7 +446,8 @@ def parser() -> argparse.ArgumentParser:
 
     p = scene_command("solve", "domain-decomposition solve (under mpiexec, or -n N to launch it)", cmd_solve)
     p.add_argument("-n", dest="ranks", type=int, metavar="N",
-                   help="launch N ranks with mpiexec: 1, 2, 4 (a block per rank) or 4k (a block on k ranks)")
+                   help="launch N ranks with mpiexec: 1, 2, 4 (a block per rank) or 4k (a block on k ranks); "
+                   "a one-layer structure (geometry.layers = 1): 1, 2 or 2k")
     p.add_argument("-o", dest="output", help="result file (default: SCENE.h5)")
     p = scene_command("sweep", "solves over ranges of scene values (--set KEY=START:STOP:COUNT), one launch, "
                       "one HDF5 file", cmd_sweep)
