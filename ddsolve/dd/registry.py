@@ -100,7 +100,8 @@ def predicted_costs(ranks: int, unknowns: int, sigma_nodes: int, crack_rows: int
                     ) -> dict[str, float]:
     """Seconds of what ``schur`` and ``feti`` do on ``ranks`` ranks beyond the factorization both need, for
     blocks of ``unknowns``, ``sigma_nodes`` on Σ and ``crack_rows`` contact multipliers (0: no contact; ``schur``'s
-    contact steps), ``count`` blocks: the block work of a rank's blocks shared ideally among a block's ranks, as in the cost model."""
+    contact steps), ``count`` blocks: the block work of a rank's blocks shared ideally among a block's ranks, as in
+    the cost model."""
     law = {key: (lambda x, a=a, p=p: a * x ** p) for key, (a, p) in COST_LAWS.items()}
     per_block = max(1, ranks // count)
     share = max(1, count // ranks) / per_block  # the blocks of a rank, over the ranks of a block

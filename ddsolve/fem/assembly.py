@@ -296,7 +296,8 @@ def rigid_body_modes(points: np.ndarray, centre: np.ndarray | None = None) -> np
 def block_systems(scene: Scene, mesh: Mesh, which: list[int] | None = None,
                   rows: tuple[int, int] | None = None, table: supports.SigmaSupports | None = None
                   ) -> list[BlockSystem]:
-    """Assemble the scene's blocks (:func:`ddsolve.mesh.mesh.blocks`) with indices in ``which`` (all by default), or their ``rows``;
+    """Assemble the scene's blocks (:func:`ddsolve.mesh.mesh.blocks`) with indices in ``which`` (all by default),
+    or their ``rows``;
     ``table``: the Σ supports (:func:`ddsolve.fem.supports.sigma_supports`; made from ``mesh``, which
     must then be whole, if not given)."""
     systems, patterns = [], {}

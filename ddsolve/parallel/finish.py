@@ -183,7 +183,7 @@ class OnRanks(Finisher):
                 if mirrorable[i]:
                     discs[i, b] = fracture.mirror_nodes(tip, sigma, piece.owned_half)
                     images = discs[i, b][2]
-                    for rank in exchange.ranks(partner(b, self.specs)) if len(images) else ():  # no disc cells: no share
+                    for rank in exchange.ranks(partner(b, self.specs)) if len(images) else ():  # no disc cells here
                         asked = np.arange(len(images))
                         if shared:
                             low, high = boxes[rank][partner(b, self.specs)]
@@ -308,7 +308,8 @@ class OnRanks(Finisher):
             shares["sigma"] = viewer.sigma_mesh(self.on, local.half(-1).degree)
             ceilings = {layer: plots.stress_ceiling(np.concatenate([top[layer] for top in tops if layer in top]),
                                                     sum(local.cells.values())) for layer in self.scene.layers}
-            script = viewer.paraview_script(self.scene.title, output.parent, viewer.viewer_names(output.stem, layers=self.scene.layers),
+            names = viewer.viewer_names(output.stem, layers=self.scene.layers)
+            script = viewer.paraview_script(self.scene.title, output.parent, names,
                                             ceilings, plots.scale_for(float((high - low).max()), self.on.largest),
                                             plots.one_above_the_other(np.array([low, high])),
                                             analysis.sigma_is_graph(self.on))

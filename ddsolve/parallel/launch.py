@@ -40,7 +40,8 @@ def interrupt_line(terminated: bool, complete: bool) -> str:
 
 
 def leader(block: int, size: int, count: int = BLOCK_COUNT) -> int:
-    """The rank that leads ``block`` of ``count`` among ``size`` ranks (see :class:`~ddsolve.parallel.exchange.Exchange`)."""
+    """The rank that leads ``block`` of ``count`` among ``size`` ranks (see
+    :class:`~ddsolve.parallel.exchange.Exchange`)."""
     return block % size if size <= count else block * (size // count)
 
 

@@ -239,8 +239,8 @@ class Scene:
     def dissimilar_layers(self, thermal: bool = True) -> list[str]:
         """The layers whose regions have different plane laws: stiffness, and with ``thermal`` thermal strain
         (:func:`ddsolve.problem.materials.same_law`)."""
-        return materials.differing({layer: [self.material(layer, region) for region in REGIONS] for layer in self.layers},
-                                   self.model, thermal)
+        return materials.differing({layer: [self.material(layer, region) for region in REGIONS]
+                                    for layer in self.layers}, self.model, thermal)
 
     def scaled(self, factor: float) -> Scene:
         """This scene with every mechanical load (tractions, pressures, prescribed displacements) times

@@ -122,7 +122,8 @@ def solve_adaptively(scene: Scene, comm: MPI.Comm, output: Path | None, progress
         result = level(mesh, scene, step.refined_next)
         if comm.rank == 0:
             estimate = float(result.attrs["error_estimate"])
-            rows.append({"unknowns": unknowns(mesh, scene.geometry.layers), "cells": len(mesh.lower.cells) + len(mesh.upper.cells),
+            rows.append({"unknowns": unknowns(mesh, scene.geometry.layers),
+                         "cells": len(mesh.lower.cells) + len(mesh.upper.cells),
                          "error_estimate": estimate, "energy": float(result.attrs.get("energy", np.nan)),
                          "mesh_time": meshing, "solve_time": result.wall_time,
                          "level_time": time.perf_counter() - mark + refining - step.seconds,

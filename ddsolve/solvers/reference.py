@@ -215,7 +215,8 @@ def solve_assembled(scene: Scene, mesh: Mesh, systems: list[BlockSystem],
     not given), with the KKT check; timings per phase of :data:`PHASES` (wall and ``_cpu``), ``total`` their sum."""
     table = table if table is not None else supports.sigma_supports(scene, mesh)
     interface = for_mesh(mesh.sigma, scene.nonpenetration, table.fixed, assembly.modulus(scene),
-                         assembly.data_displacement(scene, mesh.halves, mesh.sigma), meshes.blocks(scene.geometry.layers))
+                         assembly.data_displacement(scene, mesh.halves, mesh.sigma),
+                         meshes.blocks(scene.geometry.layers))
     solved = solve_glued(systems, interface, out_of_core=scene.solver.out_of_core)
     fields, contact = solved.fields, interface.slices["mu_c"]
     steps, changes = (solved.face.violations, solved.face.changes) if solved.face else ([(0.0, 0.0)], [0])

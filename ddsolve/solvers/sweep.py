@@ -98,7 +98,8 @@ def run_seconds(scene, ranks: int, factor: bool = True) -> float:
 
     nodes = geometry.estimated_vertices(scene) or 0.0
     a, power = COST_LAWS["factor"]
-    return RUN_SECONDS + NODE_SECONDS * nodes + (len(blocks(scene.geometry.layers)) * a * nodes ** power / ranks if factor else 0.0)
+    count = len(blocks(scene.geometry.layers))
+    return RUN_SECONDS + NODE_SECONDS * nodes + (count * a * nodes ** power / ranks if factor else 0.0)
 
 
 def sweep_seconds(solving: float, runs: float) -> float:
