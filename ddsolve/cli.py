@@ -130,7 +130,8 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
     output = comm.bcast(collective(comm, lambda: check_outputs(args, scene), root_only=True), root=0)
     result = run.decomposition(scene, comm, output, progress=_root_print, gather=False)
     if result is not None:
-        print(f"{result.method}: converged after {result.iterations} iterations{active_set_part(result)}, "
+        print(f"{result.method}: converged after {result.iterations} iterations{active_set_part(result)}"
+              f"{coulomb_part(result)}, "
               f"{result.solves} rounds of block solves, {result.wall_time:.3f} s on {result.ranks} ranks -> {output}",
               flush=True)
         print(estimate_line(result), flush=True)
@@ -148,6 +149,12 @@ def active_set_part(result) -> str:
     seconds = result.attrs.get("active_set_time")
     each = f", {float(seconds) / steps:.2g} s each" if seconds is not None else ""
     return f" ({steps} active-set step{'s' if steps > 1 else ''}{each})"
+
+
+def coulomb_part(result) -> str:
+    """``, Coulomb friction in N Tresca problems`` when the method iterated Coulomb's friction to its fixed point."""
+    count = int(result.attrs.get("coulomb_iterations", 0))
+    return f", Coulomb friction in {count} Tresca problem{'s' if count > 1 else ''}" if count else ""
 
 
 def launch_line(result) -> str:
@@ -185,13 +192,13 @@ def _print_refinement(scene, result) -> None:
 
 
 def _print_fracture(result) -> None:
-    """G at every crack tip (and why it is not split into modes, where it is not), the contact zones, then the
-    reactions, after a solve."""
-    from ddsolve.post import fracture, reactions
+    """G at every crack tip (and why it is not split into modes, where it is not), the contact zones, where the
+    faces slip and stick (with friction), then the reactions, after a solve."""
+    from ddsolve.post import analysis, fracture, reactions
 
     lines = result.fracture.lines() if result.fracture is not None else []
     note = fracture.split_note(result.scene) if len(lines) else None
-    for line in lines + ([note] if note else []) + reactions.lines(result.reactions):
+    for line in lines + ([note] if note else []) + analysis.friction_lines(result) + reactions.lines(result.reactions):
         print(line, flush=True)
 
 

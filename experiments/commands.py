@@ -31,6 +31,9 @@ EXPERIMENTS = {
                      "theory", "docs/delamination.md, docs/delamination-*.png, results/delamination*"),
     "growth": ("growth", "growth", "crack growth along Σ: DCB and ENF against corrected beam theory, Example 1, "
                "the strip's disbonds", "docs/growth.md, docs/growth-*.png, results/growth/"),
+    "stacks": ("stacks", "stacks", "stacked structures against closed forms: the Griffith interface crack between "
+               "two materials, bi-material DCB and ENF, the thermal bilayer and its edge delamination",
+               "docs/stacks.md, docs/stacks-*.png, results/stacks.h5"),
     "architecture": ("architecture", "architecture", "the package's stages and the imports between them, read "
                      "from the source", "docs/architecture.png"),
 }

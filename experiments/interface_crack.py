@@ -8,9 +8,10 @@ above (E₁ = ratio × E₂, equal ν), under remote tension σ:
     K = σ (1 + 2iε) √(πa) (2a)^{−iε},   G = (1/Ē₁ + 1/Ē₂)(1 + 4ε²) πaσ² / (2 cosh²πε),   ψ(l = 2a) = atan 2ε.
 
 The model is the half x ≥ 0 (a roller on the symmetry plane x = 0 through the crack's centre), the box
-(0, W) × (−W, W) with W = 80a, the crack [0, a] on Σ: y = 0.  Both layers carry the same materials (the pair
-in every layer) and the same loads, so they move as one and the structure is two identical sheets: G is
-twice the one-sheet value, K that of the summed sheet, ε and ψ the sheet's.  The remote state of the closed
+(0, W) × (−W, W) with W = 80a, the crack [0, a] on Σ: y = 0.  Every layer carries the same materials (the
+pair in every layer) and the same loads, so they move as one and the structure is LAYERS identical sheets: G
+is LAYERS times the one-sheet value, K that of the summed sheet, ε and ψ the sheet's (a one-layer body,
+``geometry.layers = 1``, is LAYERS = 1).  The remote state of the closed
 form is uniform in each material with equal strains along the interface: besides σ_yy = σ on the top and
 bottom, the upper material carries σ_xx = ν′σ(1 − Ē₁/Ē₂) on the far side (ν′ = ν/(1 − ν), plane strain),
 which leaves the crack's loading unchanged; without it the free far side bends the strip and the crack line
@@ -30,24 +31,29 @@ TENSION = 1e-3
 NU = 0.3
 #: Smooth step of the upper material's side traction (its width, 1/STEEPNESS, far below the elements there).
 STEEPNESS = 1000.0
+#: The identical sheets the body is posed as: two layers, each the same pair (one sheet of doubled thickness).
+LAYERS = 2
 
 
-def closed_form(ratio: float, a: float = 1.0) -> dict[str, float]:
-    """ε, G (two sheets) and ψ at l = 2a of the Griffith interface crack, material 1 above ``ratio`` × stiffer."""
+def closed_form(ratio: float, a: float = 1.0, layers: int = LAYERS) -> dict[str, float]:
+    """ε, G (summed over ``layers`` sheets) and ψ at l = 2a of the Griffith interface crack, material 1 above
+    ``ratio`` × stiffer."""
     moduli = [ratio / (1.0 - NU * NU), 1.0 / (1.0 - NU * NU)]
     shear, kappa = [ratio / (2.0 * (1.0 + NU)), 1.0 / (2.0 * (1.0 + NU))], 3.0 - 4.0 * NU
     epsilon = math.log((kappa / shear[0] + 1.0 / shear[1]) / (kappa / shear[1] + 1.0 / shear[0])) / (2.0 * math.pi)
     one_sheet = ((1.0 / moduli[0] + 1.0 / moduli[1]) * (1.0 + 4.0 * epsilon ** 2) * math.pi * a * TENSION ** 2
                  / (2.0 * math.cosh(math.pi * epsilon) ** 2))
-    return {"epsilon": epsilon, "G": 2.0 * one_sheet, "phase": math.degrees(math.atan(2.0 * epsilon))}
+    return {"epsilon": epsilon, "G": layers * one_sheet, "phase": math.degrees(math.atan(2.0 * epsilon))}
 
 
-def scene_text(ratio: float, size: float, width: float = WIDTH, a: float = 1.0, degree: int = 2) -> str:
-    """The half model's scene: the graded mesh of largest element ``size``, both layers the pair."""
+def scene_text(ratio: float, size: float, width: float = WIDTH, a: float = 1.0, degree: int = 2,
+               layers: int = LAYERS) -> str:
+    """The half model's scene: the graded mesh of largest element ``size``, each of the ``layers`` the pair
+    (``geometry.layers`` written where it is not the default two)."""
     side = TENSION * NU / (1.0 - NU) * (1.0 - ratio)  # the upper material's σ_xx: equal strains along Σ
-    layers = []
-    for layer in ("layer1", "layer2"):
-        layers.append(f"""[materials.{layer}]
+    tables = []
+    for layer in (f"layer{k}" for k in range(1, layers + 1)):
+        tables.append(f"""[materials.{layer}]
 E = 1.0
 nu = {NU}
 [materials.{layer}.upper]
@@ -65,37 +71,44 @@ x = 0.0
 point = [{width!r}, {-width!r}]
 y = 0.0
 """)
+    count = "" if layers == 2 else f"layers = {layers}\n"
     return f"""title = "Griffith interface crack, half model, E1/E2 = {ratio:g}"
 [geometry]
 box = [0.0, {width!r}, {-width!r}, {width!r}]
 sigma = 0.0
 crack = [0.0, {a!r}]
 clamped = []
-[mesh]
+{count}[mesh]
 size = {size!r}
 degree = {degree}
 grading = true
-""" + "".join(layers)
+""" + "".join(tables)
 
 
-def griffith(ratio: float, size: float, width: float = WIDTH) -> dict[str, float]:
+def griffith(ratio: float, size: float, width: float = WIDTH, layers: int = LAYERS) -> dict[str, float]:
     """The solved half model against :func:`closed_form`: G, ε, ψ at l = 2a, G from |K| (the interaction
-    integral's, against the domain integral's G), the tip's Σ spacing and the unknowns."""
+    integral's, against the domain integral's G; NaN for one material, whose ψ is the classical split's), the
+    tip's Σ spacing and the unknowns."""
     from ddsolve.mesh import geometry
     from ddsolve.post import interface_crack
     from ddsolve.problem import scene
     from ddsolve.solvers import reference
 
-    source = scene.loads(scene_text(ratio, size, width))
+    from experiments.regions import unknowns
+
+    source = scene.loads(scene_text(ratio, size, width, layers=layers))
     result = reference.solve_monolithic(source, geometry.build(source))
-    fracture, exact = result.fracture, closed_form(ratio)
-    K, epsilon = complex(*fracture.K[0]), float(fracture.epsilon[0])
+    fracture, exact = result.fracture, closed_form(ratio, layers=layers)
+    K, epsilon, pair = complex(*fracture.K[0]), float(fracture.epsilon[0]), interface_crack.interface_pair(source)
+    if pair is None:
+        phase, G_of_K = float(fracture.phase[0]), math.nan
+    else:
+        phase = interface_crack.phase(K, epsilon, 2.0)
+        G_of_K = float(interface_crack.release(np.array([K]), epsilon, pair)[0])
     return {"ratio": ratio, "size": size, "width": width, "G": float(fracture.G[0]), "theory": exact["G"],
             "error": float(fracture.G[0]) / exact["G"] - 1.0, "epsilon": epsilon, "epsilon_theory": exact["epsilon"],
-            "phase": interface_crack.phase(K, epsilon, 2.0), "phase_theory": exact["phase"],
-            "G_of_K": float(interface_crack.release(np.array([K]), epsilon, interface_crack.interface_pair(source))[0]),
-            "spacing": float(fracture.spacing[0]),
-            "unknowns": 4 * sum(len(half.points) for half in result.mesh.halves)}
+            "phase": phase, "phase_theory": exact["phase"], "G_of_K": G_of_K, "spacing": float(fracture.spacing[0]),
+            "unknowns": unknowns(result)}
 
 
 def main() -> None:

@@ -56,7 +56,7 @@ def bimetal_curvature(regions: dict[str, tuple[float, float, float]], dT: float,
     return -24.0 * mismatch / (2.0 * h * (12.0 + (1.0 + n) ** 2 / n))
 
 
-def _materials(regions: dict[str, tuple]) -> str:
+def region_materials(regions: dict[str, tuple]) -> str:
     """Both layers' materials: the upper region's as the layer's, the lower region's overriding it."""
     keys = ("E", "nu", "alpha")
     return "".join(f"[materials.{layer}{'' if region == 'upper' else '.lower'}]\n"
@@ -64,13 +64,14 @@ def _materials(regions: dict[str, tuple]) -> str:
                    for layer in ("layer1", "layer2") for region, values in regions.items())
 
 
-def dcb_scene(folder: Path, a: float, size: float, degree: int = 2, loading: str = "moment"):
-    """The bi-material DCB's scene (its .toml and .geo written into ``folder``): the arms' end faces bent apart by
-    couples MOMENT (``moment``: σxx linear across each face) or pulled apart by forces LOAD (``force``),
-    half on each layer."""
+def dcb_scene(folder: Path, a: float, size: float, degree: int = 2, loading: str = "moment",
+              length: float = LENGTH):
+    """The bi-material DCB's scene (its .toml and .geo written into ``folder``), the strip ``length`` long: the
+    arms' end faces bent apart by couples MOMENT (``moment``: σxx linear across each face) or pulled apart by
+    forces LOAD (``force``), half on each layer."""
     from ddsolve.problem import scene
 
-    (folder / "dcb.geo").write_text(strip_geo(LENGTH, ARM, [(0.0, a)], {"clamped": [("right", -ARM, ARM)]}))
+    (folder / "dcb.geo").write_text(strip_geo(length, ARM, [(0.0, a)], {"clamped": [("right", -ARM, ARM)]}))
     if loading == "moment":
         slope = 12.0 * 0.5 * MOMENT / ARM ** 3  # σxx = slope (y − centre) on a layer's end face: M/2 about it
         parts = {"upper": f'x = "{slope!r} * (y - {0.5 * ARM!r})"', "lower": f'x = "{-slope!r} * (y + {0.5 * ARM!r})"'}
@@ -79,21 +80,22 @@ def dcb_scene(folder: Path, a: float, size: float, degree: int = 2, loading: str
     loads = "".join(f"[loads.{layer}.left_{side}]\n{part}\n" for layer in ("layer1", "layer2")
                     for side, part in parts.items())
     text = (f'title = "bi-material DCB, a = {a:g}, {loading} loading"\n[mesh]\nfile = "dcb.geo"\nsize = {size!r}\n'
-            f"degree = {degree}\ngrading = true\n{_materials(DCB_REGIONS)}{loads}")
+            f"degree = {degree}\ngrading = true\n{region_materials(DCB_REGIONS)}{loads}")
     (folder / "dcb.toml").write_text(text)
     return scene.loads(text, origin="bi-material DCB", base=folder)
 
 
-def bimetal_scene(folder: Path, size: float, degree: int = 2):
+def bimetal_scene(folder: Path, size: float, degree: int = 2, crack: float = 0.0):
     """The thermal bilayer's scene (its .toml and .geo written into ``folder``): x = 0 a symmetry plane, the
-    point (0, 0) held in y."""
+    point (0, 0) held in y; ``crack`` > 0: Σ cracked over that length from the free end x = LENGTH."""
     from ddsolve.problem import scene
 
-    (folder / "bimetal.geo").write_text(strip_geo(LENGTH, ARM, [], {"pin": [("left", -0.2 * PIN, 0.2 * PIN)]}))
+    cracks = [(LENGTH - crack, LENGTH)] if crack > 0.0 else []
+    (folder / "bimetal.geo").write_text(strip_geo(LENGTH, ARM, cracks, {"pin": [("left", -0.2 * PIN, 0.2 * PIN)]}))
     supports = "".join(f"[displacements.{layer}.{name}]\nx = 0.0\n{extra}" for layer in ("layer1", "layer2")
                        for name, extra in (("left_lower", ""), ("left_upper", ""), ("pin", "y = 0.0\n")))
     text = (f'title = "thermal bilayer"\n[mesh]\nfile = "bimetal.geo"\nsize = {size!r}\ndegree = {degree}\n'
-            f"{_materials(BIMETAL_REGIONS)}[temperature]\nlayer1 = {HEATING!r}\nlayer2 = {HEATING!r}\n{supports}")
+            f"{region_materials(BIMETAL_REGIONS)}[temperature]\nlayer1 = {HEATING!r}\nlayer2 = {HEATING!r}\n{supports}")
     (folder / "bimetal.toml").write_text(text)
     return scene.loads(text, origin="thermal bilayer", base=folder)
 
@@ -106,21 +108,27 @@ def solved(source):
     return reference.solve_monolithic(source, geometry.build(source))
 
 
-def dcb(a: float, size: float, degree: int = 2, loading: str = "moment") -> dict:
+def dcb(a: float, size: float, degree: int = 2, loading: str = "moment", length: float = LENGTH,
+        chi: float = CHI_I) -> dict:
     """G of the bi-material DCB at crack length ``a`` against beam theory (``moment`` loading: exact; ``force``:
-    corrected with χ = CHI_I), the crack's opening at its mouth (positive: the arms open), the G_I reported and the
-    interface crack's ε and ψ (at the scene's reference length, docs/fracture.md)."""
+    corrected with the tip correction ``chi``), the crack's opening at its mouth (positive: the arms open), the
+    G_I reported and the interface crack's ε and ψ (at the scene's reference length, docs/fracture.md)."""
     with tempfile.TemporaryDirectory() as folder:
-        result = solved(dcb_scene(Path(folder), a, size, degree, loading))
+        result = solved(dcb_scene(Path(folder), a, size, degree, loading, length))
     moduli = {region: 2.0 * plane_strain_modulus(E, nu) for region, (E, nu) in DCB_REGIONS.items()}
-    theory = bilayer_dcb(MOMENT, None, ARM, moduli) if loading == "moment" else bilayer_dcb(LOAD, a, ARM, moduli)
+    theory = bilayer_dcb(MOMENT, None, ARM, moduli) if loading == "moment" else bilayer_dcb(LOAD, a, ARM, moduli, chi)
     G = float(result.fracture.G[0])
     mouth = np.argmin(result.lower.points[result.lower.sigma, 0])
     opening = float(result.solution["u_plus"][result.upper.sigma[mouth], 1]
                     - result.solution["u_minus"][result.lower.sigma[mouth], 1])
     return {"a": a, "G": G, "theory": theory, "error": G / theory - 1.0, "opening": opening,
             "G_I": float(result.fracture.G_I[0]), "epsilon": float(result.fracture.epsilon[0]),
-            "phase": float(result.fracture.phase[0])}
+            "phase": float(result.fracture.phase[0]), "unknowns": unknowns(result)}
+
+
+def unknowns(result) -> int:
+    """The unknowns of a solved structure: two components at every vertex of each half in both layers."""
+    return 4 * sum(len(half.points) for half in result.mesh.halves)
 
 
 def measured_curvature(result) -> float:
@@ -138,7 +146,7 @@ def bimetal(size: float, degree: int = 2) -> dict:
     with tempfile.TemporaryDirectory() as folder:
         result = solved(bimetal_scene(Path(folder), size, degree))
     kappa, theory = measured_curvature(result), bimetal_curvature(BIMETAL_REGIONS, HEATING, ARM)
-    return {"curvature": kappa, "theory": theory, "error": kappa / theory - 1.0}
+    return {"curvature": kappa, "theory": theory, "error": kappa / theory - 1.0, "unknowns": unknowns(result)}
 
 
 def implied_correction(row: dict) -> float:

@@ -88,6 +88,8 @@ def cases(folder: Path) -> list[tuple[str, list[str], list[str]]]:
             ("loads.layer1.top.y", [], ["loads.layer1.top.y=[0.0, -0.05]"]),
             ("loads.layer2.top.pressure", [], ["loads.layer2.top.pressure=0.01"]),
             ("contact.nonpenetration", [], ["contact.nonpenetration=false"]),
+            ("contact.friction", [], ["contact.friction=0.5"]),
+            ("contact.slip_bound", [], ["contact.slip_bound=0.05"]),
             ("solver.method", [], uzawa),
             ("solver.theta", uzawa, ["solver.theta=30.0"]),
             ("solver.p", [], ["solver.p=0.01"]),

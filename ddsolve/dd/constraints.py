@@ -39,9 +39,11 @@ class Constraints:
     """The KKT residuals of a result, each scale-free (0 for an exact solution)."""
 
     penetration: float  # max (u⁻ − u⁺)·ν > 0 over every crack node under non-penetration (prescribed too), / U
-    gluing_gap: float  # max |gluing gap| over Σ (but the gap a multiplier at its bound ±p allows), / U
+    gluing_gap: float  # max |gluing gap| over Σ (but the gap a multiplier at its bound ±p allows) and max slip of
+    # crack faces held by friction below its bound g (or slipping against μ_t where |μ_t| = g), / U
     complementarity: float  # max |μᶜ [u]·ν| (but where μᶜ = p) / (max|λ| U)
-    multiplier_bounds: float  # max violation of 0 ≤ μᶜ ≤ p, |μ| ≤ p (a pull on closed crack faces), / max|λ|
+    multiplier_bounds: float  # max violation of 0 ≤ μᶜ ≤ p, |μ| ≤ p, |μ_t| ≤ g (a pull on closed crack faces,
+    # friction beyond its bound: Coulomb's g = μ max(μᶜ, 0) of the same multipliers), / max|λ|
     equilibrium: float  # max over blocks of ‖K x − f − ℓ(λ)‖∞ / (‖K‖∞‖x‖∞ + ‖f‖∞ + ‖ℓ(λ)‖∞)
     min_mu_c: float  # smallest contact multiplier (≥ 0 when dual feasible)
     max_displacement: float  # max nodal |u|
@@ -97,18 +99,27 @@ def scale_free_ratio(value: float, scale: float) -> float:
     return value / scale if scale > 0.0 else np.inf
 
 
+#: A friction multiplier within this fraction of the traction scale of its bound g is at the bound (Coulomb's g
+#: of the final multipliers differs from the last fixed-point iterate's by the iteration's tolerance).
+FRICTION_SLACK = 1e-6
+
+
 def kkt(interface: Interface, traces: np.ndarray, lam: np.ndarray, p: float | None, equilibrium: np.ndarray,
         largest: float) -> Constraints:
-    """The KKT residuals from the blocks' traces ``(4, 2k)`` (local frames) under the multipliers
+    """The KKT residuals from the blocks' traces ``(blocks, 2k)`` (local frames) under the multipliers
     ``lam`` (bound ``p``), their equilibrium residuals and the largest nodal displacement; displacements
-    are measured against :func:`displacement_scale`."""
+    are measured against :func:`displacement_scale`.  Friction (μ_t): |μ_t| ≤ g, the slip (u⁻ − u⁺)·τ zero where
+    |μ_t| < g and of μ_t's sign where |μ_t| = g (Coulomb: g = μ max(μᶜ, 0) of ``lam``)."""
     gap = interface.gap(traces)
-    lower, upper = interface.bounds(p)
+    lower, upper = interface.with_slip(interface.slip_bounds(lam)).bounds(p)
     size = displacement_scale(interface, largest)
     traction = traction_scale(interface, lam, size)
-    slack = 1e-9 * np.abs(upper[np.isfinite(upper)]).max(initial=0.0)
+    base = 1e-9 * np.abs(upper[np.isfinite(upper)]).max(initial=0.0)
+    slack = np.full(len(lam), base)
+    slack[interface.is_friction] = max(base, FRICTION_SLACK * traction)
     at_lower, at_upper = lam <= lower + slack, lam >= upper - slack
     violated = np.where(at_upper, np.maximum(-gap, 0.0), np.where(at_lower, np.maximum(gap, 0.0), np.abs(gap)))
+    violated[at_lower & at_upper] = 0.0  # a friction row without contact pressure (Coulomb's g = 0): free
     contact = interface.is_contact
     mu_c = lam[contact]
     bounds = float(np.maximum(lower - lam, lam - upper).max(initial=0.0))

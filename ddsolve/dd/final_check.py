@@ -6,6 +6,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ddsolve.dd import friction
 from ddsolve.dd.constraints import Constraints, kkt, kkt_tolerance
 from ddsolve.dd.dual import Outcome, Progress, Rounds, no_convergence
 from ddsolve.dd.interface import Interface
@@ -53,7 +54,19 @@ TIGHTENINGS = 2
 
 
 def checked_solve(method: str, rounds: Rounds, interface: Interface, solver: Solver, progress: Progress) -> Outcome:
-    """``method``'s multipliers, the final solve and its check (:func:`final_solve`).
+    """``method``'s multipliers, the final solve and its check (:func:`_checked`); with Coulomb's friction the
+    fixed point of Tresca problems (:func:`ddsolve.dd.friction.coulomb`), each checked and started from the last
+    multipliers, unless the method iterates it itself on rank 0 (``schur``)."""
+    described = METHODS[method]
+    if interface.coulomb and interface.friction and not described.fixed_point:
+        return friction.coulomb(interface, lambda tresca, start: _checked(method, rounds, tresca, solver, progress,
+                                                                           start), solver.tol, method)
+    return _checked(method, rounds, interface, solver, progress)
+
+
+def _checked(method: str, rounds: Rounds, interface: Interface, solver: Solver, progress: Progress,
+             start: np.ndarray | None = None) -> Outcome:
+    """``method``'s multipliers (from ``start`` where given), the final solve and its check (:func:`final_solve`).
 
     The criterion of the methods that resume (:attr:`~ddsolve.dd.registry.Method.resumes`) is relative to the gap
     of the uncoupled blocks.
@@ -63,7 +76,8 @@ def checked_solve(method: str, rounds: Rounds, interface: Interface, solver: Sol
     times and within ``max_iterations`` in all; the check stays the one ``solver.tol`` asks for."""
     described = METHODS[method]
     run = described.run
-    outcome = run(rounds, interface, solver, progress)
+    outcome = run(rounds, interface, solver, progress) if start is None else run(rounds, interface, solver,
+                                                                                   progress, start=start)
     if outcome.diverged:
         return outcome
     tolerance, tol = kkt_tolerance(solver), solver.tol

@@ -57,8 +57,9 @@ def mprgp(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
     def free_gradient(y, g):
         return np.where((y > lower) & (y < upper), g, 0.0)
 
-    def chopped_gradient(y, g):
-        return np.where(y <= lower, np.minimum(g, 0.0), 0.0) + np.where(y >= upper, np.maximum(g, 0.0), 0.0)
+    def chopped_gradient(y, g):  # a row whose bounds are equal (friction without pressure) has no way in
+        return (np.where((y <= lower) & (y < upper), np.minimum(g, 0.0), 0.0)
+                + np.where((y >= upper) & (y > lower), np.maximum(g, 0.0), 0.0))
 
     def reduced_free_gradient(y, g):
         phi = free_gradient(y, g)

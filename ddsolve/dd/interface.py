@@ -12,26 +12,36 @@ multiplier  vertices                gap it enforces      admissible set
 μᵍ (x, y)   glued (not crack)       u⁻ − u⁺ = 0          −p ≤ μᵍ ≤ p
 μ⁻ (x, y)   all                     u⁻ − v⁻ = 0          −p ≤ μ⁻ ≤ p
 μ⁺ (x, y)   all                     u⁺ − v⁺ = 0          −p ≤ μ⁺ ≤ p
+μ_t         crack, with friction    (u⁻ − u⁺)·τ = 0      −g ≤ μ_t ≤ g (and |μ_t| ≤ p)
+            (x only: tangential)    unless |μ_t| = g
 ==========  ======================  ===================  ========================
 
-A one-layer structure has the blocks u⁻ and u⁺ only, and μᶜ, μᵍ only: the families that glue a region's layers
-together (μ⁻, μ⁺) come from the pairs :func:`ddsolve.mesh.mesh.glued_layers` lists.
+A one-layer structure has the blocks u⁻ and u⁺ only, and μᶜ, μᵍ (and μ_t) only: the families that glue a region's
+layers together (μ⁻, μ⁺) come from the pairs :func:`ddsolve.mesh.mesh.glued_layers` lists.
 
 With the lumped weights w (∫Σ φ_k ds: half the length of the Σ edges at a P1 vertex) the discrete coupling is
 gap = Σ_b C_b t_b and block b receives the nodal force −C_bᵀ W λ on its trace.  μᶜ exists only
 when the scene has a crack and non-penetration; without it the crack faces are simply free.
+
+μ_t exists only on crack vertices with friction (``contact.friction`` μ or ``contact.slip_bound`` g > 0): the
+tangential traction between the faces, the lower face receiving −μ_t τ and the upper +μ_t τ.  Its box is
+Tresca's (g given) or, for Coulomb, g = μ × the contact pressure μᶜ of a fixed-point iteration
+(:mod:`ddsolve.dd.friction`).  The dual problem's optimality makes the slip s = (u⁻ − u⁺)·τ vanish where
+|μ_t| < g and have the sign of μ_t where |μ_t| = g: the friction on each face opposes its slip relative to
+the other.
 """
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
 
 from ddsolve.mesh.mesh import U_MINUS, U_PLUS, BlockSpec, SigmaLine, blocks, glued_layers
-
+from ddsolve.problem.scene import Friction
 
 #: The families on Σ's faces (layer1's blocks u⁻ and u⁺), and the family that glues a region's layers, by its side.
-SIGMA_FAMILIES = ("mu_c", "mu_g")
+SIGMA_FAMILIES = ("mu_c", "mu_g", "mu_t")
 LAYER_FAMILIES = {-1: "mu_minus", +1: "mu_plus"}
 
 
@@ -48,14 +58,16 @@ class Interface:
     """Multiplier layout and the maps between traces, gaps, multipliers and interface loads."""
 
     def __init__(self, weights: np.ndarray, crack: np.ndarray, contact: bool, fixed: np.ndarray | None = None,
-                 modulus: float = 0.0, data: float = 0.0, specs: tuple[BlockSpec, ...] = blocks(2)):
+                 modulus: float = 0.0, data: float = 0.0, friction: np.ndarray | None = None, coulomb: bool = False,
+                 specs: tuple[BlockSpec, ...] = blocks(2)):
         """``weights`` and ``crack`` (bool) of the k multiplier nodes; ``contact``: non-penetration holds;
         ``specs``: the structure's blocks (:func:`ddsolve.mesh.mesh.blocks`);
         ``fixed`` ``(blocks, 2k)``: the blocks' prescribed trace entries (:mod:`ddsolve.fem.supports`): a
         multiplier between two prescribed entries has nothing to enforce and does not exist; ``modulus``:
         the largest elastic modulus of the layers (the scale of the stresses a displacement makes, for the
         KKT check); ``data``: the displacement the scene's data would make
-        (:func:`ddsolve.fem.assembly.data_displacement`, the KKT check's scale when the solution is zero)."""
+        (:func:`ddsolve.fem.assembly.data_displacement`, the KKT check's scale when the solution is zero);
+        ``friction`` ``(k,)``: Coulomb's μ (``coulomb``) or Tresca's bound g at each node (0: none)."""
         self.modulus = float(modulus)
         self.data = float(data)
         self.weights = np.asarray(weights, dtype=np.float64)
@@ -68,13 +80,17 @@ class Interface:
 
         self.blocks = tuple(specs)
         # Multiplier rows: (vertex, component) and the blocks (minuend, subtrahend) of the gap of each family, in
-        # the order of the class docstring: Σ's faces, then each region's layers glued.
+        # the order of the class docstring: Σ's faces, each region's layers glued, the friction.
         families = {
             "mu_c": (contact_vertices, np.ones(len(contact_vertices), dtype=np.int64), (U_MINUS, U_PLUS)),
             "mu_g": (*_both_components(glued_vertices), (U_MINUS, U_PLUS)),
             **{LAYER_FAMILIES[self.blocks[first].side]: (*_both_components(all_vertices), (first, other))
                for first, other in glued_layers(self.blocks)},
         }
+        friction = np.zeros(k) if friction is None else np.asarray(friction, dtype=np.float64)
+        sliding = contact_vertices[friction[contact_vertices] > 0]
+        if len(sliding):
+            families["mu_t"] = (sliding, np.zeros(len(sliding), dtype=np.int64), (U_MINUS, U_PLUS))
         #: The crack faces' normal entries (trace positions) that both faces prescribe, so that no contact row
         #: holds them: the KKT check measures their penetration from the traces alone.
         self.prescribed_contact = np.zeros(0, dtype=np.int64)
@@ -99,6 +115,7 @@ class Interface:
         self.row_weights = self.weights[self.vertex]
         self.is_contact = np.zeros(self.size, dtype=bool)
         self.is_contact[self.slices["mu_c"]] = True
+        self._friction_rows(friction, coulomb)
 
         # (family, block, sign): a family's gap rows are its minuend's trace less its subtrahend's.
         signs = [(name, block, sign) for name, pair in self.pairs.items() for block, sign in zip(pair, (1.0, -1.0))]
@@ -109,16 +126,53 @@ class Interface:
                                    for f, b, s in signs if b == block])
             self.couplings.append(Coupling(rows, self.trace_index[rows], sign))
 
+    def _friction_rows(self, friction: np.ndarray, coulomb: bool) -> None:
+        """The μ_t rows' data: ``is_friction``, Coulomb's μ or Tresca's g per row, the row of the contact
+        multiplier at the same vertex (−1: none) and ``slip``, the bound g of the rows (Coulomb: None until a
+        fixed-point iteration gives it, :meth:`with_slip`)."""
+        rows = self.slices.get("mu_t", slice(self.size, self.size))
+        self.is_friction = np.zeros(self.size, dtype=bool)
+        self.is_friction[rows] = True
+        self.coulomb = bool(coulomb)
+        self.friction_values = friction[self.vertex[rows]]
+        normal = np.full(len(self.weights), -1)
+        normal[self.vertex[self.slices["mu_c"]]] = np.arange(self.size)[self.slices["mu_c"]]
+        self.normal_row = normal[self.vertex[rows]]
+        self.slip = None if self.coulomb else self.friction_values.copy()
+
+    @property
+    def friction(self) -> bool:
+        """Whether any crack vertex carries a friction multiplier μ_t."""
+        return bool(self.is_friction.any())
+
+    def with_slip(self, slip: np.ndarray) -> Interface:
+        """This interface with the bounds ``slip`` (one per μ_t row) on its friction multipliers."""
+        out = copy.copy(self)
+        out.slip = np.asarray(slip, dtype=np.float64)
+        return out
+
+    def slip_bounds(self, lam: np.ndarray) -> np.ndarray:
+        """g of each μ_t row: Tresca's (given, or a Coulomb fixed point's iterate, :meth:`with_slip`), else Coulomb's
+        μ max(μᶜ, 0) at the same vertex of the multipliers ``lam``."""
+        if self.slip is not None:
+            return self.slip
+        normal = np.where(self.normal_row >= 0, lam[np.maximum(self.normal_row, 0)], 0.0)
+        return self.friction_values * np.maximum(normal, 0.0)
+
     @property
     def trace_size(self) -> int:
         return 2 * len(self.weights)
 
     def bounds(self, p: float | None) -> tuple[np.ndarray, np.ndarray]:
-        """Lower and upper bounds of λ: μᶜ in [0, p], the others in [−p, p] (p = None: unbounded)."""
+        """Lower and upper bounds of λ: μᶜ in [0, p], μ_t in [−g, g] (g: :attr:`slip`, 0 where Coulomb's is not
+        set yet; at most p), the others in [−p, p] (p = None: unbounded)."""
         p = np.inf if p is None else p
         lower = np.full(self.size, -p)
         lower[self.is_contact] = 0.0
-        return lower, np.full(self.size, p)
+        upper = np.full(self.size, p)
+        upper[self.is_friction] = np.minimum(0.0 if self.slip is None else self.slip, p)
+        lower[self.is_friction] = -upper[self.is_friction]
+        return lower, upper
 
     def gap(self, traces: np.ndarray) -> np.ndarray:
         """Constraint values Σ_b C_b t_b for traces ``(blocks, 2k)``."""
@@ -150,7 +204,7 @@ class Interface:
             if first == U_MINUS:
                 minus[self.trace_index[rows]] += lam[rows]
         for name in SIGMA_FAMILIES:
-            rows = self.slices[name]
+            rows = self.slices.get(name, slice(0, 0))
             traces = self.trace_index[rows]
             lam[rows] = -loads[U_MINUS][traces] / self.row_weights[rows] - minus[traces]
         return lam
@@ -183,14 +237,18 @@ class Interface:
 
     def split(self, lam: np.ndarray, frames: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """Per-node arrays: mu_c ``(k,)``, mu_g, mu_minus, mu_plus ``(k, 2)``; 0 where absent (a one-layer
-        structure has no mu_minus, mu_plus: they are left out).
+        structure has no mu_minus, mu_plus: they are left out); with friction mu_t ``(k,)`` (the tangential
+        traction, along τ) too.
 
         The vectors are in the nodes' local frames, or in (x, y) when their ``frames`` ``(k, 2, 2)`` are given.
         """
         k = len(self.weights)
         out = {"mu_c": np.zeros(k)}
         out["mu_c"][self.vertex[self.slices["mu_c"]]] = lam[self.slices["mu_c"]]
-        for name in (name for name in self.slices if name != "mu_c"):
+        if self.friction:
+            out["mu_t"] = np.zeros(k)
+            out["mu_t"][self.vertex[self.slices["mu_t"]]] = lam[self.slices["mu_t"]]
+        for name in (name for name in self.slices if name not in ("mu_c", "mu_t")):
             values = np.zeros((k, 2))
             rows = self.slices[name]
             values[self.vertex[rows], self.component[rows]] = lam[rows]
@@ -199,12 +257,26 @@ class Interface:
 
 
 def for_mesh(sigma: SigmaLine, contact: bool, fixed: np.ndarray | None = None, modulus: float = 0.0,
-             data: float = 0.0, specs: tuple[BlockSpec, ...] = blocks(2)) -> Interface:
+             data: float = 0.0, friction: Friction | None = None, specs: tuple[BlockSpec, ...] = blocks(2)
+             ) -> Interface:
     """The interface of a mesh's Σ (``contact``: the scene's non-penetration condition; ``fixed``: the
     blocks' prescribed trace entries; ``modulus``: the layers' largest modulus; ``data``: the displacement
-    the data would make; ``specs``: the structure's blocks; see :class:`Interface`)."""
+    the data would make; ``friction``: the scene's, on its cracks in order along Σ; ``specs``: the structure's
+    blocks; see :class:`Interface`)."""
     nodes = sigma.multiplier_nodes
-    return Interface(sigma.weights[nodes], sigma.crack[nodes], contact, fixed, modulus, data, specs)
+    values = None if friction is None else friction_values(sigma, friction)[nodes]
+    return Interface(sigma.weights[nodes], sigma.crack[nodes], contact, fixed, modulus, data, values,
+                     friction is not None and friction.coulomb, specs)
+
+
+def friction_values(sigma: SigmaLine, friction: Friction) -> np.ndarray:
+    """``(s,)``: the scene's friction value (μ or g) of each Σ node's crack, 0 off the cracks; the cracks are the
+    runs of crack nodes in order along Σ."""
+    values = np.zeros(len(sigma.points))
+    runs = sigma.pieces(sigma.crack)
+    for value, (first, last) in zip(friction.per_crack(len(runs)), runs):
+        values[first:last + 1] = value
+    return values
 
 
 def _both_components(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -48,6 +48,8 @@ class Method:
     #: blocks' gap), which :func:`~ddsolve.dd.final_check.checked_solve` asks when the final check finds it short.
     resumes: Callable[[Solver], bool] = _never
     remedy: Callable[[Solver], str] = _lower_tol  # what to change when its final check fails
+    #: Whether it iterates Coulomb's friction itself, on rank 0 (else :func:`~ddsolve.dd.friction.coulomb` around it).
+    fixed_point: bool = False
 
     @property
     def name(self) -> str:
@@ -55,7 +57,8 @@ class Method:
 
 
 METHODS: dict[str, Method] = {method.name: method for method in (
-    Method(OPTIONS["schur"], schur.schur, "mumps", floating=INTERIOR, schur_complements=True, remedy=schur.remedy),
+    Method(OPTIONS["schur"], schur.schur, "mumps", floating=INTERIOR, schur_complements=True, remedy=schur.remedy,
+           fixed_point=True),
     Method(OPTIONS["mprgp"], gradient.mprgp, resumes=_always),
     Method(OPTIONS["fista"], gradient.fista, resumes=_always),
     Method(OPTIONS["uzawa"], uzawa.uzawa, resumes=uzawa.resumes, remedy=uzawa.remedy),

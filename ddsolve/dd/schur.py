@@ -9,6 +9,7 @@ import numpy as np
 
 from ddsolve.dd.constraints import displacement_scale
 from ddsolve.dd.dual import DualProblem, Outcome, Progress, Rounds
+from ddsolve.dd.friction import MAX_FIXED_POINT, no_fixed_point, relative_change, settled
 from ddsolve.dd.interface import Interface
 from ddsolve.errors import SolverError
 from ddsolve.problem.scene import Solver
@@ -137,7 +138,8 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
     outcome = Outcome(problem.multipliers(y), converged=True, iterations=steps, history=exact.history,
                       active_set_changes=exact.changes,
                       details={"rank0_solve_time": time.perf_counter() - started, "interface_unknowns": exact.size,
-                               "active_set_steps": exact.steps, "active_set_time": exact.step_time},
+                               "active_set_steps": exact.steps, "active_set_time": exact.step_time,
+                               **({"coulomb_iterations": exact.coulomb_iterations} if exact.coulomb_iterations else {})},
                       held=predicted)
 
     def refine(solved_traces: np.ndarray, required: bool) -> np.ndarray | None:
@@ -154,6 +156,8 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
         outcome.iterations += more
         outcome.details["rank0_solve_time"] += time.perf_counter() - mark
         outcome.details.update(active_set_steps=exact.steps, active_set_time=exact.step_time)
+        if exact.coulomb_iterations:
+            outcome.details["coulomb_iterations"] = exact.coulomb_iterations
         return problem.multipliers(y)
 
     outcome.refine = refine
@@ -170,9 +174,11 @@ class ExactDual:
         self.problem, self.interface, self.schur_complements, self.floating = problem, interface, schur_complements, floating
         unknowns = interface.trace_unknowns()
         size = int(unknowns.max()) + 1
-        contact = interface.slices["mu_c"]
-        normal = 2 * interface.vertex[contact] + 1
-        # The crack faces' normal unknowns go last: the contact forces act on them only, so with
+        # the crack rows: contact (normal), then friction (tangential) where the scene has it
+        contact = np.concatenate([np.arange(interface.size)[interface.slices["mu_c"]],
+                                  np.flatnonzero(interface.is_friction)])
+        normal = interface.trace_index[contact]  # the faces' entries the crack rows act on
+        # The crack faces' unknowns the crack rows act on go last: the contact forces act on them only, so with
         # S = L Lᵀ, L⁻¹ Bᵀ lives in the last block of L and A_c = (L_cc⁻¹ B_cᵀ)ᵀ(L_cc⁻¹ B_cᵀ).
         faces = np.concatenate([unknowns[0][normal], unknowns[1][normal]])
         last = np.zeros(size, dtype=bool)
@@ -198,6 +204,7 @@ class ExactDual:
         self.dual = self.forces.T @ self.forces
         self.unknowns, self.size, self.first, self.contact = unknowns, size, first, contact
         self.lower_c, self.upper_c = problem.lower[contact], problem.upper[contact]
+        self.coulomb_iterations = 0  # Tresca problems of the last Coulomb fixed point
         self.history: list[float] = []
         self.changes: list[int] = []
         self.last_c: np.ndarray | None = None  # the last contact multipliers: the next solve starts from their set
@@ -216,6 +223,8 @@ class ExactDual:
         y_c, steps = box_qp(self.dual, self.forces.T @ loaded[self.first:], lower_c, upper_c, start=self.last_c,
                             observe=lambda y_c, changed: self.record(
                                 *self.contact_step(loaded, condensed, np.clip(y_c, lower_c, upper_c)), changed))
+        if self.interface.coulomb and self.interface.friction:
+            y_c, steps = self.fixed_point(loaded, condensed, y_c, steps)
         self.last_c = y_c
         y, traces = self.contact_step(loaded, condensed, y_c)
         if np.any(y < problem.lower) or np.any(y > problem.upper):  # a bound ±p is active: all bounds
@@ -224,6 +233,36 @@ class ExactDual:
         self.steps += steps
         self.step_time += time.perf_counter() - mark
         return y, traces, steps
+
+    def fixed_point(self, loaded: np.ndarray, condensed: np.ndarray, y_c: np.ndarray, steps: int
+                    ) -> tuple[np.ndarray, int]:
+        """Coulomb's friction (:mod:`ddsolve.dd.friction`) on rank 0: Tresca problems on the crack rows with
+        g = μ max(μᶜ, 0) of the last, each started from its active set, until g settles; the crack rows' scaled
+        multipliers and the active-set steps in all.  The bounds of the friction rows become the last g."""
+        problem, interface = self.problem, self.interface
+        friction_rows = interface.is_friction[self.contact]
+        sqrt_w = problem.sqrt_w[self.contact][friction_rows]
+        cap = (np.inf if problem.solver.p is None else problem.solver.p) * sqrt_w
+        lam = np.zeros(interface.size)
+        slip = self.upper_c[friction_rows] / sqrt_w  # the bounds y_c was solved with
+        for iteration in range(1, MAX_FIXED_POINT + 1):
+            lam[self.contact] = y_c / problem.sqrt_w[self.contact]
+            new = interface.slip_bounds(lam)
+            if settled(slip, new, problem.solver.tol):
+                break
+            change, slip = relative_change(slip, new), new
+            self.upper_c[friction_rows] = np.minimum(slip * sqrt_w, cap)
+            self.lower_c[friction_rows] = -self.upper_c[friction_rows]
+            y_c, more = box_qp(self.dual, self.forces.T @ loaded[self.first:], self.lower_c, self.upper_c, start=y_c,
+                               observe=lambda y, changed: self.record(
+                                   *self.contact_step(loaded, condensed, np.clip(y, self.lower_c, self.upper_c)),
+                                   changed))
+            steps += more
+        else:
+            raise SolverError(no_fixed_point("schur", change))
+        problem.lower[self.contact], problem.upper[self.contact] = self.lower_c, self.upper_c
+        self.coulomb_iterations = iteration
+        return y_c, steps
 
     def contact_step(self, loaded: np.ndarray, condensed: np.ndarray, y_c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Every scaled multiplier and the traces S⁻¹(body − Bᵀ W^½ y_c) for the contact multipliers ``y_c``

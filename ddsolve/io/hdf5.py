@@ -23,6 +23,8 @@ from ddsolve.problem import scene as scenes
 MULTIPLIERS = ("mu_c", "mu_g", "mu_minus", "mu_plus")
 #: The multipliers of a one-layer structure (no layers to glue: its files have no mu_minus, mu_plus datasets).
 ONE_LAYER_MULTIPLIERS = MULTIPLIERS[:2]
+#: The friction multiplier (the tangential traction between the crack faces), written with friction only.
+FRICTION = ("mu_t",)
 #: A dataset of a result file holds at most this many times the file's size (ddsolve does not
 #: compress them): a larger claim is a damaged header, not read.
 READ_LIMIT = 16
@@ -155,15 +157,18 @@ def block_datasets(block: str, u: np.ndarray, von_mises: np.ndarray, indicator: 
 
 
 def sigma_datasets(on: OnSigma, history: np.ndarray, active_set_changes: np.ndarray,
-                   levels: dict[str, np.ndarray], fracture, reactions: dict[str, dict[str, np.ndarray]]
-                   ) -> dict[str, np.ndarray]:
+                   levels: dict[str, np.ndarray], fracture, reactions: dict[str, dict[str, np.ndarray]],
+                   friction: scenes.Friction | None = None) -> dict[str, np.ndarray]:
     """What rank 0 writes: Σ, the interface, the history, the levels of an adaptive run, /fracture and
-    /reactions."""
+    /reactions; with ``friction`` the tangential traction ``interface/mu_t`` and ``interface/friction_state``
+    (0 faces apart, 1 stick, 2 slip: :func:`ddsolve.post.analysis.friction_state`)."""
     sigma, nodes = on.sigma, on.sigma.multiplier_nodes
     out = {f"sigma/{key}": getattr(sigma, key) for key in SIGMA_FIELDS}
     out.update({"interface/x": sigma.points[nodes, 0], "interface/points": sigma.points[nodes],
                 "interface/normal": sigma.normals[nodes], "interface/crack": sigma.crack[nodes],
-                **{f"interface/{name}": on.multipliers[name] for name in MULTIPLIERS if name in on.multipliers},
+                **{f"interface/{name}": on.multipliers[name] for name in MULTIPLIERS + FRICTION
+                   if name in on.multipliers},
+                **({"interface/friction_state": analysis.friction_state(on, friction)} if "mu_t" in on.multipliers else {}),
                 "history/criterion": np.asarray(history, dtype=np.float64),
                 "history/active_set_changes": np.asarray(active_set_changes, dtype=np.int64),
                 **{f"levels/{name}": values for name, values in levels.items()}})
@@ -202,7 +207,7 @@ def result_part(result: Result, fields: dict[str, analysis.CellFields]) -> Part:
                                        {name: per_block[spec.name] for name, per_block in result.cell_data.items()
                                         if spec.name in per_block}))
     datasets.update(sigma_datasets(result.on_sigma, result.history, result.active_set_changes, result.levels,
-                                   result.fracture, result.reactions))
+                                   result.fracture, result.reactions, result.scene.friction))
     return Part(datasets, attributes(result))
 
 
@@ -342,6 +347,7 @@ def _read(f: h5py.File, path: Path) -> Result:
                 for spec in specs}
     multipliers = {name: _array(f, f"interface/{name}", "f", (k,) if name == "mu_c" else (k, 2))
                    for name in (MULTIPLIERS if len(specs) == 4 else ONE_LAYER_MULTIPLIERS)}
+    multipliers.update({name: _array(f, f"interface/{name}", "f", (k,)) for name in FRICTION if f"interface/{name}" in f})
     for name, kind, shape in (("x", "f", (k,)), ("points", "f", (k, 2)), ("normal", "f", (k, 2)), ("crack", "b", (k,))):
         _array(f, f"interface/{name}", kind, shape)  # derived from the above: only their form is checked
     cell_data = {}

@@ -21,6 +21,7 @@ from ddsolve.errors import DDSolveError
 from ddsolve.problem.schema import LAYERS
 from ddsolve.post import analysis, plots
 from ddsolve.post.result import OnSigma, Result
+from ddsolve.problem.scene import Friction
 
 #: meshio cell type -> XDMF topology type.
 _XDMF_TOPOLOGY = {"triangle": "Triangle", "triangle6": "Triangle_6", "line": "Polyline", "line3": "Edge_3"}
@@ -189,9 +190,10 @@ def sigma_cells(sigma, degree: int) -> tuple[str, np.ndarray]:
     return "line3", np.column_stack([first, first + 2, first + 1])
 
 
-def sigma_mesh(on: OnSigma, degree: int) -> ViewerMesh:
+def sigma_mesh(on: OnSigma, degree: int, friction: Friction | None = None) -> ViewerMesh:
     """The Σ nodes in order with the jump of layer 1, its normal part, the multipliers, the normals
-    (``on``: :attr:`ddsolve.post.result.Result.on_sigma`; ``degree`` of the elements)."""
+    (``on``: :attr:`ddsolve.post.result.Result.on_sigma`; ``degree`` of the elements); with ``friction`` the
+    tangential traction, the slip (u⁻ − u⁺)·τ and the friction state (0 apart, 1 stick, 2 slip)."""
     sigma = on.sigma
     jump = on.traces["u_plus"] - on.traces["u_minus"]
     nodes = sigma.multiplier_nodes
@@ -205,11 +207,24 @@ def sigma_mesh(on: OnSigma, degree: int) -> ViewerMesh:
         "opening": np.einsum("sd,sd->s", jump, sigma.normals),
         "contact_pressure": on_sigma["mu_c"],
         **{name: padded(on_sigma[name]) for name in ("mu_g", "mu_minus", "mu_plus") if name in on_sigma},
+        **(friction_arrays(on, friction) if "mu_t" in on.multipliers else {}),
         "normal": padded(sigma.normals),
         "crack": sigma.crack.astype(np.int32),
         "x": sigma.points[:, 0],  # plain arrays to plot against (ParaView's XDMF reader has no Points_X)
         "arc_length": sigma.arclength,
     }, {})
+
+
+def friction_arrays(on: OnSigma, friction: Friction | None) -> dict[str, np.ndarray]:
+    """The friction's point arrays on Σ: ``tangential_traction`` μ_t, ``slip`` (u⁻ − u⁺)·τ of layer 1 and
+    ``friction_state`` (:func:`ddsolve.post.analysis.friction_state`), 0 at clamped nodes."""
+    sigma, nodes = on.sigma, on.sigma.multiplier_nodes
+    out = {name: np.zeros(len(sigma.points)) for name in ("tangential_traction", "slip")}
+    out["tangential_traction"][nodes] = on.multipliers["mu_t"]
+    out["slip"][nodes] = np.einsum("kd,kd->k", on.gap, sigma.frames[nodes, 0])
+    out["friction_state"] = np.zeros(len(sigma.points), dtype=np.int8)
+    out["friction_state"][nodes] = analysis.friction_state(on, friction)
+    return out
 
 
 # --- writers -----------------------------------------------------------------------------------
@@ -463,7 +478,7 @@ def viewer_files(result: Result, folder: Path, stem: str, fmt: str = "vtu",
     folder = Path(folder)
     fields = analysis.cell_fields(result) if fields is None else fields
     meshes = [layer_mesh(result, layer, fields) for layer in result.scene.layers] + [
-        sigma_mesh(result.on_sigma, result.mesh.degree)]
+        sigma_mesh(result.on_sigma, result.mesh.degree, result.scene.friction)]
     names = viewer_names(stem, fmt, result.scene.layers)
     script = result_script(result, folder, names, fields)
     writers = write(meshes, folder, stem)

@@ -304,8 +304,8 @@ class OnRanks(Finisher):
         script = ""
         if exchange.is_root:
             datasets.update(hdf5.sigma_datasets(self.on, result.history, result.active_set_changes, result.levels,
-                                              result.fracture, result.reactions))
-            shares["sigma"] = viewer.sigma_mesh(self.on, local.half(-1).degree)
+                                              result.fracture, result.reactions, result.scene.friction))
+            shares["sigma"] = viewer.sigma_mesh(self.on, local.half(-1).degree, result.scene.friction)
             ceilings = {layer: plots.stress_ceiling(np.concatenate([top[layer] for top in tops if layer in top]),
                                                     sum(local.cells.values())) for layer in self.scene.layers}
             names = viewer.viewer_names(output.stem, layers=self.scene.layers)

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ddsolve.dd.constraints import Constraints, kkt, kkt_tolerance, scale_free_ratio
-from ddsolve.dd.interface import Interface, for_mesh
+from ddsolve.dd.interface import Interface, for_mesh, friction_values
 from ddsolve.dd.registry import METHODS
 from ddsolve.errors import DDSolveError
 from ddsolve.fem import assembly, supports
@@ -96,7 +96,10 @@ def multiplier_vector(interface: Interface, multipliers: dict[str, np.ndarray], 
     lam = np.zeros(interface.size)
     rows = interface.slices["mu_c"]
     lam[rows] = multipliers["mu_c"][interface.vertex[rows]]
-    for name in (name for name in interface.slices if name != "mu_c"):
+    if interface.friction:
+        rows = interface.slices["mu_t"]
+        lam[rows] = multipliers["mu_t"][interface.vertex[rows]]
+    for name in (name for name in interface.slices if name not in ("mu_c", "mu_t")):
         rows = interface.slices[name]
         local = np.einsum("nab,nb->na", frames, multipliers[name])
         lam[rows] = local[interface.vertex[rows], interface.component[rows]]
@@ -136,7 +139,8 @@ def constraints(result: Result, equilibrium: np.ndarray | None = None) -> Constr
     scene = result.scene
     interface = for_mesh(result.mesh.sigma, scene.nonpenetration,
                          supports.sigma_supports(scene, result.mesh).fixed, assembly.modulus(scene),
-                         assembly.data_displacement(scene, result.mesh.halves, result.mesh.sigma), result.blocks)
+                         assembly.data_displacement(scene, result.mesh.halves, result.mesh.sigma), scene.friction,
+                         result.blocks)
     frames = result.mesh.sigma.frames[result.multiplier_nodes]
     lam = multiplier_vector(interface, result.multipliers, frames)
     if equilibrium is None:
@@ -449,6 +453,47 @@ def contact_zones(result: Result | OnSigma, tolerance: float = TOUCHING) -> list
     pressed = on.multipliers["mu_c"] > 0.0
     touching = on.sigma.crack[on.sigma.multiplier_nodes] & ((on.opening <= tolerance * on.largest) | pressed)
     return on.sigma.pieces(touching)
+
+
+#: A friction multiplier within this fraction of its bound g slides (its faces slip); below it they stick.
+SLIDING = 1e-6
+#: :func:`friction_state`'s values: faces apart or without friction, sticking, slipping.
+FREE, STICK, SLIP = 0, 1, 2
+
+
+def friction_state(on: OnSigma, friction: scenes.Friction | None) -> np.ndarray:
+    """``(k,)`` per multiplier node: :data:`SLIP` where the crack faces press (μᶜ > 0) and the tangential traction
+    μ_t is at its bound g (Tresca's given g, Coulomb's μ μᶜ; within :data:`SLIDING`), :data:`STICK` where they press
+    below it, else :data:`FREE` (faces apart, or no friction)."""
+    nodes = on.sigma.multiplier_nodes
+    state = np.full(len(nodes), FREE, dtype=np.int8)
+    if friction is None or "mu_t" not in on.multipliers:
+        return state
+    pressure = on.multipliers["mu_c"]
+    bound = friction_values(on.sigma, friction)[nodes] * (np.maximum(pressure, 0.0) if friction.coulomb else 1.0)
+    held = on.sigma.crack[nodes] & (pressure > 0.0) & (bound > 0.0)
+    slipping = np.abs(on.multipliers["mu_t"]) >= (1.0 - SLIDING) * bound
+    state[held] = np.where(slipping[held], SLIP, STICK)
+    return state
+
+
+def friction_zones(result: Result) -> dict[str, list[tuple[int, int]]]:
+    """Runs ``[first, last]`` of multiplier nodes where the crack faces slip and where they stick
+    (:func:`friction_state`), by ``"slip"`` and ``"stick"``; both empty without friction."""
+    on = result.on_sigma
+    state = friction_state(on, result.scene.friction)
+    return {"slip": on.sigma.pieces(state == SLIP), "stick": on.sigma.pieces(state == STICK)}
+
+
+def friction_lines(result: Result) -> list[str]:
+    """Where the crack faces slip and where they stick, as arc length along Σ (none without friction)."""
+    if result.scene.friction is None:
+        return []
+    on = result.on_sigma
+    arc = on.sigma.arclength[on.sigma.multiplier_nodes]
+    return [f"crack faces {kind} ({result.scene.friction.key}; arc length along Σ): "
+            + (", ".join(f"[{arc[a]:.4g}, {arc[b]:.4g}]" for a, b in runs) or "nowhere")
+            for kind, runs in friction_zones(result).items()]
 
 
 def overlap_zones(result: Result | OnSigma, tolerance: float = TOUCHING) -> list[tuple[int, int]]:

@@ -16,6 +16,10 @@ the node's normal: a node moving by θ_k·τ_k along a curved Σ sees its normal
 (dν/ds)(θ_k·τ_k), and the last sum (λ_k = w_k μᶜ_k, the nodal contact force) accounts for that; it is
 zero on a straight Σ and wherever the faces do not touch.
 
+With friction on the crack faces (``contact.friction``, ``contact.slip_bound``) G is −dΠ/da less the rate of
+frictional dissipation: the friction tractions μ_t are taken as loads on the faces inside θ's support, which adds
+the face term −Σ_k μ_t,k s_k ẇ_k (s the slip, w_k the node's weight; :func:`friction_terms`).
+
 Discretely this is exact: θ is interpolated with the element's own basis (P1 or P2 nodes) and
 integrated with the element quadrature, so G is the derivative of the discrete energy Π_h with
 respect to moving the mesh nodes by θ (tests/test_fracture.py checks it against finite differences).
@@ -356,9 +360,48 @@ def contact_terms(tips: list[Tip], on: OnSigma) -> np.ndarray:
     return out
 
 
+def friction_terms(tips: list[Tip], on: OnSigma) -> np.ndarray:
+    """Σ_k μ_t,k s_k dw_k/dt per tip: the rate at which the friction tractions μ_t, taken as loads on the crack
+    faces, change the potential energy as θ moves the Σ nodes (s = (u⁻ − u⁺)·τ the slip, w_k = ∫ φ_k ds its
+    node's weight); zero without friction.  G = −dΠ/da less the frictional dissipation is the volume terms less
+    this: the continuous −∫ μ_t s dθ_s/ds ds = ∫ μ_t θ_s ds/ds ds, the domain integral's face term of a loaded crack."""
+    out = np.zeros(len(tips))
+    mu = on.multipliers.get("mu_t")
+    if mu is None or not tips or not np.any(mu != 0.0):
+        return out
+    sigma = on.sigma
+    nodes = sigma.multiplier_nodes
+    work = np.zeros(len(sigma.points))
+    work[nodes] = mu * np.einsum("kd,kd->k", on.gap, sigma.frames[nodes, 0])
+    for i, tip in enumerate(tips):
+        out[i] = float(work @ weight_rates(sigma, theta(tip, sigma, sigma.points)))
+    return out
+
+
+def weight_rates(sigma: SigmaLine, field: np.ndarray) -> np.ndarray:
+    """d/dt of the Σ nodes' weights w_k = ∫ φ_k ds (:func:`ddsolve.mesh.mesh.sigma_line`) as the nodes move by
+    t × ``field`` ``(s, 2)``."""
+    step = 1 if sigma.corner.all() else 2
+    count = len(sigma.points)
+    edges = np.column_stack([np.arange(0, count - 1, step), np.arange(step, count, step)]
+                            + ([np.arange(1, count, step)] if step == 2 else []))
+    s, w = element.EDGE_RULE
+    shapes, derivatives = element.edge_shapes(edges.shape[1], s)
+    tangents = np.einsum("qk,ekd->eqd", derivatives, sigma.points[edges])
+    rates = np.einsum("qk,ekd->eqd", derivatives, field[edges])
+    speed = np.einsum("eqd,eqd->eq", tangents, rates) / np.linalg.norm(tangents, axis=2)  # d|dx/ds|/dt
+    return np.bincount(edges.ravel(), np.einsum("eq,q,qk->ek", speed, w, shapes).ravel(), minlength=count)
+
+
+def sigma_terms(tips: list[Tip], on: OnSigma) -> np.ndarray:
+    """The Σ terms G subtracts from the volume terms: the contact forces' on the turning normals
+    (:func:`contact_terms`) and the friction's (:func:`friction_terms`)."""
+    return contact_terms(tips, on) + friction_terms(tips, on)
+
+
 def finish(tips: list[Tip], volume: np.ndarray, on: OnSigma, split: dict[str, np.ndarray] | None, scene: Scene,
            factors: np.ndarray | None = None) -> Fracture:
-    """G = volume terms − contact terms, and the contact zones (without the ``scene``'s non-penetration: the
+    """G = volume terms − Σ terms (:func:`sigma_terms`), and the contact zones (without the ``scene``'s non-penetration: the
     zones where the faces overlap), from the Σ data ``on`` of a result
     (:attr:`ddsolve.post.result.Result.on_sigma`); ``split``: G's split into modes I and II
     (:func:`mode_split`), or none (``volume`` with the interaction integrals of :func:`block_terms`: the
@@ -368,7 +411,9 @@ def finish(tips: list[Tip], volume: np.ndarray, on: OnSigma, split: dict[str, np
     (``factors`` where a root solve found them: :func:`ddsolve.post.toughness.judge`)."""
     from ddsolve.post.analysis import contact_zones, overlap_zones
 
-    contact = contact_terms(tips, on)
+    contact = sigma_terms(tips, on)
+    if split is not None:  # the friction acts along the faces: its term is sliding's (mode II)
+        split = {**split, "G_II": split["G_II"] - friction_terms(tips, on)}
     sigma = on.sigma
     crack_of = np.full(len(sigma.points), -1)
     for index, (first, last) in enumerate(sigma.pieces(sigma.crack)):
@@ -411,7 +456,7 @@ def release_and_noise(tips: list[Tip], volume: np.ndarray, contact: np.ndarray, 
     G = volume[:count] - contact
     if len(volume) != 2 * count:
         return G, np.full(count, np.nan)
-    other = volume[count:] - contact_terms([halved(tip) for tip in tips], on)
+    other = volume[count:] - sigma_terms([halved(tip) for tip in tips], on)
     rounding = ROUNDING * np.maximum(np.abs(G), np.abs(other))
     return G, np.maximum.reduce([np.abs(G - other), -G, rounding]) if count else np.zeros(0)
 

@@ -19,7 +19,9 @@ class Result:
 
     ``multipliers``: ``mu_c`` ``(k,)`` (the contact pressure), ``mu_g``, ``mu_minus``, ``mu_plus``
     ``(k, 2)`` in (x, y), over the k multiplier nodes (0 where a multiplier does not exist; a one-layer
-    structure has no ``mu_minus``, ``mu_plus``: they are absent).
+    structure has no ``mu_minus``, ``mu_plus``: they are absent); with friction ``mu_t`` ``(k,)``, the tangential
+    traction between the crack faces along τ (the lower face receives −μ_t τ; where they slip and stick:
+    :func:`ddsolve.post.analysis.friction_zones`).
     ``history``: the stopping criterion per iteration; ``active_set_changes``: per iteration of an
     active-set method (``schur``, the reference), how many constraints changed state (else empty).
     ``cell_data``: name -> block -> per-cell values ``(m,)`` or ``(m, c)`` of the block's half; the
@@ -228,7 +230,8 @@ class Fracture:
 
     Tips: ``points``, ``directions`` (unit, away from the crack), ``crack`` (index), ``inner`` and
     ``outer`` radii, ``spacing`` (the mean length of the Σ edges at the tip), ``G`` and its part
-    ``contact`` from the turning normals (zero on a straight Σ); its split into opening ``G_I`` and
+    ``contact`` from the forces on the crack faces: the contact pressure on the turning normals (zero on a
+    straight Σ) and the friction (:func:`ddsolve.post.fracture.friction_terms`); its split into opening ``G_I`` and
     sliding ``G_II``, the phase angle ``phase`` ψ = atan(√(G_II/G_I)) in degrees, signed as K_II/K_I
     (NaN where G is no release rate, :meth:`released`: a tip at G ≈ 0 has no mode mix), and ``symmetric``:
     split by the mirror symmetry about Σ (else by virtual crack closure; see

@@ -9,7 +9,8 @@ or one per crack in order along Σ), or a mode-dependent law of G's split into m
 
 The contact problem is positively homogeneous: scaling every mechanical load by λ > 0 scales the solution
 by λ, G by λ² and keeps the mode mix, so without a temperature change a tip starts to grow at the load
-factor λ_c = √(G_c/G) (:func:`critical_factor`).  With a temperature change kept fixed, λ_c comes from a
+factor λ_c = √(G_c/G) (:func:`critical_factor`; Coulomb's friction scales too, Tresca's given bound does not).
+With a temperature change or a Tresca bound kept fixed, λ_c comes from a
 root solve over scaled solves (:mod:`ddsolve.solvers.critical`).  No PETSc or MPI here.
 """
 from __future__ import annotations
@@ -74,14 +75,14 @@ def critical_factor(G: np.ndarray, G_c: np.ndarray) -> np.ndarray:
 
 def judge(fracture: Fracture, scene: Scene, factors: np.ndarray | None = None) -> Fracture:
     """``fracture`` with its ``toughness`` and ``critical_factor`` filled in (NaN without a toughness):
-    ``factors`` where given (a root solve, with a temperature change), else √(G_c/G) when the scene has no
-    temperature change, else NaN (the factor needs the root solve)."""
+    ``factors`` where given (a root solve, with a temperature change or a Tresca bound), else √(G_c/G) when the
+    scene is :attr:`~ddsolve.problem.scene.Scene.proportional`, else NaN (the factor needs the root solve)."""
     fracture.toughness = resistance(scene, fracture)
     if not given(scene):
         fracture.critical_factor = np.full(len(fracture.G), np.nan)
     elif factors is not None:
         fracture.critical_factor = np.asarray(factors, dtype=np.float64).copy()
-    elif not scene.temperature:
+    elif scene.proportional:
         fracture.critical_factor = critical_factor(fracture.G, fracture.toughness)
     else:
         fracture.critical_factor = np.full(len(fracture.G), np.nan)

@@ -27,6 +27,7 @@ def cross_checks(data: dict, raw: dict, origin: str) -> None:
     _radii_checks(data, origin)
     _toughness_checks(data, origin)
     _split_checks(data, origin)
+    _friction_checks(data, origin)
 
 
 def _geometry_checks(geometry: dict, given: set[str], origin: str) -> None:
@@ -198,6 +199,24 @@ def _toughness_checks(data: dict, origin: str) -> None:
     cracks = len(data["geometry"]["cracks"])
     if isinstance(values, tuple) and data["mesh"]["file"] is None and len(values) != cracks:
         raise SceneError(f"{origin}: fracture.toughness lists {len(values)} values for the {cracks} crack"
+                         f"{'' if cracks == 1 else 's'} of geometry.cracks (one per crack, in order along Σ)")
+
+
+def _friction_checks(data: dict, origin: str) -> None:
+    """``contact.friction`` (Coulomb) and ``contact.slip_bound`` (Tresca) exclude each other and need
+    non-penetration; a per-crack list has one value per crack of a box (a mesh file's are counted on its mesh)."""
+    contact = data["contact"]
+    given = [key for key in ("friction", "slip_bound") if contact[key] is not None]
+    if len(given) == 2:
+        raise SceneError(f"{origin}: contact.friction and contact.slip_bound exclude each other (Coulomb's "
+                         "coefficient, or Tresca's bound on the tangential traction)")
+    if given and not contact["nonpenetration"]:
+        raise SceneError(f"{origin}: contact.{given[0]} needs contact.nonpenetration = true (friction acts "
+                         "on crack faces in contact)")
+    values = contact[given[0]] if given else None
+    cracks = len(data["geometry"]["cracks"])
+    if isinstance(values, tuple) and data["mesh"]["file"] is None and len(values) != cracks:
+        raise SceneError(f"{origin}: contact.{given[0]} lists {len(values)} values for the {cracks} crack"
                          f"{'' if cracks == 1 else 's'} of geometry.cracks (one per crack, in order along Σ)")
 
 

@@ -41,7 +41,7 @@ from ddsolve.problem.schema import (ADAPTIVE_DEGREE, DEFAULT_TOL, GEOMETRIC_TOLE
 __all__ = ["ADAPTIVE_DEGREE", "COARSE", "CONDITIONING", "DEFAULT_TOL",
            "GEOMETRIC_TOLERANCE", "GRADING", "LAWS", "LAYERS", "MAX_ANGLE", "MAX_SPACING_RATIO",
            "OPTIONAL_TABLES", "PAPER_BOX", "PAPER_CRACK", "REGIONS", "REPLACES", "REQUIRED", "SAME_COMPONENT", "SCHEMA",
-           "SIDES", "STOP_RULES", "Components", "Displacement", "FractureOptions", "Geometry", "Invalid", "Load", "MeshOptions",
+           "SIDES", "STOP_RULES", "Components", "Displacement", "FractureOptions", "Friction", "Geometry", "Invalid", "Load", "MeshOptions",
            "Scene", "Solver", "Tables", "apply_overrides", "builtin_folder", "builtin_scenes", "coarse_size", "dumps", "load",
            "loads", "override_items", "parse_override", "printable", "readable", "utf8_text"]
 
@@ -183,6 +183,38 @@ class FractureOptions:
 
 
 @dataclass(frozen=True)
+class Friction:
+    """Friction on crack faces in contact: ``coulomb`` (``contact.friction``: |τ| ≤ μ × the contact pressure) or
+    Tresca's given bound (``contact.slip_bound``: |τ| ≤ g); ``values`` one for every crack, or one per crack in
+    order along Σ."""
+
+    coulomb: bool
+    values: float | tuple[float, ...]
+
+    @property
+    def key(self) -> str:
+        return "contact.friction" if self.coulomb else "contact.slip_bound"
+
+    def per_crack(self, cracks: int) -> tuple[float, ...]:
+        """The value of each of ``cracks`` cracks; a list of another length is refused naming the key."""
+        if not isinstance(self.values, tuple):
+            return (float(self.values),) * cracks
+        if len(self.values) != cracks:
+            raise SceneError(f"{self.key} lists {len(self.values)} values for the {cracks} crack"
+                             f"{'' if cracks == 1 else 's'} of the mesh (one per crack, in order along Σ)")
+        return self.values
+
+    @classmethod
+    def of(cls, contact: dict) -> Friction | None:
+        """From the checked ``contact`` table; None without friction (a zero everywhere is none)."""
+        for key, coulomb in (("friction", True), ("slip_bound", False)):
+            values = contact[key]
+            if values is not None and any(v > 0 for v in (values if isinstance(values, tuple) else (values,))):
+                return cls(coulomb, values)
+        return None
+
+
+@dataclass(frozen=True)
 class Scene:
     title: str
     geometry: Geometry
@@ -200,6 +232,8 @@ class Scene:
     temperature: dict[str, Expression] = field(default_factory=dict)
     #: (layer, region) -> the material of a region that overrides its layer's (``[materials.LAYER.REGION]``).
     regions: dict[tuple[str, str], materials.Material] = field(default_factory=dict)
+    #: Friction on the crack faces in contact (``contact.friction`` or ``contact.slip_bound``); None: they slide freely.
+    friction: Friction | None = None
     text: str = field(repr=False, default="")
     #: The text the scene was read from and the ``--set`` items applied to it, in order: what
     #: :meth:`with_` reads again, so that defaults that follow other keys follow the new values too.
@@ -242,10 +276,16 @@ class Scene:
         return materials.differing({layer: [self.material(layer, region) for region in REGIONS]
                                     for layer in self.layers}, self.model, thermal)
 
+    @property
+    def proportional(self) -> bool:
+        """Whether the solution scales with the mechanical loads (:meth:`scaled`): no temperature change, and no
+        Tresca bound on the crack faces' friction (a given traction, which does not scale; Coulomb's does)."""
+        return not self.temperature and (self.friction is None or self.friction.coulomb)
+
     def scaled(self, factor: float) -> Scene:
         """This scene with every mechanical load (tractions, pressures, prescribed displacements) times
-        ``factor``; the temperature change is kept.  The contact problem is positively homogeneous, so
-        without a temperature change the solution scales by ``factor`` and G by its square.  ``text`` is
+        ``factor``; the temperature change (and a Tresca bound) is kept.  The contact problem is positively
+        homogeneous, so where the scene is :attr:`proportional` the solution scales by ``factor`` and G by its square.  ``text`` is
         the unscaled scene's: a scaled scene is solved, not saved."""
         return dataclasses.replace(self, loads={key: load.scaled(factor) for key, load in self.loads.items()},
                                    displacements={key: displacement.scaled(factor)
@@ -284,6 +324,7 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str, 
         model=data["materials"]["model"],
         loads=loads,
         nonpenetration=data["contact"]["nonpenetration"],
+        friction=Friction.of(data["contact"]),
         solver=Solver(**data["solver"]),
         fracture=FractureOptions(**{"lambda_" if key == "lambda" else key: value
                                     for key, value in data["fracture"].items()}),

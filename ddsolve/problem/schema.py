@@ -234,6 +234,19 @@ def _toughness(value: Any) -> float | tuple[float, ...]:
         raise ValueError("a number > 0 (every tip) or a list of numbers > 0 (one per crack)") from None
 
 
+def _per_crack(value: Any) -> float | tuple[float, ...]:
+    """A value ≥ 0 for every crack, or a list of them, one per crack in order along Σ."""
+    def checked(item: Any) -> float:
+        item = _number(item)
+        if item < 0:
+            raise ValueError
+        return item
+    try:
+        return checked(value) if not isinstance(value, list) else tuple(checked(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError("a number >= 0 (every crack) or a list of numbers >= 0 (one per crack)") from None
+
+
 def _unit(value: Any) -> float:
     value = _number(value)
     if not 0.0 <= value <= 1.0:
@@ -354,7 +367,8 @@ SCHEMA: dict[str, Any] = {
     "loads": {layer: Tables(_LOAD) for layer in LAYERS},
     "displacements": {layer: Tables(_DISPLACEMENT) for layer in LAYERS},
     "temperature": {layer: (_load_value, None) for layer in LAYERS},
-    "contact": {"nonpenetration": (_boolean, True)},
+    "contact": {"nonpenetration": (_boolean, True), "friction": (_per_crack, None),
+                "slip_bound": (_per_crack, None)},
     "solver": {
         "method": (_choice(tuple(OPTIONS)), AUTO.name),
         "theta": (_step, None),

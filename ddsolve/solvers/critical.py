@@ -42,8 +42,9 @@ GRID = 2000
 
 
 def needed(scene: Scene) -> bool:
-    """Whether the scene's critical load factors need the root solve (a toughness and a temperature change)."""
-    return toughness.given(scene) and bool(scene.temperature)
+    """Whether the scene's critical load factors need the root solve (a toughness, and a solution not proportional
+    to the loads: a temperature change, a Tresca bound)."""
+    return toughness.given(scene) and not scene.proportional
 
 
 def excess(scene: Scene, fracture: Fracture) -> np.ndarray:

@@ -151,7 +151,7 @@ def interface_of(scene: Scene, local: LocalMesh, comm: MPI.Comm) -> Interface:
     largest over the ranks' halves or pieces (:func:`ddsolve.fem.assembly.data_displacement`)."""
     data = comm.allreduce(assembly.data_displacement(scene, local.halves.values(), local.sigma), op=MPI.MAX)
     return for_mesh(local.sigma, scene.nonpenetration, local.sigma_supports.fixed, assembly.modulus(scene), data,
-                    block_list(scene.geometry.layers))
+                    scene.friction, block_list(scene.geometry.layers))
 
 
 def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phases | None = None,

@@ -15,8 +15,8 @@ has stopped); two tips that meet merge their cracks (with one toughness per crac
 instead).  Under displacement
 control the stable branch is thereby followed step by step.
 
-The contact problem is positively homogeneous: without a temperature change the fields at λ are λ
-times those at 1 and G is λ²G(1), so one solve per crack configuration serves every control (nothing
+The contact problem is positively homogeneous: without a temperature change or a Tresca bound on the faces'
+friction (:attr:`~ddsolve.problem.scene.Scene.proportional`) the fields at λ are λ times those at 1 and G is λ²G(1), so one solve per crack configuration serves every control (nothing
 is solved before initiation).  The mesh is made once (the scene's mesh settings); each configuration
 moves the nearest Σ vertex onto each new tip (:func:`ddsolve.mesh.cracks.with_cracks`), so the mesh
 follows the tips without re-meshing.
@@ -192,7 +192,7 @@ class Growth:
                                "(and mesh.degree) instead")
             error.collective = True
             raise error
-        self.thermal = bool(scene.temperature)
+        self.proportional = scene.proportional  # one solve per configuration, scaled to the control
         self.base = distribution.build_mesh(scene, comm)
         self.length = float(self.base.sigma.arclength[-1])
         self.stops = collective(comm, lambda: stops(scene, self.base))
@@ -207,11 +207,11 @@ class Growth:
     def state(self, cracks: tuple, control: float) -> State:
         """The state of ``cracks`` at ``control`` (one solve per configuration without a temperature
         change, scaled to the control; else a solve at the control)."""
-        key = (cracks, 1.0 if not self.thermal else control)
+        key = (cracks, 1.0 if self.proportional else control)
         if key not in self.cache:
             self.cache[key] = self.solve(cracks, key[1])
         unit = self.cache[key]
-        if self.thermal:
+        if not self.proportional:
             return unit
         factor = control / unit.control
         return replace(unit, control=control, G=unit.G * factor ** 2, G_I=unit.G_I * factor ** 2,
@@ -255,7 +255,7 @@ class Growth:
     # --- growth -------------------------------------------------------------------------------------
     def initiation(self, cracks: tuple) -> float:
         """The smallest control at which a tip of ``cracks`` starts to grow (inf if none does)."""
-        if not self.thermal:
+        if self.proportional:
             unit = self.state(cracks, 1.0)
             factors = toughness.critical_factor(unit.G, unit.G_c)
         else:

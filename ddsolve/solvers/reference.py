@@ -27,6 +27,7 @@ import numpy as np
 from ddsolve.dd import constraints
 from ddsolve.dd.interface import Interface, for_mesh
 from ddsolve.dd.schur import box_qp
+from ddsolve.errors import SolverError
 from ddsolve.fem import assembly, supports
 from ddsolve.fem.assembly import BlockSystem, coo_to_csr
 from ddsolve.mesh import mesh as meshes
@@ -209,14 +210,22 @@ def contact_violation(penetration: float, tension: float, scale_u: float, scale_
     return max(constraints.scale_free_ratio(penetration, scale_u), constraints.scale_free_ratio(tension, scale_mu))
 
 
+def refuse_friction(scene: Scene) -> None:
+    """The reference solves non-penetration in the faces' normal jump only: friction is refused in one line."""
+    if scene.friction is not None:
+        raise SolverError(f"reference: {scene.friction.key} is not solved by the monolithic reference (its contact is "
+                          "the crack faces' normal jump only): solve the scene with a multiplier method (solver.method)")
+
+
 def solve_assembled(scene: Scene, mesh: Mesh, systems: list[BlockSystem],
                     table: supports.SigmaSupports | None = None) -> Result:
     """The scene's discrete problem from its assembled ``systems`` (Σ supports ``table``, made from the mesh if
     not given), with the KKT check; timings per phase of :data:`PHASES` (wall and ``_cpu``), ``total`` their sum."""
+    refuse_friction(scene)
     table = table if table is not None else supports.sigma_supports(scene, mesh)
     interface = for_mesh(mesh.sigma, scene.nonpenetration, table.fixed, assembly.modulus(scene),
                          assembly.data_displacement(scene, mesh.halves, mesh.sigma),
-                         meshes.blocks(scene.geometry.layers))
+                         specs=meshes.blocks(scene.geometry.layers))
     solved = solve_glued(systems, interface, out_of_core=scene.solver.out_of_core)
     fields, contact = solved.fields, interface.slices["mu_c"]
     steps, changes = (solved.face.violations, solved.face.changes) if solved.face else ([(0.0, 0.0)], [0])

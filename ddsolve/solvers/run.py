@@ -59,6 +59,7 @@ def reference(scene: Scene, output: Path | None = None, progress: Callable[[str]
     NotConvergedError, with the result, when its final check fails.  The critical load factors of a scene
     with a toughness and a temperature change come from reference solves of the scaled scene."""
     _before_work(scene)
+    monolithic.refuse_friction(scene)
     if scene.mesh.target_error is not None:  # adaptive, every level solved by the reference
         from mpi4py import MPI
 
