@@ -22,7 +22,7 @@ from ddsolve.io import safe
 from ddsolve.mesh import gmsh_io
 from ddsolve.parallel.launch import mpiexec_command, supervise
 from ddsolve.parallel.phases import LAUNCHED
-from ddsolve.mesh.mesh import BLOCKS
+from ddsolve.mesh.mesh import blocks
 from ddsolve.parallel import runtime
 from ddsolve.parallel.runtime import Parser, check_petsc_files, guarded, init_petsc, is_number
 from ddsolve.solvers.checks import check_ranks, check_read, check_size
@@ -30,7 +30,7 @@ from ddsolve.solvers.checks import check_ranks, check_read, check_size
 #: ddsolve's commands that hand options to PETSc.
 PETSC_COMMANDS = ("solve", "sweep", "grow", "reference", "version")
 #: Options-prefixes of the KSPs (what a misspelt option is compared with).
-PREFIXES = {"solve": tuple(f"{spec.name}_" for spec in BLOCKS), "reference": ("reference_",)}
+PREFIXES = {"solve": tuple(f"{spec.name}_" for spec in blocks(2)), "reference": ("reference_",)}  # any structure's
 PREFIXES["sweep"] = PREFIXES["grow"] = PREFIXES["solve"]
 #: Suffix of the files ``mesh -o`` writes (gmsh chooses the format by the suffix).
 MESH_SUFFIX = ".msh"
@@ -90,14 +90,14 @@ def _launch(args, petsc_options: list[str], scene_checks: bool) -> None:
     command on N ranks and end this process with its status (:func:`supervise`)."""
     if args.ranks is None:
         return
-    check_ranks(args.ranks)
+    scene = _load_scene(args) if scene_checks else None
+    check_ranks(args.ranks, None if scene is None else len(blocks(scene.geometry.layers)))
     check_petsc_files(petsc_options)
     for module in ("petsc4py", "mpi4py", "h5py"):  # if one is missing, one line here, not one per rank
         importlib.import_module(module)
     from ddsolve.io import viewer
 
-    if scene_checks:
-        scene = _load_scene(args)
+    if scene is not None:
         check_size(scene, args.ranks)
         output = check_outputs(args, scene)
         outputs = [output, *viewer.viewer_paths(output.parent, output.stem)]
@@ -274,7 +274,7 @@ def estimate_line(result) -> str:
     if result.mesh is None:
         unknowns, degree = result.memory["unknowns"], 1 if result.on_sigma.sigma.corner.all() else 2
     else:
-        unknowns, degree = 4 * (len(result.lower.points) + len(result.upper.points)), result.mesh.degree
+        unknowns, degree = result.unknowns, result.mesh.degree
     return (f"estimated discretization error {100 * result.attrs['error_estimate']:.3g} % (relative, energy norm; "
             f"{unknowns} unknowns, P{degree})")
 
@@ -395,6 +395,9 @@ def cmd_mesh(args, _petsc_options) -> int:
               f"{s.min_angle:9.1f}")
     print(f"Σ vertices {int(mesh.sigma.corner.sum())}, boundary vertices {meshes.boundary_vertex_count(mesh)}, "
           f"degree {mesh.degree}, boundaries: {', '.join(mesh.boundary_names())}")
+    specs = blocks(scene.geometry.layers)
+    print(f"{len(scene.layers)} layer{'s' * (len(specs) > 2)}: blocks {', '.join(spec.name for spec in specs)}, "
+          f"{2 * sum(len(mesh.half(spec.side).points) for spec in specs)} displacement unknowns")
     if args.output is not None:
         safe.atomic(Path(args.output), lambda name: gmsh_io.write_msh(mesh, Path(name)), final=True)
         groups = sorted(mesh.lower.boundaries.keys() | mesh.upper.boundaries.keys()
@@ -450,7 +453,8 @@ def parser() -> argparse.ArgumentParser:
 
     p = scene_command("solve", "domain-decomposition solve (under mpiexec, or -n N to launch it)", cmd_solve)
     p.add_argument("-n", dest="ranks", type=int, metavar="N",
-                   help="launch N ranks with mpiexec: 1, 2, 4 (a block per rank) or 4k (a block on k ranks)")
+                   help="launch N ranks with mpiexec: 1, 2, 4 (a block per rank) or 4k (a block on k ranks); "
+                   "a one-layer structure (geometry.layers = 1): 1, 2 or 2k")
     p.add_argument("-o", dest="output", help="result file (default: SCENE.h5)")
     p = scene_command("sweep", "solves over ranges of scene values (--set KEY=START:STOP:COUNT), one launch, "
                       "one HDF5 file", cmd_sweep)

@@ -19,7 +19,7 @@ from functools import cached_property
 import numpy as np
 
 from ddsolve.errors import MeshError
-from ddsolve.problem.schema import REGIONS
+from ddsolve.problem.schema import LAYERS, REGIONS
 from ddsolve.mesh.element import (CELL_EDGES, EDGE_RULE, crowded_edges, edge_keys, edge_points, edge_shapes,
                                   outer_edges)
 
@@ -612,18 +612,28 @@ class BlockSpec:
         return region_of(self.side)
 
 
-BLOCKS = (
-    BlockSpec("u_minus", "layer1", -1),
-    BlockSpec("u_plus", "layer1", +1),
-    BlockSpec("v_minus", "layer2", -1),
-    BlockSpec("v_plus", "layer2", +1),
-)
+def blocks(layers: int = 2) -> tuple[BlockSpec, ...]:
+    """The blocks of a structure of ``layers`` layers (1 or 2): each layer on each region of Ω, layer by layer,
+    the lower region first: u⁻, u⁺ (layer1), then v⁻, v⁺ (layer2).  Layer1's blocks come first in any
+    structure, so :data:`U_MINUS` and :data:`U_PLUS` index them; :data:`V_MINUS` and :data:`V_PLUS` exist with
+    two layers only."""
+    if layers not in (1, 2):
+        raise ValueError(f"a structure has 1 or 2 layers, not {layers}")
+    return tuple(BlockSpec(f"{letter}_{word}", layer, side) for layer, letter in zip(LAYERS[:layers], "uv")
+                 for side, word in ((-1, "minus"), (+1, "plus")))
 
 
 U_MINUS, U_PLUS, V_MINUS, V_PLUS = range(4)
 
 
-def partner(block: int) -> int:
-    """The block of the same layer on the other half."""
-    spec = BLOCKS[block]
-    return next(i for i, other in enumerate(BLOCKS) if other.layer == spec.layer and other.side == -spec.side)
+def partner(block: int, specs: tuple[BlockSpec, ...]) -> int:
+    """The block of the same layer on the other half (in the block list ``specs``)."""
+    spec = specs[block]
+    return next(i for i, other in enumerate(specs) if other.layer == spec.layer and other.side == -spec.side)
+
+
+def glued_layers(specs: tuple[BlockSpec, ...]) -> list[tuple[int, int]]:
+    """The pairs of blocks that one region's layers glue together on Σ: (layer1's block, another layer's
+    block of the same region), the lower region first; none in a one-layer structure."""
+    return [(first, other) for first, spec in enumerate(specs) if spec.layer == LAYERS[0]
+            for other, below in enumerate(specs) if below.side == spec.side and below.layer != LAYERS[0]]

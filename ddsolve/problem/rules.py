@@ -10,12 +10,13 @@ from ddsolve.problem import materials
 from ddsolve.problem.method_options import OPTIONS
 from ddsolve.problem.reading import printable
 from ddsolve.problem.schema import (ADAPTIVE_DEGREE, DEFAULT_TOL, GEOMETRIC_TOLERANCE, GRADING, LAWS,
-                                    LAYERS, MAX_SPACING_RATIO, PAPER_CRACK, REGIONS, layer_material)
+                                    MAX_SPACING_RATIO, PAPER_CRACK, REGIONS, STRUCTURE_KEYS, layer_material,
+                                    layers_of)
 
 
 def cross_checks(data: dict, raw: dict, origin: str) -> None:
     """Rules between keys; fills in the defaults that depend on other keys."""
-    given = set(raw.get("geometry", {})) if isinstance(raw.get("geometry"), dict) else set()
+    given = set(raw.get("geometry", {})) - set(STRUCTURE_KEYS) if isinstance(raw.get("geometry"), dict) else set()
     _geometry_checks(data["geometry"], given, origin)
     _mesh_checks(data["mesh"], data["geometry"], raw, given, origin)
     _material_checks(data, origin)
@@ -96,7 +97,7 @@ def _material_checks(data: dict, origin: str) -> None:
     """Each layer's constants, and each region's that override them, make an elastic matrix that double
     precision can factor."""
     model = data["materials"]["model"]
-    for layer in LAYERS:
+    for layer in layers_of(data):
         table = data["materials"][layer]
         given = [(f"materials.{layer}", table)] + [(f"materials.{layer}.{region}", table[region])
                                                    for region in REGIONS if region in table]
@@ -119,7 +120,7 @@ def acting_tables(data: dict, layer: str) -> dict[str, tuple[str, dict]]:
 def dissimilar_layers(data: dict, thermal: bool = True) -> list[str]:
     """The layers whose regions have different plane laws (stiffness, and with ``thermal`` thermal strain)."""
     return materials.differing({layer: [layer_material(table) for _, table in acting_tables(data, layer).values()]
-                                for layer in LAYERS}, data["materials"]["model"], thermal)
+                                for layer in layers_of(data)}, data["materials"]["model"], thermal)
 
 
 def _split_checks(data: dict, origin: str) -> None:
@@ -132,7 +133,7 @@ def _split_checks(data: dict, origin: str) -> None:
         return
     model = data["materials"]["model"]
     laws = {region: [materials.elasticity(layer_material(acting_tables(data, layer)[region][1]), model)[0]
-                     for layer in LAYERS] for region in REGIONS}
+                     for layer in layers_of(data)] for region in REGIONS}
     pair = materials.interface_pair(laws["lower"], laws["upper"])
     if isinstance(pair, str):
         raise SceneError(f"{origin}: fracture.law = {law} needs G's split into modes I and II, which is not defined "

@@ -33,7 +33,8 @@ from ddsolve.problem.rules import COARSE, CONDITIONING, SAME_COMPONENT, coarse_s
 from ddsolve.problem.schema import (ADAPTIVE_DEGREE, DEFAULT_TOL, GEOMETRIC_TOLERANCE,
                                     GRADING, LAWS, LAYERS, MAX_ANGLE, MAX_SPACING_RATIO, OPTIONAL_TABLES,
                                     PAPER_BOX, PAPER_CRACK, REGIONS, REQUIRED, SCHEMA, SIDES, STOP_RULES, Invalid,
-                                    Tables, check_table, layer_material, region_materials)
+                                    STRUCTURE_KEYS, Tables, check_table, layer_material, layers_of,
+                                    region_materials, structure_schema)
 
 
 #: The public face of the problem stage's scene modules (schema, rules, overrides, reading), as before the split.
@@ -49,14 +50,16 @@ __all__ = ["ADAPTIVE_DEGREE", "COARSE", "CONDITIONING", "DEFAULT_TOL",
 class Geometry:
     """A box (x0, x1, y0, y1) cut by Σ at height ``sigma``, cracks as x intervals on Σ, clamped sides.
 
-    A ``.geo`` or ``.msh`` file with physical groups replaces all of it; ``given`` lists the keys the
-    scene wrote, so that such a file can refuse them.
+    A ``.geo`` or ``.msh`` file with physical groups replaces all of it but ``layers``; ``given`` lists the
+    box's keys the scene wrote, so that such a file can refuse them.
     """
 
     box: tuple[float, float, float, float] = PAPER_BOX
     sigma: float = 0.0
     cracks: tuple[tuple[float, float], ...] = (PAPER_CRACK,)
     clamped: tuple[str, ...] = ("left", "right")
+    #: 2: two sheets (layer1 and layer2) glued on Σ; 1: one body (layer1) cut by Σ.
+    layers: int = 2
     given: frozenset[str] = field(default=frozenset(), compare=False)
 
 
@@ -254,6 +257,11 @@ class Scene:
         items = override_items(overrides) + override_items(more)
         return loads(self.source or self.text, [*self.overrides, *items], origin=self.origin, base=self.base)
 
+    @property
+    def layers(self) -> tuple[str, ...]:
+        """The structure's layers, bottom to top (``geometry.layers`` of :data:`LAYERS`)."""
+        return LAYERS[:self.geometry.layers]
+
     def material(self, layer: str, region: str) -> materials.Material:
         """The material of ``layer`` in ``region`` (:data:`REGIONS`): the region's own, else the layer's."""
         return self.regions.get((layer, region), self.materials[layer])
@@ -265,8 +273,8 @@ class Scene:
     def dissimilar_layers(self, thermal: bool = True) -> list[str]:
         """The layers whose regions have different plane laws: stiffness, and with ``thermal`` thermal strain
         (:func:`ddsolve.problem.materials.same_law`)."""
-        return materials.differing({layer: [self.material(layer, region) for region in REGIONS] for layer in LAYERS},
-                                   self.model, thermal)
+        return materials.differing({layer: [self.material(layer, region) for region in REGIONS]
+                                    for layer in self.layers}, self.model, thermal)
 
     @property
     def proportional(self) -> bool:
@@ -292,7 +300,8 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str, 
         if not mesh["file"].is_absolute() and base is not None:
             mesh["file"] = base / mesh["file"]
     geometry = data["geometry"]
-    given = frozenset(raw.get("geometry", {})) if isinstance(raw.get("geometry"), dict) else frozenset()
+    given = (frozenset(raw["geometry"]) - frozenset(STRUCTURE_KEYS) if isinstance(raw.get("geometry"), dict)
+             else frozenset())
     loads = {
         (layer, name): Load(key=f"loads.{layer}.{name}", **table)
         for layer, tables in data.get("loads", {}).items()
@@ -308,9 +317,9 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str, 
         title=data["title"],
         geometry=Geometry(box=tuple(geometry["box"]), sigma=geometry["sigma"],
                           cracks=tuple(tuple(piece) for piece in geometry["cracks"]),
-                          clamped=tuple(geometry["clamped"]), given=given),
+                          clamped=tuple(geometry["clamped"]), layers=geometry["layers"], given=given),
         mesh=MeshOptions(**mesh),
-        materials={layer: layer_material(data["materials"][layer]) for layer in LAYERS},
+        materials={layer: layer_material(data["materials"][layer]) for layer in layers_of(data)},
         regions=region_materials(data["materials"]),
         model=data["materials"]["model"],
         loads=loads,
@@ -366,10 +375,11 @@ def loads(text: str, overrides: list[str] = (), origin: str = "scene", base: Pat
     except RecursionError:  # tomllib's parser recurses into arrays and tables
         raise SceneError(f"{origin}: malformed TOML: arrays or tables nested too deeply") from None
     apply_overrides(raw, list(overrides))
-    data = check_table(raw, SCHEMA, (), origin)
+    data = check_table(raw, structure_schema(raw, origin), (), origin)
     cross_checks(data, raw, origin)
     if data["mesh"]["file"] is not None and data["mesh"]["file"].lower().endswith(".geo"):
         written = {key: value for key, value in data.items() if key != "geometry"}
+        written["geometry"] = {key: data["geometry"][key] for key in STRUCTURE_KEYS}
     else:
         written = data
     return _to_scene(data, raw, dumps(written), base, origin, text, tuple(overrides))

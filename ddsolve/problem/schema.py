@@ -16,7 +16,12 @@ from ddsolve.problem.reading import excerpt, printable
 STOP_RULES = ("paper", "relative", "kkt")
 #: Default tolerance of each stopping rule (a method's default rule: :mod:`ddsolve.problem.method_options`).
 DEFAULT_TOL = {"paper": 1e-6, "relative": 1e-6, "kkt": 1e-8}
+#: The layers of a structure, bottom to top of the stack: a structure has the first ``geometry.layers`` of them.
 LAYERS = ("layer1", "layer2")
+#: The tables that hold a table per layer (a one-layer structure has none of layer2).
+LAYERED_TABLES = ("materials", "loads", "displacements", "temperature")
+#: The geometry keys that say what the structure is rather than where the box lies: a mesh file takes them too.
+STRUCTURE_KEYS = ("layers",)
 #: The regions of Ω, bottom to top: below Σ and above it (a gmsh file's physical surfaces of these names).
 REGIONS = ("lower", "upper")
 #: The sides of a box geometry, as boundary names.
@@ -197,6 +202,13 @@ def _count(minimum: int) -> Callable[[Any], int]:
     return checked
 
 
+def _layers(value: Any) -> int:
+    value = _integer(value)
+    if value not in (1, 2):
+        raise ValueError("1 (one body) or 2 (two sheets glued on Σ)")
+    return value
+
+
 def _degree(value: Any) -> int:
     value = _integer(value)
     if value not in (1, 2):
@@ -336,6 +348,7 @@ SCHEMA: dict[str, Any] = {
         "crack": (_interval, None),
         "cracks": (_intervals, None),
         "clamped": (_sides, ["left", "right"]),
+        "layers": (_layers, 2),
     },
     "mesh": {
         "file": (_string, None),
@@ -375,6 +388,27 @@ SCHEMA: dict[str, Any] = {
 OPTIONAL_TABLES = {("loads",), *(("loads", layer) for layer in LAYERS), ("displacements",),
                    *(("materials", layer, region) for layer in LAYERS for region in REGIONS),
                    *(("displacements", layer) for layer in LAYERS), ("temperature",)}
+
+
+def structure_schema(raw: dict, origin: str) -> dict:
+    """The schema of the structure the raw scene describes: :data:`SCHEMA` with two layers; with one
+    (``geometry.layers = 1``), SCHEMA without layer2's tables, and a layer2 table or key in the scene is refused."""
+    geometry = raw.get("geometry")
+    written = {"layers": geometry["layers"]} if isinstance(geometry, dict) and "layers" in geometry else {}
+    layers = check_table(written, {"layers": SCHEMA["geometry"]["layers"]}, ("geometry",), origin)["layers"]
+    if layers == len(LAYERS):
+        return SCHEMA
+    for section in LAYERED_TABLES:
+        table = raw.get(section)
+        extra = [layer for layer in LAYERS[layers:] if isinstance(table, dict) and layer in table]
+        if extra:
+            inner = table[extra[0]]
+            region = next((key for key in inner if key in REGIONS), None) if isinstance(inner, dict) else None
+            key = ".".join((section, extra[0], *((region,) if region else ())))
+            raise SceneError(f"{origin}: {key}: a structure of {layers} layer (geometry.layers = {layers}) has no "
+                             f"{extra[0]}")
+    return {**SCHEMA, **{section: {key: spec for key, spec in SCHEMA[section].items() if key not in LAYERS[layers:]}
+                         for section in LAYERED_TABLES}}
 
 
 def check_table(raw: dict, schema: dict, path: tuple[str, ...], origin: str) -> dict:
@@ -451,4 +485,9 @@ def layer_material(table: dict) -> materials.Material:
 def region_materials(tables: dict) -> dict[tuple[str, str], materials.Material]:
     """(layer, region) -> the material of each region that a checked ``materials`` table overrides."""
     return {(layer, region): layer_material(tables[layer][region])
-            for layer in LAYERS for region in REGIONS if region in tables[layer]}
+            for layer in LAYERS if layer in tables for region in REGIONS if region in tables[layer]}
+
+
+def layers_of(data: dict) -> tuple[str, ...]:
+    """The layers of a checked scene's structure (``geometry.layers`` of :data:`LAYERS`)."""
+    return LAYERS[:data["geometry"]["layers"]]
