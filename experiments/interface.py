@@ -21,7 +21,7 @@ from typing import Callable
 
 import numpy as np
 
-from experiments import regions, report, stacks
+from experiments import report, stacks
 from experiments.delamination import ARM, CHI_II, plane_strain_modulus
 from experiments.stacks import table
 
@@ -117,7 +117,7 @@ def zones(result) -> dict[str, str]:
 
 def solved_row(result, seconds: float) -> dict:
     """What every case keeps of its solve: size, method, work, time, the slip and stick zones."""
-    return {"unknowns": regions.unknowns(result), "method": result.method, "iterations": int(result.iterations),
+    return {"unknowns": result.unknowns, "method": result.method, "iterations": int(result.iterations),
             "coulomb_iterations": int(result.attrs.get("coulomb_iterations", 0)), "seconds": seconds,
             "solve_seconds": float(result.wall_time), **zones(result)}
 
