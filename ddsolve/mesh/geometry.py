@@ -49,6 +49,7 @@ def build(scene: Scene) -> Mesh:
 
 def build_coarse(scene: Scene) -> Mesh:
     """The scene's mesh as gmsh makes it or the file holds it, unrefined."""
+    one_interface(scene)
     options = scene.mesh
     if options.kind == "box":
         return pair(scene, *(generate_half(scene, side) for side in (-1, 1)))
@@ -101,7 +102,15 @@ def apportion(total: int, lengths) -> np.ndarray:
 
 def generate_half(scene: Scene, side: int) -> HalfMesh:
     """One half of the box meshed by gmsh (:func:`_mesh_half`) in a child process (:func:`apart`)."""
+    one_interface(scene)
     return apart(_mesh_half, scene, side)
+
+
+def one_interface(scene: Scene) -> None:
+    """Refuse, in one line, a structure of several interfaces: it is read and checked, not yet meshed."""
+    if scene.geometry.above:
+        raise SceneError(f"geometry.sigma: {len(scene.geometry.sigmas)} interfaces: a structure of several "
+                         "interfaces can be described but not yet meshed or solved")
 
 
 def _mesh_half(scene: Scene, side: int) -> HalfMesh:

@@ -23,10 +23,11 @@ def check_ranks(ranks: int, blocks: int | None = None) -> None:
 
 
 def check_size(scene, ranks: int = 1) -> None:
-    """Refuse a mesh that cannot fit in this machine's memory, or a ``mesh.refine`` its geometry cannot
-    take (:func:`ddsolve.mesh.geometry.refinement`), before it is made."""
+    """Refuse a mesh that cannot fit in this machine's memory, a ``mesh.refine`` its geometry cannot take
+    (:func:`ddsolve.mesh.geometry.refinement`), or a structure that cannot be meshed yet, before it is made."""
     from ddsolve.mesh import geometry
 
+    geometry.one_interface(scene)
     geometry.refinement(scene)
     vertices = geometry.estimated_vertices(scene)
     if vertices is None:
