@@ -5,10 +5,12 @@ from __future__ import annotations
 
 import re
 
+import numpy as np
 import pytest
 
 from ddsolve.errors import SceneError
-from ddsolve.mesh import geometry
+from ddsolve.mesh import geometry, stack
+from ddsolve.mesh.mesh import Mesh
 from ddsolve.problem import materials, scene
 from ddsolve.solvers import checks
 
@@ -120,16 +122,19 @@ def test_a_numbered_region_with_one_interface_is_unknown():
         scene.load("partial-closure", ["materials.layer1.region2.E=3.0"])
 
 
-def test_a_point_support_on_the_upper_interface_is_snapped_onto_its_crack_tip():
-    source = strip("displacements.layer1.pin.point=[2.0, 2.0000000000001]", "displacements.layer1.pin.x=0.0")
-    assert source.displacements["layer1", "pin"].point == (2.0, 2.0)
+@pytest.mark.parametrize("override, key", [
+    ("mesh.sigma_vertices=21", "mesh.sigma_vertices"), ("mesh.grading=true", "mesh.grading"),
+    ("mesh.target_error=0.1", "mesh.target_error"), ("mesh.file='strip.msh'", "mesh.file"),
+    ("displacements.layer1.pin.point=[2.0, 2.0]", "displacements.layer1.pin.point")])
+def test_what_several_interfaces_do_not_take_is_refused_naming_the_key(override, key):
+    assert refusal(override).startswith(f"strip.toml: {key}: ")
 
 
 @pytest.mark.parametrize("before_work", [geometry.build, lambda source: geometry.generate_half(source, 1),
                                          checks.check_size])
 def test_meshing_several_interfaces_is_refused_in_one_line(before_work):
     with pytest.raises(SceneError, match=r"^geometry.sigma: 2 interfaces: a structure of several interfaces can be "
-                                         r"described but not yet meshed or solved$"):
+                                         r"meshed \(ddsolve mesh\) but not yet solved$"):
         before_work(strip())
 
 
@@ -138,3 +143,43 @@ def test_a_scene_of_several_interfaces_is_written_out_and_read_back():
     assert "sigma = [1.0, 2.0]" in source.text.replace("[ ", "[").replace(" ]", "]")
     again = scene.loads(source.text)
     assert again.geometry == source.geometry and again.regions == source.regions
+
+
+@pytest.fixture(scope="module")
+def stacked() -> Mesh:
+    return stack.build_any(strip("geometry.cracks=[[[1.0, 2.0]], [[3.0, 4.0]]]"))
+
+
+def test_the_regions_of_the_strip_bottom_to_top(stacked):
+    assert [region.name for region in stacked.regions] == ["region1", "region2", "region3"]
+    assert [region.side for region in stacked.regions] == [-1, 1, 1]
+    for region, (y0, y1) in zip(stacked.regions, [(0.0, 1.0), (1.0, 2.0), (2.0, 3.0)]):
+        assert (region.points[:, 1].min(), region.points[:, 1].max()) == (y0, y1)
+    assert stacked.boundary_names() == ["bottom", "clamped", "left", "right", "top"]
+    assert (stacked.lower, stacked.upper, stacked.sigma) == (*stacked.regions[:2], stacked.sigmas[0])
+
+
+def test_each_interface_is_shared_by_its_two_regions_with_its_cracks(stacked):
+    middle = stacked.regions[1]
+    for line, height, below, above in [(stacked.sigmas[0], 1.0, stacked.regions[0].sigma, middle.sigma),
+                                       (stacked.sigmas[1], 2.0, middle.sigma_above, stacked.regions[2].sigma)]:
+        assert np.all(line.points[:, 1] == height) and np.all(np.diff(line.points[:, 0]) > 0)
+        np.testing.assert_array_equal(line.points, stacked.regions[0].points[below] if height == 1.0
+                                      else middle.points[below])
+        upper = middle if height == 1.0 else stacked.regions[2]
+        np.testing.assert_array_equal(line.points, upper.points[above])
+        np.testing.assert_allclose(line.normals, np.tile([0.0, 1.0], (len(line.points), 1)), atol=1e-15)
+    first, second = stacked.sigmas
+    assert first.points[first.crack, 0].min() > 1.0 and first.points[first.crack, 0].max() < 2.0
+    assert list(first.points[first.tip, 0]) == [1.0, 2.0]
+    assert list(second.points[second.tip, 0]) == [3.0]  # an edge crack: its end on the free side is a crack node
+    assert second.crack[-1] and second.points[-1, 0] == 4.0
+    assert first.clamped[0] and second.clamped[0] and not first.clamped[-1]
+
+
+def test_one_interface_meshes_as_before():
+    source = scene.load("partial-closure", ["mesh.sigma_vertices=11", "mesh.boundary_vertices=24"])
+    old, new = geometry.build(source), stack.build_any(source)
+    assert new.above == () and new.regions == (new.lower, new.upper) and new.sigmas == (new.sigma,)
+    np.testing.assert_array_equal(old.sigma.points, new.sigma.points)
+    assert [half.name for half in new.regions] == ["lower", "upper"]

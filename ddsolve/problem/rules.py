@@ -19,6 +19,7 @@ def cross_checks(data: dict, raw: dict, origin: str) -> None:
     """Rules between keys; fills in the defaults that depend on other keys."""
     given = set(raw.get("geometry", {})) - set(STRUCTURE_KEYS) if isinstance(raw.get("geometry"), dict) else set()
     _geometry_checks(data["geometry"], given, origin)
+    _several_interfaces_checks(data, raw, origin)
     _mesh_checks(data["mesh"], data["geometry"], raw, given, origin)
     _material_checks(data, origin)
     _load_checks(data, origin)
@@ -53,6 +54,27 @@ def _geometry_checks(geometry: dict, given: set[str], origin: str) -> None:
     geometry["sigma"], geometry["cracks"] = heights[0], lists[0]
     geometry["above"] = list(zip(heights[1:], lists[1:]))
     del geometry["crack"]
+
+
+#: The mesh keys a structure of several interfaces takes: its regions are meshed with pieces of about mesh.size.
+STACK_MESH_KEYS = ("size", "degree")
+
+
+def _several_interfaces_checks(data: dict, raw: dict, origin: str) -> None:
+    """A structure of several interfaces is the built-in box meshed with ``mesh.size`` and no point supports."""
+    if not data["geometry"]["above"]:
+        return
+    written = raw["mesh"] if isinstance(raw.get("mesh"), dict) else {}
+    other = next((key for key in written if key not in STACK_MESH_KEYS), None)
+    if other is not None or data["mesh"]["size"] is None:
+        key = f"mesh.{other}" if other is not None else "mesh.size"
+        raise SceneError(f"{origin}: {key}: a structure of several interfaces (geometry.sigma = [y1, y2, ...]) is "
+                         "the built-in box meshed with mesh.size (and mesh.degree) only")
+    points = [f"displacements.{layer}.{name}.point" for layer, tables in data.get("displacements", {}).items()
+              for name, table in tables.items() if table["point"] is not None]
+    if points:
+        raise SceneError(f"{origin}: {points[0]}: point supports on a structure of several interfaces are not "
+                         "available")
 
 
 def _crack_lists(geometry: dict, given: set[str], interfaces: int, origin: str) -> list:
@@ -329,15 +351,13 @@ def _point_checks(data: dict, table: dict, key: str, given: list[str], origin: s
     if data["mesh"]["file"] is not None:
         return
     x, y = table["point"]
-    geometry = data["geometry"]
-    box = x0, x1, y0, y1 = geometry["box"]
-    interfaces = [(geometry["sigma"], geometry["cracks"]), *geometry["above"]]
-    heights = [height for height, _ in interfaces]
+    box = x0, x1, y0, y1 = data["geometry"]["box"]
+    sigma = data["geometry"]["sigma"]
     feature = GEOMETRIC_TOLERANCE * max(x1 - x0, y1 - y0)
     inside = x0 - feature <= x <= x1 + feature and y0 - feature <= y <= y1 + feature
-    lines = [(1, y0, [x0, x1]), (1, y1, [x0, x1]),
-             *((1, height, [x0, x1, *(tip for piece in cracks for tip in piece)]) for height, cracks in interfaces),
-             (0, x0, [y0, *heights, y1]), (0, x1, [y0, *heights, y1])]
+    tips = [x0, x1, *(tip for piece in data["geometry"]["cracks"] for tip in piece)]
+    lines = [(1, y0, [x0, x1]), (1, y1, [x0, x1]), (1, sigma, tips), (0, x0, [y0, sigma, y1]),
+             (0, x1, [y0, sigma, y1])]
     point = [x, y]
     for axis, value, stops in lines:
         if inside and abs(point[axis] - value) <= feature:
@@ -349,8 +369,7 @@ def _point_checks(data: dict, table: dict, key: str, given: list[str], origin: s
             return
     where = "outside the box" if not inside else "inside a layer, off its boundary"
     raise SceneError(f"{origin}: {key}.point = [{x:g}, {y:g}] is {where}: a point support must lie on a side of "
-                     f"geometry.box = {[float(v) for v in box]} or on Σ (y = "
-                     f"{', '.join(f'{height:g}' for height in heights)})")
+                     f"geometry.box = {[float(v) for v in box]} or on Σ (y = {sigma:g})")
 
 
 #: The largest ratio of the largest to the smallest eigenvalue of a layer's elastic matrix: 2/√ε, which

@@ -22,12 +22,14 @@ def check_ranks(ranks: int, blocks: int | None = None) -> None:
                          f"{physical_memory() / 1e9:.3g} GB; for ranks on several machines start mpiexec yourself")
 
 
-def check_size(scene, ranks: int = 1) -> None:
+def check_size(scene, ranks: int = 1, solving: bool = True) -> None:
     """Refuse a mesh that cannot fit in this machine's memory, a ``mesh.refine`` its geometry cannot take
-    (:func:`ddsolve.mesh.geometry.refinement`), or a structure that cannot be meshed yet, before it is made."""
+    (:func:`ddsolve.mesh.geometry.refinement`), or, ``solving``, a structure that cannot be solved yet, before
+    it is made."""
     from ddsolve.mesh import geometry
 
-    geometry.one_interface(scene)
+    if solving:
+        geometry.one_interface(scene)
     geometry.refinement(scene)
     vertices = geometry.estimated_vertices(scene)
     if vertices is None:
