@@ -8,7 +8,9 @@ import re
 import numpy as np
 import pytest
 
-from ddsolve.errors import SceneError
+from conftest import ddsolve, refused
+
+from ddsolve.errors import MeshError, SceneError
 from ddsolve.mesh import geometry, stack
 from ddsolve.mesh.mesh import Mesh
 from ddsolve.problem import materials, scene
@@ -183,3 +185,31 @@ def test_one_interface_meshes_as_before():
     assert new.above == () and new.regions == (new.lower, new.upper) and new.sigmas == (new.sigma,)
     np.testing.assert_array_equal(old.sigma.points, new.sigma.points)
     assert [half.name for half in new.regions] == ["lower", "upper"]
+
+
+def test_p2_regions_share_their_sigma_nodes_midpoints_included():
+    stacked = stack.build_any(strip("mesh.degree=2", "geometry.cracks=[[], [[0.5, 1.5]]]"))
+    middle, top = stacked.regions[1:]
+    assert stacked.degree == 2 and len(stacked.sigmas[1].points) == 2 * 16 + 1
+    np.testing.assert_allclose(middle.points[middle.sigma_above], top.points[top.sigma], rtol=0, atol=1e-12)
+    assert list(stacked.sigmas[1].points[stacked.sigmas[1].tip, 0]) == [0.5, 1.5]
+
+
+def test_a_crack_on_an_upper_interface_may_not_reach_the_clamped_side():
+    with pytest.raises(MeshError, match="a crack reaches the clamped boundary at \\(0, 2\\)"):
+        stack.build_any(strip("geometry.cracks=[[], [[0.0, 1.0]]]"))
+
+
+@pytest.mark.mpi
+def test_the_mesh_command_prints_every_region_and_interface(tmp_path):
+    path = tmp_path / "strip.toml"
+    path.write_text(STRIP)
+    lines = ddsolve("mesh", str(path)).stdout.splitlines()
+    assert [line.split()[0] for line in lines[1:4]] == ["region1", "region2", "region3"]
+    assert lines[4].startswith("Σ vertices 17, 17 (per interface, bottom to top)")
+    assert lines[5].startswith("2 layers on 3 regions: 6 blocks")
+    for command in (["solve", "-n", "2"], ["reference"]):
+        refused(ddsolve(*command, str(path), "-o", str(tmp_path / "x.h5"), check=False), SceneError.exit_status,
+                "geometry.sigma: 2 interfaces: a structure of several interfaces can be meshed (ddsolve mesh) but "
+                "not yet solved")
+    assert not (tmp_path / "x.h5").exists()
