@@ -377,33 +377,50 @@ def cmd_export(args, _petsc_options) -> int:
 
 
 def cmd_mesh(args, _petsc_options) -> int:
-    from ddsolve.mesh import geometry
-    from ddsolve.mesh import mesh as meshes
+    from ddsolve.mesh import stack
 
     if args.output is not None and Path(args.output).suffix != MESH_SUFFIX:
         raise DDSolveError(f"-o {args.output}: the mesh command writes one format, gmsh MSH 4.1 with physical "
                            f"groups: give -o a file name with the suffix {MESH_SUFFIX} (e.g. halves{MESH_SUFFIX})")
     scene = _load_scene(args)
-    check_size(scene)
+    if args.output is not None and scene.geometry.above:
+        raise DDSolveError(f"-o {args.output}: the mesh of several interfaces is not written to a file")
+    check_size(scene, solving=False)
     if args.output is not None:
         safe.check_targets([Path(args.output)], _inputs(args, scene))
-    mesh = geometry.build(scene)
-    print(f"{'half':6s} {'h_min':>8s} {'h_max':>8s} {'vertices':>9s} {'nodes':>9s} {'triangles':>10s} {'min angle':>9s}")
-    for half in mesh.halves:
-        s = meshes.statistics(half)
-        print(f"{half.name:6s} {s.h_min:8.4f} {s.h_max:8.4f} {s.vertices:9d} {len(half.points):9d} {s.triangles:10d} "
-              f"{s.min_angle:9.1f}")
-    print(f"Σ vertices {int(mesh.sigma.corner.sum())}, boundary vertices {meshes.boundary_vertex_count(mesh)}, "
-          f"degree {mesh.degree}, boundaries: {', '.join(mesh.boundary_names())}")
-    specs = blocks(scene.geometry.layers)
-    print(f"{len(scene.layers)} layer{'s' * (len(specs) > 2)}: blocks {', '.join(spec.name for spec in specs)}, "
-          f"{2 * sum(len(mesh.half(spec.side).points) for spec in specs)} displacement unknowns")
+    mesh = stack.build_any(scene)
+    _print_mesh(scene, mesh)
     if args.output is not None:
         safe.atomic(Path(args.output), lambda name: gmsh_io.write_msh(mesh, Path(name)), final=True)
         groups = sorted(mesh.lower.boundaries.keys() | mesh.upper.boundaries.keys()
                         | mesh.lower.named_points.keys() | mesh.upper.named_points.keys())
         print(f"wrote {args.output} (gmsh, physical groups lower, upper, {', '.join(groups)})")
     return 0
+
+
+def _print_mesh(scene, mesh) -> None:
+    """The mesh command's table: each half (each region with several interfaces) as the paper's Table 1, Σ,
+    the boundaries, the blocks."""
+    from ddsolve.mesh import mesh as meshes
+
+    width = max(6, *(len(region.name) for region in mesh.regions))
+    print(f"{'half':{width}s} {'h_min':>8s} {'h_max':>8s} {'vertices':>9s} {'nodes':>9s} {'triangles':>10s} "
+          f"{'min angle':>9s}")
+    for half in mesh.regions:
+        s = meshes.statistics(half)
+        print(f"{half.name:{width}s} {s.h_min:8.4f} {s.h_max:8.4f} {s.vertices:9d} {len(half.points):9d} "
+              f"{s.triangles:10d} {s.min_angle:9.1f}")
+    sigma_vertices = ", ".join(str(int(line.corner.sum())) for line in mesh.sigmas)
+    print(f"Σ vertices {sigma_vertices}{' (per interface, bottom to top)' if mesh.above else ''}, boundary vertices "
+          f"{meshes.boundary_vertex_count(mesh)}, degree {mesh.degree}, boundaries: {', '.join(mesh.boundary_names())}")
+    layers = len(scene.layers)
+    if mesh.above:
+        print(f"{layers} layer{'s' * (layers > 1)} on {len(mesh.regions)} regions: {layers * len(mesh.regions)} "
+              f"blocks, {2 * layers * sum(len(region.points) for region in mesh.regions)} displacement unknowns")
+        return
+    specs = blocks(scene.geometry.layers)
+    print(f"{layers} layer{'s' * (len(specs) > 2)}: blocks {', '.join(spec.name for spec in specs)}, "
+          f"{2 * sum(len(mesh.half(spec.side).points) for spec in specs)} displacement unknowns")
 
 
 def cmd_scenes(_args, _petsc_options) -> int:

@@ -46,7 +46,7 @@ from ddsolve.parallel import distribution
 from ddsolve.parallel.exchange import collective
 from ddsolve.post import toughness
 from ddsolve.problem import expressions
-from ddsolve.problem.scene import LAYERS, REGIONS, Load, Scene
+from ddsolve.problem.scene import LAYERS, Load, Scene
 from ddsolve.solvers.growth_files import Outputs
 
 #: The most root-solve iterations of one step, and of rounds of steps at one control (growth of one tip
@@ -273,7 +273,8 @@ class Growth:
         size = float(np.ptp(np.vstack([half.points for half in self.base.halves]), axis=0).max())
         scaled = {load.key for load in self.scene.loads.values()} | {d.key for d in self.scene.displacements.values()}
         driven, stiffness = [], assembly.modulus(self.scene)
-        for layer, region in ((layer, region) for layer in self.scene.layers for region in REGIONS):
+        for layer, region in ((layer, region) for layer in self.scene.layers
+                              for region in self.scene.geometry.region_names):
             block_stiffness = float(np.abs(assembly.elasticity(self.scene, layer, region)[0]).max())
             driven += assembly.driven_displacements(self.scene, self.base, (layer, region), size, layer,
                                                     block_stiffness)
