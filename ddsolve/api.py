@@ -111,9 +111,9 @@ def _comm(comm, function: str | None = None):
     if comm is not None and not isinstance(comm, MPI.Comm):
         raise DDSolveError(f"comm: an mpi4py communicator (got {type(comm).__name__})")
     comm = MPI.COMM_WORLD if comm is None else comm
-    if function is not None and not supported(comm.size):
+    if function is not None and not (supported(comm.size) or supported(comm.size, 2)):  # any structure's
         error = DDSolveError(f"{function}: unsupported number of ranks {comm.size} in comm: use 1, 2 or a multiple "
-                             "of 4 (mpiexec -n)")
+                             "of 4 (mpiexec -n; a one-layer structure: 1 or a multiple of 2)")
         raise _everywhere(error, comm)
     return comm
 

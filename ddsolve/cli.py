@@ -22,7 +22,7 @@ from ddsolve.io import safe
 from ddsolve.mesh import gmsh_io
 from ddsolve.parallel.launch import mpiexec_command, supervise
 from ddsolve.parallel.phases import LAUNCHED
-from ddsolve.mesh.mesh import BLOCKS
+from ddsolve.mesh.mesh import blocks
 from ddsolve.parallel import runtime
 from ddsolve.parallel.runtime import Parser, check_petsc_files, guarded, init_petsc, is_number
 from ddsolve.solvers.checks import check_ranks, check_read, check_size
@@ -30,7 +30,7 @@ from ddsolve.solvers.checks import check_ranks, check_read, check_size
 #: ddsolve's commands that hand options to PETSc.
 PETSC_COMMANDS = ("solve", "sweep", "grow", "reference", "version")
 #: Options-prefixes of the KSPs (what a misspelt option is compared with).
-PREFIXES = {"solve": tuple(f"{spec.name}_" for spec in BLOCKS), "reference": ("reference_",)}
+PREFIXES = {"solve": tuple(f"{spec.name}_" for spec in blocks(2)), "reference": ("reference_",)}  # any structure's
 PREFIXES["sweep"] = PREFIXES["grow"] = PREFIXES["solve"]
 #: Suffix of the files ``mesh -o`` writes (gmsh chooses the format by the suffix).
 MESH_SUFFIX = ".msh"
@@ -90,14 +90,14 @@ def _launch(args, petsc_options: list[str], scene_checks: bool) -> None:
     command on N ranks and end this process with its status (:func:`supervise`)."""
     if args.ranks is None:
         return
-    check_ranks(args.ranks)
+    scene = _load_scene(args) if scene_checks else None
+    check_ranks(args.ranks, None if scene is None else len(blocks(scene.geometry.layers)))
     check_petsc_files(petsc_options)
     for module in ("petsc4py", "mpi4py", "h5py"):  # if one is missing, one line here, not one per rank
         importlib.import_module(module)
     from ddsolve.io import viewer
 
-    if scene_checks:
-        scene = _load_scene(args)
+    if scene is not None:
         check_size(scene, args.ranks)
         output = check_outputs(args, scene)
         outputs = [output, *viewer.viewer_paths(output.parent, output.stem)]
@@ -284,7 +284,7 @@ def estimate_line(result) -> str:
     if result.mesh is None:
         unknowns, degree = result.memory["unknowns"], 1 if result.on_sigma.sigma.corner.all() else 2
     else:
-        unknowns, degree = 4 * (len(result.lower.points) + len(result.upper.points)), result.mesh.degree
+        unknowns, degree = result.unknowns, result.mesh.degree
     return (f"estimated discretization error {100 * result.attrs['error_estimate']:.3g} % (relative, energy norm; "
             f"{unknowns} unknowns, P{degree})")
 
@@ -387,30 +387,50 @@ def cmd_export(args, _petsc_options) -> int:
 
 
 def cmd_mesh(args, _petsc_options) -> int:
-    from ddsolve.mesh import geometry
-    from ddsolve.mesh import mesh as meshes
+    from ddsolve.mesh import stack
 
     if args.output is not None and Path(args.output).suffix != MESH_SUFFIX:
         raise DDSolveError(f"-o {args.output}: the mesh command writes one format, gmsh MSH 4.1 with physical "
                            f"groups: give -o a file name with the suffix {MESH_SUFFIX} (e.g. halves{MESH_SUFFIX})")
     scene = _load_scene(args)
-    check_size(scene)
+    if args.output is not None and scene.geometry.above:
+        raise DDSolveError(f"-o {args.output}: the mesh of several interfaces is not written to a file")
+    check_size(scene, solving=False)
     if args.output is not None:
         safe.check_targets([Path(args.output)], _inputs(args, scene))
-    mesh = geometry.build(scene)
-    print(f"{'half':6s} {'h_min':>8s} {'h_max':>8s} {'vertices':>9s} {'nodes':>9s} {'triangles':>10s} {'min angle':>9s}")
-    for half in mesh.halves:
-        s = meshes.statistics(half)
-        print(f"{half.name:6s} {s.h_min:8.4f} {s.h_max:8.4f} {s.vertices:9d} {len(half.points):9d} {s.triangles:10d} "
-              f"{s.min_angle:9.1f}")
-    print(f"Σ vertices {int(mesh.sigma.corner.sum())}, boundary vertices {meshes.boundary_vertex_count(mesh)}, "
-          f"degree {mesh.degree}, boundaries: {', '.join(mesh.boundary_names())}")
+    mesh = stack.build_any(scene)
+    _print_mesh(scene, mesh)
     if args.output is not None:
         safe.atomic(Path(args.output), lambda name: gmsh_io.write_msh(mesh, Path(name)), final=True)
         groups = sorted(mesh.lower.boundaries.keys() | mesh.upper.boundaries.keys()
                         | mesh.lower.named_points.keys() | mesh.upper.named_points.keys())
         print(f"wrote {args.output} (gmsh, physical groups lower, upper, {', '.join(groups)})")
     return 0
+
+
+def _print_mesh(scene, mesh) -> None:
+    """The mesh command's table: each half (each region with several interfaces) as the paper's Table 1, Σ,
+    the boundaries, the blocks."""
+    from ddsolve.mesh import mesh as meshes
+
+    width = max(6, *(len(region.name) for region in mesh.regions))
+    print(f"{'half':{width}s} {'h_min':>8s} {'h_max':>8s} {'vertices':>9s} {'nodes':>9s} {'triangles':>10s} "
+          f"{'min angle':>9s}")
+    for half in mesh.regions:
+        s = meshes.statistics(half)
+        print(f"{half.name:{width}s} {s.h_min:8.4f} {s.h_max:8.4f} {s.vertices:9d} {len(half.points):9d} "
+              f"{s.triangles:10d} {s.min_angle:9.1f}")
+    sigma_vertices = ", ".join(str(int(line.corner.sum())) for line in mesh.sigmas)
+    print(f"Σ vertices {sigma_vertices}{' (per interface, bottom to top)' if mesh.above else ''}, boundary vertices "
+          f"{meshes.boundary_vertex_count(mesh)}, degree {mesh.degree}, boundaries: {', '.join(mesh.boundary_names())}")
+    layers = len(scene.layers)
+    if mesh.above:
+        print(f"{layers} layer{'s' * (layers > 1)} on {len(mesh.regions)} regions: {layers * len(mesh.regions)} "
+              f"blocks, {2 * layers * sum(len(region.points) for region in mesh.regions)} displacement unknowns")
+        return
+    specs = blocks(scene.geometry.layers)
+    print(f"{layers} layer{'s' * (len(specs) > 2)}: blocks {', '.join(spec.name for spec in specs)}, "
+          f"{2 * sum(len(mesh.half(spec.side).points) for spec in specs)} displacement unknowns")
 
 
 def cmd_scenes(_args, _petsc_options) -> int:
@@ -460,7 +480,8 @@ def parser() -> argparse.ArgumentParser:
 
     p = scene_command("solve", "domain-decomposition solve (under mpiexec, or -n N to launch it)", cmd_solve)
     p.add_argument("-n", dest="ranks", type=int, metavar="N",
-                   help="launch N ranks with mpiexec: 1, 2, 4 (a block per rank) or 4k (a block on k ranks)")
+                   help="launch N ranks with mpiexec: 1, 2, 4 (a block per rank) or 4k (a block on k ranks); "
+                   "a one-layer structure (geometry.layers = 1): 1, 2 or 2k")
     p.add_argument("-o", dest="output", help="result file (default: SCENE.h5)")
     p = scene_command("sweep", "solves over ranges of scene values (--set KEY=START:STOP:COUNT), one launch, "
                       "one HDF5 file", cmd_sweep)

@@ -25,7 +25,7 @@ import numpy as np
 
 from ddsolve.errors import DDSolveError
 from experiments import report
-from ddsolve.mesh.mesh import BLOCKS as BLOCK_SPECS
+from ddsolve.mesh.mesh import blocks as block_specs
 from ddsolve.parallel import distribution
 from ddsolve.problem import scene as scenes
 
@@ -108,7 +108,8 @@ def bench_baseline(name: str, P: int, M: int, repeats: int, output: Path, comm) 
     mesh = distribution.build_mesh(scene, comm)
     systems = assembly.block_systems(scene, mesh) if comm.rank == 0 else None
     record = {"scene": name, "P": P, "M": M, "ranks": comm.size, "load": os.getloadavg()[0],
-              "unknowns": sum(2 * len(mesh.half(spec.side).points) for spec in BLOCK_SPECS), "dd": [],
+              "unknowns": sum(2 * len(mesh.half(spec.side).points) for spec in block_specs(scene.geometry.layers)),
+              "dd": [],
               **{f"mono {label}": [] for label in MONOLITHIC_ORDERINGS}}
 
     def timed(label, ordering):
@@ -330,9 +331,10 @@ def floor_time(scene: scenes.Scene, mesh, comm, package: str) -> float:
     from ddsolve.parallel.exchange import Exchange
     from ddsolve.solvers.driver import cut_pieces, make_blocks
 
-    exchange = Exchange(comm, 4)
+    specs = block_specs(scene.geometry.layers)
+    exchange = Exchange(comm, len(specs))
     local = whole(mesh, table=sigma_supports(scene, mesh))
-    blocks = make_blocks(scene, local, exchange, package, cut_pieces(local, exchange))
+    blocks = make_blocks(scene, local, exchange, package, cut_pieces(local, exchange, specs))
     comm.Barrier()
     started = time.perf_counter()
     for block in blocks:

@@ -10,8 +10,8 @@ above (E₁ = ratio × E₂, equal ν), under remote tension σ:
 The model is the half x ≥ 0 (a roller on the symmetry plane x = 0 through the crack's centre), the box
 (0, W) × (−W, W) with W = 80a, the crack [0, a] on Σ: y = 0.  Every layer carries the same materials (the
 pair in every layer) and the same loads, so they move as one and the structure is LAYERS identical sheets: G
-is LAYERS times the one-sheet value, K that of the summed sheet, ε and ψ the sheet's (a one-layer body,
-``geometry.layers = 1``, is LAYERS = 1).  The remote state of the closed
+is LAYERS times the one-sheet value, K that of the summed sheet, ε and ψ the sheet's; the body is posed with
+one layer (``geometry.layers = 1``), LAYERS = 1.  The remote state of the closed
 form is uniform in each material with equal strains along the interface: besides σ_yy = σ on the top and
 bottom, the upper material carries σ_xx = ν′σ(1 − Ē₁/Ē₂) on the far side (ν′ = ν/(1 − ν), plane strain),
 which leaves the crack's loading unchanged; without it the free far side bends the strip and the crack line
@@ -31,8 +31,8 @@ TENSION = 1e-3
 NU = 0.3
 #: Smooth step of the upper material's side traction (its width, 1/STEEPNESS, far below the elements there).
 STEEPNESS = 1000.0
-#: The identical sheets the body is posed as: two layers, each the same pair (one sheet of doubled thickness).
-LAYERS = 2
+#: The sheets the body is posed as: one layer (``geometry.layers = 1``), the closed form's single body.
+LAYERS = 1
 
 
 def closed_form(ratio: float, a: float = 1.0, layers: int = LAYERS) -> dict[str, float]:
@@ -94,8 +94,6 @@ def griffith(ratio: float, size: float, width: float = WIDTH, layers: int = LAYE
     from ddsolve.problem import scene
     from ddsolve.solvers import reference
 
-    from experiments.regions import unknowns
-
     source = scene.loads(scene_text(ratio, size, width, layers=layers))
     result = reference.solve_monolithic(source, geometry.build(source))
     fracture, exact = result.fracture, closed_form(ratio, layers=layers)
@@ -108,7 +106,7 @@ def griffith(ratio: float, size: float, width: float = WIDTH, layers: int = LAYE
     return {"ratio": ratio, "size": size, "width": width, "G": float(fracture.G[0]), "theory": exact["G"],
             "error": float(fracture.G[0]) / exact["G"] - 1.0, "epsilon": epsilon, "epsilon_theory": exact["epsilon"],
             "phase": phase, "phase_theory": exact["phase"], "G_of_K": G_of_K, "spacing": float(fracture.spacing[0]),
-            "unknowns": unknowns(result)}
+            "unknowns": result.unknowns}
 
 
 def main() -> None:

@@ -171,15 +171,15 @@ def meshing(P: int, M: int, refine: str, output: Path, comm) -> None:
     every rank's meshing and distribution CPU seconds, its own wall seconds and the peak memory of each
     rank as JSON."""
     from experiments.bench import paper_scene
-    from ddsolve.mesh.mesh import BLOCKS
+    from ddsolve.mesh.mesh import blocks
     from ddsolve.parallel import distribution
     from ddsolve.parallel.exchange import Exchange
     from ddsolve.parallel.phases import Phases, launch_age
 
     phases = Phases(launch_age())
-    exchange = Exchange(comm, len(BLOCKS))
+    scene = paper_scene(P, M, [] if refine == "auto" else [f"mesh.refine={refine}"])
+    exchange = Exchange(comm, len(blocks(scene.geometry.layers)))
     try:
-        scene = paper_scene(P, M, [] if refine == "auto" else [f"mesh.refine={refine}"])
         local = distribution.local_mesh(scene, comm, exchange, phases, whole_halves=False)
     finally:
         exchange.free()

@@ -152,7 +152,7 @@ def bending_enf(a: float, size: float, moment: float = regions.MOMENT) -> dict:
     theory = enf_release(moment, ARM, {region: 2.0 * modulus for region, modulus in moduli.items()})
     G = float(result.fracture.G[0])
     return {"a": a, "size": size, "G": G, "theory": theory, "error": G / theory - 1.0,
-            "phase": float(result.fracture.phase[0]), **faces(result), "unknowns": regions.unknowns(result)}
+            "phase": float(result.fracture.phase[0]), **faces(result), "unknowns": result.unknowns}
 
 
 def enf_text(a: float, size: float, arms: str = "dissimilar") -> str:
@@ -184,7 +184,7 @@ def enf(a: float, size: float, arms: str = "dissimilar") -> dict:
     return {"a": a, "size": size, "arms": arms, "G": G, "theory": theory, "error": G / theory - 1.0, "simple": simple,
             "reaction": reaction, "implied_chi": implied_chi(G, simple, a, 0.0),
             "G_I": float(result.fracture.G_I[0]), "phase": float(result.fracture.phase[0]), **faces(result),
-            "unknowns": regions.unknowns(result)}
+            "unknowns": result.unknowns}
 
 
 def enf_rows() -> list[dict]:
@@ -207,7 +207,7 @@ def edge(crack: float, size: float = EDGE_SIZE) -> dict:
     G = float(result.fracture.G[0])
     return {"crack": crack, "size": size, "G": G, "theory": steady, "error": G / steady - 1.0,
             "phase": float(result.fracture.phase[0]), "zones": int(len(result.fracture.zones)),
-            "unknowns": regions.unknowns(result)}
+            "unknowns": result.unknowns}
 
 
 def thermal_rows() -> dict:
@@ -448,9 +448,8 @@ def _griffith(record: dict) -> list[str]:
            f"crack [0, a] on Σ reaches; the box (0, W) × (−W, W), W = {interface_crack.WIDTH:g}a, is large enough "
            "that the finite width changes G by about (πa/2W)²/4 ≈ 10⁻⁴ (Feddersen's √sec(πa/2W)), so no correction "
            "is applied. The closed form's remote state has equal strains along the interface: the upper material "
-           "carries σxx = ν′σ(1 − Ē₁/Ē₂) on the far side (ν′ = ν/(1 − ν)). Both layers carry the pair and the "
-           "loads (one body of doubled thickness: G and the closed form summed over the two sheets); the scene is "
-           "`experiments.interface_crack.scene_text`, whose `layers` becomes 1 with one-layer structures. "
+           "carries σxx = ν′σ(1 − Ē₁/Ē₂) on the far side (ν′ = ν/(1 − ν)). The body is one layer "
+           "(`geometry.layers = 1`); the scene is `experiments.interface_crack.scene_text`. "
            "`mesh.size` is the largest element, in units of a; the grading refines towards the tip.", "",
            "![Griffith interface crack](stacks-griffith.png)", ""]
     out += table(["E₁/E₂", "mesh.size", "Σ edge at the tip", "unknowns", "G", "closed form", "error", "ε",

@@ -7,7 +7,7 @@ from conftest import structured_mesh
 
 from ddsolve.errors import DDSolveError
 from ddsolve.mesh import bisection
-from ddsolve.mesh.mesh import BLOCKS, Mesh
+from ddsolve.mesh.mesh import Mesh, blocks
 from ddsolve.post.result import Result
 from ddsolve.problem import scene
 from ddsolve.problem.scene import Geometry
@@ -16,7 +16,7 @@ from ddsolve.solvers import adapt, reference
 
 def _indicators(mesh, hot):
     """Indicators: 1e-3 everywhere, 1 in the cells of the lower half listed in ``hot`` (block u_minus)."""
-    out = {spec.name: np.full(len(mesh.half(spec.side).cells), 1e-3) for spec in BLOCKS}
+    out = {spec.name: np.full(len(mesh.half(spec.side).cells), 1e-3) for spec in blocks(2)}
     out["u_minus"][hot] = 1.0
     return out
 

@@ -106,6 +106,25 @@ def test_coulomb_iterates_tresca_problems_from_the_last_multipliers_to_a_fixed_p
     assert outcome.iterations == 3 * outcome.details["coulomb_iterations"]
 
 
+@pytest.mark.unit
+def test_coulomb_stops_where_the_bounds_change_stalls_at_the_tresca_solves_accuracy():
+    """An iterative method's pressures scatter by about its tol: the changes stop falling above tol, and the fixed
+    point ends there (a feti ENF at tol 1e-11 used to run all 50 Tresca problems and fail)."""
+    interface = Interface(WEIGHTS, CRACK, contact=True, friction=np.where(CRACK, 0.5, 0.0), coulomb=True)
+    normal, scatter = interface.slices["mu_c"], iter(5e-9 * np.array([1, -1, 1, -1, 1, -1] * 10))
+
+    def solve(problem: Interface, start):
+        lam = np.zeros(interface.size)
+        lam[normal] = 1.0 + 0.5 * problem.slip + next(scatter)
+        return Outcome(lam, converged=True, iterations=3)
+
+    outcome = friction.coulomb(interface, solve, 1e-11, "test")
+    assert outcome.converged and outcome.details["coulomb_iterations"] < 20
+    assert np.allclose(interface.slip_bounds(outcome.lam), 0.5 / (1 - 0.25), rtol=1e-8)
+    assert friction.stalled(1e-9, 5e-10, 1e-11) and not friction.stalled(5e-10, 1e-9, 1e-11)  # still falling
+    assert not friction.stalled(1e-5, 1e-6, 1e-11)  # no floor above √tol: the iteration goes on
+
+
 def scene(**overrides) -> scenes.Scene:
     return scenes.Scene.load(SCENE, overrides)
 

@@ -142,7 +142,7 @@ def test_the_phase_turns_by_epsilon_ln_l():
 
 @pytest.mark.unit
 def test_the_reference_length_is_a_positive_key_and_a_law_needs_a_pair():
-    text = _text(10.0)
+    text = _text(10.0, layers=2)
     assert interface_crack.reference_length(scene.loads(text)) == 1.0
     assert interface_crack.reference_length(scene.loads(text, ["fracture.reference_length=2.0"])) == 2.0
     with pytest.raises(SceneError, match="fracture.reference_length"):
@@ -153,10 +153,10 @@ def test_the_reference_length_is_a_positive_key_and_a_law_needs_a_pair():
         scene.loads(text, [*law, "materials.layer2.upper.E=20.0"])
 
 
-def _text(ratio: float, size: float = 4.0) -> str:
+def _text(ratio: float, size: float = 4.0, layers: int = 1) -> str:
     from experiments import interface_crack as griffith
 
-    return griffith.scene_text(ratio, size)
+    return griffith.scene_text(ratio, size, layers=layers)
 
 
 @pytest.mark.solve

@@ -50,6 +50,7 @@ def cases(folder: Path) -> list[tuple[str, list[str], list[str]]]:
            ("geometry.crack", [], ["geometry.crack=[-0.5, 0.25]"]),
            ("geometry.cracks", [], ["geometry.cracks=[[-0.5, -0.25], [0.25, 0.5]]"]),
            ("geometry.clamped", [], ['geometry.clamped=["left"]']),
+           ("geometry.layers", [], ["geometry.layers=1"]),  # refused: the scene's layer2 tables (test_one_layer.py)
            ("mesh.file", ["geometry={}"], [f'mesh.file="{folder / "other.msh"}"']),
            ("mesh.sigma_vertices", [], ["mesh.sigma_vertices=15"]),
            ("mesh.boundary_vertices", [], ["mesh.boundary_vertices=36"]),

@@ -38,11 +38,11 @@ def test_the_enf_formula_of_equal_arms_is_the_standard_enf():
 
 @pytest.mark.unit
 def test_the_griffith_scene_takes_its_layers_as_a_parameter():
-    two, one = interface_crack.scene_text(10.0, 4.0), interface_crack.scene_text(10.0, 4.0, layers=1)
-    assert "[loads.layer2.top]" in two and "layers =" not in two
+    one, two = interface_crack.scene_text(10.0, 4.0), interface_crack.scene_text(10.0, 4.0, layers=2)
     assert "[loads.layer2.top]" not in one and "\nlayers = 1\n" in one
-    assert interface_crack.closed_form(10.0, layers=1)["G"] == pytest.approx(
-        0.5 * interface_crack.closed_form(10.0)["G"], rel=1e-14)
+    assert "[loads.layer2.top]" in two and "layers =" not in two
+    assert interface_crack.closed_form(10.0, layers=2)["G"] == pytest.approx(
+        2.0 * interface_crack.closed_form(10.0)["G"], rel=1e-14)
 
 
 @pytest.mark.solve

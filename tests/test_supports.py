@@ -12,7 +12,7 @@ from ddsolve.fem import assembly
 from ddsolve.io import hdf5
 from ddsolve.mesh import geometry
 from ddsolve.mesh.element import TRIANGLE_RULES, element_geometry
-from ddsolve.mesh.mesh import BLOCKS, HalfMesh, make_mesh
+from ddsolve.mesh.mesh import HalfMesh, make_mesh
 from ddsolve.post import analysis, fracture
 from ddsolve.problem import expressions, scene
 from ddsolve.problem.scene import Load
@@ -256,7 +256,7 @@ def mechanical_energy(result) -> float:
     """½ Σ_b ∫ (ε(u_b) − ε₀)ᵀ D (ε(u_b) − ε₀) − the work of the tractions, element by element from the fields."""
     source, total = result.scene, 0.0
     xi, weights = TRIANGLE_RULES[6]
-    for spec in BLOCKS:
+    for spec in result.blocks:
         half, u = result.mesh.half(spec.side), result.solution[spec.name].reshape(-1)
         D, _ = assembly.elasticity(source, spec.layer, spec.region)
         det, gradients = element_geometry(half.points, half.cells, xi)

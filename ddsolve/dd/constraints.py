@@ -106,7 +106,7 @@ FRICTION_SLACK = 1e-6
 
 def kkt(interface: Interface, traces: np.ndarray, lam: np.ndarray, p: float | None, equilibrium: np.ndarray,
         largest: float) -> Constraints:
-    """The KKT residuals from the blocks' traces ``(4, 2k)`` (local frames) under the multipliers
+    """The KKT residuals from the blocks' traces ``(blocks, 2k)`` (local frames) under the multipliers
     ``lam`` (bound ``p``), their equilibrium residuals and the largest nodal displacement; displacements
     are measured against :func:`displacement_scale`.  Friction (μ_t): |μ_t| ≤ g, the slip (u⁻ − u⁺)·τ zero where
     |μ_t| < g and of μ_t's sign where |μ_t| = g (Coulomb: g = μ max(μᶜ, 0) of ``lam``).  A compliant bond's rows

@@ -35,31 +35,31 @@ class Rounds(Protocol):
     """Rank 0's handle on the blocks."""
 
     count: int  # rounds of block solves so far
-    residuals: np.ndarray  # (4,) the blocks' relative residuals ‖K x − b‖ in the last full solve
+    residuals: np.ndarray  # (blocks,) the blocks' relative residuals ‖K x − b‖ in the last full solve
     largest: float  # the largest nodal displacement |x| in the last full solve
     floating: list[int]  # the blocks whose stiffness is singular (held only through Σ)
     kernel_traces: list[np.ndarray]  # per block the traces (2k, m_b) of its kernel R_b (m_b = 0: invertible)
 
     def solve(self, loads: np.ndarray, full: bool, held: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Solve every block with trace loads ``(4, 2k)`` (plus the body load if ``full``).
+        """Solve every block with trace loads ``(blocks, 2k)`` (plus the body load if ``full``).
 
-        Returns the traces ``(4, 2k)`` and the energies x_bᵀ K_b x_b ``(4,)`` of the solutions.
+        Returns the traces ``(blocks, 2k)`` and the energies x_bᵀ K_b x_b ``(blocks,)`` of the solutions.
         With ``full`` the blocks keep their solutions for output.  A floating block applies a generalized
-        inverse K_b⁺ (``feti``); in a full solve with ``held`` traces ``(4, 2k)`` it takes its trace from
+        inverse K_b⁺ (``feti``); in a full solve with ``held`` traces ``(blocks, 2k)`` it takes its trace from
         them instead and solves its interior, x_I = K_II⁻¹(f_I − K_IΣ t_b).
         """
 
     def schur_complements(self) -> np.ndarray:
-        """The blocks' Schur complements on their traces, S_b = (E K_b⁻¹ Eᵀ)⁻¹, ``(4, 2k, 2k)``."""
+        """The blocks' Schur complements on their traces, S_b = (E K_b⁻¹ Eᵀ)⁻¹, ``(blocks, 2k, 2k)``."""
 
     def dirichlet(self, traces: np.ndarray) -> np.ndarray:
-        """S_b t_b for trace displacements ``(4, 2k)``: one Dirichlet solve per block (``feti``)."""
+        """S_b t_b for trace displacements ``(blocks, 2k)``: one Dirichlet solve per block (``feti``)."""
 
     def trace_diagonals(self) -> np.ndarray:
-        """The diagonals of the blocks' stiffness matrices at their traces, ``(4, 2k)``."""
+        """The diagonals of the blocks' stiffness matrices at their traces, ``(blocks, 2k)``."""
 
     def condensed_loads(self, schur_complements: np.ndarray) -> np.ndarray:
-        """The body loads condensed on the traces, g_b = f_Σ − K_ΣI K_II⁻¹ f_I ``(4, 2k)`` (S_b t⁰_b for
+        """The body loads condensed on the traces, g_b = f_Σ − K_ΣI K_II⁻¹ f_I ``(blocks, 2k)`` (S_b t⁰_b for
         an invertible block, with ``schur_complements`` S_b)."""
 
     def kernel_work(self) -> list[np.ndarray]:
@@ -78,7 +78,7 @@ class Outcome:
     details: dict = field(default_factory=dict)  # method-specific numbers for the result file
     # (traces of a full solve, whether the check failed) -> a better λ, or None when it cannot be bettered
     refine: Callable[[np.ndarray, bool], np.ndarray | None] | None = None
-    held: np.ndarray | None = None  # (4, 2k) the traces floating blocks take in the final solve
+    held: np.ndarray | None = None  # (blocks, 2k) the traces floating blocks take in the final solve
     state: Interface | None = None  # the interface the multipliers solve where it differs (a bond's damage)
 
 

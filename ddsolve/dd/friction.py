@@ -4,12 +4,14 @@ Tresca's friction bounds the tangential multiplier μ_t by a given g: a box, whi
 solves as it is.  Coulomb's bounds it by g = μ μᶜ, the contact pressure of the same solution: the problem is no
 longer a QP.  It is solved by successive Tresca problems, g⁰ = 0 (the faces slide freely), gⁱ⁺¹ = μ max(μᶜ(λⁱ), 0)
 from the solution λⁱ of the Tresca problem with gⁱ, each solve started from the previous λ where the method
-can.  Converged: ‖gⁱ⁺¹ − gⁱ‖ ≤ tol ‖gⁱ⁺¹‖ (``solver.tol``), or both zero (no pressure, no friction).  The
+can.  Converged: ‖gⁱ⁺¹ − gⁱ‖ ≤ tol ‖gⁱ⁺¹‖ (``solver.tol``), or both zero (no pressure, no friction), or, for the
+iterative methods, the change stalled at the Tresca solves' own accuracy (:func:`stalled`).  The
 loading is quasi-static and monotone from the unloaded state, in one step: the friction is the one of the
 final state, with no history.
 """
 from __future__ import annotations
 
+import math
 from typing import Callable
 
 import numpy as np
@@ -32,6 +34,14 @@ def settled(old: np.ndarray, new: np.ndarray, tol: float) -> bool:
     return relative_change(old, new) <= tol
 
 
+def stalled(change: float, previous: float, tol: float) -> bool:
+    """Whether the relative change of the slip bounds has stopped falling below √tol: the fixed point's changes
+    fall geometrically down to the accuracy of the Tresca solves, which an iterative method meets to about its
+    tol (its multipliers, so the bounds μ μᶜ, scatter by up to a few hundred tol from solve to solve); a change no
+    smaller than the last one is that floor, and further Tresca problems cannot lower it."""
+    return previous <= change <= math.sqrt(tol)
+
+
 def no_fixed_point(label: str, change: float) -> str:
     """The message of a Coulomb iteration that used all its Tresca problems."""
     return (f"{label}: Coulomb's friction found no fixed point in {MAX_FIXED_POINT} Tresca problems (relative "
@@ -44,15 +54,16 @@ def coulomb(interface: Interface, tresca: Callable[[Interface, np.ndarray | None
     bounds g, start)`` solves one from the multipliers ``start`` (None: from zero).  The outcome of the last,
     with ``coulomb_iterations`` (the Tresca problems solved) and their iterations summed."""
     slip, start, total, history = np.zeros(len(interface.friction_values)), None, 0, []
+    previous = math.inf
     for iteration in range(1, MAX_FIXED_POINT + 1):
         outcome = tresca(interface.with_slip(slip), start)
         total += outcome.iterations
         history += outcome.history
         new = interface.slip_bounds(outcome.lam)
         change = relative_change(slip, new)
-        if outcome.diverged or not outcome.converged or change <= tol:
+        if outcome.diverged or not outcome.converged or change <= tol or stalled(change, previous, tol):
             break
-        slip, start = new, outcome.lam
+        slip, start, previous = new, outcome.lam, change
     else:
         outcome.converged, outcome.message = False, no_fixed_point(label, change)
     outcome.iterations, outcome.history = total, history

@@ -1,4 +1,4 @@
-"""The interface Σ: the four blocks, the Lagrange multipliers that couple them, and their signs.
+"""The interface Σ: the blocks, the Lagrange multipliers that couple them, and their signs.
 
 Every block has the same *trace*: the displacements of the k Σ nodes that are not clamped, in order
 along Σ, each in its local frame (tangential, normal) — a vector of length 2k (for a straight Σ
@@ -15,6 +15,9 @@ multiplier  vertices                gap it enforces      admissible set
 μ_t         crack, with friction    (u⁻ − u⁺)·τ = 0      −g ≤ μ_t ≤ g (and |μ_t| ≤ p)
             (x only: tangential)    unless |μ_t| = g
 ==========  ======================  ===================  ========================
+
+A one-layer structure has the blocks u⁻ and u⁺ only, and μᶜ, μᵍ (and μ_t) only: the families that glue a region's
+layers together (μ⁻, μ⁺) come from the pairs :func:`ddsolve.mesh.mesh.glued_layers` lists.
 
 With the lumped weights w (∫Σ φ_k ds: half the length of the Σ edges at a P1 vertex) the discrete coupling is
 gap = Σ_b C_b t_b and block b receives the nodal force −C_bᵀ W λ on its trace.  μᶜ exists only
@@ -41,11 +44,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from ddsolve.errors import SceneError
-from ddsolve.mesh.mesh import BLOCKS, U_MINUS, U_PLUS, V_MINUS, V_PLUS, SigmaLine
+from ddsolve.mesh.mesh import U_MINUS, U_PLUS, BlockSpec, SigmaLine, blocks, glued_layers
 from ddsolve.problem.scene import Bond, Friction
 
 #: A vertex whose damage reaches this is broken (its tangential row freed, its normal row a penalized contact).
 BROKEN = 1.0 - 1e-9
+
+#: The families on Σ's faces (layer1's blocks u⁻ and u⁺), and the family that glues a region's layers, by its side.
+SIGMA_FAMILIES = ("mu_c", "mu_g", "mu_t")
+LAYER_FAMILIES = {-1: "mu_minus", +1: "mu_plus"}
 
 
 @dataclass(frozen=True)
@@ -62,9 +69,10 @@ class Interface:
 
     def __init__(self, weights: np.ndarray, crack: np.ndarray, contact: bool, fixed: np.ndarray | None = None,
                  modulus: float = 0.0, data: float = 0.0, friction: np.ndarray | None = None, coulomb: bool = False,
-                 bond: Bond | None = None):
+                 specs: tuple[BlockSpec, ...] = blocks(2), bond: Bond | None = None):
         """``weights`` and ``crack`` (bool) of the k multiplier nodes; ``contact``: non-penetration holds;
-        ``fixed`` ``(4, 2k)``: the blocks' prescribed trace entries (:mod:`ddsolve.fem.supports`): a
+        ``specs``: the structure's blocks (:func:`ddsolve.mesh.mesh.blocks`);
+        ``fixed`` ``(blocks, 2k)``: the blocks' prescribed trace entries (:mod:`ddsolve.fem.supports`): a
         multiplier between two prescribed entries has nothing to enforce and does not exist; ``modulus``:
         the largest elastic modulus of the layers (the scale of the stresses a displacement makes, for the
         KKT check); ``data``: the displacement the scene's data would make
@@ -81,37 +89,39 @@ class Interface:
         glued_vertices = np.flatnonzero(~self.crack)
         all_vertices = np.arange(k)
 
-        # Multiplier rows: (vertex, component) for each family, in the order of the class docstring.
+        self.blocks = tuple(specs)
+        # Multiplier rows: (vertex, component) and the blocks (minuend, subtrahend) of the gap of each family, in
+        # the order of the class docstring: Σ's faces, each region's layers glued, the friction.
         families = {
-            "mu_c": (contact_vertices, np.ones(len(contact_vertices), dtype=np.int64)),
-            "mu_g": _both_components(glued_vertices),
-            "mu_minus": _both_components(all_vertices),
-            "mu_plus": _both_components(all_vertices),
+            "mu_c": (contact_vertices, np.ones(len(contact_vertices), dtype=np.int64), (U_MINUS, U_PLUS)),
+            "mu_g": (*_both_components(glued_vertices), (U_MINUS, U_PLUS)),
+            **{LAYER_FAMILIES[self.blocks[first].side]: (*_both_components(all_vertices), (first, other))
+               for first, other in glued_layers(self.blocks)},
         }
         friction = np.zeros(k) if friction is None else np.asarray(friction, dtype=np.float64)
         sliding = contact_vertices[friction[contact_vertices] > 0]
         if len(sliding):
-            families["mu_t"] = (sliding, np.zeros(len(sliding), dtype=np.int64))
+            families["mu_t"] = (sliding, np.zeros(len(sliding), dtype=np.int64), (U_MINUS, U_PLUS))
         #: The crack faces' normal entries (trace positions) that both faces prescribe, so that no contact row
         #: holds them: the KKT check measures their penetration from the traces alone.
         self.prescribed_contact = np.zeros(0, dtype=np.int64)
         if fixed is not None:
             normals = 2 * contact_vertices + 1
             self.prescribed_contact = normals[fixed[U_MINUS, normals] & fixed[U_PLUS, normals]]
-            pairs = {"mu_c": (U_MINUS, U_PLUS), "mu_g": (U_MINUS, U_PLUS), "mu_minus": (U_MINUS, V_MINUS),
-                     "mu_plus": (U_PLUS, V_PLUS), "mu_t": (U_MINUS, U_PLUS)}
-            for name, (vertices, components) in families.items():
+            for name, (vertices, components, pair) in families.items():
                 entries = 2 * vertices + components
-                kept = ~(fixed[pairs[name][0], entries] & fixed[pairs[name][1], entries])
-                families[name] = (vertices[kept], components[kept])
+                kept = ~(fixed[pair[0], entries] & fixed[pair[1], entries])
+                families[name] = (vertices[kept], components[kept], pair)
+        #: family -> the blocks (minuend, subtrahend) of its gap
+        self.pairs = {name: pair for name, (_, _, pair) in families.items()}
         self.slices: dict[str, slice] = {}
         start = 0
-        for name, (vertices, _) in families.items():
+        for name, (vertices, _, _) in families.items():
             self.slices[name] = slice(start, start + len(vertices))
             start += len(vertices)
         self.size = start
-        self.vertex = np.concatenate([v for v, _ in families.values()])
-        self.component = np.concatenate([c for _, c in families.values()])
+        self.vertex = np.concatenate([v for v, _, _ in families.values()])
+        self.component = np.concatenate([c for _, c, _ in families.values()])
         self.trace_index = 2 * self.vertex + self.component
         self.row_weights = self.weights[self.vertex]
         self.is_contact = np.zeros(self.size, dtype=bool)
@@ -121,18 +131,13 @@ class Interface:
         self.damage = np.zeros(k)
         self.pressed = np.zeros(k, dtype=bool)
 
-        # (family, block, sign): gap rows are u⁻ − u⁺ (c, g), u⁻ − v⁻ (−), u⁺ − v⁺ (+).
-        signs = [("mu_c", U_MINUS, 1.0), ("mu_c", U_PLUS, -1.0),
-                 ("mu_g", U_MINUS, 1.0), ("mu_g", U_PLUS, -1.0),
-                 ("mu_minus", U_MINUS, 1.0), ("mu_minus", V_MINUS, -1.0),
-                 ("mu_plus", U_PLUS, 1.0), ("mu_plus", V_PLUS, -1.0),
-                 ("mu_t", U_MINUS, 1.0), ("mu_t", U_PLUS, -1.0)]
+        # (family, block, sign): a family's gap rows are its minuend's trace less its subtrahend's.
+        signs = [(name, block, sign) for name, pair in self.pairs.items() for block, sign in zip(pair, (1.0, -1.0))]
         self.couplings = []
-        for block in range(len(BLOCKS)):
-            rows = np.concatenate([np.arange(self.size)[self.slices[f]] for f, b, _ in signs
-                                   if b == block and f in self.slices])
+        for block in range(len(self.blocks)):
+            rows = np.concatenate([np.arange(self.size)[self.slices[f]] for f, b, _ in signs if b == block])
             sign = np.concatenate([np.full(self.slices[f].stop - self.slices[f].start, s)
-                                   for f, b, s in signs if b == block and f in self.slices])
+                                   for f, b, s in signs if b == block])
             self.couplings.append(Coupling(rows, self.trace_index[rows], sign))
 
     def _friction_rows(self, friction: np.ndarray, coulomb: bool) -> None:
@@ -217,15 +222,15 @@ class Interface:
         return lower, upper
 
     def gap(self, traces: np.ndarray) -> np.ndarray:
-        """Constraint values Σ_b C_b t_b for traces ``(4, 2k)``."""
+        """Constraint values Σ_b C_b t_b for traces ``(blocks, 2k)``."""
         out = np.zeros(self.size)
         for coupling, trace in zip(self.couplings, traces):
             out[coupling.rows] += coupling.sign * trace[coupling.trace]
         return out
 
     def loads(self, lam: np.ndarray) -> np.ndarray:
-        """Interface nodal forces −C_bᵀ W λ on each block's trace, ``(4, 2k)``."""
-        out = np.zeros((len(BLOCKS), self.trace_size))
+        """Interface nodal forces −C_bᵀ W λ on each block's trace, ``(blocks, 2k)``."""
+        out = np.zeros((len(self.blocks), self.trace_size))
         force = self.row_weights * lam
         for coupling, load in zip(self.couplings, out):
             np.add.at(load, coupling.trace, -coupling.sign * force[coupling.rows])
@@ -237,19 +242,22 @@ class Interface:
         v⁻ and v⁺ carry only μ⁻ and μ⁺ (force +W μ); u⁻ carries −W(μᶜν + μᵍ + μ⁻).
         """
         lam = np.zeros(self.size)
-        for name, block in (("mu_minus", V_MINUS), ("mu_plus", V_PLUS)):
+        minus = np.zeros(self.trace_size)  # indexed by trace position: the layer families u⁻ carries
+        for name, (first, other) in self.pairs.items():
+            if name in SIGMA_FAMILIES:
+                continue
             rows = self.slices[name]
-            lam[rows] = loads[block][self.trace_index[rows]] / self.row_weights[rows]
-        minus = np.zeros(self.trace_size)  # indexed by trace position
-        minus[self.trace_index[self.slices["mu_minus"]]] = lam[self.slices["mu_minus"]]
-        for name in ("mu_c", "mu_g", "mu_t"):
+            lam[rows] = loads[other][self.trace_index[rows]] / self.row_weights[rows]
+            if first == U_MINUS:
+                minus[self.trace_index[rows]] += lam[rows]
+        for name in SIGMA_FAMILIES:
             rows = self.slices.get(name, slice(0, 0))
             traces = self.trace_index[rows]
             lam[rows] = -loads[U_MINUS][traces] / self.row_weights[rows] - minus[traces]
         return lam
 
     def dual_matrix(self, flexibilities: np.ndarray) -> np.ndarray:
-        """F = Σ_b W C_b G_b C_bᵀ W from the blocks' flexibilities G_b ``(4, 2k, 2k)``."""
+        """F = Σ_b W C_b G_b C_bᵀ W from the blocks' flexibilities G_b ``(blocks, 2k, 2k)``."""
         F = np.zeros((self.size, self.size))
         for coupling, G in zip(self.couplings, flexibilities):
             scaled = coupling.sign * self.row_weights[coupling.rows]
@@ -257,9 +265,9 @@ class Interface:
         return F
 
     def trace_unknowns(self, closed: np.ndarray | None = None) -> np.ndarray:
-        """``(4, 2k)``: one interface unknown per trace entry, tied entries sharing it.
+        """``(blocks, 2k)``: one interface unknown per trace entry, tied entries sharing it.
 
-        Glued vertices tie all four blocks; a crack vertex ties u⁻ with v⁻ (lower face) and u⁺ with
+        Glued vertices tie all the blocks; a crack vertex ties u⁻ with v⁻ (lower face) and u⁺ with
         v⁺ (upper face), and also the faces' normal components where ``closed`` (per μᶜ row).
         """
         k = len(self.weights)
@@ -272,11 +280,12 @@ class Interface:
             upper[normal] = lower[normal]
         _, numbers = np.unique(np.concatenate([lower, upper]), return_inverse=True)
         lower, upper = numbers[:2 * k], numbers[2 * k:]
-        return np.array([lower, upper, lower, upper])
+        return np.array([lower if spec.side < 0 else upper for spec in self.blocks])
 
     def split(self, lam: np.ndarray, frames: np.ndarray | None = None) -> dict[str, np.ndarray]:
-        """Per-node arrays: mu_c ``(k,)``, mu_g, mu_minus, mu_plus ``(k, 2)``; 0 where absent; with friction
-        mu_t ``(k,)`` (the tangential traction, along τ) too; with a bond law its ``damage`` and ``pressed`` ``(k,)``.
+        """Per-node arrays: mu_c ``(k,)``, mu_g, mu_minus, mu_plus ``(k, 2)``; 0 where absent (a one-layer
+        structure has no mu_minus, mu_plus: they are left out); with friction mu_t ``(k,)`` (the tangential
+        traction, along τ) too; with a bond law its ``damage`` and ``pressed`` ``(k,)``.
 
         The vectors are in the nodes' local frames, or in (x, y) when their ``frames`` ``(k, 2, 2)`` are given.
         """
@@ -288,7 +297,7 @@ class Interface:
         if self.friction:
             out["mu_t"] = np.zeros(k)
             out["mu_t"][self.vertex[self.slices["mu_t"]]] = lam[self.slices["mu_t"]]
-        for name in ("mu_g", "mu_minus", "mu_plus"):
+        for name in (name for name in self.slices if name not in ("mu_c", "mu_t")):
             values = np.zeros((k, 2))
             rows = self.slices[name]
             values[self.vertex[rows], self.component[rows]] = lam[rows]
@@ -297,18 +306,19 @@ class Interface:
 
 
 def for_mesh(sigma: SigmaLine, contact: bool, fixed: np.ndarray | None = None, modulus: float = 0.0,
-             data: float = 0.0, friction: Friction | None = None, bond: Bond | None = None) -> Interface:
+             data: float = 0.0, friction: Friction | None = None, specs: tuple[BlockSpec, ...] = blocks(2),
+             bond: Bond | None = None) -> Interface:
     """The interface of a mesh's Σ (``contact``: the scene's non-penetration condition; ``fixed``: the
     blocks' prescribed trace entries; ``modulus``: the layers' largest modulus; ``data``: the displacement
-    the data would make; ``friction``: the scene's, on its cracks in order along Σ; ``bond``: the law on the bonded
-    part of Σ, which must exist; see :class:`Interface`)."""
+    the data would make; ``friction``: the scene's, on its cracks in order along Σ; ``specs``: the structure's
+    blocks; ``bond``: the law on the bonded part of Σ, which must exist; see :class:`Interface`)."""
     nodes = sigma.multiplier_nodes
     values = None if friction is None else friction_values(sigma, friction)[nodes]
     if bond is not None and sigma.crack[nodes].all():
         raise SceneError("interface.law: the law acts on the bonded part of Σ, and the cracks cover all of Σ (a "
                          "crack's faces take contact.friction or contact.slip_bound instead)")
     return Interface(sigma.weights[nodes], sigma.crack[nodes], contact, fixed, modulus, data, values,
-                     friction is not None and friction.coulomb, bond)
+                     friction is not None and friction.coulomb, specs, bond)
 
 
 def friction_values(sigma: SigmaLine, friction: Friction) -> np.ndarray:

@@ -25,7 +25,7 @@ from ddsolve.errors import SceneError
 from ddsolve.fem import supports
 from ddsolve.fem.assembly import rigid_body_modes, rotate_vector
 from ddsolve.fem.supports import SigmaSupports
-from ddsolve.mesh.mesh import BLOCKS, HalfMesh, Mesh, SigmaLine
+from ddsolve.mesh.mesh import BlockSpec, HalfMesh, Mesh, SigmaLine, blocks
 from ddsolve.problem.scene import Scene
 
 #: A singular value of the (scaled) constraint matrix below this fraction of the largest one is a free motion.
@@ -108,19 +108,19 @@ def trace_modes(sigma: SigmaLine, frame: Frame) -> np.ndarray:
 
 
 def gluing_rows(interface: Interface, traces: np.ndarray) -> np.ndarray:
-    """``(equalities, 4·3)``: the gluing gaps (every multiplier row but the contact ones) of rigid motions of
-    the four blocks with mode traces ``traces`` ``(2k, 3)``, per block coefficient."""
-    rows = np.zeros((interface.size, len(BLOCKS), 3))
+    """``(equalities, blocks·3)``: the gluing gaps (every multiplier row but the contact ones) of rigid motions
+    of the blocks with mode traces ``traces`` ``(2k, 3)``, per block coefficient."""
+    rows = np.zeros((interface.size, len(interface.blocks), 3))
     for block, coupling in enumerate(interface.couplings):
         rows[coupling.rows, block] += coupling.sign[:, None] * traces[coupling.trace]
-    return rows[~interface.is_contact].reshape(-1, 3 * len(BLOCKS))
+    return rows[~interface.is_contact].reshape(-1, 3 * len(interface.blocks))
 
 
 def structure_kernel(blocks: list[np.ndarray], interface: Interface, sigma: SigmaLine, frame: Frame) -> np.ndarray:
-    """``(4·3, m)``: the rigid motions of the four blocks (coefficients per block, in ``frame``) that satisfy
+    """``(blocks·3, m)``: the rigid motions of the blocks (coefficients per block, in ``frame``) that satisfy
     every support (``blocks``: each block's constraint rows ``(c, 3)``, :func:`constraint_rows`) and every
     gluing equality: the free motions of the structure."""
-    count = len(BLOCKS)
+    count = len(interface.blocks)
     supports = np.zeros((sum(len(rows) for rows in blocks), 3 * count))
     start = 0
     for block, rows in enumerate(blocks):
@@ -129,11 +129,12 @@ def structure_kernel(blocks: list[np.ndarray], interface: Interface, sigma: Sigm
     return null_space(np.vstack([supports, gluing_rows(interface, trace_modes(sigma, frame))]), 3 * count)
 
 
-def describe(kernel: np.ndarray, frame: Frame) -> str:
-    """What a nonzero structure kernel ``(12, m)`` lets move, in words: a rigid motion of the whole
-    structure if there is one (translations first), else the blocks that move relative to the rest."""
-    count = len(BLOCKS)
-    together = np.tile(np.eye(3), (count, 1))  # (12, 3): one rigid motion of every block
+def describe(kernel: np.ndarray, frame: Frame, specs: tuple[BlockSpec, ...] = blocks(2)) -> str:
+    """What a nonzero structure kernel ``(blocks·3, m)`` of the blocks ``specs`` lets move, in words: a rigid
+    motion of the whole structure if there is one (translations first), else the blocks that move relative to
+    the rest."""
+    count = len(specs)
+    together = np.tile(np.eye(3), (count, 1))  # (blocks·3, 3): one rigid motion of every block
     projector = np.eye(3 * count) - kernel @ kernel.T
     common = null_space(projector @ together, 3)  # (3, g): motions of the whole structure in the kernel
     if common.shape[1]:
@@ -144,8 +145,8 @@ def describe(kernel: np.ndarray, frame: Frame) -> str:
         motion = common[:, 0]
         return "the structure can " + _motion(motion, frame)
     motions = kernel.reshape(count, 3, -1)  # per block, the span of its part of every free motion
-    moving = [spec.name for spec, part in zip(BLOCKS, motions) if np.linalg.norm(part) > 1e-6]
-    span = motions[[spec.name for spec in BLOCKS].index(moving[0])]
+    moving = [spec.name for spec, part in zip(specs, motions) if np.linalg.norm(part) > 1e-6]
+    span = motions[[spec.name for spec in specs].index(moving[0])]
     return f"blocks {', '.join(moving)} can {_motions(span, frame)} relative to the rest"
 
 
@@ -178,10 +179,11 @@ def _motion(coefficients: np.ndarray, frame: Frame) -> str:
 
 @dataclass(frozen=True)
 class Kernels:
-    """The kernels of the four blocks, ``(3, m_b)`` coefficients in ``frame`` (m_b = 0: invertible)."""
+    """The kernels of the blocks ``specs``, ``(3, m_b)`` coefficients in ``frame`` (m_b = 0: invertible)."""
 
     kernels: list[np.ndarray]
     frame: Frame
+    specs: tuple[BlockSpec, ...] = blocks(2)
 
     @property
     def floating(self) -> list[int]:
@@ -189,36 +191,36 @@ class Kernels:
         return [block for block, kernel in enumerate(self.kernels) if kernel.shape[1]]
 
     def names(self) -> str:
-        return ", ".join(BLOCKS[block].name for block in self.floating)
+        return ", ".join(self.specs[block].name for block in self.floating)
 
 
 def block_kernels(halves: dict[int, HalfMesh], sigma: SigmaLine, interface: Interface,
                   constraints: list[tuple[np.ndarray, np.ndarray]]) -> Kernels:
-    """The blocks' kernels under their ``constraints`` (per block of ``BLOCKS``, the constrained directions
+    """The blocks' kernels under their ``constraints`` (per block of ``interface.blocks``, the constrained directions
     of :func:`prescribed_directions`); a SceneError naming the free motion when the structure as a whole
     is not supported (its rigid motions are not all removed by the supports and the gluing together)."""
     frame = frame_of(np.vstack([half.points for half in halves.values()]))
     rows = [constraint_rows(frame.modes(halves[spec.side].points), np.zeros(0, dtype=np.int64), directions)
-            for spec, directions in zip(BLOCKS, constraints)]
+            for spec, directions in zip(interface.blocks, constraints)]
     kernel = structure_kernel(rows, interface, sigma, frame)
     if kernel.shape[1]:
-        motion = describe(kernel, frame)
+        motion = describe(kernel, frame, interface.blocks)
         error = SceneError(f"{motion}: add a support (geometry.clamped, a clamped boundary in the mesh, or "
                            "[displacements.LAYER.NAME])")
         error.free_motion = motion  # what a caller that changes the cracks reports (ddsolve grow)
         raise error
-    return Kernels([null_space(block_rows, 3) for block_rows in rows], frame)
+    return Kernels([null_space(block_rows, 3) for block_rows in rows], frame, interface.blocks)
 
 
 def of_scene(scene: Scene, mesh: Mesh, table: SigmaSupports) -> Kernels:
     """The blocks' kernels under the scene's supports (each block's prescribed dofs, with the Σ ties of
     ``table``, :func:`ddsolve.fem.supports.block_supports`); refuses a structure that can move rigidly."""
-    constraints = []
-    for block, spec in enumerate(BLOCKS):
+    constraints, specs = [], blocks(scene.geometry.layers)
+    for block, spec in enumerate(specs):
         half = mesh.half(spec.side)
         fixed, _ = supports.block_supports(scene, half, mesh.sigma, spec.layer, block, table)
         constraints.append(prescribed_directions(fixed, supports.node_frames(half, mesh.sigma)))
-    interface = for_mesh(mesh.sigma, scene.nonpenetration, table.fixed)
+    interface = for_mesh(mesh.sigma, scene.nonpenetration, table.fixed, specs=specs)
     return block_kernels({-1: mesh.lower, 1: mesh.upper}, mesh.sigma, interface, constraints)
 
 

@@ -11,7 +11,6 @@ from typing import Callable
 
 from ddsolve.dd import feti, gradient, schur, uzawa
 from ddsolve.dd.dual import Outcome
-from ddsolve.mesh.mesh import BLOCKS
 from ddsolve.problem.method_options import OPTIONS, MethodOptions
 from ddsolve.problem.scene import Solver
 
@@ -107,13 +106,15 @@ FETI_ROUNDS = 60
 CONTACT_STEPS = 25
 
 
-def predicted_costs(ranks: int, unknowns: int, sigma_nodes: int, crack_rows: int = 0) -> dict[str, float]:
+def predicted_costs(ranks: int, unknowns: int, sigma_nodes: int, crack_rows: int = 0, count: int = 4
+                    ) -> dict[str, float]:
     """Seconds of what ``schur`` and ``feti`` do on ``ranks`` ranks beyond the factorization both need, for
     blocks of ``unknowns``, ``sigma_nodes`` on Σ and ``crack_rows`` contact multipliers (0: no contact; ``schur``'s
-    contact steps): the block work of a rank's blocks shared ideally among a block's ranks, as in the cost model."""
+    contact steps), ``count`` blocks: the block work of a rank's blocks shared ideally among a block's ranks, as in
+    the cost model."""
     law = {key: (lambda x, a=a, p=p: a * x ** p) for key, (a, p) in COST_LAWS.items()}
-    per_block = max(1, ranks // len(BLOCKS))
-    share = max(1, len(BLOCKS) // ranks) / per_block  # the blocks of a rank, over the ranks of a block
+    per_block = max(1, ranks // count)
+    share = max(1, count // ranks) / per_block  # the blocks of a rank, over the ranks of a block
     schur = law["rank0"](3 * sigma_nodes) + (CONTACT_STEPS * law["contact_step"](crack_rows) if crack_rows else 0.0)
     if per_block > 1:  # no Schur complement from a distributed factorization: the Dirichlet problem's, 2kΣ columns
         schur += share * (law["factor"](unknowns) + law["columns"](unknowns * 2 * sigma_nodes))
@@ -122,9 +123,9 @@ def predicted_costs(ranks: int, unknowns: int, sigma_nodes: int, crack_rows: int
     return {"schur": schur, "feti": feti}
 
 
-def choose(ranks: int, unknowns: int, sigma_nodes: int, crack_rows: int = 0) -> str:
+def choose(ranks: int, unknowns: int, sigma_nodes: int, crack_rows: int = 0, count: int = 4) -> str:
     """The default method: whichever of ``schur`` and ``feti`` :func:`predicted_costs` finds cheaper (``schur``,
     exact in three rounds with its Schur complements from the factorization, for every structure measured
     on whole blocks; ``feti`` where rank 0's dense interface problem outgrows the block work)."""
-    costs = predicted_costs(ranks, unknowns, sigma_nodes, crack_rows)
+    costs = predicted_costs(ranks, unknowns, sigma_nodes, crack_rows, count)
     return min(costs, key=costs.get)

@@ -352,7 +352,7 @@ class SpringDual:
         self.problem, self.interface, self.schur_complements = problem, interface, schur_complements
         lower = np.arange(interface.trace_size)
         self.half = interface.trace_size
-        self.unknowns = np.array([lower, lower + self.half, lower, lower + self.half])
+        self.unknowns = np.array([lower if spec.side < 0 else lower + self.half for spec in interface.blocks])
         size = 2 * self.half
         self.base = np.zeros((size, size))
         for S_b, numbers in zip(schur_complements, self.unknowns):

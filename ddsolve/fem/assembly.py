@@ -32,7 +32,7 @@ from ddsolve.fem.ranges import (CANDIDATES, CLOSING_STEPS, DISPLACEMENT_RANGE, E
                                 GROWTH_STEPS, LATTICE, LOAD_SAMPLES, SAMPLED_CELLS, STIFFNESS_RANGE, Growth,
                                 check_range, data_displacement, driven_displacements, field_extent, load_extent,
                                 modulus)
-from ddsolve.mesh.mesh import BLOCKS, HalfMesh, Mesh, SigmaLine, index_type
+from ddsolve.mesh.mesh import HalfMesh, blocks, Mesh, SigmaLine, index_type
 from ddsolve.problem.scene import Load, Scene
 
 
@@ -296,14 +296,16 @@ def rigid_body_modes(points: np.ndarray, centre: np.ndarray | None = None) -> np
 def block_systems(scene: Scene, mesh: Mesh, which: list[int] | None = None,
                   rows: tuple[int, int] | None = None, table: supports.SigmaSupports | None = None
                   ) -> list[BlockSystem]:
-    """Assemble the scene's blocks with indices in ``which`` (all four by default), or their ``rows``;
+    """Assemble the scene's blocks (:func:`ddsolve.mesh.mesh.blocks`) with indices in ``which`` (all by default),
+    or their ``rows``;
     ``table``: the Σ supports (:func:`ddsolve.fem.supports.sigma_supports`; made from ``mesh``, which
     must then be whole, if not given)."""
     systems, patterns = [], {}
     if table is None:
         table = supports.sigma_supports(scene, mesh)
-    for index in range(len(BLOCKS)) if which is None else which:
-        spec = BLOCKS[index]
+    specs = blocks(scene.geometry.layers)
+    for index in range(len(specs)) if which is None else which:
+        spec = specs[index]
         half = mesh.half(spec.side)
         D, _ = elasticity(scene, spec.layer, spec.region)
         if spec.side not in patterns:

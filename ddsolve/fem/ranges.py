@@ -15,7 +15,7 @@ from ddsolve.mesh.element import TRIANGLE_RULES, edge_shapes, gauss_interval, sh
 from ddsolve.mesh.mesh import SigmaLine
 from ddsolve.problem import expressions, materials
 from ddsolve.problem.expressions import Expression
-from ddsolve.problem.scene import LAYERS, REGIONS, Displacement, Load, Scene
+from ddsolve.problem.scene import Displacement, Load, Scene
 
 
 #: A load is checked at LOAD_SAMPLES points of each edge (endpoints included) and at the quadrature points;
@@ -195,7 +195,8 @@ def _in_triangle(at: np.ndarray) -> np.ndarray:
 
 def modulus(scene: Scene) -> float:
     """The largest entry of the blocks' elastic matrices: the scale of the stress a strain makes."""
-    return max(float(np.abs(elasticity(scene, layer, region)[0]).max()) for layer in LAYERS for region in REGIONS)
+    return max(float(np.abs(elasticity(scene, layer, region)[0]).max()) for layer in scene.layers
+               for region in scene.geometry.region_names)
 
 
 def data_displacement(scene: Scene, halves, sigma: SigmaLine) -> float:
@@ -214,7 +215,7 @@ def data_displacement(scene: Scene, halves, sigma: SigmaLine) -> float:
 
     prescribed, strain = 0.0, 0.0
     for half in halves:
-        for layer in LAYERS:
+        for layer in scene.layers:
             stiffness = float(np.abs(elasticity(scene, layer, half.name)[0]).max())
             thermal = thermal_of(scene, layer, half.name)
             if thermal is not None:
@@ -259,7 +260,7 @@ def check_range(scene: Scene, mesh) -> None:
     """
     size = float(np.ptp(np.vstack([half.points for half in mesh.halves]), axis=0).max())
     driven, stiffest = [], (0.0, "")
-    for layer, region in ((layer, region) for layer in LAYERS for region in REGIONS):
+    for layer, region in ((layer, region) for layer in scene.layers for region in scene.geometry.region_names):
         material = scene.material(layer, region)
         key = scene.material_key(layer, region) + (".E" if isinstance(material, materials.Isotropic) else "")
         with np.errstate(all="ignore"):

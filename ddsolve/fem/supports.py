@@ -24,7 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ddsolve.errors import SceneError
-from ddsolve.mesh.mesh import BLOCKS, CLAMPED, CRACK, SIGMA, HalfMesh, Mesh, SigmaLine, point_nodes
+from ddsolve.mesh.mesh import (CLAMPED, CRACK, SIGMA, U_MINUS, U_PLUS, BlockSpec, HalfMesh, Mesh, SigmaLine, blocks,
+                               point_nodes)
 from ddsolve.problem.expressions import Expression
 from ddsolve.problem.scene import Displacement, Scene
 
@@ -35,7 +36,7 @@ AGREE = 1e-10
 
 @dataclass(frozen=True)
 class SigmaSupports:
-    """Prescribed trace entries of the four blocks, ``fixed`` ``(4, 2k)`` and ``values`` ``(4, 2k)``
+    """Prescribed trace entries of the structure's blocks, ``fixed`` ``(blocks, 2k)`` and ``values`` ``(blocks, 2k)``
     (the k multiplier nodes, in their Σ frames), after the gluing's ties."""
 
     fixed: np.ndarray
@@ -165,21 +166,21 @@ def own_supports(scene: Scene, half: HalfMesh, sigma: SigmaLine, layer: str) -> 
 
 
 def sigma_supports(scene: Scene, mesh: Mesh) -> SigmaSupports:
-    """The prescribed trace entries of the four blocks after the gluing's ties (needs both halves)."""
+    """The prescribed trace entries of the structure's blocks after the gluing's ties (needs both halves)."""
     sigma = mesh.sigma
     nodes = sigma.multiplier_nodes
     k = len(nodes)
-    fixed, values = np.zeros((4, 2 * k), dtype=bool), np.zeros((4, 2 * k))
-    for b, spec in enumerate(BLOCKS):
+    specs = blocks(scene.geometry.layers)
+    fixed, values = np.zeros((len(specs), 2 * k), dtype=bool), np.zeros((len(specs), 2 * k))
+    for b, spec in enumerate(specs):
         half = mesh.half(spec.side)
         own, prescribed = own_supports(scene, half, sigma, spec.layer)
         fixed[b], values[b] = own[half.sigma[nodes]].ravel(), prescribed[half.sigma[nodes]].ravel()
     crack = np.repeat(sigma.crack[nodes], 2)
     points = sigma.points[np.repeat(nodes, 2)]
     scale = max(float(np.abs(values).max(initial=0.0)), 1e-300)
-    # Tie groups (indices of BLOCKS): all four at glued vertices, each face (u⁻ with v⁻, u⁺ with v⁺) at crack ones.
-    for group in ([0, 1, 2, 3], [0, 2], [1, 3]):
-        where = ~crack if len(group) == 4 else crack
+    for group, on_crack in tie_groups(specs):
+        where = crack if on_crack else ~crack
         any_fixed = fixed[group].any(axis=0) & where
         if not any_fixed.any():
             continue
@@ -203,6 +204,13 @@ def sigma_supports(scene: Scene, mesh: Mesh) -> SigmaSupports:
                              f"({x:.6g}, {y:.6g}) and the other face's is free; with contact.nonpenetration "
                              "prescribe both faces or neither there")
     return SigmaSupports(fixed, values)
+
+
+def tie_groups(specs: tuple[BlockSpec, ...]) -> list[tuple[list[int], bool]]:
+    """The groups of blocks (indices in ``specs``) the gluing ties at a Σ node, each with whether it holds at crack
+    nodes: all the blocks at a glued node, each face's (u⁻ with v⁻, u⁺ with v⁺) at a crack node."""
+    return [(list(range(len(specs))), False)] + [([b for b, spec in enumerate(specs) if spec.side == side], True)
+                                                 for side in (-1, +1)]
 
 
 def block_supports(scene: Scene, half: HalfMesh, sigma: SigmaLine, layer: str, block: int,
@@ -250,8 +258,7 @@ def check_prescribed_contact(scene: Scene, mesh: Mesh, table: SigmaSupports) -> 
     normal = 2 * np.flatnonzero(sigma.crack[nodes]) + 1
     if not scene.nonpenetration or not len(normal):
         return
-    lower, upper = (next(b for b, spec in enumerate(BLOCKS) if spec.layer == "layer1" and spec.side == side)
-                    for side in (-1, +1))  # the faces that touch are layer 1's (the contact rows)
+    lower, upper = U_MINUS, U_PLUS  # the faces that touch are layer 1's (the contact rows)
     both = table.fixed[lower, normal] & table.fixed[upper, normal]
     overlap = np.where(both, table.values[lower, normal] - table.values[upper, normal], 0.0)
     scale = max(float(np.abs(table.values).max(initial=0.0)), 1e-300)
@@ -259,7 +266,7 @@ def check_prescribed_contact(scene: Scene, mesh: Mesh, table: SigmaSupports) -> 
         return
     worst = int(np.argmax(overlap))
     node = nodes[normal[worst] // 2]
-    keys = [displacement.key for half in mesh.halves for layer in ("layer1", "layer2")
+    keys = [displacement.key for half in mesh.halves for layer in scene.layers
             for displacement, where, _ in _conditions(scene, half, layer) if half.sigma[node] in where]
     x, y = sigma.points[node]
     raise SceneError(f"{', '.join(dict.fromkeys(keys)) or 'displacements'}: the prescribed displacements push "

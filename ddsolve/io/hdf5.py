@@ -15,12 +15,14 @@ import numpy as np
 from ddsolve.errors import ArgumentError, DDSolveError, SceneError
 from ddsolve.io.viewer import FORMATS, Distributed, distributed_files, padded, viewer_files, viewer_paths
 from ddsolve.io.safe import check_targets, hdf5_image, recover, replace_together, same_file
-from ddsolve.mesh.mesh import BLOCKS, HalfMesh, Mesh, SigmaLine
+from ddsolve.mesh.mesh import HalfMesh, Mesh, SigmaLine, blocks
 from ddsolve.post import analysis
 from ddsolve.post.result import OnSigma, Result
 from ddsolve.problem import scene as scenes
 
 MULTIPLIERS = ("mu_c", "mu_g", "mu_minus", "mu_plus")
+#: The multipliers of a one-layer structure (no layers to glue: its files have no mu_minus, mu_plus datasets).
+ONE_LAYER_MULTIPLIERS = MULTIPLIERS[:2]
 #: The friction multiplier (the tangential traction between the crack faces), written with friction only.
 FRICTION = ("mu_t",)
 #: A bond law's (``[interface]``) per multiplier node: its damage and whether its normal row is pressed (0 or 1).
@@ -191,7 +193,7 @@ def attributes(result: Result) -> dict[str, dict]:
     root["scene"] = result.scene.text  # the scene's canonical TOML text
     scene = result.scene
     blocks = {spec.name: f"{scene.material_key(spec.layer, spec.region)}: {scene.material(spec.layer, spec.region)!r}"
-              for spec in BLOCKS}
+              for spec in result.blocks}
     return {"": {**root, **result.attrs}, "timings": dict(result.timings), "materials": blocks,
             **({"memory": dict(result.memory)} if result.memory else {})}
 
@@ -201,7 +203,7 @@ def result_part(result: Result, fields: dict[str, analysis.CellFields]) -> Part:
     datasets = {}
     for half in (result.lower, result.upper):
         datasets.update(half_datasets(half, result.multiplier_nodes))
-    for spec in BLOCKS:
+    for spec in result.blocks:
         datasets.update(block_datasets(spec.name, result.solution[spec.name], fields[spec.name].von_mises,
                                        result.indicators.get(spec.name),
                                        {name: per_block[spec.name] for name, per_block in result.cell_data.items()
@@ -336,9 +338,17 @@ def _read(f: h5py.File, path: Path) -> Result:
         halves.append(HalfMesh(points, cells, side, on_sigma, boundaries, named_points))
     mesh = Mesh(*halves, sigma, str(path))
     k = len(sigma.multiplier_nodes)
+    scene_text = f.attrs["scene"]
+    scene_text = scene_text.decode() if isinstance(scene_text, bytes) else str(scene_text)
+    try:
+        scene = scenes.loads(scene_text, origin="its scene")
+    except SceneError as exc:
+        raise DDSolveError(str(exc)) from None
+    specs = blocks(scene.geometry.layers)
     solution = {spec.name: _array(f, f"solution/{spec.name}", "f", (len(mesh.half(spec.side).points), 2))
-                for spec in BLOCKS}
-    multipliers = {name: _array(f, f"interface/{name}", "f", (k,) if name == "mu_c" else (k, 2)) for name in MULTIPLIERS}
+                for spec in specs}
+    multipliers = {name: _array(f, f"interface/{name}", "f", (k,) if name == "mu_c" else (k, 2))
+                   for name in (MULTIPLIERS if len(specs) == 4 else ONE_LAYER_MULTIPLIERS)}
     multipliers.update({name: _array(f, f"interface/{name}", "f", (k,)) for name in FRICTION + BOND
                         if f"interface/{name}" in f})
     for name, kind, shape in (("x", "f", (k,)), ("points", "f", (k, 2)), ("normal", "f", (k, 2)), ("crack", "b", (k,))):
@@ -349,15 +359,9 @@ def _read(f: h5py.File, path: Path) -> Result:
         for block in group:
             half = mesh.half(-1 if block.endswith("minus") else 1)
             values = _dataset(f, f"cell_data/{name}/{block}")[()]
-            if block not in {spec.name for spec in BLOCKS} or np.ndim(values) == 0 or len(values) != len(half.cells):
+            if block not in {spec.name for spec in specs} or np.ndim(values) == 0 or len(values) != len(half.cells):
                 raise DDSolveError(f"cell_data/{name}/{block} does not match the cells of its half")
             cell_data[name][block] = values
-    scene_text = f.attrs["scene"]
-    scene_text = scene_text.decode() if isinstance(scene_text, bytes) else str(scene_text)
-    try:
-        scene = scenes.loads(scene_text, origin="its scene")
-    except SceneError as exc:
-        raise DDSolveError(str(exc)) from None
     known = {"converged", "iterations", "solves", "method", "wall_time", "ranks", "scene", "message"}
     return Result(
         scene=scene, method=str(f.attrs["method"]),
@@ -376,7 +380,7 @@ def _read(f: h5py.File, path: Path) -> Result:
         reactions={layer: {name: _array(f, f"reactions/{layer}/{name}", "f", (2,)) for name in f[f"reactions/{layer}"]}
                    for layer in f.get("reactions", {})},
         indicators={spec.name: _array(f, f"error/indicator/{spec.name}", "f", (len(mesh.half(spec.side).cells),))
-                    for spec in BLOCKS if spec.name in f.get("error/indicator", {})},
+                    for spec in specs if spec.name in f.get("error/indicator", {})},
         levels={name: _array(f, f"levels/{name}", "f", (None,)) for name in f.get("levels", {})},
     )
 

@@ -3,7 +3,7 @@
     pvpython THIS_FILE --png picture.png   # headless (add xvfb-run -a where there is no display)
     paraview --script=THIS_FILE            # interactive
 
-Both layers side by side, displacements magnified by SCALE (the largest displacement drawn as a
+The layers side by side, displacements magnified by SCALE (the largest displacement drawn as a
 fixed fraction of the domain), cells coloured by von Mises stress up to its PERCENTILE-th percentile
 (the corner singularities would otherwise set the range), and the opening [u].nu of the crack faces
 with the contact pressure along Sigma.
@@ -24,9 +24,10 @@ else:  # ParaView's GUI runs scripts without __file__: where the files were writ
 DARK = [0.1, 0.1, 0.1]
 IMAGE = [1600, 1000]  # pixels of the --png picture
 LAYERS_HEIGHT = 0.62  # the layers' share of the height; the chart below
+LAYERS = [layer for layer in TITLES if layer in FILES]  # the structure's: one or two
 #: A layer's view in that picture, and the band of its height (fractions) between the colour bar
 #: and the title, where the camera puts the layer.
-VIEW_PIXELS = [IMAGE[0] / (1 if STACKED else 2), IMAGE[1] * LAYERS_HEIGHT / (2 if STACKED else 1)]
+VIEW_PIXELS = [IMAGE[0] / (1 if STACKED else len(LAYERS)), IMAGE[1] * LAYERS_HEIGHT / (len(LAYERS) if STACKED else 1)]
 BAND = (110.0 / VIEW_PIXELS[1], 1.0 - 50.0 / VIEW_PIXELS[1])
 
 
@@ -108,9 +109,9 @@ def main(argv):
     layout = CreateLayout(TITLE)
     layers = layout.SplitVertical(0, LAYERS_HEIGHT)
     split = layout.SplitVertical if STACKED else layout.SplitHorizontal
-    first = split(layers, 0.5)
-    AssignViewToLayout(layer_view("layer1"), layout, hint=first)
-    AssignViewToLayout(layer_view("layer2"), layout, hint=first + 1)
+    first = split(layers, 0.5) if len(LAYERS) > 1 else layers
+    for position, layer in enumerate(LAYERS):
+        AssignViewToLayout(layer_view(layer), layout, hint=first + position)
     AssignViewToLayout(sigma_view(), layout, hint=layers + 1)
     if options.png:
         layout.SetSize(*IMAGE)  # the picture's size (else the views are drawn small and magnified)

@@ -1,6 +1,6 @@
 """Viewer files of a result, derived from it (the HDF5 result stays the one authoritative file).
 
-For a result ``NAME.h5``: ``NAME-layer1`` and ``NAME-layer2`` (each layer as one mesh of both
+For a result ``NAME.h5``: ``NAME-layer1`` and, with two layers, ``NAME-layer2`` (each layer as one mesh of both
 halves: Σ nodes merged except on the cracks, whose faces keep a node each), ``NAME-sigma`` (the Σ
 nodes as a polyline) in a registered format (:data:`FORMATS`: VTU, or XDMF with one Uniform grid per
 file and its arrays in ``NAME-xdmf.h5``), and ``NAME-paraview.py``, a ParaView script that shows them.
@@ -18,12 +18,11 @@ from typing import Callable
 import numpy as np
 
 from ddsolve.errors import DDSolveError
-from ddsolve.mesh.mesh import BLOCKS
+from ddsolve.problem.schema import LAYERS
 from ddsolve.post import analysis, plots
 from ddsolve.post.result import OnSigma, Result
 from ddsolve.problem.scene import Friction
 
-LAYER_TITLES = {"layer1": "layer 1 (u)", "layer2": "layer 2 (v)"}
 #: meshio cell type -> XDMF topology type.
 _XDMF_TOPOLOGY = {"triangle": "Triangle", "triangle6": "Triangle_6", "line": "Polyline", "line3": "Edge_3"}
 
@@ -157,7 +156,7 @@ def joined(shares: list[ViewerMesh]) -> ViewerMesh:
 
 def glue_of(result: Result, layer: str, side: int) -> Glue:
     """The :class:`Glue` of one half of ``layer`` in a whole result."""
-    other = next(spec.name for spec in BLOCKS if spec.layer == layer and spec.side == -side)
+    other = next(spec.name for spec in result.blocks if spec.layer == layer and spec.side == -side)
     return Glue(result.lower.sigma, result.upper.sigma, result.mesh.sigma.crack,
                 {-1: len(result.lower.points), 1: len(result.upper.points)},
                 {-1: len(result.lower.cells), 1: len(result.upper.cells)},
@@ -171,7 +170,7 @@ def layer_mesh(result: Result, layer: str, fields: dict[str, analysis.CellFields
     tolerance).  Cells: the lower half's, then the upper half's (cell array ``half``: −1, +1).
     """
     shares = []
-    for spec in (spec for spec in BLOCKS if spec.layer == layer):  # the lower half's block first
+    for spec in (spec for spec in result.blocks if spec.layer == layer):  # the lower half's block first
         half = result.half(spec.name)
         shares.append(layer_share(layer, spec.side, half.points, result.solution[spec.name], half.cells,
                                   fields[spec.name], glue_of(result, layer, spec.side),
@@ -207,7 +206,7 @@ def sigma_mesh(on: OnSigma, degree: int, friction: Friction | None = None) -> Vi
         "jump": padded(jump),
         "opening": np.einsum("sd,sd->s", jump, sigma.normals),
         "contact_pressure": on_sigma["mu_c"],
-        **{name: padded(on_sigma[name]) for name in ("mu_g", "mu_minus", "mu_plus")},
+        **{name: padded(on_sigma[name]) for name in ("mu_g", "mu_minus", "mu_plus") if name in on_sigma},
         **(friction_arrays(on, friction) if "mu_t" in on.multipliers else {}),
         "normal": padded(sigma.normals),
         "crack": sigma.crack.astype(np.int32),
@@ -432,10 +431,11 @@ def paraview_script(title: str, folder: Path, files: dict[str, str], ceilings: d
                     stacked: bool, graph: bool) -> str:
     """A pvpython script showing the layers side by side (warped by ``scale``, coloured by von Mises
     stress up to ``ceilings`` per layer) and the opening along Σ (against x if Σ is a ``graph``);
-    ``files``: layer1, layer2, sigma -> file names in ``folder``, beside the script."""
+    ``files``: each layer (layer1, and layer2 with two layers), sigma -> file names in ``folder``, beside the
+    script."""
     settings = {
         "TITLE": title, "FILES": files, "WRITTEN_TO": str(Path(folder).resolve()), "SCALE": scale,
-        "CEILINGS": ceilings, "TITLES": LAYER_TITLES, "STACKED": stacked, "PERCENTILE": plots.STRESS_PERCENTILE,
+        "CEILINGS": ceilings, "TITLES": plots.LAYER_TITLES, "STACKED": stacked, "PERCENTILE": plots.STRESS_PERCENTILE,
         "SIGMA_X": "x" if graph else "arc_length",
         "SIGMA_X_LABEL": f"{'x on Sigma' if graph else 'arc length along Sigma'} ({plots.LENGTH})",
     }
@@ -446,26 +446,27 @@ def paraview_script(title: str, folder: Path, files: dict[str, str], ceilings: d
 
 def result_script(result: Result, folder: Path, files: dict[str, str], fields: dict[str, analysis.CellFields]) -> str:
     """:func:`paraview_script` of a whole result."""
-    ceilings = {layer: plots.stress_ceiling(np.concatenate([fields[spec.name].von_mises for spec in BLOCKS
+    ceilings = {layer: plots.stress_ceiling(np.concatenate([fields[spec.name].von_mises for spec in result.blocks
                                                             if spec.layer == layer]))
-                for layer in LAYER_TITLES}
+                for layer in result.scene.layers}
     points = np.vstack([result.lower.points, result.upper.points])
     return paraview_script(result.scene.title, folder, files, ceilings, plots.magnification(result),
                            plots.one_above_the_other(points), analysis.sigma_is_graph(result))
 
 
 # --- the set of files ---------------------------------------------------------------------------
-VIEWER_MESHES = (*LAYER_TITLES, "sigma")
+VIEWER_MESHES = (*LAYERS, "sigma")
 
 
-def viewer_names(stem: str, fmt: str = "vtu") -> dict[str, str]:
-    """Viewer mesh -> its file name."""
-    return {mesh: f"{stem}-{mesh}.{fmt}" for mesh in VIEWER_MESHES}
+def viewer_names(stem: str, fmt: str = "vtu", layers: tuple[str, ...] = LAYERS) -> dict[str, str]:
+    """Viewer mesh -> its file name, for a structure of ``layers`` (a one-layer structure has no layer2 file)."""
+    return {mesh: f"{stem}-{mesh}.{fmt}" for mesh in (*layers, "sigma")}
 
 
-def viewer_paths(folder: Path, stem: str, fmt: str = "vtu") -> list[Path]:
-    """Every file :func:`viewer_files` writes for ``folder/stem`` in format ``fmt``."""
-    names = list(viewer_names(stem, fmt).values()) + [stem + ending for ending in viewer_format(fmt).extra]
+def viewer_paths(folder: Path, stem: str, fmt: str = "vtu", layers: tuple[str, ...] = LAYERS) -> list[Path]:
+    """Every file :func:`viewer_files` writes for ``folder/stem`` in format ``fmt`` for a structure of ``layers``
+    (by default those of any structure)."""
+    names = list(viewer_names(stem, fmt, layers).values()) + [stem + ending for ending in viewer_format(fmt).extra]
     return [Path(folder) / name for name in names + [f"{stem}-paraview.py"]]
 
 
@@ -476,10 +477,9 @@ def viewer_files(result: Result, folder: Path, stem: str, fmt: str = "vtu",
     write = viewer_format(fmt).write
     folder = Path(folder)
     fields = analysis.cell_fields(result) if fields is None else fields
-    meshes = [layer_mesh(result, layer, fields) for layer in LAYER_TITLES] + [sigma_mesh(result.on_sigma,
-                                                                                           result.mesh.degree,
-                                                                                           result.scene.friction)]
-    names = viewer_names(stem, fmt)
+    meshes = [layer_mesh(result, layer, fields) for layer in result.scene.layers] + [
+        sigma_mesh(result.on_sigma, result.mesh.degree, result.scene.friction)]
+    names = viewer_names(stem, fmt, result.scene.layers)
     script = result_script(result, folder, names, fields)
     writers = write(meshes, folder, stem)
     writers[folder / f"{stem}-paraview.py"] = lambda name: Path(name).write_text(script, encoding="utf-8")
@@ -490,10 +490,11 @@ def viewer_files(result: Result, folder: Path, stem: str, fmt: str = "vtu",
 class Distributed:
     """A rank's part of the VTU viewer files of a result the ranks write together: its shares of the
     viewer meshes (mesh name -> :func:`layer_share`, or Σ's :func:`sigma_mesh` on rank 0) and, on
-    rank 0, the ParaView script's text."""
+    rank 0, the ParaView script's text; ``layers``: the structure's, one file each."""
 
     shares: dict[str, ViewerMesh]
     script: str = ""
+    layers: tuple[str, ...] = LAYERS
 
 
 def distributed_files(viewer: Distributed, folder: Path, stem: str, comm) -> dict[Path, Callable[[str], None]]:
@@ -502,7 +503,7 @@ def distributed_files(viewer: Distributed, folder: Path, stem: str, comm) -> dic
     folder = Path(folder)
     writers: dict[Path, Callable[[str], None]] = {
         folder / file: (lambda name, mesh=mesh: write_vtu(viewer.shares.get(mesh), name, comm))
-        for mesh, file in viewer_names(stem).items()}
+        for mesh, file in viewer_names(stem, layers=viewer.layers).items()}
 
     def script(name: str) -> None:
         if comm.rank == 0:

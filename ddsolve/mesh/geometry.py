@@ -49,6 +49,7 @@ def build(scene: Scene) -> Mesh:
 
 def build_coarse(scene: Scene) -> Mesh:
     """The scene's mesh as gmsh makes it or the file holds it, unrefined."""
+    one_interface(scene)
     options = scene.mesh
     if options.kind == "box":
         return pair(scene, *(generate_half(scene, side) for side in (-1, 1)))
@@ -101,7 +102,16 @@ def apportion(total: int, lengths) -> np.ndarray:
 
 def generate_half(scene: Scene, side: int) -> HalfMesh:
     """One half of the box meshed by gmsh (:func:`_mesh_half`) in a child process (:func:`apart`)."""
+    one_interface(scene)
     return apart(_mesh_half, scene, side)
+
+
+def one_interface(scene: Scene) -> None:
+    """Refuse, in one line, to solve a structure of several interfaces: it is read, checked and meshed
+    (:func:`ddsolve.mesh.stack.build_any`, the ``mesh`` command), not yet solved."""
+    if scene.geometry.above:
+        raise SceneError(f"geometry.sigma: {len(scene.geometry.sigmas)} interfaces: a structure of several "
+                         "interfaces can be meshed (ddsolve mesh) but not yet solved")
 
 
 def _mesh_half(scene: Scene, side: int) -> HalfMesh:
@@ -217,8 +227,13 @@ def translated(geometry: Geometry, offset: np.ndarray) -> Geometry:
     """The box geometry moved by ``offset`` (dx, dy)."""
     dx, dy = (float(v) for v in offset)
     x0, x1, y0, y1 = geometry.box
+
+    def moved(cracks):
+        return tuple((a + dx, b + dx) for a, b in cracks)
+
     return replace(geometry, box=(x0 + dx, x1 + dx, y0 + dy, y1 + dy), sigma=geometry.sigma + dy,
-                   cracks=tuple((a + dx, b + dx) for a, b in geometry.cracks))
+                   cracks=moved(geometry.cracks),
+                   above=tuple((height + dy, moved(cracks)) for height, cracks in geometry.above))
 
 
 #: Paper-family meshes with more Σ vertices than this are a coarse gmsh mesh refined (the paper's Table 1

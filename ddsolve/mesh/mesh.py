@@ -19,12 +19,14 @@ from functools import cached_property
 import numpy as np
 
 from ddsolve.errors import MeshError
-from ddsolve.problem.schema import REGIONS
+from ddsolve.problem.schema import LAYERS, REGIONS
 from ddsolve.mesh.element import (CELL_EDGES, EDGE_RULE, crowded_edges, edge_keys, edge_points, edge_shapes,
                                   outer_edges)
 
 #: Boundary names with a meaning: Σ (cracks included), the cracks, and Γ_D (both layers clamped).
 SIGMA, CRACK, CLAMPED = "sigma", "crack", "clamped"
+#: A middle region's Σ above it and its cracks (its ``sigma`` is the Σ below it), with several interfaces.
+SIGMA_ABOVE, CRACK_ABOVE = "sigma_above", "crack_above"
 #: Relative tolerance for coordinates that must coincide (Σ nodes of the two halves).
 TOL = 1e-10
 
@@ -44,11 +46,16 @@ class HalfMesh:
     sigma: np.ndarray
     boundaries: dict[str, np.ndarray] = field(default_factory=dict)
     named_points: dict[str, np.ndarray] = field(default_factory=dict)
+    #: With several interfaces: the region's name (``region1`` ...) and a middle region's nodes on the Σ above it,
+    #: in Σ order (its ``sigma``, ``side`` +1, are those of the Σ below it).
+    region: str = ""
+    sigma_above: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
     @property
     def name(self) -> str:
-        """Its region of Ω (:data:`ddsolve.problem.schema.REGIONS`), which selects the layers' materials there."""
-        return region_of(self.side)
+        """Its region of Ω (:data:`ddsolve.problem.schema.REGIONS`, or its own with several interfaces), which
+        selects the layers' materials there."""
+        return self.region or region_of(self.side)
 
     @property
     def degree(self) -> int:
@@ -191,16 +198,29 @@ class SigmaLine:
 
 @dataclass(frozen=True, eq=False)
 class Mesh:
-    """Both halves and Σ; ``origin`` names the source in messages."""
+    """Both halves and Σ; ``origin`` names the source in messages.  With several interfaces, ``lower`` and
+    ``upper`` are the two lowest regions and ``sigma`` the Σ between them; ``above`` holds each further interface,
+    bottom to top, as its Σ and the region above it."""
 
     lower: HalfMesh
     upper: HalfMesh
     sigma: SigmaLine
     origin: str = "mesh"
+    above: tuple[tuple[SigmaLine, HalfMesh], ...] = ()
 
     @property
     def halves(self) -> tuple[HalfMesh, HalfMesh]:
         return self.lower, self.upper
+
+    @property
+    def regions(self) -> tuple[HalfMesh, ...]:
+        """Every region of Ω, bottom to top (the two halves with one interface)."""
+        return (self.lower, self.upper, *(region for _, region in self.above))
+
+    @property
+    def sigmas(self) -> tuple[SigmaLine, ...]:
+        """Every interface's Σ, bottom to top."""
+        return (self.sigma, *(line for line, _ in self.above))
 
     def half(self, side: int) -> HalfMesh:
         return self.lower if side < 0 else self.upper
@@ -211,8 +231,8 @@ class Mesh:
 
     def boundary_names(self) -> list[str]:
         """Names of the boundary parts loads may refer to (Σ and the cracks excluded)."""
-        names = set(self.lower.boundaries) | set(self.upper.boundaries)
-        return sorted(names - {SIGMA, CRACK})
+        names = set().union(*(region.boundaries for region in self.regions))
+        return sorted(names - {SIGMA, CRACK, SIGMA_ABOVE, CRACK_ABOVE})
 
     @property
     def named_points(self) -> dict[str, np.ndarray]:
@@ -434,6 +454,33 @@ def make_mesh(lower: HalfMesh, upper: HalfMesh, origin: str, exact_normals: np.n
     return Mesh(lower, upper, sigma, origin)
 
 
+def region_half(points: np.ndarray, cells: np.ndarray, region: str, bottom: bool,
+                boundaries: dict[str, np.ndarray], origin: str) -> HalfMesh:
+    """A checked region of a structure of several interfaces (:func:`make_half`): the ``bottom`` region is the
+    lower half of the Σ above it (side −1); any other is the upper half of the Σ below it (side +1) and, if its
+    boundaries name one (:data:`SIGMA_ABOVE`), keeps its nodes on the Σ above it in ``sigma_above``."""
+    where = f"{origin}: {region}"
+    half, _ = make_half(points, cells, -1 if bottom else 1, boundaries, where)
+    return replace(half, region=region, sigma_above=_chain(half.edges(SIGMA_ABOVE), -1, where))
+
+
+def facing_above(region: HalfMesh) -> HalfMesh:
+    """A middle region as the lower half of the Σ above it: that Σ and its cracks named :data:`SIGMA` and
+    :data:`CRACK` (the Σ below it left unnamed)."""
+    named = {name: edges for name, edges in region.boundaries.items() if name not in (SIGMA, CRACK)}
+    renamed = {SIGMA_ABOVE: SIGMA, CRACK_ABOVE: CRACK}
+    return replace(region, side=-1, sigma=region.sigma_above,
+                   boundaries={renamed.get(name, name): edges for name, edges in named.items()})
+
+
+def make_stack(regions: tuple[HalfMesh, ...], origin: str) -> Mesh:
+    """The mesh of several interfaces from its regions bottom to top (:func:`region_half`): each pair of
+    neighbours paired along its Σ and checked as :func:`make_mesh` checks two halves."""
+    lines = [make_mesh(below if k == 0 else facing_above(below), above, origin).sigma
+             for k, (below, above) in enumerate(zip(regions[:-1], regions[1:]))]
+    return Mesh(regions[0], regions[1], lines[0], origin, tuple(zip(lines[1:], regions[2:])))
+
+
 def check_sigma_match(lower: HalfMesh, upper: HalfMesh, scale: float, origin: str) -> None:
     """The two halves' Σ nodes coincide, in order (within TOL × ``scale``)."""
     a, b = lower.points[lower.sigma], upper.points[upper.sigma]
@@ -580,18 +627,19 @@ def _smallest_angle(sides: np.ndarray, edges: np.ndarray) -> float:
 
 
 def boundary_vertex_count(mesh: Mesh) -> int:
-    """M: triangle vertices on ∂Ω (the boundary of the halves without Σ), shared ones counted once."""
+    """M: triangle vertices on ∂Ω (the boundary of the regions without the Σ lines), shared ones counted once."""
     coordinates = []
-    for half in mesh.halves:
+    for half in mesh.regions:
         edges = half.boundary_edges[:, :2]
-        sigma = np.isin(edge_keys(edges, len(half.points)), edge_keys(half.edges(SIGMA)[:, :2], len(half.points)))
+        inner = np.vstack([half.edges(SIGMA)[:, :2], half.edges(SIGMA_ABOVE)[:, :2]])
+        sigma = np.isin(edge_keys(edges, len(half.points)), edge_keys(inner, len(half.points)))
         coordinates.append(half.points[np.unique(edges[~sigma])].round(12))
     return len(np.unique(np.vstack(coordinates), axis=0))
 
 
 def quality(mesh: Mesh) -> dict:
     """What a result records of its mesh: the smallest angle (degrees), the vertices on Σ and on ∂Ω."""
-    return {"min_angle": min(half.shape.smallest_angle for half in mesh.halves),
+    return {"min_angle": min(half.shape.smallest_angle for half in mesh.regions),
             "sigma_vertices": int(mesh.sigma.corner.sum()), "boundary_vertices": boundary_vertex_count(mesh)}
 
 
@@ -612,18 +660,28 @@ class BlockSpec:
         return region_of(self.side)
 
 
-BLOCKS = (
-    BlockSpec("u_minus", "layer1", -1),
-    BlockSpec("u_plus", "layer1", +1),
-    BlockSpec("v_minus", "layer2", -1),
-    BlockSpec("v_plus", "layer2", +1),
-)
+def blocks(layers: int = 2) -> tuple[BlockSpec, ...]:
+    """The blocks of a structure of ``layers`` layers (1 or 2): each layer on each region of Ω, layer by layer,
+    the lower region first: u⁻, u⁺ (layer1), then v⁻, v⁺ (layer2).  Layer1's blocks come first in any
+    structure, so :data:`U_MINUS` and :data:`U_PLUS` index them; :data:`V_MINUS` and :data:`V_PLUS` exist with
+    two layers only."""
+    if layers not in (1, 2):
+        raise ValueError(f"a structure has 1 or 2 layers, not {layers}")
+    return tuple(BlockSpec(f"{letter}_{word}", layer, side) for layer, letter in zip(LAYERS[:layers], "uv")
+                 for side, word in ((-1, "minus"), (+1, "plus")))
 
 
 U_MINUS, U_PLUS, V_MINUS, V_PLUS = range(4)
 
 
-def partner(block: int) -> int:
-    """The block of the same layer on the other half."""
-    spec = BLOCKS[block]
-    return next(i for i, other in enumerate(BLOCKS) if other.layer == spec.layer and other.side == -spec.side)
+def partner(block: int, specs: tuple[BlockSpec, ...]) -> int:
+    """The block of the same layer on the other half (in the block list ``specs``)."""
+    spec = specs[block]
+    return next(i for i, other in enumerate(specs) if other.layer == spec.layer and other.side == -spec.side)
+
+
+def glued_layers(specs: tuple[BlockSpec, ...]) -> list[tuple[int, int]]:
+    """The pairs of blocks that one region's layers glue together on Σ: (layer1's block, another layer's
+    block of the same region), the lower region first; none in a one-layer structure."""
+    return [(first, other) for first, spec in enumerate(specs) if spec.layer == LAYERS[0]
+            for other, below in enumerate(specs) if below.side == spec.side and below.layer != LAYERS[0]]

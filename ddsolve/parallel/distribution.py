@@ -18,7 +18,7 @@ from ddsolve.fem.assembly import check_range, row_ranges
 from ddsolve.fem.supports import SigmaSupports
 from ddsolve.mesh import curves, geometry, gmsh_io, pieces, refine
 from ddsolve.mesh import mesh as meshes
-from ddsolve.mesh.mesh import BLOCKS, U_PLUS, HalfMesh, Mesh, SigmaLine
+from ddsolve.mesh.mesh import U_PLUS, HalfMesh, Mesh, SigmaLine
 from ddsolve.mesh.pieces import Piece
 from ddsolve.parallel.exchange import Exchange, collective, wait
 from ddsolve.parallel.phases import Phases
@@ -68,7 +68,7 @@ def whole(mesh: Mesh, tips: list | None = None, table: SigmaSupports | None = No
 
 def build_mesh(scene: Scene, comm: MPI.Comm) -> Mesh:
     """The scene's whole mesh on every rank, for experiments and adaptive levels that need it everywhere."""
-    exchange = Exchange(comm, len(BLOCKS))
+    exchange = Exchange(comm, len(meshes.blocks(scene.geometry.layers)))
     try:
         mine = local_mesh(scene, comm, exchange, keep_whole=True)
     finally:
@@ -118,7 +118,7 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
     sigma, nodes, cells, (tips, table, block_kernels) = comm.bcast(
         (paired.sigma, {-1: len(paired.lower.points), 1: upper_size[0]},
          {-1: len(paired.lower.cells), 1: upper_size[1]}, checked) if rank == 0 else None, root=0)
-    needed = sorted({BLOCKS[b].side for b in exchange.local_blocks})
+    needed = sorted({meshes.blocks(scene.geometry.layers)[b].side for b in exchange.local_blocks})
     made, whole_bytes = {}, {}  # this rank's piece and the halves' sizes, when the maker sends pieces
     if comm.size > 1:
         if not split and upper_maker != 0:  # rank 0 made both halves: the upper one goes to u⁺'s leader
@@ -128,7 +128,7 @@ def local_mesh(scene: Scene, comm: MPI.Comm, exchange: Exchange, phases: Phases 
                 halves[1] = comm.recv(source=0)
         group = comm.Split(color=int(needed[0] > 0), key=rank)  # the ranks of one half; its maker is the first
         try:
-            if not whole_halves and not keep_whole and comm.size > len(BLOCKS):
+            if not whole_halves and not keep_whole and comm.size > exchange.n_blocks:
                 piece, size = collective(comm, lambda: scattered_piece(group, exchange.groups[0],
                                                                        halves.get(needed[0])))
                 halves, made, whole_bytes = {needed[0]: piece.half}, {needed[0]: piece}, dict(comm.allgather(
@@ -212,9 +212,9 @@ def refined_local_mesh(scene: Scene, coarse_scene: Scene, levels: int, comm: MPI
                 comm.send(coarse[1], dest=upper_maker)
             elif rank == upper_maker:
                 coarse[1] = comm.recv(source=0)
-    if not whole_halves and not keep_whole and comm.size > len(BLOCKS):
+    if not whole_halves and not keep_whole and comm.size > exchange.n_blocks:
         return refined_pieces(scene, levels, comm, exchange, coarse, whole_coarse, phases)
-    needed = sorted({BLOCKS[b].side for b in exchange.local_blocks})
+    needed = sorted({meshes.blocks(scene.geometry.layers)[b].side for b in exchange.local_blocks})
     project = curves.projector(scene)  # new vertices on a .geo's curves
     group = comm.Split(color=int(needed[0] > 0), key=rank) if comm.size > 1 else comm  # its maker is first
     fine = {}
@@ -270,7 +270,7 @@ def refined_pieces(scene: Scene, levels: int, comm: MPI.Comm, exchange: Exchange
     rank, upper_maker = comm.rank, exchange.leader(U_PLUS)
     end = phases.end if phases is not None else (lambda name: None)
     index, block_group = exchange.local_blocks[0], exchange.groups[0]
-    side = BLOCKS[index].side
+    side = meshes.blocks(scene.geometry.layers)[index].side
     project = curves.projector(scene)
     group = comm.Split(color=int(side > 0), key=rank)  # the ranks of one half; its coarse mesh's holder is first
     partners = comm.Split(color=2 * block_group.rank + int(side > 0), key=rank)  # those making the same piece

@@ -55,16 +55,22 @@ def collective(comm: MPI.Comm, work: Callable[[], T], root_only: bool = False) -
 class Exchange:
     """Which blocks this rank works on, and scatter/gather of per-block arrays with rank 0.
 
-    With 1, 2 or 4 ranks, rank r owns the blocks b with b mod size = r, each on COMM_SELF: with two
-    ranks, u⁻ and v⁻ (the lower half) on rank 0 and u⁺ and v⁺ on rank 1, so that a rank needs one
-    half's mesh and its two blocks share a sparsity pattern.  With 4k ranks, block b is distributed
-    over ranks b·k … (b+1)·k − 1 (its *block communicator*); the first of them is the block's
+    With a divisor of the block count as ranks (1, 2 or 4 with four blocks), rank r owns the blocks b
+    with b mod size = r, each on COMM_SELF: with two ranks, u⁻ and v⁻ (the lower half) on rank 0 and u⁺
+    and v⁺ on rank 1, so that a rank needs one half's mesh and its two blocks share a sparsity pattern (a
+    one-layer structure's two blocks u⁻ and u⁺ are on one rank each).  With k ranks per block, block b is
+    distributed over ranks b·k … (b+1)·k − 1 (its *block communicator*); the first of them is the block's
     *leader*.  Rank 0 exchanges per-block arrays with the leaders (Scatterv/Gatherv, rows in block
     order on rank 0); each leader shares them with its block communicator.  Ranks wait for rank 0
     without spinning (:func:`wait`), so the cores stay free for the ranks that work.
     """
 
     def __init__(self, comm: MPI.Comm, n_blocks: int):
+        if not launch.supported(comm.size, n_blocks):
+            error = DDSolveError(f"unsupported number of ranks {comm.size} for {n_blocks} blocks: use "
+                                 f"{launch.usable(n_blocks)}")
+            error.collective = True  # every rank sees the same size
+            raise error
         self.comm = comm
         self.n_blocks = n_blocks
         size, rank = comm.size, comm.rank
@@ -85,7 +91,7 @@ class Exchange:
 
     def leader(self, block: int) -> int:
         """The rank that leads ``block``."""
-        return launch.leader(block, self.comm.size)
+        return launch.leader(block, self.comm.size, self.n_blocks)
 
     def ranks(self, block: int) -> range:
         """The ranks that work on ``block``: its leader and, with more ranks than blocks, those after it."""

@@ -23,7 +23,7 @@ from mpi4py import MPI
 
 from ddsolve.fem import assembly
 from ddsolve.io import hdf5, viewer
-from ddsolve.mesh.mesh import BLOCKS, partner
+from ddsolve.mesh.mesh import U_MINUS, U_PLUS, partner
 from ddsolve.mesh.pieces import Piece
 from ddsolve.parallel.distribution import LocalMesh, gather_upper
 from ddsolve.parallel.exchange import Exchange, collective
@@ -51,6 +51,7 @@ class Finisher(ABC):
     def __init__(self, setup, server: BlockServer, lam: np.ndarray | None, output: Path | None):
         self.setup, self.server, self.lam, self.output = setup, server, lam, output
         self.scene, self.local, self.exchange, self.pieces = setup.scene, setup.mesh, setup.exchange, setup.pieces
+        self.specs = setup.interface.blocks  # the structure's blocks
         self.displacements = piece_displacements(setup, server)
         self.volume = None
         self.held_bytes = self.mesh_bytes = 0
@@ -83,13 +84,14 @@ class Gathered(Finisher):
 
     def __init__(self, setup, server: BlockServer, lam: np.ndarray | None, output: Path | None):
         super().__init__(setup, server, lam, output)
-        self.parts = gather_estimate(self.local, self.exchange, block_indicators(setup, self.displacements))
+        self.parts = gather_estimate(self.local, self.exchange, block_indicators(setup, self.displacements),
+                                     self.specs)
         self.solutions = self.mesh = None
 
     def collect(self) -> None:
         super().collect()
         local, exchange, whole_bytes = self.local, self.exchange, self.setup.whole_mesh_bytes
-        sizes = [2 * local.nodes[spec.side] for spec in BLOCKS]
+        sizes = [2 * local.nodes[spec.side] for spec in self.specs]
         self.solutions = exchange.gather_varying([self.server.solutions[b] for b in exchange.led_blocks], sizes)
         self.mesh = gather_upper(local, exchange)
         self.held_bytes = (whole_bytes + 8 * sum(sizes) if exchange.is_root else
@@ -140,19 +142,20 @@ class OnRanks(Finisher):
         self.mesh_bytes = local.nbytes
         # a piece has every Σ node of its half
         traces = exchange.gather_varying([displacements[b][block_pieces[b].half.sigma].ravel()
-                                          for b in exchange.led_blocks], [2 * len(sigma.points)] * len(BLOCKS))
+                                          for b in exchange.led_blocks], [2 * len(sigma.points)] * len(self.specs))
         largest = comm.allreduce(max((np.abs(displacements[b][piece.owned_nodes]).max(initial=0.0)
                                       for b, piece in block_pieces.items()), default=0.0), op=MPI.MAX)
         on = OnSigma(sigma, setup.interface.split(lam, frames),
-                     {spec.name: trace.reshape(-1, 2) for spec, trace in zip(BLOCKS, traces)},
+                     {spec.name: trace.reshape(-1, 2) for spec, trace in zip(self.specs, traces)},
                      largest) if exchange.is_root else None
         self.on = comm.bcast(on, root=0)
-        pressure, jump = estimate.contact_on_sigma(sigma, self.on.multipliers["mu_c"], self.on.traces["u_minus"],
-                                                   self.on.traces["u_plus"])
+        pressure, jump = estimate.contact_on_sigma(sigma, self.on.multipliers["mu_c"],
+                                                   self.on.traces[self.specs[U_MINUS].name],
+                                                   self.on.traces[self.specs[U_PLUS].name])
         self.indicators, squared, energy = {}, 0.0, 0.0
         for b, piece in block_pieces.items():
             contact = (estimate.half_contact_indicators(piece.owned_half, pressure, jump)
-                       if BLOCKS[b].layer == "layer1" else 0.0)
+                       if b in (U_MINUS, U_PLUS) else 0.0)
             self.indicators[b], block_squared, block_energy = estimate.block_estimate(indicators[b], contact)
             squared, energy = squared + block_squared, energy + block_energy
         totals = comm.reduce(np.array([squared, energy]), op=MPI.SUM, root=0)
@@ -169,7 +172,7 @@ class OnRanks(Finisher):
         sigma, tips = local.sigma, local.tips
         if scene.dissimilar_layers(thermal=False):  # every rank: no split (fracture.split_note)
             return None
-        laws = [assembly.elasticity(scene, spec.layer, spec.region)[0] for spec in BLOCKS]
+        laws = [assembly.elasticity(scene, spec.layer, spec.region)[0] for spec in self.specs]
         mirrorable = [fracture.mirrorable(tip, sigma, scene) for tip in tips]
         shared = exchange.groups[0].size > 1  # the blocks' ranks own parts of their halves: ask where it may be
         boxes = comm.allgather({b: analysis.owned_box(piece) for b, piece in self.pieces.items()}
@@ -180,21 +183,22 @@ class OnRanks(Finisher):
                 if mirrorable[i]:
                     discs[i, b] = fracture.mirror_nodes(tip, sigma, piece.owned_half)
                     images = discs[i, b][2]
-                    for rank in exchange.ranks(partner(b)) if len(images) else ():  # no disc cells here: no share
+                    for rank in exchange.ranks(partner(b, self.specs)) if len(images) else ():  # no disc cells here
                         asked = np.arange(len(images))
                         if shared:
-                            low, high = boxes[rank][partner(b)]
+                            low, high = boxes[rank][partner(b, self.specs)]
                             asked = asked[np.all((images >= low) & (images <= high), axis=1)]
                         asks[rank].append((i, b, asked, images[asked]))
-        answers = [[(i, b, asked, *analysis.owned_values_at(self.pieces[partner(b)], self.displacements[partner(b)],
-                                                            images)) for i, b, asked, images in received]
+        answers = [[(i, b, asked, *analysis.owned_values_at(self.pieces[partner(b, self.specs)],
+                                                            self.displacements[partner(b, self.specs)], images))
+                    for i, b, asked, images in received]
                    for received in comm.alltoall(asks)]
         replies: dict[tuple[int, int], list] = {}
         for i, b, *answer in (answer for answered in comm.alltoall(answers) for answer in answered):
             replies.setdefault((i, b), []).append(answer)
         shares, failed = np.zeros((len(tips), 2)), np.zeros(len(tips), dtype=np.int64)
         for (i, b), answered in replies.items():
-            spec, values = BLOCKS[b], analysis.nearest_answer(len(discs[i, b][2]), answered)
+            spec, values = self.specs[b], analysis.nearest_answer(len(discs[i, b][2]), answered)
             terms = None if values is None else fracture.mirror_terms(
                 tips[i], sigma, self.pieces[b].owned_half, laws[b], self.displacements[b], discs[i, b],
                 values, assembly.thermal_of(scene, spec.layer, spec.region))
@@ -241,7 +245,8 @@ class OnRanks(Finisher):
         sigma = local.sigma
         count = 2 * len(sigma.multiplier_nodes)
         forces, positions, mine = {}, {}, {}
-        entries, owning = np.zeros((len(BLOCKS), count)), np.zeros((len(BLOCKS), count), dtype=np.int64)
+        specs = self.specs
+        entries, owning = np.zeros((len(specs), count)), np.zeros((len(specs), count), dtype=np.int64)
         for b, piece in self.pieces.items():
             half = piece.half
             forces[b], own = reactions.block_forces(scene, half, sigma, b, self.displacements[b], local.sigma_supports)
@@ -252,14 +257,14 @@ class OnRanks(Finisher):
             mine[b] = ~others[positions[b]]
             entries[b], owning[b] = forces[b][positions[b]].ravel(), own[positions[b]].ravel()
         entries, owning = comm.reduce(entries, op=MPI.SUM, root=0), comm.reduce(owning, op=MPI.SUM, root=0)
-        tied = reactions.tie(sigma, list(entries.reshape(len(BLOCKS), -1, 2)),
-                             list(owning.reshape(len(BLOCKS), -1, 2) > 0)) if self.exchange.is_root else None
+        tied = reactions.tie(sigma, list(entries.reshape(len(specs), -1, 2)),
+                             list(owning.reshape(len(specs), -1, 2) > 0), specs) if self.exchange.is_root else None
         tied = comm.bcast(tied, root=0)
         parts = []
         for b, piece in self.pieces.items():
             forces[b][positions[b][mine[b]]] = tied[b][mine[b]]
-            parts.append((BLOCKS[b].layer, reactions.boundary_sums(scene, piece.half, sigma, BLOCKS[b].layer,
-                                                                   forces[b])))
+            parts.append((specs[b].layer, reactions.boundary_sums(scene, piece.half, sigma, specs[b].layer,
+                                                                  forces[b])))
         parts = comm.gather(parts, root=0)
         if not self.exchange.is_root:
             return None
@@ -272,11 +277,11 @@ class OnRanks(Finisher):
         launch's timings are complete."""
         local, exchange, comm = self.local, self.exchange, self.exchange.comm
         sigma, nodes = local.sigma, local.sigma.multiplier_nodes
-        datasets = {}
+        datasets, specs = {}, self.specs
         for b, piece in self.pieces.items():  # a half's first block writes its mesh, its leader Σ and boundaries
-            if b == min(c for c, spec in enumerate(BLOCKS) if spec.side == BLOCKS[b].side):
+            if b == min(c for c, spec in enumerate(specs) if spec.side == specs[b].side):
                 datasets.update(hdf5.half_datasets(piece.half, nodes, piece, skeleton=b in exchange.led_blocks))
-        held = comm.allgather({BLOCKS[b].side: (piece.nodes[piece.half.sigma],
+        held = comm.allgather({specs[b].side: (piece.nodes[piece.half.sigma],
                                                 piece.points[piece.owned_nodes].min(axis=0, initial=np.inf),
                                                 piece.points[piece.owned_nodes].max(axis=0, initial=-np.inf))
                                for b, piece in self.pieces.items()})
@@ -286,11 +291,11 @@ class OnRanks(Finisher):
                 halves_sigma[side], low, high = numbers, np.minimum(low, lowest), np.maximum(high, highest)
         shares, tops = {}, {}
         for b, piece in self.pieces.items():
-            spec, fields = BLOCKS[b], cell_fields[b]
+            spec, fields = specs[b], cell_fields[b]
             u = self.displacements[b][piece.owned_nodes]
             datasets.update(hdf5.block_datasets(spec.name, u, fields.von_mises, self.indicators[b], piece=piece))
             glue = viewer.Glue(halves_sigma[-1], halves_sigma[1], sigma.crack, local.nodes, local.cells,
-                               self.on.traces[BLOCKS[partner(b)].name])
+                               self.on.traces[specs[partner(b, specs)].name])
             shares[spec.layer] = viewer.layer_share(spec.layer, spec.side, piece.points[piece.owned_nodes], u,
                                                     piece.nodes[piece.owned_cells], fields, glue, self.indicators[b],
                                                     first_node=piece.first, first_cell=piece.cell_first)
@@ -302,12 +307,13 @@ class OnRanks(Finisher):
                                               result.fracture, result.reactions, result.scene.friction))
             shares["sigma"] = viewer.sigma_mesh(self.on, local.half(-1).degree, result.scene.friction)
             ceilings = {layer: plots.stress_ceiling(np.concatenate([top[layer] for top in tops if layer in top]),
-                                                    sum(local.cells.values())) for layer in viewer.LAYER_TITLES}
-            script = viewer.paraview_script(self.scene.title, output.parent, viewer.viewer_names(output.stem),
+                                                    sum(local.cells.values())) for layer in self.scene.layers}
+            names = viewer.viewer_names(output.stem, layers=self.scene.layers)
+            script = viewer.paraview_script(self.scene.title, output.parent, names,
                                             ceilings, plots.scale_for(float((high - low).max()), self.on.largest),
                                             plots.one_above_the_other(np.array([low, high])),
                                             analysis.sigma_is_graph(self.on))
-        return hdf5.Part(datasets), viewer.Distributed(shares, script)
+        return hdf5.Part(datasets), viewer.Distributed(shares, script, self.scene.layers)
 
 
 def piece_displacements(setup, server: BlockServer) -> dict[int, np.ndarray]:
@@ -328,7 +334,7 @@ def block_indicators(setup, displacements: dict[int, np.ndarray], collect: bool 
     half's (local block -> indicators, on the leaders), else every rank keeps its own cells'."""
     out = {}
     for index, group in zip(setup.exchange.local_blocks, setup.exchange.groups):
-        spec, piece = BLOCKS[index], setup.pieces[index]
+        spec, piece = setup.interface.blocks[index], setup.pieces[index]
         D, _ = assembly.elasticity(setup.scene, spec.layer, spec.region)
         mine = estimate.block_indicators(piece.points, piece.cells, D, displacements[index],
                                          piece.outer_edges)[:, :piece.owned]
@@ -342,7 +348,8 @@ def block_indicators(setup, displacements: dict[int, np.ndarray], collect: bool 
 def block_cell_fields(setup, displacements: dict[int, np.ndarray]) -> dict[int, analysis.CellFields]:
     """The cell fields of the last full solve on the cells this rank owns (local block -> its
     :class:`~ddsolve.post.analysis.CellFields`)."""
-    return {index: analysis.block_cell_fields(setup.scene, BLOCKS[index].layer, BLOCKS[index].region, piece.points,
+    specs = setup.interface.blocks
+    return {index: analysis.block_cell_fields(setup.scene, specs[index].layer, specs[index].region, piece.points,
                                               piece.owned_cells, displacements[index])
             for index, piece in setup.pieces.items()}
 
@@ -363,10 +370,10 @@ def collect_owned(group: MPI.Comm, piece: Piece, count: int, arrays: dict[str, n
     return out
 
 
-def gather_estimate(mesh: LocalMesh, exchange: Exchange, indicators: dict[int, np.ndarray]
+def gather_estimate(mesh: LocalMesh, exchange: Exchange, indicators: dict[int, np.ndarray], specs: tuple
                     ) -> dict[str, np.ndarray] | None:
-    """The blocks' error indicators (:func:`block_indicators`) on rank 0 (block name -> ``(2, cells)``),
-    None elsewhere."""
+    """The blocks' (``specs``) error indicators (:func:`block_indicators`) on rank 0 (block name ->
+    ``(2, cells)``), None elsewhere."""
     parts = exchange.gather_varying([indicators[index].ravel() for index in exchange.led_blocks],
-                                    [2 * mesh.cells[spec.side] for spec in BLOCKS])
-    return None if parts is None else {spec.name: part.reshape(2, -1) for spec, part in zip(BLOCKS, parts)}
+                                    [2 * mesh.cells[spec.side] for spec in specs])
+    return None if parts is None else {spec.name: part.reshape(2, -1) for spec, part in zip(specs, parts)}

@@ -22,7 +22,8 @@ RANK_VARIABLES = ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK")
 #: Variables of a batch allocation (Slurm, PBS, LSF, Grid Engine) or a host file: the ranks may span hosts.
 ALLOCATION_VARIABLES = ("SLURM_JOB_ID", "PBS_JOBID", "LSB_JOBID", "PE_HOSTFILE", "OMPI_MCA_orte_default_hostfile")
 
-#: Blocks of the decomposition: a rank count must divide them or be a multiple of them.
+#: Blocks of a two-layer structure's decomposition (a one-layer structure has 2): a rank count must divide
+#: the structure's blocks or be a multiple of them.
 BLOCK_COUNT = 4
 
 
@@ -38,9 +39,10 @@ def interrupt_line(terminated: bool, complete: bool) -> str:
     return f"ddsolve: {word} after its result files were written (they are complete)" if complete else f"ddsolve: {word}"
 
 
-def leader(block: int, size: int) -> int:
-    """The rank that leads ``block`` among ``size`` ranks (see :class:`~ddsolve.parallel.exchange.Exchange`)."""
-    return block % size if size <= BLOCK_COUNT else block * (size // BLOCK_COUNT)
+def leader(block: int, size: int, count: int = BLOCK_COUNT) -> int:
+    """The rank that leads ``block`` of ``count`` among ``size`` ranks (see
+    :class:`~ddsolve.parallel.exchange.Exchange`)."""
+    return block % size if size <= count else block * (size // count)
 
 
 def world_position(environ: Mapping[str, str] = os.environ) -> tuple[int, int]:
@@ -52,9 +54,16 @@ def world_position(environ: Mapping[str, str] = os.environ) -> tuple[int, int]:
     return 0, 1
 
 
-def supported(size: int) -> bool:
-    """1, 2 or 4 ranks (whole blocks per rank), or a multiple of 4 (each block on size/4 ranks)."""
-    return size in (1, 2) or (size > 0 and size % BLOCK_COUNT == 0)
+def supported(size: int, count: int = BLOCK_COUNT) -> bool:
+    """Whether ``size`` ranks can work on ``count`` blocks: a divisor of ``count`` (whole blocks per rank) or a
+    multiple of it (each block on size/count ranks): 1, 2, 4 or 4k ranks for 4 blocks, 1 or 2k for 2."""
+    return size > 0 and (count % size == 0 or size % count == 0)
+
+
+def usable(count: int = BLOCK_COUNT) -> str:
+    """The rank counts :func:`supported` takes for ``count`` blocks, in words: ``1, 2 or a multiple of 4``."""
+    divisors = [str(size) for size in range(1, count) if count % size == 0]
+    return f"{', '.join(divisors)} or a multiple of {count}"
 
 
 def mpiexec_command(ranks: int, arguments: list[str], module: str = "ddsolve") -> list[str]:

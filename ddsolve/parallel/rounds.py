@@ -9,7 +9,6 @@ from mpi4py import MPI
 
 from ddsolve.dd import kernels
 from ddsolve.errors import DDSolveError, SolverError
-from ddsolve.mesh.mesh import BLOCKS
 from ddsolve.parallel.blocks import Block
 from ddsolve.parallel.exchange import Exchange
 
@@ -114,13 +113,13 @@ class ParallelRounds:
                  kernel_traces: list[np.ndarray] | None = None):
         self.exchange, self.server, self.trace_size, self.stages = exchange, server, trace_size, stages
         # the traces (2k, m_b) of the blocks' kernels (m_b = 0: invertible)
-        self.kernel_traces = kernel_traces or [np.zeros((trace_size, 0))] * len(BLOCKS)
+        self.kernel_traces = kernel_traces or [np.zeros((trace_size, 0))] * exchange.n_blocks
         self.floating = [b for b, kernel in enumerate(self.kernel_traces) if kernel.shape[1]]
         self.count = 0
         self.schur_bytes = 0  # the blocks' Schur complements gathered here (bytes)
         self.elapsed = 0.0  # seconds inside rounds
-        self.work = np.zeros(len(BLOCKS))  # work of the body loads less the energy offsets, last solve
-        self.residuals = np.zeros(len(BLOCKS))  # relative residuals of the last full solve
+        self.work = np.zeros(exchange.n_blocks)  # work of the body loads less the energy offsets, last solve
+        self.residuals = np.zeros(exchange.n_blocks)  # relative residuals of the last full solve
         self.largest = 0.0  # largest nodal displacement in the last full solve
 
     def _round(self, command: int, loads: np.ndarray | None) -> np.ndarray:
@@ -172,7 +171,7 @@ class ParallelRounds:
 
     def condensed_loads(self, schur_complements: np.ndarray) -> np.ndarray:
         uncoupled = self._round(CONDENSED, None)[:, :self.trace_size]
-        invertible = [b for b in range(len(BLOCKS)) if b not in self.floating]
+        invertible = [b for b in range(self.exchange.n_blocks) if b not in self.floating]
         uncoupled[invertible] = np.einsum("bij,bj->bi", schur_complements[invertible], uncoupled[invertible])
         return uncoupled
 

@@ -12,7 +12,6 @@ from ddsolve.dd.registry import METHODS
 from ddsolve.errors import DDSolveError
 from ddsolve.fem import assembly, supports
 from ddsolve.mesh import element
-from ddsolve.mesh.mesh import BLOCKS
 from ddsolve.mesh.pieces import Piece
 from ddsolve.post.result import OnSigma, Result
 from ddsolve.problem import materials
@@ -23,7 +22,7 @@ def elasticities(result: Result) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Block name -> (D, c) of the result's scene: the block's layer's material in its region (see
     :func:`ddsolve.problem.materials.elasticity`)."""
     scene = result.scene
-    return {spec.name: assembly.elasticity(scene, spec.layer, spec.region) for spec in BLOCKS}
+    return {spec.name: assembly.elasticity(scene, spec.layer, spec.region) for spec in result.blocks}
 
 
 def block_energies(result: Result, difference: dict[str, np.ndarray] | None = None) -> np.ndarray:
@@ -31,7 +30,7 @@ def block_energies(result: Result, difference: dict[str, np.ndarray] | None = No
     block), with the result's materials."""
     laws = elasticities(result)
     out = []
-    for spec in BLOCKS:
+    for spec in result.blocks:
         half = result.half(spec.name)
         field = result.solution[spec.name]
         if difference is not None:
@@ -42,7 +41,7 @@ def block_energies(result: Result, difference: dict[str, np.ndarray] | None = No
 
 @dataclass(frozen=True)
 class Comparison:
-    energy_error: float  # sqrt(Σ‖a_b − b_b‖²) / sqrt(Σ‖b_b‖²), energy norms over the four blocks
+    energy_error: float  # sqrt(Σ‖a_b − b_b‖²) / sqrt(Σ‖b_b‖²), energy norms over the blocks
     max_difference: float  # max nodal |a − b|
     max_displacement: float  # max nodal |b|
 
@@ -58,8 +57,12 @@ def compare(a: Result, b: Result, names: tuple[str, str] = ("the result", "the r
     """Error of ``a`` against ``b`` (the reference).  On different meshes (a coarse solution against a
     fine one), ``a`` is first evaluated at ``b``'s nodes with its own shape functions; meshes of
     different domains (a node of one outside the other: see :func:`locate`) are refused, naming the
-    results by ``names``."""
-    fields = {s.name: a.solution[s.name] for s in BLOCKS}
+    results by ``names``; so are results of structures of different layers."""
+    if a.blocks != b.blocks:
+        raise DDSolveError(f"{names[0]} and {names[1]} are results of different structures ({len(a.scene.layers)} "
+                           f"and {len(b.scene.layers)} layers, geometry.layers): compare results of one structure")
+    specs = b.blocks
+    fields = {s.name: a.solution[s.name] for s in specs}
     if not same_meshes(a, b):
         for (mine, theirs), (me, them) in (((a, b), names), ((b, a), names[::-1])):
             for half, other in ((mine.lower, theirs.lower), (mine.upper, theirs.upper)):
@@ -68,11 +71,11 @@ def compare(a: Result, b: Result, names: tuple[str, str] = ("the result", "the r
                     raise DDSolveError(f"{names[0]} and {names[1]} are results on different domains: {stray} nodes "
                                        f"of {them}'s {other.name} half lie outside {me}'s; compare results of one "
                                        "geometry (geometry.box, geometry.sigma, mesh.file)")
-        fields = {s.name: interpolate(a.half(s.name), a.solution[s.name], b.half(s.name).points) for s in BLOCKS}
+        fields = {s.name: interpolate(a.half(s.name), a.solution[s.name], b.half(s.name).points) for s in specs}
     reference = block_energies(b).sum()
     error = block_energies(b, difference=fields).sum()
-    largest = max(np.abs(b.solution[s.name]).max() for s in BLOCKS)
-    difference = max(np.abs(fields[s.name] - b.solution[s.name]).max() for s in BLOCKS)
+    largest = max(np.abs(b.solution[s.name]).max() for s in specs)
+    difference = max(np.abs(fields[s.name] - b.solution[s.name]).max() for s in specs)
     if reference > 0:
         relative = np.sqrt(error / reference)
     else:  # a zero reference (no load): exact agreement or an infinite relative error
@@ -82,10 +85,10 @@ def compare(a: Result, b: Result, names: tuple[str, str] = ("the result", "the r
 
 
 def local_traces(result: Result) -> np.ndarray:
-    """``(4, 2k)``: each block's displacements at the multiplier nodes in their (tangent, normal) frames."""
+    """``(blocks, 2k)``: each block's displacements at the multiplier nodes in their (tangent, normal) frames."""
     frames = result.mesh.sigma.frames[result.multiplier_nodes]
     return np.array([np.einsum("nab,nb->na", frames, result.solution[spec.name][result.interface_nodes(spec.name)])
-                     .ravel() for spec in BLOCKS])
+                     .ravel() for spec in result.blocks])
 
 
 def multiplier_vector(interface: Interface, multipliers: dict[str, np.ndarray], frames: np.ndarray) -> np.ndarray:
@@ -96,7 +99,7 @@ def multiplier_vector(interface: Interface, multipliers: dict[str, np.ndarray], 
     if interface.friction:
         rows = interface.slices["mu_t"]
         lam[rows] = multipliers["mu_t"][interface.vertex[rows]]
-    for name in ("mu_g", "mu_minus", "mu_plus"):
+    for name in (name for name in interface.slices if name not in ("mu_c", "mu_t")):
         rows = interface.slices[name]
         local = np.einsum("nab,nb->na", frames, multipliers[name])
         lam[rows] = local[interface.vertex[rows], interface.component[rows]]
@@ -122,7 +125,7 @@ def equilibrium_residuals(result: Result, scene: scenes.Scene, interface: Interf
     sigma = result.mesh.sigma
     frames = sigma.frames[sigma.multiplier_nodes]
     out = []
-    for spec, system, load in zip(BLOCKS, assembly.block_systems(scene, result.mesh), interface.loads(lam)):
+    for spec, system, load in zip(interface.blocks, assembly.block_systems(scene, result.mesh), interface.loads(lam)):
         nodes = assembly.trace_nodes(result.mesh.half(spec.side), sigma)
         out.append(block_residual(system, assembly.rotate_vector(result.solution[spec.name].reshape(-1), nodes,
                                                                   frames), load))
@@ -136,7 +139,8 @@ def constraints(result: Result, equilibrium: np.ndarray | None = None) -> Constr
     scene = result.scene
     interface = for_mesh(result.mesh.sigma, scene.nonpenetration,
                          supports.sigma_supports(scene, result.mesh).fixed, assembly.modulus(scene),
-                         assembly.data_displacement(scene, result.mesh.halves, result.mesh.sigma), scene.friction)
+                         assembly.data_displacement(scene, result.mesh.halves, result.mesh.sigma), scene.friction,
+                         result.blocks)
     frames = result.mesh.sigma.frames[result.multiplier_nodes]
     lam = multiplier_vector(interface, result.multipliers, frames)
     if equilibrium is None:
@@ -384,7 +388,8 @@ class CellFields:
 def cell_fields(result: Result) -> dict[str, CellFields]:
     """Block name -> its per-cell strains, stresses, von Mises stress and energy density."""
     return {spec.name: block_cell_fields(result.scene, spec.layer, spec.region, result.half(spec.name).points,
-                                         result.half(spec.name).cells, result.solution[spec.name]) for spec in BLOCKS}
+                                         result.half(spec.name).cells, result.solution[spec.name])
+            for spec in result.blocks}
 
 
 def block_cell_fields(scene: scenes.Scene, layer: str, region: str, points: np.ndarray, cells: np.ndarray,

@@ -28,7 +28,7 @@ import numpy as np
 from ddsolve.fem.assembly import elasticity, voigt_strain
 from ddsolve.mesh.element import (CELL_EDGES, boundary_nodes, edge_keys, edge_points, edge_shapes, element_geometry,
                                   field_gradients, gauss_interval, shape_functions)
-from ddsolve.mesh.mesh import BLOCKS, CRACK, HalfMesh, Mesh, SigmaLine
+from ddsolve.mesh.mesh import CRACK, HalfMesh, Mesh, SigmaLine, blocks
 from ddsolve.problem.scene import Scene
 
 #: Sampling points of the recovery per element (reference coordinates): where the strain of the
@@ -362,7 +362,8 @@ def combine(mesh: Mesh, parts: dict[str, np.ndarray], solution: dict[str, np.nda
 
 def of_scene(scene: Scene, mesh: Mesh, solution: dict[str, np.ndarray], mu_c: np.ndarray) -> Estimate:
     """The whole estimate in one process, for displacements in (x, y)."""
-    laws = {spec.name: elasticity(scene, spec.layer, spec.region)[0] for spec in BLOCKS}
+    specs = blocks(scene.geometry.layers)
+    laws = {spec.name: elasticity(scene, spec.layer, spec.region)[0] for spec in specs}
     parts = {spec.name: half_indicators(mesh.half(spec.side), laws[spec.name], solution[spec.name])
-             for spec in BLOCKS}
+             for spec in specs}
     return combine(mesh, parts, solution, mu_c, max(float(np.abs(D).max()) for D in laws.values()))

@@ -45,7 +45,7 @@ import numpy as np
 from ddsolve.errors import SceneError
 from ddsolve.fem import assembly
 from ddsolve.mesh import element
-from ddsolve.mesh.mesh import BLOCKS, SIGMA, HalfMesh, Mesh, SigmaLine, partner
+from ddsolve.mesh.mesh import SIGMA, HalfMesh, Mesh, SigmaLine, blocks as block_list, partner
 from ddsolve.post import interface_crack
 from ddsolve.post.result import Fracture, OnSigma
 from ddsolve.post.toughness import judge
@@ -321,7 +321,7 @@ def block_terms(scene, sigma: SigmaLine, tips: list[Tip], parts: dict[int, tuple
     if not tips:
         return out
     for index, (points, cells, u) in parts.items():
-        spec = BLOCKS[index]
+        spec = block_list(scene.geometry.layers)[index]
         D = assembly.elasticity(scene, spec.layer, spec.region)[0]
         thermal = assembly.thermal_of(scene, spec.layer, spec.region)
         fields = [theta(tip, sigma, points) for tip in contours]
@@ -466,11 +466,11 @@ ROUNDING = 1e-12
 
 
 def of_result(result, tips: list[Tip], factors: np.ndarray | None = None) -> Fracture:
-    """G at ``tips`` from a result's four blocks (one process), with the toughness and the critical load
+    """G at ``tips`` from a result's blocks (one process), with the toughness and the critical load
     factors (``factors``: see :func:`finish`)."""
     volume = block_terms(result.scene, result.mesh.sigma, tips, {
         index: (result.half(spec.name).points, result.half(spec.name).cells, result.solution[spec.name])
-        for index, spec in enumerate(BLOCKS)})
+        for index, spec in enumerate(result.blocks)})
     return finish(tips, volume, result.on_sigma, mode_split(tips, result), result.scene, factors)
 
 
@@ -548,8 +548,9 @@ def mirror_split(tip: Tip, result) -> tuple[float, float] | None:
     parts = np.zeros(2)
     for half, other in ((result.lower, result.upper), (result.upper, result.lower)):
         field, nodes, images = mirror_nodes(tip, sigma, half)
-        blocks = [spec for spec in BLOCKS if result.half(spec.name) is half]
-        partners = [BLOCKS[partner(BLOCKS.index(spec))] for spec in blocks]
+        specs = result.blocks
+        blocks = [spec for spec in specs if result.half(spec.name) is half]
+        partners = [specs[partner(specs.index(spec), specs)] for spec in blocks]
         try:
             mirrored = interpolate(other, np.hstack([result.solution[p.name] for p in partners]), images)
         except DDSolveError:  # the mirror image of the disc leaves the other half
@@ -568,7 +569,7 @@ def mirror_split(tip: Tip, result) -> tuple[float, float] | None:
 def mirrorable(tip: Tip, sigma: SigmaLine, scene: Scene) -> bool:
     """Whether the tip's θ disc can be split by mirror symmetry: Σ straight there, every block's law unchanged
     by the reflection about it, and each layer's material the same in both regions (thermal strain too)."""
-    laws = [assembly.elasticity(scene, spec.layer, spec.region)[0] for spec in BLOCKS]
+    laws = [assembly.elasticity(scene, spec.layer, spec.region)[0] for spec in block_list(scene.geometry.layers)]
     return (straight_near(tip, sigma) and all(mirrored_law(D, reflection(tip, sigma)) for D in laws)
             and not scene.dissimilar_layers())
 
@@ -691,7 +692,7 @@ def disc_result(result, tips: list[Tip]):
     """``result`` on the :func:`disc_part` of each half: all the split into modes reads."""
     parts = {half.side: disc_part(half, tips) for half in result.mesh.halves}
     mesh = Mesh(parts[-1][0], parts[1][0], result.mesh.sigma, result.mesh.origin)
-    solution = {spec.name: result.solution[spec.name][parts[spec.side][1]] for spec in BLOCKS}
+    solution = {spec.name: result.solution[spec.name][parts[spec.side][1]] for spec in result.blocks}
     return dataclasses.replace(result, mesh=mesh, solution=solution, held=None)
 
 

@@ -27,7 +27,7 @@ from ddsolve.mesh.mesh import SigmaLine
 from ddsolve.problem import materials
 from ddsolve.problem.materials import Bimaterial
 from ddsolve.problem.scene import Scene
-from ddsolve.problem.schema import LAYERS, REGIONS
+from ddsolve.problem.schema import REGIONS
 
 #: The complex step of the auxiliary field's derivatives (exact to rounding for any small step).
 STEP = 1e-30
@@ -109,7 +109,7 @@ def interface_pair(scene: Scene) -> Bimaterial | str | None:
     law on both sides (the mirror or closure split)."""
     if not scene.dissimilar_layers(thermal=False):
         return None
-    laws = {region: [assembly.elasticity(scene, layer, region)[0] for layer in LAYERS] for region in REGIONS}
+    laws = {region: [assembly.elasticity(scene, layer, region)[0] for layer in scene.layers] for region in REGIONS}
     return materials.interface_pair(laws["lower"], laws["upper"])
 
 

@@ -12,7 +12,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ddsolve.mesh.mesh import BLOCKS
 from ddsolve.post.analysis import along_sigma, layer_stresses, normal_jump
 from ddsolve.post.result import NO_PHASE, SPLIT_DRIFT
 
@@ -96,6 +95,10 @@ def scale_for(size: float, largest: float, fraction: float = 0.08) -> float:
     return float(f"{raw:.0e}")
 
 
+#: How pictures and viewer files title each layer.
+LAYER_TITLES = {"layer1": "layer 1 (u)", "layer2": "layer 2 (v)"}
+
+
 def one_above_the_other(points: np.ndarray) -> bool:
     """Whether to draw the two layers one above the other (a domain more than twice as wide as tall)
     rather than side by side."""
@@ -104,7 +107,7 @@ def one_above_the_other(points: np.ndarray) -> bool:
 
 
 def deformed_layers(result: Result, path: Path, scale: float | None = None, heading: str | None = None) -> float:
-    """Both layers, displacements magnified by ``scale`` (from the data by default), cells coloured by
+    """The layers (one panel each), displacements magnified by ``scale`` (from the data by default), cells coloured by
     von Mises stress on a range that ignores the stress singularities (:func:`stress_ceiling`), under
     ``heading`` (default: the scene's title); returns the scale."""
     plt = _pyplot()
@@ -115,11 +118,13 @@ def deformed_layers(result: Result, path: Path, scale: float | None = None, head
     width, height = np.ptp(moved, axis=0)
     wide = one_above_the_other(moved)
     panel = (8.5, 8.5 * height / width) if wide else (4.6 * min(width / height, 1.6), 4.6)
-    fig, axes = plt.subplots(2 if wide else 1, 1 if wide else 2, constrained_layout=True,
-                             figsize=(panel[0] + 2.5, 2 * (panel[1] + 1.0) + 0.4) if wide
-                             else (2 * (panel[0] + 2.2), panel[1] + 1.2))
-    for ax, layer, title in zip(axes, ("layer1", "layer2"), ("layer 1 (u)", "layer 2 (v)")):
-        names = [spec.name for spec in BLOCKS if spec.layer == layer]
+    layers = result.scene.layers
+    fig, axes = plt.subplots(len(layers) if wide else 1, 1 if wide else len(layers), constrained_layout=True,
+                             squeeze=False, figsize=(panel[0] + 2.5, len(layers) * (panel[1] + 1.0) + 0.4) if wide
+                             else (len(layers) * (panel[0] + 2.2), panel[1] + 1.2))
+    for ax, layer in zip(axes.ravel(), layers):
+        title = LAYER_TITLES[layer]
+        names = [spec.name for spec in result.blocks if spec.layer == layer]
         top = stress_ceiling(np.concatenate([stresses[name] for name in names]))
         for name in names:
             half = result.half(name)

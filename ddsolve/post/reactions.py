@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from ddsolve.fem import assembly, supports
-from ddsolve.mesh.mesh import BLOCKS, CLAMPED, HalfMesh, Mesh, SigmaLine
-from ddsolve.problem.scene import LAYERS, Scene
+from ddsolve.mesh.mesh import CLAMPED, BlockSpec, HalfMesh, Mesh, SigmaLine, blocks
+from ddsolve.problem.scene import Scene
 
 
 def residual(scene: Scene, half: HalfMesh, layer: str, u: np.ndarray, nodes: np.ndarray) -> np.ndarray:
@@ -48,7 +48,7 @@ def block_forces(scene: Scene, half: HalfMesh, sigma: SigmaLine, block: int, u: 
                  table: supports.SigmaSupports) -> tuple[np.ndarray, np.ndarray]:
     """Block ``block``'s support forces ``(n, 2)`` in its dof frames, on the prescribed directions only
     (a roller carries no force along itself), and which of them its own conditions prescribe."""
-    layer = BLOCKS[block].layer
+    layer = blocks(scene.geometry.layers)[block].layer
     fixed, _ = supports.block_supports(scene, half, sigma, layer, block, table)
     own, _ = supports.own_supports(scene, half, sigma, layer)
     held = np.flatnonzero(fixed.any(axis=1))
@@ -57,13 +57,14 @@ def block_forces(scene: Scene, half: HalfMesh, sigma: SigmaLine, block: int, u: 
     return np.einsum("nab,nb->na", supports.node_frames(half, sigma), r) * fixed, own & fixed
 
 
-def tie(sigma: SigmaLine, entries: list[np.ndarray], own: list[np.ndarray]) -> list[np.ndarray]:
-    """The four blocks' forces at the Σ multiplier nodes ``(k, 2)`` after those at entries the gluing ties
+def tie(sigma: SigmaLine, entries: list[np.ndarray], own: list[np.ndarray], specs: tuple[BlockSpec, ...]
+        ) -> list[np.ndarray]:
+    """The blocks' (``specs``) forces at the Σ multiplier nodes ``(k, 2)`` after those at entries the gluing ties
     to a prescribed one go to the tied blocks prescribing them on their own (equal shares)."""
     entries = list(entries)
     crack = np.repeat(sigma.crack[sigma.multiplier_nodes], 2).reshape(-1, 2)
-    for group in ([0, 1, 2, 3], [0, 2], [1, 3]):
-        where = ~crack if len(group) == 4 else crack
+    for group, on_crack in supports.tie_groups(specs):
+        where = crack if on_crack else ~crack
         owning = np.array([own[b] for b in group]) & where
         count = owning.sum(axis=0)
         total = np.where(where, sum(entries[b] for b in group), 0.0)
@@ -88,7 +89,7 @@ def boundary_sums(scene: Scene, half: HalfMesh, sigma: SigmaLine, layer: str, fo
 def ordered(scene: Scene, parts: list[tuple[str, dict[str, np.ndarray]]]) -> dict[str, dict[str, np.ndarray]]:
     """layer -> boundary -> reaction: the blocks' ``(layer, boundary sums)`` added up, every layer's boundaries
     in the scene's order."""
-    out: dict[str, dict[str, np.ndarray]] = {layer: {} for layer in LAYERS}
+    out: dict[str, dict[str, np.ndarray]] = {layer: {} for layer in scene.layers}
     for layer, sums in parts:
         for name, force in sums.items():
             out[layer][name] = out[layer].get(name, np.zeros(2)) + force
@@ -102,14 +103,14 @@ def reactions(scene: Scene, mesh: Mesh, solution: dict[str, np.ndarray],
     """layer -> boundary name -> the reaction ``(2,)`` (x, y) on that layer; ``solution``: block name ->
     ``(n, 2)`` nodal displacements in x, y (as in a result)."""
     table = table if table is not None else supports.sigma_supports(scene, mesh)
-    sigma = mesh.sigma
+    sigma, specs = mesh.sigma, blocks(scene.geometry.layers)
     at = sigma.multiplier_nodes
     forces, own = zip(*(block_forces(scene, mesh.half(spec.side), sigma, b, solution[spec.name], table)
-                        for b, spec in enumerate(BLOCKS)))
-    positions = [mesh.half(spec.side).sigma[at] for spec in BLOCKS]
-    tied = tie(sigma, [f[p] for f, p in zip(forces, positions)], [o[p] for o, p in zip(own, positions)])
+                        for b, spec in enumerate(specs)))
+    positions = [mesh.half(spec.side).sigma[at] for spec in specs]
+    tied = tie(sigma, [f[p] for f, p in zip(forces, positions)], [o[p] for o, p in zip(own, positions)], specs)
     parts = []
-    for b, spec in enumerate(BLOCKS):
+    for b, spec in enumerate(specs):
         forces[b][positions[b]] = tied[b]
         parts.append((spec.layer, boundary_sums(scene, mesh.half(spec.side), sigma, spec.layer, forces[b])))
     return ordered(scene, parts)

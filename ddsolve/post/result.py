@@ -8,18 +8,20 @@ from pathlib import Path
 import numpy as np
 
 from ddsolve.fem import assembly
-from ddsolve.mesh.mesh import BLOCKS, HalfMesh, Mesh, SigmaLine
+from ddsolve.mesh.mesh import BlockSpec, HalfMesh, Mesh, SigmaLine, blocks
 from ddsolve.problem import scene as scenes
 
 
 @dataclass
 class Result:
-    """Displacements of the four blocks (x, y components) on the mesh, multipliers per Σ node, history.
+    """Displacements of the structure's blocks (x, y components; :attr:`blocks`) on the mesh, multipliers per
+    Σ node, history.
 
     ``multipliers``: ``mu_c`` ``(k,)`` (the contact pressure), ``mu_g``, ``mu_minus``, ``mu_plus``
-    ``(k, 2)`` in (x, y), over the k multiplier nodes (0 where a multiplier does not exist); with friction
-    ``mu_t`` ``(k,)``, the tangential traction between the crack faces along τ (the lower face receives −μ_t τ;
-    where they slip and stick: :func:`ddsolve.post.analysis.friction_zones`).
+    ``(k, 2)`` in (x, y), over the k multiplier nodes (0 where a multiplier does not exist; a one-layer
+    structure has no ``mu_minus``, ``mu_plus``: they are absent); with friction ``mu_t`` ``(k,)``, the tangential
+    traction between the crack faces along τ (the lower face receives −μ_t τ; where they slip and stick:
+    :func:`ddsolve.post.analysis.friction_zones`).
     ``history``: the stopping criterion per iteration; ``active_set_changes``: per iteration of an
     active-set method (``schur``, the reference), how many constraints changed state (else empty).
     ``cell_data``: name -> block -> per-cell values ``(m,)`` or ``(m, c)`` of the block's half; the
@@ -66,11 +68,20 @@ class Result:
         G = self.G
         tips = ("no crack tips" if len(G) == 0 else f"G at {len(G)} tip{'s' * (len(G) > 1)} "
                 + ", ".join(f"{g:.4e}" for g in G[:4]) + (", ..." if len(G) > 4 else ""))
-        unknowns = 4 * sum(len(half.points) for half in self.mesh.halves) if self.mesh is not None else None
-        size = "" if unknowns is None else f", {unknowns} unknowns"
+        size = "" if self.mesh is None else f", {self.unknowns} unknowns"
         return (f"<Result of {title!r}: {self.method}, {state} after {self.iterations} iterations on {self.ranks} "
                 f"rank{'s' * (self.ranks != 1)}{size}; energy {self.energy:.10e}; {tips}"
                 f"{'' if self.path is None else f'; file {self.path}'}>")
+
+    @property
+    def blocks(self) -> tuple[BlockSpec, ...]:
+        """The structure's blocks (:func:`ddsolve.mesh.mesh.blocks`): u⁻, u⁺ and, with two layers, v⁻, v⁺."""
+        return blocks(self.scene.geometry.layers)
+
+    @property
+    def unknowns(self) -> int:
+        """Displacement unknowns of the blocks: two per node of each block's half (needs the mesh)."""
+        return 2 * sum(len(self.mesh.half(spec.side).points) for spec in self.blocks)
 
     @property
     def energy(self) -> float:
@@ -102,13 +113,13 @@ class Result:
     @classmethod
     def from_blocks(cls, scene: scenes.Scene, method: str, mesh: Mesh, fields: list[np.ndarray], interface, lam: np.ndarray,
                     **record) -> "Result":
-        """The one way a run makes its result: the four blocks' nodal displacements ``fields`` (in the order
-        of BLOCKS, Σ nodes in their (tangent, normal) frames) and the multipliers ``lam`` of ``interface``,
+        """The one way a run makes its result: the blocks' nodal displacements ``fields`` (in the order of
+        ``interface.blocks``, Σ nodes in their (tangent, normal) frames) and the multipliers ``lam`` of ``interface``,
         turned into (x, y) values on ``mesh``; ``record``: the result's other fields."""
         sigma = mesh.sigma
         frames = sigma.frames[sigma.multiplier_nodes]
         solution = {spec.name: assembly.to_global(u, assembly.trace_nodes(mesh.half(spec.side), sigma), frames)
-                    for spec, u in zip(BLOCKS, fields)}
+                    for spec, u in zip(interface.blocks, fields)}
         return cls(scene=scene, method=method, mesh=mesh, solution=solution,
                    multipliers=interface.split(lam, frames), **record)
 
@@ -182,7 +193,7 @@ class Result:
 @dataclass(frozen=True)
 class OnSigma:
     """Σ-sized data of a result: Σ, the multipliers over its k multiplier nodes, every block's nodal
-    displacement (x, y) at the Σ nodes ``(s, 2)``, and the largest nodal |u| of the four blocks.  A run
+    displacement (x, y) at the Σ nodes ``(s, 2)``, and the largest nodal |u| of the blocks.  A run
     that writes its result from the ranks holds only this (and its own blocks) on rank 0."""
 
     sigma: SigmaLine

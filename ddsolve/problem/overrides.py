@@ -13,7 +13,7 @@ except ModuleNotFoundError:  # Python < 3.11
 from ddsolve.errors import SceneError
 from ddsolve.problem.expressions import Expression
 from ddsolve.problem.reading import excerpt, printable
-from ddsolve.problem.schema import ANISOTROPIC, ISOTROPIC, ORTHOTROPIC, REGIONS
+from ddsolve.problem.schema import ANISOTROPIC, ISOTROPIC, NUMBERED_REGION, ORTHOTROPIC, REGIONS
 
 
 def override_items(overrides: dict[str, Any] | Sequence[str]) -> list[str]:
@@ -97,7 +97,8 @@ def apply_overrides(raw: dict, overrides: list[str]) -> dict:
 def _other_laws(path: list[str]) -> tuple[str, ...]:
     """The keys of the other material laws, which a key that fixes a layer's (or a region's) law replaces
     (``--set materials.layer1.E1=...`` makes an isotropic layer orthotropic; α keys decide nothing)."""
-    if path[0] != "materials" or not (len(path) == 3 or len(path) == 4 and path[2] in REGIONS):
+    if path[0] != "materials" or not (len(path) == 3 or len(path) == 4 and (path[2] in REGIONS or re.fullmatch(
+            NUMBERED_REGION.format(r"\d+"), path[2]))):
         return ()
     laws = [ISOTROPIC, ORTHOTROPIC, ANISOTROPIC]
     mine = [law for law in laws if path[-1] in law and not path[-1].startswith("alpha")]

@@ -10,13 +10,16 @@ from ddsolve.problem import materials
 from ddsolve.problem.method_options import OPTIONS
 from ddsolve.problem.reading import printable
 from ddsolve.problem.schema import (ADAPTIVE_DEGREE, DEFAULT_TOL, GEOMETRIC_TOLERANCE, GRADING, LAWS,
-                                    LAYERS, MAX_SPACING_RATIO, PAPER_CRACK, REGIONS, layer_material)
+                                    MAX_SPACING_RATIO, PAPER_CRACK, STRUCTURE_KEYS, PerInterface, layer_material,
+                                    region_names,
+                                    layers_of)
 
 
 def cross_checks(data: dict, raw: dict, origin: str) -> None:
     """Rules between keys; fills in the defaults that depend on other keys."""
-    given = set(raw.get("geometry", {})) if isinstance(raw.get("geometry"), dict) else set()
+    given = set(raw.get("geometry", {})) - set(STRUCTURE_KEYS) if isinstance(raw.get("geometry"), dict) else set()
     _geometry_checks(data["geometry"], given, origin)
+    _several_interfaces_checks(data, raw, origin)
     _mesh_checks(data["mesh"], data["geometry"], raw, given, origin)
     _material_checks(data, origin)
     _load_checks(data, origin)
@@ -36,33 +39,90 @@ def cross_checks(data: dict, raw: dict, origin: str) -> None:
 
 
 def _geometry_checks(geometry: dict, given: set[str], origin: str) -> None:
-    """The box, Σ's height and the cracks: Σ inside the box (its middle by default), the cracks (the paper's
-    with the paper's square) on Σ and farther apart than the meshing tolerance."""
+    """The box, the interfaces' heights and their cracks: Σ inside the box (its middle by default), one list of
+    cracks per interface (the paper's crack with the paper's square), each on its Σ, farther apart than the meshing
+    tolerance.  Leaves ``sigma`` and ``cracks`` (the first interface) and ``above`` (the others: (height, cracks))."""
     if "crack" in given and "cracks" in given:
         raise SceneError(f"{origin}: geometry.crack and geometry.cracks exclude each other (cracks = [[a, b], ...])")
     x0, x1, y0, y1 = geometry["box"]
-    if geometry["sigma"] is None:
-        geometry["sigma"] = 0.5 * (y0 + y1)
-    elif not y0 < geometry["sigma"] < y1:
-        raise SceneError(f"{origin}: geometry.sigma = {geometry['sigma']:g} must lie strictly between the box's "
+    heights = geometry["sigma"] if isinstance(geometry["sigma"], tuple) else (
+        (0.5 * (y0 + y1),) if geometry["sigma"] is None else (geometry["sigma"],))
+    outside = [y for y in heights if not y0 < y < y1]
+    if outside:
+        raise SceneError(f"{origin}: geometry.sigma = {outside[0]:g} must lie strictly between the box's "
                          f"y0 = {y0:g} and y1 = {y1:g}")
-    if "crack" in given:
-        geometry["cracks"] = [list(geometry["crack"])] if geometry["crack"] else []
-    elif "cracks" not in given:  # the paper's crack comes with the paper's square only
-        geometry["cracks"] = [] if "box" in given else [list(PAPER_CRACK)]
-    del geometry["crack"]
     crack_key = "geometry.crack" if "crack" in given else "geometry.cracks"
-    for a, b in geometry["cracks"]:
+    lists = _crack_lists(geometry, given, len(heights), origin)
+    for cracks in lists:
+        _check_cracks(cracks, geometry["box"], crack_key, origin)
+    _check_apart([y0, *heights, y1], geometry["box"], "geometry.sigma", "of the box's y range (interfaces, sides)",
+                 "move or remove an interface", origin)
+    geometry["sigma"], geometry["cracks"] = heights[0], lists[0]
+    geometry["above"] = list(zip(heights[1:], lists[1:]))
+    del geometry["crack"]
+
+
+#: The mesh keys a structure of several interfaces takes: its regions are meshed with pieces of about mesh.size.
+STACK_MESH_KEYS = ("size", "degree")
+
+
+def _several_interfaces_checks(data: dict, raw: dict, origin: str) -> None:
+    """A structure of several interfaces is the built-in box meshed with ``mesh.size`` and no point supports."""
+    if not data["geometry"]["above"]:
+        return
+    written = raw["mesh"] if isinstance(raw.get("mesh"), dict) else {}
+    other = next((key for key in written if key not in STACK_MESH_KEYS), None)
+    if other is not None or data["mesh"]["size"] is None:
+        key = f"mesh.{other}" if other is not None else "mesh.size"
+        raise SceneError(f"{origin}: {key}: a structure of several interfaces (geometry.sigma = [y1, y2, ...]) is "
+                         "the built-in box meshed with mesh.size (and mesh.degree) only")
+    points = [f"displacements.{layer}.{name}.point" for layer, tables in data.get("displacements", {}).items()
+              for name, table in tables.items() if table["point"] is not None]
+    if points:
+        raise SceneError(f"{origin}: {points[0]}: point supports on a structure of several interfaces are not "
+                         "available")
+
+
+def _crack_lists(geometry: dict, given: set[str], interfaces: int, origin: str) -> list:
+    """The cracks of each of the ``interfaces``, bottom to top, from ``geometry.crack`` or ``geometry.cracks``."""
+    cracks = geometry["cracks"]
+    if "crack" in given or "cracks" in given and not isinstance(cracks, PerInterface):
+        if interfaces > 1:
+            key = "geometry.crack" if "crack" in given else "geometry.cracks"
+            raise SceneError(f"{origin}: {key}: with {interfaces} interfaces give one list of intervals per "
+                             "interface, bottom to top: geometry.cracks = [[[a, b], ...], [[c, d], ...], ...]")
+        if "crack" in given:
+            return [[list(geometry["crack"])] if geometry["crack"] else []]
+        return [list(cracks)]
+    if "cracks" in given:
+        if len(cracks) != interfaces:
+            raise SceneError(f"{origin}: geometry.cracks lists {len(cracks)} crack list{'' if len(cracks) == 1 else 's'}"
+                             f" for the {interfaces} interface{'' if interfaces == 1 else 's'} of geometry.sigma "
+                             "(one list of intervals per interface, bottom to top; [] for none)")
+        return [list(piece) for piece in cracks]
+    # the paper's crack comes with the paper's square and one interface only
+    return [[] if "box" in given or interfaces > 1 else [list(PAPER_CRACK)] for _ in range(interfaces)]
+
+
+def _check_cracks(cracks: list, box: Sequence[float], key: str, origin: str) -> None:
+    """One interface's cracks lie in the box's x range, their tips apart from each other and from its ends."""
+    x0, x1, _, _ = box
+    for a, b in cracks:
         if a < x0 or b > x1:
-            raise SceneError(f"{origin}: {crack_key}: the crack [{a:g}, {b:g}] leaves the box's "
-                             f"x range [{x0:g}, {x1:g}]")
-    breaks = sorted({x0, x1, *(tip for piece in geometry["cracks"] for tip in piece)})
+            raise SceneError(f"{origin}: {key}: the crack [{a:g}, {b:g}] leaves the box's x range [{x0:g}, {x1:g}]")
+    _check_apart([x0, x1, *(tip for piece in cracks for tip in piece)], box, key, "of Σ (crack tips, box ends)",
+                 "lengthen, move or remove the crack", origin)
+
+
+def _check_apart(values: list[float], box: Sequence[float], key: str, what: str, remedy: str, origin: str) -> None:
+    """The coordinates ``values`` (points ``what``) are farther apart than the meshing tolerance."""
+    x0, x1, y0, y1 = box
+    breaks = sorted(set(values))
     shortest = min(b - a for a, b in zip(breaks[:-1], breaks[1:]))
     feature = GEOMETRIC_TOLERANCE * max(x1 - x0, y1 - y0)
     if shortest <= feature:
-        raise SceneError(f"{origin}: {crack_key}: two points of Σ (crack tips, box ends) are only {shortest:.2g} "
-                         f"apart, within the meshing tolerance {feature:.2g} ({GEOMETRIC_TOLERANCE:g} × the box "
-                         "size): lengthen, move or remove the crack")
+        raise SceneError(f"{origin}: {key}: two points {what} are only {shortest:.2g} apart, within the meshing "
+                         f"tolerance {feature:.2g} ({GEOMETRIC_TOLERANCE:g} × the box size): {remedy}")
 
 
 def _mesh_checks(mesh: dict, geometry: dict, raw: dict, given: set[str], origin: str) -> None:
@@ -102,10 +162,10 @@ def _material_checks(data: dict, origin: str) -> None:
     """Each layer's constants, and each region's that override them, make an elastic matrix that double
     precision can factor."""
     model = data["materials"]["model"]
-    for layer in LAYERS:
+    for layer in layers_of(data):
         table = data["materials"][layer]
-        given = [(f"materials.{layer}", table)] + [(f"materials.{layer}.{region}", table[region])
-                                                   for region in REGIONS if region in table]
+        given = [(f"materials.{layer}", table)] + [(f"materials.{layer}.{region}", inner)
+                                                   for region, inner in table.items() if isinstance(inner, dict)]
         for key, material in given:
             try:
                 D, _ = materials.elasticity(layer_material(material), model)
@@ -119,13 +179,18 @@ def acting_tables(data: dict, layer: str) -> dict[str, tuple[str, dict]]:
     own table where the scene gives one, else the layer's."""
     table = data["materials"][layer]
     return {region: (f"materials.{layer}.{region}", table[region]) if region in table else
-            (f"materials.{layer}", table) for region in REGIONS}
+            (f"materials.{layer}", table) for region in _regions(data)}
+
+
+def _regions(data: dict) -> tuple[str, ...]:
+    """The regions of Ω of a scene whose geometry is checked, bottom to top."""
+    return region_names(len(data["geometry"]["above"]) + 2)
 
 
 def dissimilar_layers(data: dict, thermal: bool = True) -> list[str]:
     """The layers whose regions have different plane laws (stiffness, and with ``thermal`` thermal strain)."""
     return materials.differing({layer: [layer_material(table) for _, table in acting_tables(data, layer).values()]
-                                for layer in LAYERS}, data["materials"]["model"], thermal)
+                                for layer in layers_of(data)}, data["materials"]["model"], thermal)
 
 
 def _split_checks(data: dict, origin: str) -> None:
@@ -138,12 +203,13 @@ def _split_checks(data: dict, origin: str) -> None:
         return
     model = data["materials"]["model"]
     laws = {region: [materials.elasticity(layer_material(acting_tables(data, layer)[region][1]), model)[0]
-                     for layer in LAYERS] for region in REGIONS}
-    pair = materials.interface_pair(laws["lower"], laws["upper"])
-    if isinstance(pair, str):
-        raise SceneError(f"{origin}: fracture.law = {law} needs G's split into modes I and II, which is not defined "
-                         f"between the different materials of the regions of materials.{dissimilar[0]} (below and "
-                         f"above Σ) where {pair}: give one toughness, fracture.toughness")
+                     for layer in layers_of(data)] for region in _regions(data)}
+    for lower, upper in zip(list(laws), list(laws)[1:]):
+        pair = materials.interface_pair(laws[lower], laws[upper])
+        if isinstance(pair, str):
+            raise SceneError(f"{origin}: fracture.law = {law} needs G's split into modes I and II, which is not "
+                             f"defined between the different materials of the regions of materials.{dissimilar[0]} "
+                             f"(below and above Σ) where {pair}: give one toughness, fracture.toughness")
 
 
 def _load_checks(data: dict, origin: str) -> None:
@@ -200,11 +266,7 @@ def _toughness_checks(data: dict, origin: str) -> None:
         if extra:
             raise SceneError(f"{origin}: fracture.{extra[0]} does not apply to fracture.law = {law} (it takes "
                              + ", ".join(f"fracture.{key}" for key in LAWS[law]) + ")")
-    values = options["toughness"]
-    cracks = len(data["geometry"]["cracks"])
-    if isinstance(values, tuple) and data["mesh"]["file"] is None and len(values) != cracks:
-        raise SceneError(f"{origin}: fracture.toughness lists {len(values)} values for the {cracks} crack"
-                         f"{'' if cracks == 1 else 's'} of geometry.cracks (one per crack, in order along Σ)")
+    _check_per_crack(data, options["toughness"], "fracture.toughness", origin)
 
 
 def _friction_checks(data: dict, origin: str) -> None:
@@ -218,11 +280,19 @@ def _friction_checks(data: dict, origin: str) -> None:
     if given and not contact["nonpenetration"]:
         raise SceneError(f"{origin}: contact.{given[0]} needs contact.nonpenetration = true (friction acts "
                          "on crack faces in contact)")
-    values = contact[given[0]] if given else None
-    cracks = len(data["geometry"]["cracks"])
+    if given:
+        _check_per_crack(data, contact[given[0]], f"contact.{given[0]}", origin)
+
+
+def _check_per_crack(data: dict, values, key: str, origin: str) -> None:
+    """A per-crack list (``values`` at ``key``) has one value per crack of a box: interface by interface,
+    bottom to top, in order along each (a mesh file's cracks are counted on its mesh)."""
+    geometry = data["geometry"]
+    cracks = len(geometry["cracks"]) + sum(len(more) for _, more in geometry["above"])
     if isinstance(values, tuple) and data["mesh"]["file"] is None and len(values) != cracks:
-        raise SceneError(f"{origin}: contact.{given[0]} lists {len(values)} values for the {cracks} crack"
-                         f"{'' if cracks == 1 else 's'} of geometry.cracks (one per crack, in order along Σ)")
+        order = "in order along Σ" if not geometry["above"] else "interface by interface, bottom to top"
+        raise SceneError(f"{origin}: {key} lists {len(values)} values for the {cracks} crack"
+                         f"{'' if cracks == 1 else 's'} of geometry.cracks (one per crack, {order})")
 
 
 #: The bilinear law's default initial slope makes the opening at the peak this fraction of the opening where the
@@ -380,7 +450,7 @@ def _adaptive_defaults(mesh: dict, given: set[str], geometry: dict) -> None:
         mesh["degree"] = ADAPTIVE_DEGREE
     if mesh["file"] is None and mesh["size"] is None and (mesh["sigma_vertices"], mesh["boundary_vertices"]) == (
             None, None):
-        mesh["size"] = coarse_size(geometry["box"], geometry["sigma"])
+        mesh["size"] = coarse_size(geometry["box"], [geometry["sigma"], *(height for height, _ in geometry["above"])])
     if "grading" not in given and mesh["size"] is not None:
         mesh["grading"] = True
 
@@ -390,10 +460,12 @@ def _adaptive_defaults(mesh: dict, given: set[str], geometry: dict) -> None:
 COARSE = (20, 2)
 
 
-def coarse_size(box: Sequence[float], sigma: float) -> float:
-    """The element size of an adaptive run's first mesh on ``box`` cut at ``sigma`` (:data:`COARSE`)."""
+def coarse_size(box: Sequence[float], sigma: float | Sequence[float]) -> float:
+    """The element size of an adaptive run's first mesh on ``box`` cut at ``sigma`` (a height, or the heights of
+    several interfaces) (:data:`COARSE`): through its thinnest region."""
     x0, x1, y0, y1 = box
-    return min((x1 - x0) / COARSE[0], min(sigma - y0, y1 - sigma) / COARSE[1])
+    levels = [y0, *([sigma] if isinstance(sigma, (int, float)) else sigma), y1]
+    return min((x1 - x0) / COARSE[0], min(b - a for a, b in zip(levels[:-1], levels[1:])) / COARSE[1])
 
 
 def _mesh_refinement_checks(mesh: dict, origin: str) -> None:

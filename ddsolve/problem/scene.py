@@ -33,7 +33,8 @@ from ddsolve.problem.rules import COARSE, CONDITIONING, SAME_COMPONENT, coarse_s
 from ddsolve.problem.schema import (ADAPTIVE_DEGREE, DEFAULT_TOL, GEOMETRIC_TOLERANCE,
                                     GRADING, LAWS, LAYERS, MAX_ANGLE, MAX_SPACING_RATIO, OPTIONAL_TABLES,
                                     PAPER_BOX, PAPER_CRACK, REGIONS, REQUIRED, SCHEMA, SIDES, STOP_RULES, Invalid,
-                                    Tables, check_table, layer_material, region_materials)
+                                    STRUCTURE_KEYS, Tables, check_table, layer_material, layers_of,
+                                    region_materials, region_names, structure_schema)
 
 
 #: The public face of the problem stage's scene modules (schema, rules, overrides, reading), as before the split.
@@ -49,15 +50,34 @@ __all__ = ["ADAPTIVE_DEGREE", "COARSE", "CONDITIONING", "DEFAULT_TOL",
 class Geometry:
     """A box (x0, x1, y0, y1) cut by Σ at height ``sigma``, cracks as x intervals on Σ, clamped sides.
 
-    A ``.geo`` or ``.msh`` file with physical groups replaces all of it; ``given`` lists the keys the
-    scene wrote, so that such a file can refuse them.
+    A ``.geo`` or ``.msh`` file with physical groups replaces all of it but ``layers``; ``given`` lists the
+    box's keys the scene wrote, so that such a file can refuse them.
     """
 
     box: tuple[float, float, float, float] = PAPER_BOX
     sigma: float = 0.0
     cracks: tuple[tuple[float, float], ...] = (PAPER_CRACK,)
     clamped: tuple[str, ...] = ("left", "right")
+    #: 2: two sheets (layer1 and layer2) glued on Σ; 1: one body (layer1) cut by Σ.
+    layers: int = 2
     given: frozenset[str] = field(default=frozenset(), compare=False)
+    #: The interfaces above the first (``sigma``, ``cracks``), bottom to top: (height, cracks) each.
+    above: tuple[tuple[float, tuple[tuple[float, float], ...]], ...] = ()
+
+    @property
+    def sigmas(self) -> tuple[float, ...]:
+        """The heights of the interfaces, bottom to top."""
+        return (self.sigma, *(height for height, _ in self.above))
+
+    @property
+    def crack_lists(self) -> tuple[tuple[tuple[float, float], ...], ...]:
+        """The cracks of each interface, bottom to top."""
+        return (self.cracks, *(cracks for _, cracks in self.above))
+
+    @property
+    def region_names(self) -> tuple[str, ...]:
+        """The regions of Ω, bottom to top (:func:`ddsolve.problem.schema.region_names`)."""
+        return region_names(len(self.above) + 2)
 
 
 @dataclass(frozen=True)
@@ -278,8 +298,14 @@ class Scene:
         items = override_items(overrides) + override_items(more)
         return loads(self.source or self.text, [*self.overrides, *items], origin=self.origin, base=self.base)
 
+    @property
+    def layers(self) -> tuple[str, ...]:
+        """The structure's layers, bottom to top (``geometry.layers`` of :data:`LAYERS`)."""
+        return LAYERS[:self.geometry.layers]
+
     def material(self, layer: str, region: str) -> materials.Material:
-        """The material of ``layer`` in ``region`` (:data:`REGIONS`): the region's own, else the layer's."""
+        """The material of ``layer`` in ``region`` (one of ``geometry.region_names``): the region's own, else the
+        layer's."""
         return self.regions.get((layer, region), self.materials[layer])
 
     def material_key(self, layer: str, region: str) -> str:
@@ -289,8 +315,8 @@ class Scene:
     def dissimilar_layers(self, thermal: bool = True) -> list[str]:
         """The layers whose regions have different plane laws: stiffness, and with ``thermal`` thermal strain
         (:func:`ddsolve.problem.materials.same_law`)."""
-        return materials.differing({layer: [self.material(layer, region) for region in REGIONS] for layer in LAYERS},
-                                   self.model, thermal)
+        return materials.differing({layer: [self.material(layer, region) for region in self.geometry.region_names]
+                                    for layer in self.layers}, self.model, thermal)
 
     @property
     def proportional(self) -> bool:
@@ -316,7 +342,8 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str, 
         if not mesh["file"].is_absolute() and base is not None:
             mesh["file"] = base / mesh["file"]
     geometry = data["geometry"]
-    given = frozenset(raw.get("geometry", {})) if isinstance(raw.get("geometry"), dict) else frozenset()
+    given = (frozenset(raw["geometry"]) - frozenset(STRUCTURE_KEYS) if isinstance(raw.get("geometry"), dict)
+             else frozenset())
     loads = {
         (layer, name): Load(key=f"loads.{layer}.{name}", **table)
         for layer, tables in data.get("loads", {}).items()
@@ -332,9 +359,10 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str, 
         title=data["title"],
         geometry=Geometry(box=tuple(geometry["box"]), sigma=geometry["sigma"],
                           cracks=tuple(tuple(piece) for piece in geometry["cracks"]),
-                          clamped=tuple(geometry["clamped"]), given=given),
+                          clamped=tuple(geometry["clamped"]), layers=geometry["layers"], given=given,
+                          above=tuple((height, tuple(map(tuple, cracks))) for height, cracks in geometry["above"])),
         mesh=MeshOptions(**mesh),
-        materials={layer: layer_material(data["materials"][layer]) for layer in LAYERS},
+        materials={layer: layer_material(data["materials"][layer]) for layer in layers_of(data)},
         regions=region_materials(data["materials"]),
         model=data["materials"]["model"],
         loads=loads,
@@ -382,6 +410,16 @@ def load(source: str | Path, overrides: list[str] = ()) -> Scene:
     return scene
 
 
+def _written_geometry(geometry: dict) -> dict:
+    """A checked geometry table as a scene writes it: one interface as ``sigma = y``, ``cracks = [[a, b], ...]``;
+    several as ``sigma = [y1, ...]``, ``cracks = [[[a, b], ...], ...]``."""
+    written = {key: value for key, value in geometry.items() if key != "above"}
+    if geometry["above"]:
+        written["sigma"] = [geometry["sigma"], *(height for height, _ in geometry["above"])]
+        written["cracks"] = [geometry["cracks"], *(cracks for _, cracks in geometry["above"])]
+    return written
+
+
 def loads(text: str, overrides: list[str] = (), origin: str = "scene", base: Path | None = None) -> Scene:
     """Parse and validate scene text."""
     try:
@@ -391,10 +429,11 @@ def loads(text: str, overrides: list[str] = (), origin: str = "scene", base: Pat
     except RecursionError:  # tomllib's parser recurses into arrays and tables
         raise SceneError(f"{origin}: malformed TOML: arrays or tables nested too deeply") from None
     apply_overrides(raw, list(overrides))
-    data = check_table(raw, SCHEMA, (), origin)
+    data = check_table(raw, structure_schema(raw, origin), (), origin)
     cross_checks(data, raw, origin)
+    written = {key: value for key, value in data.items() if key != "geometry"}
     if data["mesh"]["file"] is not None and data["mesh"]["file"].lower().endswith(".geo"):
-        written = {key: value for key, value in data.items() if key != "geometry"}
+        written["geometry"] = {key: data["geometry"][key] for key in STRUCTURE_KEYS}
     else:
-        written = data
+        written["geometry"] = _written_geometry(data["geometry"])
     return _to_scene(data, raw, dumps(written), base, origin, text, tuple(overrides))

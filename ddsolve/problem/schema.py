@@ -16,9 +16,16 @@ from ddsolve.problem.reading import excerpt, printable
 STOP_RULES = ("paper", "relative", "kkt")
 #: Default tolerance of each stopping rule (a method's default rule: :mod:`ddsolve.problem.method_options`).
 DEFAULT_TOL = {"paper": 1e-6, "relative": 1e-6, "kkt": 1e-8}
+#: The layers of a structure, bottom to top of the stack: a structure has the first ``geometry.layers`` of them.
 LAYERS = ("layer1", "layer2")
+#: The tables that hold a table per layer (a one-layer structure has none of layer2).
+LAYERED_TABLES = ("materials", "loads", "displacements", "temperature")
+#: The geometry keys that say what the structure is rather than where the box lies: a mesh file takes them too.
+STRUCTURE_KEYS = ("layers",)
 #: The regions of Ω, bottom to top: below Σ and above it (a gmsh file's physical surfaces of these names).
 REGIONS = ("lower", "upper")
+#: The name of region k (1, 2, ... bottom to top) of a structure of several interfaces (:func:`region_names`).
+NUMBERED_REGION = "region{}"
 #: The sides of a box geometry, as boundary names.
 SIDES = ("bottom", "top", "left", "right")
 #: The paper's geometry: the square, Σ at y = 0, the crack (−1/2, 1/2), clamped at x = ±1.
@@ -159,6 +166,37 @@ def _interval(value: Any) -> tuple[float, ...]:
     return values
 
 
+def _heights(value: Any) -> float | tuple[float, ...]:
+    """Σ's height, or the heights of several interfaces bottom to top (``[y1, y2, ...]``, strictly increasing)."""
+    if not isinstance(value, list):
+        return _number(value)
+    heights = _numbers(value)
+    if not heights:
+        raise ValueError("a number or a list [y1, y2, ...] of at least one height")
+    crossing = next((k for k in range(1, len(heights)) if not heights[k - 1] < heights[k]), None)
+    if crossing is not None:
+        raise Invalid(f"interfaces {crossing} and {crossing + 1} cross or touch (y = {heights[crossing - 1]:g} and "
+                      f"{heights[crossing]:g}): give the heights bottom to top, strictly increasing")
+    return heights
+
+
+class PerInterface(tuple):
+    """``geometry.cracks`` given as one list of intervals per interface, bottom to top."""
+
+
+def _crack_lists(value: Any) -> tuple[tuple[float, float], ...] | PerInterface:
+    """The cracks of one interface (``[[a, b], ...]``), or a list of them per interface (``[[[a, b], ...], ...]``;
+    an interface without cracks has ``[]``)."""
+    nested = isinstance(value, list) and any(item == [] or isinstance(item, list) and isinstance(item[0], list)
+                                             for item in value)
+    if not nested:
+        return _intervals(value)
+    try:
+        return PerInterface(_intervals(item) for item in value)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"one list of intervals per interface, each {exc}") from None
+
+
 def _intervals(value: Any) -> tuple[tuple[float, float], ...]:
     if not isinstance(value, list):
         raise TypeError("a list of [a, b] intervals")
@@ -198,6 +236,13 @@ def _count(minimum: int) -> Callable[[Any], int]:
             raise ValueError(f"at least {minimum}")
         return value
     return checked
+
+
+def _layers(value: Any) -> int:
+    value = _integer(value)
+    if value not in (1, 2):
+        raise ValueError("1 (one body) or 2 (two sheets glued on Σ)")
+    return value
 
 
 def _degree(value: Any) -> int:
@@ -304,11 +349,19 @@ def _kind(raw: dict) -> dict | None:
     return None
 
 
-def _material_schema(raw: dict) -> dict:
-    """A layer's material: its kind follows from its keys (D: a matrix; E1, E2, ...: orthotropic; else E, nu),
-    and each region of Ω (:data:`REGIONS`) may override its keys in a table of that name."""
-    kind = _kind(raw) or ISOTROPIC
-    return {**kind, **{region: _region_schema(raw, kind) for region in REGIONS}}
+def region_names(count: int) -> tuple[str, ...]:
+    """The names of the ``count`` regions of Ω, bottom to top: :data:`REGIONS` (``lower``, ``upper``) for one
+    interface, ``region1`` ... ``regionR`` for several."""
+    return REGIONS if count == len(REGIONS) else tuple(NUMBERED_REGION.format(k) for k in range(1, count + 1))
+
+
+def _material_schema(regions: tuple[str, ...]) -> Callable[[dict], dict]:
+    """The schema of a layer's material: its kind follows from its keys (D: a matrix; E1, E2, ...: orthotropic;
+    else E, nu), and each region of Ω (``regions``) may override its keys in a table of that name."""
+    def schema(raw: dict) -> dict:
+        kind = _kind(raw) or ISOTROPIC
+        return {**kind, **{region: _region_schema(raw, kind) for region in regions}}
+    return schema
 
 
 def _region_schema(layer: dict, kind: dict) -> Callable[[dict], dict]:
@@ -335,10 +388,11 @@ SCHEMA: dict[str, Any] = {
     "title": (_string, ""),
     "geometry": {
         "box": (_box, list(PAPER_BOX)),
-        "sigma": (_number, None),
+        "sigma": (_heights, None),
         "crack": (_interval, None),
-        "cracks": (_intervals, None),
+        "cracks": (_crack_lists, None),
         "clamped": (_sides, ["left", "right"]),
+        "layers": (_layers, 2),
     },
     "mesh": {
         "file": (_string, None),
@@ -352,7 +406,7 @@ SCHEMA: dict[str, Any] = {
     },
     "materials": {
         "model": (_choice(materials.MODELS), "plane_strain"),
-        **{layer: _material_schema for layer in LAYERS},
+        **{layer: _material_schema(REGIONS) for layer in LAYERS},
     },
     "loads": {layer: Tables(_LOAD) for layer in LAYERS},
     "displacements": {layer: Tables(_DISPLACEMENT) for layer in LAYERS},
@@ -379,9 +433,47 @@ SCHEMA: dict[str, Any] = {
                   "eta": (_positive(_number), None), "shear_strength": (_positive(_number), None)},
 }
 # Tables that exist only when the scene writes them (a boundary without a load is not integrated).
+# A region's table in a layer's material (materials.LAYER.REGION) is optional too (:func:`_optional`).
 OPTIONAL_TABLES = {("loads",), *(("loads", layer) for layer in LAYERS), ("displacements",),
-                   *(("materials", layer, region) for layer in LAYERS for region in REGIONS),
                    *(("displacements", layer) for layer in LAYERS), ("temperature",)}
+
+
+def _optional(path: tuple[str, ...]) -> bool:
+    """Whether the table at ``path`` exists only when the scene writes it."""
+    return path in OPTIONAL_TABLES or path[:1] == ("materials",) and len(path) == 3
+
+
+def region_count(raw: dict) -> int:
+    """The regions of Ω a raw scene describes: one more than its interfaces (``geometry.sigma`` as a list), 2
+    otherwise (its value is checked with the rest of the table)."""
+    geometry = raw.get("geometry")
+    heights = geometry.get("sigma") if isinstance(geometry, dict) else None
+    return len(heights) + 1 if isinstance(heights, list) and heights else len(REGIONS)
+
+
+def structure_schema(raw: dict, origin: str) -> dict:
+    """The schema of the structure the raw scene describes: :data:`SCHEMA` with two layers and two regions; with
+    one layer (``geometry.layers = 1``), without layer2's tables, and a layer2 table or key in the scene is refused;
+    with several interfaces, the layers' region tables are ``region1`` ... (:func:`region_names`)."""
+    geometry = raw.get("geometry")
+    written = {"layers": geometry["layers"]} if isinstance(geometry, dict) and "layers" in geometry else {}
+    layers = check_table(written, {"layers": SCHEMA["geometry"]["layers"]}, ("geometry",), origin)["layers"]
+    regions = region_names(region_count(raw))
+    schema = SCHEMA if regions == REGIONS else {
+        **SCHEMA, "materials": {**SCHEMA["materials"], **{layer: _material_schema(regions) for layer in LAYERS}}}
+    if layers == len(LAYERS):
+        return schema
+    for section in LAYERED_TABLES:
+        table = raw.get(section)
+        extra = [layer for layer in LAYERS[layers:] if isinstance(table, dict) and layer in table]
+        if extra:
+            inner = table[extra[0]]
+            region = next((key for key in inner if key in regions), None) if isinstance(inner, dict) else None
+            key = ".".join((section, extra[0], *((region,) if region else ())))
+            raise SceneError(f"{origin}: {key}: a structure of {layers} layer (geometry.layers = {layers}) has no "
+                             f"{extra[0]}")
+    return {**schema, **{section: {key: spec for key, spec in schema[section].items() if key not in LAYERS[layers:]}
+                         for section in LAYERED_TABLES}}
 
 
 def check_table(raw: dict, schema: dict, path: tuple[str, ...], origin: str) -> dict:
@@ -390,8 +482,9 @@ def check_table(raw: dict, schema: dict, path: tuple[str, ...], origin: str) -> 
         if key not in schema:
             dotted = printable(".".join((*path, key)))
             if isinstance(raw[key], dict) and path[:1] == ("materials",) and len(path) in (2, 3):
+                regions = [name for name, spec in schema.items() if not isinstance(spec, tuple)]
                 raise SceneError(f"{origin}: {dotted}: " + (
-                    f"no region of that name (the regions of Ω, bottom to top: {', '.join(REGIONS)})"
+                    f"no region of that name (the regions of Ω, bottom to top: {', '.join(regions)})"
                     if len(path) == 2 else "a region's table holds a material's keys, not another table (the "
                     "regions' tables sit in their layer's: materials.LAYER.REGION)"))
             close = difflib.get_close_matches(key, list(schema), n=1)
@@ -403,7 +496,7 @@ def check_table(raw: dict, schema: dict, path: tuple[str, ...], origin: str) -> 
         dotted = printable(".".join((*path, key)))
         if not isinstance(spec, tuple):  # a table
             if key not in raw:
-                if (*path, key) in OPTIONAL_TABLES:
+                if _optional((*path, key)):
                     continue
                 sub = {}
             else:
@@ -447,7 +540,7 @@ def layer_material(table: dict) -> materials.Material:
     """A layer's (or a region's) material from its checked table (its kind follows from its keys; the regions'
     tables in it are left out)."""
     table = {key: value for key, value in table.items()
-             if key not in REGIONS and not (key.startswith("alpha") and value is None)}
+             if not isinstance(value, dict) and not (key.startswith("alpha") and value is None)}
     if "D" in table:
         return materials.Anisotropic(D=table["D"], Dzz=table["Dzz"])
     if "E1" in table:
@@ -457,5 +550,10 @@ def layer_material(table: dict) -> materials.Material:
 
 def region_materials(tables: dict) -> dict[tuple[str, str], materials.Material]:
     """(layer, region) -> the material of each region that a checked ``materials`` table overrides."""
-    return {(layer, region): layer_material(tables[layer][region])
-            for layer in LAYERS for region in REGIONS if region in tables[layer]}
+    return {(layer, region): layer_material(table) for layer in LAYERS if layer in tables
+            for region, table in tables[layer].items() if isinstance(table, dict)}
+
+
+def layers_of(data: dict) -> tuple[str, ...]:
+    """The layers of a checked scene's structure (``geometry.layers`` of :data:`LAYERS`)."""
+    return LAYERS[:data["geometry"]["layers"]]

@@ -33,7 +33,7 @@ from mpi4py import MPI
 from ddsolve.errors import DDSolveError, NotConvergedError
 from ddsolve.io import hdf5
 from ddsolve.mesh import bisection, curves
-from ddsolve.mesh.mesh import BLOCKS, SIGMA, Mesh, signed_areas
+from ddsolve.mesh.mesh import SIGMA, Mesh, signed_areas
 from ddsolve.parallel import distribution
 from ddsolve.parallel.exchange import collective
 from ddsolve.parallel.phases import launch_age
@@ -65,9 +65,10 @@ MAX_SWEEPS = 400
 LEVEL_COLUMNS = ("unknowns", "cells", "error_estimate", "energy", "mesh_time", "solve_time", "level_time", "elapsed")
 
 
-def unknowns(mesh: Mesh) -> int:
-    """Displacement unknowns of the four blocks (two per node, each half twice)."""
-    return 4 * (len(mesh.lower.points) + len(mesh.upper.points))
+def unknowns(mesh: Mesh, layers: int = 2) -> int:
+    """Displacement unknowns of the blocks of a structure of ``layers`` layers (two per node, each half once per
+    layer)."""
+    return 2 * layers * (len(mesh.lower.points) + len(mesh.upper.points))
 
 
 def largest_level(ranks: int) -> int:
@@ -121,7 +122,8 @@ def solve_adaptively(scene: Scene, comm: MPI.Comm, output: Path | None, progress
         result = level(mesh, scene, step.refined_next)
         if comm.rank == 0:
             estimate = float(result.attrs["error_estimate"])
-            rows.append({"unknowns": unknowns(mesh), "cells": len(mesh.lower.cells) + len(mesh.upper.cells),
+            rows.append({"unknowns": unknowns(mesh, scene.geometry.layers),
+                         "cells": len(mesh.lower.cells) + len(mesh.upper.cells),
                          "error_estimate": estimate, "energy": float(result.attrs.get("energy", np.nan)),
                          "mesh_time": meshing, "solve_time": result.wall_time,
                          "level_time": time.perf_counter() - mark + refining - step.seconds,
@@ -198,7 +200,7 @@ def next_level(result: Result, target: float, level: int, project: bisection.Pro
     estimate = float(result.attrs["error_estimate"])
     if estimate <= target:
         return True, None, ""
-    count, degree, limit = unknowns(result.mesh), result.mesh.degree, largest_level(result.ranks)
+    count, degree, limit = result.unknowns, result.mesh.degree, largest_level(result.ranks)
     needed = needed_unknowns(count, estimate, target, degree)
     if needed > PREDICTION_MARGIN * limit:
         reach = estimate * (PREDICTION_MARGIN * limit / count) ** (-degree / 2.0)
@@ -222,9 +224,10 @@ def next_level(result: Result, target: float, level: int, project: bisection.Pro
 
 
 def cell_indicators(mesh: Mesh, indicators: dict[str, np.ndarray]) -> np.ndarray:
-    """η_K² per cell, the lower half's cells then the upper half's (the two blocks of each half added)."""
-    return np.concatenate([sum(indicators[spec.name] ** 2 for spec in BLOCKS if spec.side == half.side)
-                           for half in mesh.halves])
+    """η_K² per cell, the lower half's cells then the upper half's (the blocks of each half added: a block's name
+    ends with its half, ``minus`` or ``plus``)."""
+    return np.concatenate([sum(values ** 2 for name, values in indicators.items()
+                               if name.endswith("minus") == (half.side < 0)) for half in mesh.halves])
 
 
 def planned_unknowns(tri: bisection.Triangulation) -> float:

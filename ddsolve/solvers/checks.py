@@ -6,12 +6,15 @@ from ddsolve.environment import RANK_MEMORY, VERTEX_MEMORY, physical_memory
 from ddsolve.errors import DDSolveError, SceneError, UsageError
 
 
-def check_ranks(ranks: int) -> None:
-    """Refuse a rank count ddsolve cannot use, or that this machine cannot start, before mpiexec."""
-    from ddsolve.parallel.launch import supported
+def check_ranks(ranks: int, blocks: int | None = None) -> None:
+    """Refuse a rank count ddsolve cannot use on a structure of ``blocks`` blocks (None: on any structure, one
+    or two layers), or that this machine cannot start, before mpiexec."""
+    from ddsolve.parallel.launch import BLOCK_COUNT, supported, usable
 
-    if not supported(ranks):
-        raise UsageError(f"-n {ranks}: unsupported number of ranks: use 1, 2 or a multiple of 4")
+    counts = (2, BLOCK_COUNT) if blocks is None else (blocks,)
+    if not any(supported(ranks, count) for count in counts):
+        raise UsageError(f"-n {ranks}: unsupported number of ranks: use {usable(counts[-1])}"
+                         + (f" ({usable(counts[0])} for a one-layer structure)" if blocks is None else ""))
     memory = ranks * RANK_MEMORY
     if memory > physical_memory():
         raise UsageError(f"-n {ranks}: {ranks} ranks need about {memory / 1e9:.3g} GB before any mesh "
@@ -19,11 +22,14 @@ def check_ranks(ranks: int) -> None:
                          f"{physical_memory() / 1e9:.3g} GB; for ranks on several machines start mpiexec yourself")
 
 
-def check_size(scene, ranks: int = 1) -> None:
-    """Refuse a mesh that cannot fit in this machine's memory, or a ``mesh.refine`` its geometry cannot
-    take (:func:`ddsolve.mesh.geometry.refinement`), before it is made."""
+def check_size(scene, ranks: int = 1, solving: bool = True) -> None:
+    """Refuse a mesh that cannot fit in this machine's memory, a ``mesh.refine`` its geometry cannot take
+    (:func:`ddsolve.mesh.geometry.refinement`), or, ``solving``, a structure that cannot be solved yet, before
+    it is made."""
     from ddsolve.mesh import geometry
 
+    if solving:
+        geometry.one_interface(scene)
     geometry.refinement(scene)
     vertices = geometry.estimated_vertices(scene)
     if vertices is None:

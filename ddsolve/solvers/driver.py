@@ -26,13 +26,13 @@ from ddsolve.dd.interface import Interface, for_mesh
 from ddsolve.errors import DDSolveError, DivergedError, NotConvergedError, SceneError
 from ddsolve.fem import assembly, supports
 from ddsolve.mesh import pieces
-from ddsolve.mesh.mesh import BLOCKS, U_PLUS, Mesh
+from ddsolve.mesh.mesh import U_MINUS, U_PLUS, Mesh, blocks as block_list
 from ddsolve.mesh.pieces import Piece
 from ddsolve.parallel import finish, launch
 from ddsolve.parallel.blocks import Block
 from ddsolve.parallel.distribution import LocalMesh, half_bytes, local_mesh, whole, whole_mesh_checks
 from ddsolve.parallel.exchange import Exchange, collective
-from ddsolve.parallel.launch import supported
+from ddsolve.parallel.launch import supported, usable
 from ddsolve.parallel.phases import Phases, launch_age, memory_record
 from ddsolve.parallel.rounds import BlockServer, drive
 from ddsolve.post.result import Result
@@ -66,7 +66,8 @@ def whole_mesh_bytes(local: LocalMesh, exchange: Exchange) -> int:
     sizes when they hold pieces)."""
     if local.whole_bytes:
         return sum(local.whole_bytes.values()) + local.sigma_bytes
-    own = sum(half_bytes(local.half(BLOCKS[b].side)) for b in (0, U_PLUS) if exchange.comm.rank == exchange.leader(b))
+    own = sum(half_bytes(local.half(side)) for b, side in ((U_MINUS, -1), (U_PLUS, 1))
+              if exchange.comm.rank == exchange.leader(b))
     return exchange.comm.allreduce(own) + local.sigma_bytes
 
 
@@ -111,7 +112,7 @@ def local_systems(scene: Scene, mesh: LocalMesh, exchange: Exchange, block_piece
     index = exchange.local_blocks[0]
     piece = block_pieces[index]
     rows = (2 * piece.owned_nodes.start, 2 * piece.owned_nodes.stop)
-    on_piece = replace(mesh, halves={BLOCKS[index].side: piece.half})
+    on_piece = replace(mesh, halves={block_list(scene.geometry.layers)[index].side: piece.half})
     return [assembly.renumbered(system, piece.nodes, piece.rows) for system in
             assembly.block_systems(scene, on_piece, [index], rows, mesh.sigma_supports)]
 
@@ -152,7 +153,7 @@ def interface_of(scene: Scene, local: LocalMesh, comm: MPI.Comm) -> Interface:
     largest over the ranks' halves or pieces (:func:`ddsolve.fem.assembly.data_displacement`)."""
     data = comm.allreduce(assembly.data_displacement(scene, local.halves.values(), local.sigma), op=MPI.MAX)
     return for_mesh(local.sigma, scene.nonpenetration, local.sigma_supports.fixed, assembly.modulus(scene), data,
-                    scene.friction, scene.bond)
+                    scene.friction, block_list(scene.geometry.layers), scene.bond)
 
 
 def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phases | None = None,
@@ -161,15 +162,17 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
     ranks write the result together): from assembly on, a rank holds only its pieces of its halves
     (:mod:`ddsolve.mesh.pieces`; all a gathered result, a reload or a critical-factor search would need the
     halves whole)."""
-    if not supported(comm.size):
-        error = DDSolveError(f"unsupported number of ranks {comm.size}: use 1, 2 or a multiple of 4")
+    specs = block_list(scene.geometry.layers)
+    if not supported(comm.size, len(specs)):
+        one_layer = " (geometry.layers = 1: blocks u_minus and u_plus)" if len(specs) == 2 else ""
+        error = DDSolveError(f"unsupported number of ranks {comm.size}: use {usable(len(specs))}{one_layer}")
         error.collective = True  # every rank sees the same size
         raise error
     phases = phases if phases is not None else Phases()
     stages = {name: PETSc.Log.Stage(name) for name in STAGES}
 
     stages["Setup"].push()
-    exchange = Exchange(comm, len(BLOCKS))
+    exchange = Exchange(comm, len(specs))
     if mesh is not None:
         tips, table, block_kernels = comm.bcast(collective(comm, lambda: whole_mesh_checks(scene, mesh),
                                                            root_only=True), root=0)
@@ -186,13 +189,13 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
                            f"{' or '.join(registry.floating_methods())}")
         error.collective = True  # every rank knows the supports
         raise error
-    block_pieces = cut_pieces(local, exchange)
+    block_pieces = cut_pieces(local, exchange, specs)
     kernel_rows = {index: floating_kernel(scene, local, index, block_pieces[index],
                                           fixed=method.floating == registry.GENERALIZED_INVERSE)
                    for index in exchange.local_blocks if index in floating}
     whole_bytes = whole_mesh_bytes(local, exchange)
     if not keep_halves:
-        local = replace(local, halves={BLOCKS[index].side: piece.half for index, piece in block_pieces.items()})
+        local = replace(local, halves={specs[index].side: piece.half for index, piece in block_pieces.items()})
     phases.hold("mesh", local.nbytes + pieces.extra_bytes(block_pieces.values(), local.halves.values()))
     phases.end("distribution")  # the pieces cut, and the halves dropped: assembly holds what it works on
     blocks = collective(comm, lambda: make_blocks(scene, local, exchange, method.factorization, block_pieces))
@@ -217,14 +220,14 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phas
     return Setup(local, exchange, blocks, interface, stages, phases, scene, block_pieces, whole_bytes)
 
 
-def cut_pieces(local: LocalMesh, exchange: Exchange) -> dict[int, Piece]:
+def cut_pieces(local: LocalMesh, exchange: Exchange, specs: tuple) -> dict[int, Piece]:
     """This rank's piece of the half of each of its blocks: the nodes of its rows (:mod:`ddsolve.mesh.pieces`;
     a block's rows are shared out as :func:`ddsolve.fem.assembly.row_ranges` says), made with the mesh or cut now."""
     if local.pieces:
-        return {index: local.pieces[BLOCKS[index].side] for index in exchange.local_blocks}
+        return {index: local.pieces[specs[index].side] for index in exchange.local_blocks}
     out = {}
     for index, group in zip(exchange.local_blocks, exchange.groups):
-        half = local.half(BLOCKS[index].side)
+        half = local.half(specs[index].side)
         first, last = assembly.row_ranges(len(half.points), group.size)[group.rank]
         out[index] = pieces.cut(half, first // 2, last // 2)
     return out
@@ -235,7 +238,7 @@ def floating_kernel(scene: Scene, mesh: LocalMesh, index: int, piece: Piece, fix
     """A floating block's kernel at its rows here (the nodes ``piece`` owns) and, with ``fixed``, the dofs fixed
     for FETI's K⁺: m dofs of the half's outer boundary, off the trace and the prescribed dofs, where the kernel
     is independent (chosen from the skeleton every piece keeps, the same on every rank of the block)."""
-    spec, half = BLOCKS[index], piece.half
+    spec, half = block_list(scene.geometry.layers)[index], piece.half
     vectors = kernels.kernel_vectors(half, mesh.sigma, mesh.kernels.kernels[index], mesh.kernels.frame)
     chosen = None
     if fixed:
@@ -257,7 +260,8 @@ def resolve(scene: Scene, ranks: int, mesh: LocalMesh) -> Scene:
         return dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, method="schur"))
     sigma = mesh.sigma
     crack_rows = int(sigma.crack[sigma.multiplier_nodes].sum()) if scene.nonpenetration else 0
-    method = registry.choose(ranks, 2 * max(mesh.nodes.values()), len(sigma.multiplier_nodes), crack_rows)
+    method = registry.choose(ranks, 2 * max(mesh.nodes.values()), len(sigma.multiplier_nodes), crack_rows,
+                             len(block_list(scene.geometry.layers)))
     return dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, method=method))
 
 
@@ -389,7 +393,7 @@ def record_timings(result: Result, setup: Setup, rounds, memory: list[tuple[dict
     timings["setup"] = sum(timings.get(name, 0.0) for name in ("meshing", "distribution", "assembly"))
     for name in phases.cpu:  # CPU seconds of every rank together
         timings[f"{name}_cpu"] = sum(ranked.cpu[name] for _, ranked in memory)
-    unknowns = sum(2 * local.nodes[spec.side] for spec in BLOCKS)
+    unknowns = sum(2 * local.nodes[spec.side] for spec in setup.interface.blocks)
     result.timings, result.memory = timings, memory_record(memory, unknowns, setup.whole_mesh_bytes)
     result.attrs["peak_memory_mb"] = [max(ranked.peak.values()) for _, ranked in memory]
     # what MUMPS did (a PETSc option may have overridden solver.out_of_core)

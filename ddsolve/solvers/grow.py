@@ -41,12 +41,12 @@ import numpy as np
 from ddsolve.errors import DDSolveError, SceneError, UsageError
 from ddsolve.fem import assembly, supports
 from ddsolve.mesh import cracks as crack_mesh
-from ddsolve.mesh.mesh import BLOCKS, Mesh
+from ddsolve.mesh.mesh import Mesh, blocks
 from ddsolve.parallel import distribution
 from ddsolve.parallel.exchange import collective
 from ddsolve.post import toughness
 from ddsolve.problem import expressions
-from ddsolve.problem.scene import LAYERS, REGIONS, Load, Scene
+from ddsolve.problem.scene import LAYERS, Load, Scene
 from ddsolve.solvers.growth_files import Outputs
 
 #: The most root-solve iterations of one step, and of rounds of steps at one control (growth of one tip
@@ -130,7 +130,7 @@ def control_kind(scene: Scene) -> str:
 
 def _parts(mesh: Mesh, layer: str, name: str):
     """(block name, half, edges) of the boundary ``name`` of ``layer`` on every block that has it."""
-    for spec in BLOCKS:
+    for spec in blocks(len(LAYERS)):  # the blocks of ``layer`` are the same in any structure that has it
         half = mesh.half(spec.side)
         if spec.layer == layer and name in half.boundaries:
             yield spec.name, half, half.edges(name)
@@ -278,7 +278,8 @@ class Growth:
         size = float(np.ptp(np.vstack([half.points for half in self.base.halves]), axis=0).max())
         scaled = {load.key for load in self.scene.loads.values()} | {d.key for d in self.scene.displacements.values()}
         driven, stiffness = [], assembly.modulus(self.scene)
-        for layer, region in ((layer, region) for layer in LAYERS for region in REGIONS):
+        for layer, region in ((layer, region) for layer in self.scene.layers
+                              for region in self.scene.geometry.region_names):
             block_stiffness = float(np.abs(assembly.elasticity(self.scene, layer, region)[0]).max())
             driven += assembly.driven_displacements(self.scene, self.base, (layer, region), size, layer,
                                                     block_stiffness)
@@ -495,7 +496,7 @@ def stops(scene: Scene, mesh: Mesh) -> list[tuple[float, str]]:
     sigma = mesh.sigma
     table = supports.sigma_supports(scene, mesh)
     held = np.zeros(len(sigma.points), dtype=bool)
-    held[sigma.multiplier_nodes] = table.fixed.reshape(len(BLOCKS), -1, 2).any(axis=(0, 2))
+    held[sigma.multiplier_nodes] = table.fixed.reshape(len(table.fixed), -1, 2).any(axis=(0, 2))
     supported = sigma.clamped | held
     arc = sigma.arclength
     return [(float(s), "a support" if supported[np.argmin(np.abs(arc - s))] else "the end of Σ")

@@ -31,7 +31,7 @@ from ddsolve.errors import SolverError
 from ddsolve.fem import assembly, supports
 from ddsolve.fem.assembly import BlockSystem, coo_to_csr
 from ddsolve.mesh import mesh as meshes
-from ddsolve.mesh.mesh import U_MINUS, V_MINUS, Mesh
+from ddsolve.mesh.mesh import Mesh
 from ddsolve.parallel.blocks import Block
 from ddsolve.parallel.distribution import whole_mesh_checks
 from ddsolve.parallel.launch import provenance
@@ -42,8 +42,6 @@ from ddsolve.problem.scene import Scene
 
 #: The phases of the solve, each with its wall and CPU seconds in the result's timings.
 PHASES = ("merge", "factorization", "solve")
-#: The blocks holding the lower crack face, whose normal displacement is the upper face's plus the jump.
-LOWER_FACE = (U_MINUS, V_MINUS)
 #: The solve with the contact forces is refined while its jumps differ from the dense model's by more than this,
 #: relative to the displacement scale (the ENF of issue 39: 2e-12 before a refinement, 3e-16 after).
 REFINEMENT_TOLERANCE = 1e-14
@@ -67,7 +65,8 @@ def numbering(systems: list[BlockSystem], interface: Interface, closed: np.ndarr
 
 def jump_numbering(systems: list[BlockSystem], interface: Interface) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """The numbering with the crack faces' normal displacements tied, and the second unknown of every block
-    dof (−1 for none): on the lower face's blocks, the jump of its contact row, numbered last in row order."""
+    dof (−1 for none): on the lower face's blocks (those of the lower half, whose normal displacement is the upper
+    face's plus the jump), the jump of its contact row, numbered last in row order."""
     contact = interface.slices["mu_c"]
     numbers = numbering(systems, interface, np.ones(contact.stop - contact.start, dtype=bool))
     first = int(max(n.max(initial=-1) for n in numbers)) + 1
@@ -75,7 +74,7 @@ def jump_numbering(systems: list[BlockSystem], interface: Interface) -> tuple[li
     jumps = []
     for index, system in enumerate(systems):
         jump = np.full(system.size, -1, dtype=np.int64)
-        if index in LOWER_FACE:
+        if interface.blocks[index].side < 0:
             jump[system.trace_dofs[normal]] = first + np.arange(len(normal))
         jumps.append(jump)
     return numbers, jumps
@@ -233,7 +232,8 @@ def solve_assembled(scene: Scene, mesh: Mesh, systems: list[BlockSystem],
     refuse_bond(scene)
     table = table if table is not None else supports.sigma_supports(scene, mesh)
     interface = for_mesh(mesh.sigma, scene.nonpenetration, table.fixed, assembly.modulus(scene),
-                         assembly.data_displacement(scene, mesh.halves, mesh.sigma))
+                         assembly.data_displacement(scene, mesh.halves, mesh.sigma),
+                         specs=meshes.blocks(scene.geometry.layers))
     solved = solve_glued(systems, interface, out_of_core=scene.solver.out_of_core)
     fields, contact = solved.fields, interface.slices["mu_c"]
     steps, changes = (solved.face.violations, solved.face.changes) if solved.face else ([(0.0, 0.0)], [0])

@@ -91,14 +91,15 @@ def _range(item: str) -> tuple | None:
 def run_seconds(scene, ranks: int, factor: bool = True) -> float:
     """A lower estimate of one run's seconds on ``ranks`` ranks from the size of its mesh (when it can be
     known beforehand): the rounds, the error estimate and G, and with ``factor`` the factorization of the
-    four blocks (each has about as many unknowns as the mesh has nodes)."""
+    structure's blocks (each has about as many unknowns as the mesh has nodes)."""
     from ddsolve.dd.registry import COST_LAWS
     from ddsolve.mesh import geometry
-    from ddsolve.mesh.mesh import BLOCKS
+    from ddsolve.mesh.mesh import blocks
 
     nodes = geometry.estimated_vertices(scene) or 0.0
     a, power = COST_LAWS["factor"]
-    return RUN_SECONDS + NODE_SECONDS * nodes + (len(BLOCKS) * a * nodes ** power / ranks if factor else 0.0)
+    count = len(blocks(scene.geometry.layers))
+    return RUN_SECONDS + NODE_SECONDS * nodes + (count * a * nodes ** power / ranks if factor else 0.0)
 
 
 def sweep_seconds(solving: float, runs: float) -> float:
@@ -369,7 +370,7 @@ def _numbers(result) -> dict:
     return {
         "converged": bool(result.converged), "energy": float(result.attrs.get("energy", math.nan)),
         "iterations": int(result.iterations), "rounds": int(result.solves),
-        "unknowns": 4 * (len(result.lower.points) + len(result.upper.points)),
+        "unknowns": result.unknowns,
         "setup_time": float(timings.get("setup", math.nan)),
         "factorization_time": float(timings.get("factorization", math.nan)),
         "solve_time": float(timings.get("iterations", math.nan)), "fracture": result.fracture,

@@ -1,0 +1,122 @@
+"""The built-in box of several interfaces (``geometry.sigma = [y1, y2, ...]``): each region meshed by gmsh on its
+own, in a child process, with ``mesh.size``; neighbouring regions share their Σ's vertices (every Σ piece between
+crack tips is divided the same way from both sides), and :func:`ddsolve.mesh.mesh.make_stack` pairs them.
+
+Region k (``region1`` ... bottom to top) has the box's bottom (region 1), the Σ below it named ``sigma`` and its
+cracks ``crack`` (regions 2 ...), the Σ above it named ``sigma`` in region 1 and ``sigma_above`` with
+``crack_above`` in a middle region, the box's top (the last region), and the sides ``left`` and ``right``.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ddsolve.mesh.element import outer_edges
+from ddsolve.mesh.geometry import build, local_origin, origin, translated
+from ddsolve.mesh.gmsh_io import GMSH_TRIANGLE, apart, session
+from ddsolve.mesh.mesh import (CLAMPED, CRACK, CRACK_ABOVE, SIGMA, SIGMA_ABOVE, TOL, HalfMesh, Mesh, elevate,
+                               make_stack, oriented, region_half)
+from ddsolve.mesh.sizing import node_positions
+from ddsolve.problem.scene import Geometry, Scene
+
+
+def build_any(scene: Scene) -> Mesh:
+    """The scene's mesh: the regions of several interfaces paired (:func:`make_stack`), else
+    :func:`ddsolve.mesh.geometry.build`'s."""
+    if not scene.geometry.above:
+        return build(scene)
+    count = len(scene.geometry.sigmas) + 1
+    return make_stack(tuple(apart(_mesh_region, scene, index) for index in range(count)), origin(scene))
+
+
+def _mesh_region(scene: Scene, index: int) -> HalfMesh:
+    """Region ``index`` (0: the bottom one) triangulated by gmsh: every line divided into pieces of about
+    ``mesh.size`` (each Σ piece between crack tips on its own), the size ``mesh.size`` inside."""
+    shift = local_origin(scene.geometry.box)  # gmsh meshes the box about a nearby origin
+    geometry = translated(scene.geometry, -shift)
+    x0, x1, _, _ = geometry.box
+    lines = _lines(geometry, index)
+    h = scene.mesh.size
+    with session(deterministic=True) as gmsh:
+        geo = gmsh.model.geo
+        bottom, top = ([(x, lines[name][0]) for x in lines[name][1]] for name in ("bottom", "top"))
+        made = {xy: geo.addPoint(xy[0], xy[1], 0.0) for xy in (*bottom, *top)}
+
+        def chain(points: list) -> list[tuple[int, float]]:
+            """Lines through ``points``, left to right or bottom to top (as a neighbouring region's same line,
+            so that both divide it alike), with their lengths."""
+            return [(geo.addLine(made[a], made[b]), math.dist(a, b)) for a, b in zip(points[:-1], points[1:])]
+
+        below, right, above, left = chain(bottom), chain([bottom[-1], top[-1]]), chain(top), chain([bottom[0], top[0]])
+        curves = [*below, *right, *above, *left]
+        loop = [*(c for c, _ in below), *(c for c, _ in right), *(-c for c, _ in above[::-1]), *(-c for c, _ in left)]
+        surface = geo.addPlaneSurface([geo.addCurveLoop(loop)])
+        geo.synchronize()
+        for curve, length in curves:
+            gmsh.model.mesh.setTransfiniteCurve(curve, max(1, math.ceil(length / h - 1e-9)) + 1)
+        field = gmsh.model.mesh.field.add("MathEval")
+        gmsh.model.mesh.field.setString(field, "F", f"{h:.17f}")
+        gmsh.model.mesh.field.setAsBackgroundMesh(field)
+        gmsh.model.mesh.generate(2)
+        tags, coordinates, _ = gmsh.model.mesh.getNodes()
+        points = np.asarray(coordinates, dtype=np.float64).reshape(-1, 3)[:, :2]
+        _, nodes = gmsh.model.mesh.getElementsByType(GMSH_TRIANGLE, surface)
+        cells = node_positions(tags)[np.asarray(nodes, dtype=np.int64).reshape(-1, 3)]
+    points = _snap(points, geometry)
+    where = origin(scene)
+    name = geometry.region_names[index]
+    cells = oriented(points, cells, f"{where}: {name}")
+    boundaries = _boundaries(points, cells, geometry, lines)
+    if scene.mesh.degree == 2:
+        points, cells, boundaries = elevate(points, cells, boundaries)
+    return region_half(points + shift, cells, name, index == 0, boundaries, where)
+
+
+def _lines(geometry: Geometry, index: int) -> dict[str, tuple]:
+    """Region ``index``'s bottom and top lines: height, the x of their vertices (ends and crack tips), the
+    boundary name, its cracks' name and the cracks."""
+    x0, x1, y0, y1 = geometry.box
+    count = len(geometry.sigmas) + 1
+
+    def line(interface: int, name: str, crack: str) -> tuple:
+        cracks = geometry.crack_lists[interface]
+        tips = sorted({x0, *(tip for piece in cracks for tip in piece if x0 < tip < x1), x1})
+        return geometry.sigmas[interface], tips, name, crack, cracks
+
+    bottom = (y0, [x0, x1], "bottom", "", ()) if index == 0 else line(index - 1, SIGMA, CRACK)
+    top = ((y1, [x0, x1], "top", "", ()) if index == count - 1 else
+           line(index, SIGMA, CRACK) if index == 0 else line(index, SIGMA_ABOVE, CRACK_ABOVE))
+    return {"bottom": bottom, "top": top}
+
+
+def _snap(points: np.ndarray, geometry: Geometry) -> np.ndarray:
+    """Coordinates within TOL (relative) of the box's lines or of a Σ put exactly on them."""
+    x0, x1, y0, y1 = geometry.box
+    scale = max(x1 - x0, y1 - y0)
+    points = np.array(points, dtype=np.float64)
+    for column, values in ((0, (x0, x1)), (1, (y0, *geometry.sigmas, y1))):
+        for value in values:
+            points[np.abs(points[:, column] - value) <= TOL * scale, column] = value
+    return points
+
+
+def _boundaries(points: np.ndarray, cells: np.ndarray, geometry: Geometry, lines: dict) -> dict[str, np.ndarray]:
+    """A region's boundary edges by name: its bottom and top lines, the sides, the cracks on its Σ lines, Γ_D."""
+    x0, x1, _, _ = geometry.box
+    outer = outer_edges(cells)
+    ends = points[outer]
+    named = {"left": outer[np.all(ends[:, :, 0] == x0, axis=1)], "right": outer[np.all(ends[:, :, 0] == x1, axis=1)]}
+    scale = x1 - x0
+    for height, _, name, crack, cracks in lines.values():
+        edges = outer[np.all(ends[:, :, 1] == height, axis=1)]
+        named[name] = edges
+        x = points[edges, 0]
+        on_crack = np.zeros(len(edges), dtype=bool)
+        for a, b in cracks:
+            on_crack |= np.all((x >= a - TOL * scale) & (x <= b + TOL * scale), axis=1)
+        if crack:
+            named[crack] = edges[on_crack]
+    clamped = [named[side] for side in geometry.clamped if side in named]
+    named[CLAMPED] = np.concatenate(clamped) if clamped else np.zeros((0, 2), dtype=np.int64)
+    return {name: edges for name, edges in named.items() if len(edges)}

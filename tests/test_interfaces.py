@@ -1,0 +1,215 @@
+"""Several interfaces in the box: ``geometry.sigma = [y1, y2, ...]`` with one crack list per interface
+(``geometry.cracks = [[[a, b], ...], ...]``), regions ``region1`` ... ``regionR`` with their own materials; the
+one-interface forms and names stay as they were; bad input is refused in one line naming the key."""
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from conftest import ddsolve, refused
+
+from ddsolve.errors import MeshError, SceneError
+from ddsolve.mesh import geometry, stack
+from ddsolve.mesh.mesh import Mesh
+from ddsolve.problem import materials, scene
+from ddsolve.solvers import checks
+
+#: A strip of three regions: two interfaces, a crack on each, a stiffer middle region in layer 1.
+STRIP = """
+[geometry]
+box = [0.0, 4.0, 0.0, 3.0]
+sigma = [1.0, 2.0]
+cracks = [[[1.0, 2.0]], [[2.0, 3.0]]]
+clamped = ["left"]
+[mesh]
+size = 0.25
+[materials.layer1]
+E = 1.0
+nu = 0.3
+[materials.layer1.region2]
+E = 2.0
+[materials.layer2]
+E = 1.0
+nu = 0.3
+[loads.layer1.right]
+x = 0.1
+"""
+
+
+def strip(*overrides: str) -> scene.Scene:
+    return scene.loads(STRIP, list(overrides), origin="strip.toml")
+
+
+def refusal(*overrides: str) -> str:
+    with pytest.raises(SceneError) as caught:
+        strip(*overrides)
+    message = str(caught.value)
+    assert "\n" not in message
+    return message
+
+
+def test_the_interfaces_their_cracks_and_the_regions_bottom_to_top():
+    geometry_ = strip().geometry
+    assert geometry_.sigmas == (1.0, 2.0)
+    assert geometry_.crack_lists == (((1.0, 2.0),), ((2.0, 3.0),))
+    assert geometry_.region_names == ("region1", "region2", "region3")
+    assert (geometry_.sigma, geometry_.cracks) == (1.0, ((1.0, 2.0),))
+
+
+def test_a_region_overrides_its_layer_in_that_region_only():
+    source = strip()
+    assert source.material("layer1", "region2") == materials.Isotropic(E=2.0, nu=0.3)
+    assert source.material("layer1", "region1") == source.material("layer1", "region3") == source.materials["layer1"]
+    assert source.material_key("layer1", "region2") == "materials.layer1.region2"
+    assert source.dissimilar_layers() == ["layer1"]
+    assert strip("materials.layer1.region2.E=1.0").dissimilar_layers() == []
+
+
+def test_an_interface_without_cracks_and_no_cracks_key():
+    assert strip("geometry.cracks=[[], [[0.5, 1.5]]]").geometry.crack_lists == ((), ((0.5, 1.5),))
+    text = STRIP.replace("cracks = [[[1.0, 2.0]], [[2.0, 3.0]]]\n", "")
+    assert scene.loads(text).geometry.crack_lists == ((), ())
+
+
+@pytest.mark.parametrize("sigma, cracks", [("0.5", "[[1.0, 2.0]]"), ("[0.5]", "[[1.0, 2.0]]"),
+                                           ("[0.5]", "[[[1.0, 2.0]]]"), ("0.5", "[[[1.0, 2.0]]]")])
+def test_one_interface_in_either_form_is_the_old_scene(sigma, cracks):
+    old = scene.loads(STRIP.replace("sigma = [1.0, 2.0]", "sigma = 0.5").replace(
+        "cracks = [[[1.0, 2.0]], [[2.0, 3.0]]]", "cracks = [[1.0, 2.0]]").replace("region2", "upper"))
+    new = scene.loads(STRIP.replace("sigma = [1.0, 2.0]", f"sigma = {sigma}").replace(
+        "cracks = [[[1.0, 2.0]], [[2.0, 3.0]]]", f"cracks = {cracks}").replace("region2", "upper"))
+    assert new.geometry == old.geometry and new.geometry.above == ()
+    assert new.geometry.region_names == ("lower", "upper")
+    assert new.regions == old.regions
+
+
+def test_the_paper_scenes_keep_their_geometry():
+    paper = scene.load("partial-closure")
+    assert (paper.geometry.sigmas, paper.geometry.crack_lists) == ((0.0,), (((-0.5, 0.5),),))
+    assert paper.geometry.region_names == ("lower", "upper")
+
+
+@pytest.mark.parametrize("override, expected", [
+    ("geometry.sigma=[2.0, 1.0]", r"geometry.sigma: interfaces 1 and 2 cross or touch \(y = 2 and 1\)"),
+    ("geometry.sigma=[1.0, 1.0]", r"geometry.sigma: interfaces 1 and 2 cross or touch"),
+    ("geometry.sigma=[1.0, 5.0]", r"geometry.sigma = 5 must lie strictly between"),
+    ("geometry.sigma=[]", r"geometry.sigma must be a number or a list"),
+    ("geometry.cracks=[[[1.0, 2.0]]]", r"geometry.cracks lists 1 crack list for the 2 interfaces of geometry.sigma"),
+    ("geometry.cracks=[[[1.0, 2.0]], [], []]", r"geometry.cracks lists 3 crack lists for the 2 interfaces"),
+    ("geometry.cracks=[[1.0, 2.0]]", r"geometry.cracks: with 2 interfaces give one list of intervals per interface"),
+    ("geometry.crack=[1.0, 2.0]", r"geometry.crack: with 2 interfaces give one list of intervals per interface"),
+    ("geometry.cracks=[[[1.0, 5.0]], []]", r"geometry.cracks: the crack \[1, 5\] leaves the box's x range"),
+    ("geometry.cracks=[[[1.0, 2.0]], 5]", r"geometry.cracks must be one list of intervals per interface"),
+    ("materials.layer1.region4.E=3.0", r"materials.layer1.region4: no region of that name \(the regions of Ω, "
+                                       r"bottom to top: region1, region2, region3\)"),
+    ("materials.layer1.lower.E=3.0", r"materials.layer1.lower: no region of that name"),
+    ("contact.friction=[0.1]", r"contact.friction lists 1 values for the 2 cracks of geometry.cracks \(one per "
+                               r"crack, interface by interface, bottom to top\)"),
+])
+def test_bad_input_is_refused_in_one_line_naming_the_key(override, expected):
+    assert re.search(expected, refusal(override))
+
+
+def test_the_one_interface_crack_form_with_several_interfaces_is_refused():
+    text = STRIP.replace("cracks = [[[1.0, 2.0]], [[2.0, 3.0]]]", "crack = [1.0, 2.0]")
+    with pytest.raises(SceneError, match=r"geometry.crack: with 2 interfaces give one list of intervals"):
+        scene.loads(text)
+
+
+def test_a_numbered_region_with_one_interface_is_unknown():
+    with pytest.raises(SceneError, match=r"materials.layer1.region2: no region of that name \(the regions of Ω, "
+                                         r"bottom to top: lower, upper\)"):
+        scene.load("partial-closure", ["materials.layer1.region2.E=3.0"])
+
+
+@pytest.mark.parametrize("override, key", [
+    ("mesh.sigma_vertices=21", "mesh.sigma_vertices"), ("mesh.grading=true", "mesh.grading"),
+    ("mesh.target_error=0.1", "mesh.target_error"), ("mesh.file='strip.msh'", "mesh.file"),
+    ("displacements.layer1.pin.point=[2.0, 2.0]", "displacements.layer1.pin.point")])
+def test_what_several_interfaces_do_not_take_is_refused_naming_the_key(override, key):
+    assert refusal(override).startswith(f"strip.toml: {key}: ")
+
+
+@pytest.mark.parametrize("before_work", [geometry.build, lambda source: geometry.generate_half(source, 1),
+                                         checks.check_size])
+def test_meshing_several_interfaces_is_refused_in_one_line(before_work):
+    with pytest.raises(SceneError, match=r"^geometry.sigma: 2 interfaces: a structure of several interfaces can be "
+                                         r"meshed \(ddsolve mesh\) but not yet solved$"):
+        before_work(strip())
+
+
+def test_a_scene_of_several_interfaces_is_written_out_and_read_back():
+    source = strip("geometry.cracks=[[], [[0.5, 1.5], [2.0, 3.0]]]")
+    assert "sigma = [1.0, 2.0]" in source.text.replace("[ ", "[").replace(" ]", "]")
+    again = scene.loads(source.text)
+    assert again.geometry == source.geometry and again.regions == source.regions
+
+
+@pytest.fixture(scope="module")
+def stacked() -> Mesh:
+    return stack.build_any(strip("geometry.cracks=[[[1.0, 2.0]], [[3.0, 4.0]]]"))
+
+
+def test_the_regions_of_the_strip_bottom_to_top(stacked):
+    assert [region.name for region in stacked.regions] == ["region1", "region2", "region3"]
+    assert [region.side for region in stacked.regions] == [-1, 1, 1]
+    for region, (y0, y1) in zip(stacked.regions, [(0.0, 1.0), (1.0, 2.0), (2.0, 3.0)]):
+        assert (region.points[:, 1].min(), region.points[:, 1].max()) == (y0, y1)
+    assert stacked.boundary_names() == ["bottom", "clamped", "left", "right", "top"]
+    assert (stacked.lower, stacked.upper, stacked.sigma) == (*stacked.regions[:2], stacked.sigmas[0])
+
+
+def test_each_interface_is_shared_by_its_two_regions_with_its_cracks(stacked):
+    middle = stacked.regions[1]
+    for line, height, below, above in [(stacked.sigmas[0], 1.0, stacked.regions[0].sigma, middle.sigma),
+                                       (stacked.sigmas[1], 2.0, middle.sigma_above, stacked.regions[2].sigma)]:
+        assert np.all(line.points[:, 1] == height) and np.all(np.diff(line.points[:, 0]) > 0)
+        np.testing.assert_array_equal(line.points, stacked.regions[0].points[below] if height == 1.0
+                                      else middle.points[below])
+        upper = middle if height == 1.0 else stacked.regions[2]
+        np.testing.assert_array_equal(line.points, upper.points[above])
+        np.testing.assert_allclose(line.normals, np.tile([0.0, 1.0], (len(line.points), 1)), atol=1e-15)
+    first, second = stacked.sigmas
+    assert first.points[first.crack, 0].min() > 1.0 and first.points[first.crack, 0].max() < 2.0
+    assert list(first.points[first.tip, 0]) == [1.0, 2.0]
+    assert list(second.points[second.tip, 0]) == [3.0]  # an edge crack: its end on the free side is a crack node
+    assert second.crack[-1] and second.points[-1, 0] == 4.0
+    assert first.clamped[0] and second.clamped[0] and not first.clamped[-1]
+
+
+def test_one_interface_meshes_as_before():
+    source = scene.load("partial-closure", ["mesh.sigma_vertices=11", "mesh.boundary_vertices=24"])
+    old, new = geometry.build(source), stack.build_any(source)
+    assert new.above == () and new.regions == (new.lower, new.upper) and new.sigmas == (new.sigma,)
+    np.testing.assert_array_equal(old.sigma.points, new.sigma.points)
+    assert [half.name for half in new.regions] == ["lower", "upper"]
+
+
+def test_p2_regions_share_their_sigma_nodes_midpoints_included():
+    stacked = stack.build_any(strip("mesh.degree=2", "geometry.cracks=[[], [[0.5, 1.5]]]"))
+    middle, top = stacked.regions[1:]
+    assert stacked.degree == 2 and len(stacked.sigmas[1].points) == 2 * 16 + 1
+    np.testing.assert_allclose(middle.points[middle.sigma_above], top.points[top.sigma], rtol=0, atol=1e-12)
+    assert list(stacked.sigmas[1].points[stacked.sigmas[1].tip, 0]) == [0.5, 1.5]
+
+
+def test_a_crack_on_an_upper_interface_may_not_reach_the_clamped_side():
+    with pytest.raises(MeshError, match="a crack reaches the clamped boundary at \\(0, 2\\)"):
+        stack.build_any(strip("geometry.cracks=[[], [[0.0, 1.0]]]"))
+
+
+@pytest.mark.mpi
+def test_the_mesh_command_prints_every_region_and_interface(tmp_path):
+    path = tmp_path / "strip.toml"
+    path.write_text(STRIP)
+    lines = ddsolve("mesh", str(path)).stdout.splitlines()
+    assert [line.split()[0] for line in lines[1:4]] == ["region1", "region2", "region3"]
+    assert lines[4].startswith("Σ vertices 17, 17 (per interface, bottom to top)")
+    assert lines[5].startswith("2 layers on 3 regions: 6 blocks")
+    for command in (["solve", "-n", "2"], ["reference"]):
+        refused(ddsolve(*command, str(path), "-o", str(tmp_path / "x.h5"), check=False), SceneError.exit_status,
+                "geometry.sigma: 2 interfaces: a structure of several interfaces can be meshed (ddsolve mesh) but "
+                "not yet solved")
+    assert not (tmp_path / "x.h5").exists()
