@@ -124,7 +124,9 @@ def dcb_growth(limit: float = 0.2, steps: int = 20, size: float = SIZE) -> dict:
             "before_damage": float(np.nanmax(deviation[~damaged], initial=0.0)),
             "grown": float(np.nanmax(deviation[grown], initial=np.nan)),
             "elements_per_zone": float(np.nanmedian(bond["process_zone"][grown]) / spacing) if grown.any() else np.nan,
-            "steps": len(tips) - 1, "seconds": bond_seconds}
+            "steps": len(tips) - 1, "seconds": bond_seconds,
+            "irreversible": bool(np.all(np.diff(bond["damage"], axis=0) >= 0.0)),
+            "newton": bond["bond_solves"].tolist()}
 
 
 def main() -> None:

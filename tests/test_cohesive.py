@@ -203,3 +203,4 @@ def test_a_dcb_grown_with_the_bilinear_law_follows_griffith():
     assert np.isfinite(record["grown"]) and record["grown"] < 0.03
     assert max(record["tip"]) > experiment.CRACK + 0.25  # the crack has grown
     assert record["elements_per_zone"] >= 4
+    assert record["irreversible"]  # no vertex's damage ever falls from one step to the next
