@@ -14,10 +14,12 @@ halves, μ⁻ and μ⁺, stays rigid).  The traction is t = k(1 − d) δ on the
   δ_f = 2 G_c(B)/(k δ₀); without it the law is the same in both modes.  A pressed normal row (δₙ < 0) keeps the
   undamaged k (non-penetration by a penalty), and a broken vertex (d = 1) keeps it as a contact row.
 
-A load step is a nonlinear problem on Σ only.  It is solved by the secant fixed point: solve the linear problem
-with the springs k(1 − d) of the current damage, update d from the new jumps (never below the history's), repeat
-until no vertex's damage changes by more than :data:`DAMAGE_TOLERANCE` and no normal row changes from opening to
-pressed.  Unloading follows the secant (d is kept).
+A load step is a nonlinear problem on Σ only.  ``schur`` solves it on rank 0 by Newton's method with the law's
+tangent (:func:`response`; :class:`ddsolve.dd.schur.SpringDual`).  The iterative methods solve it by the secant
+fixed point (:func:`secant`): solve the linear problem with the springs k(1 − d) of the current damage, update d
+from the new jumps (never below the history's), repeat until no vertex's traction changes by more than
+:data:`DAMAGE_TOLERANCE` σ_c and no normal row changes from opening to pressed.  Unloading follows the secant
+(d is kept).
 """
 from __future__ import annotations
 

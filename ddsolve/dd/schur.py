@@ -337,7 +337,7 @@ NEWTON_TOLERANCE = 1e-10
 MAX_NEWTON = 60
 #: The secant iteration a failed Newton attempt falls back to: at most this many solves, converged when no
 #: traction changes by more than this times the strength.
-MAX_SECANT, SECANT_TOLERANCE = 2000, 1e-4
+FALLBACK_SOLVES, FALLBACK_TOLERANCE = 2000, 1e-4
 
 
 class SpringDual:
@@ -420,16 +420,16 @@ class SpringDual:
                ) -> tuple[np.ndarray, int, int]:
         """The monotone secant iteration from the ``history``: solve with the springs k(1 − d), raise d to the
         damage of the new jumps, never lowering it, until no traction changes by more than
-        :data:`SECANT_TOLERANCE` σ_c: an increasing bounded sequence, which converges.  The traces, the active-set
+        :data:`FALLBACK_TOLERANCE` σ_c: an increasing bounded sequence, which converges.  The traces, the active-set
         steps and the solves."""
         bond, damage, steps = self.interface.bond, history.copy(), 0
         traces = None
-        for solves in range(1, MAX_SECANT + 1):
+        for solves in range(1, FALLBACK_SOLVES + 1):
             gap = np.zeros((len(self.vertices), 2)) if traces is None else self.gaps(traces)
             raised = np.maximum(damage, cohesive.response(bond, damage, gap).damage)
             effective = np.hypot(np.maximum(-gap[:, 1], 0.0), gap[:, 0])
             if traces is not None and (np.abs(raised - damage) * effective).max(initial=0.0) * bond.stiffness \
-                    <= SECANT_TOLERANCE * bond.strength:
+                    <= FALLBACK_TOLERANCE * bond.strength:
                 break
             damage = raised
             law = cohesive.response(bond, damage, gap)  # no growth beyond ``damage``: the secant springs

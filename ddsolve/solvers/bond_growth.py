@@ -2,10 +2,12 @@
 
 The control (a load or displacement factor, :func:`ddsolve.solvers.grow.control_kind`) rises to ``--to`` in steps of
 at most ``--to``/``--steps``; each step is the bond's nonlinear problem on Σ from the damage of the step before
-(:func:`ddsolve.dd.cohesive.secant`), on blocks factored once for the whole run (:func:`ddsolve.solvers.driver.prepare`,
-new loads by :func:`~ddsolve.solvers.driver.reload`).  A step whose damage moves by more than
-:data:`DAMAGE_STEP` at a vertex is halved (at most :data:`HALVINGS` times), and the step grows back to its size
-when the damage moves less than a quarter of that.  The crack is where the damage has reached 1 (with the scene's
+(Newton's method on ``schur``'s interface stiffness, the secant fixed point with the iterative methods:
+:mod:`ddsolve.dd.cohesive`), on blocks factored once for the whole run (:func:`ddsolve.solvers.driver.prepare`,
+new loads by :func:`~ddsolve.solvers.driver.reload`).  A step that moves a vertex by more than
+:data:`DAMAGE_STEP` along the law's softening branch (:func:`ddsolve.dd.cohesive.softening`), or whose solve
+fails, is halved (at most :data:`HALVINGS` times), and the step grows back to its size when the damage moves
+less than a quarter of that.  The crack is where the damage has reached 1 (with the scene's
 cracks); its tip is the last broken vertex.  The run is recorded as a Griffith run is
 (:mod:`ddsolve.solvers.growth_files`), with the damage along Σ and the process zone's length per step (the
 length of Σ where 0 < d < 1); G is not computed (the bond's traction is not a crack's singular field).
