@@ -489,16 +489,18 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("-o", dest="output", help="HDF5 file of every run (default: SCENE-sweep.h5)")
     p.add_argument("--zip", action="store_true",
                    help="take the ranges side by side (same COUNT) instead of every combination")
-    p = scene_command("grow", "quasi-static growth of the cracks along Σ (Griffith) as a load or displacement "
-                      "factor rises; an HDF5 file, a CSV and a PNG of the curve, pictures of steps", cmd_grow)
+    p = scene_command("grow", "quasi-static growth of the cracks along Σ (Griffith, or the damage of an "
+                      "[interface] bilinear bond) as a load or displacement factor rises; an HDF5 file, a CSV and a "
+                      "PNG of the curve, pictures of steps", cmd_grow)
     p.add_argument("-n", dest="ranks", type=int, metavar="N", help="launch N ranks with mpiexec (as for solve)")
     p.add_argument("-o", dest="output", help="HDF5 file of every step (default: SCENE-growth.h5; the curve "
                    "goes to the same name with .csv and .png)")
     p.add_argument("--to", dest="limit", type=float, metavar="FACTOR",
                    help="the control factor's last value (it multiplies the scene's loads or displacements; "
-                   "default: 2 × the initiation factor)")
+                   "default: 2 × the initiation factor; a bilinear bond needs it)")
     p.add_argument("--steps", type=int, default=20, help="equal control steps up to --to, 1 to 1000 (default 20; "
-                   "the initiation factor is added)")
+                   "the initiation factor is added; a bilinear bond's steps are at most --to/--steps, halved where "
+                   "its damage moves fast)")
     p.add_argument("--tolerance", type=float, default=1e-4, help="|G/G_c − 1| at a growing tip, 1e-8 to 1 "
                    "(default 1e-4)")
     p.add_argument("--pictures", type=int, default=3, metavar="K", help="pictures of the deformed structure at K "
