@@ -29,6 +29,7 @@ def cross_checks(data: dict, raw: dict, origin: str) -> None:
     _radii_checks(data, origin)
     _toughness_checks(data, origin)
     _split_checks(data, origin)
+    _reference_length_checks(data, origin)
     _friction_checks(data, origin)
 
 
@@ -187,6 +188,18 @@ def dissimilar_layers(data: dict, thermal: bool = True) -> list[str]:
                                 for layer in layers_of(data)}, data["materials"]["model"], thermal)
 
 
+def _reference_length_checks(data: dict, origin: str) -> None:
+    """``fracture.reference_length`` sets the phase of an interface crack between different materials: a scene
+    whose layers have no region of their own material (``materials.LAYER.REGION``) has none, and ψ = arg K at
+    any length."""
+    if data["fracture"]["reference_length"] is None:
+        return
+    if not any(isinstance(inner, dict) for layer in layers_of(data) for inner in data["materials"][layer].values()):
+        raise SceneError(f"{origin}: fracture.reference_length: no layer has a region of its own material "
+                         "(materials.LAYER.lower or .upper), so no crack lies between different materials and the "
+                         "phase ψ is the same at every length: leave it out")
+
+
 def _split_checks(data: dict, origin: str) -> None:
     """A mode-dependent toughness law needs G's split into modes, which regions of different elastic laws on the two
     sides of Σ leave undefined unless they have an effective isotropic pair (an interface crack: its phase ψ,
@@ -276,13 +289,22 @@ def _friction_checks(data: dict, origin: str) -> None:
                          "on crack faces in contact)")
     if given:
         _check_per_crack(data, contact[given[0]], f"contact.{given[0]}", origin)
+        values = contact[given[0]] if isinstance(contact[given[0]], tuple) else (contact[given[0]],)
+        if _crack_count(data) == 0 and data["mesh"]["file"] is None and any(values):
+            raise SceneError(f"{origin}: contact.{given[0]}: the scene has no crack (geometry.cracks), so there are "
+                             "no crack faces for friction to act on: leave it out, or give the crack")
+
+
+def _crack_count(data: dict) -> int:
+    """The cracks of a box scene's geometry, on every interface."""
+    geometry = data["geometry"]
+    return len(geometry["cracks"]) + sum(len(more) for _, more in geometry["above"])
 
 
 def _check_per_crack(data: dict, values, key: str, origin: str) -> None:
     """A per-crack list (``values`` at ``key``) has one value per crack of a box: interface by interface,
     bottom to top, in order along each (a mesh file's cracks are counted on its mesh)."""
-    geometry = data["geometry"]
-    cracks = len(geometry["cracks"]) + sum(len(more) for _, more in geometry["above"])
+    geometry, cracks = data["geometry"], _crack_count(data)
     if isinstance(values, tuple) and data["mesh"]["file"] is None and len(values) != cracks:
         order = "in order along Σ" if not geometry["above"] else "interface by interface, bottom to top"
         raise SceneError(f"{origin}: {key} lists {len(values)} values for the {cracks} crack"
