@@ -189,15 +189,36 @@ def dissimilar_layers(data: dict, thermal: bool = True) -> list[str]:
 
 
 def _reference_length_checks(data: dict, origin: str) -> None:
-    """``fracture.reference_length`` sets the phase of an interface crack between different materials: a scene
-    whose layers have no region of their own material (``materials.LAYER.REGION``) has none, and ψ = arg K at
-    any length."""
+    """``fracture.reference_length`` sets the phase of an interface crack between different materials that have an
+    effective isotropic pair: a scene whose layers have no region of their own material (``materials.LAYER.REGION``)
+    has no such crack (ψ = arg K at any length), and regions without a pair leave G unsplit."""
     if data["fracture"]["reference_length"] is None:
         return
     if not any(isinstance(inner, dict) for layer in layers_of(data) for inner in data["materials"][layer].values()):
         raise SceneError(f"{origin}: fracture.reference_length: no layer has a region of its own material "
                          "(materials.LAYER.lower or .upper), so no crack lies between different materials and the "
                          "phase ψ is the same at every length: leave it out")
+    unpaired = _unpaired_regions(data)
+    if unpaired is not None:
+        raise SceneError(f"{origin}: fracture.reference_length: the regions of materials.{unpaired[0]} (below and "
+                         f"above Σ) differ where {unpaired[1]}, so G is not split into modes and has no phase: "
+                         "leave it out")
+
+
+def _unpaired_regions(data: dict) -> tuple[str, str] | None:
+    """A layer whose regions on the two sides of an interface have different elastic laws without an effective
+    isotropic pair (:func:`ddsolve.problem.materials.interface_pair`), and why; None where every pair exists."""
+    dissimilar = dissimilar_layers(data, thermal=False)
+    if not dissimilar:
+        return None
+    model = data["materials"]["model"]
+    laws = {region: [materials.elasticity(layer_material(acting_tables(data, layer)[region][1]), model)[0]
+                     for layer in layers_of(data)] for region in _regions(data)}
+    for lower, upper in zip(list(laws), list(laws)[1:]):
+        pair = materials.interface_pair(laws[lower], laws[upper])
+        if isinstance(pair, str):
+            return dissimilar[0], pair
+    return None
 
 
 def _split_checks(data: dict, origin: str) -> None:
@@ -205,18 +226,11 @@ def _split_checks(data: dict, origin: str) -> None:
     sides of Σ leave undefined unless they have an effective isotropic pair (an interface crack: its phase ψ,
     :func:`ddsolve.problem.materials.interface_pair`)."""
     law = data["fracture"]["law"]
-    dissimilar = dissimilar_layers(data, thermal=False)
-    if law is None or not dissimilar:
-        return
-    model = data["materials"]["model"]
-    laws = {region: [materials.elasticity(layer_material(acting_tables(data, layer)[region][1]), model)[0]
-                     for layer in layers_of(data)] for region in _regions(data)}
-    for lower, upper in zip(list(laws), list(laws)[1:]):
-        pair = materials.interface_pair(laws[lower], laws[upper])
-        if isinstance(pair, str):
-            raise SceneError(f"{origin}: fracture.law = {law} needs G's split into modes I and II, which is not "
-                             f"defined between the different materials of the regions of materials.{dissimilar[0]} "
-                             f"(below and above Σ) where {pair}: give one toughness, fracture.toughness")
+    unpaired = None if law is None else _unpaired_regions(data)
+    if unpaired is not None:
+        raise SceneError(f"{origin}: fracture.law = {law} needs G's split into modes I and II, which is not "
+                         f"defined between the different materials of the regions of materials.{unpaired[0]} "
+                         f"(below and above Σ) where {unpaired[1]}: give one toughness, fracture.toughness")
 
 
 def _load_checks(data: dict, origin: str) -> None:
