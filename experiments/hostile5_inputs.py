@@ -6,6 +6,7 @@ the code before the fixes did (measured once on the shared two-core machine, quo
 from __future__ import annotations
 
 from experiments import ROOT
+from experiments.robustness import SMALL
 
 CLASSES = {
     301: ("Friction values beyond double precision",
@@ -21,9 +22,10 @@ CLASSES = {
           "before the mesh is distributed, so that the ranks end together on one line; a rank reporting an error "
           "ignores SIGINT and SIGTERM (its status is decided), so that another rank's abort cannot cut the report "
           "into a traceback"),
-    304: ("Messages that misname what a list holds",
+    304: ("Messages that misname what a list or a file holds",
           "`geometry.sigma = [y1, ...]` and the nested `geometry.cracks` say what each item must be (a height; an "
-          "[a, b] interval of finite numbers)"),
+          "[a, b] interval of finite numbers); the file of a growth or a sweep given where one result is read "
+          "(check, compare, export, plot, ddsolve.load) is named as such"),
 }
 
 #: A mesh file without a crack and a scene on it with friction (written by ``mesh`` in ``measure``).
@@ -84,3 +86,9 @@ def measure(hostile) -> None:
          "list of intervals per interface, each a finite number (got [[[nan, 0.2]], []])»",
          ["solve", "partial-closure", "--set", "geometry.sigma=[-0.1, 0.1]", "--set", "geometry.cracks=[[[nan, 0.2]], []]",
           "-o", "f.h5"])
+    hostile.run(["sweep", "partial-closure", *SMALL, "--set", "materials.layer1.E=100:200:2", "-o", "s.h5"])
+    hostile.run(["grow", "partial-closure", *SMALL, "--set", "fracture.toughness=4.61e-7", "--steps", "2", "-o", "g.h5"])
+    case(304, "check, the file of a sweep", "exit 1, 0.2 s: «ddsolve: error: s.h5: not a ddsolve result file ('Unable "
+         "to open object (component not found)')»", ["check", "s.h5"])
+    case(304, "export, the file of a growth", "exit 1, 0.2 s: «ddsolve: error: g.h5: not a ddsolve result file "
+         "('Unable to open object (component not found)')»", ["export", "g.h5"])

@@ -153,3 +153,24 @@ def test_refusals_on_every_rank_are_one_line_and_keep_the_previous_files(tmp_pat
         refused(ddsolve(command[0], str(tmp_path / "strip.toml"), *command[1:], "-o", str(output), check=False),
                 1, "geometry.sigma: 2 interfaces: a structure of several interfaces can be meshed")
     assert unchanged(files)
+
+
+# --- class 304: a file of many runs given where one result is read ------------------------------------------------
+@pytest.mark.unit
+@pytest.mark.parametrize("kind", ["growth", "sweep"])
+def test_the_file_of_a_growth_or_a_sweep_is_named_as_such(tmp_path, kind):
+    import h5py
+
+    from ddsolve import load
+    from ddsolve.errors import DDSolveError
+
+    path = tmp_path / f"{kind}.h5"
+    with h5py.File(path, "w") as f:
+        if kind == "growth":
+            f.create_group("growth")
+        else:
+            f.attrs["keys"] = ["materials.layer1.E"]
+            f["parameters"] = [[1.0], [2.0]]
+    with pytest.raises(DDSolveError, match=rf"^{path}: the file of a {kind} \(.*\), not one solve's result: give a "
+                                           "result file written by solve or reference$"):
+        load(path)
