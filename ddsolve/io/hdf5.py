@@ -277,12 +277,24 @@ def read(path: Path) -> Result:
     scenes.readable(path, "result file")
     try:
         with h5py.File(path, "r") as f:
-            result = _read(f, path)
+            runs = _runs(f)
+            result = None if runs else _read(f, path)
     except (OSError, KeyError, TypeError, ValueError, IndexError, AttributeError, RuntimeError, MemoryError) as exc:
         raise DDSolveError(f"{path}: not a ddsolve result file ({' '.join(str(exc).split())})") from None
     except DDSolveError as exc:
         raise DDSolveError(f"{path}: not a ddsolve result file ({exc})") from None
+    if runs:
+        raise DDSolveError(f"{path}: the file of a {runs}, not one solve's result: give a result file written by "
+                           "solve or reference")
     return result
+
+
+def _runs(f: h5py.File) -> str | None:
+    """What ``f`` is if it is the file of a growth (``/growth``) or a sweep (its runs' ``parameters``), which hold
+    many solves and no one result; None for any other file."""
+    if "growth" in f:
+        return "growth (its steps under /growth, docs/growth.md)"
+    return "sweep (its runs' outcomes, docs/usage.md)" if "parameters" in f and "keys" in f.attrs else None
 
 
 def _array(f: h5py.File, name: str, kind: str, shape: tuple) -> np.ndarray:

@@ -213,7 +213,11 @@ class Friction:
         return "contact.friction" if self.coulomb else "contact.slip_bound"
 
     def per_crack(self, cracks: int) -> tuple[float, ...]:
-        """The value of each of ``cracks`` cracks; a list of another length is refused naming the key."""
+        """The value of each of ``cracks`` cracks; a list of another length, or a mesh without cracks, is refused
+        naming the key."""
+        if cracks == 0:
+            raise SceneError(f"{self.key}: the mesh has no crack, so there are no crack faces for friction to act on: "
+                             "leave it out")
         if not isinstance(self.values, tuple):
             return (float(self.values),) * cracks
         if len(self.values) != cracks:
