@@ -16,7 +16,7 @@ from ddsolve.dd import friction
 from ddsolve.dd.constraints import kkt
 from ddsolve.dd.dual import Outcome
 from ddsolve.dd.interface import Interface
-from ddsolve.errors import DDSolveError, SceneError
+from ddsolve.errors import DDSolveError, NotConvergedError, SceneError
 from ddsolve.io import hdf5
 from ddsolve.post import analysis
 from ddsolve.problem import scene as scenes
@@ -181,6 +181,19 @@ def test_the_closed_crack_sticks_where_friction_holds_the_shear():
     assert np.all(np.abs(result.G) <= 1e-3 * CLOSED_FORM)
     zones = analysis.friction_zones(result)
     assert len(zones["stick"]) == 1 and not zones["slip"]
+
+
+@pytest.mark.solve
+@pytest.mark.parametrize("method", ["schur", "feti"])
+def test_a_coulomb_iteration_out_of_tresca_problems_is_a_result_not_converged(method, monkeypatch):
+    """Every method reports an unsettled fixed point the same way: the result, marked not converged, and why."""
+    from ddsolve.dd import friction, schur
+
+    monkeypatch.setattr(friction, "MAX_FIXED_POINT", 2)
+    monkeypatch.setattr(schur, "MAX_FIXED_POINT", 2)
+    with pytest.raises(NotConvergedError, match=f"{method}: Coulomb's friction found no fixed point") as failed:
+        solved(**{**SMALL, "contact.friction": 0.5, "solver.method": method})
+    assert failed.value.result is not None and not failed.value.result.converged
 
 
 @pytest.mark.solve

@@ -139,10 +139,9 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
     outcome = Outcome(problem.multipliers(y), converged=True, iterations=steps, history=exact.history,
                       active_set_changes=exact.changes,
                       details={"rank0_solve_time": time.perf_counter() - started, "interface_unknowns": exact.size,
-                               "active_set_steps": exact.steps, "active_set_time": exact.step_time,
-                               **({"coulomb_iterations": exact.coulomb_iterations} if exact.coulomb_iterations else {})},
-                      held=predicted, state=exact.state)
-    record_bond(outcome, exact)
+                               "active_set_steps": exact.steps, "active_set_time": exact.step_time},
+                      held=predicted)
+    record_interface_law(outcome, exact)
 
     def refine(solved_traces: np.ndarray, required: bool) -> np.ndarray | None:
         nonlocal predicted, uncoupled, condensed
@@ -158,20 +157,24 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
         outcome.iterations += more
         outcome.details["rank0_solve_time"] += time.perf_counter() - mark
         outcome.details.update(active_set_steps=exact.steps, active_set_time=exact.step_time)
-        if exact.coulomb_iterations:
-            outcome.details["coulomb_iterations"] = exact.coulomb_iterations
-        outcome.state = exact.state
-        record_bond(outcome, exact)
+        record_interface_law(outcome, exact)
         return problem.multipliers(y)
 
     outcome.refine = refine
     return outcome
 
 
-def record_bond(outcome: Outcome, exact: ExactDual) -> None:
-    """The bond's linear problems (where it has one) in ``outcome``'s details."""
+def record_interface_law(outcome: Outcome, exact: ExactDual) -> None:
+    """What the interface's law made of rank 0's last solve, in ``outcome``: the bond's state and its linear
+    problems, Coulomb's Tresca problems, and a fixed point that did not settle (not converged, with its message,
+    as the iterative methods report it)."""
+    outcome.state = exact.state
     if exact.interface.bond is not None:
         outcome.details["bond_solves"] = exact.bond_solves
+    if exact.coulomb_iterations:
+        outcome.details["coulomb_iterations"] = exact.coulomb_iterations
+    if exact.unsettled is not None:
+        outcome.converged, outcome.message = False, exact.unsettled
 
 
 class ExactDual:
@@ -215,6 +218,7 @@ class ExactDual:
         self.unknowns, self.size, self.first, self.contact = unknowns, size, first, contact
         self.lower_c, self.upper_c = problem.lower[contact], problem.upper[contact]
         self.coulomb_iterations = 0  # Tresca problems of the last Coulomb fixed point
+        self.unsettled: str | None = None  # why the last Coulomb fixed point did not settle
         self.history: list[float] = []
         self.changes: list[int] = []
         self.last_c: np.ndarray | None = None  # the last contact multipliers: the next solve starts from their set
@@ -264,6 +268,7 @@ class ExactDual:
         cap = (np.inf if problem.solver.p is None else problem.solver.p) * sqrt_w
         lam = np.zeros(interface.size)
         slip = self.upper_c[friction_rows] / sqrt_w  # the bounds y_c was solved with
+        self.unsettled = None
         for iteration in range(1, MAX_FIXED_POINT + 1):
             lam[self.contact] = y_c / problem.sqrt_w[self.contact]
             new = interface.slip_bounds(lam)
@@ -278,7 +283,7 @@ class ExactDual:
                                    changed))
             steps += more
         else:
-            raise SolverError(no_fixed_point("schur", change))
+            self.unsettled = no_fixed_point("schur", change)
         problem.lower[self.contact], problem.upper[self.contact] = self.lower_c, self.upper_c
         self.coulomb_iterations = iteration
         return y_c, steps
