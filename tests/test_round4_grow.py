@@ -280,3 +280,15 @@ def test_the_free_motion_of_a_part_is_named_from_the_whole_kernel(free, block, m
         assert "rotate about (0, 0)" in text
     elif len(free) == 1:
         assert f"translate along ({float(free == ['x']):.3g}, {float(free == ['y']):.3g})" in text
+
+
+@pytest.mark.unit
+@pytest.mark.parametrize("overrides, keys", [
+    ({}, []), ({"fracture.toughness": 1e-7}, []), ({"fracture.toughness": [1e-7, 2e-7, 3e-7]}, ["fracture.toughness"]),
+    ({"contact.friction": [0.1, 0.2, 0.3]}, ["contact.friction"]), ({"contact.slip_bound": 0.5}, []),
+    ({"contact.slip_bound": [0.1, 0.2, 0.3], "fracture.toughness": [1e-7, 2e-7, 3e-7]},
+     ["fracture.toughness", "contact.slip_bound"])])
+def test_the_keys_a_merged_crack_has_no_value_of_end_a_growth_there(overrides, keys):
+    """A per-crack list of toughness or friction has no value for two cracks that meet: growth ends there
+    (as measured: strip-disbonds grown with contact.friction = [0.1, 0.2, 0.3] stopped with an error and no file)."""
+    assert grow.per_crack_keys(Scene.load("strip-disbonds", overrides)) == keys

@@ -391,9 +391,10 @@ class Growth:
         for iteration in range(MAX_ITERATIONS):
             proposal = self.comm.bcast({**trial, **settled} if self.comm.rank == 0 else None, root=0)
             trial_cracks = self.advanced(cracks, start, proposal)
-            if len(trial_cracks) < len(cracks) and isinstance(self.scene.fracture.toughness, tuple):
-                step.events.append(f"end: cracks meet ({describe(trial_cracks)}), and fracture.toughness gives one "
-                                   "value per crack: the merged crack has none")
+            listed = per_crack_keys(self.scene)
+            if len(trial_cracks) < len(cracks) and listed:
+                step.events.append(f"end: cracks meet ({describe(trial_cracks)}), and {' and '.join(listed)} "
+                                   f"give{'s' if len(listed) == 1 else ''} one value per crack: the merged crack has none")
                 return cracks, step
             try:
                 state = self.state(trial_cracks, control)
@@ -501,6 +502,14 @@ def stops(scene: Scene, mesh: Mesh) -> list[tuple[float, str]]:
     arc = sigma.arclength
     return [(float(s), "a support" if supported[np.argmin(np.abs(arc - s))] else "the end of Σ")
             for s in crack_mesh.stops(mesh, held)]
+
+
+def per_crack_keys(scene: Scene) -> list[str]:
+    """The keys of ``scene`` that give one value per crack (a merged crack has none of them)."""
+    friction = scene.friction
+    return [key for key, listed in (("fracture.toughness", isinstance(scene.fracture.toughness, tuple)),
+                                    (friction.key if friction else "", friction is not None
+                                     and isinstance(friction.values, tuple))) if listed]
 
 
 def describe(cracks) -> str:
