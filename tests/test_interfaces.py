@@ -12,9 +12,10 @@ from conftest import ddsolve, refused
 
 from ddsolve.errors import MeshError, SceneError
 from ddsolve.mesh import geometry, stack
-from ddsolve.mesh.mesh import Mesh
+from ddsolve.mesh.mesh import CRACK, CRACK_ABOVE, SIGMA, SIGMA_ABOVE, HalfMesh, Mesh, facing_above, make_mesh
 from ddsolve.problem import materials, scene
-from ddsolve.solvers import checks
+from ddsolve.solvers import checks, reference
+from ddsolve.solvers import stacked as stacked_solver
 
 #: A strip of three regions: two interfaces, a crack on each, a stiffer middle region in layer 1.
 STRIP = """
@@ -213,3 +214,102 @@ def test_the_mesh_command_prints_every_region_and_interface(tmp_path):
                 "geometry.sigma: 2 interfaces: a structure of several interfaces can be meshed (ddsolve mesh) but "
                 "not yet solved")
     assert not (tmp_path / "x.h5").exists()
+
+
+# --- the monolithic reference of several interfaces -------------------------------------------------------------
+#: The strip of equal materials with fixed θ radii (so that G at a tip is the same integral in any structure).
+EQUAL = STRIP.replace("[materials.layer1.region2]\nE = 2.0\n", "") + "[fracture]\ninner = 0.2\nouter = 0.4\n"
+
+
+def equal(layers: int) -> str:
+    """:data:`EQUAL` of one layer, or of two loaded alike: equal layers then move together, so that gluing them
+    on one Σ more changes nothing."""
+    if layers == 1:
+        return EQUAL.replace("[materials.layer2]\nE = 1.0\nnu = 0.3\n", "").replace(
+            "[geometry]\n", "[geometry]\nlayers = 1\n")
+    return EQUAL + "[loads.layer2.right]\nx = 0.1\n"
+
+
+def test_the_blocks_are_the_layers_on_every_region():
+    assert stacked_solver.block_names(2, 3) == [("u1", "layer1", 0), ("u2", "layer1", 1), ("u3", "layer1", 2),
+                                                ("v1", "layer2", 0), ("v2", "layer2", 1), ("v3", "layer2", 2)]
+    assert stacked_solver.block_names(1, 3) == [("u1", "layer1", 0), ("u2", "layer1", 1), ("u3", "layer1", 2)]
+
+
+def test_each_interface_glues_its_two_regions_and_each_region_its_layers_on_both_its_sigma_lines(stacked):
+    source = strip("geometry.cracks=[[[1.0, 2.0]], [[3.0, 4.0]]]")
+    systems, joints, seen = stacked_solver.assemble(source, stacked)
+    assert [joint.blocks for joint in joints] == [(0, 1, 3, 4), (1, 2, 4, 5)]  # u⁻ u⁺ v⁻ v⁺ of each interface
+    assert [list(joint.interface.pairs) for joint in joints] == [["mu_c", "mu_g", "mu_minus", "mu_plus"]] * 2
+    middle = systems[1]
+    np.testing.assert_array_equal(joints[0].dofs[1], middle.trace_dofs)  # u2's trace on Σ₁ is its assembled trace
+    below, above = (stacked.regions[1].points[joint.dofs[index][::2] // 2]
+                    for joint, index in zip(joints, (1, 0)))
+    assert np.all(below[:, 1] == 1.0) and np.all(above[:, 1] == 2.0)  # ... and it is glued on Σ₂ as well
+    assert [part.material("layer1", "upper") for part, _ in seen] == [
+        source.material("layer1", "region2"), source.material("layer1", "region3")]
+
+
+def merged(base: HalfMesh, other: HalfMesh, base_nodes: np.ndarray, other_nodes: np.ndarray) -> HalfMesh:
+    """``base`` and ``other`` as one half, ``other``'s nodes ``other_nodes`` being ``base``'s ``base_nodes``; its Σ
+    (and cracks) are ``base``'s."""
+    number = np.full(len(other.points), -1, dtype=np.int64)
+    number[other_nodes] = base_nodes
+    own = number < 0
+    number[own] = len(base.points) + np.arange(own.sum())
+    inner = (SIGMA_ABOVE, CRACK_ABOVE)
+    names = (set(base.boundaries) | set(other.boundaries)) - {*inner, SIGMA, CRACK}
+    boundaries = {name: np.concatenate([base.edges(name), number[other.edges(name)]]) for name in names}
+    boundaries |= {name: edges for name, edges in base.boundaries.items() if name in (SIGMA, CRACK)}
+    return HalfMesh(np.concatenate([base.points, other.points[own]]), np.concatenate([base.cells, number[other.cells]]),
+                    base.side, base.sigma, {name: edges for name, edges in boundaries.items() if len(edges)})
+
+
+def two_regions(three: Mesh, cracked: int) -> Mesh:
+    """The three regions' mesh as a mesh of one interface, ``cracked`` (0 or 1): the other Σ's two regions made one
+    half with the same nodes and triangles."""
+    bottom, middle, top = three.regions
+    if cracked == 0:
+        return make_mesh(bottom, merged(middle, top, middle.sigma_above, top.sigma), "merged")
+    return make_mesh(merged(facing_above(middle), bottom, middle.sigma, bottom.sigma), top, "merged")
+
+
+def one_interface(cracked: int, layers: int, *overrides: str) -> scene.Scene:
+    text = equal(layers).replace("sigma = [1.0, 2.0]", f"sigma = {1.0 + cracked}").replace(
+        "cracks = [[[1.0, 2.0]], [[2.0, 3.0]]]", "cracks = [[1.0, 2.0]]")
+    return scene.loads(text, list(overrides))
+
+
+@pytest.mark.solve
+@pytest.mark.parametrize("cracked", [0, 1])
+@pytest.mark.parametrize("layers", [1, 2])
+@pytest.mark.parametrize("closing", [False, True], ids=["open", "closing"])
+def test_an_interface_without_crack_between_equal_regions_is_the_structure_of_one_interface(cracked, layers, closing):
+    """Exact: the two-region mesh has the three regions' nodes and triangles, the uncracked Σ's regions made one."""
+    load = [f"loads.layer{layer}.top.y=-0.05" for layer in range(1, layers + 1)] if closing else []
+    cracks = "[[[1.0, 2.0]], []]" if cracked == 0 else "[[], [[1.0, 2.0]]]"
+    three = scene.loads(equal(layers), [f"geometry.cracks={cracks}", *load])
+    mesh = stack.build_any(three)
+    several = stacked_solver.solve_stack(three, mesh)
+    one = reference.solve_monolithic(one_interface(cracked, layers, *load), two_regions(mesh, cracked))
+    assert several.converged and one.converged
+    assert several.energy == pytest.approx(one.attrs["energy"], rel=1e-10, abs=0.0)
+    np.testing.assert_allclose(several.interfaces[cracked].fracture.G, one.fracture.G, rtol=1e-8, atol=0.0)
+    assert several.interfaces[1 - cracked].fracture.G.size == 0  # no tips on the uncracked interface
+    if load:
+        assert one.attrs["closed_vertices"] > 0 and several.interfaces[cracked].multipliers["mu_c"].max() > 0
+
+
+@pytest.mark.solve
+def test_the_same_crack_on_either_interface_of_a_symmetric_strip_has_the_same_g():
+    """G at every tip of both interfaces; the regions' meshes are not mirror images, so the two agree as h falls."""
+    differences = []
+    for size in (0.25, 0.125):
+        source = scene.loads(EQUAL.replace("[fracture]\ninner = 0.2\nouter = 0.4\n", ""),
+                             ["geometry.cracks=[[[1.0, 2.0]], [[1.0, 2.0]]]", f"mesh.size={size}"])
+        solved = stacked_solver.solve_stack(source, stack.build_any(source))
+        assert solved.converged
+        first, second = (part.fracture.G for part in solved.interfaces)
+        assert len(first) == len(second) == 2 and np.all(first > 0)
+        differences.append(np.abs(first - second).max() / first.max())
+    assert differences[1] < 0.05 and differences[1] < differences[0] / 4

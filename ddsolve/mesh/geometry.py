@@ -70,9 +70,9 @@ def check_loads(scene: Scene, mesh: Mesh) -> None:
         if name not in names:
             raise SceneError(f"{load.key}: no boundary named {name!r} in {mesh.origin} "
                              f"(boundaries: {', '.join(n for n in names if n != CLAMPED)})")
-        if name == CLAMPED or all(_edge_set(half, name) <= _edge_set(half, CLAMPED) for half in mesh.halves):
+        if name == CLAMPED or all(_edge_set(half, name) <= _edge_set(half, CLAMPED) for half in mesh.regions):
             raise SceneError(f"{load.key}: boundary {name!r} is clamped (Γ_D), where no load can act")
-        if all(np.isin(half.nodes(name), half.clamped()).all() for half in mesh.halves):
+        if all(np.isin(half.nodes(name), half.clamped()).all() for half in mesh.regions):
             raise SceneError(f"{load.key}: on this mesh every node of boundary {name!r} is clamped, so the load "
                              "would act on nothing (a mesh coarser than the geometry): use smaller elements "
                              "(mesh.size, or mesh.sigma_vertices and mesh.boundary_vertices) or mesh.degree = 2")
