@@ -8,9 +8,13 @@ import re
 import numpy as np
 import pytest
 
+import h5py
 from conftest import ddsolve, refused
 
-from ddsolve.errors import MeshError, SceneError
+from ddsolve.errors import DDSolveError, MeshError, SceneError
+from ddsolve.io import hdf5
+from ddsolve.post import fracture
+from ddsolve.post.result import Fracture
 from ddsolve.mesh import geometry, stack
 from ddsolve.mesh.mesh import CRACK, CRACK_ABOVE, SIGMA, SIGMA_ABOVE, HalfMesh, Mesh, facing_above, make_mesh
 from ddsolve.problem import materials, scene
@@ -133,11 +137,15 @@ def test_what_several_interfaces_do_not_take_is_refused_naming_the_key(override,
     assert refusal(override).startswith(f"strip.toml: {key}: ")
 
 
+#: What a structure of several interfaces is refused, in one line.
+NOT_YET = ("geometry.sigma: 2 interfaces: a structure of several interfaces is meshed (ddsolve mesh) and solved by the "
+           "monolithic reference (ddsolve reference), not yet by the domain decomposition, sweeps, growth or adaptivity")
+
+
 @pytest.mark.parametrize("before_work", [geometry.build, lambda source: geometry.generate_half(source, 1),
                                          checks.check_size])
-def test_meshing_several_interfaces_is_refused_in_one_line(before_work):
-    with pytest.raises(SceneError, match=r"^geometry.sigma: 2 interfaces: a structure of several interfaces can be "
-                                         r"meshed \(ddsolve mesh\) but not yet solved$"):
+def test_what_is_not_done_for_several_interfaces_is_refused_in_one_line(before_work):
+    with pytest.raises(SceneError, match=f"^{re.escape(NOT_YET)}$"):
         before_work(strip())
 
 
@@ -209,11 +217,45 @@ def test_the_mesh_command_prints_every_region_and_interface(tmp_path):
     assert [line.split()[0] for line in lines[1:4]] == ["region1", "region2", "region3"]
     assert lines[4].startswith("Σ vertices 17, 17 (per interface, bottom to top)")
     assert lines[5].startswith("2 layers on 3 regions: 6 blocks")
-    for command in (["solve", "-n", "2"], ["reference"]):
+    for command in (["solve", "-n", "2"], ["solve"]):
         refused(ddsolve(*command, str(path), "-o", str(tmp_path / "x.h5"), check=False), SceneError.exit_status,
-                "geometry.sigma: 2 interfaces: a structure of several interfaces can be meshed (ddsolve mesh) but "
-                "not yet solved")
+                NOT_YET)
     assert not (tmp_path / "x.h5").exists()
+
+
+@pytest.mark.mpi
+def test_the_reference_command_reports_g_at_every_tip_of_every_interface(tmp_path):
+    path, output = tmp_path / "strip.toml", tmp_path / "strip.h5"
+    path.write_text(STRIP)
+    lines = ddsolve("reference", str(path), "-o", str(output), "--set", "loads.layer1.top.y=-0.05").stdout.splitlines()
+    assert re.match(r"reference: 2 interfaces, \d+ active-set steps, energy -0\.0624312133\d*, ", lines[0])
+    tips = [line for line in lines if line.startswith("G at tip")]
+    assert [line.split(":")[0] for line in tips] == [
+        "G at tip (1, 1) of crack 0 on interface 1", "G at tip (2, 1) of crack 0 on interface 1",
+        "G at tip (2, 2) of crack 1 on interface 2", "G at tip (3, 2) of crack 1 on interface 2"]
+    assert "on crack 0 on interface 1" in lines[-1] and "on crack 1 on interface 2" in lines[-1]
+    with h5py.File(output) as f:
+        assert list(f["fracture/interface"][()]) == [1, 1, 2, 2] and list(f["fracture/crack"][()]) == [0, 0, 1, 1]
+        assert f.attrs["interfaces"] == 2 and f.attrs["converged"]
+        assert sorted(f["solution"]) == ["u1", "u2", "u3", "v1", "v2", "v3"]
+    refused(ddsolve("compare", str(output), str(output), check=False), DDSolveError.exit_status,
+            f"{output}: a result of 2 interfaces (ddsolve reference): reading it back is not done yet; its /fracture, "
+            "/solution and /mesh are plain HDF5 datasets")
+
+
+def test_several_interfaces_number_their_cracks_bottom_to_top_and_one_interface_files_keep_their_shape():
+    def tips(count: int, zones: int) -> Fracture:
+        return Fracture(np.zeros((count, 2)), np.zeros((count, 2)), np.arange(count) // 2, np.ones(count),
+                        np.ones(count), np.ones(count), np.arange(1.0, count + 1), np.zeros(count),
+                        np.zeros((zones, 2)), np.zeros(zones, dtype=np.int64))
+    joined = fracture.of_interfaces([tips(4, 1), tips(0, 0), tips(2, 1)], [2, 0, 1])
+    assert list(joined.interface) == [1, 1, 1, 1, 3, 3] and list(joined.crack) == [0, 0, 1, 1, 2, 2]
+    assert list(joined.zone_crack) == [0, 2] and list(joined.crack_interface) == [1, 1, 3]
+    assert list(joined.G) == [1.0, 2.0, 3.0, 4.0, 1.0, 2.0]
+    assert "fracture/interface" in hdf5.fracture_datasets(joined)
+    assert not {"fracture/interface", "fracture/crack_interface"} & set(hdf5.fracture_datasets(tips(2, 0)))
+    assert tips(2, 0).lines()[0].startswith("G at tip (0, 0) of crack 0: ")
+    assert joined.lines()[4].startswith("G at tip (0, 0) of crack 2 on interface 3: ")
 
 
 # --- the monolithic reference of several interfaces -------------------------------------------------------------

@@ -107,11 +107,14 @@ def generate_half(scene: Scene, side: int) -> HalfMesh:
 
 
 def one_interface(scene: Scene) -> None:
-    """Refuse, in one line, to solve a structure of several interfaces: it is read, checked and meshed
-    (:func:`ddsolve.mesh.stack.build_any`, the ``mesh`` command), not yet solved."""
+    """Refuse, in one line, to do with a structure of several interfaces what is done for one interface only: it is
+    read, checked and meshed (:func:`ddsolve.mesh.stack.build_any`, the ``mesh`` command) and solved by the
+    monolithic reference (:mod:`ddsolve.solvers.stacked`), not yet by the domain decomposition, sweeps, growth or
+    adaptivity."""
     if scene.geometry.above:
         raise SceneError(f"geometry.sigma: {len(scene.geometry.sigmas)} interfaces: a structure of several "
-                         "interfaces can be meshed (ddsolve mesh) but not yet solved")
+                         "interfaces is meshed (ddsolve mesh) and solved by the monolithic reference (ddsolve "
+                         "reference), not yet by the domain decomposition, sweeps, growth or adaptivity")
 
 
 def _mesh_half(scene: Scene, side: int) -> HalfMesh:

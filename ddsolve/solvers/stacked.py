@@ -26,8 +26,8 @@ from ddsolve.fem import assembly, supports
 from ddsolve.fem.assembly import BlockSystem
 from ddsolve.mesh import geometry
 from ddsolve.mesh.mesh import Mesh, blocks, facing_above
-from ddsolve.post import analysis, fracture
-from ddsolve.post.result import Result
+from ddsolve.post import analysis, fracture, toughness
+from ddsolve.post.result import Fracture, Result
 from ddsolve.problem.schema import LAYERS, REGIONS
 from ddsolve.problem.scene import Scene
 from ddsolve.solvers.reference import PHASES, Joint, contact_violation, refuse_friction, solve_joints
@@ -40,12 +40,19 @@ class StackResult:
     at its tips."""
 
     scene: Scene
+    mesh: Mesh
     solution: dict[str, np.ndarray]
     energy: float
     interfaces: list[Result]
+    fracture: Fracture
     converged: bool
     message: str
+    iterations: int
     timings: dict[str, float]
+
+    @property
+    def wall_time(self) -> float:
+        return self.timings["total"]
 
 
 def block_names(layers: int, count: int) -> list[tuple[str, str, int]]:
@@ -55,14 +62,16 @@ def block_names(layers: int, count: int) -> list[tuple[str, str, int]]:
             for region in range(count)]
 
 
-def view_scene(scene: Scene, interface: int) -> Scene:
+def view_scene(scene: Scene, interface: int, cracks: slice) -> Scene:
     """The scene of interface ``interface`` alone: its Σ and cracks, its two regions' materials as those of
-    ``lower`` and ``upper``."""
-    shape = scene.geometry
+    ``lower`` and ``upper``, its ``cracks`` of a toughness given per crack."""
+    shape, options = scene.geometry, scene.fracture
     names = shape.region_names[interface:interface + 2]
+    toughness = options.toughness[cracks] if isinstance(options.toughness, tuple) else options.toughness
     return dataclasses.replace(
         scene, geometry=dataclasses.replace(shape, sigma=shape.sigmas[interface],
                                             cracks=shape.crack_lists[interface], above=()),
+        fracture=dataclasses.replace(options, toughness=toughness),
         regions={(layer, region): scene.material(layer, name) for layer in scene.layers
                  for region, name in zip(REGIONS, names)})
 
@@ -71,8 +80,12 @@ def views(scene: Scene, mesh: Mesh) -> list[tuple[Scene, Mesh]]:
     """Every interface, bottom to top, as a structure of two regions: its scene (:func:`view_scene`) and its mesh
     (the region below facing it as the lower half, the region above as the upper half)."""
     regions = mesh.regions
-    return [(view_scene(scene, index), Mesh(regions[index] if index == 0 else facing_above(regions[index]),
-                                            regions[index + 1], line, mesh.origin))
+    counts = [len(line.pieces(line.crack)) for line in mesh.sigmas]
+    toughness.check_cracks(scene, sum(counts))
+    first = np.concatenate([[0], np.cumsum(counts)]).astype(int)
+    return [(view_scene(scene, index, slice(first[index], first[index + 1])),
+             Mesh(regions[index] if index == 0 else facing_above(regions[index]), regions[index + 1], line,
+                  mesh.origin))
             for index, line in enumerate(mesh.sigmas)]
 
 
@@ -148,9 +161,11 @@ def solve_stack(scene: Scene, mesh: Mesh) -> StackResult:
                                 solved.solves)
                for (part, view), joint, lam in zip(seen, joints, lams)]
     violated = [f"interface {n + 1}: {r.message}" for n, r in enumerate(results) if r.message]
-    return StackResult(scene, {name: u.reshape(-1, 2) for (name, _, _), u in zip(block_names(
-        scene.geometry.layers, len(mesh.regions)), fields)}, float(energy), results, not violated,
-        "; ".join(violated), {**solved.timings, "total": total})
+    joined = fracture.of_interfaces([r.fracture for r in results], [len(line.pieces(line.crack)) for line in mesh.sigmas])
+    names = block_names(scene.geometry.layers, len(mesh.regions))
+    return StackResult(scene, mesh, {name: u.reshape(-1, 2) for (name, _, _), u in zip(names, fields)}, float(energy),
+                       results, joined, not violated, "reference: " + "; ".join(violated) if violated else "",
+                       len(steps), {**solved.timings, "total": total})
 
 
 def interface_result(seen: tuple[Scene, Mesh], joint: Joint, lam: np.ndarray, fields: list[np.ndarray],
