@@ -91,7 +91,7 @@ def _launch(args, petsc_options: list[str], scene_checks: bool) -> None:
     if args.ranks is None:
         return
     scene = _load_scene(args) if scene_checks else None
-    check_ranks(args.ranks, None if scene is None else len(blocks(scene.geometry.layers)))
+    check_ranks(args.ranks, None if scene is None else scene.geometry.layers * len(scene.geometry.region_names))
     check_petsc_files(petsc_options)
     for module in ("petsc4py", "mpi4py", "h5py"):  # if one is missing, one line here, not one per rank
         importlib.import_module(module)

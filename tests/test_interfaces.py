@@ -11,12 +11,14 @@ import pytest
 import h5py
 from conftest import ddsolve, refused
 
-from ddsolve.errors import DDSolveError, MeshError, SceneError
+from ddsolve.errors import DDSolveError, MeshError, SceneError, UsageError
 from ddsolve.io import hdf5
 from ddsolve.post import fracture
 from ddsolve.post.result import Fracture
 from ddsolve.mesh import geometry, stack
-from ddsolve.mesh.mesh import CRACK, CRACK_ABOVE, SIGMA, SIGMA_ABOVE, HalfMesh, Mesh, facing_above, make_mesh
+from ddsolve.parallel import launch
+from ddsolve.mesh.mesh import (CRACK, CRACK_ABOVE, SIGMA, SIGMA_ABOVE, HalfMesh, Mesh, facing_above, make_mesh,
+                               make_stack, region_half)
 from ddsolve.problem import materials, scene
 from ddsolve.solvers import checks, reference
 from ddsolve.solvers import stacked as stacked_solver
@@ -217,9 +219,11 @@ def test_the_mesh_command_prints_every_region_and_interface(tmp_path):
     assert [line.split()[0] for line in lines[1:4]] == ["region1", "region2", "region3"]
     assert lines[4].startswith("Σ vertices 17, 17 (per interface, bottom to top)")
     assert lines[5].startswith("2 layers on 3 regions: 6 blocks")
-    for command in (["solve", "-n", "2"], ["solve"]):
+    for command in (["solve", "-n", "2"], ["solve", "-n", "3"], ["solve"]):
         refused(ddsolve(*command, str(path), "-o", str(tmp_path / "x.h5"), check=False), SceneError.exit_status,
                 NOT_YET)
+    refused(ddsolve("solve", "-n", "4", str(path), check=False), UsageError.exit_status,
+            "-n 4: unsupported number of ranks: use 1, 2, 3 or a multiple of 6")
     assert not (tmp_path / "x.h5").exists()
 
 
@@ -272,6 +276,15 @@ def equal(layers: int) -> str:
     return EQUAL + "[loads.layer2.right]\nx = 0.1\n"
 
 
+def test_six_blocks_go_on_1_2_3_6_or_12_ranks():
+    assert [size for size in range(1, 25) if launch.supported(size, 6)] == [1, 2, 3, 6, 12, 18, 24]
+    assert [launch.leader(block, 3, 6) for block in range(6)] == [0, 1, 2, 0, 1, 2]  # rank r: region r+1's layers
+    assert [launch.leader(block, 2, 6) for block in range(6)] == [0, 1, 0, 1, 0, 1]
+    assert [launch.leader(block, 12, 6) for block in range(6)] == [0, 2, 4, 6, 8, 10]  # two ranks per block
+    with pytest.raises(UsageError, match=r"^-n 4: unsupported number of ranks: use 1, 2, 3 or a multiple of 6$"):
+        checks.check_ranks(4, 6)
+
+
 def test_the_blocks_are_the_layers_on_every_region():
     assert stacked_solver.block_names(2, 3) == [("u1", "layer1", 0), ("u2", "layer1", 1), ("u3", "layer1", 2),
                                                 ("v1", "layer2", 0), ("v2", "layer2", 1), ("v3", "layer2", 2)]
@@ -290,6 +303,16 @@ def test_each_interface_glues_its_two_regions_and_each_region_its_layers_on_both
     assert np.all(below[:, 1] == 1.0) and np.all(above[:, 1] == 2.0)  # ... and it is glued on Σ₂ as well
     assert [part.material("layer1", "upper") for part, _ in seen] == [
         source.material("layer1", "region2"), source.material("layer1", "region3")]
+
+
+@pytest.mark.parametrize("overrides, motion", [
+    (["geometry.clamped=[]"], "the structure can translate in x"),
+    (["geometry.clamped=[\"bottom\"]", "geometry.cracks=[[[0.0, 4.0]], []]"],
+     "blocks u2, u3, v2, v3 can translate and rotate freely relative to the rest")])
+def test_a_structure_of_several_interfaces_that_can_move_is_refused_naming_the_motion(overrides, motion):
+    source = strip(*overrides)
+    with pytest.raises(SceneError, match=f"^{re.escape(motion)}: add a support "):
+        stacked_solver.assemble(source, stack.build_any(source))
 
 
 def merged(base: HalfMesh, other: HalfMesh, base_nodes: np.ndarray, other_nodes: np.ndarray) -> HalfMesh:
@@ -325,10 +348,12 @@ def one_interface(cracked: int, layers: int, *overrides: str) -> scene.Scene:
 @pytest.mark.solve
 @pytest.mark.parametrize("cracked", [0, 1])
 @pytest.mark.parametrize("layers", [1, 2])
-@pytest.mark.parametrize("closing", [False, True], ids=["open", "closing"])
-def test_an_interface_without_crack_between_equal_regions_is_the_structure_of_one_interface(cracked, layers, closing):
+@pytest.mark.parametrize("closing, degree", [(False, 1), (True, 1), (True, 2)], ids=["open", "closing", "closing P2"])
+def test_an_interface_without_crack_between_equal_regions_is_the_structure_of_one_interface(cracked, layers, closing,
+                                                                                              degree):
     """Exact: the two-region mesh has the three regions' nodes and triangles, the uncracked Σ's regions made one."""
-    load = [f"loads.layer{layer}.top.y=-0.05" for layer in range(1, layers + 1)] if closing else []
+    load = [f"mesh.degree={degree}"]
+    load += [f"loads.layer{layer}.top.y=-0.05" for layer in range(1, layers + 1)] if closing else []
     cracks = "[[[1.0, 2.0]], []]" if cracked == 0 else "[[], [[1.0, 2.0]]]"
     three = scene.loads(equal(layers), [f"geometry.cracks={cracks}", *load])
     mesh = stack.build_any(three)
@@ -338,13 +363,47 @@ def test_an_interface_without_crack_between_equal_regions_is_the_structure_of_on
     assert several.energy == pytest.approx(one.attrs["energy"], rel=1e-10, abs=0.0)
     np.testing.assert_allclose(several.interfaces[cracked].fracture.G, one.fracture.G, rtol=1e-8, atol=0.0)
     assert several.interfaces[1 - cracked].fracture.G.size == 0  # no tips on the uncracked interface
-    if load:
+    if closing:
         assert one.attrs["closed_vertices"] > 0 and several.interfaces[cracked].multipliers["mu_c"].max() > 0
+
+
+def mirrored(mesh: Mesh, height: float) -> Mesh:
+    """The structure reflected about y = ``height`` / 2, the same nodes and triangles: its top region the bottom
+    one, a middle region's Σ below and above swapped."""
+    count = len(mesh.regions)
+    swapped = {SIGMA: SIGMA_ABOVE, CRACK: CRACK_ABOVE, SIGMA_ABOVE: SIGMA, CRACK_ABOVE: CRACK}
+    regions = []
+    for index, region in enumerate(reversed(mesh.regions)):
+        rename = {"top": "bottom", "bottom": "top", **(swapped if 0 < index < count - 1 else {})}
+        regions.append(region_half(region.points * [1.0, -1.0] + [0.0, height], region.cells, f"region{index + 1}",
+                                   index == 0, {rename.get(name, name): edges for name, edges in
+                                                region.boundaries.items()}, "mirrored"))
+    return make_stack(tuple(regions), "mirrored")
+
+
+@pytest.mark.solve
+@pytest.mark.parametrize("closing", [False, True], ids=["open", "closing"])
+def test_a_crack_on_interface_2_of_a_symmetric_strip_mirrors_the_same_crack_on_interface_1(closing):
+    """Exact: the second structure is the first reflected, node for node."""
+    load = ["loads.layer1.top.y=-0.05", "loads.layer1.bottom.y=0.05"] if closing else []
+    lower = scene.loads(EQUAL, ["geometry.cracks=[[[1.0, 2.0]], []]", *load])
+    upper = scene.loads(EQUAL, ["geometry.cracks=[[], [[1.0, 2.0]]]", *load])
+    mesh = stack.build_any(lower)
+    first, second = stacked_solver.solve_stack(lower, mesh), stacked_solver.solve_stack(upper, mirrored(mesh, 3.0))
+    assert first.converged and second.converged
+    assert first.energy == pytest.approx(second.energy, rel=1e-10, abs=0.0)
+    G = first.interfaces[0].fracture.G
+    assert len(G) == 2 and (closing or np.all(G > 0))  # closing: the faces touch, G is near 0 (± its noise)
+    np.testing.assert_allclose(second.interfaces[1].fracture.G, G, rtol=1e-8, atol=0.0)
+    assert list(second.fracture.interface) == [2, 2] and list(first.fracture.interface) == [1, 1]
+    if closing:
+        assert first.interfaces[0].multipliers["mu_c"].max() > 0
 
 
 @pytest.mark.solve
 def test_the_same_crack_on_either_interface_of_a_symmetric_strip_has_the_same_g():
-    """G at every tip of both interfaces; the regions' meshes are not mirror images, so the two agree as h falls."""
+    """G at every tip of both interfaces at once; the regions' own meshes are not mirror images, so the two agree
+    as h falls."""
     differences = []
     for size in (0.25, 0.125):
         source = scene.loads(EQUAL.replace("[fracture]\ninner = 0.2\nouter = 0.4\n", ""),

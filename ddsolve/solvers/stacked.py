@@ -19,13 +19,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ddsolve.dd import constraints
+from ddsolve.dd import constraints, kernels
 from ddsolve.dd.interface import for_mesh
 from ddsolve.errors import SceneError
 from ddsolve.fem import assembly, supports
 from ddsolve.fem.assembly import BlockSystem
 from ddsolve.mesh import geometry
-from ddsolve.mesh.mesh import Mesh, blocks, facing_above
+from ddsolve.mesh.mesh import BlockSpec, Mesh, blocks, facing_above
 from ddsolve.post import analysis, fracture, toughness
 from ddsolve.post.result import Fracture, Result
 from ddsolve.problem.schema import LAYERS, REGIONS
@@ -80,13 +80,18 @@ def views(scene: Scene, mesh: Mesh) -> list[tuple[Scene, Mesh]]:
     """Every interface, bottom to top, as a structure of two regions: its scene (:func:`view_scene`) and its mesh
     (the region below facing it as the lower half, the region above as the upper half)."""
     regions = mesh.regions
-    counts = [len(line.pieces(line.crack)) for line in mesh.sigmas]
+    counts = crack_counts(mesh)
     toughness.check_cracks(scene, sum(counts))
     first = np.concatenate([[0], np.cumsum(counts)]).astype(int)
     return [(view_scene(scene, index, slice(first[index], first[index + 1])),
              Mesh(regions[index] if index == 0 else facing_above(regions[index]), regions[index + 1], line,
                   mesh.origin))
             for index, line in enumerate(mesh.sigmas)]
+
+
+def crack_counts(mesh: Mesh) -> list[int]:
+    """The number of cracks on each interface, bottom to top."""
+    return [len(line.pieces(line.crack)) for line in mesh.sigmas]
 
 
 def straight_lines(mesh: Mesh) -> None:
@@ -116,18 +121,42 @@ def assemble(scene: Scene, mesh: Mesh) -> tuple[list[BlockSystem], list[Joint], 
             at = view.half(spec.side).sigma[line.multiplier_nodes]
             members.append(block)
             dofs.append((2 * at[:, None] + np.arange(2)).ravel())
-            ties[block].append((at, table.fixed[view_block].reshape(-1, 2), table.values[view_block].reshape(-1, 2)))
+            ties[block].append((at, table.fixed[view_block].reshape(-1, 2),
+                                table.values[view_block].reshape(-1, 2)))
         joints.append(Joint(interface, tuple(members), tuple(dofs)))
-    systems = []
+    systems, held_fixed = [], []
     for (name, layer, region), held in zip(names, ties):
         half, line = mesh.regions[region], mesh.sigmas[max(region - 1, 0)]
         fixed, values = supports.own_supports(scene, half, line, layer)
         for at, tied, tied_values in held:
             fixed[at], values[at] = tied, tied_values
+        held_fixed.append(fixed)
         systems.append(assembly.block_system(name, half, line, assembly.elasticity(scene, layer, half.name)[0],
                                              assembly.layer_loads(scene, layer, half), prescribed=(fixed, values),
                                              thermal=assembly.thermal_of(scene, layer, half.name)))
+    check_supported(mesh, names, held_fixed, joints)
     return systems, joints, seen
+
+
+def check_supported(mesh: Mesh, names: list[tuple[str, str, int]], fixed: list[np.ndarray], joints: list[Joint]
+                    ) -> None:
+    """Refuse, naming the free motion, a structure whose blocks' prescribed dofs ``fixed`` ``(n, 2)`` (x, y) and
+    the gluing of every interface leave a rigid motion (:mod:`ddsolve.dd.kernels`)."""
+    frame = kernels.frame_of(np.vstack([region.points for region in mesh.regions]))
+    rows = []
+    for (_, _, region), held in zip(names, fixed):
+        points = mesh.regions[region].points
+        directions = kernels.prescribed_directions(held, np.broadcast_to(np.eye(2), (len(points), 2, 2)))
+        rows.append(kernels.constraint_rows(frame.modes(points), np.zeros(0, dtype=np.int64), directions))
+    gluing = []
+    for joint, line in zip(joints, mesh.sigmas):
+        of_view = kernels.gluing_rows(joint.interface, kernels.trace_modes(line, frame))
+        spread = np.zeros((len(of_view), 3 * len(names)))
+        for view_block, block in enumerate(joint.blocks):
+            spread[:, 3 * block:3 * block + 3] += of_view[:, 3 * view_block:3 * view_block + 3]
+        gluing.append(spread)
+    kernels.refuse_motion(kernels.free_motions(rows, np.vstack(gluing)), frame,
+                          tuple(BlockSpec(name, layer, 0) for name, layer, _ in names))
 
 
 def solve_stack(scene: Scene, mesh: Mesh) -> StackResult:
@@ -135,6 +164,7 @@ def solve_stack(scene: Scene, mesh: Mesh) -> StackResult:
     interface's view checked (KKT) and with G at its tips."""
     refuse_friction(scene)
     geometry.check_loads(scene, mesh)
+    supports.check(scene, mesh)
     systems, joints, seen = assemble(scene, mesh)
     solved = solve_joints(systems, joints, out_of_core=scene.solver.out_of_core)
     fields = solved.fields
@@ -161,7 +191,7 @@ def solve_stack(scene: Scene, mesh: Mesh) -> StackResult:
                                 solved.solves)
                for (part, view), joint, lam in zip(seen, joints, lams)]
     violated = [f"interface {n + 1}: {r.message}" for n, r in enumerate(results) if r.message]
-    joined = fracture.of_interfaces([r.fracture for r in results], [len(line.pieces(line.crack)) for line in mesh.sigmas])
+    joined = fracture.of_interfaces([r.fracture for r in results], crack_counts(mesh))
     names = block_names(scene.geometry.layers, len(mesh.regions))
     return StackResult(scene, mesh, {name: u.reshape(-1, 2) for (name, _, _), u in zip(names, fields)}, float(energy),
                        results, joined, not violated, "reference: " + "; ".join(violated) if violated else "",
@@ -181,7 +211,8 @@ def interface_result(seen: tuple[Scene, Mesh], joint: Joint, lam: np.ndarray, fi
     scale_mu = constraints.traction_scale(interface, lam, scale_u)
     result = Result.from_blocks(
         part, "reference", view, [fields[b] for b in joint.blocks], interface, lam, converged=not violations,
-        iterations=len(steps), solves=solves, wall_time=0.0, ranks=1, history=np.array([contact_violation(*s, scale_u, scale_mu) for s in steps]),
+        iterations=len(steps), solves=solves, wall_time=0.0, ranks=1,
+        history=np.array([contact_violation(*step, scale_u, scale_mu) for step in steps]),
         active_set_changes=np.array(changes, dtype=np.int64),
         message=f"the solution violates {', '.join(violations)}" if violations else "",
         attrs={"kkt_tolerance": constraints.kkt_tolerance(None),
