@@ -270,14 +270,16 @@ def sweep(scene: Scene | str | Path, parameters: dict[str, Sequence], paired: bo
 
 def grow(scene: Scene | str | Path, limit: float, steps: int = 20, tolerance: float = 1e-4,
          output: str | Path | None = None, comm=None, progress: Callable[[str], None] | None = None) -> list:
-    """Grow the cracks of ``scene`` along Σ (Griffith, the scene's ``[fracture]`` toughness) as a factor on
-    its loads or prescribed displacements rises to ``limit`` in ``steps`` steps (docs/growth.md).
+    """Grow the cracks of ``scene`` along Σ (Griffith, the scene's ``[fracture]`` toughness; or the damage of its
+    ``[interface]`` bilinear bond, :mod:`ddsolve.solvers.bond_growth`) as a factor on its loads or prescribed
+    displacements rises to ``limit`` in ``steps`` steps (docs/growth.md).
 
     Returns the steps (:class:`ddsolve.solvers.grow.Step`: ``state`` with control, load, displacement,
     cracks, G per tip; ``unstable``; ``events``) on every rank; ``output`` writes them as ``ddsolve grow``
     does (the HDF5 file with the CSV and picture of the curve beside it, replaced together), none of which
     may be one of the files the scene reads.
     """
+    from ddsolve.solvers import bond_growth
     from ddsolve.solvers import grow as growth
 
     comm = _comm(comm, "grow")
@@ -290,9 +292,14 @@ def grow(scene: Scene | str | Path, limit: float, steps: int = 20, tolerance: fl
 
     loaded, arguments = _agreed(comm, "grow", check)
     with _reported_once(comm):
-        done = growth.grow(loaded, comm, arguments["limit"], arguments["steps"], arguments["tolerance"],
-                           progress=arguments["progress"], output=arguments["output"],
-                           inputs=inputs.of_scene(loaded, scene))
+        if bond_growth.damaging(loaded):
+            done = bond_growth.grow(loaded, comm, arguments["limit"], arguments["steps"],
+                                    progress=arguments["progress"], output=arguments["output"],
+                                    inputs=inputs.of_scene(loaded, scene))
+        else:
+            done = growth.grow(loaded, comm, arguments["limit"], arguments["steps"], arguments["tolerance"],
+                               progress=arguments["progress"], output=arguments["output"],
+                               inputs=inputs.of_scene(loaded, scene))
     return comm.bcast(done, root=0)
 
 

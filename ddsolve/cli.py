@@ -131,7 +131,7 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
     result = run.decomposition(scene, comm, output, progress=_root_print, gather=False)
     if result is not None:
         print(f"{result.method}: converged after {result.iterations} iterations{active_set_part(result)}"
-              f"{coulomb_part(result)}, "
+              f"{coulomb_part(result)}{bond_part(result)}, "
               f"{result.solves} rounds of block solves, {result.wall_time:.3f} s on {result.ranks} ranks -> {output}",
               flush=True)
         print(estimate_line(result), flush=True)
@@ -155,6 +155,12 @@ def coulomb_part(result) -> str:
     """``, Coulomb friction in N Tresca problems`` when the method iterated Coulomb's friction to its fixed point."""
     count = int(result.attrs.get("coulomb_iterations", 0))
     return f", Coulomb friction in {count} Tresca problem{'s' if count > 1 else ''}" if count else ""
+
+
+def bond_part(result) -> str:
+    """``, the bond in N linear problems on Σ`` when the scene has a bond law (``[interface]``)."""
+    count = int(result.attrs.get("bond_solves", 0))
+    return f", the bond in {count} linear problem{'s' if count > 1 else ''} on Σ" if count else ""
 
 
 def launch_line(result) -> str:
@@ -232,15 +238,19 @@ def cmd_grow(args, petsc_options: list[str]) -> int:
 
     from ddsolve.io.hdf5 import check_result
     from ddsolve.parallel.exchange import collective
-    from ddsolve.solvers import grow, growth_files
+    from ddsolve.solvers import bond_growth, grow, growth_files
 
     comm = MPI.COMM_WORLD
     started = time.perf_counter()
     scene = comm.bcast(collective(comm, lambda: _load_scene(args), root_only=True), root=0)
     output = _grow_output(args)
     collective(comm, lambda: check_result(output, _inputs(args, scene), viewer=False), root_only=True)
-    steps = grow.grow(scene, comm, args.limit, args.steps, args.tolerance, progress=_root_print, output=output,
-                      pictures=args.pictures, inputs=_inputs(args, scene))
+    if bond_growth.damaging(scene):
+        steps = bond_growth.grow(scene, comm, args.limit, args.steps, progress=_root_print, output=output,
+                                 pictures=args.pictures, inputs=_inputs(args, scene))
+    else:
+        steps = grow.grow(scene, comm, args.limit, args.steps, args.tolerance, progress=_root_print, output=output,
+                          pictures=args.pictures, inputs=_inputs(args, scene))
     if steps is not None:
         files = growth_files.Outputs(output)
         unstable = sum(step.unstable for step in steps)
@@ -484,16 +494,18 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("-o", dest="output", help="HDF5 file of every run (default: SCENE-sweep.h5)")
     p.add_argument("--zip", action="store_true",
                    help="take the ranges side by side (same COUNT) instead of every combination")
-    p = scene_command("grow", "quasi-static growth of the cracks along Σ (Griffith) as a load or displacement "
-                      "factor rises; an HDF5 file, a CSV and a PNG of the curve, pictures of steps", cmd_grow)
+    p = scene_command("grow", "quasi-static growth of the cracks along Σ (Griffith, or the damage of an "
+                      "[interface] bilinear bond) as a load or displacement factor rises; an HDF5 file, a CSV and a "
+                      "PNG of the curve, pictures of steps", cmd_grow)
     p.add_argument("-n", dest="ranks", type=int, metavar="N", help="launch N ranks with mpiexec (as for solve)")
     p.add_argument("-o", dest="output", help="HDF5 file of every step (default: SCENE-growth.h5; the curve "
                    "goes to the same name with .csv and .png)")
     p.add_argument("--to", dest="limit", type=float, metavar="FACTOR",
                    help="the control factor's last value (it multiplies the scene's loads or displacements; "
-                   "default: 2 × the initiation factor)")
+                   "default: 2 × the initiation factor; a bilinear bond needs it)")
     p.add_argument("--steps", type=int, default=20, help="equal control steps up to --to, 1 to 1000 (default 20; "
-                   "the initiation factor is added)")
+                   "the initiation factor is added; a bilinear bond's steps are at most --to/--steps, halved where "
+                   "its damage moves fast)")
     p.add_argument("--tolerance", type=float, default=1e-4, help="|G/G_c − 1| at a growing tip, 1e-8 to 1 "
                    "(default 1e-4)")
     p.add_argument("--pictures", type=int, default=3, metavar="K", help="pictures of the deformed structure at K "

@@ -105,6 +105,18 @@ def cases(folder: Path) -> list[tuple[str, list[str], list[str]]]:
     out += [("fracture.law", [], kenane), ("fracture.G_Ic", kenane, ["fracture.G_Ic=2e-4"]),
             ("fracture.G_IIc", kenane, ["fracture.G_IIc=5e-4"]), ("fracture.eta", kenane, ["fracture.eta=2.0"]),
             ("fracture.lambda", suo, ["fracture.lambda=0.6"])]
+    elastic = ['interface.law="elastic"', "interface.stiffness=1e3"]
+    bilinear = ['interface.law="bilinear"', "interface.strength=0.01", "interface.toughness=1e-4"]  # damage 0.4
+    sheared = [*bilinear, "loads.layer1.top.x=0.05"]  # damage 0.7 in both modes: each mixed-mode key shows
+    mixing = ['interface.mode_mix="benzeggagh-kenane"', "interface.G_IIc=3e-4", "interface.eta=1.0",
+              "interface.shear_strength=0.005"]
+    mixed = [*sheared, *mixing]
+    out += [("interface.law", [], elastic), ("interface.stiffness", elastic, ["interface.stiffness=1e4"]),
+            ("interface.strength", bilinear, ["interface.strength=0.02"]),
+            ("interface.toughness", bilinear, ["interface.toughness=1e-5"]),
+            ("interface.mode_mix", sheared, mixing), ("interface.G_IIc", mixed, ["interface.G_IIc=3e-2"]),
+            ("interface.eta", mixed, ["interface.eta=2.0"]),
+            ("interface.shear_strength", mixed, ["interface.shear_strength=0.02"])]
     interface = ["materials.layer2.nu=0.28", "materials.layer1.upper.E=2000.0", "materials.layer2.upper.E=1120.0"]
     out += [("fracture.reference_length", interface + suo, ["fracture.reference_length=0.01"])]  # ψ, so G_c
     return out

@@ -109,8 +109,9 @@ def kkt(interface: Interface, traces: np.ndarray, lam: np.ndarray, p: float | No
     """The KKT residuals from the blocks' traces ``(blocks, 2k)`` (local frames) under the multipliers
     ``lam`` (bound ``p``), their equilibrium residuals and the largest nodal displacement; displacements
     are measured against :func:`displacement_scale`.  Friction (μ_t): |μ_t| ≤ g, the slip (u⁻ − u⁺)·τ zero where
-    |μ_t| < g and of μ_t's sign where |μ_t| = g (Coulomb: g = μ max(μᶜ, 0) of ``lam``)."""
-    gap = interface.gap(traces)
+    |μ_t| < g and of μ_t's sign where |μ_t| = g (Coulomb: g = μ max(μᶜ, 0) of ``lam``).  A compliant bond's rows
+    measure gap − c λ (:attr:`~ddsolve.dd.interface.Interface.compliance`)."""
+    gap = interface.gap(traces) - interface.compliance * lam
     lower, upper = interface.with_slip(interface.slip_bounds(lam)).bounds(p)
     size = displacement_scale(interface, largest)
     traction = traction_scale(interface, lam, size)

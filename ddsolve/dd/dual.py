@@ -11,7 +11,8 @@ The fast methods solve the dual problem in the W-scaled variable y = W^½ λ,
     minimize ½ yᵀ A y − bᵀ y  subject to  lower ≤ y ≤ upper,
     A = W^½ C K⁻¹ Cᵀ W^½,  b = W^½ C K⁻¹ f,  gradient A y − b = −W^½ gap(x(λ)),
 
-where the scaling makes A's spectrum that of the Uzawa iteration operator C K⁻¹ Cᵀ W (so 2/λmax(A)
+(with a compliant bond, :mod:`ddsolve.dd.cohesive`, A gains the diagonal c of its rows: gap = c λ), where the
+scaling makes A's spectrum that of the Uzawa iteration operator C K⁻¹ Cᵀ W (so 2/λmax(A)
 is Uzawa's stable bound on θ) and ‖A y − b‖ the L²(Σ) norm of the constraint violation.  Their
 stopping rule ``kkt`` is the norm of the projected gradient (violated equalities, penetration,
 and contact forces on open crack faces) relative to its value for λ = 0, the uncoupled blocks (or to
@@ -78,6 +79,7 @@ class Outcome:
     # (traces of a full solve, whether the check failed) -> a better λ, or None when it cannot be bettered
     refine: Callable[[np.ndarray, bool], np.ndarray | None] | None = None
     held: np.ndarray | None = None  # (blocks, 2k) the traces floating blocks take in the final solve
+    state: Interface | None = None  # the interface the multipliers solve where it differs (a bond's damage)
 
 
 class Progress:
@@ -139,10 +141,11 @@ class DualProblem:
         lower, upper = interface.bounds(solver.p)
         self.lower, self.upper = lower * self.sqrt_w, upper * self.sqrt_w
         self.scale = gap_scale(interface, interface.gap(initial))
+        self.compliance = interface.compliance  # a bond's rows: gap = c λ, the diagonal c added to A
 
     def apply(self, y: np.ndarray) -> np.ndarray:
         traces, _ = self.rounds.solve(self.interface.loads(y / self.sqrt_w), full=False)
-        return -self.sqrt_w * self.interface.gap(traces)
+        return -self.sqrt_w * self.interface.gap(traces) + self.compliance * y
 
     def criterion(self, y: np.ndarray, gradient: np.ndarray) -> float:
         return kkt_criterion(y, gradient, self.lower, self.upper, self.scale)

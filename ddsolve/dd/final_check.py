@@ -6,11 +6,12 @@ from dataclasses import replace
 
 import numpy as np
 
-from ddsolve.dd import friction
+from ddsolve.dd import cohesive, friction
 from ddsolve.dd.constraints import Constraints, kkt, kkt_tolerance
 from ddsolve.dd.dual import Outcome, Progress, Rounds, no_convergence
 from ddsolve.dd.interface import Interface
-from ddsolve.dd.registry import METHODS
+from ddsolve.dd.registry import METHODS, compliant_methods
+from ddsolve.errors import SolverError
 from ddsolve.problem.scene import Solver
 
 
@@ -26,9 +27,10 @@ def final_solve(rounds: Rounds, interface: Interface, solver: Solver, outcome: O
     :data:`MAX_REFINEMENTS` times."""
     tolerance = kkt_tolerance(solver)
 
-    def solve() -> tuple[Constraints, np.ndarray, np.ndarray]:
-        traces, energies = rounds.solve(interface.loads(outcome.lam), full=True, held=outcome.held)
-        return kkt(interface, traces, outcome.lam, solver.p, rounds.residuals, rounds.largest), traces, energies
+    def solve() -> tuple[Constraints, np.ndarray, np.ndarray]:  # checked on the state λ solves (a bond's damage)
+        state = outcome.state if outcome.state is not None else interface
+        traces, energies = rounds.solve(state.loads(outcome.lam), full=True, held=outcome.held)
+        return kkt(state, traces, outcome.lam, solver.p, rounds.residuals, rounds.largest), traces, energies
 
     residuals, traces, energies = solve()
     for refinement in range(1, MAX_REFINEMENTS + 1) if outcome.refine is not None else ():
@@ -56,8 +58,17 @@ TIGHTENINGS = 2
 def checked_solve(method: str, rounds: Rounds, interface: Interface, solver: Solver, progress: Progress) -> Outcome:
     """``method``'s multipliers, the final solve and its check (:func:`_checked`); with Coulomb's friction the
     fixed point of Tresca problems (:func:`ddsolve.dd.friction.coulomb`), each checked and started from the last
-    multipliers, unless the method iterates it itself on rank 0 (``schur``)."""
+    multipliers, unless the method iterates it itself on rank 0 (``schur``); with a damaging bond the secant fixed
+    point of the damage (:func:`ddsolve.dd.cohesive.secant`) the same way.  A method that cannot take a bond's
+    compliance is refused in one line."""
     described = METHODS[method]
+    if interface.bond is not None:
+        if not described.compliant:
+            raise SolverError(f"{method}: interface.law needs a method that takes the bond's compliance on the dual "
+                              f"problem: solver.method = {' or '.join(compliant_methods())}")
+        if interface.bond.law != "elastic" and not described.fixed_point:
+            return cohesive.secant(interface, lambda state, start: _checked(method, rounds, state, solver, progress,
+                                                                            start), method)
     if interface.coulomb and interface.friction and not described.fixed_point:
         return friction.coulomb(interface, lambda tresca, start: _checked(method, rounds, tresca, solver, progress,
                                                                            start), solver.tol, method)

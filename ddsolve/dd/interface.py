@@ -29,6 +29,12 @@ Tresca's (g given) or, for Coulomb, g = μ × the contact pressure μᶜ of a fi
 (:mod:`ddsolve.dd.friction`).  The dual problem's optimality makes the slip s = (u⁻ − u⁺)·τ vanish where
 |μ_t| < g and have the sign of μ_t where |μ_t| = g: the friction on each face opposes its slip relative to
 the other.
+
+With a bond law on Σ (``[interface]``, :mod:`ddsolve.dd.cohesive`) the μᵍ rows are compliant: their gap is
+u⁻ − u⁺ = c λ (c = 1/k, per row; :attr:`Interface.compliance`, 0 for the rigid bond), the spring k of the law's
+secant at the vertex's damage d, k(1 − d), where the normal row opens (μᵍ·ν < 0) and the undamaged k where it is
+pressed.  A fully damaged vertex keeps its normal row as a penalized contact (μᵍ·ν ≥ 0) and frees its tangential
+row (μᵍ·τ = 0).  The dual problem's matrix gains the diagonal c (in the W-scaled variable y = W^½ λ too).
 """
 from __future__ import annotations
 
@@ -37,8 +43,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ddsolve.errors import SceneError
 from ddsolve.mesh.mesh import U_MINUS, U_PLUS, BlockSpec, SigmaLine, blocks, glued_layers
-from ddsolve.problem.scene import Friction
+from ddsolve.problem.scene import Bond, Friction
+
+#: A vertex whose damage reaches this is broken (its tangential row freed, its normal row a penalized contact).
+BROKEN = 1.0 - 1e-9
 
 #: The families on Σ's faces (layer1's blocks u⁻ and u⁺), and the family that glues a region's layers, by its side.
 SIGMA_FAMILIES = ("mu_c", "mu_g", "mu_t")
@@ -59,7 +69,7 @@ class Interface:
 
     def __init__(self, weights: np.ndarray, crack: np.ndarray, contact: bool, fixed: np.ndarray | None = None,
                  modulus: float = 0.0, data: float = 0.0, friction: np.ndarray | None = None, coulomb: bool = False,
-                 specs: tuple[BlockSpec, ...] = blocks(2)):
+                 specs: tuple[BlockSpec, ...] = blocks(2), bond: Bond | None = None):
         """``weights`` and ``crack`` (bool) of the k multiplier nodes; ``contact``: non-penetration holds;
         ``specs``: the structure's blocks (:func:`ddsolve.mesh.mesh.blocks`);
         ``fixed`` ``(blocks, 2k)``: the blocks' prescribed trace entries (:mod:`ddsolve.fem.supports`): a
@@ -67,7 +77,8 @@ class Interface:
         the largest elastic modulus of the layers (the scale of the stresses a displacement makes, for the
         KKT check); ``data``: the displacement the scene's data would make
         (:func:`ddsolve.fem.assembly.data_displacement`, the KKT check's scale when the solution is zero);
-        ``friction`` ``(k,)``: Coulomb's μ (``coulomb``) or Tresca's bound g at each node (0: none)."""
+        ``friction`` ``(k,)``: Coulomb's μ (``coulomb``) or Tresca's bound g at each node (0: none); ``bond``: the
+        law of the bonded vertices (None: rigid), undamaged until :meth:`with_damage`."""
         self.modulus = float(modulus)
         self.data = float(data)
         self.weights = np.asarray(weights, dtype=np.float64)
@@ -116,6 +127,9 @@ class Interface:
         self.is_contact = np.zeros(self.size, dtype=bool)
         self.is_contact[self.slices["mu_c"]] = True
         self._friction_rows(friction, coulomb)
+        self.bond = bond
+        self.damage = np.zeros(k)
+        self.pressed = np.zeros(k, dtype=bool)
 
         # (family, block, sign): a family's gap rows are its minuend's trace less its subtrahend's.
         signs = [(name, block, sign) for name, pair in self.pairs.items() for block, sign in zip(pair, (1.0, -1.0))]
@@ -159,6 +173,33 @@ class Interface:
         normal = np.where(self.normal_row >= 0, lam[np.maximum(self.normal_row, 0)], 0.0)
         return self.friction_values * np.maximum(normal, 0.0)
 
+    def with_damage(self, damage: np.ndarray, pressed: np.ndarray) -> Interface:
+        """This interface with the bond's ``damage`` ``(k,)`` and its normal rows ``pressed`` ``(k,)`` (bool)."""
+        out = copy.copy(self)
+        out.damage, out.pressed = np.asarray(damage, dtype=np.float64), np.asarray(pressed, dtype=bool)
+        return out
+
+    def bond_rows(self, component: int) -> np.ndarray:
+        """The μᵍ rows of ``component`` (0: tangential, 1: normal)."""
+        rows = np.arange(self.size)[self.slices["mu_g"]]
+        return rows[self.component[rows] == component]
+
+    @property
+    def compliance(self) -> np.ndarray:
+        """``(size,)``: c of each row (gap = c λ; 0: rigid): 1/(k(1 − d)) on the bond's rows, 1/k on a pressed normal
+        row and on a broken vertex's (a penalized contact), 0 on a broken vertex's freed tangential row."""
+        out = np.zeros(self.size)
+        if self.bond is None:
+            return out
+        for component in (0, 1):
+            rows = self.bond_rows(component)
+            damage = self.damage[self.vertex[rows]]
+            if component == 1:
+                damage = np.where(self.pressed[self.vertex[rows]] | (damage >= BROKEN), 0.0, damage)
+            intact = damage < BROKEN
+            out[rows[intact]] = 1.0 / (self.bond.stiffness * (1.0 - damage[intact]))
+        return out
+
     @property
     def trace_size(self) -> int:
         return 2 * len(self.weights)
@@ -172,6 +213,12 @@ class Interface:
         upper = np.full(self.size, p)
         upper[self.is_friction] = np.minimum(0.0 if self.slip is None else self.slip, p)
         lower[self.is_friction] = -upper[self.is_friction]
+        if self.bond is not None:
+            tangential, normal = self.bond_rows(0), self.bond_rows(1)
+            broken = self.damage >= BROKEN
+            lower[tangential[broken[self.vertex[tangential]]]] = 0.0
+            upper[tangential[broken[self.vertex[tangential]]]] = 0.0
+            lower[normal[broken[self.vertex[normal]]]] = 0.0
         return lower, upper
 
     def gap(self, traces: np.ndarray) -> np.ndarray:
@@ -238,13 +285,15 @@ class Interface:
     def split(self, lam: np.ndarray, frames: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """Per-node arrays: mu_c ``(k,)``, mu_g, mu_minus, mu_plus ``(k, 2)``; 0 where absent (a one-layer
         structure has no mu_minus, mu_plus: they are left out); with friction mu_t ``(k,)`` (the tangential
-        traction, along τ) too.
+        traction, along τ) too; with a bond law its ``damage`` and ``pressed`` ``(k,)``.
 
         The vectors are in the nodes' local frames, or in (x, y) when their ``frames`` ``(k, 2, 2)`` are given.
         """
         k = len(self.weights)
         out = {"mu_c": np.zeros(k)}
         out["mu_c"][self.vertex[self.slices["mu_c"]]] = lam[self.slices["mu_c"]]
+        if self.bond is not None:  # the bond's state: its damage, and its pressed normal rows (0 or 1)
+            out["damage"], out["pressed"] = self.damage.copy(), self.pressed.astype(np.float64)
         if self.friction:
             out["mu_t"] = np.zeros(k)
             out["mu_t"][self.vertex[self.slices["mu_t"]]] = lam[self.slices["mu_t"]]
@@ -257,16 +306,19 @@ class Interface:
 
 
 def for_mesh(sigma: SigmaLine, contact: bool, fixed: np.ndarray | None = None, modulus: float = 0.0,
-             data: float = 0.0, friction: Friction | None = None, specs: tuple[BlockSpec, ...] = blocks(2)
-             ) -> Interface:
+             data: float = 0.0, friction: Friction | None = None, specs: tuple[BlockSpec, ...] = blocks(2),
+             bond: Bond | None = None) -> Interface:
     """The interface of a mesh's Σ (``contact``: the scene's non-penetration condition; ``fixed``: the
     blocks' prescribed trace entries; ``modulus``: the layers' largest modulus; ``data``: the displacement
     the data would make; ``friction``: the scene's, on its cracks in order along Σ; ``specs``: the structure's
-    blocks; see :class:`Interface`)."""
+    blocks; ``bond``: the law on the bonded part of Σ, which must exist; see :class:`Interface`)."""
     nodes = sigma.multiplier_nodes
     values = None if friction is None else friction_values(sigma, friction)[nodes]
+    if bond is not None and sigma.crack[nodes].all():
+        raise SceneError("interface.law: the law acts on the bonded part of Σ, and the cracks cover all of Σ (a "
+                         "crack's faces take contact.friction or contact.slip_bound instead)")
     return Interface(sigma.weights[nodes], sigma.crack[nodes], contact, fixed, modulus, data, values,
-                     friction is not None and friction.coulomb, specs)
+                     friction is not None and friction.coulomb, specs, bond)
 
 
 def friction_values(sigma: SigmaLine, friction: Friction) -> np.ndarray:

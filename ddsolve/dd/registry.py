@@ -50,6 +50,8 @@ class Method:
     remedy: Callable[[Solver], str] = _lower_tol  # what to change when its final check fails
     #: Whether it iterates Coulomb's friction itself, on rank 0 (else :func:`~ddsolve.dd.friction.coulomb` around it).
     fixed_point: bool = False
+    #: Whether it takes a bond's compliance on the dual problem (``[interface]``, :mod:`ddsolve.dd.cohesive`).
+    compliant: bool = False
 
     @property
     def name(self) -> str:
@@ -58,9 +60,9 @@ class Method:
 
 METHODS: dict[str, Method] = {method.name: method for method in (
     Method(OPTIONS["schur"], schur.schur, "mumps", floating=INTERIOR, schur_complements=True, remedy=schur.remedy,
-           fixed_point=True),
-    Method(OPTIONS["mprgp"], gradient.mprgp, resumes=_always),
-    Method(OPTIONS["fista"], gradient.fista, resumes=_always),
+           fixed_point=True, compliant=True),
+    Method(OPTIONS["mprgp"], gradient.mprgp, resumes=_always, compliant=True),
+    Method(OPTIONS["fista"], gradient.fista, resumes=_always, compliant=True),
     Method(OPTIONS["uzawa"], uzawa.uzawa, resumes=uzawa.resumes, remedy=uzawa.remedy),
     Method(OPTIONS["feti"], feti.feti, "mumps", floating=GENERALIZED_INVERSE, dirichlet=True, resumes=_always))}
 
@@ -68,6 +70,11 @@ METHODS: dict[str, Method] = {method.name: method for method in (
 def floating_methods() -> list[str]:
     """The methods that solve floating blocks."""
     return [name for name, method in METHODS.items() if method.floating]
+
+
+def compliant_methods() -> list[str]:
+    """The methods that take a bond's compliance."""
+    return [name for name, method in METHODS.items() if method.compliant]
 
 
 def iterating_methods() -> list[str]:

@@ -7,6 +7,7 @@ from typing import Callable
 
 import numpy as np
 
+from ddsolve.dd import cohesive
 from ddsolve.dd.constraints import displacement_scale
 from ddsolve.dd.dual import DualProblem, Outcome, Progress, Rounds
 from ddsolve.dd.friction import MAX_FIXED_POINT, no_fixed_point, relative_change, settled
@@ -140,7 +141,8 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
                       details={"rank0_solve_time": time.perf_counter() - started, "interface_unknowns": exact.size,
                                "active_set_steps": exact.steps, "active_set_time": exact.step_time,
                                **({"coulomb_iterations": exact.coulomb_iterations} if exact.coulomb_iterations else {})},
-                      held=predicted)
+                      held=predicted, state=exact.state)
+    record_bond(outcome, exact)
 
     def refine(solved_traces: np.ndarray, required: bool) -> np.ndarray | None:
         nonlocal predicted, uncoupled, condensed
@@ -158,10 +160,18 @@ def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progre
         outcome.details.update(active_set_steps=exact.steps, active_set_time=exact.step_time)
         if exact.coulomb_iterations:
             outcome.details["coulomb_iterations"] = exact.coulomb_iterations
+        outcome.state = exact.state
+        record_bond(outcome, exact)
         return problem.multipliers(y)
 
     outcome.refine = refine
     return outcome
+
+
+def record_bond(outcome: Outcome, exact: ExactDual) -> None:
+    """The bond's linear problems (where it has one) in ``outcome``'s details."""
+    if exact.interface.bond is not None:
+        outcome.details["bond_solves"] = exact.bond_solves
 
 
 class ExactDual:
@@ -210,11 +220,20 @@ class ExactDual:
         self.last_c: np.ndarray | None = None  # the last contact multipliers: the next solve starts from their set
         self.last: np.ndarray | None = None  # ... and the last multipliers with every bound
         self.steps, self.step_time = 0, 0.0  # active-set steps so far and their seconds (with their traces)
+        self.springs: SpringDual | None = None  # a bond's interface stiffness, made at its first solve
+        self.state: Interface | None = None  # the bond's last state (its damage), :meth:`bonded`
+        self.bond_solves = 0  # the linear problems of the bond's last fixed point
 
     def solve(self, initial: np.ndarray, condensed: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
         """The scaled multipliers, their predicted traces and the active-set steps for uncoupled
         traces ``initial`` and condensed loads ``condensed`` = S_b t⁰_b (only these with floating blocks)."""
         problem, lower_c, upper_c = self.problem, self.lower_c, self.upper_c
+        if self.interface.bond is not None:
+            mark = time.perf_counter()
+            y, traces, steps = self.bonded(initial, condensed)
+            self.steps += steps
+            self.step_time += time.perf_counter() - mark
+            return y, traces, steps
         body = np.zeros(self.size)
         for g_b, numbers in zip(condensed, self.unknowns):
             body[numbers] += g_b
@@ -264,6 +283,14 @@ class ExactDual:
         self.coulomb_iterations = iteration
         return y_c, steps
 
+    def bonded(self, initial: np.ndarray, condensed: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+        """A bond's problem on rank 0 by Newton's method on the interface stiffness (:class:`SpringDual`), with no
+        block solve: the scaled multipliers, their traces and the active-set steps in all."""
+        if self.springs is None:
+            self.springs = SpringDual(self.problem, self.schur_complements)
+        y, traces, steps, self.state, self.bond_solves = self.springs.newton(condensed)
+        return y, traces, steps
+
     def contact_step(self, loaded: np.ndarray, condensed: np.ndarray, y_c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Every scaled multiplier and the traces S⁻¹(body − Bᵀ W^½ y_c) for the contact multipliers ``y_c``
         (``loaded`` = L⁻¹ body)."""
@@ -301,6 +328,151 @@ class ExactDual:
                                                                 changed))
         self.last = y
         return y, full_step(y), more
+
+
+#: Newton's method on a bond has converged when no jump changes by more than this times the strength's elastic
+#: opening σ_c/k (the elastic law: the largest jump's).
+NEWTON_TOLERANCE = 1e-10
+#: At most this many Newton steps per load step (per attempt).
+MAX_NEWTON = 60
+#: The secant iteration a failed Newton attempt falls back to: at most this many solves, converged when no
+#: traction changes by more than this times the strength.
+FALLBACK_SOLVES, FALLBACK_TOLERANCE = 2000, 1e-4
+
+
+class SpringDual:
+    """``schur``'s solve of a bond on rank 0: the interface stiffness on the faces' unknowns (each layer's lower
+    face u⁻ = v⁻ tied, and its upper face u⁺ = v⁺), S = Σ_b P_bᵀ S_b P_b, with the bond's law between the faces
+    of each bonded vertex, linearized (:func:`ddsolve.dd.cohesive.response`: springs w K_t and a prestress) and
+    solved by Newton's method; the crack's rows (contact, friction) by :func:`box_qp` on their dual
+    A_c = J M⁻¹ Jᵀ of each linearized stiffness M, as :class:`ExactDual` does."""
+
+    def __init__(self, problem: DualProblem, schur_complements: np.ndarray):
+        interface = problem.interface
+        self.problem, self.interface, self.schur_complements = problem, interface, schur_complements
+        lower = np.arange(interface.trace_size)
+        self.half = interface.trace_size
+        self.unknowns = np.array([lower if spec.side < 0 else lower + self.half for spec in interface.blocks])
+        size = 2 * self.half
+        self.base = np.zeros((size, size))
+        for S_b, numbers in zip(schur_complements, self.unknowns):
+            self.base[np.ix_(numbers, numbers)] += S_b
+        self.crack = np.flatnonzero(interface.is_contact | interface.is_friction)
+        entries = interface.trace_index[self.crack]
+        self.faces = np.zeros((size, len(self.crack)))  # J: the faces' forces of a unit scaled crack multiplier
+        self.faces[entries, np.arange(len(self.crack))] = problem.sqrt_w[self.crack]
+        self.faces[entries + self.half, np.arange(len(self.crack))] = -problem.sqrt_w[self.crack]
+        rows = np.arange(interface.size)[interface.slices["mu_g"]]
+        self.vertices = np.unique(interface.vertex[rows])  # the bonded vertices, and their rows per component
+        self.rows = np.full((len(self.vertices), 2), -1)
+        self.rows[np.searchsorted(self.vertices, interface.vertex[rows]), interface.component[rows]] = rows
+        self.last: np.ndarray | None = None  # the crack rows' last multipliers: the next solve starts from their set
+        self.traces: np.ndarray | None = None  # the last load step's traces: Newton's start
+
+    def gaps(self, traces: np.ndarray) -> np.ndarray:
+        """``(m, 2)``: u⁻ − u⁺ of the bonded vertices (0 in a component without a row)."""
+        entries = 2 * self.vertices[:, None] + np.arange(2)
+        out = traces[0][entries] - traces[1][entries]
+        return np.where(self.rows >= 0, out, 0.0)
+
+    def newton(self, condensed: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, Interface, int]:
+        """The bond's problem for the condensed loads ``condensed`` = S_b t⁰_b from the history's damage: the scaled
+        multipliers, their traces, the active-set steps, the final state (damage, pressed rows) and the linear
+        problems solved (each a dense factorization of the interface stiffness).  Newton's method from the last
+        step's traces; where it fails (a vertex that breaks unloads its neighbours at once: the kinks of the law),
+        the monotone secant iteration (:meth:`secant`) and Newton's method again from there."""
+        interface, bond = self.interface, self.interface.bond
+        history = interface.damage[self.vertices]
+        y, traces, steps, solves = self.iterate(history, condensed, self.traces)
+        if y is None:
+            start, more_steps, more = self.secant(history, condensed, traces)
+            y, traces, steps, solves = self.iterate(history, condensed, start)
+            steps, solves = steps + more_steps, solves + more + MAX_NEWTON
+        if y is None:
+            raise SolverError(f"schur: Newton's method on the bond found no solution in {MAX_NEWTON} steps, after "
+                              "the secant iteration too")
+        law = cohesive.response(bond, history, self.gaps(traces))
+        present = self.rows >= 0
+        y[self.rows[present]] = (self.problem.sqrt_w[self.rows[present]] * law.traction[present])
+        damage, pressed = interface.damage.copy(), interface.pressed.copy()
+        damage[self.vertices], pressed[self.vertices] = law.damage, law.pressed
+        self.traces = traces
+        return y, traces, steps, interface.with_damage(damage, pressed), solves
+
+    def iterate(self, history: np.ndarray, condensed: np.ndarray, traces: np.ndarray | None
+                ) -> tuple[np.ndarray | None, np.ndarray, int, int]:
+        """Newton's method from ``traces`` (None: the undeformed faces): the scaled multipliers (None if it did not
+        converge in :data:`MAX_NEWTON` steps), the traces, the active-set steps and the Newton steps."""
+        bond, steps = self.interface.bond, 0
+        for solves in range(1, MAX_NEWTON + 1):
+            gap = np.zeros((len(self.vertices), 2)) if traces is None else self.gaps(traces)
+            law = cohesive.response(bond, history, gap)
+            prestress = law.traction - np.einsum("mij,mj->mi", law.tangent, gap)
+            y, traces, more = self.linear(law.tangent, prestress, condensed)
+            steps += more
+            change = np.abs(self.gaps(traces) - gap).max(initial=0.0)
+            reach = bond.strength / bond.stiffness if bond.strength else np.abs(self.gaps(traces)).max(initial=0.0)
+            if change <= NEWTON_TOLERANCE * reach:
+                return y, traces, steps, solves
+        return None, traces, steps, MAX_NEWTON
+
+    def secant(self, history: np.ndarray, condensed: np.ndarray, traces: np.ndarray
+               ) -> tuple[np.ndarray, int, int]:
+        """The monotone secant iteration from the ``history``: solve with the springs k(1 − d), raise d to the
+        damage of the new jumps, never lowering it, until no traction changes by more than
+        :data:`FALLBACK_TOLERANCE` σ_c: an increasing bounded sequence, which converges.  The traces, the active-set
+        steps and the solves."""
+        bond, damage, steps = self.interface.bond, history.copy(), 0
+        traces = None
+        for solves in range(1, FALLBACK_SOLVES + 1):
+            gap = np.zeros((len(self.vertices), 2)) if traces is None else self.gaps(traces)
+            raised = np.maximum(damage, cohesive.response(bond, damage, gap).damage)
+            effective = np.hypot(np.maximum(-gap[:, 1], 0.0), gap[:, 0])
+            if traces is not None and (np.abs(raised - damage) * effective).max(initial=0.0) * bond.stiffness \
+                    <= FALLBACK_TOLERANCE * bond.strength:
+                break
+            damage = raised
+            law = cohesive.response(bond, damage, gap)  # no growth beyond ``damage``: the secant springs
+            _, traces, more = self.linear(law.tangent, np.zeros_like(gap), condensed)
+            steps += more
+        return traces, steps, solves
+
+    def linear(self, tangent: np.ndarray, prestress: np.ndarray, condensed: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, int]:
+        """The linearized problem: the bonded rows' multipliers K_t (u⁻ − u⁺) + prestress (``tangent`` ``(m, 2, 2)``,
+        ``prestress`` ``(m, 2)``); its scaled multipliers, traces and active-set steps."""
+        import scipy.linalg  # on rank 0 only (see ExactDual)
+
+        matrix, body = self.base.copy(), np.zeros(len(self.base))
+        for g_b, numbers in zip(condensed, self.unknowns):
+            body[numbers] += g_b
+        weights = self.interface.weights[self.vertices]
+        lower = 2 * self.vertices[:, None] + np.arange(2)  # the vertices' entries on the lower and upper faces
+        upper = lower + self.half
+        for i in range(2):
+            held = self.rows[:, i] >= 0
+            np.subtract.at(body, lower[held, i], weights[held] * prestress[held, i])
+            np.add.at(body, upper[held, i], weights[held] * prestress[held, i])
+            for j in range(2):
+                both = held & (self.rows[:, j] >= 0)
+                spring = weights[both] * tangent[both, i, j]
+                for a, b, sign in ((lower, lower, 1.0), (upper, upper, 1.0), (lower, upper, -1.0), (upper, lower, -1.0)):
+                    np.add.at(matrix, (a[both, i], b[both, j]), sign * spring)
+        factor = scipy.linalg.lu_factor(matrix, check_finite=False)
+        free = scipy.linalg.lu_solve(factor, body, check_finite=False)
+        steps, y_c = 0, np.zeros(len(self.crack))
+        if len(self.crack):
+            flexible = scipy.linalg.lu_solve(factor, self.faces, check_finite=False)
+            bounds = self.interface.bounds(None)
+            lower_c, upper_c = (bound[self.crack] * self.problem.sqrt_w[self.crack] for bound in bounds)
+            y_c, steps = box_qp(self.faces.T @ flexible, self.faces.T @ free, lower_c, upper_c, start=self.last)
+            self.last = y_c
+            free = free - flexible @ y_c
+        traces = free[self.unknowns]
+        loads = np.einsum("bij,bj->bi", self.schur_complements, traces) - condensed  # ℓ_b = S_b t_b − g_b
+        y = self.problem.sqrt_w * self.interface.multipliers(loads)
+        y[self.crack] = y_c
+        return y, traces, steps
 
 
 def remedy(solver: Solver) -> str:

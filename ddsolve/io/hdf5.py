@@ -25,6 +25,8 @@ MULTIPLIERS = ("mu_c", "mu_g", "mu_minus", "mu_plus")
 ONE_LAYER_MULTIPLIERS = MULTIPLIERS[:2]
 #: The friction multiplier (the tangential traction between the crack faces), written with friction only.
 FRICTION = ("mu_t",)
+#: A bond law's (``[interface]``) per multiplier node: its damage and whether its normal row is pressed (0 or 1).
+BOND = ("damage", "pressed")
 #: A dataset of a result file holds at most this many times the file's size (ddsolve does not
 #: compress them): a larger claim is a damaged header, not read.
 READ_LIMIT = 16
@@ -166,7 +168,7 @@ def sigma_datasets(on: OnSigma, history: np.ndarray, active_set_changes: np.ndar
     out = {f"sigma/{key}": getattr(sigma, key) for key in SIGMA_FIELDS}
     out.update({"interface/x": sigma.points[nodes, 0], "interface/points": sigma.points[nodes],
                 "interface/normal": sigma.normals[nodes], "interface/crack": sigma.crack[nodes],
-                **{f"interface/{name}": on.multipliers[name] for name in MULTIPLIERS + FRICTION
+                **{f"interface/{name}": on.multipliers[name] for name in MULTIPLIERS + FRICTION + BOND
                    if name in on.multipliers},
                 **({"interface/friction_state": analysis.friction_state(on, friction)} if "mu_t" in on.multipliers else {}),
                 "history/criterion": np.asarray(history, dtype=np.float64),
@@ -301,16 +303,27 @@ def read(path: Path) -> Result:
     scenes.readable(path, "result file")
     try:
         with h5py.File(path, "r") as f:
-            interfaces = int(f.attrs.get("interfaces", 1))
-            result = _read(f, path) if interfaces == 1 else None
+            runs, interfaces = _runs(f), int(f.attrs.get("interfaces", 1))
+            result = None if runs or interfaces > 1 else _read(f, path)
     except (OSError, KeyError, TypeError, ValueError, IndexError, AttributeError, RuntimeError, MemoryError) as exc:
         raise DDSolveError(f"{path}: not a ddsolve result file ({' '.join(str(exc).split())})") from None
     except DDSolveError as exc:
         raise DDSolveError(f"{path}: not a ddsolve result file ({exc})") from None
+    if runs:
+        raise DDSolveError(f"{path}: the file of a {runs}, not one solve's result: give a result file written by "
+                           "solve or reference")
     if result is None:
         raise DDSolveError(f"{path}: a result of {interfaces} interfaces (ddsolve reference): reading it back is not "
                            "done yet; its /fracture, /solution and /mesh are plain HDF5 datasets")
     return result
+
+
+def _runs(f: h5py.File) -> str | None:
+    """What ``f`` is if it is the file of a growth (``/growth``) or a sweep (its runs' ``parameters``), which hold
+    many solves and no one result; None for any other file."""
+    if "growth" in f:
+        return "growth (its steps under /growth, docs/growth.md)"
+    return "sweep (its runs' outcomes, docs/usage.md)" if "parameters" in f and "keys" in f.attrs else None
 
 
 def _array(f: h5py.File, name: str, kind: str, shape: tuple) -> np.ndarray:
@@ -377,7 +390,8 @@ def _read(f: h5py.File, path: Path) -> Result:
                 for spec in specs}
     multipliers = {name: _array(f, f"interface/{name}", "f", (k,) if name == "mu_c" else (k, 2))
                    for name in (MULTIPLIERS if len(specs) == 4 else ONE_LAYER_MULTIPLIERS)}
-    multipliers.update({name: _array(f, f"interface/{name}", "f", (k,)) for name in FRICTION if f"interface/{name}" in f})
+    multipliers.update({name: _array(f, f"interface/{name}", "f", (k,)) for name in FRICTION + BOND
+                        if f"interface/{name}" in f})
     for name, kind, shape in (("x", "f", (k,)), ("points", "f", (k, 2)), ("normal", "f", (k, 2)), ("crack", "b", (k,))):
         _array(f, f"interface/{name}", kind, shape)  # derived from the above: only their form is checked
     cell_data = {}

@@ -359,12 +359,15 @@ def whole_mesh_checks(scene: Scene, mesh: Mesh) -> tuple[list[fracture.Tip], Sig
     """What needs the whole mesh (rank 0, before it is distributed): the loads' and displacements'
     boundaries, the range of the moduli and loads, the supports (a structure that can move rigidly is
     refused); the crack tips with their θ radii (which keep clear of the outer boundary), the Σ supports
-    and the blocks' kernels."""
+    and the blocks' kernels; a per-crack toughness or friction against the mesh's cracks."""
     geometry.check_loads(scene, mesh)
     table = supports.check(scene, mesh)
     check_range(scene, mesh)
     block_kernels = kernels.of_scene(scene, mesh, table)
-    toughness.check_cracks(scene, len(mesh.sigma.pieces(mesh.sigma.crack)))
+    cracks = len(mesh.sigma.pieces(mesh.sigma.crack))
+    toughness.check_cracks(scene, cracks)
+    if scene.friction is not None:
+        scene.friction.per_crack(cracks)  # refused here once, before every rank builds its interface
     return fracture.find_tips(mesh, scene.fracture.inner, scene.fracture.outer), table, block_kernels
 
 

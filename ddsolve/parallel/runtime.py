@@ -353,6 +353,7 @@ def guarded(call) -> int:
                 sys.stdout.flush()  # a full disk or a closed pipe is this command's error
             return status
     except DDSolveError as exc:
+        interrupts_ignored()  # the status is decided: another rank's abort (SIGTERM) must not cut this report short
         report(f"ddsolve: error: {exc}", everywhere=not exc.collective)
         if not exc.collective:  # raised on this rank only: the others cannot know, so stop them
             abort(exc.exit_status)

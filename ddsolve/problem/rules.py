@@ -29,7 +29,14 @@ def cross_checks(data: dict, raw: dict, origin: str) -> None:
     _radii_checks(data, origin)
     _toughness_checks(data, origin)
     _split_checks(data, origin)
+    _reference_length_checks(data, origin)
     _friction_checks(data, origin)
+    _bond_checks(data["interface"], origin)
+    coulomb = data["contact"]["friction"]
+    if data["interface"]["law"] is not None and coulomb is not None and max(
+            coulomb if isinstance(coulomb, tuple) else (coulomb,), default=0.0) > 0.0:
+        raise SceneError(f"{origin}: contact.friction (Coulomb) is not solved with interface.law: give the crack "
+                         "faces Tresca's contact.slip_bound, or no friction")
 
 
 def _geometry_checks(geometry: dict, given: set[str], origin: str) -> None:
@@ -187,23 +194,49 @@ def dissimilar_layers(data: dict, thermal: bool = True) -> list[str]:
                                 for layer in layers_of(data)}, data["materials"]["model"], thermal)
 
 
-def _split_checks(data: dict, origin: str) -> None:
-    """A mode-dependent toughness law needs G's split into modes, which regions of different elastic laws on the two
-    sides of Σ leave undefined unless they have an effective isotropic pair (an interface crack: its phase ψ,
-    :func:`ddsolve.problem.materials.interface_pair`)."""
-    law = data["fracture"]["law"]
-    dissimilar = dissimilar_layers(data, thermal=False)
-    if law is None or not dissimilar:
+def _reference_length_checks(data: dict, origin: str) -> None:
+    """``fracture.reference_length`` sets the phase of an interface crack between different materials that have an
+    effective isotropic pair: a scene whose layers have no region of their own material (``materials.LAYER.REGION``)
+    has no such crack (ψ = arg K at any length), and regions without a pair leave G unsplit."""
+    if data["fracture"]["reference_length"] is None:
         return
+    if not any(isinstance(inner, dict) for layer in layers_of(data) for inner in data["materials"][layer].values()):
+        raise SceneError(f"{origin}: fracture.reference_length: no layer has a region of its own material "
+                         "(materials.LAYER.lower or .upper), so no crack lies between different materials and the "
+                         "phase ψ is the same at every length: leave it out")
+    unpaired = _unpaired_regions(data)
+    if unpaired is not None:
+        raise SceneError(f"{origin}: fracture.reference_length: the regions of materials.{unpaired[0]} (below and "
+                         f"above Σ) differ where {unpaired[1]}, so G is not split into modes and has no phase: "
+                         "leave it out")
+
+
+def _unpaired_regions(data: dict) -> tuple[str, str] | None:
+    """A layer whose regions on the two sides of an interface have different elastic laws without an effective
+    isotropic pair (:func:`ddsolve.problem.materials.interface_pair`), and why; None where every pair exists."""
+    dissimilar = dissimilar_layers(data, thermal=False)
+    if not dissimilar:
+        return None
     model = data["materials"]["model"]
     laws = {region: [materials.elasticity(layer_material(acting_tables(data, layer)[region][1]), model)[0]
                      for layer in layers_of(data)] for region in _regions(data)}
     for lower, upper in zip(list(laws), list(laws)[1:]):
         pair = materials.interface_pair(laws[lower], laws[upper])
         if isinstance(pair, str):
-            raise SceneError(f"{origin}: fracture.law = {law} needs G's split into modes I and II, which is not "
-                             f"defined between the different materials of the regions of materials.{dissimilar[0]} "
-                             f"(below and above Σ) where {pair}: give one toughness, fracture.toughness")
+            return dissimilar[0], pair
+    return None
+
+
+def _split_checks(data: dict, origin: str) -> None:
+    """A mode-dependent toughness law needs G's split into modes, which regions of different elastic laws on the two
+    sides of Σ leave undefined unless they have an effective isotropic pair (an interface crack: its phase ψ,
+    :func:`ddsolve.problem.materials.interface_pair`)."""
+    law = data["fracture"]["law"]
+    unpaired = None if law is None else _unpaired_regions(data)
+    if unpaired is not None:
+        raise SceneError(f"{origin}: fracture.law = {law} needs G's split into modes I and II, which is not "
+                         f"defined between the different materials of the regions of materials.{unpaired[0]} "
+                         f"(below and above Σ) where {unpaired[1]}: give one toughness, fracture.toughness")
 
 
 def _load_checks(data: dict, origin: str) -> None:
@@ -276,17 +309,58 @@ def _friction_checks(data: dict, origin: str) -> None:
                          "on crack faces in contact)")
     if given:
         _check_per_crack(data, contact[given[0]], f"contact.{given[0]}", origin)
+        values = contact[given[0]] if isinstance(contact[given[0]], tuple) else (contact[given[0]],)
+        if _crack_count(data) == 0 and data["mesh"]["file"] is None and any(values):
+            raise SceneError(f"{origin}: contact.{given[0]}: the scene has no crack (geometry.cracks), so there are "
+                             "no crack faces for friction to act on: leave it out, or give the crack")
+
+
+def _crack_count(data: dict) -> int:
+    """The cracks of a box scene's geometry, on every interface."""
+    geometry = data["geometry"]
+    return len(geometry["cracks"]) + sum(len(more) for _, more in geometry["above"])
 
 
 def _check_per_crack(data: dict, values, key: str, origin: str) -> None:
     """A per-crack list (``values`` at ``key``) has one value per crack of a box: interface by interface,
     bottom to top, in order along each (a mesh file's cracks are counted on its mesh)."""
-    geometry = data["geometry"]
-    cracks = len(geometry["cracks"]) + sum(len(more) for _, more in geometry["above"])
+    geometry, cracks = data["geometry"], _crack_count(data)
     if isinstance(values, tuple) and data["mesh"]["file"] is None and len(values) != cracks:
         order = "in order along Σ" if not geometry["above"] else "interface by interface, bottom to top"
         raise SceneError(f"{origin}: {key} lists {len(values)} values for the {cracks} crack"
                          f"{'' if cracks == 1 else 's'} of geometry.cracks (one per crack, {order})")
+
+
+#: The bilinear law's default initial slope makes the opening at the peak this fraction of the opening where the
+#: traction vanishes (δ₀ = BOND_OPENING δ_f, δ_f = 2G_c/σ_c): k = σ_c²/(2 BOND_OPENING G_c).
+BOND_OPENING = 1e-3
+
+
+def _bond_checks(bond: dict, origin: str) -> None:
+    """``[interface]``: a law and the keys it needs (elastic: stiffness; bilinear: strength and toughness, the
+    stiffness by default from :data:`BOND_OPENING`; the mixed-mode rule with G_IIc, eta and shear_strength), and no
+    key without a law that reads it."""
+    given = [key for key, value in bond.items() if value is not None and key != "law"]
+    law = bond["law"]
+    needs = {None: (), "elastic": ("stiffness",), "bilinear": ("strength", "toughness")}[law]
+    reads = {None: (), "elastic": ("stiffness",), "bilinear": tuple(key for key in bond if key != "law")}[law]
+    if bond["mode_mix"] is not None:
+        needs += ("G_IIc", "eta", "shear_strength")
+    for key in needs:
+        if bond[key] is None:
+            raise SceneError(f"{origin}: interface.{key} is needed by interface.law = \"{law}\""
+                             + (f" with interface.mode_mix" if key in ("G_IIc", "eta", "shear_strength") else ""))
+    for key in given:
+        if key not in reads or (key in ("G_IIc", "eta", "shear_strength") and bond["mode_mix"] is None):
+            raise SceneError(f"{origin}: interface.{key} is not read " + (
+                "without interface.law (\"elastic\" or \"bilinear\")" if law is None else
+                f"by interface.law = \"{law}\"" + ("" if law == "elastic" else " without interface.mode_mix")))
+    if law == "bilinear" and bond["stiffness"] is None:
+        bond["stiffness"] = bond["strength"] ** 2 / (2.0 * BOND_OPENING * bond["toughness"])
+    if law == "bilinear" and bond["strength"] ** 2 / bond["stiffness"] >= 2.0 * bond["toughness"]:
+        raise SceneError(f"{origin}: interface.stiffness = {bond['stiffness']:g} is too small for the strength and "
+                         "toughness: the elastic opening at the peak must be below the opening 2 G_c/σ_c where the "
+                         f"traction vanishes (stiffness > {bond['strength'] ** 2 / (2.0 * bond['toughness']):g})")
 
 
 def _temperature_checks(data: dict, origin: str) -> None:

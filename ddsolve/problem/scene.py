@@ -41,7 +41,7 @@ from ddsolve.problem.schema import (ADAPTIVE_DEGREE, DEFAULT_TOL, GEOMETRIC_TOLE
 __all__ = ["ADAPTIVE_DEGREE", "COARSE", "CONDITIONING", "DEFAULT_TOL",
            "GEOMETRIC_TOLERANCE", "GRADING", "LAWS", "LAYERS", "MAX_ANGLE", "MAX_SPACING_RATIO",
            "OPTIONAL_TABLES", "PAPER_BOX", "PAPER_CRACK", "REGIONS", "REPLACES", "REQUIRED", "SAME_COMPONENT", "SCHEMA",
-           "SIDES", "STOP_RULES", "Components", "Displacement", "FractureOptions", "Friction", "Geometry", "Invalid", "Load", "MeshOptions",
+           "SIDES", "STOP_RULES", "Components", "Displacement", "Bond", "FractureOptions", "Friction", "Geometry", "Invalid", "Load", "MeshOptions",
            "Scene", "Solver", "Tables", "apply_overrides", "builtin_folder", "builtin_scenes", "coarse_size", "dumps", "load",
            "loads", "override_items", "parse_override", "printable", "readable", "utf8_text"]
 
@@ -213,7 +213,11 @@ class Friction:
         return "contact.friction" if self.coulomb else "contact.slip_bound"
 
     def per_crack(self, cracks: int) -> tuple[float, ...]:
-        """The value of each of ``cracks`` cracks; a list of another length is refused naming the key."""
+        """The value of each of ``cracks`` cracks; a list of another length, or a mesh without cracks, is refused
+        naming the key."""
+        if cracks == 0:
+            raise SceneError(f"{self.key}: the mesh has no crack, so there are no crack faces for friction to act on: "
+                             "leave it out")
         if not isinstance(self.values, tuple):
             return (float(self.values),) * cracks
         if len(self.values) != cracks:
@@ -229,6 +233,28 @@ class Friction:
             if values is not None and any(v > 0 for v in (values if isinstance(values, tuple) else (values,))):
                 return cls(coulomb, values)
         return None
+
+
+@dataclass(frozen=True)
+class Bond:
+    """The traction–separation law of ``[interface]`` on the bonded part of Σ (:mod:`ddsolve.dd.cohesive`):
+    ``elastic`` (traction = ``stiffness`` × jump, no damage) or ``bilinear`` (peak ``strength`` σ_c, area
+    ``toughness`` G_c, initial slope ``stiffness``; mixed mode by Benzeggagh–Kenane with ``G_IIc``, ``eta`` and
+    ``shear_strength``)."""
+
+    law: str
+    stiffness: float
+    strength: float | None = None
+    toughness: float | None = None
+    mode_mix: str | None = None
+    G_IIc: float | None = None
+    eta: float | None = None
+    shear_strength: float | None = None
+
+    @classmethod
+    def of(cls, table: dict) -> Bond | None:
+        """From the checked ``interface`` table (its stiffness filled in); None without a law."""
+        return None if table["law"] is None else cls(**table)
 
 
 @dataclass(frozen=True)
@@ -251,6 +277,8 @@ class Scene:
     regions: dict[tuple[str, str], materials.Material] = field(default_factory=dict)
     #: Friction on the crack faces in contact (``contact.friction`` or ``contact.slip_bound``); None: they slide freely.
     friction: Friction | None = None
+    #: The cohesive (or elastic) bond on the bonded part of Σ (``[interface]``); None: a rigid bond.
+    bond: Bond | None = None
     text: str = field(repr=False, default="")
     #: The text the scene was read from and the ``--set`` items applied to it, in order: what
     #: :meth:`with_` reads again, so that defaults that follow other keys follow the new values too.
@@ -344,6 +372,7 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str, 
         loads=loads,
         nonpenetration=data["contact"]["nonpenetration"],
         friction=Friction.of(data["contact"]),
+        bond=Bond.of(data["interface"]),
         solver=Solver(**data["solver"]),
         fracture=FractureOptions(**{"lambda_" if key == "lambda" else key: value
                                     for key, value in data["fracture"].items()}),

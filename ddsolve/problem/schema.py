@@ -43,6 +43,9 @@ GRADING = {1: 0.4, 2: 0.2}
 #: P2 converges as N^-1 on adapted meshes, P1 as N^-½ (docs/accuracy.md).
 ADAPTIVE_DEGREE = 2
 #: The mode-dependent toughness laws (``fracture.law``) and the keys each needs (docs/fracture.md).
+#: The traction–separation laws of ``[interface]`` on the bonded part of Σ, and their mixed-mode rules.
+BOND_LAWS = ("elastic", "bilinear")
+MODE_MIXES = ("benzeggagh-kenane",)
 LAWS = {"benzeggagh-kenane": ("G_Ic", "G_IIc", "eta"), "hutchinson-suo": ("G_Ic", "lambda")}
 
 
@@ -167,7 +170,10 @@ def _heights(value: Any) -> float | tuple[float, ...]:
     """Σ's height, or the heights of several interfaces bottom to top (``[y1, y2, ...]``, strictly increasing)."""
     if not isinstance(value, list):
         return _number(value)
-    heights = _numbers(value)
+    try:
+        heights = _numbers(value)
+    except (TypeError, ValueError) as exc:
+        raise type(exc)(f"a number or a list [y1, y2, ...] of heights, each {exc}") from None
     if not heights:
         raise ValueError("a number or a list [y1, y2, ...] of at least one height")
     crossing = next((k for k in range(1, len(heights)) if not heights[k - 1] < heights[k]), None)
@@ -194,14 +200,22 @@ def _crack_lists(value: Any) -> tuple[tuple[float, float], ...] | PerInterface:
         raise ValueError(f"one list of intervals per interface, each {exc}") from None
 
 
+def _pair(item: Any) -> tuple[float, ...] | None:
+    """Two finite numbers, or None."""
+    try:
+        return _numbers(item) if isinstance(item, list) and len(item) == 2 else None
+    except (TypeError, ValueError):
+        return None
+
+
 def _intervals(value: Any) -> tuple[tuple[float, float], ...]:
     if not isinstance(value, list):
         raise TypeError("a list of [a, b] intervals")
     pieces = []
     for item in value:
-        piece = _numbers(item) if isinstance(item, list) else None
-        if piece is None or len(piece) != 2 or not piece[0] < piece[1]:
-            raise ValueError("a list of [a, b] intervals with a < b")
+        piece = _pair(item)
+        if piece is None or not piece[0] < piece[1]:
+            raise ValueError("a list of [a, b] intervals of finite numbers with a < b")
         pieces.append(piece)
     pieces.sort()
     for (_, b), (a, _) in zip(pieces[:-1], pieces[1:]):
@@ -267,17 +281,23 @@ def _toughness(value: Any) -> float | tuple[float, ...]:
         raise ValueError("a number > 0 (every tip) or a list of numbers > 0 (one per crack)") from None
 
 
+#: The largest friction coefficient or slip bound: far beyond it the faces stick wherever they touch, and the
+#: bounds (μ times the contact pressure, over the rows' norms) leave double precision.
+MAX_FRICTION = 1e100
+
+
 def _per_crack(value: Any) -> float | tuple[float, ...]:
-    """A value ≥ 0 for every crack, or a list of them, one per crack in order along Σ."""
+    """A value in [0, MAX_FRICTION] for every crack, or a list of them, one per crack in order along Σ."""
     def checked(item: Any) -> float:
         item = _number(item)
-        if item < 0:
+        if not 0.0 <= item <= MAX_FRICTION:
             raise ValueError
-        return item
+        return abs(item)  # -0.0 is 0
     try:
         return checked(value) if not isinstance(value, list) else tuple(checked(v) for v in value)
     except (TypeError, ValueError):
-        raise ValueError("a number >= 0 (every crack) or a list of numbers >= 0 (one per crack)") from None
+        raise ValueError(f"a number >= 0 up to {MAX_FRICTION:g} (every crack) or a list of them (one per crack); "
+                         f"long before {MAX_FRICTION:g} the faces stick wherever they touch") from None
 
 
 def _unit(value: Any) -> float:
@@ -424,6 +444,10 @@ SCHEMA: dict[str, Any] = {
                  "G_Ic": (_positive(_number), None), "G_IIc": (_positive(_number), None),
                  "eta": (_positive(_number), None), "lambda": (_unit, None),
                  "reference_length": (_positive(_number), None)},
+    "interface": {"law": (_choice(BOND_LAWS), None), "stiffness": (_positive(_number), None),
+                  "strength": (_positive(_number), None), "toughness": (_positive(_number), None),
+                  "mode_mix": (_choice(MODE_MIXES), None), "G_IIc": (_positive(_number), None),
+                  "eta": (_positive(_number), None), "shear_strength": (_positive(_number), None)},
 }
 # Tables that exist only when the scene writes them (a boundary without a load is not integrated).
 # A region's table in a layer's material (materials.LAYER.REGION) is optional too (:func:`_optional`).

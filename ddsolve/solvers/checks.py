@@ -45,7 +45,8 @@ def check_size(scene, ranks: int = 1, solving: bool = True) -> None:
 
 
 #: The sections of a scene that ``mesh`` does not read, besides mesh.target_error.
-NOT_MESHING = ("title", "materials", "loads", "displacements", "temperature", "contact", "solver", "fracture")
+NOT_MESHING = ("title", "materials", "loads", "displacements", "temperature", "contact", "solver", "fracture",
+               "interface")
 
 
 #: Material keys that give only the out-of-plane stress or strain (``plane_stress``: E3, nu13 and nu23;
@@ -65,6 +66,8 @@ def unread(command: str, path: list[str], scene) -> str | None:
         if section in NOT_MESHING or path[:2] == ["mesh", "target_error"]:
             return "mesh makes the starting mesh only (solve, reference and sweep read the key)"
         return None
+    if section == "interface" and command == "reference":
+        return "the monolithic reference ties the bonded faces of Σ (solve and sweep solve a bond law)"
     if section == "solver" and command == "reference" and path[1:] != ["out_of_core"]:
         return ("it sets how solve and sweep iterate and bound their multipliers, and reference solves the discrete "
                 "problem exactly, without a bound")

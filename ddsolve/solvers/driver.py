@@ -51,6 +51,8 @@ def run_method(scene: Scene, setup: "Setup", server: BlockServer, progress):
         return final_check.checked_solve(method, rounds, interface, scene.solver, dual.Progress(method, out=progress))
 
     outcome, rounds, failure = drive(setup, server, work)
+    if outcome is not None and outcome.state is not None:  # rank 0: the state its multipliers solve (a bond's damage)
+        setup.interface = outcome.state
     if failure is None and outcome is not None:
         if outcome.diverged:
             failure = DivergedError(outcome.message)
@@ -139,7 +141,7 @@ def reload(setup: "Setup", scene: Scene) -> None:
         setup.mesh = replace(local, sigma_supports=supports.sigma_supports(scene, whole_mesh))
     systems = collective(setup.exchange.comm, lambda: local_systems(scene, setup.mesh, setup.exchange, setup.pieces))
     for block, system in zip(setup.blocks, systems):
-        block.system = replace(block.system, rhs=system.rhs)
+        block.system = replace(block.system, rhs=system.rhs, energy_offset=system.energy_offset)  # both the data's
     setup.interface = interface_of(scene, setup.mesh, setup.exchange.comm)  # the new data's displacement
     setup.phases = Phases()
     setup.phases.end("assembly")
@@ -151,7 +153,7 @@ def interface_of(scene: Scene, local: LocalMesh, comm: MPI.Comm) -> Interface:
     largest over the ranks' halves or pieces (:func:`ddsolve.fem.assembly.data_displacement`)."""
     data = comm.allreduce(assembly.data_displacement(scene, local.halves.values(), local.sigma), op=MPI.MAX)
     return for_mesh(local.sigma, scene.nonpenetration, local.sigma_supports.fixed, assembly.modulus(scene), data,
-                    scene.friction, block_list(scene.geometry.layers))
+                    scene.friction, block_list(scene.geometry.layers), scene.bond)
 
 
 def prepare(scene: Scene, comm: MPI.Comm, mesh: Mesh | None = None, phases: Phases | None = None,
@@ -254,6 +256,8 @@ def resolve(scene: Scene, ranks: int, mesh: LocalMesh) -> Scene:
     """The scene with ``auto`` replaced by the method :func:`ddsolve.dd.registry.choose` picks."""
     if scene.solver.method in registry.METHODS:
         return scene
+    if scene.bond is not None:  # a bond's problem is solved on rank 0, with the blocks' Schur complements
+        return dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, method="schur"))
     sigma = mesh.sigma
     crack_rows = int(sigma.crack[sigma.multiplier_nodes].sum()) if scene.nonpenetration else 0
     method = registry.choose(ranks, 2 * max(mesh.nodes.values()), len(sigma.multiplier_nodes), crack_rows,

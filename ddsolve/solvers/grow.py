@@ -86,6 +86,10 @@ class State:
     #: every controlled boundary (``LAYER.NAME``): its force (x, y; the load, or the reaction where the
     #: displacement is prescribed) and its mean displacement (x, y)
     boundaries: dict[str, np.ndarray] = field(default_factory=dict)
+    #: a damaging bond's run (:mod:`ddsolve.solvers.bond_growth`): the damage at every Σ node and the length of Σ
+    #: where 0 < d < 1
+    damage: np.ndarray | None = None
+    process_zone: float = float("nan")
 
     @property
     def ratio(self) -> np.ndarray:
@@ -101,6 +105,7 @@ class Step:
     unstable: bool = False
     events: list[str] = field(default_factory=list)
     solves: int = 0
+    bond_solves: int = 0  # a damaging bond's run: the linear problems on Σ of its nonlinear one (Newton's steps)
 
 
 def control_kind(scene: Scene) -> str:

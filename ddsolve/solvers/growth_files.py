@@ -118,6 +118,10 @@ def table(scene: Scene, kind: str, limit: float, tolerance: float, steps: list) 
     values = {key: np.array([s.state.boundaries.get(key, np.full(4, np.nan)) for s in steps]).reshape(count, 4)
               for key in keys}
     data["boundaries"] = {key: {"force": v[:, :2], "displacement": v[:, 2:]} for key, v in values.items()}
+    if steps[0].state.damage is not None:  # a damaging bond's run
+        data["damage"] = np.array([s.state.damage for s in steps])
+        data["process_zone"] = np.array([s.state.process_zone for s in steps])
+        data["bond_solves"] = np.array([s.bond_solves for s in steps], dtype=np.int64)
     data["attrs"] = {"scene": scene.origin, "scene_text": scene.text, "control_kind": kind, "limit": limit,
                      "tolerance": tolerance, "steps": count}
     return data
@@ -156,6 +160,9 @@ def write_csv(name: str, data: dict) -> None:
     for c in range(data["cracks"].shape[1]):
         header += [f"crack {c + 1} start", f"crack {c + 1} end"]
         columns += [data["cracks"][:, c, 0], data["cracks"][:, c, 1]]
+    if "process_zone" in data:
+        header.append("process zone")
+        columns.append(data["process_zone"])
     header += ["energy", "unstable", "events"]
     columns += [data["energy"], data["unstable"].astype(int), data["events"]]
     with open(name, "w", newline="") as out:

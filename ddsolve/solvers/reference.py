@@ -247,11 +247,19 @@ def refuse_friction(scene: Scene) -> None:
                           "the crack faces' normal jump only): solve the scene with a multiplier method (solver.method)")
 
 
+def refuse_bond(scene: Scene) -> None:
+    """The reference ties the bonded vertices' faces: a bond law (``[interface]``) is refused in one line."""
+    if scene.bond is not None:
+        raise SolverError("reference: interface.law is not solved by the monolithic reference (it ties the bonded "
+                          "faces): solve the scene with solver.method = \"schur\", \"mprgp\" or \"fista\"")
+
+
 def solve_assembled(scene: Scene, mesh: Mesh, systems: list[BlockSystem],
                     table: supports.SigmaSupports | None = None) -> Result:
     """The scene's discrete problem from its assembled ``systems`` (Σ supports ``table``, made from the mesh if
     not given), with the KKT check; timings per phase of :data:`PHASES` (wall and ``_cpu``), ``total`` their sum."""
     refuse_friction(scene)
+    refuse_bond(scene)
     table = table if table is not None else supports.sigma_supports(scene, mesh)
     interface = for_mesh(mesh.sigma, scene.nonpenetration, table.fixed, assembly.modulus(scene),
                          assembly.data_displacement(scene, mesh.halves, mesh.sigma),

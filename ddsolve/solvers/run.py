@@ -64,6 +64,7 @@ def reference(scene: Scene, output: Path | None = None, progress: Callable[[str]
     with a toughness and a temperature change come from reference solves of the scaled scene."""
     _before_work(scene, solving=not scene.geometry.above)
     monolithic.refuse_friction(scene)
+    monolithic.refuse_bond(scene)
     if scene.geometry.above:
         return _stack_reference(scene, output)
     if scene.mesh.target_error is not None:  # adaptive, every level solved by the reference

@@ -1,0 +1,152 @@
+"""The bond on Σ (``[interface]``): validation runs, a function per case returning its numbers.
+
+- :func:`stiff_limit`: the elastic law on Example 2 (``full-opening``) against the rigid bond as the stiffness
+  grows (the energy's difference falls as 1/k), by ``schur`` and ``mprgp`` (the same discrete problem solved
+  two ways: on rank 0 from the Schur complements, and by rounds of block solves);
+- :func:`bilinear_methods`: the bilinear law in one load step by ``schur`` (Newton's method) and ``mprgp`` (the
+  secant fixed point), against each other;
+- :func:`dcb_growth`: a displacement-controlled DCB (two identical layers, plane strain, E = 200, arms h = 1)
+  grown with the bilinear law (strength 0.005 E, toughness G_c) against the Griffith growth of the same
+  structure with the rigid bond (``ddsolve grow`` with ``[fracture] toughness = G_c``, the same mesh): the load
+  before damage against the linear curve, and the load once the crack grows against the Griffith load at the
+  same opening (interpolated along the Griffith run's stable branch).
+
+``python -m experiments.cohesive`` prints them.  Nothing in ``ddsolve/`` imports this module.
+"""
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from experiments import delamination as beams
+
+#: The DCB: length, arm thickness, initial crack, E, ν (both layers), the strength σ_c = 0.005 E and G_c.
+LENGTH, ARM, CRACK, MODULUS, POISSON = 12.0, 1.0, 4.0, 200.0, 0.28
+STRENGTH, TOUGHNESS = 0.005 * MODULUS, 2e-3
+#: The uniform P2 mesh's size.
+SIZE = 0.1
+
+
+def dcb_scene(bond: bool, size: float = SIZE, toughness: float = TOUGHNESS):
+    """The DCB under a unit opening (±1/2 on both layers' left end faces of the arms), clamped on the right, on a
+    uniform P2 mesh of ``size``; with the bilinear bond (``bond``) or the Griffith toughness."""
+    from ddsolve.problem import scene as scenes
+
+    folder = Path(tempfile.mkdtemp(prefix="cohesive-"))
+    name = f"dcb-{'bond' if bond else 'griffith'}"
+    (folder / f"{name}.geo").write_text(beams.strip_geo(LENGTH, ARM, [(0.0, CRACK)], {"clamped": [("right", -ARM, ARM)]}))
+    displacements = "".join(f"[displacements.{layer}.{face}]\ny = {value}\n" for layer in ("layer1", "layer2")
+                            for face, value in (("left_upper", 0.5), ("left_lower", -0.5)))
+    materials = "".join(f"[materials.{layer}]\nE = {MODULUS}\nnu = {POISSON}\n" for layer in ("layer1", "layer2"))
+    law = (f'[interface]\nlaw = "bilinear"\nstrength = {STRENGTH!r}\ntoughness = {toughness!r}\n' if bond else
+           f"[fracture]\ntoughness = {toughness!r}\n")
+    text = (f'title = "{name}"\n[mesh]\nfile = "{name}.geo"\nsize = {size!r}\ndegree = 2\n{materials}{displacements}'
+            f'{law}[solver]\nmethod = "schur"\n')
+    (folder / f"{name}.toml").write_text(text)  # for the command line: ddsolve grow FOLDER/dcb-bond.toml --to F
+    return scenes.loads(text, origin=name, base=folder)
+
+
+def stiff_limit(stiffnesses=(1e3, 1e5, 1e7, 1e9)) -> list[dict]:
+    """The elastic law on ``full-opening`` against the rigid bond: per stiffness and method the energy, its
+    relative difference from the rigid bond's, and the methods' difference."""
+    import ddsolve
+
+    rows = []
+    for method in ("schur", "mprgp"):
+        scene = ddsolve.Scene.load("full-opening", [f'solver.method="{method}"'])
+        rigid = float(ddsolve.solve(scene, progress=lambda line: None).attrs["energy"])
+        for k in stiffnesses:
+            result = ddsolve.solve(scene.with_(['interface.law="elastic"', f"interface.stiffness={k!r}"]),
+                                   progress=lambda line: None)
+            energy = float(result.attrs["energy"])
+            rows.append({"method": method, "stiffness": k, "energy": energy, "rigid": rigid,
+                         "difference": abs(energy - rigid) / abs(rigid), "iterations": result.iterations})
+    by = {(row["method"], row["stiffness"]): row["energy"] for row in rows}
+    for row in rows:
+        row["methods_differ"] = abs(by["schur", row["stiffness"]] - by["mprgp", row["stiffness"]]) / abs(row["energy"])
+    return rows
+
+
+def bilinear_methods(strength: float = 0.002, toughness: float = 1e-6) -> dict:
+    """The bilinear law on ``full-opening`` in one load step by ``schur`` (Newton's method on rank 0) and ``mprgp``
+    (the secant fixed point in the dual): their energies, largest damage, linear problems on Σ and iterations, and
+    the relative energy difference and largest damage difference between them."""
+    import ddsolve
+
+    out = {}
+    for method in ("schur", "mprgp"):
+        scene = ddsolve.Scene.load("full-opening", [f'solver.method="{method}"', 'interface.law="bilinear"',
+                                                    f"interface.strength={strength!r}",
+                                                    f"interface.toughness={toughness!r}"])
+        result = ddsolve.solve(scene, progress=lambda line: None)
+        out[method] = {"energy": float(result.attrs["energy"]), "damage": np.asarray(result.multipliers["damage"]),
+                       "bond_solves": int(result.attrs["bond_solves"]), "iterations": result.iterations,
+                       "rounds": result.solves}
+    schur, mprgp = out["schur"], out["mprgp"]
+    out["energy_difference"] = abs(schur["energy"] / mprgp["energy"] - 1.0)
+    out["damage_difference"] = float(np.abs(schur["damage"] - mprgp["damage"]).max())
+    out["largest_damage"] = float(schur["damage"].max())
+    return out
+
+
+def griffith_load(opening: float, griffith: dict) -> float:
+    """The Griffith run's load at ``opening`` on its branch (linear before initiation, then its grown steps)."""
+    return float(np.interp(opening, griffith["displacement"], griffith["load"]))
+
+
+def dcb_growth(limit: float = 0.2, steps: int = 20, size: float = SIZE) -> dict:
+    """The bilinear DCB against Griffith on one mesh (module docstring): per bond step the opening, load, crack
+    tip, process zone and the Griffith load; the largest deviations before damage and once the crack grows."""
+    from mpi4py import MPI
+
+    from ddsolve.solvers import bond_growth, grow, growth_files
+
+    folder = Path(tempfile.mkdtemp(prefix="cohesive-"))
+    started = time.perf_counter()
+    bonded = dcb_scene(True, size)
+    bond_growth.grow(bonded, MPI.COMM_SELF, limit, steps, progress=lambda line: print(line, flush=True),
+                     output=folder / "bond.h5")
+    bond_seconds = time.perf_counter() - started
+    rigid = dcb_scene(False, size)
+    grow.grow(rigid, MPI.COMM_SELF, limit, steps, 1e-4, progress=lambda line: None, output=folder / "griffith.h5")
+    bond, griffith = growth_files.read(folder / "bond.h5"), growth_files.read(folder / "griffith.h5")
+    tips = bond["cracks"][:, 0, 1]
+    damaged = bond["damage"].max(axis=1) > 0.0
+    grown = tips > CRACK + 1e-9
+    expected = np.array([griffith_load(d, griffith) for d in bond["displacement"]])
+    deviation = np.abs(bond["load"] / np.where(expected > 0, expected, np.nan) - 1.0)
+    spacing = size / 2.0  # P2: the Σ nodes' spacing
+    return {"opening": bond["displacement"].tolist(), "load": bond["load"].tolist(), "griffith": expected.tolist(),
+            "tip": tips.tolist(), "process_zone": bond["process_zone"].tolist(), "solves": bond["solves"].tolist(),
+            "before_damage": float(np.nanmax(deviation[~damaged], initial=0.0)),
+            "grown": float(np.nanmax(deviation[grown], initial=np.nan)),
+            "elements_per_zone": float(np.nanmedian(bond["process_zone"][grown]) / spacing) if grown.any() else np.nan,
+            "steps": len(tips) - 1, "seconds": bond_seconds,
+            "irreversible": bool(np.all(np.diff(bond["damage"], axis=0) >= 0.0)),
+            "newton": bond["bond_solves"].tolist()}
+
+
+def main() -> None:
+    for row in stiff_limit():
+        print(f"elastic k = {row['stiffness']:.0e} ({row['method']}): energy {row['energy']:.12e}, relative "
+              f"difference from the rigid bond {row['difference']:.3e}, schur against mprgp {row['methods_differ']:.1e}")
+    both = bilinear_methods()
+    print(f"bilinear on full-opening: largest damage {both['largest_damage']:.4f}; schur {both['schur']['bond_solves']} "
+          f"linear problems on Σ, {both['schur']['rounds']} rounds; mprgp {both['mprgp']['bond_solves']}, "
+          f"{both['mprgp']['rounds']} rounds; energies differ by {both['energy_difference']:.1e}, damage by "
+          f"{both['damage_difference']:.1e}")
+    record = dcb_growth()
+    for opening, load, griffith, tip, zone in zip(record["opening"], record["load"], record["griffith"], record["tip"],
+                                                   record["process_zone"]):
+        print(f"DCB opening {opening:.5f}: load {load:.6e} (Griffith {griffith:.6e}), tip {tip:.4f}, process zone "
+              f"{zone:.4f}")
+    print(f"DCB: largest deviation before damage {record['before_damage']:.3%}, once the crack grows "
+          f"{record['grown']:.3%}; {record['elements_per_zone']:.1f} Σ nodes per process zone; {record['steps']} steps "
+          f"in {record['seconds']:.0f} s")
+
+
+if __name__ == "__main__":
+    main()
