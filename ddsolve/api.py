@@ -223,7 +223,9 @@ def solve(scene: Scene | str | Path, comm=None, output: str | Path | None = None
 
 
 def reference(scene: Scene | str | Path, output: str | Path | None = None) -> Result:
-    """The monolithic reference: the same discrete problem as one system, solved exactly on this process."""
+    """The monolithic reference: the same discrete problem as one system, solved exactly on this process (a
+    structure of several interfaces gives a :class:`ddsolve.solvers.stacked.StackResult`: each block's
+    displacements, the energy, each interface's view as a Result, G at every tip of every interface)."""
     from ddsolve.solvers import run
 
     _comm(None)

@@ -91,7 +91,7 @@ def _launch(args, petsc_options: list[str], scene_checks: bool) -> None:
     if args.ranks is None:
         return
     scene = _load_scene(args) if scene_checks else None
-    check_ranks(args.ranks, None if scene is None else len(blocks(scene.geometry.layers)))
+    check_ranks(args.ranks, None if scene is None else scene.geometry.layers * len(scene.geometry.region_names))
     check_petsc_files(petsc_options)
     for module in ("petsc4py", "mpi4py", "h5py"):  # if one is missing, one line here, not one per rank
         importlib.import_module(module)
@@ -271,6 +271,11 @@ def cmd_reference(args, petsc_options: list[str]) -> int:
     scene = _load_scene(args)
     output = check_outputs(args, scene)
     result = run.reference(scene, output, progress=_root_print)
+    if scene.geometry.above:  # no error estimate, reactions or viewer files yet
+        print(f"reference: {len(scene.geometry.sigmas)} interfaces, {result.iterations} active-set steps, energy "
+              f"{result.energy:.10g}, {result.wall_time:.3f} s -> {output}")
+        print("\n".join(result.fracture.lines()), flush=True)
+        return 0
     print(f"reference: {result.iterations} active-set steps, {result.wall_time:.3f} s -> {output}")
     print(estimate_line(result))
     _print_refinement(scene, result)

@@ -151,7 +151,7 @@ def test_refusals_on_every_rank_are_one_line_and_keep_the_previous_files(tmp_pat
     for command in (["sweep", "-n", "2", "--set", "materials.layer1.E=1:2:2"], ["grow", "--set",
                                                                                 "fracture.toughness=1.0"]):
         refused(ddsolve(command[0], str(tmp_path / "strip.toml"), *command[1:], "-o", str(output), check=False),
-                1, "geometry.sigma: 2 interfaces: a structure of several interfaces can be meshed")
+                1, "geometry.sigma: 2 interfaces: a structure of several interfaces is meshed")
     assert unchanged(files)
 
 

@@ -120,13 +120,30 @@ def structure_kernel(blocks: list[np.ndarray], interface: Interface, sigma: Sigm
     """``(blocks·3, m)``: the rigid motions of the blocks (coefficients per block, in ``frame``) that satisfy
     every support (``blocks``: each block's constraint rows ``(c, 3)``, :func:`constraint_rows`) and every
     gluing equality: the free motions of the structure."""
-    count = len(interface.blocks)
+    return free_motions(blocks, gluing_rows(interface, trace_modes(sigma, frame)))
+
+
+def free_motions(blocks: list[np.ndarray], gluing: np.ndarray) -> np.ndarray:
+    """``(blocks·3, m)``: the rigid motions of the blocks that satisfy each block's constraint rows ``blocks``
+    ``(c, 3)`` and the ``gluing`` rows ``(equalities, blocks·3)``."""
+    count = len(blocks)
     supports = np.zeros((sum(len(rows) for rows in blocks), 3 * count))
     start = 0
     for block, rows in enumerate(blocks):
         supports[start:start + len(rows), 3 * block:3 * block + 3] = rows
         start += len(rows)
-    return null_space(np.vstack([supports, gluing_rows(interface, trace_modes(sigma, frame))]), 3 * count)
+    return null_space(np.vstack([supports, gluing]), 3 * count)
+
+
+def refuse_motion(kernel: np.ndarray, frame: Frame, specs: tuple[BlockSpec, ...]) -> None:
+    """A SceneError naming the free motion when the structure kernel ``kernel`` of the blocks ``specs`` is not
+    zero (the structure is not supported)."""
+    if kernel.shape[1]:
+        motion = describe(kernel, frame, specs)
+        error = SceneError(f"{motion}: add a support (geometry.clamped, a clamped boundary in the mesh, or "
+                           "[displacements.LAYER.NAME])")
+        error.free_motion = motion  # what a caller that changes the cracks reports (ddsolve grow)
+        raise error
 
 
 def describe(kernel: np.ndarray, frame: Frame, specs: tuple[BlockSpec, ...] = blocks(2)) -> str:
@@ -202,13 +219,7 @@ def block_kernels(halves: dict[int, HalfMesh], sigma: SigmaLine, interface: Inte
     frame = frame_of(np.vstack([half.points for half in halves.values()]))
     rows = [constraint_rows(frame.modes(halves[spec.side].points), np.zeros(0, dtype=np.int64), directions)
             for spec, directions in zip(interface.blocks, constraints)]
-    kernel = structure_kernel(rows, interface, sigma, frame)
-    if kernel.shape[1]:
-        motion = describe(kernel, frame, interface.blocks)
-        error = SceneError(f"{motion}: add a support (geometry.clamped, a clamped boundary in the mesh, or "
-                           "[displacements.LAYER.NAME])")
-        error.free_motion = motion  # what a caller that changes the cracks reports (ddsolve grow)
-        raise error
+    refuse_motion(structure_kernel(rows, interface, sigma, frame), frame, interface.blocks)
     return Kernels([null_space(block_rows, 3) for block_rows in rows], frame, interface.blocks)
 
 

@@ -177,12 +177,38 @@ def sigma_datasets(on: OnSigma, history: np.ndarray, active_set_changes: np.ndar
     out.update({f"reactions/{layer}/{name}": np.asarray(force, dtype=np.float64)
                 for layer, named in reactions.items() for name, force in named.items()})
     if fracture is not None:
-        out.update({f"fracture/{key}": getattr(fracture, key) for key in FRACTURE_FIELDS + MODE_FIELDS
-                    + TOUGHNESS_FIELDS + OVERLAP_FIELDS + NOISE_FIELDS + INTERFACE_FIELDS})
-        out.update({f"fracture/reported/{key}": value for key, value in fracture.reported().items()})
+        out.update(fracture_datasets(fracture))
         out.update({"fracture/arclength": sigma.arclength[nodes], "fracture/opening": on.opening,
                     "fracture/pressure": on.multipliers["mu_c"]})
     return out
+
+
+def fracture_datasets(fracture) -> dict[str, np.ndarray]:
+    """``/fracture``: G and what goes with it at every tip, as reported too; each tip's and crack's interface
+    with several interfaces only."""
+    keys = FRACTURE_FIELDS + MODE_FIELDS + TOUGHNESS_FIELDS + OVERLAP_FIELDS + NOISE_FIELDS + INTERFACE_FIELDS
+    out = {f"fracture/{key}": getattr(fracture, key) for key in keys}
+    out.update({f"fracture/{key}": getattr(fracture, key) for key in STACK_FIELDS if getattr(fracture, key) is not None})
+    out.update({f"fracture/reported/{key}": value for key, value in fracture.reported().items()})
+    return out
+
+
+def write_stack(path: Path, solved) -> list[Path]:
+    """Write the reference's result of several interfaces (:class:`ddsolve.solvers.stacked.StackResult`) to
+    ``path``: each region's mesh, each block's displacements, ``/fracture`` with each tip's interface, the
+    energy and the check; no viewer files, and :func:`read` refuses it in one line (not read back yet)."""
+    path = Path(path)
+    datasets = {name: values for region in solved.mesh.regions
+                for name, values in ((f"mesh/{region.name}/points", region.points),
+                                     (f"mesh/{region.name}/cells", region.cells))}
+    datasets.update({f"solution/{block}": u for block, u in solved.solution.items()})
+    datasets.update(fracture_datasets(solved.fracture))
+    root = {"converged": solved.converged, "method": "reference", "scene": solved.scene.text, "message": solved.message,
+            "energy": solved.energy, "interfaces": len(solved.mesh.sigmas), "iterations": solved.iterations,
+            "wall_time": solved.wall_time}
+    part = Part(datasets, {"": root, "timings": dict(solved.timings)})
+    replace_together({path: lambda name: write_part(name, part)}, final=True)
+    return [path]
 
 
 def attributes(result: Result) -> dict[str, dict]:
@@ -277,8 +303,8 @@ def read(path: Path) -> Result:
     scenes.readable(path, "result file")
     try:
         with h5py.File(path, "r") as f:
-            runs = _runs(f)
-            result = None if runs else _read(f, path)
+            runs, interfaces = _runs(f), int(f.attrs.get("interfaces", 1))
+            result = None if runs or interfaces > 1 else _read(f, path)
     except (OSError, KeyError, TypeError, ValueError, IndexError, AttributeError, RuntimeError, MemoryError) as exc:
         raise DDSolveError(f"{path}: not a ddsolve result file ({' '.join(str(exc).split())})") from None
     except DDSolveError as exc:
@@ -286,6 +312,9 @@ def read(path: Path) -> Result:
     if runs:
         raise DDSolveError(f"{path}: the file of a {runs}, not one solve's result: give a result file written by "
                            "solve or reference")
+    if result is None:
+        raise DDSolveError(f"{path}: a result of {interfaces} interfaces (ddsolve reference): reading it back is not "
+                           "done yet; its /fracture, /solution and /mesh are plain HDF5 datasets")
     return result
 
 
@@ -412,6 +441,8 @@ NOISE_FIELDS = ("noise",)
 #: An interface crack between different materials: ε, K (t, 2) and the reference length of ψ; absent from
 #: older files, read as NaN (and l = 1).
 INTERFACE_FIELDS = ("epsilon", "K", "reference_length")
+#: With several interfaces: each tip's interface and each crack's (1 the lowest); absent with one.
+STACK_FIELDS = ("interface", "crack_interface")
 
 
 def _read_fracture(f):
@@ -421,4 +452,4 @@ def _read_fracture(f):
         return None
     return Fracture(**{key: _dataset(f, f"fracture/{key}")[()] for key in FRACTURE_FIELDS},
                     **{key: _dataset(f, f"fracture/{key}")[()] for key in MODE_FIELDS + TOUGHNESS_FIELDS
-                       + OVERLAP_FIELDS + NOISE_FIELDS + INTERFACE_FIELDS if f"fracture/{key}" in f})
+                       + OVERLAP_FIELDS + NOISE_FIELDS + INTERFACE_FIELDS + STACK_FIELDS if f"fracture/{key}" in f})

@@ -70,9 +70,9 @@ def check_loads(scene: Scene, mesh: Mesh) -> None:
         if name not in names:
             raise SceneError(f"{load.key}: no boundary named {name!r} in {mesh.origin} "
                              f"(boundaries: {', '.join(n for n in names if n != CLAMPED)})")
-        if name == CLAMPED or all(_edge_set(half, name) <= _edge_set(half, CLAMPED) for half in mesh.halves):
+        if name == CLAMPED or all(_edge_set(half, name) <= _edge_set(half, CLAMPED) for half in mesh.regions):
             raise SceneError(f"{load.key}: boundary {name!r} is clamped (Γ_D), where no load can act")
-        if all(np.isin(half.nodes(name), half.clamped()).all() for half in mesh.halves):
+        if all(np.isin(half.nodes(name), half.clamped()).all() for half in mesh.regions):
             raise SceneError(f"{load.key}: on this mesh every node of boundary {name!r} is clamped, so the load "
                              "would act on nothing (a mesh coarser than the geometry): use smaller elements "
                              "(mesh.size, or mesh.sigma_vertices and mesh.boundary_vertices) or mesh.degree = 2")
@@ -107,11 +107,14 @@ def generate_half(scene: Scene, side: int) -> HalfMesh:
 
 
 def one_interface(scene: Scene) -> None:
-    """Refuse, in one line, to solve a structure of several interfaces: it is read, checked and meshed
-    (:func:`ddsolve.mesh.stack.build_any`, the ``mesh`` command), not yet solved."""
+    """Refuse, in one line, to do with a structure of several interfaces what is done for one interface only: it is
+    read, checked and meshed (:func:`ddsolve.mesh.stack.build_any`, the ``mesh`` command) and solved by the
+    monolithic reference (:mod:`ddsolve.solvers.stacked`), not yet by the domain decomposition, sweeps, growth or
+    adaptivity."""
     if scene.geometry.above:
         raise SceneError(f"geometry.sigma: {len(scene.geometry.sigmas)} interfaces: a structure of several "
-                         "interfaces can be meshed (ddsolve mesh) but not yet solved")
+                         "interfaces is meshed (ddsolve mesh) and solved by the monolithic reference (ddsolve "
+                         "reference), not yet by the domain decomposition, sweeps, growth or adaptivity")
 
 
 def _mesh_half(scene: Scene, side: int) -> HalfMesh:

@@ -465,6 +465,25 @@ def release_and_noise(tips: list[Tip], volume: np.ndarray, contact: np.ndarray, 
 ROUNDING = 1e-12
 
 
+def of_interfaces(fractures: list[Fracture], cracks: list[int]) -> Fracture:
+    """The tips and contact zones of several interfaces as one :class:`Fracture`: ``fractures`` and the number of
+    ``cracks`` of each interface, bottom to top; the cracks numbered interface by interface, each tip's
+    ``interface`` (1 the lowest) and each crack's (``crack_interface``) recorded."""
+    first = np.concatenate([[0], np.cumsum(cracks)[:-1]]).astype(np.int64)
+    renumbered = ("crack", "zone_crack", "overlap_crack")
+    joined = {}
+    for field_ in dataclasses.fields(Fracture):
+        name = field_.name
+        if name in ("reference_length", "interface", "crack_interface"):
+            continue
+        parts = [getattr(f, name) + (offset if name in renumbered else 0) for f, offset in zip(fractures, first)]
+        joined[name] = np.concatenate(parts)
+    joined["interface"] = np.concatenate([np.full(len(f.G), number + 1, dtype=np.int64)
+                                          for number, f in enumerate(fractures)])
+    joined["crack_interface"] = np.repeat(np.arange(1, len(cracks) + 1), cracks).astype(np.int64)
+    return Fracture(**joined, reference_length=fractures[0].reference_length)
+
+
 def of_result(result, tips: list[Tip], factors: np.ndarray | None = None) -> Fracture:
     """G at ``tips`` from a result's blocks (one process), with the toughness and the critical load
     factors (``factors``: see :func:`finish`)."""

@@ -247,6 +247,9 @@ class Fracture:
     tip (material 1 on the side of the tip frame's y; 0 where each layer has one law on both sides of Σ),
     ``K`` ``(t, 2)`` the complex stress intensity (K₁, K₂) and ψ = arg(K l^{iε}) at ``reference_length`` l,
     G_I = G cos²ψ, G_II = G sin²ψ; K is NaN where the classical split applies, and in older files.
+    With several interfaces, ``interface`` numbers each tip's interface (1 the lowest; None with one interface),
+    the cracks are counted interface by interface, bottom to top, and ``crack_interface`` holds each crack's
+    (:func:`ddsolve.post.fracture.of_interfaces`).
     """
 
     points: np.ndarray
@@ -271,6 +274,8 @@ class Fracture:
     epsilon: np.ndarray | None = None
     K: np.ndarray | None = None
     reference_length: float = 1.0
+    interface: np.ndarray | None = None
+    crack_interface: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         count = len(self.G)
@@ -371,12 +376,17 @@ class Fracture:
                                                             self.outer, self.spacing, self.modes(), self.growth()):
             note = f"; only {a / h:.1f} elements within the inner radius: refine near this tip" \
                 if a < FEW_ELEMENTS * h else ""
-            lines.append(f"G at tip ({x:.6g}, {y:.6g}) of crack {c}: {self.quoted(g, n)}{' ' * bool(modes)}{modes}"
+            lines.append(f"G at tip ({x:.6g}, {y:.6g}) of crack {c}{self.on_interface(c)}: {self.quoted(g, n)}"
+                         f"{' ' * bool(modes)}{modes}"
                          f"{'; ' * bool(growth)}{growth}   (θ radii {a:.4g}, {b:.4g}{note})")
         for title, zones, cracks in (("crack faces in contact (arc length along Σ): ", self.zones, self.zone_crack),
                                      ("crack faces overlap (no non-penetration condition; arc length along Σ): ",
                                       self.overlaps, self.overlap_crack)):
             if np.size(cracks):
                 lines.append(title + ", ".join(
-                    f"[{a:.4g}, {b:.4g}] on crack {c}" for (a, b), c in zip(zones, cracks)))
+                    f"[{a:.4g}, {b:.4g}] on crack {c}{self.on_interface(c)}" for (a, b), c in zip(zones, cracks)))
         return lines
+
+    def on_interface(self, crack: int) -> str:
+        """« on interface i» after crack ``crack`` with several interfaces, else nothing."""
+        return "" if self.crack_interface is None else f" on interface {int(self.crack_interface[crack])}"

@@ -48,35 +48,58 @@ REFINEMENT_TOLERANCE = 1e-14
 MAX_REFINEMENTS = 3
 
 
+@dataclass(frozen=True, eq=False)
+class Joint:
+    """One interface Σ of the structure: its multipliers (``interface``, over its own blocks), the structure's
+    block of each of its blocks (``blocks``) and their trace dofs in those blocks' systems (``dofs``)."""
+
+    interface: Interface
+    blocks: tuple[int, ...]
+    dofs: tuple[np.ndarray, ...]
+
+
+def joint_of(systems: list[BlockSystem], interface: Interface) -> Joint:
+    """The one interface of a structure whose blocks are ``interface.blocks``, assembled as ``systems``."""
+    return Joint(interface, tuple(range(len(systems))), tuple(system.trace_dofs for system in systems))
+
+
 def numbering(systems: list[BlockSystem], interface: Interface, closed: np.ndarray) -> list[np.ndarray]:
     """Global unknown of every block dof; tied dofs share one.  ``closed``: crack vertices in contact."""
-    traces = interface.trace_unknowns(closed)
-    following = traces.max(initial=-1) + 1
-    numbers = []
-    for system, trace in zip(systems, traces):
-        number = np.full(system.size, -1, dtype=np.int64)
-        number[system.trace_dofs] = trace
+    return joint_numbering([system.size for system in systems], [joint_of(systems, interface)], [closed])
+
+
+def joint_numbering(sizes: list[int], joints: list[Joint], closed: list[np.ndarray]) -> list[np.ndarray]:
+    """Global unknown of every dof of blocks of ``sizes`` dofs: the traces of each of ``joints`` first (tied
+    dofs sharing one; ``closed``: each joint's crack vertices in contact), then the blocks' other dofs."""
+    numbers = [np.full(size, -1, dtype=np.int64) for size in sizes]
+    following = 0
+    for joint, shut in zip(joints, closed):
+        traces = joint.interface.trace_unknowns(shut)
+        for block, dofs, trace in zip(joint.blocks, joint.dofs, traces):
+            numbers[block][dofs] = following + trace
+        following += int(traces.max(initial=-1)) + 1
+    for number in numbers:
         own = number < 0
         number[own] = following + np.arange(own.sum())
-        following += own.sum()
-        numbers.append(number)
+        following += int(own.sum())
     return numbers
 
 
-def jump_numbering(systems: list[BlockSystem], interface: Interface) -> tuple[list[np.ndarray], list[np.ndarray]]:
+def jump_numbering(sizes: list[int], joints: list[Joint]) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """The numbering with the crack faces' normal displacements tied, and the second unknown of every block
-    dof (−1 for none): on the lower face's blocks (those of the lower half, whose normal displacement is the upper
-    face's plus the jump), the jump of its contact row, numbered last in row order."""
-    contact = interface.slices["mu_c"]
-    numbers = numbering(systems, interface, np.ones(contact.stop - contact.start, dtype=bool))
-    first = int(max(n.max(initial=-1) for n in numbers)) + 1
-    normal = 2 * interface.vertex[contact] + 1
-    jumps = []
-    for index, system in enumerate(systems):
-        jump = np.full(system.size, -1, dtype=np.int64)
-        if interface.blocks[index].side < 0:
-            jump[system.trace_dofs[normal]] = first + np.arange(len(normal))
-        jumps.append(jump)
+    dof (−1 for none): on the lower face's blocks of each joint (those of its lower half, whose normal
+    displacement is the upper face's plus the jump), the jump of its contact row, numbered last, joint by joint
+    in row order."""
+    contacts = [joint.interface.slices["mu_c"] for joint in joints]
+    numbers = joint_numbering(sizes, joints, [np.ones(rows.stop - rows.start, dtype=bool) for rows in contacts])
+    following = int(max(n.max(initial=-1) for n in numbers)) + 1
+    jumps = [np.full(size, -1, dtype=np.int64) for size in sizes]
+    for joint, rows in zip(joints, contacts):
+        normal = 2 * joint.interface.vertex[rows] + 1
+        for spec, block, dofs in zip(joint.interface.blocks, joint.blocks, joint.dofs):
+            if spec.side < 0:
+                jumps[block][dofs[normal]] = following + np.arange(len(normal))
+        following += len(normal)
     return numbers, jumps
 
 
@@ -159,9 +182,16 @@ class GluedSolution:
 def solve_glued(systems: list[BlockSystem], interface: Interface, out_of_core: bool = False) -> GluedSolution:
     """One factorization of the glued system (with S_j on the jumps when there is contact), the unconstrained
     solve, then with contact the crack's dual problem and the solve with its forces (see the module)."""
+    return solve_joints(systems, [joint_of(systems, interface)], out_of_core)
+
+
+def solve_joints(systems: list[BlockSystem], joints: list[Joint], out_of_core: bool = False) -> GluedSolution:
+    """:func:`solve_glued` for blocks glued on the interfaces ``joints``: their cracks' jumps together in one
+    dual problem (y joint by joint)."""
     phases = Phases()
-    numbers, jumps = jump_numbering(systems, interface)
-    sqrt_w = np.sqrt(interface.row_weights[interface.slices["mu_c"]])
+    numbers, jumps = jump_numbering([system.size for system in systems], joints)
+    sqrt_w = np.sqrt(np.concatenate([joint.interface.row_weights[joint.interface.slices["mu_c"]]
+                                     for joint in joints]))
     merged = merged_system(systems, numbers, jumps)
     block = Block(dataclasses.replace(merged, trace_dofs=merged.size - len(sqrt_w) + np.arange(len(sqrt_w))))
     phases.end("merge")
@@ -172,7 +202,7 @@ def solve_glued(systems: list[BlockSystem], interface: Interface, out_of_core: b
         solved = GluedSolution(block.out_of_core())
         if len(sqrt_w):
             solved.face = FaceProblem(block.schur_complement(), x[block.trace_dofs], sqrt_w)
-            x = contact_solve(block, x, interface, solved)
+            x = contact_solve(block, x, joints[0].interface, solved)
     finally:
         block.destroy()
     solved.fields = [x[number] + np.where(jump >= 0, x[jump], 0.0) for number, jump in zip(numbers, jumps)]
@@ -185,7 +215,7 @@ def solve_glued(systems: list[BlockSystem], interface: Interface, out_of_core: b
 def contact_solve(block: Block, unconstrained: np.ndarray, interface: Interface, solved: GluedSolution) -> np.ndarray:
     """The glued solution under contact from the ``unconstrained`` one: ``solved.face`` solved, then the solve
     with the contact forces −W μᶜ on the jumps, refined while its jumps differ from the model's by more than
-    :data:`REFINEMENT_TOLERANCE` (relative to the KKT check's displacement scale), at most
+    :data:`REFINEMENT_TOLERANCE` (relative to the KKT check's displacement scale of ``interface``), at most
     :data:`MAX_REFINEMENTS` times."""
     face = solved.face
     solved.y = face.solve()

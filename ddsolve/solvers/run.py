@@ -6,23 +6,25 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Callable
 
-from ddsolve.errors import NotConvergedError
+from ddsolve.errors import NotConvergedError, SceneError
 from ddsolve.io import hdf5
-from ddsolve.mesh import geometry
+from ddsolve.mesh import geometry, stack
 from ddsolve.parallel.distribution import build_mesh
 from ddsolve.parallel.exchange import collective
 from ddsolve.parallel.phases import Phases, launch_age
 from ddsolve.parallel.runtime import check_out_of_core
 from ddsolve.post.result import Result
 from ddsolve.problem.scene import Scene
-from ddsolve.solvers import adapt, checks, critical, driver
+from ddsolve.solvers import adapt, checks, critical, driver, stacked
 from ddsolve.solvers import reference as monolithic
+from ddsolve.solvers.stacked import StackResult
 
 
-def _before_work(scene: Scene, ranks: int = 1) -> None:
+def _before_work(scene: Scene, ranks: int = 1, solving: bool = True) -> None:
     """What the machine must offer a solve of ``scene`` on ``ranks`` ranks: the memory of its mesh, and a
-    folder for out-of-core factors if the scene or a PETSc option asks for them."""
-    checks.check_size(scene, ranks)
+    folder for out-of-core factors if the scene or a PETSc option asks for them (``solving``: and a structure
+    the domain decomposition solves, see :func:`ddsolve.solvers.checks.check_size`)."""
+    checks.check_size(scene, ranks, solving)
     check_out_of_core(scene.solver.out_of_core)
 
 
@@ -54,13 +56,17 @@ def decomposition(scene: Scene, comm, output: Path | None, progress: Callable[[s
         setup.destroy()
 
 
-def reference(scene: Scene, output: Path | None = None, progress: Callable[[str], None] = print) -> Result:
-    """The monolithic reference of ``scene`` on this process (adaptive when the scene asks); raises
+def reference(scene: Scene, output: Path | None = None, progress: Callable[[str], None] = print
+              ) -> Result | StackResult:
+    """The monolithic reference of ``scene`` on this process (adaptive when the scene asks; several interfaces:
+    :func:`_stack_reference`); raises
     NotConvergedError, with the result, when its final check fails.  The critical load factors of a scene
     with a toughness and a temperature change come from reference solves of the scaled scene."""
-    _before_work(scene)
+    _before_work(scene, solving=not scene.geometry.above)
     monolithic.refuse_friction(scene)
     monolithic.refuse_bond(scene)
+    if scene.geometry.above:
+        return _stack_reference(scene, output)
     if scene.mesh.target_error is not None:  # adaptive, every level solved by the reference
         from mpi4py import MPI
 
@@ -73,9 +79,26 @@ def reference(scene: Scene, output: Path | None = None, progress: Callable[[str]
         result = monolithic.solve_monolithic(scene, mesh, found)
         if output is not None:
             hdf5.write(output, result, final=True)
+    return _converged(result)
+
+
+def _converged(result):
+    """``result``, or NotConvergedError with it when its final check failed."""
     if not result.converged:
         error = NotConvergedError(result.message)
         error.result = result
         raise error
     return result
+
+
+def _stack_reference(scene: Scene, output: Path | None) -> StackResult:
+    """The monolithic reference of several interfaces (:func:`ddsolve.solvers.stacked.solve_stack`), ``output``
+    written (:func:`ddsolve.io.hdf5.write_stack`); critical load factors are refused in one line."""
+    if critical.needed(scene):
+        raise SceneError("fracture.toughness: the critical load factors of a structure of several interfaces are not "
+                         "found yet (a toughness with a temperature change)")
+    result = stacked.solve_stack(scene, stack.build_any(scene))
+    if output is not None:
+        hdf5.write_stack(output, result)
+    return _converged(result)
 
