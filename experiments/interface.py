@@ -502,9 +502,12 @@ def enf_table(rows: list[dict]) -> list[str]:
 
 # --- the cohesive bond -------------------------------------------------------------------------------------
 #: The bilinear DCB of experiments/cohesive.py: (strength / E, mesh.size) of every run, the acceptance case
-#: first (its mesh cohesive.SIZE), the strength sweep and the mesh study on coarser meshes; the sweep's mesh.
-BOND_RUNS = ((0.005, 0.1), (0.0025, 0.25), (0.005, 0.25), (0.01, 0.25))
-BOND_SWEEP_SIZE = 0.25
+#: first (its mesh cohesive.SIZE), the strength sweep on its mesh, the mesh study on a coarser one (σ_c = 0.01 E
+#: on size 0.25 fails: its zone is one Σ spacing, a vertex snaps and Newton finds no state); the sweep's mesh.
+BOND_RUNS = ((0.005, 0.1), (0.0025, 0.1), (0.01, 0.1), (0.005, 0.25))
+BOND_SWEEP_SIZE = 0.1
+#: The bond with no initial crack's mesh (its growth takes many short steps).
+OPENED_SIZE = 0.25
 #: The openings the runs reach: the acceptance run's (Griffith's too) in steps of at most 0.01, the others' (the
 #: crack grows from ≈ 0.12) in steps of at most 0.02; the growth halves them where damage moves fast.
 BOND_LIMIT, SWEEP_LIMIT, SWEEP_STEPS = 0.2, 0.16, 8
@@ -533,7 +536,7 @@ def measure_opened(griffith: dict) -> dict:
     """The bond with no initial crack (the end faces' outer halves opened) on the sweep's mesh: its curve, tip,
     process zone, where damage starts and the first vertex breaks, and its load once the tip passes the other
     runs' initial crack against Griffith's branch there (the stable branch does not depend on the initial crack)."""
-    run = cohesive.bond_run(BOND_SWEEP_SIZE, cohesive.STRENGTH, 0.0, SWEEP_LIMIT, SWEEP_STEPS)
+    run = cohesive.bond_run(OPENED_SIZE, cohesive.STRENGTH, 0.0, SWEEP_LIMIT, SWEEP_STEPS)
     tip, load, opening = tips(run["cracks"], 0.0), run["load"], run["displacement"]
     damaged, broken = run["damage"].max(axis=1) > 0.0, tip > 0.0
     beyond = tip > cohesive.CRACK + 1e-9
@@ -550,7 +553,7 @@ def measure_opened(griffith: dict) -> dict:
 def measure_cohesive() -> dict:
     """Griffith's growth on every mesh, the bilinear DCB at every (strength, size) of BOND_RUNS against it, and
     the bond with no initial crack."""
-    sizes = sorted({size for _, size in BOND_RUNS})
+    sizes = sorted({OPENED_SIZE, *(size for _, size in BOND_RUNS)})
     griffith = {size: cohesive.griffith_run(size, BOND_LIMIT) for size in sizes}
     runs = {}
     for strength, size in BOND_RUNS:
@@ -559,7 +562,7 @@ def measure_cohesive() -> dict:
         runs[run_name(strength, size)] = {"strength": strength, "size": size, **run}
         print(f"interface: cohesive DCB, {run_name(strength, size)}: before damage {run['before_damage']:.3%}, "
               f"once grown {run['grown']:.3%}, {run['seconds']:.0f} s", flush=True)
-    opened = measure_opened(griffith[BOND_SWEEP_SIZE])
+    opened = measure_opened(griffith[OPENED_SIZE])
     curves = {f"size {size:g}": {"opening": g["displacement"].tolist(), "load": g["load"].tolist(),
                                  "solves": g["solves"].tolist(), "seconds": g["seconds"], "unknowns": g["unknowns"],
                                  "tip": tips(g["cracks"], cohesive.CRACK).tolist(),
@@ -621,7 +624,7 @@ def cohesive_summary(record: dict) -> list[dict]:
                        f"{run['opening'][-1]:g} (against Griffith growth; the error: the largest once grown)",
                        run["griffith"][-1], run["load"][-1], percent(run["grown"]),
                        {"unknowns": run["unknowns"], "method": "schur", "seconds": run["seconds"]})]
-    out.append(summary_row(f"bond with no initial crack, size {BOND_SWEEP_SIZE:g}: the load at δ = "
+    out.append(summary_row(f"bond with no initial crack, size {OPENED_SIZE:g}: the load at δ = "
                            f"{opened['opening'][-1]:g} (against Griffith growth from the crack 4)",
                            opened["griffith"][-1], opened["load"][-1], percent(opened["beyond"]),
                            {"unknowns": opened["unknowns"], "method": "schur", "seconds": opened["seconds"]}))
@@ -634,18 +637,18 @@ def cohesive_plot(record: dict) -> None:
     per process zone."""
     plt = _pyplot()
     fig, ((sweeps, opened), (zones, meshes)) = plt.subplots(2, 2, figsize=(12, 8.4), constrained_layout=True)
-    coarse, fine = record["griffith"][f"size {BOND_SWEEP_SIZE:g}"], record["griffith"][f"size {BOND_RUNS[0][1]:g}"]
-    sweeps.plot(coarse["opening"], coarse["load"], "k-", linewidth=2, label=f"Griffith growth, size {BOND_SWEEP_SIZE:g}")
-    sweeps.plot(fine["opening"], fine["load"], "k:", label=f"Griffith growth, size {BOND_RUNS[0][1]:g}")
+    coarse, fine = record["griffith"][f"size {OPENED_SIZE:g}"], record["griffith"][f"size {BOND_SWEEP_SIZE:g}"]
+    sweeps.plot(fine["opening"], fine["load"], "k-", linewidth=2, label=f"Griffith growth, size {BOND_SWEEP_SIZE:g}")
     for index, run in enumerate(sweep(record)):
         sweeps.plot(run["opening"], run["load"], f"C{index}o-", markersize=3, linewidth=1,
                     label=f"bilinear, σ_c = {run['strength']:g} E, size {run['size']:g}")
-    run = acceptance(record)
-    sweeps.plot(run["opening"], run["load"], "C3s", fillstyle="none", markersize=5,
-                label=f"bilinear, σ_c = {run['strength']:g} E, size {run['size']:g} (acceptance)")
+    others = [run for run in record["runs"].values() if run["size"] != BOND_SWEEP_SIZE]
+    for run in others:
+        sweeps.plot(run["opening"], run["load"], "C3s", fillstyle="none", markersize=5,
+                    label=f"bilinear, σ_c = {run['strength']:g} E, size {run['size']:g}")
     sweeps.set_title("DCB: the bilinear law meets Griffith's curve as the strength grows", fontsize=10)
     free = record["opened"]
-    opened.plot(coarse["opening"], coarse["load"], "k-", label=f"Griffith growth from the crack 4")
+    opened.plot(coarse["opening"], coarse["load"], "k-", label=f"Griffith growth from the crack 4, size {OPENED_SIZE:g}")
     opened.plot(free["opening"], free["load"], "C0o-", markersize=3, linewidth=1, label="bilinear, no initial crack")
     opened.set_ylim(0.0, 1.1 * max(free["load"]))
     twin = opened.twinx()
@@ -664,7 +667,8 @@ def cohesive_plot(record: dict) -> None:
     zones.loglog(strengths, [slender_length(s * cohesive.MODULUS) for s in strengths], "k-", label="(E′G_c/σ_c²)^¼ h^¾ (slender arm)")
     zones.loglog([r["strength"] for r in sweep(record)], [zone(r) for r in sweep(record)], "C0o", markersize=8,
                  label=f"ddsolve, size {BOND_SWEEP_SIZE:g}")
-    zones.loglog([run["strength"]], [zone(run)], "C3s", markersize=8, label=f"ddsolve, size {run['size']:g}")
+    zones.loglog([r["strength"] for r in others], [zone(r) for r in others], "C3s", markersize=8,
+                 label="ddsolve, size " + ", ".join(sorted({f"{r['size']:g}" for r in others})))
     zones.set_xlabel("strength σ_c / E")
     zones.set_ylabel("process zone (0 < d < 1) once grown")
     zones.set_title(f"process zone against the strength: slope {zone_exponent(record):.2f}", fontsize=10)
@@ -677,7 +681,7 @@ def cohesive_plot(record: dict) -> None:
     for r in study:
         meshes.annotate(f"size {r['size']:g}", (zone(r) / r["size"], r["grown"]), fontsize=8)
     meshes.set_xlabel("P2 elements per process zone")
-    meshes.set_title(f"mesh convergence, σ_c = {run['strength']:g} E", fontsize=10)
+    meshes.set_title(f"mesh convergence, σ_c = {study[-1]['strength']:g} E", fontsize=10)
     for ax in (zones, meshes):
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=8)
@@ -725,7 +729,7 @@ def griffith_tip(record: dict, run: dict) -> float:
 
 
 def process_zone_page(record: dict) -> list[str]:
-    rows, study = sweep(record), mesh_study(record)
+    study = mesh_study(record)
     finest = study[-1]
     out = ["## The process-zone length", "",
            "The process zone is the length of Σ where 0 < d < 1 (the growth file's `process_zone`), its median over "
@@ -743,7 +747,7 @@ def process_zone_page(record: dict) -> list[str]:
                  [[f"{r['strength']:g}", f"{r['size']:g}", f"{zone(r):.4f}", f"{zone(r) / (r['size'] / 2):.1f}",
                    f"{hillerborg_length(strength):.4f}", f"{zone(r) / hillerborg_length(strength):.3f}",
                    f"{slender_length(strength):.4f}", f"{zone(r) / slender_length(strength):.3f}"]
-                  for r in (*rows, acceptance(record)) for strength in [r["strength"] * cohesive.MODULUS]])
+                  for r in record["runs"].values() for strength in [r["strength"] * cohesive.MODULUS]])
     out += ["", f"**Mesh convergence** (σ_c = {finest['strength']:g} E): the peak load against the finest mesh's "
             f"(size {finest['size']:g}) and the load once grown against Griffith's on the same mesh, by the P2 "
             "elements per process zone:", ""]
@@ -761,7 +765,7 @@ def opened_page(record: dict) -> list[str]:
             f"The same DCB with no crack on Σ: the bond holds all of Σ and the law is the same (σ_c = "
             f"{cohesive.STRENGTH / cohesive.MODULUS:g} E); the arms' end faces would meet at Σ's glued end, so the "
             "outer halves of the end faces are opened by ±δ/2 (`experiments/cohesive.py`, `dcb_scene` with no "
-            f"crack; mesh.size {BOND_SWEEP_SIZE:g}). Damage starts at δ = {free['damage_starts']:.4g}, the first "
+            f"crack; mesh.size {OPENED_SIZE:g}). Damage starts at δ = {free['damage_starts']:.4g}, the first "
             f"vertex breaks (d = 1: the crack starts) at δ = {free['breaks']:.4g}; the peak load "
             f"{free['peak']:.4e} is at δ = {free['peak_opening']:.4g}, and the crack then runs stably under the "
             f"opening to x = {free['tip'][-1]:.3f} at δ = {free['opening'][-1]:g}. Once its tip passes x = "
@@ -778,7 +782,7 @@ def cohesive_speed_page(record: dict) -> list[str]:
            "the counts are what to compare. *Newton steps*: linear problems on Σ per step (the growth file's "
            "`bond_solves`); the steps include those the growth halved where damage moved fast.", ""]
     cases = [(f"bilinear, {name}", run) for name, run in record["runs"].items()]
-    cases += [(f"bilinear, no initial crack, size {BOND_SWEEP_SIZE:g}", record["opened"])]
+    cases += [(f"bilinear, no initial crack, size {OPENED_SIZE:g}", record["opened"])]
     rows = [[case, f"{s['unknowns']:,}", str(s["steps"]), f"{s['newton_mean']:.1f}", str(s["newton_max"]),
              f"{s['solves_mean']:.1f}", f"{s['seconds']:.1f} s", f"{s['seconds'] / max(s['steps'], 1):.2f} s"]
             for case, run in cases for s in [bond_speed(run)]]
