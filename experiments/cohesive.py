@@ -152,7 +152,7 @@ def dcb_growth(limit: float = 0.2, steps: int = 20, size: float = SIZE, strength
     spacing = size / 2.0  # P2: the Σ nodes' spacing
     return {"opening": bond["displacement"].tolist(), "load": bond["load"].tolist(), "griffith": expected.tolist(),
             "tip": tips.tolist(), "process_zone": bond["process_zone"].tolist(), "solves": bond["solves"].tolist(),
-            "before_damage": float(np.nanmax(deviation[~damaged], initial=0.0)),
+            "before_damage": float(np.nanmax(deviation[~damaged])) if np.isfinite(deviation[~damaged]).any() else np.nan,
             "grown": float(np.nanmax(deviation[grown], initial=np.nan)),
             "elements_per_zone": float(np.nanmedian(bond["process_zone"][grown]) / spacing) if grown.any() else np.nan,
             "steps": len(tips) - 1, "seconds": bond["seconds"], "unknowns": bond["unknowns"],

@@ -662,9 +662,12 @@ def cohesive_plot(record: dict) -> None:
         ax.set_ylabel("load P (per layer)")
         ax.grid(alpha=0.3)
     sweeps.legend(fontsize=7)
-    strengths = np.geomspace(0.5 * BOND_RUNS[1][0], 2.0 * BOND_RUNS[3][0], 50)
-    zones.loglog(strengths, [hillerborg_length(s * cohesive.MODULUS) for s in strengths], "k--", label="E′G_c/σ_c² (Hillerborg)")
-    zones.loglog(strengths, [slender_length(s * cohesive.MODULUS) for s in strengths], "k-", label="(E′G_c/σ_c²)^¼ h^¾ (slender arm)")
+    swept = [strength for strength, _ in BOND_RUNS]
+    strengths = np.geomspace(0.5 * min(swept), 2.0 * max(swept), 50)
+    zones.loglog(strengths, [hillerborg_length(s * cohesive.MODULUS) for s in strengths], "k--",
+                 label="E′G_c/σ_c² (Hillerborg)")
+    zones.loglog(strengths, [slender_length(s * cohesive.MODULUS) for s in strengths], "k-",
+                 label="(E′G_c/σ_c²)^¼ h^¾ (slender arm)")
     zones.loglog([r["strength"] for r in sweep(record)], [zone(r) for r in sweep(record)], "C0o", markersize=8,
                  label=f"ddsolve, size {BOND_SWEEP_SIZE:g}")
     zones.loglog([r["strength"] for r in others], [zone(r) for r in others], "C3s", markersize=8,
@@ -697,7 +700,8 @@ def cohesive_page(record: dict) -> list[str]:
            f"h = {ARM:g}, initial crack {cohesive.CRACK:g}, clamped at the right end, two identical layers (E = "
            f"{cohesive.MODULUS:g}, ν = {cohesive.POISSON:g}, plane strain) opened by ±δ/2 on both arms' end faces to "
            f"δ = {BOND_LIMIT:g} in steps of at most 0.01 (the acceptance run; the others to {SWEEP_LIMIT:g} in steps "
-           f"of at most {SWEEP_LIMIT / SWEEP_STEPS:g}, halved where damage moves fast), uniform P2 meshes; `[interface] law = \"bilinear\"` with toughness G_c = "
+           f"of at most {SWEEP_LIMIT / SWEEP_STEPS:g}, halved where damage moves fast), uniform P2 meshes; "
+           "`[interface] law = \"bilinear\"` with toughness G_c = "
            f"{cohesive.TOUGHNESS:g} and the strength σ_c below, grown by `ddsolve grow` (one process, schur), against "
            "`ddsolve grow` of the same scene with the rigid bond and `[fracture] toughness = G_c` on the same mesh "
            "(Griffith's load at the bond's opening, interpolated along its run). *Before damage*: the largest "
@@ -711,10 +715,16 @@ def cohesive_page(record: dict) -> list[str]:
     out += table(["σ_c / E", "mesh.size", "peak load", "Griffith's initiation load", "peak / initiation",
                   "before damage", "once grown", "whole curve", "tip at the end (Griffith's)", "steps"],
                  [[f"{r['strength']:g}", f"{r['size']:g}", f"{max(r['load']):.5e}", f"{initiation(record, r):.5e}",
-                   f"{max(r['load']) / initiation(record, r):.4f}", f"{r['before_damage']:.3%}", f"{r['grown']:.3%}",
+                   f"{max(r['load']) / initiation(record, r):.4f}", before_damage(r), f"{r['grown']:.3%}",
                    f"{whole_curve(r):.2%}", f"{r['tip'][-1]:.3f} ({griffith_tip(record, r):.3f})", str(r["steps"])]
                   for r in rows])
     return out
+
+
+def before_damage(run: dict) -> str:
+    """The largest deviation before damage, or that the first step damages already."""
+    value = run["before_damage"]
+    return f"{value:.3%}" if np.isfinite(value) else "none: the first step damages"
 
 
 def initiation(record: dict, run: dict) -> float:
@@ -755,7 +765,7 @@ def process_zone_page(record: dict) -> list[str]:
                   f"peak / peak at size {finest['size']:g} − 1", "before damage", "once grown", "steps"],
                  [[f"{r['size']:g}", f"{r['unknowns']:,}", f"{zone(r):.4f}", f"{zone(r) / r['size']:.1f}",
                    f"{max(r['load']):.6e}", percent(max(r["load"]) / max(finest["load"]) - 1.0),
-                   f"{r['before_damage']:.3%}", f"{r['grown']:.3%}", str(r["steps"])] for r in study])
+                   before_damage(r), f"{r['grown']:.3%}", str(r["steps"])] for r in study])
     return out
 
 
