@@ -137,6 +137,7 @@ def test_the_page_is_its_sections_in_order_with_a_summary_row_per_case():
     cases = 1 + len(interface.COULOMB) + len(interface.TRESCA) + len(interface.ENF_CRACKS) * len(interface.ENF_FRICTION)
     assert summary.count("\n| ") == cases + 2 + 1  # the cohesive DCB's and the bond with no crack's, and the header
     assert "\\|G\\|/G₀" in summary  # the stuck faces' G against the frictionless one
+    assert "none: the first step damages" in page  # the weakest bond has no undamaged step to compare
     # the square's excess divided out: the synthetic G is 1.57 % above at side 20, a quarter of it at 40
     assert re.search(r"closed crack, Coulomb μ = 0\.5 \| 1\.429425e-02 \| 1\.451867e-02 \| [+-]0\.000 %", summary)
 
