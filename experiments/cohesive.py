@@ -30,18 +30,26 @@ STRENGTH, TOUGHNESS = 0.005 * MODULUS, 2e-3
 SIZE = 0.1
 
 
-def dcb_scene(bond: bool, size: float = SIZE, toughness: float = TOUGHNESS):
+def dcb_scene(bond: bool, size: float = SIZE, toughness: float = TOUGHNESS, strength: float = STRENGTH,
+              crack: float = CRACK):
     """The DCB under a unit opening (±1/2 on both layers' left end faces of the arms), clamped on the right, on a
-    uniform P2 mesh of ``size``; with the bilinear bond (``bond``) or the Griffith toughness."""
+    uniform P2 mesh of ``size``, its initial crack (0, ``crack``); with no crack the end faces' outer halves are
+    opened (the whole faces would meet at Σ's glued end). With the bilinear bond of ``strength`` (``bond``) or
+    the Griffith toughness."""
     from ddsolve.problem import scene as scenes
 
     folder = Path(tempfile.mkdtemp(prefix="cohesive-"))
     name = f"dcb-{'bond' if bond else 'griffith'}"
-    (folder / f"{name}.geo").write_text(beams.strip_geo(LENGTH, ARM, [(0.0, CRACK)], {"clamped": [("right", -ARM, ARM)]}))
+    pieces = {"clamped": [("right", -ARM, ARM)], "opened_upper": [("left", 0.5 * ARM, ARM)],
+              "opened_lower": [("left", -ARM, -0.5 * ARM)]}
+    opened = ("left_upper", "left_lower") if crack > 0 else ("opened_upper", "opened_lower")
+    cracks = [(0.0, crack)] if crack > 0 else []
+    (folder / f"{name}.geo").write_text(beams.strip_geo(LENGTH, ARM, cracks, pieces if crack <= 0 else
+                                                        {"clamped": pieces["clamped"]}))
     displacements = "".join(f"[displacements.{layer}.{face}]\ny = {value}\n" for layer in ("layer1", "layer2")
-                            for face, value in (("left_upper", 0.5), ("left_lower", -0.5)))
+                            for face, value in zip(opened, (0.5, -0.5)))
     materials = "".join(f"[materials.{layer}]\nE = {MODULUS}\nnu = {POISSON}\n" for layer in ("layer1", "layer2"))
-    law = (f'[interface]\nlaw = "bilinear"\nstrength = {STRENGTH!r}\ntoughness = {toughness!r}\n' if bond else
+    law = (f'[interface]\nlaw = "bilinear"\nstrength = {strength!r}\ntoughness = {toughness!r}\n' if bond else
            f"[fracture]\ntoughness = {toughness!r}\n")
     text = (f'title = "{name}"\n[mesh]\nfile = "{name}.geo"\nsize = {size!r}\ndegree = 2\n{materials}{displacements}'
             f'{law}[solver]\nmethod = "schur"\n')
@@ -97,22 +105,45 @@ def griffith_load(opening: float, griffith: dict) -> float:
     return float(np.interp(opening, griffith["displacement"], griffith["load"]))
 
 
-def dcb_growth(limit: float = 0.2, steps: int = 20, size: float = SIZE) -> dict:
-    """The bilinear DCB against Griffith on one mesh (module docstring): per bond step the opening, load, crack
-    tip, process zone and the Griffith load; the largest deviations before damage and once the crack grows."""
+def bond_run(size: float = SIZE, strength: float = STRENGTH, crack: float = CRACK, limit: float = 0.2,
+             steps: int = 20) -> dict:
+    """``ddsolve grow`` of the bilinear DCB to the opening ``limit``: its growth file's arrays, the wall time and
+    the unknowns."""
+    from ddsolve.solvers import bond_growth
+
+    return timed_growth(bond_growth.grow, dcb_scene(True, size, strength=strength, crack=crack), limit, steps,
+                        progress=lambda line: print(line, flush=True))
+
+
+def griffith_run(size: float = SIZE, limit: float = 0.2, steps: int = 20) -> dict:
+    """``ddsolve grow`` of the same DCB with the rigid bond and the Griffith toughness, as :func:`bond_run`."""
+    from ddsolve.solvers import grow
+
+    return timed_growth(grow.grow, dcb_scene(False, size), limit, steps, progress=lambda line: None)
+
+
+def timed_growth(run, scene, limit: float, steps: int, progress) -> dict:
+    """``run(scene, comm, limit, steps, progress=, output=)`` in one process: the growth file's arrays, the wall
+    time (the mesh counted apart) and the unknowns."""
     from mpi4py import MPI
 
-    from ddsolve.solvers import bond_growth, grow, growth_files
+    from ddsolve.parallel import distribution
+    from ddsolve.solvers import adapt, growth_files
 
-    folder = Path(tempfile.mkdtemp(prefix="cohesive-"))
+    output = Path(tempfile.mkdtemp(prefix="cohesive-")) / "growth.h5"
+    unknowns = adapt.unknowns(distribution.build_mesh(scene, MPI.COMM_SELF))
     started = time.perf_counter()
-    bonded = dcb_scene(True, size)
-    bond_growth.grow(bonded, MPI.COMM_SELF, limit, steps, progress=lambda line: print(line, flush=True),
-                     output=folder / "bond.h5")
-    bond_seconds = time.perf_counter() - started
-    rigid = dcb_scene(False, size)
-    grow.grow(rigid, MPI.COMM_SELF, limit, steps, 1e-4, progress=lambda line: None, output=folder / "griffith.h5")
-    bond, griffith = growth_files.read(folder / "bond.h5"), growth_files.read(folder / "griffith.h5")
+    run(scene, MPI.COMM_SELF, limit, steps, progress=progress, output=output)
+    return {**growth_files.read(output), "seconds": time.perf_counter() - started, "unknowns": unknowns}
+
+
+def dcb_growth(limit: float = 0.2, steps: int = 20, size: float = SIZE, strength: float = STRENGTH,
+               griffith: dict | None = None) -> dict:
+    """The bilinear DCB against Griffith on one mesh (module docstring; ``griffith`` a :func:`griffith_run` of the
+    same ``size`` reaching at least ``limit`` if given): per bond step the opening, load, crack tip, process zone and the Griffith
+    load; the largest deviations before damage and once the crack grows."""
+    bond = bond_run(size, strength, CRACK, limit, steps)
+    griffith = griffith if griffith is not None else griffith_run(size, limit, steps)
     tips = bond["cracks"][:, 0, 1]
     damaged = bond["damage"].max(axis=1) > 0.0
     grown = tips > CRACK + 1e-9
@@ -121,10 +152,10 @@ def dcb_growth(limit: float = 0.2, steps: int = 20, size: float = SIZE) -> dict:
     spacing = size / 2.0  # P2: the Σ nodes' spacing
     return {"opening": bond["displacement"].tolist(), "load": bond["load"].tolist(), "griffith": expected.tolist(),
             "tip": tips.tolist(), "process_zone": bond["process_zone"].tolist(), "solves": bond["solves"].tolist(),
-            "before_damage": float(np.nanmax(deviation[~damaged], initial=0.0)),
+            "before_damage": float(np.nanmax(deviation[~damaged])) if np.isfinite(deviation[~damaged]).any() else np.nan,
             "grown": float(np.nanmax(deviation[grown], initial=np.nan)),
             "elements_per_zone": float(np.nanmedian(bond["process_zone"][grown]) / spacing) if grown.any() else np.nan,
-            "steps": len(tips) - 1, "seconds": bond_seconds,
+            "steps": len(tips) - 1, "seconds": bond["seconds"], "unknowns": bond["unknowns"],
             "irreversible": bool(np.all(np.diff(bond["damage"], axis=0) >= 0.0)),
             "newton": bond["bond_solves"].tolist()}
 

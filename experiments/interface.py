@@ -2,13 +2,18 @@
 results/interface.h5.
 
 The page is :data:`SECTIONS`, a list of :class:`Section`s: each measures its cases into a record, draws its pictures
-from the record and writes its markdown and its rows of the summary table from it. Every case is ``./run solve`` on
-:data:`RANKS` ranks with the default method, as a user runs it, timed around the launch. Friction on the crack faces:
+from the record and writes its markdown and its rows of the summary table from it. Every friction case is
+``./run solve`` on :data:`RANKS` ranks with the default method, as a user runs it, timed around the launch. Friction
+on the crack faces:
 
 - the closed crack under remote compression S and shear T (docs/closed-crack.toml), Coulomb and Tresca from no
   friction to stick, against the infinite plane's K_II = (T − g)√(πa), the finite square's excess measured at two
   sides and extrapolated;
 - the ENF with friction between the arms against Euler beam theory with the friction fully developed at the mouth.
+
+The cohesive bond (experiments/cohesive.py's DCB, ``ddsolve grow`` in one process): the bilinear law at three
+strengths against Griffith's growth of the same structure, the process zone against Hillerborg's and the slender
+arm's estimates, mesh convergence, a bond with no initial crack, and the runs' Newton steps and block solves.
 """
 from __future__ import annotations
 
@@ -21,7 +26,7 @@ from typing import Callable
 
 import numpy as np
 
-from experiments import report, stacks
+from experiments import cohesive, report, stacks
 from experiments.delamination import ARM, CHI_II, plane_strain_modulus
 from experiments.stacks import table
 
@@ -495,6 +500,315 @@ def enf_table(rows: list[dict]) -> list[str]:
                    row["stick"], str(row["coulomb_iterations"] or ""), f"{row['seconds']:.1f} s"] for row in rows])
 
 
+# --- the cohesive bond -------------------------------------------------------------------------------------
+#: The bilinear DCB of experiments/cohesive.py: (strength / E, mesh.size) of every run, the acceptance case
+#: first (its mesh cohesive.SIZE), the strength sweep on its mesh, the mesh study on a coarser one (σ_c = 0.01 E
+#: on size 0.25 fails: its zone is one Σ spacing, a vertex snaps and Newton finds no state); the sweep's mesh.
+BOND_RUNS = ((0.005, 0.1), (0.0025, 0.1), (0.01, 0.1), (0.005, 0.25))
+BOND_SWEEP_SIZE = 0.1
+#: The bond with no initial crack's mesh (its growth takes many short steps).
+OPENED_SIZE = 0.25
+#: The openings the runs reach: the acceptance run's (Griffith's too) in steps of at most 0.01, the others' (the
+#: crack grows from ≈ 0.12) in steps of at most 0.02; the growth halves them where damage moves fast.
+BOND_LIMIT, SWEEP_LIMIT, SWEEP_STEPS = 0.2, 0.16, 8
+#: The acceptance: the load within 1 % of the linear curve before damage, 3 % of Griffith's once grown.
+BEFORE_DAMAGE, ONCE_GROWN = 0.01, 0.03
+
+
+def run_name(strength: float, size: float) -> str:
+    return f"strength {strength:g} E, size {size:g}"
+
+
+def tips(cracks: np.ndarray, start: float) -> np.ndarray:
+    """The crack tip (the last broken vertex) per step of a growth file's ``cracks``, ``start`` while none."""
+    ends = np.where(np.isfinite(cracks[:, :, 1]), cracks[:, :, 1], start)
+    return np.maximum(ends.max(axis=1), start)
+
+
+def bond_speed(run: dict) -> dict:
+    """A growth run's steps, Newton steps (linear problems on Σ) and block solves per step, and its wall time."""
+    newton, solves = np.asarray(run["newton"]), np.asarray(run["solves"])
+    return {"steps": len(solves) - 1, "newton_mean": float(newton[1:].mean()), "newton_max": int(newton.max()),
+            "solves_mean": float(solves[1:].mean()), "seconds": float(run["seconds"]), "unknowns": int(run["unknowns"])}
+
+
+def measure_opened(griffith: dict) -> dict:
+    """The bond with no initial crack (the end faces' outer halves opened) on the sweep's mesh: its curve, tip,
+    process zone, where damage starts and the first vertex breaks, and its load once the tip passes the other
+    runs' initial crack against Griffith's branch there (the stable branch does not depend on the initial crack)."""
+    run = cohesive.bond_run(OPENED_SIZE, cohesive.STRENGTH, 0.0, SWEEP_LIMIT, SWEEP_STEPS)
+    tip, load, opening = tips(run["cracks"], 0.0), run["load"], run["displacement"]
+    damaged, broken = run["damage"].max(axis=1) > 0.0, tip > 0.0
+    beyond = tip > cohesive.CRACK + 1e-9
+    expected = np.array([cohesive.griffith_load(d, griffith) for d in opening])
+    return {"opening": opening.tolist(), "load": load.tolist(), "tip": tip.tolist(), "griffith": expected.tolist(),
+            "process_zone": run["process_zone"].tolist(), "newton": run["bond_solves"].tolist(),
+            "solves": run["solves"].tolist(), "seconds": run["seconds"], "unknowns": run["unknowns"],
+            "damage_starts": float(opening[np.argmax(damaged)]), "breaks": float(opening[np.argmax(broken)]),
+            "peak": float(load.max()), "peak_opening": float(opening[np.argmax(load)]),
+            "beyond": float(np.nanmax(np.abs(load[beyond] / expected[beyond] - 1.0), initial=np.nan)),
+            "zone": float(np.median(run["process_zone"][beyond])) if beyond.any() else np.nan}
+
+
+def measure_cohesive() -> dict:
+    """Griffith's growth on every mesh, the bilinear DCB at every (strength, size) of BOND_RUNS against it, and
+    the bond with no initial crack."""
+    sizes = sorted({OPENED_SIZE, *(size for _, size in BOND_RUNS)})
+    griffith = {size: cohesive.griffith_run(size, BOND_LIMIT) for size in sizes}
+    runs = {}
+    for strength, size in BOND_RUNS:
+        limit, steps = (BOND_LIMIT, 20) if (strength, size) == BOND_RUNS[0] else (SWEEP_LIMIT, SWEEP_STEPS)
+        run = cohesive.dcb_growth(limit, steps, size, strength * cohesive.MODULUS, griffith[size])
+        runs[run_name(strength, size)] = {"strength": strength, "size": size, **run}
+        print(f"interface: cohesive DCB, {run_name(strength, size)}: before damage {run['before_damage']:.3%}, "
+              f"once grown {run['grown']:.3%}, {run['seconds']:.0f} s", flush=True)
+    opened = measure_opened(griffith[OPENED_SIZE])
+    curves = {f"size {size:g}": {"opening": g["displacement"].tolist(), "load": g["load"].tolist(),
+                                 "solves": g["solves"].tolist(), "seconds": g["seconds"], "unknowns": g["unknowns"],
+                                 "tip": tips(g["cracks"], cohesive.CRACK).tolist(),
+                                 "size": size} for size, g in griffith.items()}
+    return {"runs": runs, "griffith": curves, "opened": opened,
+            "commit": str(griffith[sizes[0]]["attrs"].get("git_commit", "unknown"))}
+
+
+# --- the cohesive bond: closed-form estimates and what the page reads of a run -----------------------------
+def arm_modulus() -> float:
+    return plane_strain_modulus(cohesive.MODULUS, cohesive.POISSON)
+
+
+def hillerborg_length(strength: float) -> float:
+    """Hillerborg's characteristic length E′G_c/σ_c² (E′ the arms' plane-strain modulus)."""
+    return arm_modulus() * cohesive.TOUGHNESS / strength ** 2
+
+
+def slender_length(strength: float, h: float = ARM) -> float:
+    """The slender arm's (beam on the bond's foundation) zone length (E′G_c/σ_c²)^¼ h^¾."""
+    return hillerborg_length(strength) ** 0.25 * h ** 0.75
+
+
+def whole_curve(run: dict) -> float:
+    """The largest |P/P_Griffith − 1| over the whole run (the peak's rounding included)."""
+    load, griffith = np.asarray(run["load"]), np.asarray(run["griffith"])
+    return float(np.max(np.abs(load[griffith > 0] / griffith[griffith > 0] - 1.0)))
+
+
+def zone(run: dict) -> float:
+    """The process zone's median length once the crack grows."""
+    grown = np.asarray(run["tip"]) > cohesive.CRACK + 1e-9
+    return float(np.median(np.asarray(run["process_zone"])[grown]))
+
+
+def acceptance(record: dict) -> dict:
+    return record["runs"][run_name(*BOND_RUNS[0])]
+
+
+def sweep(record: dict) -> list[dict]:
+    return [run for run in record["runs"].values() if run["size"] == BOND_SWEEP_SIZE]
+
+
+def mesh_study(record: dict) -> list[dict]:
+    """The acceptance strength's runs, coarsest mesh first."""
+    strength = BOND_RUNS[0][0]
+    return sorted((run for run in record["runs"].values() if run["strength"] == strength), key=lambda r: -r["size"])
+
+
+def zone_exponent(record: dict) -> float:
+    """The slope of log(process zone) against log(strength) over the sweep (Hillerborg −2, slender arm −½)."""
+    rows = sweep(record)
+    return float(np.polyfit(np.log([row["strength"] for row in rows]), np.log([zone(row) for row in rows]), 1)[0])
+
+
+def cohesive_summary(record: dict) -> list[dict]:
+    run, opened = acceptance(record), record["opened"]
+    out = [summary_row(f"cohesive DCB, strength {run['strength']:g} E, size {run['size']:g}: the load at δ = "
+                       f"{run['opening'][-1]:g} (against Griffith growth; the error: the largest once grown)",
+                       run["griffith"][-1], run["load"][-1], percent(run["grown"]),
+                       {"unknowns": run["unknowns"], "method": "schur", "seconds": run["seconds"]})]
+    out.append(summary_row(f"bond with no initial crack, size {OPENED_SIZE:g}: the load at δ = "
+                           f"{opened['opening'][-1]:g} (against Griffith growth from the crack 4)",
+                           opened["griffith"][-1], opened["load"][-1], percent(opened["beyond"]),
+                           {"unknowns": opened["unknowns"], "method": "schur", "seconds": opened["seconds"]}))
+    return out
+
+
+def cohesive_plot(record: dict) -> None:
+    """The load against the opening (the sweep and the acceptance run against Griffith's; the bond with no crack);
+    the process zone against the strength with the two estimates; the peak load's change against the elements
+    per process zone."""
+    plt = _pyplot()
+    fig, ((sweeps, opened), (zones, meshes)) = plt.subplots(2, 2, figsize=(12, 8.4), constrained_layout=True)
+    coarse, fine = record["griffith"][f"size {OPENED_SIZE:g}"], record["griffith"][f"size {BOND_SWEEP_SIZE:g}"]
+    sweeps.plot(fine["opening"], fine["load"], "k-", linewidth=2, label=f"Griffith growth, size {BOND_SWEEP_SIZE:g}")
+    for index, run in enumerate(sweep(record)):
+        sweeps.plot(run["opening"], run["load"], f"C{index}o-", markersize=3, linewidth=1,
+                    label=f"bilinear, σ_c = {run['strength']:g} E, size {run['size']:g}")
+    others = [run for run in record["runs"].values() if run["size"] != BOND_SWEEP_SIZE]
+    for run in others:
+        sweeps.plot(run["opening"], run["load"], "C3s", fillstyle="none", markersize=5,
+                    label=f"bilinear, σ_c = {run['strength']:g} E, size {run['size']:g}")
+    sweeps.set_title("DCB: the bilinear law meets Griffith's curve as the strength grows", fontsize=10)
+    free = record["opened"]
+    opened.plot(coarse["opening"], coarse["load"], "k-", label=f"Griffith growth from the crack 4, size {OPENED_SIZE:g}")
+    opened.plot(free["opening"], free["load"], "C0o-", markersize=3, linewidth=1, label="bilinear, no initial crack")
+    opened.set_ylim(0.0, 1.1 * max(free["load"]))
+    twin = opened.twinx()
+    twin.plot(free["opening"], free["tip"], "C1-", label="its crack tip (d = 1)")
+    twin.set_ylabel("crack tip x")
+    lines = opened.get_legend_handles_labels(), twin.get_legend_handles_labels()
+    opened.legend(lines[0][0] + lines[1][0], lines[0][1] + lines[1][1], fontsize=8)
+    opened.set_title("a bond with no initial crack opens from its end", fontsize=10)
+    for ax in (sweeps, opened):
+        ax.set_xlabel("opening δ")
+        ax.set_ylabel("load P (per layer)")
+        ax.grid(alpha=0.3)
+    sweeps.legend(fontsize=7)
+    swept = [strength for strength, _ in BOND_RUNS]
+    strengths = np.geomspace(0.5 * min(swept), 2.0 * max(swept), 50)
+    zones.loglog(strengths, [hillerborg_length(s * cohesive.MODULUS) for s in strengths], "k--",
+                 label="E′G_c/σ_c² (Hillerborg)")
+    zones.loglog(strengths, [slender_length(s * cohesive.MODULUS) for s in strengths], "k-",
+                 label="(E′G_c/σ_c²)^¼ h^¾ (slender arm)")
+    zones.loglog([r["strength"] for r in sweep(record)], [zone(r) for r in sweep(record)], "C0o", markersize=8,
+                 label=f"ddsolve, size {BOND_SWEEP_SIZE:g}")
+    zones.loglog([r["strength"] for r in others], [zone(r) for r in others], "C3s", markersize=8,
+                 label="ddsolve, size " + ", ".join(sorted({f"{r['size']:g}" for r in others})))
+    zones.set_xlabel("strength σ_c / E")
+    zones.set_ylabel("process zone (0 < d < 1) once grown")
+    zones.set_title(f"process zone against the strength: slope {zone_exponent(record):.2f}", fontsize=10)
+    study = mesh_study(record)
+    finest = max(study[-1]["load"])
+    meshes.semilogy([zone(r) / r["size"] for r in study[:-1]], [abs(max(r["load"]) / finest - 1.0) for r in study[:-1]],
+                    "C0o-", label=f"|peak / peak at size {study[-1]['size']:g} − 1|")
+    meshes.semilogy([zone(r) / r["size"] for r in study], [r["grown"] for r in study], "C1s-",
+                    label="largest |P/P_Griffith − 1| once grown")
+    for r in study:
+        meshes.annotate(f"size {r['size']:g}", (zone(r) / r["size"], r["grown"]), fontsize=8)
+    meshes.set_xlabel("P2 elements per process zone")
+    meshes.set_title(f"mesh convergence, σ_c = {study[-1]['strength']:g} E", fontsize=10)
+    for ax in (zones, meshes):
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=8)
+    fig.savefig(DOCS / "interface-cohesive.png", dpi=110)
+    plt.close(fig)
+
+
+def cohesive_page(record: dict) -> list[str]:
+    run, rows = acceptance(record), list(record["runs"].values())
+    verdict = "within" if run["before_damage"] <= BEFORE_DAMAGE and run["grown"] <= ONCE_GROWN else "NOT within"
+    out = ["## The DCB with the bilinear law against Griffith growth", "",
+           f"`experiments/cohesive.py`'s DCB ([growth.md](growth.md), *A damaging bond*): {cohesive.LENGTH:g} long, arms "
+           f"h = {ARM:g}, initial crack {cohesive.CRACK:g}, clamped at the right end, two identical layers (E = "
+           f"{cohesive.MODULUS:g}, ν = {cohesive.POISSON:g}, plane strain) opened by ±δ/2 on both arms' end faces to "
+           f"δ = {BOND_LIMIT:g} in steps of at most 0.01 (the acceptance run; the others to {SWEEP_LIMIT:g} in steps "
+           f"of at most {SWEEP_LIMIT / SWEEP_STEPS:g}, halved where damage moves fast), uniform P2 meshes; "
+           "`[interface] law = \"bilinear\"` with toughness G_c = "
+           f"{cohesive.TOUGHNESS:g} and the strength σ_c below, grown by `ddsolve grow` (one process, schur), against "
+           "`ddsolve grow` of the same scene with the rigid bond and `[fracture] toughness = G_c` on the same mesh "
+           "(Griffith's load at the bond's opening, interpolated along its run). *Before damage*: the largest "
+           "deviation while no vertex is damaged; *once grown*: while the crack (d = 1) is beyond its start; *whole "
+           "curve*: every step, the rounded peak included. As σ_c grows the process zone shrinks and the cohesive "
+           "peak rises to Griffith's corner: the curves meet.", "",
+           f"**The acceptance** (σ_c = {run['strength']:g} E, size {run['size']:g}): before damage "
+           f"{run['before_damage']:.3%} (≤ {BEFORE_DAMAGE:.0%}), once grown {run['grown']:.2%} (≤ {ONCE_GROWN:.0%}): "
+           f"{verdict} the acceptance; damage never falls between steps: {run['irreversible']}.", "",
+           "![cohesive DCB](interface-cohesive.png)", ""]
+    out += table(["σ_c / E", "mesh.size", "peak load", "Griffith's initiation load", "peak / initiation",
+                  "before damage", "once grown", "whole curve", "tip at the end (Griffith's)", "steps"],
+                 [[f"{r['strength']:g}", f"{r['size']:g}", f"{max(r['load']):.5e}", f"{initiation(record, r):.5e}",
+                   f"{max(r['load']) / initiation(record, r):.4f}", before_damage(r), f"{r['grown']:.3%}",
+                   f"{whole_curve(r):.2%}", f"{r['tip'][-1]:.3f} ({griffith_tip(record, r):.3f})", str(r["steps"])]
+                  for r in rows])
+    return out
+
+
+def before_damage(run: dict) -> str:
+    """The largest deviation before damage, or that the first step damages already."""
+    value = run["before_damage"]
+    return f"{value:.3%}" if np.isfinite(value) else "none: the first step damages"
+
+
+def initiation(record: dict, run: dict) -> float:
+    """Griffith's largest load (its initiation, at the corner of its curve) on the run's mesh."""
+    return max(record["griffith"][f"size {run['size']:g}"]["load"])
+
+
+def griffith_tip(record: dict, run: dict) -> float:
+    """Griffith's crack tip on the run's mesh at the run's last opening."""
+    griffith = record["griffith"][f"size {run['size']:g}"]
+    return float(np.interp(run["opening"][-1], griffith["opening"], griffith["tip"]))
+
+
+def process_zone_page(record: dict) -> list[str]:
+    study = mesh_study(record)
+    finest = study[-1]
+    out = ["## The process-zone length", "",
+           "The process zone is the length of Σ where 0 < d < 1 (the growth file's `process_zone`), its median over "
+           "the steps once the crack grows. Two estimates, with E′ = E/(1 − ν²) of an arm "
+           f"({arm_modulus():.1f}): **Hillerborg's** characteristic length l_ch = E′G_c/σ_c², the zone of a crack in "
+           "a large body being M·l_ch with M of order one (M = 1 Hillerborg, 9π/32 ≈ 0.88 Rice; Harper and Hallett "
+           "2008 collect them); and the **slender arm's**, a beam of thickness h on the bond as its foundation "
+           "(Yang and Cox 2005, taken up by Harper and Hallett 2008 for the DCB): l = M (E′G_c/σ_c²)^¼ h^¾, again M "
+           "of order one. The table gives the measured M against each; the slope of log(zone) against log(σ_c) "
+           f"over the sweep is **{zone_exponent(record):.2f}**: Hillerborg's form falls as σ_c⁻², the slender "
+           "arm's as σ_c^−½. The zone is measured on the Σ nodes (spacing size/2), so on the sweep's mesh it "
+           "is known to ±1 spacing.", ""]
+    out += table(["σ_c / E", "mesh.size", "process zone", "Σ node spacings", "l_ch = E′G_c/σ_c²", "zone / l_ch",
+                  "(E′G_c/σ_c²)^¼ h^¾", "zone / slender estimate"],
+                 [[f"{r['strength']:g}", f"{r['size']:g}", f"{zone(r):.4f}", f"{zone(r) / (r['size'] / 2):.1f}",
+                   f"{hillerborg_length(strength):.4f}", f"{zone(r) / hillerborg_length(strength):.3f}",
+                   f"{slender_length(strength):.4f}", f"{zone(r) / slender_length(strength):.3f}"]
+                  for r in record["runs"].values() for strength in [r["strength"] * cohesive.MODULUS]])
+    out += ["", f"**Mesh convergence** (σ_c = {finest['strength']:g} E): the peak load against the finest mesh's "
+            f"(size {finest['size']:g}) and the load once grown against Griffith's on the same mesh, by the P2 "
+            "elements per process zone:", ""]
+    out += table(["mesh.size", "unknowns", "process zone", "P2 elements per zone", "peak load",
+                  f"peak / peak at size {finest['size']:g} − 1", "before damage", "once grown", "steps"],
+                 [[f"{r['size']:g}", f"{r['unknowns']:,}", f"{zone(r):.4f}", f"{zone(r) / r['size']:.1f}",
+                   f"{max(r['load']):.6e}", percent(max(r["load"]) / max(finest["load"]) - 1.0),
+                   before_damage(r), f"{r['grown']:.3%}", str(r["steps"])] for r in study])
+    return out
+
+
+def opened_page(record: dict) -> list[str]:
+    free = record["opened"]
+    return ["## A bond with no initial crack", "",
+            f"The same DCB with no crack on Σ: the bond holds all of Σ and the law is the same (σ_c = "
+            f"{cohesive.STRENGTH / cohesive.MODULUS:g} E); the arms' end faces would meet at Σ's glued end, so the "
+            "outer halves of the end faces are opened by ±δ/2 (`experiments/cohesive.py`, `dcb_scene` with no "
+            f"crack; mesh.size {OPENED_SIZE:g}). Damage starts at δ = {free['damage_starts']:.4g}, the first "
+            f"vertex breaks (d = 1: the crack starts) at δ = {free['breaks']:.4g}; the peak load "
+            f"{free['peak']:.4e} is at δ = {free['peak_opening']:.4g}, and the crack then runs stably under the "
+            f"opening to x = {free['tip'][-1]:.3f} at δ = {free['opening'][-1]:g}. Once its tip passes x = "
+            f"{cohesive.CRACK:g} its load is Griffith's of the DCB with the crack {cohesive.CRACK:g} (the stable "
+            f"branch does not depend on the initial crack) within **{free['beyond']:.2%}**, the process zone "
+            f"{free['zone']:.3f} long there. Its curve is the upper right picture above."]
+
+
+def cohesive_speed_page(record: dict) -> list[str]:
+    out = ["## Speed of the cohesive runs", "",
+           "Every run is `ddsolve grow` in one process with schur (its blocks factored once per crack; a step is "
+           "Newton's method on Σ, each Newton step a dense solve on rank 0, and the block solves that recover the "
+           "displacements); wall time of the growth alone (the mesh apart), on two cores shared with other work, so "
+           "the counts are what to compare. *Newton steps*: linear problems on Σ per step (the growth file's "
+           "`bond_solves`); the steps include those the growth halved where damage moved fast.", ""]
+    cases = [(f"bilinear, {name}", run) for name, run in record["runs"].items()]
+    cases += [(f"bilinear, no initial crack, size {OPENED_SIZE:g}", record["opened"])]
+    rows = [[case, f"{s['unknowns']:,}", str(s["steps"]), f"{s['newton_mean']:.1f}", str(s["newton_max"]),
+             f"{s['solves_mean']:.1f}", f"{s['seconds']:.1f} s", f"{s['seconds'] / max(s['steps'], 1):.2f} s"]
+            for case, run in cases for s in [bond_speed(run)]]
+    rows += [[f"Griffith (rigid bond), {name}", f"{g['unknowns']:,}", str(len(g["solves"]) - 1), "", "",
+              f"{np.mean(g['solves'][1:]):.1f}", f"{g['seconds']:.1f} s",
+              f"{g['seconds'] / max(len(g['solves']) - 1, 1):.2f} s"] for name, g in record["griffith"].items()]
+    out += table(["run", "unknowns", "steps", "Newton steps per step", "most in a step", "block solves per step",
+                  "wall time", "per step"], rows)
+    return out
+
+
+def cohesive_text(record: dict) -> list[str]:
+    return [*cohesive_page(record), "", *process_zone_page(record), "", *opened_page(record), "",
+            *cohesive_speed_page(record)]
+
+
 @dataclass(frozen=True)
 class Section:
     """A part of the page: ``measure()`` solves its cases into a record; ``draw``, ``text`` (markdown lines) and
@@ -508,7 +822,8 @@ class Section:
 
 #: The page, in order.
 SECTIONS = [Section("closed_crack", measure_closed_crack, closed_crack_plot, closed_crack_page, closed_crack_summary),
-            Section("enf", measure_enf, enf_plot, enf_page, enf_summary)]
+            Section("enf", measure_enf, enf_plot, enf_page, enf_summary),
+            Section("cohesive", measure_cohesive, cohesive_plot, cohesive_text, cohesive_summary)]
 
 
 def page(records: dict[str, dict], sections: list[Section] = SECTIONS) -> str:
@@ -516,11 +831,13 @@ def page(records: dict[str, dict], sections: list[Section] = SECTIONS) -> str:
     revision = next(iter(records.values()))["commit"][:10]
     summary = [row for section in sections for row in section.summary(records[section.name])]
     out = ["# Interface laws", "",
-           "Laws on Σ beyond bonded-or-free, each against a closed form: friction on crack faces in contact "
-           "([fracture.md](fracture.md#friction-on-the-crack-faces) says how it is solved and how G takes it). "
-           f"Generated by `./run interface` ({revision}): every case is `./run solve -n {RANKS}` as a user runs it, "
-           "the wall time the whole launch (start, mesh, solve, G, output); graded P2 meshes, plane strain. The "
-           "code is experiments/interface.py; results/interface.h5 keeps every number of the tables.", "",
+           "Laws on Σ beyond bonded-or-free, each against a closed form or Griffith's growth: friction on crack "
+           "faces in contact ([fracture.md](fracture.md#friction-on-the-crack-faces) says how it is solved and how G "
+           "takes it) and a cohesive bond on Σ ([growth.md](growth.md), *A damaging bond*). "
+           f"Generated by `./run interface` ({revision}): every friction case is `./run solve -n {RANKS}` as a user "
+           "runs it, the wall time the whole launch (start, mesh, solve, G, output), on graded P2 meshes; the "
+           "cohesive runs are `ddsolve grow` in one process on uniform P2 meshes; plane strain. The code is "
+           "experiments/interface.py; results/interface.h5 keeps every number of the tables.", "",
            "## Summary", ""]
     out += table(["case", "closed form", "ddsolve", "error", "unknowns", "method", "wall time"],
                  [[row["case"], f"{row['closed']:.6e}", f"{row['G']:.6e}", row["error"], f"{row['unknowns']:,}",

@@ -91,19 +91,53 @@ def synthetic_records(seed: int = 0) -> dict:
     methods = [{**enf(5.0, mu), "schur_G": 1e-8, "schur_seconds": 1.0, "energy_error": 3e-10}
                for mu in interface.ENF_CHECKED]
     return {"closed_crack": closed, "enf": {"rows": rows, "refined": [enf(5.0, mu, 0.1) for mu in interface.ENF_REFINED],
-                                            "methods": methods, "profile": profile, "commit": "0123456789abcdef"}}
+                                            "methods": methods, "profile": profile, "commit": "0123456789abcdef"},
+            "cohesive": synthetic_cohesive()}
+
+
+def synthetic_curve(strength: float, start: float = 4.0) -> dict:
+    """A bond run's curve: linear, a peak rounded by the strength, then Griffith's branch P ∝ δ^(−½); its crack
+    grows from δ = 0.12, its process zone (E′G_c/σ_c²)^¼ h^¾ / 3."""
+    opening = np.linspace(0.0, 0.2, 21)
+    griffith = np.where(opening < 0.12, 0.48 * opening, 0.48 * 0.12 * np.sqrt(0.12 / np.maximum(opening, 1e-9)))
+    load = griffith * (1.0 - 0.001 * (opening > 0.05) / strength ** 0.5)
+    tip = np.where(opening > 0.12, start + 10.0 * (opening - 0.12), start if start else 0.0)
+    zone = interface.slender_length(strength * 200.0) / 3.0 * (opening > 0.05)
+    return {"opening": opening.tolist(), "load": load.tolist(), "griffith": griffith.tolist(), "tip": tip.tolist(),
+            "process_zone": zone.tolist(), "newton": [0] + [5] * 20, "solves": [0] + [3] * 20, "seconds": 60.0,
+            "unknowns": 12345}
+
+
+def synthetic_cohesive() -> dict:
+    """A record shaped as ``measure_cohesive`` returns it."""
+    runs = {}
+    for strength, size in interface.BOND_RUNS:
+        curve = synthetic_curve(strength)
+        runs[interface.run_name(strength, size)] = {"strength": strength, "size": size, **curve,
+                                                     "before_damage": 4e-4 if strength > 0.003 else np.nan, "grown": 9e-3, "steps": 20,
+                                                     "irreversible": True, "elements_per_zone": 6.0}
+    griffith = {f"size {size:g}": {**synthetic_curve(0.005), "load": synthetic_curve(0.005)["griffith"], "size": size}
+                for size in sorted({size for _, size in interface.BOND_RUNS})}
+    free = synthetic_curve(0.005, start=0.0)
+    opened = {**free, "damage_starts": 0.002, "breaks": 0.004, "peak": 0.36, "peak_opening": 0.0044, "beyond": 0.012,
+              "zone": 0.3}
+    return {"runs": runs, "griffith": griffith, "opened": opened, "commit": "0123456789abcdef"}
 
 
 @pytest.mark.unit
 def test_the_page_is_its_sections_in_order_with_a_summary_row_per_case():
     page = interface.page(synthetic_records())
     assert re.findall(r"^## (.*)$", page, re.M) == ["Summary", "The closed crack",
-                                                     "The ENF with friction between the arms"]
+                                                     "The ENF with friction between the arms",
+                                                     "The DCB with the bilinear law against Griffith growth",
+                                                     "The process-zone length", "A bond with no initial crack",
+                                                     "Speed of the cohesive runs"]
     assert "(0123456789)" in page and "\n\n\n" not in page and "nan" not in page.lower()
     summary = page[page.index("## Summary"):page.index("## The closed crack")]
     cases = 1 + len(interface.COULOMB) + len(interface.TRESCA) + len(interface.ENF_CRACKS) * len(interface.ENF_FRICTION)
-    assert summary.count("\n| ") == cases + 1  # and the header
+    assert summary.count("\n| ") == cases + 2 + 1  # the cohesive DCB's and the bond with no crack's, and the header
     assert "\\|G\\|/G₀" in summary  # the stuck faces' G against the frictionless one
+    assert "none: the first step damages" in page  # the weakest bond has no undamaged step to compare
     # the square's excess divided out: the synthetic G is 1.57 % above at side 20, a quarter of it at 40
     assert re.search(r"closed crack, Coulomb μ = 0\.5 \| 1\.429425e-02 \| 1\.451867e-02 \| [+-]0\.000 %", summary)
 
@@ -132,3 +166,22 @@ def test_a_small_closed_crack_with_coulomb_friction_gives_the_closed_form(tmp_pa
     assert row["slip"] != "none" and row["stick"] == "none" and row["coulomb_iterations"] >= 2
     stuck, _ = interface.closed_crack_case("Coulomb", 1.5, tmp_path, size=1.0)
     assert abs(stuck["G"]) <= 1e-3 * interface.closed_crack_release(0.0) and stuck["slip"] == "none"
+
+
+@pytest.mark.unit
+def test_the_cohesive_pictures_are_drawn_from_the_record(tmp_path, monkeypatch):
+    monkeypatch.setattr(interface, "DOCS", tmp_path)
+    interface.cohesive_plot(synthetic_cohesive())
+    assert (tmp_path / "interface-cohesive.png").stat().st_size > 10_000
+
+
+@pytest.mark.unit
+def test_the_process_zone_estimates_and_the_fitted_slope():
+    strength = 1.0
+    hillerborg = interface.hillerborg_length(strength)
+    assert hillerborg == pytest.approx(200.0 / (1 - 0.28 ** 2) * 2e-3, rel=1e-14)
+    assert interface.slender_length(strength, h=2.0) == pytest.approx(hillerborg ** 0.25 * 2.0 ** 0.75, rel=1e-14)
+    # the synthetic zones follow the slender arm's σ_c^−½ exactly
+    assert interface.zone_exponent(synthetic_cohesive()) == pytest.approx(-0.5, abs=1e-9)
+    tips = interface.tips(np.array([[[np.nan, np.nan]], [[0.0, 0.5]], [[0.0, 1.5]]]), 0.0)
+    assert tips.tolist() == [0.0, 0.5, 1.5]

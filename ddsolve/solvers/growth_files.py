@@ -109,7 +109,7 @@ def table(scene: Scene, kind: str, limit: float, tolerance: float, steps: list) 
             for name in ("control", "load", "displacement", "energy")}
     data["cracks"] = np.full((count, cracks, 2), np.nan)
     for i, s in enumerate(steps):
-        data["cracks"][i, :len(s.state.cracks)] = s.state.cracks
+        data["cracks"][i, :len(s.state.cracks)] = np.reshape(s.state.cracks, (-1, 2))  # none yet: (0,)
     data.update({name: per_tip(name) for name in ("G", "G_I", "G_II", "G_c", "tips")})
     data["unstable"] = np.array([s.unstable for s in steps])
     data["solves"] = np.array([s.solves for s in steps], dtype=np.int64)
