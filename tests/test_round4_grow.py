@@ -292,3 +292,18 @@ def test_the_keys_a_merged_crack_has_no_value_of_end_a_growth_there(overrides, k
     """A per-crack list of toughness or friction has no value for two cracks that meet: growth ends there
     (as measured: strip-disbonds grown with contact.friction = [0.1, 0.2, 0.3] stopped with an error and no file)."""
     assert grow.per_crack_keys(Scene.load("strip-disbonds", overrides)) == keys
+
+
+@pytest.mark.unit
+def test_the_table_of_a_growth_takes_steps_before_any_crack():
+    """A bond with no initial crack has steps with no crack yet: their rows are empty, not a failure to write
+    (as measured: every such growth failed when its file was written, after all its steps)."""
+    def state(cracks) -> grow.State:
+        tips = np.zeros(2 * len(cracks))
+        return grow.State(cracks=cracks, control=0.1, tips=tips, heading=tips, spacing=tips, G=tips, G_I=tips,
+                          G_II=tips, G_c=tips, energy=0.0, load=0.0, displacement=0.0)
+
+    steps = [grow.Step(state(())), grow.Step(state(((0.0, 0.5),)))]
+    data = growth_files.table(Scene.load("partial-closure"), "displacement", 1.0, 1e-3, steps)
+    assert data["cracks"].shape == (2, 1, 2) and np.isnan(data["cracks"][0]).all()
+    assert data["cracks"][1, 0].tolist() == [0.0, 0.5]
