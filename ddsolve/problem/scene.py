@@ -30,10 +30,11 @@ from ddsolve.problem.expressions import Expression
 from ddsolve.problem.overrides import REPLACES, apply_overrides, dumps, override_items, parse_override
 from ddsolve.problem.reading import printable, readable, utf8_text
 from ddsolve.problem.rules import COARSE, CONDITIONING, SAME_COMPONENT, coarse_size, cross_checks
+from ddsolve.problem.solid_rules import solid_checks
 from ddsolve.problem.schema import (ADAPTIVE_DEGREE, DEFAULT_TOL, GEOMETRIC_TOLERANCE,
                                     GRADING, LAWS, LAYERS, MAX_ANGLE, MAX_SPACING_RATIO, OPTIONAL_TABLES,
                                     PAPER_BOX, PAPER_CRACK, REGIONS, REQUIRED, SCHEMA, SIDES, STOP_RULES, Invalid,
-                                    STRUCTURE_KEYS, Tables, check_table, layer_material, layers_of,
+                                    STRUCTURE_KEYS, Tables, check_table, is_solid, layer_material, layers_of,
                                     region_materials, region_names, structure_schema)
 
 
@@ -48,21 +49,27 @@ __all__ = ["ADAPTIVE_DEGREE", "COARSE", "CONDITIONING", "DEFAULT_TOL",
 
 @dataclass(frozen=True)
 class Geometry:
-    """A box (x0, x1, y0, y1) cut by Σ at height ``sigma``, cracks as x intervals on Σ, clamped sides.
+    """A box (x0, x1, y0, y1) cut by Σ at height ``sigma``, cracks as x intervals on Σ, clamped sides; a 3-D
+    box (x0, x1, y0, y1, z0, z1) has its cracks as rectangles (a, b, c, d): a < x < b, c < z < d on Σ.
 
     A ``.geo`` or ``.msh`` file with physical groups replaces all of it but ``layers``; ``given`` lists the
     box's keys the scene wrote, so that such a file can refuse them.
     """
 
-    box: tuple[float, float, float, float] = PAPER_BOX
+    box: tuple[float, ...] = PAPER_BOX
     sigma: float = 0.0
-    cracks: tuple[tuple[float, float], ...] = (PAPER_CRACK,)
+    cracks: tuple[tuple[float, ...], ...] = (PAPER_CRACK,)
     clamped: tuple[str, ...] = ("left", "right")
     #: 2: two sheets (layer1 and layer2) glued on Σ; 1: one body (layer1) cut by Σ.
     layers: int = 2
     given: frozenset[str] = field(default=frozenset(), compare=False)
     #: The interfaces above the first (``sigma``, ``cracks``), bottom to top: (height, cracks) each.
     above: tuple[tuple[float, tuple[tuple[float, float], ...]], ...] = ()
+
+    @property
+    def dimension(self) -> int:
+        """2 for a plane box (or a mesh file), 3 for a 3-D box."""
+        return len(self.box) // 2
 
     @property
     def sigmas(self) -> tuple[float, ...]:
@@ -139,12 +146,13 @@ class Load(Components):
     Each part is an expression in x and y, or None (zero).  ``key`` is ``loads.LAYER.NAME``.
     """
 
-    COMPONENTS = ("x", "y", "pressure")
+    COMPONENTS = ("x", "y", "z", "pressure")
     NOUN = "load"
 
     key: str
     x: Expression | None = None
     y: Expression | None = None
+    z: Expression | None = None  # 3-D only
     pressure: Expression | None = None
 
 
@@ -155,12 +163,13 @@ class Displacement(Components):
     or the normal component (boundaries only); each an expression in x and y, or None (that component
     is free)."""
 
-    COMPONENTS = ("x", "y", "normal")
+    COMPONENTS = ("x", "y", "z", "normal")
     NOUN = "displacement"
 
     key: str
     x: Expression | None = None
     y: Expression | None = None
+    z: Expression | None = None  # 3-D only
     normal: Expression | None = None
     point: tuple[float, float] | None = None
 
@@ -434,7 +443,7 @@ def loads(text: str, overrides: list[str] = (), origin: str = "scene", base: Pat
         raise SceneError(f"{origin}: malformed TOML: arrays or tables nested too deeply") from None
     apply_overrides(raw, list(overrides))
     data = check_table(raw, structure_schema(raw, origin), (), origin)
-    cross_checks(data, raw, origin)
+    (solid_checks if is_solid(raw) else cross_checks)(data, raw, origin)
     written = {key: value for key, value in data.items() if key != "geometry"}
     if data["mesh"]["file"] is not None and data["mesh"]["file"].lower().endswith(".geo"):
         written["geometry"] = {key: data["geometry"][key] for key in STRUCTURE_KEYS}
