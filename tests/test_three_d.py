@@ -1,0 +1,129 @@
+"""Three dimensions: 3-D scenes (the 6-number box, rectangle cracks, refusals naming the key), P1 tetrahedra
+(patch test, the six rigid-body modes, symmetry, tractions), the halves and Σ of a 3-D box mesh, and the
+monolithic 3-D solve against the plane one on an extruded scene."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse.linalg
+
+from ddsolve.errors import SceneError
+from ddsolve.fem import tetra
+from ddsolve.mesh import solid
+from ddsolve.problem import materials
+from ddsolve.problem.scene import loads
+
+#: A 3-D scene: the box [-1, 1]² × [0, 0.5] cut at y = 0, clamped left and right, pulled apart.
+SOLID = """
+[geometry]
+box = [-1, 1, -1, 1, 0, 0.5]
+crack = {crack}
+[mesh]
+size = 0.5
+[materials.layer1]
+E = 200.0
+nu = 0.3
+[materials.layer1.upper]
+E = 100.0
+nu = 0.25
+[loads.layer1.top]
+y = [0.1]
+[loads.layer1.bottom]
+y = [-0.1]
+"""
+PLANE = "[materials.layer1]\nE = 1.0\nnu = 0.3\n[materials.layer2]\nE = 1.0\nnu = 0.3\n"
+
+
+def grid(counts: tuple[int, int, int], box=(0.0, 1.0, 0.0, 1.0, 0.0, 1.0)) -> tuple[np.ndarray, np.ndarray]:
+    """A box of counts cubes, each cut into six tetrahedra around its main diagonal (Kuhn's subdivision)."""
+    axes = [np.linspace(box[2 * k], box[2 * k + 1], n + 1) for k, n in enumerate(counts)]
+    points = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    index = np.arange(len(points)).reshape([n + 1 for n in counts])
+    corners = np.array([[(c >> k) & 1 for k in range(3)] for c in range(8)])
+    paths = [(0, 1, 3, 7), (0, 1, 5, 7), (0, 2, 3, 7), (0, 2, 6, 7), (0, 4, 5, 7), (0, 4, 6, 7)]
+    cubes = np.stack(np.meshgrid(*[np.arange(n) for n in counts], indexing="ij"), axis=-1).reshape(-1, 3)
+    vertex = np.stack([index[tuple((cubes + corner).T)] for corner in corners], axis=1)  # corner c: bits x, y, z
+    cells = np.concatenate([vertex[:, [p for p in path]] for path in paths])
+    volumes = solid.signed_volumes(points, cells)
+    cells[volumes < 0] = cells[volumes < 0][:, [1, 0, 2, 3]]
+    return points, cells
+
+
+STEEL = tetra.isotropic(materials.Isotropic(E=210.0, nu=0.3))
+
+
+@pytest.mark.unit
+def test_scene_in_three_dimensions_and_its_refusals():
+    scene = loads(SOLID.format(crack="[-0.5, 0.5]"))
+    assert scene.geometry.dimension == 3 and scene.geometry.layers == 1
+    assert scene.geometry.cracks == ((-0.5, 0.5, 0.0, 0.5),)  # an interval spans the depth
+    assert loads(scene.text).geometry == scene.geometry
+    bad = {SOLID.format(crack="[-0.5, 0.5, 0.1, 0.7]"): "geometry.crack: the crack [-0.5, 0.5, 0.1, 0.7] leaves Σ",
+           SOLID.format(crack="[]").replace("size = 0.5", 'file = "a.msh"'): "geometry.box: a 3-D box (6 numbers)",
+           "[geometry]\ncrack = [0, 0.5, 0, 1]\n" + PLANE: "geometry.crack: a rectangle crack [a, b, c, d] needs a 3-D",
+           SOLID.format(crack="[]").replace("0, 0.5]", "0, 0.5]\nlayers = 2"): "geometry.layers: a 3-D box is one body",
+           SOLID.format(crack="[]") + "[fracture]\ninner = 0.1\n": "fracture.inner: G along a crack front",
+           SOLID.format(crack="[]") + "[loads.layer1.sigma]\nx = 1.0\n": "loads.layer1.sigma: a 3-D box's boundaries",
+           "[geometry]\nclamped = ['back']\n" + PLANE: "geometry.clamped: 'back' is a side of a 3-D box"}
+    for text, message in bad.items():
+        with pytest.raises(SceneError, match=None) as error:
+            loads(text)
+        assert message in str(error.value) and "\n" not in str(error.value)
+
+
+@pytest.mark.unit
+def test_tetrahedra_pass_the_patch_test():
+    """A linear displacement field prescribed on the boundary is reproduced exactly inside."""
+    points, cells = grid((3, 3, 3))
+    K = tetra.stiffness(points, cells, STEEL)
+    A = np.array([[1e-3, 2e-3, -1e-3], [0.5e-3, -2e-3, 1e-3], [3e-3, 1e-3, 2e-3]])
+    exact = (points @ A.T + np.array([0.1, -0.2, 0.3])).ravel()
+    boundary = np.flatnonzero(np.any((points == 0.0) | (points == 1.0), axis=1))
+    fixed = tetra.element_dofs(boundary[:, None]).ravel()
+    free = np.setdiff1d(np.arange(len(exact)), fixed)
+    u = exact.copy()
+    u[free] = scipy.sparse.linalg.spsolve(K[free][:, free].tocsc(), -K[free][:, fixed] @ exact[fixed])
+    assert np.abs(u - exact).max() < 1e-12
+    strain = tetra.strains(points, cells, exact)
+    sym = 0.5 * (A + A.T)
+    assert np.allclose(strain, [sym[0, 0], sym[1, 1], sym[2, 2], 2 * sym[1, 2], 2 * sym[0, 2], 2 * sym[0, 1]])
+
+
+@pytest.mark.unit
+def test_stiffness_is_symmetric_with_the_six_rigid_modes_as_kernel():
+    points, cells = grid((2, 1, 2), box=(0.0, 2.0, 0.0, 0.5, -1.0, 0.0))
+    K = tetra.stiffness(points, cells, STEEL)
+    assert abs(K - K.T).max() <= 1e-13 * abs(K).max()
+    modes = tetra.rigid_modes(points)
+    assert np.abs(K @ modes.T).max() <= 1e-12 * abs(K).max()
+    eigenvalues = np.linalg.eigvalsh(K.toarray())
+    assert np.all(eigenvalues[:6] < 1e-10 * eigenvalues[-1]) and eigenvalues[6] > 1e-4 * eigenvalues[-1]
+
+
+@pytest.mark.unit
+def test_tractions_and_pressures_integrate_to_their_resultants():
+    points, cells = grid((2, 2, 2))
+    half = solid.assemble(points, cells, points[cells].mean(axis=1)[:, 1] > 0.5, (0, 1, 0, 1, 0, 1), 0.5, ())
+    upper = half.halves[1]
+    scene = loads(SOLID.format(crack="[]").replace("y = [0.1]", "x = \"1 + x\"\nz = 2.0"))
+    top = tetra.face_load(upper.points, upper.faces["top"], tetra.side_traction(scene.loads["layer1", "top"], "top"))
+    assert np.allclose(top.reshape(-1, 3).sum(axis=0), [1.5, 0.0, 2.0])  # ∫(1 + x) over the unit square
+    pressed = tetra.face_load(upper.points, upper.faces["right"], tetra.side_traction(
+        loads(SOLID.format(crack="[]").replace("y = [0.1]", "pressure = 3.0")).loads["layer1", "top"], "right"))
+    assert np.allclose(pressed.reshape(-1, 3).sum(axis=0), [-1.5, 0.0, 0.0])  # the right side's upper half
+
+
+@pytest.mark.unit
+def test_halves_share_sigma_and_the_crack_front_lies_inside_the_box():
+    points, cells = grid((4, 2, 4), box=(-1.0, 1.0, -1.0, 1.0, 0.0, 1.0))
+    mesh = solid.assemble(points, cells, points[cells].mean(axis=1)[:, 1] > 0.0, (-1, 1, -1, 1, 0, 1), 0.0,
+                          ((-0.5, 0.5, 0.0, 0.5),))
+    lower, upper = mesh.halves
+    assert np.array_equal(lower.points[lower.sigma_nodes], upper.points[upper.sigma_nodes])
+    assert np.isclose(mesh.sigma.weights.sum(), 2.0) and len(mesh.sigma.points) == 25
+    cracked = mesh.sigma.points[mesh.sigma.cracked]
+    assert sorted(map(tuple, cracked[:, [0, 2]])) == [(0.0, 0.0), (0.0, 0.25)]  # x = ±0.5 and z = 0.5: the front
+    front = mesh.sigma.points[mesh.sigma.front]  # the edges x = ±0.5 (z ≤ 0.5) and z = 0.5 (|x| ≤ 0.5)
+    assert len(mesh.sigma.front) == 6 and np.all((np.abs(front[..., 0]) == 0.5) | (front[..., 2] == 0.5))
+    assert {side for side, faces in lower.faces.items() if len(faces)} == {"left", "right", "bottom", "front",
+                                                                          "back", "sigma"}
