@@ -271,6 +271,11 @@ def cmd_reference(args, petsc_options: list[str]) -> int:
     scene = _load_scene(args)
     output = check_outputs(args, scene)
     result = run.reference(scene, output, progress=_root_print)
+    if scene.geometry.dimension == 3:
+        print(f"reference (3-D): {result.steps} active-set steps, {result.closed} closed crack vertices, energy "
+              f"{result.energy:.10g}, {3 * sum(len(u) for u in result.fields)} unknowns, "
+              f"{sum(result.timings.values()):.3f} s -> {output}", flush=True)
+        return 0
     if scene.geometry.above:  # no error estimate, reactions or viewer files yet
         print(f"reference: {len(scene.geometry.sigmas)} interfaces, {result.iterations} active-set steps, energy "
               f"{result.energy:.10g}, {result.wall_time:.3f} s -> {output}")

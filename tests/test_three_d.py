@@ -127,3 +127,73 @@ def test_halves_share_sigma_and_the_crack_front_lies_inside_the_box():
     assert len(mesh.sigma.front) == 6 and np.all((np.abs(front[..., 0]) == 0.5) | (front[..., 2] == 0.5))
     assert {side for side, faces in lower.faces.items() if len(faces)} == {"left", "right", "bottom", "front",
                                                                           "back", "sigma"}
+
+
+#: A uniform field: the box on rollers (left, bottom, front), pulled by σ on the right and pressed by p on the
+#: top; Σ glued everywhere but on a crack whose faces the pressure keeps shut.
+UNIFORM = """
+[geometry]
+box = [0, 2, -1, 1, 0, 1]
+crack = [0.5, 1.5, 0.25, 0.75]
+clamped = []
+[mesh]
+size = 0.5
+[materials.layer1]
+E = 100.0
+nu = 0.25
+[loads.layer1.right]
+x = 0.3
+[loads.layer1.top]
+pressure = 0.2
+[displacements.layer1.left]
+normal = 0.0
+[displacements.layer1.bottom]
+y = 0.0
+[displacements.layer1.front]
+z = 0.0
+"""
+
+
+@pytest.mark.solve
+def test_a_uniform_stress_is_solved_exactly_with_the_crack_shut(tmp_path):
+    """σ_xx = 0.3, σ_yy = −0.2 everywhere: the displacements are linear, exact on P1 tetrahedra; the pressed crack
+    stays shut with the contact pressure 0.2 at every crack vertex; the files are written and read by meshio."""
+    import h5py
+    import meshio
+
+    from ddsolve.solvers import solid as solid_solver
+
+    scene = loads(UNIFORM)
+    result = solid_solver.reference(scene, tmp_path / "uniform.h5")
+    E, nu, sx, sy = 100.0, 0.25, 0.3, -0.2
+    strain = np.array([sx - nu * sy, sy - nu * sx, -nu * (sx + sy)]) / E
+    for half, u in zip(result.mesh.halves, result.fields):
+        assert np.abs(u - (half.points - [0.0, -1.0, 0.0]) * strain).max() < 1e-12
+    volume = 4.0
+    assert np.isclose(result.energy, -0.5 * volume * (sx * strain[0] + sy * strain[1]), rtol=1e-12)
+    cracked = result.mesh.sigma.cracked
+    assert cracked.sum() > 0 and np.allclose(result.pressure[cracked], 0.2, rtol=1e-10)
+    assert result.converged and result.closed == cracked.sum()
+    with h5py.File(tmp_path / "uniform.h5") as written:
+        assert written.attrs["dimension"] == 3 and np.isclose(written.attrs["energy"], result.energy)
+        assert written["sigma/opening"].shape == (len(result.mesh.sigma.points), 3)
+    upper = meshio.read(tmp_path / "uniform-upper.vtu")
+    assert upper.cells[0].type == "tetra" and np.allclose(upper.point_data["displacement"], result.fields[1])
+
+
+@pytest.mark.solve
+def test_pulled_crack_faces_open_and_free_faces_differ_only_by_contact():
+    """Pulled apart, the crack opens (no pressure) and non-penetration changes nothing; pressed with the faces
+    free, they overlap, and non-penetration shuts them."""
+    from ddsolve.solvers import solid as solid_solver
+
+    pulled = loads(UNIFORM.replace("pressure = 0.2", "y = 0.2"))
+    mesh = solid.build(pulled)
+    opened = solid_solver.solve_solid(pulled, mesh)
+    free = solid_solver.solve_solid(pulled.with_({"contact.nonpenetration": False}), mesh)
+    cracked = mesh.sigma.cracked
+    assert opened.converged and opened.closed == 0 and opened.opening[cracked, 1].min() > 0
+    assert np.isclose(opened.energy, free.energy, rtol=1e-12)
+    pressed = loads(UNIFORM)
+    overlapping = solid_solver.solve_solid(pressed.with_({"contact.nonpenetration": False}), mesh)
+    assert overlapping.opening[cracked, 1].min() < 0

@@ -55,7 +55,7 @@ def strain_operator(grads: np.ndarray) -> np.ndarray:
 
 def element_dofs(cells: np.ndarray) -> np.ndarray:
     """The dofs of every cell's nodes, node-major ``(m, 3 k)``."""
-    return (3 * cells[:, :, None] + np.arange(3)).reshape(len(cells), -1)
+    return (3 * cells[:, :, None] + np.arange(3)).reshape(len(cells), 3 * cells.shape[1])
 
 
 def stiffness(points: np.ndarray, tetrahedra: np.ndarray, D: np.ndarray) -> scipy.sparse.csr_matrix:

@@ -14,8 +14,9 @@ from ddsolve.parallel.exchange import collective
 from ddsolve.parallel.phases import Phases, launch_age
 from ddsolve.parallel.runtime import check_out_of_core
 from ddsolve.post.result import Result
+from ddsolve.post.solid import SolidResult
 from ddsolve.problem.scene import Scene
-from ddsolve.solvers import adapt, checks, critical, driver, stacked
+from ddsolve.solvers import adapt, checks, critical, driver, solid, stacked
 from ddsolve.solvers import reference as monolithic
 from ddsolve.solvers.stacked import StackResult
 
@@ -57,11 +58,13 @@ def decomposition(scene: Scene, comm, output: Path | None, progress: Callable[[s
 
 
 def reference(scene: Scene, output: Path | None = None, progress: Callable[[str], None] = print
-              ) -> Result | StackResult:
+              ) -> Result | StackResult | SolidResult:
     """The monolithic reference of ``scene`` on this process (adaptive when the scene asks; several interfaces:
-    :func:`_stack_reference`); raises
+    :func:`_stack_reference`; a 3-D box: :func:`ddsolve.solvers.solid.reference`); raises
     NotConvergedError, with the result, when its final check fails.  The critical load factors of a scene
     with a toughness and a temperature change come from reference solves of the scaled scene."""
+    if scene.geometry.dimension == 3:
+        return _converged(solid.reference(scene, output))
     _before_work(scene, solving=not scene.geometry.above)
     monolithic.refuse_friction(scene)
     monolithic.refuse_bond(scene)
