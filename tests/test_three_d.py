@@ -12,6 +12,7 @@ from ddsolve.fem import tetra
 from ddsolve.mesh import solid
 from ddsolve.problem import materials
 from ddsolve.problem.scene import loads
+from ddsolve.solvers import checks
 
 #: A 3-D scene: the box [-1, 1]² × [0, 0.5] cut at y = 0, clamped left and right, pulled apart.
 SOLID = """
@@ -69,6 +70,8 @@ def test_scene_in_three_dimensions_and_its_refusals():
         with pytest.raises(SceneError, match=None) as error:
             loads(text)
         assert message in str(error.value) and "\n" not in str(error.value)
+    with pytest.raises(SceneError, match="geometry.box: a 3-D box .* is solved by the monolithic reference only"):
+        checks.check_size(scene)  # what solve, sweep and mesh check first
 
 
 @pytest.mark.unit

@@ -309,9 +309,9 @@ def coarse_segments(scene: Scene, levels: int) -> int:
 def estimated_vertices(scene: Scene) -> float | None:
     """About how many vertices :func:`generate_half` makes for both halves of the box (the paper's
     family integrated over its size field, or a uniform ``mesh.size``; P2 nodes counted as vertices of
-    the halved size); None for geometries from files."""
+    the halved size); None for geometries from files and 3-D boxes (:mod:`ddsolve.mesh.solid`)."""
     options = scene.mesh
-    if options.kind != "box":
+    if options.kind != "box" or scene.geometry.dimension == 3:
         return None
     x0, x1, y0, y1 = scene.geometry.box
     width, below, above = x1 - x0, scene.geometry.sigma - y0, y1 - scene.geometry.sigma

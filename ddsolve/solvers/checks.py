@@ -28,6 +28,9 @@ def check_size(scene, ranks: int = 1, solving: bool = True) -> None:
     it is made."""
     from ddsolve.mesh import geometry
 
+    if scene.geometry.dimension == 3:
+        raise SceneError("geometry.box: a 3-D box (6 numbers) is solved by the monolithic reference only, for now "
+                         "(ddsolve reference SCENE); the domain decomposition and the other commands are plane")
     if solving:
         geometry.one_interface(scene)
     geometry.refinement(scene)
