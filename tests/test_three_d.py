@@ -65,7 +65,8 @@ def test_scene_in_three_dimensions_and_its_refusals():
            SOLID.format(crack="[]").replace("0, 0.5]", "0, 0.5]\nlayers = 2"): "geometry.layers: a 3-D box is one body",
            SOLID.format(crack="[]") + "[fracture]\ninner = 0.1\n": "fracture.inner: G along a crack front",
            SOLID.format(crack="[]") + "[loads.layer1.sigma]\nx = 1.0\n": "loads.layer1.sigma: a 3-D box's boundaries",
-           "[geometry]\nclamped = ['back']\n" + PLANE: "geometry.clamped: 'back' is a side of a 3-D box"}
+           "[geometry]\nclamped = ['back']\n" + PLANE: "geometry.clamped: 'back' is a side of a 3-D box",
+           PLANE + "[loads.layer1.top]\ny = \"x * z\"\n": "loads.layer1.top.y: a plane scene's expressions take x and y"}
     for text, message in bad.items():
         with pytest.raises(SceneError, match=None) as error:
             loads(text)
@@ -111,6 +112,9 @@ def test_tractions_and_pressures_integrate_to_their_resultants():
     scene = loads(SOLID.format(crack="[]").replace("y = [0.1]", "x = \"1 + x\"\nz = 2.0"))
     top = tetra.face_load(upper.points, upper.faces["top"], tetra.side_traction(scene.loads["layer1", "top"], "top"))
     assert np.allclose(top.reshape(-1, 3).sum(axis=0), [1.5, 0.0, 2.0])  # ∫(1 + x) over the unit square
+    deep = loads(SOLID.format(crack="[]").replace("y = [0.1]", "y = \"3 * z^2\""))
+    load = tetra.face_load(upper.points, upper.faces["top"], tetra.side_traction(deep.loads["layer1", "top"], "top"))
+    assert np.isclose(load.reshape(-1, 3).sum(axis=0)[1], 1.0)  # ∫ 3 z² dz over [0, 1]: the rule is exact
     pressed = tetra.face_load(upper.points, upper.faces["right"], tetra.side_traction(
         loads(SOLID.format(crack="[]").replace("y = [0.1]", "pressure = 3.0")).loads["layer1", "top"], "right"))
     assert np.allclose(pressed.reshape(-1, 3).sum(axis=0), [-1.5, 0.0, 0.0])  # the right side's upper half

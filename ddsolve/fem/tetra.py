@@ -100,7 +100,7 @@ def face_load(points: np.ndarray, triangles: np.ndarray, traction) -> np.ndarray
 
 def side_traction(load: Load, side: str):
     """The traction of ``load`` on the box side ``side`` at points ``(q, 3)``: its x, y, z components, or
-    −pressure × the side's outward normal.  Expressions are evaluated in x and y."""
+    −pressure × the side's outward normal; each an expression in x, y and z."""
     axis, end = SIDE_PLANES[side]
     outward = np.zeros(3)
     outward[axis] = 1.0 if end else -1.0
@@ -116,8 +116,8 @@ def side_traction(load: Load, side: str):
 
 
 def _evaluated(expression: Expression, at: np.ndarray, key: str) -> np.ndarray:
-    """``expression`` at the points ``at`` (in x and y), finite, else refused naming ``key``."""
-    values = np.broadcast_to(expression(at[:, 0], at[:, 1]), (len(at),)).astype(float)
+    """``expression`` at the points ``at`` ``(q, 3)``, finite, else refused naming ``key``."""
+    values = np.broadcast_to(expression(at[:, 0], at[:, 1], at[:, 2]), (len(at),)).astype(float)
     if not np.all(np.isfinite(values)):
         where = at[np.argmin(np.isfinite(values))]
         raise SceneError(f"{key}: not finite at (x, y, z) = ({where[0]:.6g}, {where[1]:.6g}, {where[2]:.6g})")

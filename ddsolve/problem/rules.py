@@ -56,9 +56,20 @@ def _plane_checks(data: dict, origin: str) -> None:
     for section in ("loads", "displacements"):
         for layer, tables in data.get(section, {}).items():
             for name, table in tables.items():
+                key = f"{section}.{layer}.{printable(name)}"
                 if table["z"] is not None:
-                    raise SceneError(f"{origin}: {section}.{layer}.{printable(name)}.z: a plane scene has no z "
-                                     "component (a 3-D box has: geometry.box = [x0, x1, y0, y1, z0, z1])")
+                    raise SceneError(f"{origin}: {key}.z: a plane scene has no z component (a 3-D box has: "
+                                     "geometry.box = [x0, x1, y0, y1, z0, z1])")
+                _refuse_depth([(f"{key}.{part}", value) for part, value in table.items() if part != "point"], origin)
+    _refuse_depth([(f"temperature.{layer}", value) for layer, value in data.get("temperature", {}).items()], origin)
+
+
+def _refuse_depth(expressions: list, origin: str) -> None:
+    """The (key, expression or None) pairs of a plane scene read x and y only."""
+    for key, value in expressions:
+        if value is not None and "z" in value.variables:
+            raise SceneError(f"{origin}: {key}: a plane scene's expressions take x and y (z is a 3-D box's "
+                             "coordinate: geometry.box = [x0, x1, y0, y1, z0, z1])")
 
 
 def _flat_pieces(cracks) -> list:
