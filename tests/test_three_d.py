@@ -136,6 +136,22 @@ def test_halves_share_sigma_and_the_crack_front_lies_inside_the_box():
                                                                           "back", "sigma"}
 
 
+def test_gmsh_meshes_conform_across_sigma_and_grade_towards_the_front():
+    """gmsh's halves share Σ's vertices; mesh.grading shrinks the tetrahedra at the front (x = ±0.5) only."""
+    scene = loads(SOLID.format(crack="[-0.5, 0.5, 0.0, 0.3]").replace("size = 0.5", "size = 0.15"))
+    sizes = []
+    for grading in (False, True):
+        mesh = solid.build(scene.with_({"mesh.grading": grading}))
+        lower, upper = mesh.halves
+        assert np.array_equal(lower.points[lower.sigma_nodes], upper.points[upper.sigma_nodes])
+        assert np.isclose(mesh.sigma.weights.sum(), 1.0) and len(mesh.sigma.front) > 0
+        front = mesh.sigma.points[mesh.sigma.front]
+        assert np.all(np.isclose(np.abs(front[..., 0]), 0.5) & (front[..., 2] <= 0.3 + 1e-12)
+                      | np.isclose(front[..., 2], 0.3) & (np.abs(front[..., 0]) <= 0.5 + 1e-12))
+        sizes.append(np.linalg.norm(front[:, 1] - front[:, 0], axis=1).mean())
+    assert sizes[1] < 0.6 * sizes[0]
+
+
 #: A uniform field: the box on rollers (left, bottom, front), pulled by σ on the right and pressed by p on the
 #: top; Σ glued everywhere but on a crack whose faces the pressure keeps shut.
 UNIFORM = """

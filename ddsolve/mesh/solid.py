@@ -87,14 +87,15 @@ def build(scene: Scene) -> SolidMesh:
 
     geometry = scene.geometry
     points, tetrahedra, upper = gmsh_io.apart(_tetrahedra, geometry.box, geometry.sigma, geometry.cracks,
-                                              scene.mesh.size)
+                                              scene.mesh.size, scene.mesh.grading)
     return assemble(points, tetrahedra, upper, geometry.box, geometry.sigma, geometry.cracks)
 
 
-def _tetrahedra(box: tuple[float, ...], sigma: float, cracks: tuple[tuple[float, ...], ...], size: float
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _tetrahedra(box: tuple[float, ...], sigma: float, cracks: tuple[tuple[float, ...], ...], size: float,
+                grading: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """In gmsh: the boxes below and above Σ and the crack rectangles on it fragmented together and meshed with
-    tetrahedra of about ``size``; the nodes, the tetrahedra and whether each lies in the upper box."""
+    tetrahedra of about ``size`` (graded towards the crack front with exponent ``grading``, if given); the
+    nodes, the tetrahedra and whether each lies in the upper box."""
     from ddsolve.mesh.gmsh_io import session
 
     x0, x1, y0, y1, z0, z1 = box
@@ -111,6 +112,9 @@ def _tetrahedra(box: tuple[float, ...], sigma: float, cracks: tuple[tuple[float,
         occ.fragment([(3, tag) for tag in volumes], rectangles)
         occ.synchronize()
         gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+        front = _front_curves(gmsh, box, sigma, cracks)
+        if grading is not None and front:
+            _graded_towards(gmsh, front, size, grading, min(box[1] - box[0], box[3] - box[2]))
         try:
             gmsh.model.mesh.generate(3)
         except Exception as exc:  # gmsh raises a bare Exception with its last error
@@ -125,6 +129,42 @@ def _tetrahedra(box: tuple[float, ...], sigma: float, cracks: tuple[tuple[float,
             centre_y = 0.5 * (gmsh.model.getBoundingBox(3, volume)[1] + gmsh.model.getBoundingBox(3, volume)[4])
             upper.append(np.full(len(cells[-1]), centre_y > sigma))
     return np.asarray(coordinates, dtype=np.float64).reshape(-1, 3), np.concatenate(cells), np.concatenate(upper)
+
+
+def _front_curves(gmsh, box: tuple[float, ...], sigma: float, cracks: tuple[tuple[float, ...], ...]) -> list[int]:
+    """The model's curves along the crack front: on Σ, on a crack rectangle's edge that lies inside the box."""
+    x0, x1, _, _, z0, z1 = box
+    tolerance = TOL * max(np.ptp(np.reshape(box, (3, 2)), axis=1))
+    lines = [(axis, value, crack) for crack in cracks
+             for axis, value, end in ((0, crack[0], x0), (0, crack[1], x1), (2, crack[2], z0), (2, crack[3], z1))
+             if abs(value - end) > tolerance]
+    found = []
+    for _, curve in gmsh.model.getEntities(1):
+        low, high = np.reshape(gmsh.model.getBoundingBox(1, curve), (2, 3))
+        for axis, value, (a, b, c, d) in lines:
+            along = (2 if axis == 0 else 0)
+            span = (c, d) if axis == 0 else (a, b)
+            if (np.abs([low[1] - sigma, high[1] - sigma, low[axis] - value, high[axis] - value]).max() <= 1e3 * tolerance
+                    and low[along] >= span[0] - 1e3 * tolerance and high[along] <= span[1] + 1e3 * tolerance):
+                found.append(curve)
+                break
+    return found
+
+
+def _graded_towards(gmsh, curves: list[int], size: float, mu: float, length: float) -> None:
+    """The background size field h(r) = min(H, H ((r + r₀)/R)^(1−μ)) at distance r from the ``curves``
+    (the plane grading, :func:`ddsolve.mesh.sizing.graded_size`, about a front instead of a tip)."""
+    from ddsolve.mesh.sizing import GRADING_RADIUS, grading_offset
+
+    radius = GRADING_RADIUS * length
+    offset = grading_offset(size, mu, length)
+    fields = gmsh.model.mesh.field
+    distance = fields.add("Distance")
+    fields.setNumbers(distance, "CurvesList", curves)
+    fields.setNumber(distance, "NumPointsPerCurve", 200)
+    graded = fields.add("MathEval")
+    fields.setString(graded, "F", f"min({size!r}, {size!r} * ((F{distance} + {offset!r}) / {radius!r})^{1.0 - mu!r})")
+    fields.setAsBackgroundMesh(graded)
 
 
 def assemble(points: np.ndarray, tetrahedra: np.ndarray, upper: np.ndarray, box: tuple[float, ...], sigma: float,

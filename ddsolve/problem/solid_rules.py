@@ -8,12 +8,12 @@ from ddsolve.errors import SceneError
 from ddsolve.problem import materials
 from ddsolve.problem.reading import printable
 from ddsolve.problem.rules import check_apart
-from ddsolve.problem.schema import DEPTH_SIDES, SIDES, layer_material
+from ddsolve.problem.schema import DEPTH_SIDES, GRADING, SIDES, layer_material
 
 #: The boundaries a 3-D box names (loads and supports act on them).
 SOLID_SIDES = SIDES + DEPTH_SIDES
-#: The mesh keys a 3-D box takes: tetrahedra of about ``mesh.size`` (P1).
-SOLID_MESH_KEYS = ("size", "degree")
+#: The mesh keys a 3-D box takes: tetrahedra of about ``mesh.size`` (P1), graded towards the crack fronts.
+SOLID_MESH_KEYS = ("size", "degree", "grading")
 #: Elements per shortest side of the box when the scene gives no ``mesh.size``.
 DEFAULT_ELEMENTS = 4
 #: Keys of the plane scenes that 3-D does not solve yet: (section, key) -> what they would need.
@@ -65,7 +65,9 @@ def _refuse_plane_only(data: dict, raw: dict, origin: str) -> None:
     if other is not None or data["mesh"]["degree"] != 1:
         name = other or "degree"
         raise SceneError(f"{origin}: mesh.{name}: a 3-D box is meshed with P1 tetrahedra of about mesh.size "
-                         "(mesh.size and mesh.degree = 1 only, for now)")
+                         "(mesh.size, mesh.grading and mesh.degree = 1 only, for now)")
+    grading = data["mesh"]["grading"]
+    data["mesh"]["grading"] = GRADING[1] if grading is True else (None if grading is False else grading)
     if data["materials"]["model"] != "plane_strain":
         raise SceneError(f"{origin}: materials.model: a 3-D body has no plane model (leave it out)")
     for (section, key), why in NOT_YET.items():
