@@ -30,7 +30,7 @@ from ddsolve.mesh.mesh import BlockSpec, Mesh, blocks, facing_above
 from ddsolve.post import analysis, fracture, toughness
 from ddsolve.post.result import Fracture, Result
 from ddsolve.problem.schema import LAYERS, REGIONS
-from ddsolve.problem.scene import Scene
+from ddsolve.problem.scene import Scene, Solver
 from ddsolve.solvers.reference import PHASES, Joint, contact_violation, refuse_friction, solve_joints
 
 
@@ -232,6 +232,7 @@ class Run:
     changes: np.ndarray
     history: Callable[[float, float], np.ndarray]
     timings: dict[str, float]
+    solver: Solver | None = None  # the KKT check's tolerance and bound p (None: the reference's)
 
 
 def stack_result(scene: Scene, mesh: Mesh, seen: list[tuple[Scene, Mesh]], joints: list[Joint],
@@ -258,8 +259,10 @@ def interface_result(seen: tuple[Scene, Mesh], joint: Joint, lam: np.ndarray, fi
     part, view = seen
     interface = joint.interface
     traces = np.array([fields[b][dofs] for b, dofs in zip(joint.blocks, joint.dofs)])
-    checked = constraints.kkt(interface, traces, lam, None, np.array([residuals[b] for b in joint.blocks]), largest)
-    violations = checked.violations(constraints.kkt_tolerance(None))
+    solver, tolerance = run.solver, constraints.kkt_tolerance(run.solver)
+    checked = constraints.kkt(interface, traces, lam, None if solver is None else solver.p,
+                              np.array([residuals[b] for b in joint.blocks]), largest)
+    violations = checked.violations(tolerance)
     scale_u = constraints.displacement_scale(interface, largest)
     scale_mu = constraints.traction_scale(interface, lam, scale_u)
     result = Result.from_blocks(
@@ -267,7 +270,7 @@ def interface_result(seen: tuple[Scene, Mesh], joint: Joint, lam: np.ndarray, fi
         iterations=run.iterations, solves=run.solves, wall_time=0.0, ranks=run.ranks,
         history=run.history(scale_u, scale_mu), active_set_changes=run.changes,
         message=f"the solution violates {', '.join(violations)}" if violations else "",
-        attrs={"kkt_tolerance": constraints.kkt_tolerance(None),
+        attrs={"kkt_tolerance": tolerance,
                **{f"kkt_{name}": getattr(checked, name) for name in constraints.Constraints.NAMES}})
     result.fracture = fracture.of_result(result, fracture.find_tips(view, part.fracture.inner, part.fracture.outer))
     return result

@@ -195,7 +195,7 @@ def finished(setup: StackSetup, outcome, rounds, fields: list[np.ndarray], ranks
     lams = [run.lam[rows] for rows in interface.part_rows]
     record = stacked.Run(setup.scene.solver.method, ranks, run.iterations, rounds.count,
                          np.array(run.active_set_changes, dtype=np.int64), lambda *_: np.array(run.history),
-                         dict(setup.timings))
+                         dict(setup.timings), setup.scene.solver)
     result = stacked.stack_result(setup.scene, setup.mesh, setup.seen, setup.joints, fields, lams,
                                   list(rounds.residuals), float(run.details["energy"]), record)
     if not run.converged:
