@@ -16,6 +16,10 @@ multiplier  vertices                gap it enforces      admissible set
             (x only: tangential)    unless |μ_t| = g
 ==========  ======================  ===================  ========================
 
+Several interfaces make one :class:`Interface` (:meth:`Interface.joined`): its trace the interfaces' traces
+concatenated, its rows theirs family by family, each row knowing its two blocks of the structure (``row_blocks``)
+and each block the face of every trace entry it holds (``faces``; 0 where it holds none).
+
 A one-layer structure has the blocks u⁻ and u⁺ only, and μᶜ, μᵍ (and μ_t) only: the families that glue a region's
 layers together (μ⁻, μ⁺) come from the pairs :func:`ddsolve.mesh.mesh.glued_layers` lists.
 

@@ -117,7 +117,7 @@ def whole_mesh(scene: Scene, comm: MPI.Comm) -> Mesh:
 def prepare(scene: Scene, comm: MPI.Comm) -> StackSetup:
     """Build the mesh, assemble and factor every rank's blocks (collective: the refusals too)."""
     started = time.perf_counter()
-    count = scene.geometry.layers * len(scene.geometry.sigmas) + scene.geometry.layers
+    count = scene.geometry.layers * len(scene.geometry.region_names)
     if not supported(comm.size, count):
         error = DDSolveError(f"unsupported number of ranks {comm.size}: use {usable(count)} (the {count} blocks of "
                              "the structure of several interfaces)")
