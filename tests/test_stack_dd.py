@@ -45,16 +45,23 @@ y = 0.05
 """
 
 
-def strip(*overrides: str) -> scenes.Scene:
-    return scenes.loads(STRIP, list(overrides), origin="strip.toml")
+#: The same strip as one body: the blocks u1, u2, u3.
+ONE_LAYER = STRIP.replace("[materials.layer2]\nE = 1.0\nnu = 0.3\n", "").replace("[geometry]\n", "[geometry]\nlayers = 1\n")
+
+
+def strip(*overrides: str, text: str = STRIP) -> scenes.Scene:
+    return scenes.loads(text, list(overrides), origin="strip.toml")
+
+
+def solved_by_reference(source: scenes.Scene) -> tuple[stacked.StackResult, list]:
+    """The reference's solution and its block systems (the energy norm)."""
+    mesh = stack.build_any(source)
+    return stacked.solve_stack(source, mesh), stacked.assemble(source, mesh)[0]
 
 
 @pytest.fixture(scope="module")
 def reference() -> tuple[stacked.StackResult, list]:
-    """The reference's solution and its block systems (the energy norm)."""
-    source = strip()
-    mesh = stack.build_any(source)
-    return stacked.solve_stack(source, mesh), stacked.assemble(source, mesh)[0]
+    return solved_by_reference(strip())
 
 
 def energy_error(solution: dict[str, np.ndarray], reference: stacked.StackResult, systems: list) -> float:
@@ -82,10 +89,11 @@ def test_one_interface_joined_alone_is_itself():
 
 
 @pytest.mark.solve
-@pytest.mark.parametrize("method", ["schur", "feti"])
-def test_the_decomposition_equals_the_reference_with_g_at_every_tip(reference, method):
-    solved, systems = reference
-    dd = stacked_dd.solve(strip(f"solver.method={method}", "solver.tol=1e-10"), MPI.COMM_SELF, None,
+@pytest.mark.parametrize("method, text", [("schur", STRIP), ("feti", STRIP), ("schur", ONE_LAYER)],
+                         ids=["schur", "feti", "schur one layer"])
+def test_the_decomposition_equals_the_reference_with_g_at_every_tip(reference, method, text):
+    solved, systems = reference if text == STRIP else solved_by_reference(strip(text=text))
+    dd = stacked_dd.solve(strip(f"solver.method={method}", "solver.tol=1e-10", text=text), MPI.COMM_SELF, None,
                           progress=lambda _: None)
     assert solved.converged and dd.converged, dd.message
     assert all(part.multipliers["mu_c"].max() > 0 for part in solved.interfaces)  # contact on both cracks
