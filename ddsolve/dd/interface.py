@@ -173,7 +173,8 @@ class Interface:
         self.vertex = np.concatenate([v for v, _, _ in families.values()])
         self.component = np.concatenate([c for _, c, _ in families.values()])
         #: ``(size, 2)``: the blocks (minuend, subtrahend) of each row's gap
-        self.row_blocks = np.concatenate([np.asarray(b, dtype=np.int64).reshape(-1, 2) for _, _, b in families.values()])
+        self.row_blocks = np.concatenate([np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+                                          for _, _, pairs in families.values()])
         self.trace_index = 2 * self.vertex + self.component
         self.row_weights = self.weights[self.vertex]
         self.is_contact = np.zeros(self.size, dtype=bool)
@@ -284,8 +285,9 @@ class Interface:
     def multipliers(self, loads: np.ndarray) -> np.ndarray:
         """The λ with ``self.loads(λ) == loads`` when ``loads`` is in the range of that map.
 
-        A row gluing a region's layers is the only one its subtrahend (v⁻, v⁺: force +W μ) carries at its entry;
-        a row of Σ's faces then follows from its minuend's load, −W(μᶜν + μᵍ + the layers' rows it carries there).
+        A row gluing a region's layers is the only one its subtrahend (v⁻, v⁺: force +W μ) carries at its
+        entry; a row of Σ's faces then follows from its minuend's load, −W(μᶜν + μᵍ + the layers' rows it
+        carries there).
         """
         lam = np.zeros(self.size)
         carried = np.zeros((len(self.blocks), self.trace_size))  # the layers' rows each block carries as minuend

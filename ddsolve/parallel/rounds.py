@@ -60,12 +60,13 @@ class BlockServer:
                 if command == SCHUR:
                     value = block.schur_complement()
                 elif command in (DIRICHLET, DIAGONAL, CONDENSED, KERNEL_WORK):
-                    trace = (block.dirichlet(self._own(index, loads[i])) if command == DIRICHLET else block.trace_diagonal()
-                             if command == DIAGONAL else self._floating_value(block, command))
+                    trace = (block.dirichlet(self._own(index, loads[i])) if command == DIRICHLET else
+                             block.trace_diagonal() if command == DIAGONAL else self._floating_value(block, command))
                     value = np.concatenate([trace, np.zeros(width - len(trace))]) if block.is_leader else None
                 elif command == SOLVE_HELD:
-                    value = self._solve(index, block, self._own(index, loads[i][:len(loads[i]) // 2]), full=True,
-                                        held=self._own(index, loads[i][len(loads[i]) // 2:]) if block.floating else None)
+                    given, held = np.split(loads[i], 2)
+                    value = self._solve(index, block, self._own(index, given), full=True,
+                                        held=self._own(index, held) if block.floating else None)
                 else:
                     value = self._solve(index, block, self._own(index, loads[i]), full=command == SOLVE_FULL)
                 if block.is_leader:

@@ -111,7 +111,8 @@ def assemble(scene: Scene, mesh: Mesh) -> tuple[list[BlockSystem], list[Joint], 
     return systems, joints, seen
 
 
-def joined(scene: Scene, mesh: Mesh) -> tuple[list[Joint], list[tuple[Scene, Mesh]], list[tuple[np.ndarray, np.ndarray]]]:
+def joined(scene: Scene, mesh: Mesh
+           ) -> tuple[list[Joint], list[tuple[Scene, Mesh]], list[tuple[np.ndarray, np.ndarray]]]:
     """The interfaces as joints of the structure's blocks (:func:`block_names`), their views, and each block's
     prescribed dofs and values ``(n, 2)``: its own supports and those each interface's ties spread; refuses a
     structure that can move rigidly (:func:`check_supported`)."""
