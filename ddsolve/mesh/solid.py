@@ -20,6 +20,7 @@ from ddsolve.errors import MeshError
 from ddsolve.mesh.mesh import TOL
 from ddsolve.problem.schema import DEPTH_SIDES, REGIONS, SIDES
 from ddsolve.problem.scene import Scene
+from ddsolve.problem.shapes import Ellipse
 
 #: The sides of the box as planes: name -> (axis, which end of the box's range on that axis).
 SIDE_PLANES = {"left": (0, 0), "right": (0, 1), "bottom": (1, 0), "top": (1, 1), "front": (2, 0), "back": (2, 1)}
@@ -104,8 +105,8 @@ def _tetrahedra(box: tuple[float, ...], sigma: float, cracks: tuple[tuple[float,
         volumes = [occ.addBox(x0, y0, z0, x1 - x0, sigma - y0, z1 - z0),
                    occ.addBox(x0, sigma, z0, x1 - x0, y1 - sigma, z1 - z0)]
         rectangles = []
-        for a, b, c, d in cracks:  # made in the xy plane, then turned onto Σ: (x, y, 0) -> (x, sigma, y)
-            tag = occ.addRectangle(a, c, 0.0, b - a, d - c)
+        for crack in cracks:  # made in the xy plane, then turned onto Σ: (x, y, 0) -> (x, sigma, y)
+            tag = _crack_surface(occ, crack, (x0, x1, z0, z1))
             occ.rotate([(2, tag)], 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, np.pi / 2)
             occ.translate([(2, tag)], 0.0, sigma, 0.0)
             rectangles.append((2, tag))
@@ -131,15 +132,34 @@ def _tetrahedra(box: tuple[float, ...], sigma: float, cracks: tuple[tuple[float,
     return np.asarray(coordinates, dtype=np.float64).reshape(-1, 3), np.concatenate(cells), np.concatenate(upper)
 
 
+def _crack_surface(occ, crack, plane: tuple[float, float, float, float]) -> int:
+    """A crack's surface in the xy plane (z of Σ as y): a rectangle, or an ellipse's part inside the box's
+    ``plane`` (x0, x1, z0, z1)."""
+    if not isinstance(crack, Ellipse):
+        a, b, c, d = crack
+        return occ.addRectangle(a, c, 0.0, b - a, d - c)
+    (x, z), (r1, r2) = crack.center, crack.radii
+    disk = occ.addDisk(x, z, 0.0, max(r1, r2), min(r1, r2))  # gmsh takes the major radius first, along x
+    if r1 < r2:
+        occ.rotate([(2, disk)], x, z, 0.0, 0.0, 0.0, 1.0, np.pi / 2)
+    x0, x1, z0, z1 = plane
+    inside, _ = occ.intersect([(2, disk)], [(2, occ.addRectangle(x0, z0, 0.0, x1 - x0, z1 - z0))])
+    return inside[0][1]
+
+
 def _front_curves(gmsh, box: tuple[float, ...], sigma: float, cracks: tuple[tuple[float, ...], ...]) -> list[int]:
     """The model's curves along the crack front: on Σ, on a crack rectangle's edge that lies inside the box."""
     x0, x1, _, _, z0, z1 = box
     tolerance = TOL * max(np.ptp(np.reshape(box, (3, 2)), axis=1))
-    lines = [(axis, value, crack) for crack in cracks
+    lines = [(axis, value, crack) for crack in cracks if not isinstance(crack, Ellipse)
              for axis, value, end in ((0, crack[0], x0), (0, crack[1], x1), (2, crack[2], z0), (2, crack[3], z1))
              if abs(value - end) > tolerance]
+    ellipses = [crack for crack in cracks if isinstance(crack, Ellipse)]
     found = []
     for _, curve in gmsh.model.getEntities(1):
+        if ellipses and _on_ellipse(gmsh, curve, sigma, ellipses, tolerance):
+            found.append(curve)
+            continue
         low, high = np.reshape(gmsh.model.getBoundingBox(1, curve), (2, 3))
         for axis, value, (a, b, c, d) in lines:
             along = (2 if axis == 0 else 0)
@@ -149,6 +169,15 @@ def _front_curves(gmsh, box: tuple[float, ...], sigma: float, cracks: tuple[tupl
                 found.append(curve)
                 break
     return found
+
+
+def _on_ellipse(gmsh, curve: int, sigma: float, ellipses: list[Ellipse], tolerance: float) -> bool:
+    """Whether the model's ``curve`` runs along one of the ``ellipses`` on Σ (its ends and middle on it)."""
+    low, high = gmsh.model.getParametrizationBounds(1, curve)
+    at = np.reshape(gmsh.model.getValue(1, curve, [low[0], 0.5 * (low[0] + high[0]), high[0]]), (3, 3))
+    return bool(np.abs(at[:, 1] - sigma).max() <= 1e3 * tolerance and any(
+        np.abs(crack.level(at[:, 0], at[:, 2]) - 1.0).max() <= 1e3 * tolerance / min(crack.radii)
+        for crack in ellipses))
 
 
 def _graded_towards(gmsh, curves: list[int], size: float, mu: float, length: float) -> None:
@@ -237,7 +266,14 @@ def _crack_roles(points: np.ndarray, triangles: np.ndarray, box: tuple[float, ..
     on_front = np.zeros(len(points), dtype=bool)
     edges = np.unique(np.sort(triangles[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1), axis=0)
     front = []
-    for a, b, c, d in cracks:
+    for crack in cracks:
+        if isinstance(crack, Ellipse):
+            inside, arc, edges_along = _ellipse_roles(crack, x, z, edges, tolerance)
+            front.append(edges_along)
+            on_front |= arc
+            cracked |= inside
+            continue
+        a, b, c, d = crack
         inside = (x >= a - tolerance) & (x <= b + tolerance) & (z >= c - tolerance) & (z <= d + tolerance)
         lines = [(coordinate, value) for coordinate, value, end in ((x, a, box[0]), (x, b, box[1]), (z, c, box[4]),
                                                                      (z, d, box[5])) if abs(value - end) > tolerance]
@@ -249,3 +285,19 @@ def _crack_roles(points: np.ndarray, triangles: np.ndarray, box: tuple[float, ..
         on_front |= here
         cracked |= inside
     return cracked & ~on_front, np.concatenate(front) if front else np.zeros((0, 2), dtype=np.int64)
+
+
+def _ellipse_roles(crack: Ellipse, x: np.ndarray, z: np.ndarray, edges: np.ndarray, tolerance: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """An ellipse's Σ vertices inside it or on it, those on its front, and the front's edges: consecutive front
+    vertices by their angle about the centre (the arc's mesh edges, never a chord)."""
+    scaled = tolerance / min(crack.radii)
+    level = crack.level(x, z)
+    arc = np.abs(level - 1.0) <= 2.0 * scaled + 1e-9
+    order = np.flatnonzero(arc)
+    angles = np.arctan2((z[order] - crack.center[1]) / crack.radii[1], (x[order] - crack.center[0]) / crack.radii[0])
+    order = order[np.argsort(angles)]
+    pairs = np.sort(np.column_stack([order, np.roll(order, -1)]), axis=1)
+    keys = edges[:, 0] * (len(x) + 1) + edges[:, 1]
+    along = pairs[np.isin(pairs[:, 0] * (len(x) + 1) + pairs[:, 1], keys)]
+    return level <= 1.0 + 2.0 * scaled + 1e-9, arc, along

@@ -13,6 +13,7 @@ except ModuleNotFoundError:  # Python < 3.11
 from ddsolve.errors import SceneError
 from ddsolve.problem.expressions import Expression
 from ddsolve.problem.reading import excerpt, printable
+from ddsolve.problem.shapes import Ellipse
 from ddsolve.problem.schema import ANISOTROPIC, ISOTROPIC, NUMBERED_REGION, ORTHOTROPIC, REGIONS
 
 
@@ -117,6 +118,8 @@ def _list_index(values: list, path: list[str], depth: int, item: str) -> int:
 def _toml_value(value: Any) -> str:
     if isinstance(value, Expression):
         return _toml_value(list(value.coefficients) if value.coefficients is not None else value.text)
+    if isinstance(value, Ellipse):
+        return _toml_value(value.table())
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, (int, float)):

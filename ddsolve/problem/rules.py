@@ -9,6 +9,7 @@ from ddsolve.errors import SceneError
 from ddsolve.problem import materials
 from ddsolve.problem.method_options import OPTIONS
 from ddsolve.problem.reading import printable
+from ddsolve.problem.shapes import Ellipse
 from ddsolve.problem.schema import (ADAPTIVE_DEGREE, DEFAULT_TOL, DEPTH_SIDES, GEOMETRIC_TOLERANCE, GRADING,
                                     LAWS, MAX_SPACING_RATIO, SIDES, PAPER_CRACK, STRUCTURE_KEYS, PerInterface, layer_material,
                                     region_names,
@@ -46,9 +47,11 @@ def _plane_checks(data: dict, origin: str) -> None:
     geometry = data["geometry"]
     for key, pieces in (("crack", [geometry["crack"]] if geometry["crack"] else []),
                         ("cracks", _flat_pieces(geometry["cracks"]))):
-        if any(len(piece) == 4 for piece in pieces):
-            raise SceneError(f"{origin}: geometry.{key}: a rectangle crack [a, b, c, d] needs a 3-D box "
-                             "(geometry.box = [x0, x1, y0, y1, z0, z1]); a plane crack is [a, b]")
+        solid = next((piece for piece in pieces if isinstance(piece, Ellipse) or len(piece) == 4), None)
+        if solid is not None:
+            shape = "an ellipse crack" if isinstance(solid, Ellipse) else "a rectangle crack [a, b, c, d]"
+            raise SceneError(f"{origin}: geometry.{key}: {shape} needs a 3-D box (geometry.box = [x0, x1, y0, y1, "
+                             "z0, z1]); a plane crack is [a, b]")
     depth = [side for side in geometry["clamped"] if side in DEPTH_SIDES]
     if depth:
         raise SceneError(f"{origin}: geometry.clamped: {depth[0]!r} is a side of a 3-D box (geometry.box = "

@@ -30,6 +30,7 @@ from ddsolve.problem.expressions import Expression
 from ddsolve.problem.overrides import REPLACES, apply_overrides, dumps, override_items, parse_override
 from ddsolve.problem.reading import printable, readable, utf8_text
 from ddsolve.problem.rules import COARSE, CONDITIONING, SAME_COMPONENT, coarse_size, cross_checks
+from ddsolve.problem.shapes import Ellipse
 from ddsolve.problem.solid_rules import solid_checks
 from ddsolve.problem.schema import (ADAPTIVE_DEGREE, DEFAULT_TOL, GEOMETRIC_TOLERANCE,
                                     GRADING, LAWS, LAYERS, MAX_ANGLE, MAX_SPACING_RATIO, OPTIONAL_TABLES,
@@ -371,7 +372,8 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str, 
     return Scene(
         title=data["title"],
         geometry=Geometry(box=tuple(geometry["box"]), sigma=geometry["sigma"],
-                          cracks=tuple(tuple(piece) for piece in geometry["cracks"]),
+                          cracks=tuple(piece if isinstance(piece, Ellipse) else tuple(piece)
+                                       for piece in geometry["cracks"]),
                           clamped=tuple(geometry["clamped"]), layers=geometry["layers"], given=given,
                           above=tuple((height, tuple(map(tuple, cracks))) for height, cracks in geometry["above"])),
         mesh=MeshOptions(**mesh),

@@ -12,6 +12,7 @@ from ddsolve.problem import expressions, materials
 from ddsolve.problem.expressions import Expression
 from ddsolve.problem.method_options import AUTO, OPTIONS
 from ddsolve.problem.reading import excerpt, printable
+from ddsolve.problem.shapes import Ellipse, bounds, ellipse
 
 STOP_RULES = ("paper", "relative", "kkt")
 #: Default tolerance of each stopping rule (a method's default rule: :mod:`ddsolve.problem.method_options`).
@@ -161,12 +162,17 @@ def _choice(options: tuple[str, ...]) -> Callable[[Any], str]:
     return checked
 
 
-def _interval(value: Any) -> tuple[float, ...]:
+def _interval(value: Any) -> tuple[float, ...] | Ellipse:
     """A crack: [a, b] along x (through the depth of a 3-D box), [a, b, c, d] the rectangle a < x < b, c < z < d
-    of a 3-D box's Σ, or [] for none."""
+    of a 3-D box's Σ, an ellipse ``{center = [x, z], radii = [r1, r2]}`` on it, or [] for none."""
+    if isinstance(value, dict):
+        if ellipse(value) is None:
+            raise ValueError("an ellipse {center = [x, z], radii = [r1, r2]} of finite numbers with radii > 0")
+        return ellipse(value)
     values = _numbers(value)
     if values and _piece(values) is None:
-        raise ValueError("[a, b] with a < b, or [] (a 3-D box also takes [a, b, c, d] with c < d)")
+        raise ValueError("[a, b] with a < b, or [] (a 3-D box also takes [a, b, c, d] with c < d and "
+                         "{center = [x, z], radii = [r1, r2]})")
     return values
 
 
@@ -211,8 +217,11 @@ def _crack_lists(value: Any) -> tuple[tuple[float, float], ...] | PerInterface:
         raise ValueError(f"one list of intervals per interface, each {exc}") from None
 
 
-def _crack_piece(item: Any) -> tuple[float, ...] | None:
-    """An interval [a, b] or a 3-D rectangle [a, b, c, d] of finite numbers (:func:`_piece`), or None."""
+def _crack_piece(item: Any) -> tuple[float, ...] | Ellipse | None:
+    """An interval [a, b], a 3-D rectangle [a, b, c, d] of finite numbers (:func:`_piece`) or an ellipse
+    (:func:`ddsolve.problem.shapes.ellipse`), or None."""
+    if isinstance(item, dict):
+        return ellipse(item)
     try:
         return _piece(_numbers(item)) if isinstance(item, list) else None
     except (TypeError, ValueError):
@@ -228,11 +237,11 @@ def _intervals(value: Any) -> tuple[tuple[float, ...], ...]:
         piece = _crack_piece(item)
         if piece is None:
             raise ValueError("a list of [a, b] intervals of finite numbers with a < b (in 3-D also [a, b, c, d] "
-                             "rectangles with c < d)")
+                             "rectangles with c < d and ellipses {center = [x, z], radii = [r1, r2]})")
         pieces.append(piece)
-    pieces.sort()
+    pieces.sort(key=bounds)
     for first, second in zip(pieces[:-1], pieces[1:]):
-        if second[0] <= first[1]:
+        if bounds(second)[0] <= bounds(first)[1]:
             raise ValueError("a list of disjoint [a, b] intervals (they overlap or touch)")
     return tuple(pieces)
 

@@ -8,6 +8,7 @@ from ddsolve.errors import SceneError
 from ddsolve.problem import materials
 from ddsolve.problem.reading import printable
 from ddsolve.problem.rules import check_apart
+from ddsolve.problem.shapes import Ellipse, bounds
 from ddsolve.problem.schema import DEPTH_SIDES, GRADING, SIDES, layer_material
 
 #: The boundaries a 3-D box names (loads and supports act on them).
@@ -36,15 +37,16 @@ def solid_checks(data: dict, raw: dict, origin: str) -> None:
                          f"y1 = {y1:g}")
     key = "geometry.crack" if geometry["crack"] is not None else "geometry.cracks"
     pieces = [geometry["crack"]] if geometry["crack"] else list(geometry["cracks"] or ())
-    cracks = [tuple(piece) if len(piece) == 4 else (*piece, z0, z1) for piece in pieces]
+    cracks = [piece if isinstance(piece, Ellipse) or len(piece) == 4 else (*piece, z0, z1) for piece in pieces]
     for crack in cracks:
         _check_on_sigma(crack, geometry["box"], key, origin)
     box = geometry["box"][:4]
     check_apart([y0, sigma, y1], box, "geometry.sigma", "of the box's y range", "move Σ", origin)
-    check_apart([x0, x1, *(v for crack in cracks for v in crack[:2])], box, key, "of Σ along x (crack edges, box "
-                "ends)", "move or resize the crack", origin)
-    check_apart([z0, z1, *(v for crack in cracks for v in crack[2:])], box, key, "of Σ along z (crack edges, box "
-                "ends)", "move or resize the crack", origin)
+    edges = [bounds(crack) for crack in cracks]  # an ellipse's extremes beyond the box are no edges
+    check_apart([x0, x1, *(v for edge in edges for v in edge[:2] if x0 < v < x1)], box, key, "of Σ along x (crack "
+                "edges, box ends)", "move or resize the crack", origin)
+    check_apart([z0, z1, *(v for edge in edges for v in edge[2:] if z0 < v < z1)], box, key, "of Σ along z (crack "
+                "edges, box ends)", "move or resize the crack", origin)
     geometry.update(sigma=sigma, cracks=cracks, above=[], layers=1)
     del geometry["crack"]
     if data["mesh"]["size"] is None:
@@ -77,10 +79,20 @@ def _refuse_plane_only(data: dict, raw: dict, origin: str) -> None:
             raise SceneError(f"{origin}: {printable(named)}: {why}")
 
 
-def _check_on_sigma(crack: tuple[float, ...], box: tuple[float, ...], key: str, origin: str) -> None:
-    """A crack rectangle lies on Σ, inside the box's x and z ranges."""
-    a, b, c, d = crack
+def _check_on_sigma(crack: tuple[float, ...] | Ellipse, box: tuple[float, ...], key: str, origin: str) -> None:
+    """A crack rectangle lies on Σ, inside the box's x and z ranges; an ellipse's centre lies on Σ (its part
+    inside the box is the crack)."""
     x0, x1, _, _, z0, z1 = box
+    if isinstance(crack, Ellipse):
+        (x, z), (r1, r2) = crack.center, crack.radii
+        if not (x0 <= x <= x1 and z0 <= z <= z1):
+            raise SceneError(f"{origin}: {key}: the ellipse's centre ({x:g}, {z:g}) leaves Σ: it is not inside the "
+                             f"box's x range [{x0:g}, {x1:g}] and z range [{z0:g}, {z1:g}]")
+        if x - r1 <= x0 and x + r1 >= x1 or z - r2 <= z0 and z + r2 >= z1:
+            raise SceneError(f"{origin}: {key}: the ellipse crosses Σ from side to side: give it as a strip "
+                             "[a, b] or a rectangle")
+        return
+    a, b, c, d = crack
     for axis, (low, high), (start, end) in (("x", (a, b), (x0, x1)), ("z", (c, d), (z0, z1))):
         if low < start or high > end:
             raise SceneError(f"{origin}: {key}: the crack {[float(v) for v in crack]} leaves Σ: its {axis} range "
