@@ -63,7 +63,7 @@ def test_scene_in_three_dimensions_and_its_refusals():
            SOLID.format(crack="[]").replace("size = 0.5", 'file = "a.msh"'): "geometry.box: a 3-D box (6 numbers)",
            "[geometry]\ncrack = [0, 0.5, 0, 1]\n" + PLANE: "geometry.crack: a rectangle crack [a, b, c, d] needs a 3-D",
            SOLID.format(crack="[]").replace("0, 0.5]", "0, 0.5]\nlayers = 2"): "geometry.layers: a 3-D box is one body",
-           SOLID.format(crack="[]") + "[fracture]\ninner = 0.1\n": "fracture.inner: G along a crack front",
+           SOLID.format(crack="[]") + "[fracture]\ntoughness = 0.1\n": "fracture.toughness: G along a 3-D crack front",
            SOLID.format(crack="[]") + "[loads.layer1.sigma]\nx = 1.0\n": "loads.layer1.sigma: a 3-D box's boundaries",
            "[geometry]\nclamped = ['back']\n" + PLANE: "geometry.clamped: 'back' is a side of a 3-D box",
            PLANE + "[loads.layer1.top]\ny = \"x * z\"\n": "loads.layer1.top.y: a plane scene's expressions take x and y"}

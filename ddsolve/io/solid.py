@@ -1,13 +1,16 @@
 """The files of a 3-D result: the HDF5 file (each half's nodes, tetrahedra and displacements; Σ's vertices,
-triangles, opening and contact pressure; the scene's text and the solve's numbers as attributes) and a VTU
+triangles, opening and contact pressure; G along the crack fronts under ``/fracture``; the scene's text and the
+solve's numbers as attributes) and a VTU
 file per half (tetra) and for Σ (triangles) beside it, written together (:func:`ddsolve.io.safe.replace_together`)."""
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
 
 from ddsolve.io.safe import replace_together
+from ddsolve.post.front import FrontRelease
 from ddsolve.post.solid import SolidResult
 
 #: The viewer files beside ``NAME.h5``: ``NAME-lower.vtu``, ``NAME-upper.vtu``, ``NAME-sigma.vtu``.
@@ -42,11 +45,21 @@ def _write_hdf5(name: str, result: SolidResult) -> None:
         sigma["points"], sigma["triangles"], sigma["weights"] = surface.points, surface.triangles, surface.weights
         sigma["cracked"], sigma["front"] = surface.cracked, surface.front
         sigma["opening"], sigma["contact_pressure"] = result.opening, result.pressure
+        if result.fracture is not None:
+            _write_fracture(out.create_group("fracture"), result.fracture)
         out.attrs.update({"dimension": 3, "scene": result.scene.text, "energy": result.energy,
                           "active_set_steps": result.steps, "solves": result.solves, "converged": result.converged,
                           "closed_vertices": result.closed, "message": result.message,
                           **{f"check_{key}": value for key, value in result.checks.items()},
                           **{f"time_{key}": value for key, value in result.timings.items()}})
+
+
+def _write_fracture(group, fracture: FrontRelease) -> None:
+    """G along the fronts: one row per front node (``points``, ``tangents``, ``normals`` (n, 3); ``front``, the
+    chain it belongs to; ``arclength``; G, G_I, G_II, G_III per unit length; ``phase`` ψ and ``phase_III`` φ in
+    degrees; θ's radii ``inner``, ``outer``)."""
+    for field in dataclasses.fields(fracture):
+        group[field.name] = getattr(fracture, field.name)
 
 
 def _write_vtu(name: str, result: SolidResult, part: str) -> None:

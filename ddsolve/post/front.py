@@ -311,8 +311,11 @@ class FrontRelease:
 
 def release(result, inner: float | None = None, outer: float | None = None,
             width: float | None = None) -> FrontRelease:
-    """G and its modes at every front node of a 3-D result (:class:`ddsolve.post.solid.SolidResult`)."""
+    """G and its modes at every front node of a 3-D result (:class:`ddsolve.post.solid.SolidResult`); θ's radii
+    and hats' half-width: given, else the scene's ``fracture.inner`` and ``outer``, else automatic."""
     scene, mesh = result.scene, result.mesh
+    inner = inner if inner is not None else scene.fracture.inner
+    outer = outer if outer is not None else scene.fracture.outer
     laws = [tetra.isotropic(scene.material("layer1", half.name)) for half in mesh.halves]
     same = np.allclose(laws[0], laws[1], rtol=1e-12, atol=0.0)
     rows = []

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ddsolve.mesh.solid import SolidMesh
+from ddsolve.post.front import FrontRelease
 from ddsolve.problem.scene import Scene
 
 
@@ -14,8 +15,8 @@ from ddsolve.problem.scene import Scene
 class SolidResult:
     """A 3-D box solved: ``fields`` the displacements ``(n, 3)`` of the lower and the upper half, ``pressure``
     the contact pressure μᶜ ≥ 0 at every Σ vertex (0 off the cracks), ``energy`` Π = ½ a(u, u) − L(u), the
-    active-set ``steps`` of the crack's dual problem, the sparse ``solves``, the final check's verdict and the
-    wall seconds per phase."""
+    active-set ``steps`` of the crack's dual problem, the sparse ``solves``, the final check's verdict, the
+    wall seconds per phase and G along the crack fronts (``fracture``, where computed)."""
 
     scene: Scene
     mesh: SolidMesh
@@ -28,6 +29,7 @@ class SolidResult:
     message: str = ""
     checks: dict[str, float] = field(default_factory=dict)
     timings: dict[str, float] = field(default_factory=dict)
+    fracture: FrontRelease | None = None
 
     @property
     def opening(self) -> np.ndarray:

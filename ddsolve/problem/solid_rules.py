@@ -17,9 +17,10 @@ SOLID_SIDES = SIDES + DEPTH_SIDES
 SOLID_MESH_KEYS = ("size", "degree", "grading")
 #: Elements per shortest side of the box when the scene gives no ``mesh.size``.
 DEFAULT_ELEMENTS = 4
+#: The fracture keys a 3-D box takes: θ's radii about the crack fronts (:mod:`ddsolve.post.front`).
+FRONT_KEYS = ("inner", "outer")
 #: Keys of the plane scenes that 3-D does not solve yet: (section, key) -> what they would need.
-NOT_YET = {("fracture", None): "G along a crack front is not computed in 3-D yet",
-           ("interface", None): "a bond law on Σ is not solved in 3-D yet",
+NOT_YET = {("interface", None): "a bond law on Σ is not solved in 3-D yet",
            ("temperature", None): "thermal loads are not solved in 3-D yet",
            ("contact", "friction"): "friction is not solved in 3-D yet",
            ("contact", "slip_bound"): "friction is not solved in 3-D yet"}
@@ -77,6 +78,11 @@ def _refuse_plane_only(data: dict, raw: dict, origin: str) -> None:
         if isinstance(table, dict) and table and (key is None or key in table):
             named = f"{section}.{key}" if key else f"{section}.{next(iter(table))}"
             raise SceneError(f"{origin}: {printable(named)}: {why}")
+    fracture = raw.get("fracture")
+    other = next((name for name in fracture if name not in FRONT_KEYS), None) if isinstance(fracture, dict) else None
+    if other is not None:
+        raise SceneError(f"{origin}: fracture.{printable(other)}: G along a 3-D crack front takes fracture.inner and "
+                         "fracture.outer only (θ's radii), for now")
 
 
 def _check_on_sigma(crack: tuple[float, ...] | Ellipse, box: tuple[float, ...], key: str, origin: str) -> None:

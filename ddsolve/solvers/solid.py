@@ -21,6 +21,7 @@ from ddsolve.io import solid as solid_files
 from ddsolve.mesh import solid as solid_meshes
 from ddsolve.mesh.solid import SolidMesh
 from ddsolve.parallel.phases import Phases
+from ddsolve.post import front
 from ddsolve.post.solid import SolidResult
 from ddsolve.problem.scene import Scene
 from ddsolve.solvers.reference import PHASES, merged_system, solve_merged
@@ -96,12 +97,18 @@ def _final_check(result: SolidResult, residual: float) -> None:
 
 
 def reference(scene: Scene, output: Path | None = None) -> SolidResult:
-    """A 3-D scene meshed and solved by the monolithic reference, ``output`` and its VTU files written."""
+    """A 3-D scene meshed and solved by the monolithic reference, G along its crack fronts
+    (:func:`ddsolve.post.front.release`), ``output`` and its VTU files written."""
     phases = Phases()
     mesh = solid_meshes.build(scene)
     phases.end("meshing")
     result = solve_solid(scene, mesh)
+    phases.end("solve")
     result.timings["meshing"] = phases.wall["meshing"]
+    if len(mesh.sigma.front):
+        result.fracture = front.release(result)
+        phases.end("fracture")
+        result.timings["fracture"] = phases.wall["fracture"]
     if output is not None:
         solid_files.write(output, result)
     return result

@@ -1,0 +1,132 @@
+"""G along a 3-D crack front: ellipse cracks (scene, mesh, front in order), the G-θ integral as the derivative of
+the discrete energy, the extruded plane scene against the plane G, and the penny-shaped crack against Sneddon."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from ddsolve.errors import SceneError
+from ddsolve.mesh import solid
+from ddsolve.post import front
+from ddsolve.problem.scene import loads
+from ddsolve.problem.shapes import Ellipse
+
+#: A quarter of a penny-shaped crack of radius a = ½ (centre at the box's corner x = z = 0, rollers on x = 0 and
+#: z = 0), pulled by a unit traction on the top, the bottom on rollers.
+PENNY = """
+[geometry]
+box = [0, {L}, -{L}, {L}, 0, {L}]
+cracks = [{{center = [0, 0], radii = [0.5, 0.5]}}]
+clamped = []
+[mesh]
+size = {size}
+grading = true
+[materials.layer1]
+E = 1.0
+nu = 0.3
+[loads.layer1.top]
+y = 1.0
+[displacements.layer1.bottom]
+y = 0.0
+[displacements.layer1.left]
+x = 0.0
+[displacements.layer1.front]
+z = 0.0
+"""
+#: Sneddon's G of the penny in an infinite body: 4 (1 − ν²) σ² a / (π E).
+SNEDDON = 4.0 * (1.0 - 0.3 ** 2) * 0.5 / np.pi
+PLANE = "[materials.layer1]\nE = 1.0\nnu = 0.3\n[materials.layer2]\nE = 1.0\nnu = 0.3\n"
+
+
+@pytest.mark.unit
+def test_ellipse_cracks_are_read_written_and_refused_naming_the_key():
+    scene = loads(PENNY.format(L=2, size=0.5))
+    assert scene.geometry.cracks == (Ellipse((0.0, 0.0), (0.5, 0.5)),)
+    assert loads(scene.text).geometry == scene.geometry
+    bad = {PENNY.format(L=2, size=0.5).replace("center = [0, 0]", "center = [3, 0]"):
+           "geometry.cracks: the ellipse's centre (3, 0) leaves Σ",
+           PENNY.format(L=2, size=0.5).replace("radii = [0.5, 0.5]", "radii = [0.5, -1]"): "geometry.cracks must be",
+           PENNY.format(L=2, size=0.5).replace("radii = [0.5, 0.5]", "radii = [3, 0.5]"):
+           "geometry.cracks: the ellipse crosses Σ from side to side",
+           "[geometry]\ncrack = {center = [0, 0], radii = [1, 1]}\n" + PLANE:
+           "geometry.crack: an ellipse crack needs a 3-D box",
+           PENNY.format(L=2, size=0.5) + "[fracture]\nG_Ic = 0.2\n": "fracture.G_Ic: G along a 3-D crack front"}
+    for text, message in bad.items():
+        with pytest.raises(SceneError) as error:
+            loads(text)
+        assert message in str(error.value) and "\n" not in str(error.value)
+
+
+@pytest.mark.unit
+def test_a_quarter_ellipse_front_is_one_chain_with_its_frame():
+    """The front of a quarter ellipse: its Σ vertices on the arc in order, n = ν × t the outward normal of the
+    ellipse, and at the ends on the sides x = 0 and z = 0 a tangent along the side's normal."""
+    scene = loads(PENNY.format(L=2, size=0.3).replace("radii = [0.5, 0.5]", "radii = [0.6, 0.4]"))
+    mesh = solid.build(scene)
+    (chain,) = front.fronts(mesh, scene.geometry.box)
+    x, z = chain.points[:, 0], chain.points[:, 2]
+    assert np.allclose((x / 0.6) ** 2 + (z / 0.4) ** 2, 1.0) and len(chain.points) == len(mesh.sigma.front) + 1
+    assert np.all(np.diff(np.arctan2(z / 0.4, x / 0.6)) * np.sign(z[-1] - z[0]) > 0)  # in order along the arc
+    outward = np.column_stack([x / 0.36, np.zeros_like(x), z / 0.16])
+    outward /= np.linalg.norm(outward, axis=1, keepdims=True)
+    assert np.einsum("kd,kd->k", chain.normals, outward).min() > 0.97
+    assert np.allclose(np.cross(chain.normals, front.NU), chain.tangents)
+    assert np.allclose(np.abs(chain.tangents[[0, -1]]), [[1, 0, 0], [0, 0, 1]][::1 if x[0] == 0 else -1])
+    interior = (chain.arclength >= chain.width) & (chain.arclength <= chain.arclength[-1] - chain.width)
+    assert np.allclose(chain.lengths[interior], chain.width, rtol=1e-6)  # ∫ φ_k ds of a whole hat
+
+
+#: A box with an interior rectangle crack pulled open: the front closes on itself, around four corners.
+PULLED = """
+[geometry]
+box = [0, 2, -1, 1, 0, 1]
+crack = [0.5, 1.5, 0.25, 0.75]
+clamped = []
+[mesh]
+size = 0.4
+[materials.layer1]
+E = 100.0
+nu = 0.25
+[materials.layer1.upper]
+E = 60.0
+nu = 0.3
+[loads.layer1.top]
+y = "0.2 + 0.1 * x * z"
+[displacements.layer1.bottom]
+y = 0.0
+[displacements.layer1.left]
+normal = 0.0
+[displacements.layer1.front]
+z = 0.0
+"""
+
+
+@pytest.mark.solve
+def test_the_domain_integral_is_the_derivative_of_the_discrete_energy():
+    """J(θ_k) = −dΠ_h/dε when every node moves by ε θ_k (central differences), for front nodes along a side, at
+    a corner and between: the G-θ integral is exact for the discrete problem (two materials, contact off)."""
+    from ddsolve.solvers import solid as solid_solver
+
+    scene = loads(PULLED)
+    mesh = solid.build(scene)
+    result = solid_solver.solve_solid(scene, mesh)
+    (chain,) = front.fronts(mesh, scene.geometry.box, inner=0.1, outer=0.2)
+    released = front.release(result, inner=0.1, outer=0.2)
+    assert result.closed == 0 and np.all(chain.closed)
+    supports = [front.Support.of(chain, half, scene.geometry.box) for half in mesh.halves]
+    step = 1e-6
+    for k in (0, len(chain.points) // 3, len(chain.points) // 2):
+        energies = []
+        for sign in (1.0, -1.0):
+            halves = []
+            for half, support in zip(mesh.halves, supports):
+                points = half.points.copy()
+                points[support.nodes] += sign * step * support.theta[:, k]
+                halves.append(dataclasses.replace(half, points=points))
+            moved = halves[0].points[halves[0].sigma_nodes]
+            surface = dataclasses.replace(mesh.sigma, points=moved)
+            energies.append(solid_solver.solve_solid(scene, solid.SolidMesh(tuple(halves), surface)).energy)
+        derivative = -(energies[0] - energies[1]) / (2.0 * step)
+        assert np.isclose(released.G[k] * chain.lengths[k], derivative, rtol=1e-5)
