@@ -40,6 +40,9 @@ EXPERIMENTS = {
     "three-d": ("three_d", "three_d", "the 3-D reference on a plane scene extruded with rollers: energy per unit "
                 "depth and the crack opening against the plane continuous values, open and partly shut",
                 "docs/three-d.md"),
+    "three-d-front": ("three_d_front", "three_d_front", "G along 3-D crack fronts: the extruded plane scene against "
+                      "the plane G, the penny-shaped crack against Sneddon", "docs/three-d-front.md, "
+                      "docs/three-d-front.png"),
     "architecture": ("architecture", "architecture", "the package's stages and the imports between them, read "
                      "from the source", "docs/architecture.png"),
 }

@@ -58,22 +58,34 @@ class Front:
 
     @property
     def lengths(self) -> np.ndarray:
-        """∫ φ_k ds of every node's hat function (:meth:`hats`) along the front."""
-        samples = np.linspace(0.0, self.arclength[-1] + self.closure, 4001)
-        hats = self.hats(samples)
-        return np.trapz(hats, samples, axis=0)
+        """∫ φ_k ds of every node's hat along the front: the half-width, less the parts beyond an open chain's
+        ends."""
+        out = np.full(len(self.points), self.width)
+        if not self.closed:
+            for distance in (self.arclength, self.arclength[-1] - self.arclength):
+                out -= np.clip(self.width - distance, 0.0, None) ** 2 / (2.0 * self.width)
+        return out
 
     @property
     def closure(self) -> float:
         """The length of the edge from the last node back to the first (0 for an open chain)."""
         return float(np.linalg.norm(self.points[0] - self.points[-1])) if self.closed else 0.0
 
-    def hats(self, s: np.ndarray) -> np.ndarray:
-        """φ_k(s) ``(n, k)``: 1 − |s − s_k|/width, at least 0 (around a closed chain, the shorter way)."""
-        gap = np.abs(s[:, None] - self.arclength[None])
+    def integrate(self, s: np.ndarray, values: np.ndarray) -> np.ndarray:
+        """Σ_a φ_k(s_a) values_a ``(k,)`` for every node k: φ_k(s) = 1 − |s − s_k|/width, at least 0 (around a
+        closed chain, the shorter way), over the points at arc length ``s``."""
+        order = np.argsort(s)
+        s, values = s[order], values[order]
         if self.closed:
-            gap = np.minimum(gap, self.arclength[-1] + self.closure - gap)
-        return np.clip(1.0 - gap / self.width, 0.0, 1.0)
+            total = self.arclength[-1] + self.closure
+            s, values = np.concatenate([s - total, s, s + total]), np.tile(values, 3)
+        low = np.searchsorted(s, self.arclength - self.width)
+        high = np.searchsorted(s, self.arclength + self.width)
+        out = np.empty(len(self.points))
+        for k, (first, last) in enumerate(zip(low, high)):
+            hat = np.clip(1.0 - np.abs(s[first:last] - self.arclength[k]) / self.width, 0.0, None)
+            out[k] = hat @ values[first:last]
+        return out
 
     def nearest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """For every point: the segment of the front nearest it, the position along it (0 to 1) and the
@@ -90,18 +102,16 @@ class Front:
             best[closer], segment[closer], along[closer] = distance[closer], j, t[closer]
         return ends[segment], along, best
 
-    def thetas(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """θ_k at ``points`` for every node k as weights ``(n, k)`` of the normals n(s) ``(n, 3)``: θ_k = w_k n;
-        and the tangent t(s) at each point (for the split into modes)."""
+    def locate(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """At ``points``: the arc length s of the nearest point of the front, the radial cut-off c(r), and the
+        normal n(s) and tangent t(s) there (interpolated between the nodes); θ_k = φ_k(s) c(r) n(s)."""
         ends, along, distance = self.nearest(points)
         cut = np.clip((self.outer - distance) / (self.outer - self.inner), 0.0, 1.0)
         start = self.arclength[ends[:, 0]]
         edge = np.where(ends[:, 1] > ends[:, 0], self.arclength[ends[:, 1]] - start, self.closure)
-        weights = self.hats(start + along * edge) * cut[:, None]
-        normals = _unit((1.0 - along)[:, None] * self.normals[ends[:, 0]] + along[:, None] * self.normals[ends[:, 1]])
-        tangents = _unit((1.0 - along)[:, None] * self.tangents[ends[:, 0]]
-                         + along[:, None] * self.tangents[ends[:, 1]])
-        return weights, normals, tangents
+        normals, tangents = (_unit((1.0 - along)[:, None] * field[ends[:, 0]] + along[:, None] * field[ends[:, 1]])
+                             for field in (self.normals, self.tangents))
+        return start + along * edge, cut, normals, tangents
 
 
 def _unit(vectors: np.ndarray) -> np.ndarray:
@@ -229,40 +239,49 @@ def forces(half: SolidHalf, D: np.ndarray, u: np.ndarray, cells: np.ndarray) -> 
 
 
 def tangential(points: np.ndarray, box: tuple[float, ...], field: np.ndarray) -> np.ndarray:
-    """``field`` ``(n, k, 3)`` at ``points`` with its component normal to every side of the box removed on it."""
+    """``field`` ``(n, 3)`` at ``points`` with its component normal to every side of the box removed on it."""
     out = field.copy()
     tolerance = 1e-9 * max(np.ptp(np.reshape(box, (3, 2)), axis=1))
     for axis, end in SIDE_PLANES.values():
-        on = np.abs(points[:, axis] - box[2 * axis + end]) <= tolerance
-        out[on, :, axis] = 0.0
+        out[np.abs(points[:, axis] - box[2 * axis + end]) <= tolerance, axis] = 0.0
     return out
 
 
 @dataclass(frozen=True)
 class Support:
-    """A half's part within reach of a front's θ: its nodes, the tetrahedra touching them, θ_k at the nodes
-    ``(q, k, 3)`` and the tangent t(s) at them."""
+    """A half's part within reach of a front's θ: its nodes, the tetrahedra touching them, and at the nodes the
+    arc length s, the cut-off c(r), θ's direction (n(s) made tangent to the box's sides) and t(s):
+    θ_k = φ_k(s) c(r) direction."""
 
+    front: Front
     nodes: np.ndarray
     cells: np.ndarray
-    theta: np.ndarray
+    s: np.ndarray
+    cut: np.ndarray
+    directions: np.ndarray
     tangents: np.ndarray
 
     @classmethod
     def of(cls, front: Front, half: SolidHalf, box: tuple[float, ...]) -> Support:
         reach = front.outer + np.linalg.norm(np.ptp(front.points, axis=0))
         near = np.flatnonzero(np.linalg.norm(half.points - front.points.mean(axis=0), axis=1) <= reach)
-        weights, normals, tangents = front.thetas(half.points[near])
-        touched = near[weights.any(axis=1)]
+        touched = near[front.nearest(half.points[near])[2] < front.outer]
         cells = np.flatnonzero(np.isin(half.tetrahedra, touched).any(axis=1))
         nodes = np.unique(half.tetrahedra[cells])
-        weights, normals, tangents = front.thetas(half.points[nodes])
-        theta = tangential(half.points[nodes], box, weights[:, :, None] * normals[:, None, :])
-        return cls(nodes, cells, theta, tangents)
+        s, cut, normals, tangents = front.locate(half.points[nodes])
+        return cls(front, nodes, cells, s, cut, tangential(half.points[nodes], box, normals), tangents)
+
+    def theta(self, k: int) -> np.ndarray:
+        """θ_k at the nodes ``(q, 3)``."""
+        gap = np.abs(self.s - self.front.arclength[k])
+        if self.front.closed:
+            gap = np.minimum(gap, self.front.arclength[-1] + self.front.closure - gap)
+        return (np.clip(1.0 - gap / self.front.width, 0.0, None) * self.cut)[:, None] * self.directions
 
     def release(self, half: SolidHalf, D: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """J(θ_k) ``(k,)`` on this half for the displacements ``u`` ``(n, 3)``."""
-        return np.einsum("qkd,qd->k", self.theta, forces(half, D, u, self.cells)[self.nodes])
+        """J(θ_k) ``(k,)`` on this half for the displacements ``u`` ``(n, 3)``: Σ_a φ_k(s_a) c_a direction_a·F_a."""
+        force = forces(half, D, u, self.cells)[self.nodes]
+        return self.front.integrate(self.s, self.cut * np.einsum("qd,qd->q", self.directions, force))
 
 
 def mirrored(half: SolidHalf, other: SolidHalf, u_other: np.ndarray, nodes: np.ndarray) -> np.ndarray:
