@@ -2,16 +2,20 @@
 
 A front is a chain of Σ vertices (:attr:`ddsolve.mesh.solid.SigmaSurface.front`) with, at every node, the tangent t,
 the in-plane normal n (in Σ, away from the crack: the direction of growth) and ν = +y, (n, ν, t) right-handed.
-Front node k has θ_k(x) = φ_k(s) c(r) n(s): φ_k the front's hat function of node k along the arc length s of the
-point of the front nearest x, r the distance to it, c = 1 for r ≤ inner, 0 for r ≥ outer, linear between, n(s)
-interpolated between the nodes; θ is made tangent to every side of the box it touches.  Without body forces and
+Front node k has θ_k(x) = φ_k(s) c(r) n(s): φ_k the hat of node k along the arc length s of the point of the front
+nearest x, of half-width the inner radius (at least one front edge: hats one edge wide let the P1 field's error at
+the element scale scatter G from node to node by tens of per cent), r the distance to it, c = 1 for r ≤ inner, 0
+for r ≥ outer, linear between, n(s) interpolated between the nodes; θ is made tangent to every side of the box it
+touches.  Without body forces and
 with no load where θ ≠ 0 (the radii keep it off the loaded and clamped sides), the release of energy is
 
     J(θ) = Σ over both halves ∫ [σ_ij u_i,k θ_k,j − W θ_k,k] dV = Σ_a θ(a)·F_a,
     F_a = Σ_e |e| (∇uᵀσ − W I)_e ∇N_a,
 
 F the nodal configurational forces (P1: σ and ∇u constant per tetrahedron), and G_k = J(θ_k) / ∫ φ_k ds, G per
-unit length of front at node k.  Σ is flat, so non-penetration adds no term (its normal does not turn).
+unit length of front at node k (the mean of G(s) weighted by the hat).  J(θ) is the derivative of the discrete
+energy as the nodes move by θ (tests/test_front.py checks it by finite differences).  Σ is flat, so
+non-penetration adds no term (its normal does not turn).
 
 Modes: where the materials above and below Σ are the same, the fields split into the part symmetric about Σ
 (u + R u′)/2 (R = diag(1, −1, 1), u′ the other half's field at the mirror image, located in its tetrahedra) and
