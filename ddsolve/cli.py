@@ -279,6 +279,10 @@ def cmd_reference(args, petsc_options: list[str]) -> int:
         print(f"reference (3-D): {result.steps} active-set steps, {result.closed} closed crack vertices, energy "
               f"{result.energy:.10g}, {3 * sum(len(u) for u in result.fields)} unknowns, "
               f"{sum(result.timings.values()):.3f} s -> {output}", flush=True)
+        if result.fracture is not None and len(result.fracture.G):
+            G = result.fracture.G
+            print(f"G along the crack front ({len(G)} nodes, /fracture in {output}): mean {G.mean():.6g}, from "
+                  f"{G.min():.6g} to {G.max():.6g}", flush=True)
         return 0
     if scene.geometry.above:  # no error estimate, reactions or viewer files yet
         print(f"reference: {len(scene.geometry.sigmas)} interfaces, {result.iterations} active-set steps, energy "
