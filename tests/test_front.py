@@ -113,7 +113,7 @@ def test_the_domain_integral_is_the_derivative_of_the_discrete_energy():
 @pytest.mark.solve
 def test_the_penny_crack_opens_in_mode_one_near_sneddon_and_writes_its_front(tmp_path):
     """The quarter penny at mesh.size 0.15 (19 k unknowns): mean G 8 % below Sneddon with P1, spread under 7 %,
-    no mode II or III; the result file holds one row per front node (docs/three-d-front.md: 2.3 % at 0.1)."""
+    no mode II or III; the result file holds one row per front node (docs/three-d-front.md: 2.2 % at 0.1)."""
     import h5py
 
     from ddsolve.solvers import solid as solid_solver
