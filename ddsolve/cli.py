@@ -296,30 +296,48 @@ def estimate_line(result) -> str:
 
 def cmd_compare(args, _petsc_options) -> int:
     from ddsolve.io import hdf5
-    from ddsolve.post import analysis
+    from ddsolve.post import analysis, stack
 
     result, reference = hdf5.read(args.result), hdf5.read(args.reference)
-    comparison = analysis.compare(result, reference, (args.result, args.reference))
+    names = (args.result, args.reference)
+    if isinstance(result, stack.StackResult) or isinstance(reference, stack.StackResult):
+        comparison = stack.compare(result, reference, names)
+        same = all(map(analysis.same_meshes, result.interfaces, reference.interfaces))
+        tips = stack.tip_lines(result.fracture, reference.fracture, names)
+    else:
+        comparison, same, tips = analysis.compare(result, reference, names), analysis.same_meshes(result, reference), []
     print(f"relative energy-norm error {comparison.energy_error:.3e}   "
           f"max nodal difference {comparison.max_difference:.3e} (max |u| {comparison.max_displacement:.3e})"
-          + ("" if analysis.same_meshes(result, reference) else "   (on the reference's mesh)"))
+          + ("" if same else "   (on the reference's mesh)"))
+    for line in tips:
+        print(line)
     return 0
 
 
 def cmd_check(args, _petsc_options) -> int:
     from ddsolve.io import hdf5
-    from ddsolve.post import analysis
+    from ddsolve.post import analysis, stack
 
     result = hdf5.read(args.result)
-    c = analysis.constraints(result)
-    tolerance = analysis.tolerance_of(result)
-    violations = c.violations(tolerance)
-    scale = (f"max |u| = {c.max_displacement:.3e}" if c.displacement_scale <= c.max_displacement else
-             f"the data's displacement scale {c.displacement_scale:.3e} (max |u| = {c.max_displacement:.3e})")
-    print(f"{c.summary()}   (scale-free: relative to {scale}, max |mu|, ||K|| ||x||); min mu_c {c.min_mu_c:.3e}")
+    if isinstance(result, stack.StackResult):
+        from ddsolve.solvers import stacked
+
+        checked = list(zip(stacked.check(result), result.interfaces))
+    else:
+        checked = [(analysis.constraints(result), result)]
+    failed = []
+    for number, (c, view) in enumerate(checked, start=1):
+        tolerance = analysis.tolerance_of(view)
+        violations = c.violations(tolerance)
+        scale = (f"max |u| = {c.max_displacement:.3e}" if c.displacement_scale <= c.max_displacement else
+                 f"the data's displacement scale {c.displacement_scale:.3e} (max |u| = {c.max_displacement:.3e})")
+        where = f"interface {number}: " if len(checked) > 1 else ""
+        print(f"{where}{c.summary()}   (scale-free: relative to {scale}, max |mu|, ||K|| ||x||); "
+              f"min mu_c {c.min_mu_c:.3e}")
+        failed += [f"{where}{name}" for name in violations]
     claim = f"the file says converged = {str(result.converged).lower()}"
-    if violations:
-        raise NotConvergedError(f"{args.result}: KKT check failed: {', '.join(violations)} above the tolerance "
+    if failed:
+        raise NotConvergedError(f"{args.result}: KKT check failed: {', '.join(failed)} above the tolerance "
                                 f"{tolerance:g} ({claim})")
     print(f"KKT check passed: every residual within {tolerance:g} ({claim})")
     return 0
@@ -348,7 +366,7 @@ def cmd_plot(args, _petsc_options) -> int:
     import numpy as np
 
     from ddsolve.io import hdf5
-    from ddsolve.post import analysis, plots
+    from ddsolve.post import analysis, plots, stack
 
     scale = _scale(args.scale)
     result = hdf5.read(args.result)
@@ -357,17 +375,24 @@ def cmd_plot(args, _petsc_options) -> int:
     if broken is not None:
         raise DDSolveError(f"{args.result}: /solution/{broken} holds values that are not finite numbers: "
                            "nothing to draw")
+    several = isinstance(result, stack.StackResult)
+    blocks = stack.drawn(result) if several else plots.drawn_blocks(result)
     if scale is not None:
-        points = np.vstack([result.lower.points, result.upper.points])
+        points = np.vstack([block.points for block in blocks])
         drawn = scale * analysis.largest_displacement(result.solution.values()) / np.ptp(points, axis=0).max()
         if not drawn <= MAX_DRAWN:
             raise DDSolveError(f"--scale {args.scale}: draws the largest displacement at {drawn:.3g} times the "
                                f"domain's size (at most {MAX_DRAWN:g}); leave --scale out to choose it from the data")
-    names = [Path(f"{stem}-{name}.png") for name in ("deformed", "crack-faces", "convergence")]
+    views = result.interfaces if several else [result]
+    faces = [f"crack-faces-{number}" for number in range(1, len(views) + 1)] if several else ["crack-faces"]
+    names = [Path(f"{stem}-{name}.png") for name in ("deformed", *faces, "convergence")]
     images = [memory.BytesIO() for _ in names]
-    scale = plots.deformed_layers(result, images[0], scale)
-    plots.crack_faces(result, images[1])
-    plots.convergence([(result.method, result)], images[2])
+    scale = plots.deformed_blocks(blocks, result.scene.layers, images[0],
+                                  (plots.block_magnification(blocks) if several else plots.magnification(result))
+                                  if scale is None else scale, plots.drawn_title(result))
+    for view, image in zip(views, images[1:]):
+        plots.crack_faces(view, image)
+    plots.convergence([(views[0].method, views[0])], images[-1])
     safe.check_targets(names, [Path(args.result)])
     safe.replace_together({path: (lambda name, data=image.getvalue(): Path(name).write_bytes(data))
                          for path, image in zip(names, images)}, final=True)
@@ -378,6 +403,7 @@ def cmd_plot(args, _petsc_options) -> int:
 def cmd_export(args, _petsc_options) -> int:
     from ddsolve.io import hdf5
     from ddsolve.io import viewer
+    from ddsolve.post.stack import StackResult
 
     result = hdf5.read(args.result)
     folder = Path(args.output) if args.output is not None else Path(args.result).parent
@@ -385,8 +411,14 @@ def cmd_export(args, _petsc_options) -> int:
         raise DDSolveError(f"-o {folder}: " + ("is a file, not a folder: give -o the folder for the viewer files"
                                                if folder.exists() else "no such directory"))
     stem = Path(args.result).stem
-    safe.check_targets(viewer.viewer_paths(folder, stem, args.format), [Path(args.result)])
-    written = hdf5.write_viewer(result, folder, stem, args.format, final=True)
+    if isinstance(result, StackResult):
+        writers = viewer.stack_files(result, folder, stem, args.format)
+        safe.check_targets(list(writers), [Path(args.result)])
+        safe.replace_together(writers, final=True)
+        written = list(writers)
+    else:
+        safe.check_targets(viewer.viewer_paths(folder, stem, args.format), [Path(args.result)])
+        written = hdf5.write_viewer(result, folder, stem, args.format, final=True)
     print("wrote " + ", ".join(map(str, written)))
     return 0
 
