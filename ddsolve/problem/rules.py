@@ -8,17 +8,21 @@ from typing import Sequence
 from ddsolve.errors import SceneError
 from ddsolve.problem import materials
 from ddsolve.problem.method_options import OPTIONS
-from ddsolve.problem.reading import printable
+from ddsolve.problem.reading import FileStructure, printable
 from ddsolve.problem.schema import (ADAPTIVE_DEGREE, DEFAULT_TOL, GEOMETRIC_TOLERANCE, GRADING, LAWS,
                                     MAX_SPACING_RATIO, PAPER_CRACK, STRUCTURE_KEYS, PerInterface, layer_material,
                                     region_names,
                                     layers_of)
 
 
-def cross_checks(data: dict, raw: dict, origin: str) -> None:
-    """Rules between keys; fills in the defaults that depend on other keys."""
+def cross_checks(data: dict, raw: dict, origin: str, structure: FileStructure | None = None) -> None:
+    """Rules between keys; fills in the defaults that depend on other keys (``structure``: that of a gmsh file of
+    several interfaces, :func:`ddsolve.problem.reading.file_structure`)."""
     given = set(raw.get("geometry", {})) - set(STRUCTURE_KEYS) if isinstance(raw.get("geometry"), dict) else set()
     _geometry_checks(data["geometry"], given, origin)
+    data["geometry"]["regions"] = structure.regions if structure else ()
+    if structure:  # the file's interfaces: their lines and cracks are its curves (no heights here)
+        data["geometry"]["above"] = [(data["geometry"]["sigma"], [])] * (structure.interfaces - 1)
     _several_interfaces_checks(data, raw, origin)
     _mesh_checks(data["mesh"], data["geometry"], raw, given, origin)
     _material_checks(data, origin)
@@ -63,20 +67,26 @@ def _geometry_checks(geometry: dict, given: set[str], origin: str) -> None:
     del geometry["crack"]
 
 
-#: The mesh keys a structure of several interfaces takes: its regions are meshed with pieces of about mesh.size.
+#: The mesh keys a structure of several interfaces takes: its regions are meshed with pieces of about mesh.size
+#: (a gmsh file's with its own sizes, or mesh.size where given).
 STACK_MESH_KEYS = ("size", "degree")
 
 
 def _several_interfaces_checks(data: dict, raw: dict, origin: str) -> None:
-    """A structure of several interfaces is the built-in box meshed with ``mesh.size`` and no point supports."""
+    """A structure of several interfaces is the built-in box meshed with ``mesh.size``, or a gmsh file, with no
+    point supports."""
     if not data["geometry"]["above"]:
         return
     written = raw["mesh"] if isinstance(raw.get("mesh"), dict) else {}
-    other = next((key for key in written if key not in STACK_MESH_KEYS), None)
-    if other is not None or data["mesh"]["size"] is None:
+    from_file = bool(data["geometry"]["regions"])
+    other = next((key for key in written if key not in STACK_MESH_KEYS + ("file",) * from_file), None)
+    if other is not None or data["mesh"]["size"] is None and not from_file:
         key = f"mesh.{other}" if other is not None else "mesh.size"
-        raise SceneError(f"{origin}: {key}: a structure of several interfaces (geometry.sigma = [y1, y2, ...]) is "
-                         "the built-in box meshed with mesh.size (and mesh.degree) only")
+        raise SceneError(f"{origin}: {key}: " + ("the several interfaces of a gmsh file (sigma1, sigma2, ...) are "
+                                                 "meshed from the file with mesh.size and mesh.degree only" if from_file
+                                                 else "a structure of several interfaces (geometry.sigma = [y1, y2, "
+                                                 "...]) is the built-in box meshed with mesh.size (and mesh.degree) "
+                                                 "only"))
     points = [f"displacements.{layer}.{name}.point" for layer, tables in data.get("displacements", {}).items()
               for name, table in tables.items() if table["point"] is not None]
     if points:
@@ -184,8 +194,8 @@ def acting_tables(data: dict, layer: str) -> dict[str, tuple[str, dict]]:
 
 
 def _regions(data: dict) -> tuple[str, ...]:
-    """The regions of Ω of a scene whose geometry is checked, bottom to top."""
-    return region_names(len(data["geometry"]["above"]) + 2)
+    """The regions of Ω of a scene whose geometry is checked, bottom to top (a gmsh file's own names)."""
+    return tuple(data["geometry"]["regions"]) or region_names(len(data["geometry"]["above"]) + 2)
 
 
 def dissimilar_layers(data: dict, thermal: bool = True) -> list[str]:

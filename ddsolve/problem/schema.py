@@ -468,14 +468,15 @@ def region_count(raw: dict) -> int:
     return len(heights) + 1 if isinstance(heights, list) and heights else len(REGIONS)
 
 
-def structure_schema(raw: dict, origin: str) -> dict:
+def structure_schema(raw: dict, origin: str, regions: tuple[str, ...] = ()) -> dict:
     """The schema of the structure the raw scene describes: :data:`SCHEMA` with two layers and two regions; with
     one layer (``geometry.layers = 1``), without layer2's tables, and a layer2 table or key in the scene is refused;
-    with several interfaces, the layers' region tables are ``region1`` ... (:func:`region_names`)."""
+    with several interfaces, the layers' region tables are ``region1`` ... (:func:`region_names`), or ``regions``
+    (a gmsh file's region surfaces)."""
     geometry = raw.get("geometry")
     written = {"layers": geometry["layers"]} if isinstance(geometry, dict) and "layers" in geometry else {}
     layers = check_table(written, {"layers": SCHEMA["geometry"]["layers"]}, ("geometry",), origin)["layers"]
-    regions = region_names(region_count(raw))
+    regions = regions or region_names(region_count(raw))
     schema = SCHEMA if regions == REGIONS else {
         **SCHEMA, "materials": {**SCHEMA["materials"], **{layer: _material_schema(regions) for layer in LAYERS}}}
     if layers == len(LAYERS):
