@@ -1,6 +1,7 @@
-"""gmsh files of several interfaces: physical curves sigma1, sigma2, ... with crack1, ..., a physical surface per
-region listed bottom to top (its name keys its materials); such a file solves as the box of the same geometry, and
-bad files are refused in one line."""
+"""Meshes of several interfaces.  gmsh files: physical curves sigma1, sigma2, ... with crack1, ..., a physical
+surface per region listed bottom to top (its name keys its materials); such a file solves as the box of the same
+geometry, and bad files are refused in one line.  The box: a region far thinner than mesh.size is meshed with
+triangles of good shape, and one too thin (or a Σ piece too short) is refused naming the key."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -10,6 +11,7 @@ import pytest
 from test_interfaces import STRIP
 
 from ddsolve.errors import MeshError, SceneError
+from ddsolve.mesh import mesh as meshes
 from ddsolve.mesh import stack
 from ddsolve.problem import scene
 from ddsolve.solvers import stacked
@@ -123,3 +125,24 @@ def test_a_file_of_bad_geometry_is_refused_in_one_line_when_meshed(tmp_path, geo
     with pytest.raises(MeshError) as caught:
         stack.build_any(source)
     assert message in str(caught.value) and "\n" not in str(caught.value)
+
+
+# --- the box: a region far thinner than mesh.size, a Σ piece far shorter -------------------------------------
+def test_a_thin_region_and_its_neighbours_keep_the_shape_of_their_triangles():
+    source = scene.loads(STRIP, ["geometry.sigma=[1.0, 1.01]"], origin="strip.toml")
+    assert stack.line_spacings(source.geometry, 0.25) == pytest.approx([0.25, 0.01, 0.01, 0.25])  # bottom, Σ₁, Σ₂, top
+    angles = [meshes.statistics(region).min_angle for region in stack.build_any(source).regions]
+    assert min(angles) > 20.0  # 2.3° with every line divided by mesh.size (0° at 1e-4 thick)
+
+
+@pytest.mark.parametrize("override, message", [
+    ("geometry.sigma=[1.0, 1.001]", "strip.toml: geometry.sigma: region2 is 0.001 thick, less than mesh.size / 100 "
+                                    "= 0.0025: give mesh.size at most 0.1, or a thicker region"),
+    ("geometry.cracks=[[[1.0, 2.0]], [[2.0, 2.0000001]]]",
+     "strip.toml: geometry.cracks: interface 2's piece [2, 2.0000001] between crack tips is 1e-07 long, less than "
+     "mesh.size / 100 = 0.0025: its elements would be slivers; give mesh.size at most 1e-05, or a longer piece"),
+])
+def test_a_region_or_a_piece_too_thin_for_mesh_size_is_refused_naming_the_key(override, message):
+    with pytest.raises(SceneError) as caught:
+        stack.build_any(scene.loads(STRIP, [override], origin="strip.toml"))
+    assert str(caught.value) == message

@@ -17,7 +17,7 @@ import numpy as np
 
 from ddsolve.mesh.element import outer_edges
 from ddsolve.mesh.geometry import build, local_origin, origin, translated
-from ddsolve.errors import MeshError
+from ddsolve.errors import MeshError, SceneError
 from ddsolve.mesh.gmsh_io import GMSH_TRIANGLE, apart, group_elements, meshed, session
 from ddsolve.mesh.mesh import (CLAMPED, CRACK, CRACK_ABOVE, SIGMA, SIGMA_ABOVE, TOL, HalfMesh, Mesh, elevate,
                                make_stack, oriented, region_half)
@@ -30,12 +30,14 @@ NUMBERED = re.compile(r"(sigma|crack)\d+")
 
 def build_any(scene: Scene) -> Mesh:
     """The scene's mesh: the regions of several interfaces paired (:func:`make_stack`; a gmsh file's:
-    :func:`_from_file`), else :func:`ddsolve.mesh.geometry.build`'s."""
+    :func:`_from_file`; the box's lines divided as :func:`check_spacing` allows), else
+    :func:`ddsolve.mesh.geometry.build`'s."""
     if not scene.geometry.above:
         return build(scene)
     if scene.mesh.file is not None:
         return apart(_from_file, scene)
     count = len(scene.geometry.sigmas) + 1
+    check_spacing(scene)
     return make_stack(tuple(apart(_mesh_region, scene, index) for index in range(count)), origin(scene))
 
 
@@ -101,12 +103,14 @@ def _region_curves(curves: dict[str, np.ndarray], index: int, count: int, where:
 
 def _mesh_region(scene: Scene, index: int) -> HalfMesh:
     """Region ``index`` (0: the bottom one) triangulated by gmsh: every line divided into pieces of about
-    ``mesh.size`` (each Σ piece between crack tips on its own), the size ``mesh.size`` inside."""
+    ``mesh.size`` (each Σ piece between crack tips on its own), the size ``mesh.size`` inside; beside a region
+    thinner than that, its thickness along the line (:func:`line_spacings`), growing away from it."""
     shift = local_origin(scene.geometry.box)  # gmsh meshes the box about a nearby origin
     geometry = translated(scene.geometry, -shift)
     x0, x1, _, _ = geometry.box
     lines = _lines(geometry, index)
     h = scene.mesh.size
+    spacings = line_spacings(geometry, h)
     with session(deterministic=True) as gmsh:
         geo = gmsh.model.geo
         bottom, top = ([(x, lines[name][0]) for x in lines[name][1]] for name in ("bottom", "top"))
@@ -122,10 +126,15 @@ def _mesh_region(scene: Scene, index: int) -> HalfMesh:
         loop = [*(c for c, _ in below), *(c for c, _ in right), *(-c for c, _ in above[::-1]), *(-c for c, _ in left)]
         surface = geo.addPlaneSurface([geo.addCurveLoop(loop)])
         geo.synchronize()
-        for curve, length in curves:
-            gmsh.model.mesh.setTransfiniteCurve(curve, max(1, math.ceil(length / h - 1e-9)) + 1)
+        low, high = spacings[index], spacings[index + 1]
+        uniform = low == high == h  # else the sides follow the size field, which grows away from a fine line
+        for pieces, size in [(below, low), (above, high)] + ([(right, h), (left, h)] if uniform else []):
+            for curve, length in pieces:
+                gmsh.model.mesh.setTransfiniteCurve(curve, max(1, math.ceil(length / size - 1e-9)) + 1)
         field = gmsh.model.mesh.field.add("MathEval")
-        gmsh.model.mesh.field.setString(field, "F", f"{h:.17f}")
+        graded = (f"Min({h:.17g}, Min({low:.17g} + {GROWTH:g} * (y - {bottom[0][1]:.17g}), {high:.17g} + "
+                  f"{GROWTH:g} * ({top[0][1]:.17g} - y)))")
+        gmsh.model.mesh.field.setString(field, "F", f"{h:.17f}" if uniform else graded)
         gmsh.model.mesh.field.setAsBackgroundMesh(field)
         gmsh.model.mesh.generate(2)
         tags, coordinates, _ = gmsh.model.mesh.getNodes()
@@ -140,6 +149,43 @@ def _mesh_region(scene: Scene, index: int) -> HalfMesh:
     if scene.mesh.degree == 2:
         points, cells, boundaries = elevate(points, cells, boundaries)
     return region_half(points + shift, cells, name, index == 0, boundaries, where)
+
+
+#: How fast the element size grows away from a line divided finer than mesh.size (beside a thin region).
+GROWTH = 0.5
+#: The finest line division a structure of several interfaces takes: mesh.size over this.
+FINEST = 100.0
+
+
+def line_spacings(geometry: Geometry, h: float) -> list[float]:
+    """The element size along each horizontal line, bottom to top (the box's bottom, each Σ, its top): ``h``
+    (mesh.size), or the thickness of a thinner region beside the line, so that a thin region's triangles keep
+    their shape."""
+    _, _, y0, y1 = geometry.box
+    thickness = np.diff([y0, *geometry.sigmas, y1])
+    return [min(h, *thickness[max(k - 1, 0):k + 1]) for k in range(len(thickness) + 1)]
+
+
+def check_spacing(scene: Scene) -> None:
+    """Refuse, naming the key, a region thinner than mesh.size / FINEST (its lines would be divided into too many
+    elements) or a Σ piece between crack tips shorter than that (its elements would have angles near 0)."""
+    geometry, h = scene.geometry, scene.mesh.size
+    x0, x1, y0, y1 = geometry.box
+    finest = h / FINEST
+    heights = [y0, *geometry.sigmas, y1]
+    for name, low, high in zip(geometry.region_names, heights[:-1], heights[1:]):
+        if high - low < finest:
+            raise SceneError(f"{scene.origin}: geometry.sigma: {name} is {high - low:.3g} thick, less than mesh.size "
+                             f"/ {FINEST:g} = {finest:.3g}: give mesh.size at most {FINEST * (high - low):.3g}, or a "
+                             "thicker region")
+    for number, cracks in enumerate(geometry.crack_lists, start=1):
+        tips = sorted({x0, *(tip for piece in cracks for tip in piece if x0 < tip < x1), x1})
+        short = next(((a, b) for a, b in zip(tips[:-1], tips[1:]) if b - a < finest), None)
+        if short is not None:
+            raise SceneError(f"{scene.origin}: geometry.cracks: interface {number}'s piece [{short[0]:.10g}, "
+                             f"{short[1]:.10g}] between crack tips is {short[1] - short[0]:.3g} long, less than "
+                             f"mesh.size / {FINEST:g} = {finest:.3g}: its elements would be slivers; give mesh.size at "
+                             f"most {FINEST * (short[1] - short[0]):.3g}, or a longer piece")
 
 
 def _lines(geometry: Geometry, index: int) -> dict[str, tuple]:
