@@ -139,10 +139,19 @@ def test_a_thin_region_and_its_neighbours_keep_the_shape_of_their_triangles():
     ("geometry.sigma=[1.0, 1.001]", "strip.toml: geometry.sigma: region2 is 0.001 thick, less than mesh.size / 100 "
                                     "= 0.0025: give mesh.size at most 0.1, or a thicker region"),
     ("geometry.cracks=[[[1.0, 2.0]], [[2.0, 2.0000001]]]",
-     "strip.toml: geometry.cracks: interface 2's piece [2, 2.0000001] between crack tips is 1e-07 long, less than "
-     "mesh.size / 100 = 0.0025: its elements would be slivers; give mesh.size at most 1e-05, or a longer piece"),
+     "strip.toml: geometry.cracks: interface 2's piece [2, 2.0000001] of Σ between crack tips is 1e-07 long, less "
+     "than 1/100 of its elements' size 0.25 (mesh.size): they would be slivers; refine (mesh.size) or lengthen the "
+     "piece"),
 ])
 def test_a_region_or_a_piece_too_thin_for_mesh_size_is_refused_naming_the_key(override, message):
     with pytest.raises(SceneError) as caught:
         stack.build_any(scene.loads(STRIP, [override], origin="strip.toml"))
     assert str(caught.value) == message
+
+
+def test_one_interface_with_a_crack_far_shorter_than_its_elements_is_refused_naming_the_key():
+    with pytest.raises(SceneError) as caught:
+        stack.build_any(scene.load("linear", ["mesh.size=0.25", "geometry.cracks=[[0.0, 1e-7]]"]))
+    assert str(caught.value) == ("linear: geometry.cracks: the piece [0, 1e-07] of Σ between crack tips is 1e-07 long, "
+                                 "less than 1/100 of its elements' size 0.25 (mesh.size): they would be slivers; "
+                                 "refine (mesh.size) or lengthen the piece")  # meshed with angles of 0° before

@@ -16,7 +16,7 @@ import re
 import numpy as np
 
 from ddsolve.mesh.element import outer_edges
-from ddsolve.mesh.geometry import build, local_origin, origin, translated
+from ddsolve.mesh.geometry import FINEST, build, check_pieces, local_origin, origin, translated
 from ddsolve.errors import MeshError, SceneError
 from ddsolve.mesh.gmsh_io import GMSH_TRIANGLE, apart, group_elements, meshed, session
 from ddsolve.mesh.mesh import (CLAMPED, CRACK, CRACK_ABOVE, SIGMA, SIGMA_ABOVE, TOL, HalfMesh, Mesh, elevate,
@@ -153,8 +153,6 @@ def _mesh_region(scene: Scene, index: int) -> HalfMesh:
 
 #: How fast the element size grows away from a line divided finer than mesh.size (beside a thin region).
 GROWTH = 0.5
-#: The finest line division a structure of several interfaces takes: mesh.size over this.
-FINEST = 100.0
 
 
 def line_spacings(geometry: Geometry, h: float) -> list[float]:
@@ -168,9 +166,9 @@ def line_spacings(geometry: Geometry, h: float) -> list[float]:
 
 def check_spacing(scene: Scene) -> None:
     """Refuse, naming the key, a region thinner than mesh.size / FINEST (its lines would be divided into too many
-    elements) or a Σ piece between crack tips shorter than that (its elements would have angles near 0)."""
+    elements) or a Σ piece between crack tips shorter than that (:func:`ddsolve.mesh.geometry.check_pieces`)."""
     geometry, h = scene.geometry, scene.mesh.size
-    x0, x1, y0, y1 = geometry.box
+    _, _, y0, y1 = geometry.box
     finest = h / FINEST
     heights = [y0, *geometry.sigmas, y1]
     for name, low, high in zip(geometry.region_names, heights[:-1], heights[1:]):
@@ -178,14 +176,7 @@ def check_spacing(scene: Scene) -> None:
             raise SceneError(f"{scene.origin}: geometry.sigma: {name} is {high - low:.3g} thick, less than mesh.size "
                              f"/ {FINEST:g} = {finest:.3g}: give mesh.size at most {FINEST * (high - low):.3g}, or a "
                              "thicker region")
-    for number, cracks in enumerate(geometry.crack_lists, start=1):
-        tips = sorted({x0, *(tip for piece in cracks for tip in piece if x0 < tip < x1), x1})
-        short = next(((a, b) for a, b in zip(tips[:-1], tips[1:]) if b - a < finest), None)
-        if short is not None:
-            raise SceneError(f"{scene.origin}: geometry.cracks: interface {number}'s piece [{short[0]:.10g}, "
-                             f"{short[1]:.10g}] between crack tips is {short[1] - short[0]:.3g} long, less than "
-                             f"mesh.size / {FINEST:g} = {finest:.3g}: its elements would be slivers; give mesh.size at "
-                             f"most {FINEST * (short[1] - short[0]):.3g}, or a longer piece")
+    check_pieces(scene, h, "mesh.size")
 
 
 def _lines(geometry: Geometry, index: int) -> dict[str, tuple]:
