@@ -1,6 +1,6 @@
 """The files of a 3-D result: the HDF5 file (each half's nodes, tetrahedra and displacements; Σ's vertices,
 triangles, opening and contact pressure; the scene's text and the solve's numbers as attributes) and a VTU
-file per half (tetra) and for Σ (triangles) beside it, written together (:func:`ddsolve.io.safe.replace_together`)."""
+file per half (tetra or tetra10) and for Σ (triangles, 3 or 6 nodes) beside it, written together (:func:`ddsolve.io.safe.replace_together`)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -54,12 +54,13 @@ def _write_vtu(name: str, result: SolidResult, part: str) -> None:
 
     if part == "sigma":
         surface = result.mesh.sigma
-        mesh = meshio.Mesh(surface.points, [("triangle", surface.triangles)],
+        mesh = meshio.Mesh(surface.points, [("triangle" if surface.triangles.shape[1] == 3 else "triangle6",
+                                             surface.triangles)],
                            point_data={"opening": result.opening, "contact_pressure": result.pressure,
                                        "cracked": surface.cracked.astype(np.int8)})
     else:
         index = [half.name for half in result.mesh.halves].index(part)
         half = result.mesh.halves[index]
-        mesh = meshio.Mesh(half.points, [("tetra", half.tetrahedra)],
+        mesh = meshio.Mesh(half.points, [("tetra" if half.tetrahedra.shape[1] == 4 else "tetra10", half.tetrahedra)],
                            point_data={"displacement": result.fields[index]})
     meshio.write(name, mesh, file_format="vtu")

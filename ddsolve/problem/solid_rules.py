@@ -12,7 +12,7 @@ from ddsolve.problem.schema import DEPTH_SIDES, GRADING, SIDES, layer_material
 
 #: The boundaries a 3-D box names (loads and supports act on them).
 SOLID_SIDES = SIDES + DEPTH_SIDES
-#: The mesh keys a 3-D box takes: tetrahedra of about ``mesh.size`` (P1), graded towards the crack fronts.
+#: The mesh keys a 3-D box takes: tetrahedra of about ``mesh.size`` (P1 or P2), graded towards the crack fronts.
 SOLID_MESH_KEYS = ("size", "degree", "grading")
 #: Elements per shortest side of the box when the scene gives no ``mesh.size``.
 DEFAULT_ELEMENTS = 4
@@ -62,12 +62,11 @@ def _refuse_plane_only(data: dict, raw: dict, origin: str) -> None:
         raise SceneError(f"{origin}: geometry.box: a 3-D box (6 numbers) is meshed by ddsolve, and mesh files are "
                          "plane: give a 4-number box with mesh.file, or leave mesh.file out")
     other = next((name for name in written if name not in SOLID_MESH_KEYS), None)
-    if other is not None or data["mesh"]["degree"] != 1:
-        name = other or "degree"
-        raise SceneError(f"{origin}: mesh.{name}: a 3-D box is meshed with P1 tetrahedra of about mesh.size "
-                         "(mesh.size, mesh.grading and mesh.degree = 1 only, for now)")
+    if other is not None:
+        raise SceneError(f"{origin}: mesh.{other}: a 3-D box is meshed with tetrahedra of about mesh.size "
+                         "(mesh.size, mesh.grading and mesh.degree only, for now)")
     grading = data["mesh"]["grading"]
-    data["mesh"]["grading"] = GRADING[1] if grading is True else (None if grading is False else grading)
+    data["mesh"]["grading"] = GRADING[data["mesh"]["degree"]] if grading is True else (None if grading is False else grading)
     if data["materials"]["model"] != "plane_strain":
         raise SceneError(f"{origin}: materials.model: a 3-D body has no plane model (leave it out)")
     for (section, key), why in NOT_YET.items():
