@@ -83,7 +83,8 @@ def stiffness(points: np.ndarray, cells: np.ndarray, D: np.ndarray) -> scipy.spa
     xi, w = TETRA_RULES[cells.shape[1]]
     grads, dets = gradients(points, cells, xi)
     B = strain_operator(grads)  # (m, q, 6, n)
-    local = np.einsum("m,q,mqik,ij,mqjl->mkl", dets, w, B, D, B)
+    weighted = (dets[:, None] * w)[:, :, None, None] * B
+    local = np.matmul(np.swapaxes(weighted, -1, -2), D @ B).sum(axis=1)  # Σ_q w_q |J| Bᵀ D B
     dofs = element_dofs(cells)
     n = dofs.shape[1]
     rows = np.repeat(dofs, n, axis=1).ravel()
