@@ -79,7 +79,7 @@ def _final_check(result: SolidResult, residual: float) -> None:
     """The merged system's relative residual, the largest penetration (relative to the largest displacement),
     tension (none by construction) and complementarity (pressure × opening × weight against the energy scale):
     each within the KKT tolerance, else the result is not converged, with a message naming them."""
-    opening = result.opening[:, NORMAL]
+    opening = result.normal_opening
     largest = max(float(np.abs(u).max()) for u in result.fields)
     cracked = result.mesh.sigma.cracked if result.scene.nonpenetration else np.zeros(len(opening), dtype=bool)
     work = float(np.abs(result.pressure * opening * result.mesh.sigma.weights).sum())
