@@ -109,12 +109,13 @@ def generate_half(scene: Scene, side: int) -> HalfMesh:
 def one_interface(scene: Scene) -> None:
     """Refuse, in one line, to do with a structure of several interfaces what is done for one interface only: it is
     read, checked and meshed (:func:`ddsolve.mesh.stack.build_any`, the ``mesh`` command) and solved by the
-    monolithic reference (:mod:`ddsolve.solvers.stacked`), not yet by the domain decomposition, sweeps, growth or
-    adaptivity."""
+    monolithic reference (:mod:`ddsolve.solvers.stacked`) and the domain decomposition
+    (:mod:`ddsolve.solvers.stacked_dd`), not yet by sweeps, growth or adaptivity."""
     if scene.geometry.above:
         raise SceneError(f"geometry.sigma: {len(scene.geometry.sigmas)} interfaces: a structure of several "
                          "interfaces is meshed (ddsolve mesh) and solved by the monolithic reference (ddsolve "
-                         "reference), not yet by the domain decomposition, sweeps, growth or adaptivity")
+                         "reference) and the domain decomposition (ddsolve solve), not yet by sweeps, growth or "
+                         "adaptivity")
 
 
 def _mesh_half(scene: Scene, side: int) -> HalfMesh:
