@@ -86,7 +86,7 @@ def _final_check(result: SolidResult, residual: float) -> None:
     scale = max(abs(result.energy), 1e-300)
     result.checks = {"residual": residual,
                      "penetration": float(np.max(-opening[cracked], initial=0.0)) / max(largest, 1e-300),
-                     "tension": float(np.max(-result.pressure, initial=0.0)),
+                     "tension": float(np.max(-result.pressure, initial=0.0)) + 0.0,  # not -0.0
                      "complementarity": work / scale}
     tolerance = constraints.kkt_tolerance(None)
     violated = [name for name, value in result.checks.items() if value > tolerance]
