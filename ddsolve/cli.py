@@ -98,7 +98,7 @@ def _launch(args, petsc_options: list[str], scene_checks: bool) -> None:
     from ddsolve.io import viewer
 
     if scene is not None:
-        check_size(scene, args.ranks)
+        check_size(scene, args.ranks, stacks=True)
         output = check_outputs(args, scene)
         outputs = [output, *viewer.viewer_paths(output.parent, output.stem)]
     else:
@@ -129,7 +129,11 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
     scene = comm.bcast(collective(comm, lambda: _load_scene(args), root_only=True), root=0)
     output = comm.bcast(collective(comm, lambda: check_outputs(args, scene), root_only=True), root=0)
     result = run.decomposition(scene, comm, output, progress=_root_print, gather=False)
-    if result is not None:
+    if result is not None and scene.geometry.above:  # no error estimate, reactions or viewer files yet
+        print(f"{result.scene.solver.method}: {len(scene.geometry.sigmas)} interfaces, {result.iterations} "
+              f"iterations, energy {result.energy:.10g}, {result.wall_time:.3f} s on {comm.size} ranks -> {output}")
+        print("\n".join(result.fracture.lines()), flush=True)
+    elif result is not None:
         print(f"{result.method}: converged after {result.iterations} iterations{active_set_part(result)}"
               f"{coulomb_part(result)}{bond_part(result)}, "
               f"{result.solves} rounds of block solves, {result.wall_time:.3f} s on {result.ranks} ranks -> {output}",
@@ -271,6 +275,11 @@ def cmd_reference(args, petsc_options: list[str]) -> int:
     scene = _load_scene(args)
     output = check_outputs(args, scene)
     result = run.reference(scene, output, progress=_root_print)
+    if scene.geometry.dimension == 3:
+        print(f"reference (3-D): {result.steps} active-set steps, {result.closed} closed crack vertices, energy "
+              f"{result.energy:.10g}, {3 * sum(len(u) for u in result.fields)} unknowns, "
+              f"{sum(result.timings.values()):.3f} s -> {output}", flush=True)
+        return 0
     if scene.geometry.above:  # no error estimate, reactions or viewer files yet
         print(f"reference: {len(scene.geometry.sigmas)} interfaces, {result.iterations} active-set steps, energy "
               f"{result.energy:.10g}, {result.wall_time:.3f} s -> {output}")

@@ -40,6 +40,9 @@ EXPERIMENTS = {
     "interface": ("interface", "interface", "interface laws against closed forms: friction on the faces of a closed "
                   "crack under compression and shear, and between the arms of the ENF",
                   "docs/interface.md, docs/interface-*.png, results/interface.h5"),
+    "three-d": ("three_d", "three_d", "the 3-D reference on a plane scene extruded with rollers: energy per unit "
+                "depth and the crack opening against the plane continuous values, open and partly shut",
+                "docs/three-d.md"),
     "architecture": ("architecture", "architecture", "the package's stages and the imports between them, read "
                      "from the source", "docs/architecture.png"),
 }

@@ -82,10 +82,12 @@ def cases(folder: Path) -> list[tuple[str, list[str], list[str]]]:
             ("temperature.layer1", ["materials.layer1.alpha=1e-5"], ["temperature.layer1=50.0"]),
             ("displacements.layer1.top.x", [], ["displacements.layer1.top.x=0.001"]),
             ("displacements.layer1.top.y", [], ["displacements.layer1.top.y=0.001"]),
+            ("displacements.layer1.top.z", [], ["displacements.layer1.top.z=0.001"]),  # refused in the plane
             ("displacements.layer1.top.normal", [], ["displacements.layer1.top.normal=0.001"]),
             ("displacements.layer1.pin.point", [], ["displacements.layer1.pin={point=[0.5, 1.0], x=0.001}"])]
     out += [("loads.layer1.top.x", [], ["loads.layer1.top.x=0.01"]),
             ("loads.layer1.top.y", [], ["loads.layer1.top.y=[0.0, -0.05]"]),
+            ("loads.layer1.top.z", [], ["loads.layer1.top.z=0.01"]),  # refused in the plane
             ("loads.layer2.top.pressure", [], ["loads.layer2.top.pressure=0.01"]),
             ("contact.nonpenetration", [], ["contact.nonpenetration=false"]),
             ("contact.friction", [], ["contact.friction=0.5"]),

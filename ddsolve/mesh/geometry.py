@@ -136,12 +136,13 @@ def check_pieces(scene: Scene, spacing: float, key: str) -> None:
 def one_interface(scene: Scene) -> None:
     """Refuse, in one line, to do with a structure of several interfaces what is done for one interface only: it is
     read, checked and meshed (:func:`ddsolve.mesh.stack.build_any`, the ``mesh`` command) and solved by the
-    monolithic reference (:mod:`ddsolve.solvers.stacked`), not yet by the domain decomposition, sweeps, growth or
-    adaptivity."""
+    monolithic reference (:mod:`ddsolve.solvers.stacked`) and the domain decomposition
+    (:mod:`ddsolve.solvers.stacked_dd`), not yet by sweeps, growth or adaptivity."""
     if scene.geometry.above:
         raise SceneError(f"geometry.sigma: {len(scene.geometry.sigmas)} interfaces: a structure of several "
                          "interfaces is meshed (ddsolve mesh) and solved by the monolithic reference (ddsolve "
-                         "reference), not yet by the domain decomposition, sweeps, growth or adaptivity")
+                         "reference) and the domain decomposition (ddsolve solve), not yet by sweeps, growth or "
+                         "adaptivity")
 
 
 def _mesh_half(scene: Scene, side: int) -> HalfMesh:
@@ -336,9 +337,9 @@ def coarse_segments(scene: Scene, levels: int) -> int:
 def estimated_vertices(scene: Scene) -> float | None:
     """About how many vertices :func:`generate_half` makes for both halves of the box (the paper's
     family integrated over its size field, or a uniform ``mesh.size``; P2 nodes counted as vertices of
-    the halved size); None for geometries from files."""
+    the halved size); None for geometries from files and 3-D boxes (:mod:`ddsolve.mesh.solid`)."""
     options = scene.mesh
-    if options.kind != "box":
+    if options.kind != "box" or scene.geometry.dimension == 3:
         return None
     x0, x1, y0, y1 = scene.geometry.box
     width, below, above = x1 - x0, scene.geometry.sigma - y0, y1 - scene.geometry.sigma

@@ -9,8 +9,8 @@ from ddsolve.errors import SceneError
 from ddsolve.problem import materials
 from ddsolve.problem.method_options import OPTIONS
 from ddsolve.problem.reading import FileStructure, printable
-from ddsolve.problem.schema import (ADAPTIVE_DEGREE, DEFAULT_TOL, GEOMETRIC_TOLERANCE, GRADING, LAWS,
-                                    MAX_SPACING_RATIO, PAPER_CRACK, STRUCTURE_KEYS, PerInterface, layer_material,
+from ddsolve.problem.schema import (ADAPTIVE_DEGREE, DEFAULT_TOL, DEPTH_SIDES, GEOMETRIC_TOLERANCE, GRADING,
+                                    LAWS, MAX_SPACING_RATIO, SIDES, PAPER_CRACK, STRUCTURE_KEYS, PerInterface, layer_material,
                                     region_names,
                                     layers_of)
 
@@ -19,6 +19,7 @@ def cross_checks(data: dict, raw: dict, origin: str, structure: FileStructure | 
     """Rules between keys; fills in the defaults that depend on other keys (``structure``: that of a gmsh file of
     several interfaces, :func:`ddsolve.problem.reading.file_structure`)."""
     given = set(raw.get("geometry", {})) - set(STRUCTURE_KEYS) if isinstance(raw.get("geometry"), dict) else set()
+    _plane_checks(data, origin)
     _geometry_checks(data["geometry"], given, origin)
     data["geometry"]["regions"] = structure.regions if structure else ()
     if structure:  # the file's interfaces: their lines and cracks are its curves (no heights here)
@@ -43,6 +44,45 @@ def cross_checks(data: dict, raw: dict, origin: str, structure: FileStructure | 
                          "faces Tresca's contact.slip_bound, or no friction")
 
 
+def _plane_checks(data: dict, origin: str) -> None:
+    """What only a 3-D box (``geometry.box`` of 6 numbers) takes is refused in a plane scene: rectangle cracks,
+    the front and back sides, z components."""
+    geometry = data["geometry"]
+    for key, pieces in (("crack", [geometry["crack"]] if geometry["crack"] else []),
+                        ("cracks", _flat_pieces(geometry["cracks"]))):
+        if any(len(piece) == 4 for piece in pieces):
+            raise SceneError(f"{origin}: geometry.{key}: a rectangle crack [a, b, c, d] needs a 3-D box "
+                             "(geometry.box = [x0, x1, y0, y1, z0, z1]); a plane crack is [a, b]")
+    depth = [side for side in geometry["clamped"] if side in DEPTH_SIDES]
+    if depth:
+        raise SceneError(f"{origin}: geometry.clamped: {depth[0]!r} is a side of a 3-D box (geometry.box = "
+                         "[x0, x1, y0, y1, z0, z1]); a plane box has " + ", ".join(SIDES))
+    for section in ("loads", "displacements"):
+        for layer, tables in data.get(section, {}).items():
+            for name, table in tables.items():
+                key = f"{section}.{layer}.{printable(name)}"
+                if table["z"] is not None:
+                    raise SceneError(f"{origin}: {key}.z: a plane scene has no z component (a 3-D box has: "
+                                     "geometry.box = [x0, x1, y0, y1, z0, z1])")
+                _refuse_depth([(f"{key}.{part}", value) for part, value in table.items() if part != "point"], origin)
+    _refuse_depth([(f"temperature.{layer}", value) for layer, value in data.get("temperature", {}).items()], origin)
+
+
+def _refuse_depth(expressions: list, origin: str) -> None:
+    """The (key, expression or None) pairs of a plane scene read x and y only."""
+    for key, value in expressions:
+        if value is not None and "z" in value.variables:
+            raise SceneError(f"{origin}: {key}: a plane scene's expressions take x and y (z is a 3-D box's "
+                             "coordinate: geometry.box = [x0, x1, y0, y1, z0, z1])")
+
+
+def _flat_pieces(cracks) -> list:
+    """Every crack of ``geometry.cracks`` (one list, or one list per interface), or none."""
+    if not cracks:
+        return []
+    return [piece for group in cracks for piece in group] if isinstance(cracks, PerInterface) else list(cracks)
+
+
 def _geometry_checks(geometry: dict, given: set[str], origin: str) -> None:
     """The box, the interfaces' heights and their cracks: Σ inside the box (its middle by default), one list of
     cracks per interface (the paper's crack with the paper's square), each on its Σ, farther apart than the meshing
@@ -60,7 +100,7 @@ def _geometry_checks(geometry: dict, given: set[str], origin: str) -> None:
     lists = _crack_lists(geometry, given, len(heights), origin)
     for cracks in lists:
         _check_cracks(cracks, geometry["box"], crack_key, origin)
-    _check_apart([y0, *heights, y1], geometry["box"], "geometry.sigma", "of the box's y range (interfaces, sides)",
+    check_apart([y0, *heights, y1], geometry["box"], "geometry.sigma", "of the box's y range (interfaces, sides)",
                  "move or remove an interface", origin)
     geometry["sigma"], geometry["cracks"] = heights[0], lists[0]
     geometry["above"] = list(zip(heights[1:], lists[1:]))
@@ -121,11 +161,11 @@ def _check_cracks(cracks: list, box: Sequence[float], key: str, origin: str) -> 
     for a, b in cracks:
         if a < x0 or b > x1:
             raise SceneError(f"{origin}: {key}: the crack [{a:g}, {b:g}] leaves the box's x range [{x0:g}, {x1:g}]")
-    _check_apart([x0, x1, *(tip for piece in cracks for tip in piece)], box, key, "of Σ (crack tips, box ends)",
+    check_apart([x0, x1, *(tip for piece in cracks for tip in piece)], box, key, "of Σ (crack tips, box ends)",
                  "lengthen, move or remove the crack", origin)
 
 
-def _check_apart(values: list[float], box: Sequence[float], key: str, what: str, remedy: str, origin: str) -> None:
+def check_apart(values: list[float], box: Sequence[float], key: str, what: str, remedy: str, origin: str) -> None:
     """The coordinates ``values`` (points ``what``) are farther apart than the meshing tolerance."""
     x0, x1, y0, y1 = box
     breaks = sorted(set(values))
@@ -195,7 +235,7 @@ def acting_tables(data: dict, layer: str) -> dict[str, tuple[str, dict]]:
 
 def _regions(data: dict) -> tuple[str, ...]:
     """The regions of Ω of a scene whose geometry is checked, bottom to top (a gmsh file's own names)."""
-    return tuple(data["geometry"]["regions"]) or region_names(len(data["geometry"]["above"]) + 2)
+    return tuple(data["geometry"].get("regions", ())) or region_names(len(data["geometry"]["above"]) + 2)
 
 
 def dissimilar_layers(data: dict, thermal: bool = True) -> list[str]:

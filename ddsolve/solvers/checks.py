@@ -22,13 +22,16 @@ def check_ranks(ranks: int, blocks: int | None = None) -> None:
                          f"{physical_memory() / 1e9:.3g} GB; for ranks on several machines start mpiexec yourself")
 
 
-def check_size(scene, ranks: int = 1, solving: bool = True) -> None:
+def check_size(scene, ranks: int = 1, solving: bool = True, stacks: bool = False) -> None:
     """Refuse a mesh that cannot fit in this machine's memory, a ``mesh.refine`` its geometry cannot take
     (:func:`ddsolve.mesh.geometry.refinement`), or, ``solving``, a structure that cannot be solved yet, before
-    it is made."""
+    it is made (``stacks``: the solve takes several interfaces, as the domain decomposition and the reference do)."""
     from ddsolve.mesh import geometry
 
-    if solving:
+    if scene.geometry.dimension == 3:
+        raise SceneError("geometry.box: a 3-D box (6 numbers) is solved by the monolithic reference only, for now "
+                         "(ddsolve reference SCENE); the domain decomposition and the other commands are plane")
+    if solving and not stacks:
         geometry.one_interface(scene)
     geometry.refinement(scene)
     vertices = geometry.estimated_vertices(scene)
