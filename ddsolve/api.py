@@ -201,7 +201,7 @@ def solve(scene: Scene | str | Path, comm=None, output: str | Path | None = None
     plain ``python`` process is one rank).  With ``mesh.target_error`` the mesh is refined adaptively.
 
     Returns the same :class:`Result` on every rank (a structure of several interfaces: a
-    :class:`ddsolve.solvers.stacked.StackResult`, as :func:`reference` gives); ``output`` (an ``.h5`` path) also
+    :class:`ddsolve.post.stack.StackResult`, as :func:`reference` gives); ``output`` (an ``.h5`` path) also
     writes the result set (the HDF5 file and its viewer files) from rank 0.  ``progress`` receives progress lines on
     rank 0.  Raises :class:`ddsolve.NotConvergedError` (with the result as ``.result``) when the solve
     did not converge, and other :class:`ddsolve.DDSolveError` for what cannot be solved.
