@@ -6,6 +6,7 @@ import dataclasses
 import io as text_io
 from pathlib import Path
 
+import h5py
 import meshio
 import numpy as np
 import pytest
@@ -66,6 +67,17 @@ def test_the_file_reads_back_as_the_result_it_was_written_from(written):
     for key in ("G", "points", "interface", "crack_interface", "zones"):
         np.testing.assert_array_equal(getattr(back.fracture, key), getattr(result.fracture, key))
     assert all(not checked.violations(1e-9) for checked in stacked.check(back))
+
+
+def test_a_file_of_several_interfaces_without_its_views_is_refused_in_one_line(written, tmp_path):
+    old = tmp_path / "old.h5"
+    old.write_bytes(written[1].read_bytes())
+    with h5py.File(old, "a") as f:
+        del f["interfaces"]  # as files were written before they were read back
+    with pytest.raises(DDSolveError) as caught:
+        hdf5.read(old)
+    assert str(caught.value) == (f"{old}: not a ddsolve result file (a result of 2 interfaces written before such "
+                                 "files were read back (no /interfaces): solve it again (ddsolve reference or solve))")
 
 
 def test_check_compare_plot_and_export_take_the_file(written, tmp_path):

@@ -308,7 +308,10 @@ def read(path: Path) -> Result | StackResult:
     scenes.readable(path, "result file")
     try:
         with h5py.File(path, "r") as f:
-            runs = _runs(f)
+            runs, interfaces = _runs(f), int(f.attrs.get("interfaces", 1))
+            if interfaces > 1 and "interfaces" not in f:
+                raise DDSolveError(f"a result of {interfaces} interfaces written before such files were read back "
+                                   "(no /interfaces): solve it again (ddsolve reference or solve)")
             result = None if runs else _read_stack(f, path) if "interfaces" in f else _read(f, path)
     except (OSError, KeyError, TypeError, ValueError, IndexError, AttributeError, RuntimeError, MemoryError) as exc:
         raise DDSolveError(f"{path}: not a ddsolve result file ({' '.join(str(exc).split())})") from None
