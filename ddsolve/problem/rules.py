@@ -42,13 +42,16 @@ def cross_checks(data: dict, raw: dict, origin: str) -> None:
 
 def _plane_checks(data: dict, origin: str) -> None:
     """What only a 3-D box (``geometry.box`` of 6 numbers) takes is refused in a plane scene: rectangle cracks,
-    the front and back sides, z components."""
+    ``mesh.extrude``, the front and back sides, z components."""
     geometry = data["geometry"]
     for key, pieces in (("crack", [geometry["crack"]] if geometry["crack"] else []),
                         ("cracks", _flat_pieces(geometry["cracks"]))):
         if any(len(piece) == 4 for piece in pieces):
             raise SceneError(f"{origin}: geometry.{key}: a rectangle crack [a, b, c, d] needs a 3-D box "
                              "(geometry.box = [x0, x1, y0, y1, z0, z1]); a plane crack is [a, b]")
+    if data["mesh"]["extrude"] is not None:
+        raise SceneError(f"{origin}: mesh.extrude: extrudes a plane section into a 3-D box (geometry.box = "
+                         "[x0, x1, y0, y1, z0, z1]); a plane scene is not extruded")
     depth = [side for side in geometry["clamped"] if side in DEPTH_SIDES]
     if depth:
         raise SceneError(f"{origin}: geometry.clamped: {depth[0]!r} is a side of a 3-D box (geometry.box = "
