@@ -35,7 +35,8 @@ def build(scene: Scene) -> SolidMesh:
 def section_scene(scene: Scene) -> Scene:
     """The plane scene of the section: the box's x-y rectangle, the cracks' x intervals, the same mesh keys at
     degree 1 (the 3-D mesh is elevated after extrusion)."""
-    flat = replace(scene.geometry, box=scene.geometry.box[:4], cracks=tuple(crack[:2] for crack in scene.geometry.cracks))
+    geometry = scene.geometry
+    flat = replace(geometry, box=geometry.box[:4], cracks=tuple(crack[:2] for crack in geometry.cracks))
     return replace(scene, geometry=flat, mesh=replace(scene.mesh, degree=1, extrude=None), displacements={}, loads={})
 
 
