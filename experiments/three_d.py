@@ -243,11 +243,12 @@ def extruded_lines(record: dict) -> list[str]:
                      f"{row['seconds']:.2f} |")
     within = next((row for row in record["extruded"] if energy_norm_error(row["energy"], exact) < ACCEPTED), None)
     best = min(record["solids"] + record["more"], key=lambda row: energy_norm_error(row["energy"], exact))
-    reached = ("no extruded mesh here" if within is None else f"{label_of(within)} ({within['unknowns']} unknowns, "
-               f"{100 * energy_norm_error(within['energy'], exact):.2f} %) on")
+    reached = ("no extruded mesh here" if within is None else f"from {label_of(within)} on ({within['unknowns']} "
+               f"unknowns, {100 * energy_norm_error(within['energy'], exact):.2f} %)")
+    gmsh = 100 * energy_norm_error(best["energy"], exact)
     return lines + ["", f"Within {100 * ACCEPTED:g} % energy norm of the plane continuous energy (the extrusion "
-                    f"acceptance): {reached}; gmsh's tetrahedra reach {100 * energy_norm_error(best['energy'], exact):.1f}"
-                    f" % at best ({label_of(best)}, {best['unknowns']} unknowns)."]
+                    f"acceptance): {reached}; gmsh's tetrahedra reach {gmsh:.1f} % at best ({label_of(best)}, "
+                    f"{best['unknowns']} unknowns)."]
 
 
 def three_d() -> None:
