@@ -5,8 +5,8 @@ in N uniform layers along z.
 Every prism (a section triangle times a layer) is split into three tetrahedra by the global vertex numbering: on
 each quadrilateral face the diagonal starts at the face's lowest-numbered vertex, so that the two prisms sharing a
 face split it alike, and Σ's quadrilaterals (the extrusion of Σ's segments, whose vertices both halves share) are
-split the same way from either half.  The tetrahedra go to :func:`ddsolve.mesh.solid.assemble` (halves, Σ, crack
-front, P2 elevation), as gmsh's do.  The P1 (P2) space holds every z-independent field of the section's P1 (P2)
+split the same way from either half.  :func:`ddsolve.mesh.solid.build` assembles the tetrahedra (halves, Σ, crack
+front, P2 elevation) as it does gmsh's.  The P1 (P2) space holds every z-independent field of the section's P1 (P2)
 space, and the crack front is a straight line of nodes at every layer.
 """
 from __future__ import annotations
@@ -17,19 +17,17 @@ import numpy as np
 
 from ddsolve.mesh import geometry as plane_geometry
 from ddsolve.mesh.mesh import Mesh
-from ddsolve.mesh.solid import SolidMesh, assemble
 from ddsolve.problem.scene import Scene
 
 
-def build(scene: Scene) -> SolidMesh:
-    """The extruded mesh of a 3-D box scene whose cracks span the depth: the section's plane P1 mesh, its two
-    halves merged on Σ, extruded in ``mesh.extrude`` layers, then the halves and Σ (P2 elevated for degree 2)."""
-    box, cracks = scene.geometry.box, scene.geometry.cracks
+def tetrahedra(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The P1 tetrahedra of a 3-D box scene whose cracks span the depth: the section's plane P1 mesh, its two
+    halves merged on Σ, extruded in ``mesh.extrude`` layers; the nodes ``(n, 3)``, the tetrahedra ``(m, 4)`` and
+    whether each lies in the upper half (as :func:`ddsolve.mesh.solid.build` takes gmsh's)."""
+    box = scene.geometry.box
     points, triangles, upper = section(plane_geometry.build(section_scene(scene)))
     layers = np.linspace(box[4], box[5], scene.mesh.extrude + 1)
-    solid_points, tetrahedra = extruded(points, triangles, layers)
-    return assemble(solid_points, tetrahedra, np.tile(upper, 3 * (len(layers) - 1)), box, scene.geometry.sigma,
-                    cracks, scene.mesh.degree)
+    return (*extruded(points, triangles, layers), np.tile(upper, 3 * (len(layers) - 1)))
 
 
 def section_scene(scene: Scene) -> Scene:

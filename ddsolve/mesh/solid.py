@@ -99,12 +99,12 @@ def build(scene: Scene) -> SolidMesh:
     ``mesh.extrude`` the plane section's mesh extruded (:mod:`ddsolve.mesh.extrude`)."""
     from ddsolve.mesh import extrude, gmsh_io  # both import the plane mesh modules
 
-    if scene.mesh.extrude is not None:
-        return extrude.build(scene)
-
     geometry = scene.geometry
-    points, tetrahedra, upper = gmsh_io.apart(_tetrahedra, geometry.box, geometry.sigma, geometry.cracks,
-                                              scene.mesh.size, scene.mesh.grading)
+    if scene.mesh.extrude is not None:
+        points, tetrahedra, upper = extrude.tetrahedra(scene)
+    else:
+        points, tetrahedra, upper = gmsh_io.apart(_tetrahedra, geometry.box, geometry.sigma, geometry.cracks,
+                                                  scene.mesh.size, scene.mesh.grading)
     return assemble(points, tetrahedra, upper, geometry.box, geometry.sigma, geometry.cracks, scene.mesh.degree)
 
 
