@@ -65,7 +65,7 @@ def test_extruded_mesh_conforms_with_positive_volumes_and_a_straight_front(degre
 
 @pytest.mark.unit
 def test_extrusion_is_refused_where_it_cannot_apply():
-    with pytest.raises(SceneError, match=r"geometry.crack: the rectangle crack .* mesh.extrude"):
+    with pytest.raises(SceneError, match=r"geometry.crack: a crack that does not span the depth .* mesh.extrude"):
         loads(SOLID.format(crack="[-0.5, 0.5, 0.1, 0.3]", layers=2))
     with pytest.raises(SceneError, match=r"mesh.extrude: extrudes a plane section"):
         loads(SOLID.format(crack="[-0.5, 0.5]", layers=2).replace(", 0, 0.5]", "]\nlayers = 1"))

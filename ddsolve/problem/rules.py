@@ -49,13 +49,13 @@ def _plane_checks(data: dict, origin: str) -> None:
         if any(len(piece) == 4 for piece in pieces):
             raise SceneError(f"{origin}: geometry.{key}: a rectangle crack [a, b, c, d] needs a 3-D box "
                              "(geometry.box = [x0, x1, y0, y1, z0, z1]); a plane crack is [a, b]")
-    if data["mesh"]["extrude"] is not None:
-        raise SceneError(f"{origin}: mesh.extrude: extrudes a plane section into a 3-D box (geometry.box = "
-                         "[x0, x1, y0, y1, z0, z1]); a plane scene is not extruded")
     depth = [side for side in geometry["clamped"] if side in DEPTH_SIDES]
     if depth:
         raise SceneError(f"{origin}: geometry.clamped: {depth[0]!r} is a side of a 3-D box (geometry.box = "
                          "[x0, x1, y0, y1, z0, z1]); a plane box has " + ", ".join(SIDES))
+    if data["mesh"]["extrude"] is not None:
+        raise SceneError(f"{origin}: mesh.extrude: extrudes a plane section into a 3-D box (geometry.box = "
+                         "[x0, x1, y0, y1, z0, z1]); a plane scene is not extruded")
     for section in ("loads", "displacements"):
         for layer, tables in data.get(section, {}).items():
             for name, table in tables.items():

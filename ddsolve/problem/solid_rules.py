@@ -40,9 +40,10 @@ def solid_checks(data: dict, raw: dict, origin: str) -> None:
     cracks = [tuple(piece) if len(piece) == 4 else (*piece, z0, z1) for piece in pieces]
     for crack in cracks:
         _check_on_sigma(crack, geometry["box"], key, origin)
-        if data["mesh"]["extrude"] is not None and crack[2:] != (z0, z1):
-            raise SceneError(f"{origin}: {key}: the rectangle crack {list(crack)} does not span the depth, and "
-                             "mesh.extrude extrudes a plane section: give cracks [a, b], or leave mesh.extrude out")
+        if data["mesh"]["extrude"] is not None and not (isinstance(crack, tuple) and crack[2:] == (z0, z1)):
+            raise SceneError(f"{origin}: {key}: a crack that does not span the depth (a rectangle or an ellipse) is "
+                             "not extruded, and mesh.extrude extrudes a plane section: give cracks [a, b], or leave "
+                             "mesh.extrude out")
     box = geometry["box"][:4]
     check_apart([y0, sigma, y1], box, "geometry.sigma", "of the box's y range", "move Σ", origin)
     check_apart([x0, x1, *(v for crack in cracks for v in crack[:2])], box, key, "of Σ along x (crack edges, box "
