@@ -98,7 +98,7 @@ def _launch(args, petsc_options: list[str], scene_checks: bool) -> None:
     from ddsolve.io import viewer
 
     if scene is not None:
-        check_size(scene, args.ranks, stacks=True)
+        check_size(scene, args.ranks, stacks=True, solid=args.command == "solve")
         output = check_outputs(args, scene)
         outputs = [output, *viewer.viewer_paths(output.parent, output.stem)]
     else:
@@ -129,7 +129,11 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
     scene = comm.bcast(collective(comm, lambda: _load_scene(args), root_only=True), root=0)
     output = comm.bcast(collective(comm, lambda: check_outputs(args, scene), root_only=True), root=0)
     result = run.decomposition(scene, comm, output, progress=_root_print, gather=False)
-    if result is not None and scene.geometry.above:  # no error estimate, reactions or viewer files yet
+    if result is not None and scene.geometry.dimension == 3:
+        print(f"{result.scene.solver.method} (3-D): {result.steps} iterations, {result.closed} closed crack vertices, "
+              f"energy {result.energy:.10g}, {3 * sum(len(u) for u in result.fields)} unknowns, {result.solves} "
+              f"rounds of block solves, {result.timings['total']:.3f} s on {comm.size} ranks -> {output}", flush=True)
+    elif result is not None and scene.geometry.above:  # no error estimate, reactions or viewer files yet
         print(f"{result.scene.solver.method}: {len(scene.geometry.sigmas)} interfaces, {result.iterations} "
               f"iterations, energy {result.energy:.10g}, {result.wall_time:.3f} s on {comm.size} ranks -> {output}")
         print("\n".join(result.fracture.lines()), flush=True)
