@@ -54,11 +54,13 @@ def test_an_interface_of_three_components_glues_every_component_and_presses_the_
 
 
 @pytest.mark.solve
-def test_schur_and_feti_equal_the_3d_reference_with_contact_active(tmp_path):
+def test_schur_and_feti_equal_the_3d_reference_with_contact_active(tmp_path, monkeypatch):
     """On one rank (in this process) both methods give the reference's solution to 1e-8 in energy norm with crack
-    vertices shut; the file is the reference's, read back; a floating half is refused naming the key."""
+    vertices shut; the file is the reference's, read back; a floating half is refused naming the key, and schur
+    above its memory limit (auto then takes feti)."""
     from mpi4py import MPI
 
+    from ddsolve.environment import physical_memory
     from ddsolve.io import solid as solid_files
     from ddsolve.mesh import solid
     from ddsolve.solvers import solid as solid_solver, solid_dd
@@ -78,6 +80,11 @@ def test_schur_and_feti_equal_the_3d_reference_with_contact_active(tmp_path):
         assert energy_error(read, reference) < 1e-8 and read.scene.solver.method == method
     with pytest.raises(SceneError, match="^geometry.clamped: the upper half of the 3-D box is held only through Σ"):
         solid_dd.method_of(scene.with_({"geometry.clamped": ["bottom"]}), mesh)  # the rollers hold z alone
+    monkeypatch.setattr(solid_dd, "SCHUR_MEMORY_SHARE", 0.5 * solid_dd.schur_bytes(mesh) / physical_memory())
+    refused = "^solver.method = schur: the dense Σ Schur complements .* use solver.method = feti$"
+    with pytest.raises(SceneError, match=refused):
+        solid_dd.method_of(scene.with_({"solver.method": "schur"}), mesh)
+    assert solid_dd.method_of(scene, mesh).solver.method == "feti"  # auto
 
 
 @pytest.mark.mpi

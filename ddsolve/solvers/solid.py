@@ -106,7 +106,8 @@ def energy_error(result: SolidResult, reference: SolidResult) -> float:
                            "mesh.size, mesh.grading)")
     error = norm = 0.0
     for half, u, v in zip(reference.mesh.halves, result.fields, reference.fields):
-        K = tetra.stiffness(half.points, half.tetrahedra, tetra.isotropic(reference.scene.material("layer1", half.name)))
+        material = reference.scene.material("layer1", half.name)
+        K = tetra.stiffness(half.points, half.tetrahedra, tetra.isotropic(material))
         difference = (u - v).ravel()
         error += difference @ (K @ difference)
         norm += v.ravel() @ (K @ v.ravel())

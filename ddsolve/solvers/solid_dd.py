@@ -22,6 +22,7 @@ from petsc4py import PETSc
 
 from ddsolve.dd import registry
 from ddsolve.dd.interface import Interface
+from ddsolve.environment import physical_memory
 from ddsolve.errors import DDSolveError, NotConvergedError, SceneError
 from ddsolve.fem import tetra
 from ddsolve.fem.assembly import BlockSystem
@@ -39,6 +40,11 @@ from ddsolve.solvers import driver
 
 #: The trace entries of a Σ vertex: x, y (Σ's normal, component 1 as in the plane) and z.
 COMPONENTS = 3
+#: The dense matrices of Σ's size (3 s)² that ``schur`` holds at once on one machine: each half's Schur complement
+#: in MUMPS, in its block and gathered on rank 0, rank 0's interface stiffness and its factor (1 + 2 × 3 + 1).
+SCHUR_COPIES = 8
+#: The share of this machine's memory ``schur``'s dense matrices may take (above it: refused, ``auto`` takes feti).
+SCHUR_MEMORY_SHARE = 0.5
 
 
 @dataclass
@@ -65,16 +71,28 @@ class SolidSetup:
 
 
 def method_of(scene: Scene, mesh: SolidMesh) -> Scene:
-    """The scene with ``auto`` resolved (``schur``); in one line, what this solve does not take: a floating half
-    (its six rigid modes not all held by its own supports; friction and bonds the scene refuses)."""
+    """The scene with ``auto`` resolved (``schur`` while its dense matrices fit, :func:`schur_bytes`, else
+    ``feti``); in one line, what this solve does not take: ``schur`` above that limit, a floating half (its six
+    rigid modes not all held by its own supports; friction and bonds the scene refuses)."""
     floating = [half.name for half in mesh.halves
                 if np.linalg.matrix_rank(tetra.rigid_modes(half.points)[:, tetra.prescribed(scene, half)[0]]) < 6]
     if floating:
         raise SceneError(f"geometry.clamped: the {' and '.join(floating)} half of the 3-D box is held only through Σ "
                          "(floating, six rigid modes), which its domain decomposition does not solve yet: support "
                          "both halves, or use ddsolve reference")
-    method = scene.solver.method if scene.solver.method in registry.METHODS else "schur"
+    dense, limit = schur_bytes(mesh), SCHUR_MEMORY_SHARE * physical_memory()
+    if scene.solver.method == "schur" and dense > limit:
+        raise SceneError(f"solver.method = schur: the dense Σ Schur complements of this 3-D box ({COMPONENTS} × "
+                         f"{len(mesh.sigma.points)} trace entries) need about {dense / 1e9:.3g} GB, above the "
+                         f"{limit / 1e9:.3g} GB allowed ({SCHUR_MEMORY_SHARE:g} of this machine's memory): use "
+                         "solver.method = feti")
+    method = scene.solver.method if scene.solver.method in registry.METHODS else "schur" if dense <= limit else "feti"
     return dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, method=method))
+
+
+def schur_bytes(mesh: SolidMesh) -> float:
+    """Bytes of the dense matrices ``schur`` holds at once (:data:`SCHUR_COPIES` of Σ's size)."""
+    return SCHUR_COPIES * 8.0 * (COMPONENTS * len(mesh.sigma.points)) ** 2
 
 
 def trace_dofs(half: SolidHalf) -> np.ndarray:
