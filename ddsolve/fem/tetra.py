@@ -62,7 +62,7 @@ def stiffness(points: np.ndarray, tetrahedra: np.ndarray, D: np.ndarray) -> scip
     """K = Σ_e |e| Bᵀ D B over the tetrahedra (one elastic matrix ``D`` for all)."""
     grads, volumes = gradients(points, tetrahedra)
     B = strain_operator(grads)
-    local = np.einsum("m,mik,ij,mjl->mkl", volumes, B, D, B)
+    local = volumes[:, None, None] * (B.transpose(0, 2, 1) @ (D @ B))  # batched products: einsum's 4 operands crawl
     dofs = element_dofs(tetrahedra)
     rows = np.repeat(dofs, 12, axis=1).ravel()
     cols = np.tile(dofs, (1, 12)).ravel()

@@ -159,18 +159,21 @@ def prepare(scene: Scene, comm: MPI.Comm) -> SolidSetup:
 
     def make() -> list[Block]:
         made = []
+        timings["assembly"] = 0.0
         for index, group in zip(exchange.local_blocks, exchange.groups):
             half = mesh.halves[index]
             rows = None if group.size == 1 else row_ranges(len(half.points), group.size)[group.rank]
+            assembled = time.perf_counter()
             made.append(Block(block_system(scene, half, specs[index].name, rows), comm=PETSc.Comm(group),
                               factor_package=method.factorization))
+            timings["assembly"] += time.perf_counter() - assembled
             made[-1].factor(schur=method.schur_complements, out_of_core=scene.solver.out_of_core)
             if method.dirichlet:
                 made[-1].factor_dirichlet(out_of_core=scene.solver.out_of_core)
         return made
 
     blocks = collective(comm, make)
-    timings["factorization"] = time.perf_counter() - meshed - timings["setup"]
+    timings["factorization"] = time.perf_counter() - meshed - timings["setup"] - timings["assembly"]
     return SolidSetup(scene, mesh, exchange, blocks, interface_of(scene, mesh), stages, timings)
 
 
