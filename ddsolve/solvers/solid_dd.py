@@ -21,6 +21,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from ddsolve.dd import registry
+from ddsolve.dd.constraints import Constraints
 from ddsolve.dd.interface import Interface
 from ddsolve.environment import physical_memory
 from ddsolve.errors import DDSolveError, NotConvergedError, SceneError
@@ -212,7 +213,9 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print) -> 
 
 def finished(setup: SolidSetup, outcome, rounds, fields: list[np.ndarray]) -> SolidResult:
     """Rank 0: the method's ``outcome`` as the reference's record: the halves' displacements, the contact
-    pressure μᶜ at the crack vertices, the potential energy of the final round."""
+    pressure μᶜ at the crack vertices, the potential energy of the final round, the method's iterations as its
+    ``steps`` (schur's are its active-set steps), the blocks' largest relative residual and the final KKT check's
+    residuals as its ``checks``."""
     interface = setup.interface
     pressure = np.zeros(len(setup.mesh.sigma.points))
     contact = interface.slices["mu_c"]
@@ -220,5 +223,6 @@ def finished(setup: SolidSetup, outcome, rounds, fields: list[np.ndarray]) -> So
     return SolidResult(setup.scene, setup.mesh, tuple(u.reshape(-1, COMPONENTS) for u in fields), pressure,
                        energy=float(outcome.details["energy"]), steps=outcome.iterations, solves=rounds.count,
                        converged=bool(outcome.converged), message=outcome.message or "",
-                       checks={"residual": float(np.max(rounds.residuals, initial=0.0))},
+                       checks={"residual": float(np.max(rounds.residuals, initial=0.0)),
+                               **{name: float(outcome.details[f"kkt_{name}"]) for name in Constraints.NAMES}},
                        timings=dict(setup.timings))
