@@ -312,15 +312,12 @@ def cmd_compare(args, _petsc_options) -> int:
     from ddsolve.post import analysis
 
     if solid.is_solid(args.result) and solid.is_solid(args.reference):
-        import numpy as np
-
-        from ddsolve.solvers.solid import energy_error
+        from ddsolve.solvers.solid import comparison
 
         result, reference = solid.read(args.result), solid.read(args.reference)
-        largest = max(float(np.abs(u).max()) for u in reference.fields)
-        difference = max(float(np.abs(u - v).max()) for u, v in zip(result.fields, reference.fields))
-        print(f"relative energy-norm error {energy_error(result, reference):.3e}   max nodal difference "
-              f"{difference:.3e} (max |u| {largest:.3e})   energies {result.energy:.10g} and {reference.energy:.10g}")
+        error, difference, largest = comparison(result, reference)
+        print(f"relative energy-norm error {error:.3e}   max nodal difference {difference:.3e} (max |u| "
+              f"{largest:.3e})   energies {result.energy:.10g} and {reference.energy:.10g}")
         return 0
     result, reference = hdf5.read(args.result), hdf5.read(args.reference)
     comparison = analysis.compare(result, reference, (args.result, args.reference))

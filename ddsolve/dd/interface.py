@@ -387,5 +387,3 @@ def friction_values(sigma: SigmaLine, friction: Friction) -> np.ndarray:
     for value, (first, last) in zip(friction.per_crack(len(runs)), runs):
         values[first:last + 1] = value
     return values
-
-

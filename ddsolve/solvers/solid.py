@@ -114,6 +114,12 @@ def energy_error(result: SolidResult, reference: SolidResult) -> float:
     return float(np.sqrt(error / norm)) if norm > 0 else (0.0 if error == 0 else float("inf"))
 
 
+def comparison(result: SolidResult, reference: SolidResult) -> tuple[float, float, float]:
+    """:func:`energy_error`, the largest nodal difference and the reference's largest nodal displacement."""
+    difference = max(float(np.abs(u - v).max()) for u, v in zip(result.fields, reference.fields))
+    return energy_error(result, reference), difference, max(float(np.abs(u).max()) for u in reference.fields)
+
+
 def reference(scene: Scene, output: Path | None = None) -> SolidResult:
     """A 3-D scene meshed and solved by the monolithic reference, ``output`` and its VTU files written."""
     phases = Phases()
