@@ -29,6 +29,33 @@ def write(path: Path, result: SolidResult) -> list[Path]:
     return list(writers)
 
 
+def is_solid(path: Path) -> bool:
+    """Whether ``path`` is the result file of a 3-D solve."""
+    import h5py
+
+    with h5py.File(path, "r") as file:
+        return int(file.attrs.get("dimension", 2)) == 3
+
+
+def read(path: Path) -> SolidResult:
+    """A 3-D result file read back: its scene, halves (without their sides' faces), Σ, fields and numbers."""
+    import h5py
+
+    from ddsolve.mesh.solid import SigmaSurface, SolidHalf, SolidMesh
+    from ddsolve.problem.scene import loads
+
+    with h5py.File(path, "r") as file:
+        halves = tuple(SolidHalf(name, file[name]["points"][()], file[name]["tetrahedra"][()], {},
+                                 file[name]["sigma_nodes"][()]) for name in ("lower", "upper"))
+        sigma = file["sigma"]
+        surface = SigmaSurface(sigma["points"][()], sigma["triangles"][()], sigma["cracked"][()], sigma["front"][()])
+        attrs = dict(file.attrs)
+        return SolidResult(loads(str(attrs["scene"])), SolidMesh(halves, surface),
+                           tuple(file[name]["displacement"][()] for name in ("lower", "upper")),
+                           sigma["contact_pressure"][()], float(attrs["energy"]), int(attrs["active_set_steps"]),
+                           int(attrs["solves"]), bool(attrs["converged"]), str(attrs["message"]))
+
+
 def _write_hdf5(name: str, result: SolidResult) -> None:
     import h5py
 

@@ -30,7 +30,7 @@ def cross_checks(data: dict, raw: dict, origin: str, structure: FileStructure | 
     _load_checks(data, origin)
     _displacement_checks(data, origin)
     _temperature_checks(data, origin)
-    _solver_checks(data, origin)
+    solver_checks(data, origin)
     _radii_checks(data, origin)
     _toughness_checks(data, origin)
     _split_checks(data, origin)
@@ -301,7 +301,7 @@ def _load_checks(data: dict, origin: str) -> None:
                                  "(a pressure acts along the normal)")
 
 
-def _solver_checks(data: dict, origin: str) -> None:
+def solver_checks(data: dict, origin: str) -> None:
     """The method's step, its stopping rule and the rule's tolerance."""
     solver, method = data["solver"], OPTIONS[data["solver"]["method"]]
     if method.step and solver["theta"] is None:

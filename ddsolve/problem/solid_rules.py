@@ -7,7 +7,7 @@ from __future__ import annotations
 from ddsolve.errors import SceneError
 from ddsolve.problem import materials
 from ddsolve.problem.reading import printable
-from ddsolve.problem.rules import check_apart
+from ddsolve.problem.rules import check_apart, solver_checks
 from ddsolve.problem.schema import DEPTH_SIDES, GRADING, SIDES, layer_material
 
 #: The boundaries a 3-D box names (loads and supports act on them).
@@ -56,6 +56,7 @@ def solid_checks(data: dict, raw: dict, origin: str) -> None:
         data["mesh"]["size"] = min(x1 - x0, y1 - y0, z1 - z0) / DEFAULT_ELEMENTS
     _material_checks(data, origin)
     _boundary_checks(data, origin)
+    solver_checks(data, origin)
 
 
 def _refuse_plane_only(data: dict, raw: dict, origin: str) -> None:
