@@ -366,7 +366,7 @@ ISOTROPIC = {"E": (_positive(_number), REQUIRED), "nu": (_poisson, REQUIRED), "a
 ORTHOTROPIC = {"E1": (_positive(_number), REQUIRED), "E2": (_positive(_number), REQUIRED),
                 "G12": (_positive(_number), REQUIRED), "nu12": (_number, REQUIRED), "angle": (_angle, 0.0),
                 "E3": (_positive(_number), None), "nu13": (_number, None), "nu23": (_number, None),
-                "alpha1": (_number, None), "alpha2": (_number, None)}
+                "alpha1": (_number, None), "alpha2": (_number, None), "fibre": (_fixed_numbers(3), None)}
 ANISOTROPIC = {"D": (_matrix3, REQUIRED), "Dzz": (_fixed_numbers(3), [0.0, 0.0, 0.0])}
 
 
