@@ -8,7 +8,7 @@ import scipy.sparse
 import scipy.sparse.linalg
 from test_three_d import PLANE, SOLID, elevated_grid
 
-from ddsolve.errors import SceneError
+from ddsolve.errors import DDSolveError, SceneError
 from ddsolve.fem import tetra
 from ddsolve.problem import expressions, materials
 from ddsolve.problem.scene import loads
@@ -187,3 +187,41 @@ def test_ply_keys_are_refused_where_they_mean_nothing():
         assert message in str(error.value) and "\n" not in str(error.value)
     scene = loads(upper(ply + "fibre = [0, 3, 4]\n"))
     assert scene.material("layer1", "upper").fibre == (0.0, 3.0, 4.0) and loads(scene.text) == scene
+
+
+@pytest.mark.solve
+def test_a_3d_result_is_read_back_exported_and_plotted(tmp_path):
+    """A heated P2 body with a ply above Σ and a crack rectangle, partly shut: its file read back gives the same
+    result; export writes VTU files meshio reads (tetra10, 6-node triangles); plot writes the opening map and the
+    deformed body; XDMF is refused naming --format."""
+    import meshio
+
+    from ddsolve.cli import parser
+    from ddsolve.io import solid as solid_files
+    from ddsolve.solvers import solid as solid_solver
+
+    text = BAR.replace("clamped = []", "crack = [0.2, 0.8, 0.2, 0.8]\nclamped = []").replace(
+        "[loads.layer1.top]\ny = 0.5", "[temperature]\nlayer1 = \"20 * x\"").replace(
+        "nu = 0.1", "nu = 0.1\nalpha = 1e-5").replace("nu12 = 0.25", "nu12 = 0.25\nalpha1 = 3e-5\nalpha2 = 1e-6")
+    scene = loads(text).with_({"mesh.degree": 2, "mesh.size": 0.8})
+    solved = solid_solver.reference(scene, tmp_path / "hot.h5")
+    assert solved.converged and solved.closed > 0 and solved.normal_opening.max() > 0
+    read = solid_files.read(tmp_path / "hot.h5")
+    assert read.energy == solved.energy and read.scene == scene and read.checks == solved.checks
+    assert all(np.array_equal(a, b) for a, b in zip(read.fields, solved.fields))
+    assert np.array_equal(read.pressure, solved.pressure)
+    def command(*words: str) -> int:
+        args = parser().parse_args(list(words))
+        return args.run(args, [])
+
+    out = tmp_path / "out"
+    out.mkdir()
+    assert command("export", str(tmp_path / "hot.h5"), "-o", str(out)) == 0
+    upper, sigma = meshio.read(out / "hot-upper.vtu"), meshio.read(out / "hot-sigma.vtu")
+    assert upper.cells[0].type == "tetra10" and sigma.cells[0].type == "triangle6"
+    assert np.allclose(upper.point_data["displacement"], solved.fields[1])
+    assert np.allclose(sigma.point_data["contact_pressure"], solved.pressure)
+    assert command("plot", str(tmp_path / "hot.h5")) == 0
+    assert all((tmp_path / f"hot-{name}.png").stat().st_size > 10_000 for name in ("opening", "deformed"))
+    with pytest.raises(DDSolveError, match="--format xdmf: a 3-D result is exported as VTU files"):
+        command("export", str(tmp_path / "hot.h5"), "--format", "xdmf")
