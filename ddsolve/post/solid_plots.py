@@ -41,7 +41,7 @@ def opening_map(result: SolidResult, target: Path) -> None:
     x, z = surface.points[:, 0], surface.points[:, 2]
     fig, ax = plt.subplots(figsize=(8, 5.5), constrained_layout=True)
     filled = ax.tricontourf(Triangulation(x, z, flat_triangles(surface.triangles)), result.normal_opening, levels=20,
-                            cmap="viridis")
+                            cmap="viridis", extend="both")  # round-off below 0 filled too
     fig.colorbar(filled, ax=ax, label=f"opening [u]·ν ({LENGTH})")
     for a, b, c, d in result.scene.geometry.cracks:
         ax.plot([a, b, b, a, a], [c, c, d, d, c], color="white", linestyle="--", linewidth=1.2)
