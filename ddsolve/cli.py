@@ -450,8 +450,9 @@ def cmd_export(args, _petsc_options) -> int:
     from ddsolve.post.stack import StackResult
 
     solid = solid_files.is_solid(Path(args.result))
-    if solid and args.format != "vtu":
-        raise DDSolveError(f"--format {args.format}: a 3-D result is exported as VTU files (leave --format out)")
+    if solid and args.format not in solid_files.VIEWER_FORMATS:
+        raise DDSolveError(f"--format {args.format}: a 3-D result is exported as "
+                           f"{' or '.join(solid_files.VIEWER_FORMATS)}")
     result = solid_files.read(args.result) if solid else hdf5.read(args.result)
     folder = Path(args.output) if args.output is not None else Path(args.result).parent
     if not folder.is_dir():
@@ -459,7 +460,7 @@ def cmd_export(args, _petsc_options) -> int:
                                                if folder.exists() else "no such directory"))
     stem = Path(args.result).stem
     if solid or isinstance(result, StackResult):
-        writers = (solid_files.viewer_writers(result, folder, stem) if solid else
+        writers = (solid_files.viewer_writers(result, folder, stem, args.format) if solid else
                    viewer.stack_files(result, folder, stem, args.format))
         safe.check_targets(list(writers), [Path(args.result)])
         safe.replace_together(writers, final=True)

@@ -1,8 +1,8 @@
 """The files of a 3-D result: the HDF5 file (each half's nodes, tetrahedra and displacements; Σ's vertices,
 triangles, opening and contact pressure; the scene's text and the solve's numbers as attributes) and a VTU
 file per half (tetra or tetra10) and for Σ (triangles, 3 or 6 nodes) beside it, written together
-(:func:`ddsolve.io.safe.replace_together`); the result file read back (:func:`read`) and its VTU files written
-anywhere (:func:`viewer_writers`, for ``ddsolve export``)."""
+(:func:`ddsolve.io.safe.replace_together`); the result file read back (:func:`read`) and its viewer files, VTU or
+XDMF, written anywhere (:func:`viewer_writers`, for ``ddsolve export``)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -17,17 +17,22 @@ from ddsolve.problem.schema import REGIONS
 
 #: The viewer files beside ``NAME.h5``: ``NAME-lower.vtu``, ``NAME-upper.vtu``, ``NAME-sigma.vtu``.
 VIEWER_PARTS = ("lower", "upper", "sigma")
+#: The viewer formats of a 3-D result and meshio's options for each: XDMF with its arrays inline (one file per
+#: part, no HDF5 beside it, so that each file is written whole and replaced with the others).
+VIEWER_FORMATS = {"vtu": {}, "xdmf": {"data_format": "XML"}}
 
 
-def viewer_paths(folder: Path, stem: str) -> list[Path]:
-    """The VTU files of the result ``stem`` in ``folder``: ``STEM-lower.vtu``, ``STEM-upper.vtu``, ``STEM-sigma.vtu``."""
-    return [Path(folder) / f"{stem}-{part}.vtu" for part in VIEWER_PARTS]
+def viewer_paths(folder: Path, stem: str, fmt: str = "vtu") -> list[Path]:
+    """The viewer files of the result ``stem`` in ``folder``: ``STEM-lower.FMT``, ``STEM-upper.FMT``,
+    ``STEM-sigma.FMT``."""
+    return [Path(folder) / f"{stem}-{part}.{fmt}" for part in VIEWER_PARTS]
 
 
-def viewer_writers(result: SolidResult, folder: Path, stem: str) -> dict:
-    """Path -> writer of each VTU file of ``result`` (:func:`viewer_paths`), for :func:`replace_together`."""
-    return {target: (lambda temporary, part=part: _write_vtu(temporary, result, part))
-            for target, part in zip(viewer_paths(folder, stem), VIEWER_PARTS)}
+def viewer_writers(result: SolidResult, folder: Path, stem: str, fmt: str = "vtu") -> dict:
+    """Path -> writer of each viewer file of ``result`` in format ``fmt`` (:data:`VIEWER_FORMATS`,
+    :func:`viewer_paths`), for :func:`replace_together`."""
+    return {target: (lambda temporary, part=part: _write_part(temporary, result, part, fmt))
+            for target, part in zip(viewer_paths(folder, stem, fmt), VIEWER_PARTS)}
 
 
 def write(path: Path, result: SolidResult) -> list[Path]:
@@ -98,7 +103,7 @@ def _write_hdf5(name: str, result: SolidResult) -> None:
                           **{f"time_{key}": value for key, value in result.timings.items()}})
 
 
-def _write_vtu(name: str, result: SolidResult, part: str) -> None:
+def _write_part(name: str, result: SolidResult, part: str, fmt: str) -> None:
     import meshio
 
     if part == "sigma":
@@ -106,10 +111,10 @@ def _write_vtu(name: str, result: SolidResult, part: str) -> None:
         mesh = meshio.Mesh(surface.points, [("triangle" if surface.triangles.shape[1] == 3 else "triangle6",
                                              surface.triangles)],
                            point_data={"opening": result.opening, "contact_pressure": result.pressure,
-                                       "cracked": surface.cracked.astype(np.int8)})
+                                       "cracked": surface.cracked.astype(np.int32)})
     else:
         index = [half.name for half in result.mesh.halves].index(part)
         half = result.mesh.halves[index]
         mesh = meshio.Mesh(half.points, [("tetra" if half.tetrahedra.shape[1] == 4 else "tetra10", half.tetrahedra)],
                            point_data={"displacement": result.fields[index]})
-    meshio.write(name, mesh, file_format="vtu")
+    meshio.write(name, mesh, file_format=fmt, **VIEWER_FORMATS[fmt])
