@@ -1,7 +1,8 @@
 """Linear elasticity on P1 and P2 tetrahedra (straight edges), vectorized: three displacement components per node (dof 3 i + c),
 strains in Voigt order (xx, yy, zz, yz, xz, xy; engineering shears), an isotropic or transversely isotropic law
-per half, a temperature change's eigenstrain, tractions and pressures on a half's sides, clamped and prescribed components (rollers: one component) on its sides, and a
-half's system with its prescribed dofs decoupled (:func:`half_system`), as the plane blocks have them."""
+per half, a temperature change's eigenstrain, tractions and pressures on a half's sides, clamped and prescribed
+components (rollers: one component) on its sides, and a half's system with its prescribed dofs decoupled
+(:func:`half_system`), as the plane blocks have them."""
 from __future__ import annotations
 
 from dataclasses import dataclass

@@ -1,7 +1,8 @@
 """Rules between the keys of a 3-D scene (``geometry.box = [x0, x1, y0, y1, z0, z1]``), checked after each key
 alone: one body (``layer1``, its regions ``lower`` and ``upper`` below and above the plane Σ y = ``sigma``),
 cracks on Σ as rectangles, the box meshed with ``mesh.size``, isotropic or transversely isotropic materials,
-temperature changes, loads and supports on the box's six sides.  What the plane scenes have and 3-D does not yet is refused in one line naming the key."""
+temperature changes, loads and supports on the box's six sides.  What the plane scenes have and 3-D does not yet
+is refused in one line naming the key."""
 from __future__ import annotations
 
 import numpy as np
