@@ -98,7 +98,7 @@ def _launch(args, petsc_options: list[str], scene_checks: bool) -> None:
     from ddsolve.io import viewer
 
     if scene is not None:
-        check_size(scene, args.ranks, stacks=True)
+        check_size(scene, args.ranks, stacks=True, solid=args.command == "solve")
         output = check_outputs(args, scene)
         outputs = [output, *viewer.viewer_paths(output.parent, output.stem)]
     else:
@@ -129,7 +129,11 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
     scene = comm.bcast(collective(comm, lambda: _load_scene(args), root_only=True), root=0)
     output = comm.bcast(collective(comm, lambda: check_outputs(args, scene), root_only=True), root=0)
     result = run.decomposition(scene, comm, output, progress=_root_print, gather=False)
-    if result is not None and scene.geometry.above:  # no error estimate, reactions or viewer files yet
+    if result is not None and scene.geometry.dimension == 3:
+        print(f"{result.scene.solver.method} (3-D): {result.steps} iterations, {result.closed} closed crack vertices, "
+              f"energy {result.energy:.10g}, {3 * sum(len(u) for u in result.fields)} unknowns, {result.solves} "
+              f"rounds of block solves, {result.timings['total']:.3f} s on {comm.size} ranks -> {output}", flush=True)
+    elif result is not None and scene.geometry.above:  # no error estimate, reactions or viewer files yet
         print(f"{result.scene.solver.method}: {len(scene.geometry.sigmas)} interfaces, {result.iterations} "
               f"iterations, energy {result.energy:.10g}, {result.wall_time:.3f} s on {comm.size} ranks -> {output}")
         print("\n".join(result.fracture.lines()), flush=True)
@@ -304,9 +308,17 @@ def estimate_line(result) -> str:
 
 
 def cmd_compare(args, _petsc_options) -> int:
-    from ddsolve.io import hdf5
+    from ddsolve.io import hdf5, solid
     from ddsolve.post import analysis, stack
 
+    if solid.is_solid(args.result) and solid.is_solid(args.reference):
+        from ddsolve.solvers.solid import comparison
+
+        result, reference = solid.read(args.result), solid.read(args.reference)
+        error, difference, largest = comparison(result, reference)
+        print(f"relative energy-norm error {error:.3e}   max nodal difference {difference:.3e} (max |u| "
+              f"{largest:.3e})   energies {result.energy:.10g} and {reference.energy:.10g}")
+        return 0
     result, reference = hdf5.read(args.result), hdf5.read(args.reference)
     names = (args.result, args.reference)
     if isinstance(result, stack.StackResult) or isinstance(reference, stack.StackResult):

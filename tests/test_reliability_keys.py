@@ -59,6 +59,7 @@ def cases(folder: Path) -> list[tuple[str, list[str], list[str]]]:
            ("mesh.grading", ["mesh.size=0.5"], ["mesh.grading=true"]),
            ("mesh.target_error", [], ["mesh.target_error=0.25"]),
            ("mesh.refine", ["mesh.sigma_vertices=25"], ["mesh.refine=1"]),
+           ("mesh.extrude", [], ["mesh.extrude=2"]),  # refused in the plane
            ("materials.model", [], ['materials.model="plane_stress"']),
            ("materials.layer1.E", [], ["materials.layer1.E=150.0"]),
            ("materials.layer2.nu", [], ["materials.layer2.nu=0.2"])]

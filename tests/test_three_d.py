@@ -71,7 +71,7 @@ def test_scene_in_three_dimensions_and_its_refusals():
         with pytest.raises(SceneError, match=None) as error:
             loads(text)
         assert message in str(error.value) and "\n" not in str(error.value)
-    with pytest.raises(SceneError, match="geometry.box: a 3-D box .* is solved by the monolithic reference only"):
+    with pytest.raises(SceneError, match="geometry.box: a 3-D box .* is solved by ddsolve solve and ddsolve reference"):
         checks.check_size(scene)  # what solve, sweep and mesh check first
 
 

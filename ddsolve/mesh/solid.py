@@ -95,12 +95,16 @@ class SolidMesh:
 
 
 def build(scene: Scene) -> SolidMesh:
-    """The mesh of a 3-D box scene: gmsh in a child process, then the halves and Σ (:func:`assemble`)."""
-    from ddsolve.mesh import gmsh_io  # gmsh_io imports the plane mesh readers
+    """The mesh of a 3-D box scene: gmsh in a child process, then the halves and Σ (:func:`assemble`); with
+    ``mesh.extrude`` the plane section's mesh extruded (:mod:`ddsolve.mesh.extrude`)."""
+    from ddsolve.mesh import extrude, gmsh_io  # both import the plane mesh modules
 
     geometry = scene.geometry
-    points, tetrahedra, upper = gmsh_io.apart(_tetrahedra, geometry.box, geometry.sigma, geometry.cracks,
-                                              scene.mesh.size, scene.mesh.grading)
+    if scene.mesh.extrude is not None:
+        points, tetrahedra, upper = extrude.tetrahedra(scene)
+    else:
+        points, tetrahedra, upper = gmsh_io.apart(_tetrahedra, geometry.box, geometry.sigma, geometry.cracks,
+                                                  scene.mesh.size, scene.mesh.grading)
     return assemble(points, tetrahedra, upper, geometry.box, geometry.sigma, geometry.cracks, scene.mesh.degree)
 
 

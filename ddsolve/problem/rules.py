@@ -30,7 +30,7 @@ def cross_checks(data: dict, raw: dict, origin: str, structure: FileStructure | 
     _load_checks(data, origin)
     _displacement_checks(data, origin)
     _temperature_checks(data, origin)
-    _solver_checks(data, origin)
+    solver_checks(data, origin)
     _radii_checks(data, origin)
     _toughness_checks(data, origin)
     _split_checks(data, origin)
@@ -46,7 +46,7 @@ def cross_checks(data: dict, raw: dict, origin: str, structure: FileStructure | 
 
 def _plane_checks(data: dict, origin: str) -> None:
     """What only a 3-D box (``geometry.box`` of 6 numbers) takes is refused in a plane scene: rectangle cracks,
-    the front and back sides, z components."""
+    ``mesh.extrude``, the front and back sides, z components."""
     geometry = data["geometry"]
     for key, pieces in (("crack", [geometry["crack"]] if geometry["crack"] else []),
                         ("cracks", _flat_pieces(geometry["cracks"]))):
@@ -57,6 +57,9 @@ def _plane_checks(data: dict, origin: str) -> None:
     if depth:
         raise SceneError(f"{origin}: geometry.clamped: {depth[0]!r} is a side of a 3-D box (geometry.box = "
                          "[x0, x1, y0, y1, z0, z1]); a plane box has " + ", ".join(SIDES))
+    if data["mesh"]["extrude"] is not None:
+        raise SceneError(f"{origin}: mesh.extrude: extrudes a plane section into a 3-D box (geometry.box = "
+                         "[x0, x1, y0, y1, z0, z1]); a plane scene is not extruded")
     for section in ("loads", "displacements"):
         for layer, tables in data.get(section, {}).items():
             for name, table in tables.items():
@@ -301,7 +304,7 @@ def _load_checks(data: dict, origin: str) -> None:
                                  "(a pressure acts along the normal)")
 
 
-def _solver_checks(data: dict, origin: str) -> None:
+def solver_checks(data: dict, origin: str) -> None:
     """The method's step, its stopping rule and the rule's tolerance."""
     solver, method = data["solver"], OPTIONS[data["solver"]["method"]]
     if method.step and solver["theta"] is None:

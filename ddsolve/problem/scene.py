@@ -108,6 +108,8 @@ class MeshOptions:
     grading: float | None = None
     target_error: float | None = None
     refine: int | None = None
+    #: A 3-D box's section meshed in the plane and extruded in this many layers along z (None: gmsh's tetrahedra).
+    extrude: int | None = None
 
     @property
     def kind(self) -> str:

@@ -439,6 +439,7 @@ SCHEMA: dict[str, Any] = {
         "grading": (_grading, None),
         "target_error": (_fraction, None),
         "refine": (_count(0), None),
+        "extrude": (_count(1), None),
     },
     "materials": {
         "model": (_choice(materials.MODELS), "plane_strain"),

@@ -10,13 +10,14 @@ import numpy as np
 from ddsolve.errors import SceneError
 from ddsolve.problem import materials
 from ddsolve.problem.reading import printable
-from ddsolve.problem.rules import check_apart
+from ddsolve.problem.rules import check_apart, solver_checks
 from ddsolve.problem.schema import DEPTH_SIDES, GRADING, SIDES, layer_material
 
 #: The boundaries a 3-D box names (loads and supports act on them).
 SOLID_SIDES = SIDES + DEPTH_SIDES
-#: The mesh keys a 3-D box takes: tetrahedra of about ``mesh.size`` (P1 or P2), graded towards the crack fronts.
-SOLID_MESH_KEYS = ("size", "degree", "grading")
+#: The mesh keys a 3-D box takes: tetrahedra of about ``mesh.size`` (P1 or P2), graded towards the crack fronts,
+#: or the plane mesh of the section extruded in ``mesh.extrude`` layers.
+SOLID_MESH_KEYS = ("size", "degree", "grading", "extrude")
 #: Elements per shortest side of the box when the scene gives no ``mesh.size``.
 DEFAULT_ELEMENTS = 4
 #: Keys of the plane scenes that 3-D does not solve yet: (section, key) -> what they would need.
@@ -41,6 +42,10 @@ def solid_checks(data: dict, raw: dict, origin: str) -> None:
     cracks = [tuple(piece) if len(piece) == 4 else (*piece, z0, z1) for piece in pieces]
     for crack in cracks:
         _check_on_sigma(crack, geometry["box"], key, origin)
+        if data["mesh"]["extrude"] is not None and not (isinstance(crack, tuple) and crack[2:] == (z0, z1)):
+            raise SceneError(f"{origin}: {key}: a crack that does not span the depth (a rectangle or an ellipse) is "
+                             "not extruded, and mesh.extrude extrudes a plane section: give cracks [a, b], or leave "
+                             "mesh.extrude out")
     box = geometry["box"][:4]
     check_apart([y0, sigma, y1], box, "geometry.sigma", "of the box's y range", "move Σ", origin)
     check_apart([x0, x1, *(v for crack in cracks for v in crack[:2])], box, key, "of Σ along x (crack edges, box "
@@ -53,6 +58,7 @@ def solid_checks(data: dict, raw: dict, origin: str) -> None:
         data["mesh"]["size"] = min(x1 - x0, y1 - y0, z1 - z0) / DEFAULT_ELEMENTS
     _material_checks(data, origin)
     _boundary_checks(data, origin)
+    solver_checks(data, origin)
 
 
 def _refuse_plane_only(data: dict, raw: dict, origin: str) -> None:
@@ -66,7 +72,7 @@ def _refuse_plane_only(data: dict, raw: dict, origin: str) -> None:
     other = next((name for name in written if name not in SOLID_MESH_KEYS), None)
     if other is not None:
         raise SceneError(f"{origin}: mesh.{other}: a 3-D box is meshed with tetrahedra of about mesh.size "
-                         "(mesh.size, mesh.grading and mesh.degree only, for now)")
+                         "(mesh.size, mesh.grading, mesh.degree and mesh.extrude only, for now)")
     grading = data["mesh"]["grading"]
     data["mesh"]["grading"] = GRADING[data["mesh"]["degree"]] if grading is True else (None if grading is False else grading)
     if data["materials"]["model"] != "plane_strain":

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ddsolve.dd import constraints
+from ddsolve.errors import DDSolveError
 from ddsolve.fem import tetra
 from ddsolve.fem.assembly import csr_matvec
 from ddsolve.io import solid as solid_files
@@ -93,6 +94,31 @@ def _final_check(result: SolidResult, residual: float) -> None:
     result.converged = not violated
     result.message = (f"reference: the 3-D solution violates {', '.join(violated)} (tolerance {tolerance:g})"
                       if violated else "")
+
+
+def energy_error(result: SolidResult, reference: SolidResult) -> float:
+    """‖u − u_ref‖_a / ‖u_ref‖_a over both halves, on the reference's mesh (the same as the result's, else
+    refused in one line) with the reference scene's materials."""
+    same = all(mine.points.shape == theirs.points.shape and np.array_equal(mine.points, theirs.points)
+               for mine, theirs in zip(result.mesh.halves, reference.mesh.halves))
+    if not same:
+        raise DDSolveError("the 3-D results lie on different meshes: compare results of one mesh (geometry.box, "
+                           "mesh.size, mesh.grading)")
+    error = norm = 0.0
+    for half, u, v in zip(reference.mesh.halves, result.fields, reference.fields):
+        material = reference.scene.material("layer1", half.name)
+        K = tetra.stiffness(half.points, half.tetrahedra, tetra.isotropic(material))
+        difference = (u - v).ravel()
+        error += difference @ (K @ difference)
+        norm += v.ravel() @ (K @ v.ravel())
+    return float(np.sqrt(error / norm)) if norm > 0 else (0.0 if error == 0 else float("inf"))
+
+
+def comparison(result: SolidResult, reference: SolidResult) -> tuple[float, float, float]:
+    """:func:`energy_error`, the largest nodal difference and the reference's largest nodal displacement."""
+    error = energy_error(result, reference)  # first: it refuses results on different meshes
+    difference = max(float(np.abs(u - v).max()) for u, v in zip(result.fields, reference.fields))
+    return error, difference, max(float(np.abs(u).max()) for u in reference.fields)
 
 
 def reference(scene: Scene, output: Path | None = None) -> SolidResult:
