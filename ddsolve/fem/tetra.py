@@ -47,6 +47,13 @@ def elastic_matrix(material: materials.Isotropic | materials.Orthotropic) -> np.
     return materials.solid_stiffness(material)
 
 
+def largest_modulus(material: materials.Isotropic | materials.Orthotropic) -> float:
+    """The largest Young's modulus of a half's material: E, or a ply's larger of E1 and E2."""
+    if isinstance(material, materials.Isotropic):
+        return material.E
+    return max(material.E1, material.E2)
+
+
 def tetra_shapes(nodes: int, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Values ``(q, k)`` and reference gradients ``(q, k, 3)`` of the P1 (k = 4) or P2 (k = 10, mid-edge nodes in
     :data:`ddsolve.mesh.solid.TETRA_EDGES` order) shape functions at the reference points ``xi (q, 3)``."""
