@@ -41,7 +41,8 @@ def boundary_dofs(points: np.ndarray) -> np.ndarray:
 
 @pytest.mark.unit
 def test_a_ply_s_law_is_transversely_isotropic_about_its_fibre():
-    """Along the fibre the ply is E1, across it E2 in every direction; the angle key is the plane's fibre."""
+    """Along the fibre the ply is E1, across it E2 in every direction; a fibre of huge numbers is a direction; the
+    angle key is the plane's fibre."""
     C = materials.solid_stiffness(PLY)
     fibre = np.array([1.0, 2.0, 2.0]) / 3.0
     across = np.cross(fibre, [1.0, 0.0, 0.0])
@@ -50,6 +51,8 @@ def test_a_ply_s_law_is_transversely_isotropic_about_its_fibre():
         d = direction
         stretch = np.array([d[0] ** 2, d[1] ** 2, d[2] ** 2, d[1] * d[2], d[0] * d[2], d[0] * d[1]])  # σ = n ⊗ n
         assert np.isclose(1.0 / (stretch @ np.linalg.solve(C, stretch)), modulus, rtol=1e-12)
+    huge = materials.Orthotropic(E1=140.0, E2=10.0, G12=5.0, nu12=0.3, fibre=(1e308, 1e308, 0.0))
+    assert np.allclose(materials.fibre_direction(huge), [0.5 ** 0.5, 0.5 ** 0.5, 0.0], rtol=1e-15)  # no overflow
     angled = materials.Orthotropic(E1=140.0, E2=10.0, G12=5.0, nu12=0.3, angle=30.0)
     plane, _ = materials.elasticity(angled)
     assert np.allclose(materials.solid_stiffness(angled)[np.ix_([0, 1, 5], [0, 1, 5])], plane, rtol=1e-13, atol=0)

@@ -233,7 +233,9 @@ def fibre_direction(material: Orthotropic) -> np.ndarray:
     """The unit fibre direction in 3-D: ``fibre`` normalised, else ``angle`` degrees from x towards y (about z, as in
     the plane)."""
     if material.fibre is not None:
-        return np.asarray(material.fibre, dtype=float) / np.linalg.norm(material.fibre)
+        fibre = np.asarray(material.fibre, dtype=float)
+        fibre = fibre / np.abs(fibre).max()  # first to about 1: the norm of huge or tiny numbers over- or underflows
+        return fibre / np.linalg.norm(fibre)
     angle = math.radians(material.angle)
     return np.array([math.cos(angle), math.sin(angle), 0.0])
 
