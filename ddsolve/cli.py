@@ -381,15 +381,25 @@ def _scale(text: str | None) -> float | None:
 MAX_DRAWN = 100.0
 
 
+def _check_drawn(text: str, drawn: float) -> None:
+    """Refuse ``--scale text`` if it draws the largest displacement at ``drawn`` > :data:`MAX_DRAWN` domain sizes."""
+    if not drawn <= MAX_DRAWN:
+        raise DDSolveError(f"--scale {text}: draws the largest displacement at {drawn:.3g} times the domain's size "
+                           f"(at most {MAX_DRAWN:g}); leave --scale out to choose it from the data")
+
+
 def cmd_plot(args, _petsc_options) -> int:
     import io as memory
 
     import numpy as np
 
     from ddsolve.io import hdf5
+    from ddsolve.io import solid as solid_files
     from ddsolve.post import analysis, plots, stack
 
     scale = _scale(args.scale)
+    if solid_files.is_solid(Path(args.result)):
+        return _plot_solid(args, scale)
     result = hdf5.read(args.result)
     stem = Path(args.result).with_suffix("")
     broken = next((name for name, u in result.solution.items() if not np.isfinite(u).all()), None)
@@ -400,10 +410,8 @@ def cmd_plot(args, _petsc_options) -> int:
     blocks = stack.drawn(result) if several else plots.drawn_blocks(result)
     if scale is not None:
         points = np.vstack([block.points for block in blocks])
-        drawn = scale * analysis.largest_displacement(result.solution.values()) / np.ptp(points, axis=0).max()
-        if not drawn <= MAX_DRAWN:
-            raise DDSolveError(f"--scale {args.scale}: draws the largest displacement at {drawn:.3g} times the "
-                               f"domain's size (at most {MAX_DRAWN:g}); leave --scale out to choose it from the data")
+        _check_drawn(args.scale, scale * analysis.largest_displacement(result.solution.values())
+                     / np.ptp(points, axis=0).max())
     views = result.interfaces if several else [result]
     faces = [f"crack-faces-{number}" for number in range(1, len(views) + 1)] if several else ["crack-faces"]
     names = [Path(f"{stem}-{name}.png") for name in ("deformed", *faces, "convergence")]
@@ -421,19 +429,51 @@ def cmd_plot(args, _petsc_options) -> int:
     return 0
 
 
+def _plot_solid(args, scale: float | None) -> int:
+    """``plot`` of a 3-D result: the opening map of Σ and the deformed body."""
+    import io as memory
+
+    import numpy as np
+
+    from ddsolve.io import solid as solid_files
+    from ddsolve.post import solid_plots
+
+    result = solid_files.read(args.result)
+    if scale is not None:
+        size = np.ptp(np.vstack([half.points for half in result.mesh.halves]), axis=0).max()
+        _check_drawn(args.scale, scale * max(float(np.abs(u).max()) for u in result.fields) / size)
+    scale = solid_plots.magnification(result) if scale is None else scale
+    stem = Path(args.result).with_suffix("")
+    names = [Path(f"{stem}-{name}.png") for name in ("opening", "deformed")]
+    images = [memory.BytesIO() for _ in names]
+    solid_plots.opening_map(result, images[0])
+    solid_plots.deformed_body(result, images[1], scale)
+    safe.check_targets(names, [Path(args.result)])
+    safe.replace_together({path: (lambda name, data=image.getvalue(): Path(name).write_bytes(data))
+                           for path, image in zip(names, images)}, final=True)
+    print(f"wrote {', '.join(map(str, names))} (displacements ×{scale:g})")
+    return 0
+
+
 def cmd_export(args, _petsc_options) -> int:
     from ddsolve.io import hdf5
+    from ddsolve.io import solid as solid_files
     from ddsolve.io import viewer
     from ddsolve.post.stack import StackResult
 
-    result = hdf5.read(args.result)
+    solid = solid_files.is_solid(Path(args.result))
+    if solid and args.format not in solid_files.VIEWER_FORMATS:
+        raise DDSolveError(f"--format {args.format}: a 3-D result is exported as "
+                           f"{' or '.join(solid_files.VIEWER_FORMATS)}")
+    result = solid_files.read(args.result) if solid else hdf5.read(args.result)
     folder = Path(args.output) if args.output is not None else Path(args.result).parent
     if not folder.is_dir():
         raise DDSolveError(f"-o {folder}: " + ("is a file, not a folder: give -o the folder for the viewer files"
                                                if folder.exists() else "no such directory"))
     stem = Path(args.result).stem
-    if isinstance(result, StackResult):
-        writers = viewer.stack_files(result, folder, stem, args.format)
+    if solid or isinstance(result, StackResult):
+        writers = (solid_files.viewer_writers(result, folder, stem, args.format) if solid else
+                   viewer.stack_files(result, folder, stem, args.format))
         safe.check_targets(list(writers), [Path(args.result)])
         safe.replace_together(writers, final=True)
         written = list(writers)

@@ -1,7 +1,8 @@
 """Linear elasticity on P1 and P2 tetrahedra (straight edges), vectorized: three displacement components per node (dof 3 i + c),
-strains in Voigt order (xx, yy, zz, yz, xz, xy; engineering shears), an isotropic law per half, tractions and
-pressures on a half's sides, clamped and prescribed components (rollers: one component) on its sides, and a
-half's system with its prescribed dofs decoupled (:func:`half_system`), as the plane blocks have them."""
+strains in Voigt order (xx, yy, zz, yz, xz, xy; engineering shears), an isotropic or transversely isotropic law
+per half, a temperature change's eigenstrain, tractions and pressures on a half's sides, clamped and prescribed
+components (rollers: one component) on its sides, and a half's system with its prescribed dofs decoupled
+(:func:`half_system`), as the plane blocks have them."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -36,6 +37,21 @@ def isotropic(material: materials.Isotropic) -> np.ndarray:
     D[np.arange(3), np.arange(3)] += 2 * mu
     D[np.arange(3, 6), np.arange(3, 6)] = mu
     return D
+
+
+def elastic_matrix(material: materials.Isotropic | materials.Orthotropic) -> np.ndarray:
+    """The 6 × 6 elastic matrix of a half's material: :func:`isotropic`, or transversely isotropic about its fibre
+    (:func:`ddsolve.problem.materials.solid_stiffness`)."""
+    if isinstance(material, materials.Isotropic):
+        return isotropic(material)
+    return materials.solid_stiffness(material)
+
+
+def largest_modulus(material: materials.Isotropic | materials.Orthotropic) -> float:
+    """The largest Young's modulus of a half's material: E, or a ply's larger of E1 and E2."""
+    if isinstance(material, materials.Isotropic):
+        return material.E
+    return max(material.E1, material.E2)
 
 
 def tetra_shapes(nodes: int, xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -98,6 +114,24 @@ def strains(points: np.ndarray, cells: np.ndarray, u: np.ndarray, xi: np.ndarray
     every tetrahedron (by default its centroid)."""
     B = strain_operator(gradients(points, cells, np.full((1, 3), 0.25) if xi is None else xi)[0])
     return np.einsum("mqij,mj->mqi", B, u[element_dofs(cells)])
+
+
+#: The quadrature of thermal loads and energies (degree 2): exact for a linear ΔT on P1 and P2 tetrahedra.
+THERMAL_RULE = TETRA_RULES[10]
+
+
+def thermal_load(points: np.ndarray, cells: np.ndarray, D: np.ndarray, eigenstrain: np.ndarray,
+                 temperature: Expression) -> tuple[np.ndarray, float]:
+    """∫ Bᵀ D ε₀ over the tetrahedra as a dof vector, and ½ ∫ ε₀ᵀ D ε₀ (so that Π = ½ ∫ (ε − ε₀)ᵀ D (ε − ε₀) − the
+    loads' work), ε₀ = ``eigenstrain`` × ΔT(x, y, z), by :data:`THERMAL_RULE`."""
+    xi, w = THERMAL_RULE
+    grads, dets = gradients(points, cells, xi)
+    corners = np.einsum("qk,mkd->mqd", tetra_shapes(4, xi)[0], points[cells[:, :4]])  # straight edges
+    change = _evaluated(temperature, corners.reshape(-1, 3), "temperature.layer1").reshape(len(cells), len(w))
+    weighted = dets[:, None] * w * change
+    force = np.einsum("mq,mqja,j->ma", weighted, strain_operator(grads), D @ eigenstrain)
+    vector = np.bincount(element_dofs(cells).ravel(), force.ravel(), minlength=3 * len(points))
+    return vector, 0.5 * float((weighted * change).sum()) * float(eigenstrain @ D @ eigenstrain)
 
 
 def rigid_modes(points: np.ndarray) -> np.ndarray:
@@ -169,16 +203,18 @@ def prescribed(scene: Scene, half: SolidHalf) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass(frozen=True, eq=False)
 class HalfSystem:
-    """A half's stiffness ``K`` and load ``f`` as assembled, its prescribed ``dofs`` and their ``values``."""
+    """A half's stiffness ``K`` and load ``f`` as assembled, its prescribed ``dofs`` and their ``values``, and the
+    thermal ``offset`` ½ ∫ ε₀ᵀ D ε₀ of its energy."""
 
     K: scipy.sparse.csr_matrix
     f: np.ndarray
     dofs: np.ndarray
     values: np.ndarray
+    offset: float = 0.0
 
     def energy(self, u: np.ndarray) -> float:
-        """Π = ½ uᵀ K u − fᵀ u: the strain energy less the work of the loads."""
-        return float(0.5 * u @ (self.K @ u) - self.f @ u)
+        """Π = ½ uᵀ K u − fᵀ u + offset: the strain energy of ε − ε₀ less the work of the loads."""
+        return float(0.5 * u @ (self.K @ u) - self.f @ u) + self.offset
 
     def decoupled(self, name: str) -> BlockSystem:
         """The system with the prescribed dofs decoupled: their rows and columns empty but the diagonal, whose
@@ -196,11 +232,18 @@ class HalfSystem:
 
 
 def half_system(scene: Scene, half: SolidHalf) -> HalfSystem:
-    """The half's stiffness (its region's material of ``layer1``), the loads on its sides and its supports."""
+    """The half's stiffness (its region's material of ``layer1``), the loads on its sides, its temperature change
+    (``temperature.layer1``) and its supports."""
     material = scene.material("layer1", half.name)
-    K = stiffness(half.points, half.tetrahedra, isotropic(material))
+    D = elastic_matrix(material)
+    K = stiffness(half.points, half.tetrahedra, D)
     f = np.zeros(half.dofs)
     for (_, side), load in scene.loads.items():
         f += face_load(half.points, half.faces[side], side_traction(load, side))
+    offset = 0.0
+    if "layer1" in scene.temperature:
+        thermal, offset = thermal_load(half.points, half.tetrahedra, D, materials.solid_expansion(material),
+                                       scene.temperature["layer1"])
+        f += thermal
     dofs, values = prescribed(scene, half)
-    return HalfSystem(K, f, dofs, values)
+    return HalfSystem(K, f, dofs, values, offset)

@@ -221,6 +221,9 @@ def _material_checks(data: dict, origin: str) -> None:
         given = [(f"materials.{layer}", table)] + [(f"materials.{layer}.{region}", inner)
                                                    for region, inner in table.items() if isinstance(inner, dict)]
         for key, material in given:
+            if material.get("fibre") is not None:
+                raise SceneError(f"{origin}: {key}.fibre: a fibre direction in 3-D (a 6-number geometry.box); in the "
+                                 "plane give angle")
             try:
                 D, _ = materials.elasticity(layer_material(material), model)
             except materials.MaterialError as exc:

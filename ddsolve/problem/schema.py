@@ -366,7 +366,7 @@ ISOTROPIC = {"E": (_positive(_number), REQUIRED), "nu": (_poisson, REQUIRED), "a
 ORTHOTROPIC = {"E1": (_positive(_number), REQUIRED), "E2": (_positive(_number), REQUIRED),
                 "G12": (_positive(_number), REQUIRED), "nu12": (_number, REQUIRED), "angle": (_angle, 0.0),
                 "E3": (_positive(_number), None), "nu13": (_number, None), "nu23": (_number, None),
-                "alpha1": (_number, None), "alpha2": (_number, None)}
+                "alpha1": (_number, None), "alpha2": (_number, None), "fibre": (_fixed_numbers(3), None)}
 ANISOTROPIC = {"D": (_matrix3, REQUIRED), "Dzz": (_fixed_numbers(3), [0.0, 0.0, 0.0])}
 
 
@@ -505,8 +505,9 @@ def structure_schema(raw: dict, origin: str, regions: tuple[str, ...] = ()) -> d
         {"layers": 1} if is_solid(raw) else {})
     layers = check_table(written, {"layers": SCHEMA["geometry"]["layers"]}, ("geometry",), origin)["layers"]
     if layers != 1 and is_solid(raw):
-        raise SceneError(f"{origin}: geometry.layers: a 3-D box is one body (layers = 1); its regions below and above "
-                         "Σ take materials.layer1.lower and materials.layer1.upper")
+        raise SceneError(f"{origin}: geometry.layers: a 3-D box is one body (layers = 1): the plane's layers are "
+                         "sheets over the same plane domain, stacked through a thickness that a 3-D body meshes itself; "
+                         "its regions below and above Σ take materials.layer1.lower and materials.layer1.upper")
     regions = regions or region_names(region_count(raw))
     schema = SCHEMA if regions == REGIONS else {
         **SCHEMA, "materials": {**SCHEMA["materials"], **{layer: _material_schema(regions) for layer in LAYERS}}}

@@ -1,8 +1,11 @@
 """Rules between the keys of a 3-D scene (``geometry.box = [x0, x1, y0, y1, z0, z1]``), checked after each key
 alone: one body (``layer1``, its regions ``lower`` and ``upper`` below and above the plane Σ y = ``sigma``),
-cracks on Σ as rectangles, the box meshed with ``mesh.size``, isotropic materials, loads and supports on the
-box's six sides.  What the plane scenes have and 3-D does not yet is refused in one line naming the key."""
+cracks on Σ as rectangles, the box meshed with ``mesh.size``, isotropic or transversely isotropic materials,
+temperature changes, loads and supports on the box's six sides.  What the plane scenes have and 3-D does not yet
+is refused in one line naming the key."""
 from __future__ import annotations
+
+import numpy as np
 
 from ddsolve.errors import SceneError
 from ddsolve.problem import materials
@@ -20,7 +23,6 @@ DEFAULT_ELEMENTS = 4
 #: Keys of the plane scenes that 3-D does not solve yet: (section, key) -> what they would need.
 NOT_YET = {("fracture", None): "G along a crack front is not computed in 3-D yet",
            ("interface", None): "a bond law on Σ is not solved in 3-D yet",
-           ("temperature", None): "thermal loads are not solved in 3-D yet",
            ("contact", "friction"): "friction is not solved in 3-D yet",
            ("contact", "slip_bound"): "friction is not solved in 3-D yet"}
 
@@ -93,16 +95,36 @@ def _check_on_sigma(crack: tuple[float, ...], box: tuple[float, ...], key: str, 
 
 
 def _material_checks(data: dict, origin: str) -> None:
-    """The body's material, and its regions', isotropic with an elastic law double precision can factor."""
+    """The body's material, and its regions': isotropic, or a transversely isotropic ply about its fibre (``angle``
+    about z as in the plane, or ``fibre = [x, y, z]``), with an elastic law double precision can factor."""
     table = data["materials"]["layer1"]
     given = [("materials.layer1", table)] + [(f"materials.layer1.{region}", inner)
                                              for region, inner in table.items() if isinstance(inner, dict)]
     for key, written in given:
         material = layer_material(written)
-        if not isinstance(material, materials.Isotropic):
-            raise SceneError(f"{origin}: {key}: a 3-D body takes isotropic materials (E, nu) for now")
-        if not (material.E > 0 and -1.0 < material.nu < 0.5):
+        if isinstance(material, materials.Orthotropic):
+            _ply_checks(material, key, origin)
+        elif not isinstance(material, materials.Isotropic):
+            raise SceneError(f"{origin}: {key}: a 3-D body takes isotropic (E, nu) or orthotropic (E1, E2, G12, "
+                             "nu12) materials: a plane matrix D has no law in 3-D")
+        elif not (material.E > 0 and -1.0 < material.nu < 0.5):
             raise SceneError(f"{origin}: {key}: E > 0 and -1 < nu < 0.5 make a 3-D elastic law")
+
+
+def _ply_checks(material: materials.Orthotropic, key: str, origin: str) -> None:
+    """A ply is transversely isotropic about its fibre (E3 = E2, nu13 = nu12), its fibre a direction given once,
+    its law positive definite."""
+    for name, value, equal in (("E3", material.E3, material.E2), ("nu13", material.nu13, material.nu12)):
+        if value is not None and value != equal:
+            raise SceneError(f"{origin}: {key}.{name}: a 3-D ply is transversely isotropic about its fibre "
+                             f"({name} = {'E2' if name == 'E3' else 'nu12'}): leave {name} out")
+    if material.fibre is not None and (material.angle != 0.0 or not np.linalg.norm(material.fibre) > 0.0):
+        raise SceneError(f"{origin}: {key}.fibre: " + ("a direction, not zero" if material.angle == 0.0 else
+                                                       "give the fibre by fibre or by angle, not both"))
+    try:
+        materials.solid_stiffness(material)
+    except materials.MaterialError as exc:
+        raise SceneError(f"{origin}: {key}: {exc}") from None
 
 
 def _boundary_checks(data: dict, origin: str) -> None:

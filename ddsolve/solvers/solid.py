@@ -107,7 +107,7 @@ def energy_error(result: SolidResult, reference: SolidResult) -> float:
     error = norm = 0.0
     for half, u, v in zip(reference.mesh.halves, result.fields, reference.fields):
         material = reference.scene.material("layer1", half.name)
-        K = tetra.stiffness(half.points, half.tetrahedra, tetra.isotropic(material))
+        K = tetra.stiffness(half.points, half.tetrahedra, tetra.elastic_matrix(material))
         difference = (u - v).ravel()
         error += difference @ (K @ difference)
         norm += v.ravel() @ (K @ v.ravel())

@@ -118,9 +118,10 @@ def block_system(scene: Scene, half: SolidHalf, name: str, rows: tuple[int, int]
 
 def prescribed_energy(system: tetra.HalfSystem) -> float:
     """What Π adds to ½ xᵀ K̃ x − xᵀ f̃ of the decoupled system at its solution (:class:`BlockSystem`):
-    ½ g·K_PP g + ½ Σ K_ii g_i² − f_P·g, with g the prescribed values."""
+    ½ g·K_PP g + ½ Σ K_ii g_i² − f_P·g, with g the prescribed values, and the thermal offset ½ ∫ ε₀ᵀ D ε₀."""
     g, P = system.values, system.dofs
-    return float(0.5 * g @ (system.K[P][:, P] @ g) + 0.5 * system.K.diagonal()[P] @ g ** 2 - system.f[P] @ g)
+    return float(0.5 * g @ (system.K[P][:, P] @ g) + 0.5 * system.K.diagonal()[P] @ g ** 2 - system.f[P] @ g) \
+        + system.offset
 
 
 def row_ranges(nodes: int, parts: int) -> list[tuple[int, int]]:
@@ -135,7 +136,7 @@ def interface_of(scene: Scene, mesh: SolidMesh) -> Interface:
     fixed = np.zeros((len(mesh.halves), COMPONENTS * len(mesh.sigma.points)), dtype=bool)
     for row, half in zip(fixed, mesh.halves):
         row[:] = np.isin(trace_dofs(half), tetra.prescribed(scene, half)[0])
-    modulus = max(scene.material("layer1", half.name).E for half in mesh.halves)
+    modulus = max(tetra.largest_modulus(scene.material("layer1", half.name)) for half in mesh.halves)
     return Interface(mesh.sigma.weights, mesh.sigma.cracked, scene.nonpenetration, fixed, modulus,
                      specs=block_list(1), components=COMPONENTS)
 
