@@ -237,9 +237,6 @@ def test_the_reference_command_reports_g_at_every_tip_of_every_interface(tmp_pat
         assert list(f["fracture/interface"][()]) == [1, 1, 2, 2] and list(f["fracture/crack"][()]) == [0, 0, 1, 1]
         assert f.attrs["interfaces"] == 2 and f.attrs["converged"]
         assert sorted(f["solution"]) == ["u1", "u2", "u3", "v1", "v2", "v3"]
-    refused(ddsolve("compare", str(output), str(output), check=False), DDSolveError.exit_status,
-            f"{output}: a result of 2 interfaces (ddsolve reference): reading it back is not done yet; its /fracture, "
-            "/solution and /mesh are plain HDF5 datasets")
 
 
 def test_several_interfaces_number_their_cracks_bottom_to_top_and_one_interface_files_keep_their_shape():

@@ -59,12 +59,14 @@ def cases(folder: Path) -> list[tuple[str, list[str], list[str]]]:
            ("mesh.grading", ["mesh.size=0.5"], ["mesh.grading=true"]),
            ("mesh.target_error", [], ["mesh.target_error=0.25"]),
            ("mesh.refine", ["mesh.sigma_vertices=25"], ["mesh.refine=1"]),
+           ("mesh.extrude", [], ["mesh.extrude=2"]),  # refused in the plane
            ("materials.model", [], ['materials.model="plane_stress"']),
            ("materials.layer1.E", [], ["materials.layer1.E=150.0"]),
            ("materials.layer2.nu", [], ["materials.layer2.nu=0.2"])]
     heated = ["temperature.layer1=100.0"]
     laws = [(ORTHOTROPIC, [], {"E1": "300.0", "E2": "120.0", "G12": "50.0", "nu12": "0.25", "angle": "30.0",
-                               "E3": "150.0", "nu13": "0.2", "nu23": "0.2"}),
+                               "E3": "150.0", "nu13": "0.2", "nu23": "0.2",
+                               "fibre": "[1.0, 0.0, 0.0]"}),  # refused in the plane
             (ANISOTROPIC, [], {"D": "[[300.0, 80.0, 0.0], [80.0, 250.0, 0.0], [0.0, 0.0, 90.0]]",
                                "Dzz": "[100.0, 100.0, 0.0]"}),
             *((ORTHOTROPIC | {other: "2e-5"}, heated, {key: "1e-5"})  # a heated layer gives an expansion

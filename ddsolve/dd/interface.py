@@ -2,7 +2,9 @@
 
 Every block has the same *trace*: the displacements of the k Σ nodes that are not clamped, in order
 along Σ, each in its local frame (tangential, normal) — a vector of length 2k (for a straight Σ
-along x the frame is (x, y)).  The multipliers are nodal values (densities, as in the paper) stacked
+along x the frame is (x, y)).  On the plane Σ (y = const) of a 3-D box a vertex has d = 3 entries
+(x, ν = y, z: the normal stays component 1) and the trace d k; every vector family below then has three
+components (``components``).  The multipliers are nodal values (densities, as in the paper) stacked
 into one vector λ = [μᶜ | μᵍ | μ⁻ | μ⁺], vectors in the same local frames:
 
 ==========  ======================  ===================  ========================
@@ -73,10 +75,11 @@ class Interface:
 
     def __init__(self, weights: np.ndarray, crack: np.ndarray, contact: bool, fixed: np.ndarray | None = None,
                  modulus: float = 0.0, data: float = 0.0, friction: np.ndarray | None = None, coulomb: bool = False,
-                 specs: tuple[BlockSpec, ...] = blocks(2), bond: Bond | None = None):
+                 specs: tuple[BlockSpec, ...] = blocks(2), bond: Bond | None = None, components: int = 2):
         """``weights`` and ``crack`` (bool) of the k multiplier nodes; ``contact``: non-penetration holds;
-        ``specs``: the structure's blocks (:func:`ddsolve.mesh.mesh.blocks`);
-        ``fixed`` ``(blocks, 2k)``: the blocks' prescribed trace entries (:mod:`ddsolve.fem.supports`): a
+        ``specs``: the structure's blocks (:func:`ddsolve.mesh.mesh.blocks`); ``components``: d, the trace
+        entries per vertex (2 in the plane, 3 on a 3-D box's Σ: (τ₁, ν, τ₂), the normal component 1 always);
+        ``fixed`` ``(blocks, d k)``: the blocks' prescribed trace entries (:mod:`ddsolve.fem.supports`): a
         multiplier between two prescribed entries has nothing to enforce and does not exist; ``modulus``:
         the largest elastic modulus of the layers (the scale of the stresses a displacement makes, for the
         KKT check); ``data``: the displacement the scene's data would make
@@ -85,6 +88,7 @@ class Interface:
         law of the bonded vertices (None: rigid), undamaged until :meth:`with_damage`."""
         self.modulus = float(modulus)
         self.data = float(data)
+        self.components = int(components)
         self.weights = np.asarray(weights, dtype=np.float64)
         self.crack = np.asarray(crack, dtype=bool)
         k = len(self.weights)
@@ -98,8 +102,8 @@ class Interface:
         # the order of the class docstring: Σ's faces, each region's layers glued, the friction.
         families = {
             "mu_c": (contact_vertices, np.ones(len(contact_vertices), dtype=np.int64), (U_MINUS, U_PLUS)),
-            "mu_g": (*_both_components(glued_vertices), (U_MINUS, U_PLUS)),
-            **{LAYER_FAMILIES[self.blocks[first].side]: (*_both_components(all_vertices), (first, other))
+            "mu_g": (*self._every_component(glued_vertices), (U_MINUS, U_PLUS)),
+            **{LAYER_FAMILIES[self.blocks[first].side]: (*self._every_component(all_vertices), (first, other))
                for first, other in glued_layers(self.blocks)},
         }
         friction = np.zeros(k) if friction is None else np.asarray(friction, dtype=np.float64)
@@ -110,14 +114,14 @@ class Interface:
         #: holds them: the KKT check measures their penetration from the traces alone.
         self.prescribed_contact = np.zeros(0, dtype=np.int64)
         if fixed is not None:
-            normals = 2 * contact_vertices + 1
+            normals = self.components * contact_vertices + 1
             self.prescribed_contact = normals[fixed[U_MINUS, normals] & fixed[U_PLUS, normals]]
             for name, (vertices, components, pair) in families.items():
-                entries = 2 * vertices + components
+                entries = self.components * vertices + components
                 kept = ~(fixed[pair[0], entries] & fixed[pair[1], entries])
                 families[name] = (vertices[kept], components[kept], pair)
-        #: ``(blocks, 2k)``: the face of Σ each block's trace entry lies on (−1 lower, +1 upper)
-        self.faces = np.array([np.full(2 * k, spec.side) for spec in self.blocks], dtype=np.int64)
+        #: ``(blocks, d k)``: the face of Σ each block's trace entry lies on (−1 lower, +1 upper)
+        self.faces = np.array([np.full(self.components * k, spec.side) for spec in self.blocks], dtype=np.int64)
         self._lay_out({name: (vertices, components, np.broadcast_to(np.array(pair), (len(vertices), 2)))
                        for name, (vertices, components, pair) in families.items()}, friction, coulomb)
         self.bond = bond
@@ -133,19 +137,20 @@ class Interface:
         part i's blocks.  ``part_rows[i]``: the rows of part i, in its own order.  Neither friction nor a bond."""
         out = cls.__new__(cls)
         out.modulus = max(part.modulus for part in parts)
+        out.components = d = parts[0].components
         out.data = max(part.data for part in parts)
         out.weights = np.concatenate([part.weights for part in parts])
         out.crack = np.concatenate([part.crack for part in parts])
         out.contact = any(part.contact for part in parts)
         out.blocks = tuple(specs)
         nodes = np.cumsum([0] + [len(part.weights) for part in parts])
-        out.prescribed_contact = np.concatenate([2 * first + part.prescribed_contact
+        out.prescribed_contact = np.concatenate([d * first + part.prescribed_contact
                                                  for first, part in zip(nodes, parts)])
-        out.faces = np.zeros((len(specs), 2 * nodes[-1]), dtype=np.int64)
+        out.faces = np.zeros((len(specs), d * nodes[-1]), dtype=np.int64)
         families: dict[str, list] = {}
         for first, part, blocks in zip(nodes, parts, members):
             for own, block in enumerate(blocks):
-                out.faces[block, 2 * first:2 * first + part.trace_size] = part.faces[own]
+                out.faces[block, d * first:d * first + part.trace_size] = part.faces[own]
             for name, rows in part.slices.items():
                 families.setdefault(name, []).append((first + part.vertex[rows], part.component[rows],
                                                       np.asarray(blocks)[part.row_blocks[rows]]))
@@ -175,7 +180,7 @@ class Interface:
         #: ``(size, 2)``: the blocks (minuend, subtrahend) of each row's gap
         self.row_blocks = np.concatenate([np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
                                           for _, _, pairs in families.values()])
-        self.trace_index = 2 * self.vertex + self.component
+        self.trace_index = self.components * self.vertex + self.component
         self.row_weights = self.weights[self.vertex]
         self.is_contact = np.zeros(self.size, dtype=bool)
         self.is_contact[self.slices["mu_c"]] = True
@@ -199,6 +204,10 @@ class Interface:
         normal[self.vertex[self.slices["mu_c"]]] = np.arange(self.size)[self.slices["mu_c"]]
         self.normal_row = normal[self.vertex[rows]]
         self.slip = None if self.coulomb else self.friction_values.copy()
+
+    def _every_component(self, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A row per component of each of ``vertices``: their vertices and components."""
+        return np.repeat(vertices, self.components), np.tile(np.arange(self.components), len(vertices))
 
     @property
     def friction(self) -> bool:
@@ -248,7 +257,7 @@ class Interface:
 
     @property
     def trace_size(self) -> int:
-        return 2 * len(self.weights)
+        return self.components * len(self.weights)
 
     def bounds(self, p: float | None) -> tuple[np.ndarray, np.ndarray]:
         """Lower and upper bounds of λ: μᶜ in [0, p], μ_t in [−g, g] (g: :attr:`slip`, 0 where Coulomb's is not
@@ -319,16 +328,16 @@ class Interface:
         v⁺ (upper face), and also the faces' normal components where ``closed`` (per μᶜ row).  Entries a block
         does not hold (:attr:`faces` 0, several interfaces) take the lower face's unknown.
         """
-        k = len(self.weights)
-        lower = np.arange(2 * k)
-        upper = lower + 2 * k
-        glued = np.repeat(~self.crack, 2)
+        k, d = len(self.weights), self.components
+        lower = np.arange(d * k)
+        upper = lower + d * k
+        glued = np.repeat(~self.crack, d)
         upper[glued] = lower[glued]
         if closed is not None:
-            normal = 2 * self.vertex[self.slices["mu_c"]][closed] + 1
+            normal = d * self.vertex[self.slices["mu_c"]][closed] + 1
             upper[normal] = lower[normal]
         _, numbers = np.unique(np.concatenate([lower, upper]), return_inverse=True)
-        lower, upper = numbers[:2 * k], numbers[2 * k:]
+        lower, upper = numbers[:d * k], numbers[d * k:]
         return np.where(self.faces > 0, upper, lower)
 
     def split(self, lam: np.ndarray, frames: np.ndarray | None = None) -> dict[str, np.ndarray]:
@@ -347,7 +356,7 @@ class Interface:
             out["mu_t"] = np.zeros(k)
             out["mu_t"][self.vertex[self.slices["mu_t"]]] = lam[self.slices["mu_t"]]
         for name in (name for name in self.slices if name not in ("mu_c", "mu_t")):
-            values = np.zeros((k, 2))
+            values = np.zeros((k, self.components))
             rows = self.slices[name]
             values[self.vertex[rows], self.component[rows]] = lam[rows]
             out[name] = values if frames is None else np.einsum("nab,na->nb", frames, values)
@@ -378,7 +387,3 @@ def friction_values(sigma: SigmaLine, friction: Friction) -> np.ndarray:
     for value, (first, last) in zip(friction.per_crack(len(runs)), runs):
         values[first:last + 1] = value
     return values
-
-
-def _both_components(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    return np.repeat(vertices, 2), np.tile(np.array([0, 1]), len(vertices))

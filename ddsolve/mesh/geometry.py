@@ -103,7 +103,34 @@ def apportion(total: int, lengths) -> np.ndarray:
 def generate_half(scene: Scene, side: int) -> HalfMesh:
     """One half of the box meshed by gmsh (:func:`_mesh_half`) in a child process (:func:`apart`)."""
     one_interface(scene)
+    if scene.mesh.grading is None:  # Σ divided uniformly between crack tips (a graded mesh refines at the tips)
+        x0, x1, _, _ = scene.geometry.box
+        size = scene.mesh.size
+        check_pieces(scene, size or (x1 - x0) / (scene.mesh.sigma_vertices - 1),
+                     "mesh.size" if size else "mesh.sigma_vertices")
     return apart(_mesh_half, scene, side)
+
+
+#: The shortest piece of a Σ between crack tips (or its ends) a box takes: its elements' size over this.
+FINEST = 100.0
+
+
+def check_pieces(scene: Scene, spacing: float, key: str) -> None:
+    """Refuse, naming ``geometry.cracks``, a piece of a Σ between crack tips (or its ends) shorter than ``spacing``
+    (the Σ elements' size, set by ``key``) / :data:`FINEST`: it would be one element among far longer ones, its
+    triangles slivers."""
+    x0, x1, _, _ = scene.geometry.box
+    finest = spacing / FINEST
+    several = len(scene.geometry.sigmas) > 1
+    for number, cracks in enumerate(scene.geometry.crack_lists, start=1):
+        tips = sorted({x0, *(tip for piece in cracks for tip in piece if x0 < tip < x1), x1})
+        short = next(((a, b) for a, b in zip(tips[:-1], tips[1:]) if b - a < finest), None)
+        if short is not None:
+            which = f"interface {number}'s" if several else "the"
+            raise SceneError(f"{scene.origin}: geometry.cracks: {which} piece "
+                             f"[{short[0]:.10g}, {short[1]:.10g}] of Σ between crack tips is {short[1] - short[0]:.3g} "
+                             f"long, less than 1/{FINEST:g} of its elements' size {spacing:.3g} ({key}): they would be "
+                             f"slivers; refine ({key}) or lengthen the piece")
 
 
 def one_interface(scene: Scene) -> None:

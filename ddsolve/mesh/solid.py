@@ -3,11 +3,12 @@
 
 gmsh (OpenCASCADE, in a child process: :func:`ddsolve.mesh.gmsh_io.apart`) meshes the two boxes and the crack
 rectangles fragmented together, so that the mesh is conforming across Σ and along the cracks' edges: every Σ
-vertex is a vertex of both halves, the same triangulation of Σ on both sides.  A half (:class:`SolidHalf`) holds
+vertex is a vertex of both halves (P2: a node in the middle of every edge, the edges straight), the same triangulation of Σ on both sides.  A half (:class:`SolidHalf`) holds
 its own numbering of its nodes, its boundary triangles by side, and its node of each Σ vertex; Σ
 (:class:`SigmaSurface`) holds its vertices with lumped weights, a normal frame per vertex, the crack vertices
 (whose two faces are separate) and the crack front (the cracks' edges inside the box).  Conventions follow
-meshio: ``points (n, 3)`` float64, ``tetrahedra (m, 4)`` int64 of positive volume, triangles ``(k, 3)``.
+meshio: ``points (n, 3)`` float64, ``tetrahedra (m, 4)`` or ``(m, 10)`` (tetra10: vertices, then the edges
+01 12 02 03 13 23) int64 of positive volume, triangles ``(k, 3)`` or ``(k, 6)`` (v0 v1 v2 m01 m12 m20).
 """
 from __future__ import annotations
 
@@ -26,6 +27,10 @@ from ddsolve.problem.shapes import Ellipse
 SIDE_PLANES = {"left": (0, 0), "right": (0, 1), "bottom": (1, 0), "top": (1, 1), "front": (2, 0), "back": (2, 1)}
 #: The faces of a tetrahedron (v0 v1 v2 v3), each as the three vertices opposite one of them.
 TETRA_FACES = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])
+#: The edges of a tetrahedron in the order of its mid-edge nodes 4 … 9 (meshio's and VTK's tetra10).
+TETRA_EDGES = np.array([[0, 1], [1, 2], [0, 2], [0, 3], [1, 3], [2, 3]])
+#: Each node's share of a triangle's area in Σ's lumped weights: P1 (3 nodes) and P2 (6 nodes, HRZ).
+LUMPED = {3: np.full(3, 1.0 / 3.0), 6: np.array([3.0, 3.0, 3.0, 16.0, 16.0, 16.0]) / 57.0}
 
 
 @dataclass(frozen=True, eq=False)
@@ -58,10 +63,13 @@ class SigmaSurface:
 
     @cached_property
     def weights(self) -> np.ndarray:
-        """The lumped weight of every vertex: ∫_Σ of its hat function."""
+        """The lumped weight of every node: a third of each P1 triangle's area per vertex; on 6-node triangles
+        the diagonal of the consistent mass scaled to the area (HRZ: 1/19 per vertex, 16/57 per mid-edge node),
+        positive at every node."""
         a, b, c = (self.points[self.triangles[:, k]] for k in range(3))
         areas = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
-        return np.bincount(self.triangles.ravel(), np.repeat(areas / 3.0, 3), minlength=len(self.points))
+        shares = LUMPED[self.triangles.shape[1]]
+        return np.bincount(self.triangles.ravel(), (areas[:, None] * shares).ravel(), minlength=len(self.points))
 
     @property
     def frames(self) -> np.ndarray:
@@ -78,18 +86,27 @@ class SolidMesh:
     sigma: SigmaSurface
 
     @property
+    def degree(self) -> int:
+        """1 (4-node tetrahedra) or 2 (10-node)."""
+        return 1 if self.halves[0].tetrahedra.shape[1] == 4 else 2
+
+    @property
     def unknowns(self) -> int:
         return sum(half.dofs for half in self.halves)
 
 
 def build(scene: Scene) -> SolidMesh:
-    """The mesh of a 3-D box scene: gmsh in a child process, then the halves and Σ (:func:`assemble`)."""
-    from ddsolve.mesh import gmsh_io  # gmsh_io imports the plane mesh readers
+    """The mesh of a 3-D box scene: gmsh in a child process, then the halves and Σ (:func:`assemble`); with
+    ``mesh.extrude`` the plane section's mesh extruded (:mod:`ddsolve.mesh.extrude`)."""
+    from ddsolve.mesh import extrude, gmsh_io  # both import the plane mesh modules
 
     geometry = scene.geometry
-    points, tetrahedra, upper = gmsh_io.apart(_tetrahedra, geometry.box, geometry.sigma, geometry.cracks,
-                                              scene.mesh.size, scene.mesh.grading)
-    return assemble(points, tetrahedra, upper, geometry.box, geometry.sigma, geometry.cracks)
+    if scene.mesh.extrude is not None:
+        points, tetrahedra, upper = extrude.tetrahedra(scene)
+    else:
+        points, tetrahedra, upper = gmsh_io.apart(_tetrahedra, geometry.box, geometry.sigma, geometry.cracks,
+                                                  scene.mesh.size, scene.mesh.grading)
+    return assemble(points, tetrahedra, upper, geometry.box, geometry.sigma, geometry.cracks, scene.mesh.degree)
 
 
 def _tetrahedra(box: tuple[float, ...], sigma: float, cracks: tuple[tuple[float, ...], ...], size: float,
@@ -197,14 +214,16 @@ def _graded_towards(gmsh, curves: list[int], size: float, mu: float, length: flo
 
 
 def assemble(points: np.ndarray, tetrahedra: np.ndarray, upper: np.ndarray, box: tuple[float, ...], sigma: float,
-             cracks: tuple[tuple[float, ...], ...]) -> SolidMesh:
-    """The halves and Σ of a conforming tetrahedral mesh of the box (``upper``: which tetrahedra lie above Σ)."""
+             cracks: tuple[tuple[float, ...], ...], degree: int = 1) -> SolidMesh:
+    """The halves and Σ of a conforming tetrahedral mesh of the box (``upper``: which tetrahedra lie above Σ), with
+    a node in the middle of every edge for ``degree`` 2."""
     tolerance = TOL * max(np.ptp(np.reshape(box, (3, 2)), axis=1))
     tetrahedra = _positive(points, tetrahedra)
+    points, cells, middle = elevated(points, tetrahedra) if degree == 2 else (points, tetrahedra, None)
     on_sigma = np.flatnonzero(np.abs(points[:, 1] - sigma) <= tolerance)
     if not len(on_sigma):
         raise MeshError("the 3-D mesh has no vertex on Σ")
-    halves = tuple(_half(name, points, tetrahedra[upper == (name == REGIONS[1])], box, sigma, on_sigma, tolerance)
+    halves = tuple(_half(name, points, cells[upper == (name == REGIONS[1])], middle, box, sigma, on_sigma, tolerance)
                    for name in REGIONS)
     lower = halves[0]
     sigma_of = np.full(len(lower.points), -1, dtype=np.int64)
@@ -212,6 +231,20 @@ def assemble(points: np.ndarray, tetrahedra: np.ndarray, upper: np.ndarray, box:
     triangles = sigma_of[lower.faces["sigma"]]
     cracked, front = _crack_roles(points[on_sigma], triangles, box, cracks, tolerance)
     return SolidMesh(halves, SigmaSurface(points[on_sigma], triangles, cracked, front))
+
+
+def elevated(points: np.ndarray, tetrahedra: np.ndarray):
+    """P1 → P2 with straight edges: the points with a node in the middle of every edge appended, the 10-node
+    tetrahedra (:data:`TETRA_EDGES` order), and ``middle(a, b)``: the mid-edge nodes of the edges (a, b)."""
+    edges = np.sort(tetrahedra[:, TETRA_EDGES].reshape(-1, 2), axis=1)
+    keys = edges[:, 0] * len(points) + edges[:, 1]
+    unique, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+    numbers = len(points) + np.arange(len(unique))
+
+    def middle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        return numbers[np.searchsorted(unique, np.minimum(a, b) * len(points) + np.maximum(a, b))]
+    middles = 0.5 * (points[edges[first, 0]] + points[edges[first, 1]])
+    return (np.vstack([points, middles]), np.column_stack([tetrahedra, numbers[inverse].reshape(-1, 6)]), middle)
 
 
 def _positive(points: np.ndarray, tetrahedra: np.ndarray) -> np.ndarray:
@@ -230,23 +263,24 @@ def signed_volumes(points: np.ndarray, tetrahedra: np.ndarray) -> np.ndarray:
     return np.einsum("ij,ij->i", np.cross(b - a, c - a), d - a) / 6.0
 
 
-def _half(name: str, points: np.ndarray, tetrahedra: np.ndarray, box: tuple[float, ...], sigma: float,
+def _half(name: str, points: np.ndarray, cells: np.ndarray, middle, box: tuple[float, ...], sigma: float,
           on_sigma: np.ndarray, tolerance: float) -> SolidHalf:
-    """One half in its own numbering: its nodes, tetrahedra, boundary triangles by side and Σ nodes."""
-    used = np.unique(tetrahedra)
+    """One half in its own numbering: its nodes, tetrahedra, boundary triangles by side (6-node, v0 v1 v2 m01 m12
+    m20, with ``middle``) and Σ nodes."""
+    used = np.unique(cells)
     local = np.full(len(points), -1, dtype=np.int64)
     local[used] = np.arange(len(used))
-    own = points[used]
-    cells = local[tetrahedra]
-    faces = boundary_faces(cells)
-    centres = own[faces].mean(axis=1)
+    faces = boundary_faces(cells[:, :4])
+    if middle is not None:
+        faces = np.column_stack([faces, *(middle(faces[:, i], faces[:, (i + 1) % 3]) for i in range(3))])
+    centres = points[faces[:, :3]].mean(axis=1)
     planes = {**{side: (axis, box[2 * axis + end]) for side, (axis, end) in SIDE_PLANES.items()}, "sigma": (1, sigma)}
-    named = {side: faces[np.abs(centres[:, axis] - value) <= tolerance] for side, (axis, value) in planes.items()}
+    named = {side: local[faces[np.abs(centres[:, axis] - value) <= tolerance]] for side, (axis, value) in planes.items()}
     if sum(len(f) for f in named.values()) != len(faces):
         raise MeshError(f"the {name} half of the 3-D mesh has boundary faces off the box's sides and Σ")
     if np.any(local[on_sigma] < 0):
         raise MeshError(f"the {name} half of the 3-D mesh misses vertices of Σ (the halves do not conform)")
-    return SolidHalf(name, own, cells, named, local[on_sigma])
+    return SolidHalf(name, points[used], local[cells], named, local[on_sigma])
 
 
 def boundary_faces(tetrahedra: np.ndarray) -> np.ndarray:
@@ -264,7 +298,7 @@ def _crack_roles(points: np.ndarray, triangles: np.ndarray, box: tuple[float, ..
     x, z = points[:, 0], points[:, 2]
     cracked = np.zeros(len(points), dtype=bool)
     on_front = np.zeros(len(points), dtype=bool)
-    edges = np.unique(np.sort(triangles[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1), axis=0)
+    edges = np.unique(np.sort(triangles[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1), axis=0)  # vertices
     front = []
     for crack in cracks:
         if isinstance(crack, Ellipse):

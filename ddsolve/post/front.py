@@ -17,7 +17,8 @@ unit length of front at node k (the mean of G(s) weighted by the hat).  J(θ) is
 energy as the nodes move by θ (tests/test_front.py checks it by finite differences).  Σ is flat, so
 non-penetration adds no term (its normal does not turn).
 
-Modes: where the materials above and below Σ are the same, the fields split into the part symmetric about Σ
+Modes: where the materials above and below Σ are the same and the reflection about Σ leaves their law unchanged
+(isotropic, or a ply whose fibre lies in Σ), the fields split into the part symmetric about Σ
 (u + R u′)/2 (R = diag(1, −1, 1), u′ the other half's field at the mirror image, located in its tetrahedra) and
 the antisymmetric part; G_I is J of the symmetric part, and the antisymmetric one is split in the front's frame:
 its component along t (tearing) gives G_III, the rest (sliding along n and the normal component) G_II.  The
@@ -43,6 +44,8 @@ CORNER_DEGREES = 30.0
 #: Σ's normal ν and the reflection about Σ.
 NU = np.array([0.0, 1.0, 0.0])
 REFLECTION = np.diag([1.0, -1.0, 1.0])
+#: The reflection's signs on Voigt stresses (xx, yy, zz, yz, xz, xy): a law it leaves unchanged is split into modes.
+REFLECTED_VOIGT = np.array([1.0, 1.0, 1.0, -1.0, 1.0, -1.0])
 
 
 @dataclass(frozen=True)
@@ -226,19 +229,23 @@ def _clearance(points: np.ndarray, closed: bool, box: tuple[float, ...], others:
 
 
 def forces(half: SolidHalf, D: np.ndarray, u: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """The configurational forces F ``(n, 3)`` at the half's nodes from the tetrahedra ``cells`` (indices) and the
-    displacements ``u`` ``(n, 3)``: F_a = Σ_e |e| (∇uᵀσ − W I) ∇N_a."""
+    """The configurational forces F ``(n, 3)`` at the half's vertices from the tetrahedra ``cells`` (indices, P1
+    or P2) and the displacements ``u`` ``(n, 3)``: F_a = Σ_e Σ_q w_q |J| (∇uᵀσ − W I)(x_q) ∇λ_a, λ_a the
+    vertices' barycentric coordinates (θ moves the vertices: each tetrahedron's affine map), the stiffness's
+    rule."""
     tetrahedra = half.tetrahedra[cells]
-    grads, volumes = tetra.gradients(half.points, tetrahedra)
-    grad_u = np.einsum("mai,maj->mij", u[tetrahedra], grads)  # u_i,j
-    strain = np.einsum("mij,mj->mi", tetra.strain_operator(grads), u[tetrahedra].reshape(len(cells), 12))
+    xi, weights = tetra.TETRA_RULES[tetrahedra.shape[1]]
+    grads, dets = tetra.gradients(half.points, tetrahedra, xi)  # (m, q, k, 3)
+    grad_u = np.einsum("mkd,mqkj->mqdj", u[tetrahedra], grads)  # u_d,j
+    strain = np.einsum("mqij,mj->mqi", tetra.strain_operator(grads), u[tetrahedra].reshape(len(cells), -1))
     stress = strain @ D.T
-    sigma = stress[:, [[0, 5, 4], [5, 1, 3], [4, 3, 2]]]
-    density = 0.5 * np.einsum("mi,mi->m", stress, strain)
-    tensor = np.einsum("mik,mij->mkj", grad_u, sigma) - density[:, None, None] * np.eye(3)  # σ_ij u_i,k as (k, j)
-    nodal = np.einsum("m,mkj,maj->mak", volumes, tensor, grads)
+    sigma = stress[..., [[0, 5, 4], [5, 1, 3], [4, 3, 2]]]
+    density = 0.5 * np.einsum("mqi,mqi->mq", stress, strain)
+    tensor = np.einsum("mqik,mqij->mqkj", grad_u, sigma) - density[..., None, None] * np.eye(3)  # σ_ij u_i,k
+    vertex = tetra.gradients(half.points, tetrahedra[:, :4], xi[:1])[0][:, 0]  # ∇λ_a (m, 4, 3)
+    nodal = np.einsum("mq,mqkj,maj->mak", dets[:, None] * weights, tensor, vertex)
     out = np.zeros((len(half.points), 3))
-    np.add.at(out, tetrahedra.ravel(), nodal.reshape(-1, 3))
+    np.add.at(out, tetrahedra[:, :4].ravel(), nodal.reshape(-1, 3))
     return out
 
 
@@ -253,9 +260,9 @@ def tangential(points: np.ndarray, box: tuple[float, ...], field: np.ndarray) ->
 
 @dataclass(frozen=True)
 class Support:
-    """A half's part within reach of a front's θ: its nodes, the tetrahedra touching them, and at the nodes the
-    arc length s, the cut-off c(r), θ's direction (n(s) made tangent to the box's sides) and t(s):
-    θ_k = φ_k(s) c(r) direction."""
+    """A half's part within reach of a front's θ: its vertices, the tetrahedra touching them, and at the vertices
+    the arc length s, the cut-off c(r) and θ's direction (n(s) made tangent to the box's sides): θ_k = φ_k(s) c(r)
+    direction; the tetrahedra's nodes (with P2's mid-edge ones: the fields the integral reads) and t(s) at them."""
 
     front: Front
     nodes: np.ndarray
@@ -263,6 +270,7 @@ class Support:
     s: np.ndarray
     cut: np.ndarray
     directions: np.ndarray
+    every: np.ndarray
     tangents: np.ndarray
 
     @classmethod
@@ -270,10 +278,12 @@ class Support:
         reach = front.outer + np.linalg.norm(np.ptp(front.points, axis=0))
         near = np.flatnonzero(np.linalg.norm(half.points - front.points.mean(axis=0), axis=1) <= reach)
         touched = near[front.nearest(half.points[near])[2] < front.outer]
-        cells = np.flatnonzero(np.isin(half.tetrahedra, touched).any(axis=1))
-        nodes = np.unique(half.tetrahedra[cells])
-        s, cut, normals, tangents = front.locate(half.points[nodes])
-        return cls(front, nodes, cells, s, cut, tangential(half.points[nodes], box, normals), tangents)
+        cells = np.flatnonzero(np.isin(half.tetrahedra[:, :4], touched).any(axis=1))
+        nodes = np.unique(half.tetrahedra[cells, :4])
+        s, cut, normals, _ = front.locate(half.points[nodes])
+        every = np.unique(half.tetrahedra[cells])
+        return cls(front, nodes, cells, s, cut, tangential(half.points[nodes], box, normals), every,
+                   front.locate(half.points[every])[3])
 
     def theta(self, k: int) -> np.ndarray:
         """θ_k at the nodes ``(q, 3)``."""
@@ -295,7 +305,7 @@ def mirrored(half: SolidHalf, other: SolidHalf, u_other: np.ndarray, nodes: np.n
 
     height = half.points[half.sigma_nodes[0], 1]
     images = half.points[nodes] * [1.0, -1.0, 1.0] + [0.0, 2.0 * height, 0.0]
-    corners = other.points[other.tetrahedra]
+    corners = other.points[other.tetrahedra[:, :4]]
     inverse = np.linalg.inv(np.transpose(corners[:, 1:] - corners[:, :1], (0, 2, 1)))
     found = np.full(len(images), -1, dtype=np.int64)
     coordinates = np.zeros((len(images), 4))
@@ -307,7 +317,8 @@ def mirrored(half: SolidHalf, other: SolidHalf, u_other: np.ndarray, nodes: np.n
         worst = weights.min(axis=1)
         better = worst > best
         best[better], found[better], coordinates[better] = worst[better], candidates[better], weights[better]
-    return np.einsum("qa,qad->qd", coordinates, u_other[other.tetrahedra[found]]) @ REFLECTION
+    shapes = tetra.tetra_shapes(other.tetrahedra.shape[1], coordinates[:, 1:])[0]  # P1 or P2 at the images
+    return np.einsum("qa,qad->qd", shapes, u_other[other.tetrahedra[found]]) @ REFLECTION
 
 
 @dataclass(frozen=True)
@@ -339,8 +350,10 @@ def release(result, inner: float | None = None, outer: float | None = None,
     scene, mesh = result.scene, result.mesh
     inner = inner if inner is not None else scene.fracture.inner
     outer = outer if outer is not None else scene.fracture.outer
-    laws = [tetra.isotropic(scene.material("layer1", half.name)) for half in mesh.halves]
-    same = np.allclose(laws[0], laws[1], rtol=1e-12, atol=0.0)
+    laws = [tetra.elastic_matrix(scene.material("layer1", half.name)) for half in mesh.halves]
+    flip = np.diag(REFLECTED_VOIGT)
+    same = np.allclose(laws[0], laws[1], rtol=1e-12, atol=0.0) and np.allclose(flip @ laws[0] @ flip, laws[0],
+                                                                               rtol=1e-12, atol=0.0)
     rows = []
     for front in fronts(mesh, scene.geometry.box, inner, outer, width):
         parts = np.zeros((4, len(front.points)))  # G, G_I, G_II, G_III
@@ -359,13 +372,14 @@ def release(result, inner: float | None = None, outer: float | None = None,
 def _mode_parts(support: Support, half: SolidHalf, other: SolidHalf, D: np.ndarray, u: np.ndarray,
                 u_other: np.ndarray) -> np.ndarray:
     """J(θ_k) ``(3, k)`` of the symmetric part, the antisymmetric part less its tearing, and the tearing."""
-    image = mirrored(half, other, u_other, support.nodes)
+    nodes = support.every
+    image = mirrored(half, other, u_other, nodes)
     symmetric, antisymmetric = (np.zeros_like(u) for _ in range(2))
-    symmetric[support.nodes] = 0.5 * (u[support.nodes] + image)
-    antisymmetric[support.nodes] = 0.5 * (u[support.nodes] - image)
+    symmetric[nodes] = 0.5 * (u[nodes] + image)
+    antisymmetric[nodes] = 0.5 * (u[nodes] - image)
     tearing = np.zeros_like(u)
-    along = np.einsum("qd,qd->q", antisymmetric[support.nodes], support.tangents)
-    tearing[support.nodes] = along[:, None] * support.tangents
+    along = np.einsum("qd,qd->q", antisymmetric[nodes], support.tangents)
+    tearing[nodes] = along[:, None] * support.tangents
     return np.array([support.release(half, D, field) for field in (symmetric, antisymmetric - tearing, tearing)])
 
 

@@ -38,6 +38,11 @@ class SolidResult:
         return upper - lower
 
     @property
+    def normal_opening(self) -> np.ndarray:
+        """[u]·ν at every Σ vertex, ν the lower half's outward normal of Σ's frame (negative: overlap)."""
+        return np.einsum("sd,sd->s", self.opening, self.mesh.sigma.frames[:, 0])
+
+    @property
     def closed(self) -> int:
         """The crack vertices in contact (a positive pressure)."""
         return int(np.count_nonzero(self.pressure > 0))

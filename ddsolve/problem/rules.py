@@ -8,7 +8,7 @@ from typing import Sequence
 from ddsolve.errors import SceneError
 from ddsolve.problem import materials
 from ddsolve.problem.method_options import OPTIONS
-from ddsolve.problem.reading import printable
+from ddsolve.problem.reading import FileStructure, printable
 from ddsolve.problem.shapes import Ellipse
 from ddsolve.problem.schema import (ADAPTIVE_DEGREE, DEFAULT_TOL, DEPTH_SIDES, GEOMETRIC_TOLERANCE, GRADING,
                                     LAWS, MAX_SPACING_RATIO, SIDES, PAPER_CRACK, STRUCTURE_KEYS, PerInterface, layer_material,
@@ -16,18 +16,22 @@ from ddsolve.problem.schema import (ADAPTIVE_DEGREE, DEFAULT_TOL, DEPTH_SIDES, G
                                     layers_of)
 
 
-def cross_checks(data: dict, raw: dict, origin: str) -> None:
-    """Rules between keys; fills in the defaults that depend on other keys."""
+def cross_checks(data: dict, raw: dict, origin: str, structure: FileStructure | None = None) -> None:
+    """Rules between keys; fills in the defaults that depend on other keys (``structure``: that of a gmsh file of
+    several interfaces, :func:`ddsolve.problem.reading.file_structure`)."""
     given = set(raw.get("geometry", {})) - set(STRUCTURE_KEYS) if isinstance(raw.get("geometry"), dict) else set()
     _plane_checks(data, origin)
     _geometry_checks(data["geometry"], given, origin)
+    data["geometry"]["regions"] = structure.regions if structure else ()
+    if structure:  # the file's interfaces: their lines and cracks are its curves (no heights here)
+        data["geometry"]["above"] = [(data["geometry"]["sigma"], [])] * (structure.interfaces - 1)
     _several_interfaces_checks(data, raw, origin)
     _mesh_checks(data["mesh"], data["geometry"], raw, given, origin)
     _material_checks(data, origin)
     _load_checks(data, origin)
     _displacement_checks(data, origin)
     _temperature_checks(data, origin)
-    _solver_checks(data, origin)
+    solver_checks(data, origin)
     _radii_checks(data, origin)
     _toughness_checks(data, origin)
     _split_checks(data, origin)
@@ -43,7 +47,7 @@ def cross_checks(data: dict, raw: dict, origin: str) -> None:
 
 def _plane_checks(data: dict, origin: str) -> None:
     """What only a 3-D box (``geometry.box`` of 6 numbers) takes is refused in a plane scene: rectangle cracks,
-    the front and back sides, z components."""
+    ``mesh.extrude``, the front and back sides, z components."""
     geometry = data["geometry"]
     for key, pieces in (("crack", [geometry["crack"]] if geometry["crack"] else []),
                         ("cracks", _flat_pieces(geometry["cracks"]))):
@@ -56,6 +60,9 @@ def _plane_checks(data: dict, origin: str) -> None:
     if depth:
         raise SceneError(f"{origin}: geometry.clamped: {depth[0]!r} is a side of a 3-D box (geometry.box = "
                          "[x0, x1, y0, y1, z0, z1]); a plane box has " + ", ".join(SIDES))
+    if data["mesh"]["extrude"] is not None:
+        raise SceneError(f"{origin}: mesh.extrude: extrudes a plane section into a 3-D box (geometry.box = "
+                         "[x0, x1, y0, y1, z0, z1]); a plane scene is not extruded")
     for section in ("loads", "displacements"):
         for layer, tables in data.get(section, {}).items():
             for name, table in tables.items():
@@ -106,20 +113,26 @@ def _geometry_checks(geometry: dict, given: set[str], origin: str) -> None:
     del geometry["crack"]
 
 
-#: The mesh keys a structure of several interfaces takes: its regions are meshed with pieces of about mesh.size.
+#: The mesh keys a structure of several interfaces takes: its regions are meshed with pieces of about mesh.size
+#: (a gmsh file's with its own sizes, or mesh.size where given).
 STACK_MESH_KEYS = ("size", "degree")
 
 
 def _several_interfaces_checks(data: dict, raw: dict, origin: str) -> None:
-    """A structure of several interfaces is the built-in box meshed with ``mesh.size`` and no point supports."""
+    """A structure of several interfaces is the built-in box meshed with ``mesh.size``, or a gmsh file, with no
+    point supports."""
     if not data["geometry"]["above"]:
         return
     written = raw["mesh"] if isinstance(raw.get("mesh"), dict) else {}
-    other = next((key for key in written if key not in STACK_MESH_KEYS), None)
-    if other is not None or data["mesh"]["size"] is None:
+    from_file = bool(data["geometry"]["regions"])
+    other = next((key for key in written if key not in STACK_MESH_KEYS + ("file",) * from_file), None)
+    if other is not None or data["mesh"]["size"] is None and not from_file:
         key = f"mesh.{other}" if other is not None else "mesh.size"
-        raise SceneError(f"{origin}: {key}: a structure of several interfaces (geometry.sigma = [y1, y2, ...]) is "
-                         "the built-in box meshed with mesh.size (and mesh.degree) only")
+        raise SceneError(f"{origin}: {key}: " + ("the several interfaces of a gmsh file (sigma1, sigma2, ...) are "
+                                                 "meshed from the file with mesh.size and mesh.degree only" if from_file
+                                                 else "a structure of several interfaces (geometry.sigma = [y1, y2, "
+                                                 "...]) is the built-in box meshed with mesh.size (and mesh.degree) "
+                                                 "only"))
     points = [f"displacements.{layer}.{name}.point" for layer, tables in data.get("displacements", {}).items()
               for name, table in tables.items() if table["point"] is not None]
     if points:
@@ -211,6 +224,9 @@ def _material_checks(data: dict, origin: str) -> None:
         given = [(f"materials.{layer}", table)] + [(f"materials.{layer}.{region}", inner)
                                                    for region, inner in table.items() if isinstance(inner, dict)]
         for key, material in given:
+            if material.get("fibre") is not None:
+                raise SceneError(f"{origin}: {key}.fibre: a fibre direction in 3-D (a 6-number geometry.box); in the "
+                                 "plane give angle")
             try:
                 D, _ = materials.elasticity(layer_material(material), model)
             except materials.MaterialError as exc:
@@ -227,8 +243,8 @@ def acting_tables(data: dict, layer: str) -> dict[str, tuple[str, dict]]:
 
 
 def _regions(data: dict) -> tuple[str, ...]:
-    """The regions of Ω of a scene whose geometry is checked, bottom to top."""
-    return region_names(len(data["geometry"]["above"]) + 2)
+    """The regions of Ω of a scene whose geometry is checked, bottom to top (a gmsh file's own names)."""
+    return tuple(data["geometry"].get("regions", ())) or region_names(len(data["geometry"]["above"]) + 2)
 
 
 def dissimilar_layers(data: dict, thermal: bool = True) -> list[str]:
@@ -291,7 +307,7 @@ def _load_checks(data: dict, origin: str) -> None:
                                  "(a pressure acts along the normal)")
 
 
-def _solver_checks(data: dict, origin: str) -> None:
+def solver_checks(data: dict, origin: str) -> None:
     """The method's step, its stopping rule and the rule's tolerance."""
     solver, method = data["solver"], OPTIONS[data["solver"]["method"]]
     if method.step and solver["theta"] is None:

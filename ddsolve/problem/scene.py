@@ -28,7 +28,7 @@ from ddsolve.errors import SceneError
 from ddsolve.problem import expressions, materials
 from ddsolve.problem.expressions import Expression
 from ddsolve.problem.overrides import REPLACES, apply_overrides, dumps, override_items, parse_override
-from ddsolve.problem.reading import printable, readable, utf8_text
+from ddsolve.problem.reading import file_structure, printable, readable, utf8_text
 from ddsolve.problem.rules import COARSE, CONDITIONING, SAME_COMPONENT, coarse_size, cross_checks
 from ddsolve.problem.shapes import Ellipse
 from ddsolve.problem.solid_rules import solid_checks
@@ -64,8 +64,11 @@ class Geometry:
     #: 2: two sheets (layer1 and layer2) glued on Σ; 1: one body (layer1) cut by Σ.
     layers: int = 2
     given: frozenset[str] = field(default=frozenset(), compare=False)
-    #: The interfaces above the first (``sigma``, ``cracks``), bottom to top: (height, cracks) each.
+    #: The interfaces above the first (``sigma``, ``cracks``), bottom to top: (height, cracks) each (a gmsh file's:
+    #: placeholders, its curves give them).
     above: tuple[tuple[float, tuple[tuple[float, float], ...]], ...] = ()
+    #: A gmsh file's region surfaces, bottom to top, when it has several interfaces (else the regions are numbered).
+    regions: tuple[str, ...] = ()
 
     @property
     def dimension(self) -> int:
@@ -84,8 +87,8 @@ class Geometry:
 
     @property
     def region_names(self) -> tuple[str, ...]:
-        """The regions of Ω, bottom to top (:func:`ddsolve.problem.schema.region_names`)."""
-        return region_names(len(self.above) + 2)
+        """The regions of Ω, bottom to top (a gmsh file's, else :func:`ddsolve.problem.schema.region_names`)."""
+        return self.regions or region_names(len(self.above) + 2)
 
 
 @dataclass(frozen=True)
@@ -106,6 +109,8 @@ class MeshOptions:
     grading: float | None = None
     target_error: float | None = None
     refine: int | None = None
+    #: A 3-D box's section meshed in the plane and extruded in this many layers along z (None: gmsh's tetrahedra).
+    extrude: int | None = None
 
     @property
     def kind(self) -> str:
@@ -375,7 +380,8 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str, 
                           cracks=tuple(piece if isinstance(piece, Ellipse) else tuple(piece)
                                        for piece in geometry["cracks"]),
                           clamped=tuple(geometry["clamped"]), layers=geometry["layers"], given=given,
-                          above=tuple((height, tuple(map(tuple, cracks))) for height, cracks in geometry["above"])),
+                          above=tuple((height, tuple(map(tuple, cracks))) for height, cracks in geometry["above"]),
+                          regions=tuple(geometry.get("regions", ()))),
         mesh=MeshOptions(**mesh),
         materials={layer: layer_material(data["materials"][layer]) for layer in layers_of(data)},
         regions=region_materials(data["materials"]),
@@ -395,6 +401,16 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str, 
         origin=origin,
         base=base,
     )
+
+
+def _gmsh_file(raw: dict, base: Path | None) -> Path | None:
+    """The scene's gmsh file (.geo, .msh), found from ``base``; None where ``mesh.file`` is no such path (its checks
+    say what is wrong)."""
+    mesh = raw.get("mesh")
+    name = mesh.get("file") if isinstance(mesh, dict) else None
+    if not isinstance(name, str) or not name.lower().endswith((".geo", ".msh")):
+        return None
+    return Path(name) if Path(name).is_absolute() or base is None else base / name
 
 
 def builtin_folder() -> Path:
@@ -428,7 +444,7 @@ def load(source: str | Path, overrides: list[str] = ()) -> Scene:
 def _written_geometry(geometry: dict) -> dict:
     """A checked geometry table as a scene writes it: one interface as ``sigma = y``, ``cracks = [[a, b], ...]``;
     several as ``sigma = [y1, ...]``, ``cracks = [[[a, b], ...], ...]``."""
-    written = {key: value for key, value in geometry.items() if key != "above"}
+    written = {key: value for key, value in geometry.items() if key not in ("above", "regions")}
     if geometry["above"]:
         written["sigma"] = [geometry["sigma"], *(height for height, _ in geometry["above"])]
         written["cracks"] = [geometry["cracks"], *(cracks for _, cracks in geometry["above"])]
@@ -444,10 +460,17 @@ def loads(text: str, overrides: list[str] = (), origin: str = "scene", base: Pat
     except RecursionError:  # tomllib's parser recurses into arrays and tables
         raise SceneError(f"{origin}: malformed TOML: arrays or tables nested too deeply") from None
     apply_overrides(raw, list(overrides))
-    data = check_table(raw, structure_schema(raw, origin), (), origin)
-    (solid_checks if is_solid(raw) else cross_checks)(data, raw, origin)
+    path = _gmsh_file(raw, base)
+    structure = file_structure(path, f"{origin}: mesh.file {printable(raw['mesh']['file'])}") if path else None
+    data = check_table(raw, structure_schema(raw, origin, structure.regions if structure else ()), (), origin)
+    if is_solid(raw):
+        solid_checks(data, raw, origin)
+    else:
+        cross_checks(data, raw, origin, structure)
     written = {key: value for key, value in data.items() if key != "geometry"}
-    if data["mesh"]["file"] is not None and data["mesh"]["file"].lower().endswith(".geo"):
+    if structure:  # its text names the file wherever it is read: the file gives the structure
+        written["mesh"] = {**written["mesh"], "file": str(path.absolute())}
+    if structure or data["mesh"]["file"] is not None and data["mesh"]["file"].lower().endswith(".geo"):
         written["geometry"] = {key: data["geometry"][key] for key in STRUCTURE_KEYS}
     else:
         written["geometry"] = _written_geometry(data["geometry"])

@@ -375,7 +375,7 @@ ISOTROPIC = {"E": (_positive(_number), REQUIRED), "nu": (_poisson, REQUIRED), "a
 ORTHOTROPIC = {"E1": (_positive(_number), REQUIRED), "E2": (_positive(_number), REQUIRED),
                 "G12": (_positive(_number), REQUIRED), "nu12": (_number, REQUIRED), "angle": (_angle, 0.0),
                 "E3": (_positive(_number), None), "nu13": (_number, None), "nu23": (_number, None),
-                "alpha1": (_number, None), "alpha2": (_number, None)}
+                "alpha1": (_number, None), "alpha2": (_number, None), "fibre": (_fixed_numbers(3), None)}
 ANISOTROPIC = {"D": (_matrix3, REQUIRED), "Dzz": (_fixed_numbers(3), [0.0, 0.0, 0.0])}
 
 
@@ -448,6 +448,7 @@ SCHEMA: dict[str, Any] = {
         "grading": (_grading, None),
         "target_error": (_fraction, None),
         "refine": (_count(0), None),
+        "extrude": (_count(1), None),
     },
     "materials": {
         "model": (_choice(materials.MODELS), "plane_strain"),
@@ -503,18 +504,20 @@ def region_count(raw: dict) -> int:
     return len(heights) + 1 if isinstance(heights, list) and heights else len(REGIONS)
 
 
-def structure_schema(raw: dict, origin: str) -> dict:
+def structure_schema(raw: dict, origin: str, regions: tuple[str, ...] = ()) -> dict:
     """The schema of the structure the raw scene describes: :data:`SCHEMA` with two layers and two regions; with
     one layer (``geometry.layers = 1``), without layer2's tables, and a layer2 table or key in the scene is refused;
-    with several interfaces, the layers' region tables are ``region1`` ... (:func:`region_names`)."""
+    with several interfaces, the layers' region tables are ``region1`` ... (:func:`region_names`), or ``regions``
+    (a gmsh file's region surfaces)."""
     geometry = raw.get("geometry")
     written = {"layers": geometry["layers"]} if isinstance(geometry, dict) and "layers" in geometry else (
         {"layers": 1} if is_solid(raw) else {})
     layers = check_table(written, {"layers": SCHEMA["geometry"]["layers"]}, ("geometry",), origin)["layers"]
     if layers != 1 and is_solid(raw):
-        raise SceneError(f"{origin}: geometry.layers: a 3-D box is one body (layers = 1); its regions below and above "
-                         "Σ take materials.layer1.lower and materials.layer1.upper")
-    regions = region_names(region_count(raw))
+        raise SceneError(f"{origin}: geometry.layers: a 3-D box is one body (layers = 1): the plane's layers are "
+                         "sheets over the same plane domain, stacked through a thickness that a 3-D body meshes itself; "
+                         "its regions below and above Σ take materials.layer1.lower and materials.layer1.upper")
+    regions = regions or region_names(region_count(raw))
     schema = SCHEMA if regions == REGIONS else {
         **SCHEMA, "materials": {**SCHEMA["materials"], **{layer: _material_schema(regions) for layer in LAYERS}}}
     if layers == len(LAYERS):

@@ -1,27 +1,30 @@
 """Rules between the keys of a 3-D scene (``geometry.box = [x0, x1, y0, y1, z0, z1]``), checked after each key
 alone: one body (``layer1``, its regions ``lower`` and ``upper`` below and above the plane Σ y = ``sigma``),
-cracks on Σ as rectangles or ellipses, the box meshed with ``mesh.size``, isotropic materials, loads and supports on the
-box's six sides.  What the plane scenes have and 3-D does not yet is refused in one line naming the key."""
+cracks on Σ as rectangles or ellipses, the box meshed with ``mesh.size``, isotropic or transversely isotropic materials,
+temperature changes, loads and supports on the box's six sides.  What the plane scenes have and 3-D does not yet
+is refused in one line naming the key."""
 from __future__ import annotations
+
+import numpy as np
 
 from ddsolve.errors import SceneError
 from ddsolve.problem import materials
 from ddsolve.problem.reading import printable
-from ddsolve.problem.rules import check_apart
+from ddsolve.problem.rules import check_apart, solver_checks
 from ddsolve.problem.shapes import Ellipse, bounds
 from ddsolve.problem.schema import DEPTH_SIDES, GRADING, SIDES, layer_material
 
 #: The boundaries a 3-D box names (loads and supports act on them).
 SOLID_SIDES = SIDES + DEPTH_SIDES
-#: The mesh keys a 3-D box takes: tetrahedra of about ``mesh.size`` (P1), graded towards the crack fronts.
-SOLID_MESH_KEYS = ("size", "degree", "grading")
+#: The mesh keys a 3-D box takes: tetrahedra of about ``mesh.size`` (P1 or P2), graded towards the crack fronts,
+#: or the plane mesh of the section extruded in ``mesh.extrude`` layers.
+SOLID_MESH_KEYS = ("size", "degree", "grading", "extrude")
 #: Elements per shortest side of the box when the scene gives no ``mesh.size``.
 DEFAULT_ELEMENTS = 4
 #: The fracture keys a 3-D box takes: θ's radii about the crack fronts (:mod:`ddsolve.post.front`).
 FRONT_KEYS = ("inner", "outer")
 #: Keys of the plane scenes that 3-D does not solve yet: (section, key) -> what they would need.
 NOT_YET = {("interface", None): "a bond law on Σ is not solved in 3-D yet",
-           ("temperature", None): "thermal loads are not solved in 3-D yet",
            ("contact", "friction"): "friction is not solved in 3-D yet",
            ("contact", "slip_bound"): "friction is not solved in 3-D yet"}
 
@@ -41,6 +44,10 @@ def solid_checks(data: dict, raw: dict, origin: str) -> None:
     cracks = [piece if isinstance(piece, Ellipse) or len(piece) == 4 else (*piece, z0, z1) for piece in pieces]
     for crack in cracks:
         _check_on_sigma(crack, geometry["box"], key, origin)
+        if data["mesh"]["extrude"] is not None and not (isinstance(crack, tuple) and crack[2:] == (z0, z1)):
+            raise SceneError(f"{origin}: {key}: a crack that does not span the depth (a rectangle or an ellipse) is "
+                             "not extruded, and mesh.extrude extrudes a plane section: give cracks [a, b], or leave "
+                             "mesh.extrude out")
     box = geometry["box"][:4]
     check_apart([y0, sigma, y1], box, "geometry.sigma", "of the box's y range", "move Σ", origin)
     edges = [bounds(crack) for crack in cracks]  # an ellipse's extremes beyond the box are no edges
@@ -54,6 +61,7 @@ def solid_checks(data: dict, raw: dict, origin: str) -> None:
         data["mesh"]["size"] = min(x1 - x0, y1 - y0, z1 - z0) / DEFAULT_ELEMENTS
     _material_checks(data, origin)
     _boundary_checks(data, origin)
+    solver_checks(data, origin)
 
 
 def _refuse_plane_only(data: dict, raw: dict, origin: str) -> None:
@@ -65,12 +73,11 @@ def _refuse_plane_only(data: dict, raw: dict, origin: str) -> None:
         raise SceneError(f"{origin}: geometry.box: a 3-D box (6 numbers) is meshed by ddsolve, and mesh files are "
                          "plane: give a 4-number box with mesh.file, or leave mesh.file out")
     other = next((name for name in written if name not in SOLID_MESH_KEYS), None)
-    if other is not None or data["mesh"]["degree"] != 1:
-        name = other or "degree"
-        raise SceneError(f"{origin}: mesh.{name}: a 3-D box is meshed with P1 tetrahedra of about mesh.size "
-                         "(mesh.size, mesh.grading and mesh.degree = 1 only, for now)")
+    if other is not None:
+        raise SceneError(f"{origin}: mesh.{other}: a 3-D box is meshed with tetrahedra of about mesh.size "
+                         "(mesh.size, mesh.grading, mesh.degree and mesh.extrude only, for now)")
     grading = data["mesh"]["grading"]
-    data["mesh"]["grading"] = GRADING[1] if grading is True else (None if grading is False else grading)
+    data["mesh"]["grading"] = GRADING[data["mesh"]["degree"]] if grading is True else (None if grading is False else grading)
     if data["materials"]["model"] != "plane_strain":
         raise SceneError(f"{origin}: materials.model: a 3-D body has no plane model (leave it out)")
     for (section, key), why in NOT_YET.items():
@@ -106,16 +113,36 @@ def _check_on_sigma(crack: tuple[float, ...] | Ellipse, box: tuple[float, ...], 
 
 
 def _material_checks(data: dict, origin: str) -> None:
-    """The body's material, and its regions', isotropic with an elastic law double precision can factor."""
+    """The body's material, and its regions': isotropic, or a transversely isotropic ply about its fibre (``angle``
+    about z as in the plane, or ``fibre = [x, y, z]``), with an elastic law double precision can factor."""
     table = data["materials"]["layer1"]
     given = [("materials.layer1", table)] + [(f"materials.layer1.{region}", inner)
                                              for region, inner in table.items() if isinstance(inner, dict)]
     for key, written in given:
         material = layer_material(written)
-        if not isinstance(material, materials.Isotropic):
-            raise SceneError(f"{origin}: {key}: a 3-D body takes isotropic materials (E, nu) for now")
-        if not (material.E > 0 and -1.0 < material.nu < 0.5):
+        if isinstance(material, materials.Orthotropic):
+            _ply_checks(material, key, origin)
+        elif not isinstance(material, materials.Isotropic):
+            raise SceneError(f"{origin}: {key}: a 3-D body takes isotropic (E, nu) or orthotropic (E1, E2, G12, "
+                             "nu12) materials: a plane matrix D has no law in 3-D")
+        elif not (material.E > 0 and -1.0 < material.nu < 0.5):
             raise SceneError(f"{origin}: {key}: E > 0 and -1 < nu < 0.5 make a 3-D elastic law")
+
+
+def _ply_checks(material: materials.Orthotropic, key: str, origin: str) -> None:
+    """A ply is transversely isotropic about its fibre (E3 = E2, nu13 = nu12), its fibre a direction given once,
+    its law positive definite."""
+    for name, value, equal in (("E3", material.E3, material.E2), ("nu13", material.nu13, material.nu12)):
+        if value is not None and value != equal:
+            raise SceneError(f"{origin}: {key}.{name}: a 3-D ply is transversely isotropic about its fibre "
+                             f"({name} = {'E2' if name == 'E3' else 'nu12'}): leave {name} out")
+    if material.fibre is not None and (material.angle != 0.0 or not np.linalg.norm(material.fibre) > 0.0):
+        raise SceneError(f"{origin}: {key}.fibre: " + ("a direction, not zero" if material.angle == 0.0 else
+                                                       "give the fibre by fibre or by angle, not both"))
+    try:
+        materials.solid_stiffness(material)
+    except materials.MaterialError as exc:
+        raise SceneError(f"{origin}: {key}: {exc}") from None
 
 
 def _boundary_checks(data: dict, origin: str) -> None:

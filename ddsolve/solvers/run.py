@@ -16,7 +16,7 @@ from ddsolve.parallel.runtime import check_out_of_core
 from ddsolve.post.result import Result
 from ddsolve.post.solid import SolidResult
 from ddsolve.problem.scene import Scene
-from ddsolve.solvers import adapt, checks, critical, driver, solid, stacked, stacked_dd
+from ddsolve.solvers import adapt, checks, critical, driver, solid, solid_dd, stacked, stacked_dd
 from ddsolve.solvers import reference as monolithic
 from ddsolve.solvers.stacked import StackResult
 
@@ -25,7 +25,7 @@ def _before_work(scene: Scene, ranks: int = 1) -> None:
     """What the machine must offer a solve of ``scene`` on ``ranks`` ranks: the memory of its mesh, and a
     folder for out-of-core factors if the scene or a PETSc option asks for them (see
     :func:`ddsolve.solvers.checks.check_size`)."""
-    checks.check_size(scene, ranks, stacks=True)
+    checks.check_size(scene, ranks, stacks=True, solid=True)
     check_out_of_core(scene.solver.out_of_core)
 
 
@@ -39,6 +39,8 @@ def decomposition(scene: Scene, comm, output: Path | None, progress: Callable[[s
     (:func:`ddsolve.solvers.critical.factors`), so that the file written holds them; the search is the
     launch's phase ``critical_factors``."""
     collective(comm, lambda: _before_work(scene, comm.size), root_only=True)
+    if scene.geometry.dimension == 3:
+        return solid_dd.solve(scene, comm, output, progress)
     if scene.geometry.above:
         collective(comm, lambda: refuse_critical_factors(scene))
         return stacked_dd.solve(scene, comm, output, progress)

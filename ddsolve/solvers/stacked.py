@@ -21,6 +21,7 @@ from typing import Callable
 import numpy as np
 
 from ddsolve.dd import constraints, kernels
+from ddsolve.dd.constraints import Constraints
 from ddsolve.dd.interface import for_mesh
 from ddsolve.errors import SceneError
 from ddsolve.fem import assembly, supports
@@ -28,53 +29,10 @@ from ddsolve.fem.assembly import BlockSystem
 from ddsolve.mesh import geometry
 from ddsolve.mesh.mesh import BlockSpec, Mesh, blocks, facing_above
 from ddsolve.post import analysis, fracture, toughness
-from ddsolve.post.result import Fracture, Result
-from ddsolve.problem.schema import LAYERS, REGIONS
+from ddsolve.post.result import Result
+from ddsolve.post.stack import StackResult, block_names, crack_counts, crack_slices, view_scene
 from ddsolve.problem.scene import Scene, Solver
 from ddsolve.solvers.reference import PHASES, Joint, contact_violation, refuse_friction, solve_joints
-
-
-@dataclass
-class StackResult:
-    """The reference's solution of several interfaces: the blocks' displacements ``(n, 2)`` by name (u1, u2, ..
-    bottom to top, then v1, ..), the potential energy, and each interface's view (:func:`views`) solved, with G
-    at its tips."""
-
-    scene: Scene
-    mesh: Mesh
-    solution: dict[str, np.ndarray]
-    energy: float
-    interfaces: list[Result]
-    fracture: Fracture
-    converged: bool
-    message: str
-    iterations: int
-    timings: dict[str, float]
-
-    @property
-    def wall_time(self) -> float:
-        return self.timings["total"]
-
-
-def block_names(layers: int, count: int) -> list[tuple[str, str, int]]:
-    """(name, layer, region index) of the blocks of ``layers`` layers on ``count`` regions, layer by layer, the
-    lowest region first."""
-    return [(f"{letter}{region + 1}", layer, region) for layer, letter in zip(LAYERS[:layers], "uv")
-            for region in range(count)]
-
-
-def view_scene(scene: Scene, interface: int, cracks: slice) -> Scene:
-    """The scene of interface ``interface`` alone: its Σ and cracks, its two regions' materials as those of
-    ``lower`` and ``upper``, its ``cracks`` of a toughness given per crack."""
-    shape, options = scene.geometry, scene.fracture
-    names = shape.region_names[interface:interface + 2]
-    toughness = options.toughness[cracks] if isinstance(options.toughness, tuple) else options.toughness
-    return dataclasses.replace(
-        scene, geometry=dataclasses.replace(shape, sigma=shape.sigmas[interface],
-                                            cracks=shape.crack_lists[interface], above=()),
-        fracture=dataclasses.replace(options, toughness=toughness),
-        regions={(layer, region): scene.material(layer, name) for layer in scene.layers
-                 for region, name in zip(REGIONS, names)})
 
 
 def views(scene: Scene, mesh: Mesh) -> list[tuple[Scene, Mesh]]:
@@ -83,16 +41,10 @@ def views(scene: Scene, mesh: Mesh) -> list[tuple[Scene, Mesh]]:
     regions = mesh.regions
     counts = crack_counts(mesh)
     toughness.check_cracks(scene, sum(counts))
-    first = np.concatenate([[0], np.cumsum(counts)]).astype(int)
-    return [(view_scene(scene, index, slice(first[index], first[index + 1])),
+    return [(view_scene(scene, index, cracks),
              Mesh(regions[index] if index == 0 else facing_above(regions[index]), regions[index + 1], line,
                   mesh.origin))
-            for index, line in enumerate(mesh.sigmas)]
-
-
-def crack_counts(mesh: Mesh) -> list[int]:
-    """The number of cracks on each interface, bottom to top."""
-    return [len(line.pieces(line.crack)) for line in mesh.sigmas]
+            for index, (line, cracks) in enumerate(zip(mesh.sigmas, crack_slices(counts)))]
 
 
 def straight_lines(mesh: Mesh) -> None:
@@ -205,13 +157,7 @@ def solve_stack(scene: Scene, mesh: Mesh) -> StackResult:
         contact = interface.slices["mu_c"]
         lam[contact] = solved.y[first:stop] / np.sqrt(interface.row_weights[contact])
         lams.append(lam)
-    interface_loads = [[] for _ in systems]
-    for joint, lam in zip(joints, lams):
-        for b, dofs, load in zip(joint.blocks, joint.dofs, joint.interface.loads(lam)):
-            interface_loads[b].append((dofs, load))
-    residuals = [analysis.block_residual(dataclasses.replace(s, trace_dofs=np.concatenate([d for d, _ in held])),
-                                         u, np.concatenate([load for _, load in held]))
-                 for s, u, held in zip(systems, fields, interface_loads)]
+    residuals = structure_residuals(systems, joints, fields, lams)
     steps, changes = (solved.face.violations, solved.face.changes) if solved.face else ([(0.0, 0.0)], [0])
     energy = sum(0.5 * u @ assembly.csr_matvec(s, u) - s.rhs @ u + s.energy_offset for s, u in zip(systems, fields))
     total = sum(solved.timings[name] for name in PHASES)
@@ -251,6 +197,33 @@ def stack_result(scene: Scene, mesh: Mesh, seen: list[tuple[Scene, Mesh]], joint
     return StackResult(scene, mesh, {name: u.reshape(-1, 2) for (name, _, _), u in zip(names, fields)}, energy,
                        results, joined_fracture, not violated,
                        f"{run.method}: " + "; ".join(violated) if violated else "", run.iterations, run.timings)
+
+
+def structure_residuals(systems: list[BlockSystem], joints: list[Joint], fields: list[np.ndarray],
+                        lams: list[np.ndarray]) -> list[float]:
+    """Each block's equilibrium residual (:func:`ddsolve.post.analysis.block_residual`) under the loads of every
+    interface it is on (the multipliers ``lams`` of each joint)."""
+    held = [[] for _ in systems]  # per block: (its dofs on an interface, that interface's load)
+    for joint, lam in zip(joints, lams):
+        for b, dofs, load in zip(joint.blocks, joint.dofs, joint.interface.loads(lam)):
+            held[b].append((dofs, load))
+    return [analysis.block_residual(dataclasses.replace(s, trace_dofs=np.concatenate([d for d, _ in loads])),
+                                    u, np.concatenate([load for _, load in loads]))
+            for s, u, loads in zip(systems, fields, held)]
+
+
+def check(stacked: StackResult) -> list[Constraints]:
+    """The KKT residuals of each interface of a result of several interfaces (one read back): the blocks
+    assembled again, each block's equilibrium under the loads of every interface it is on."""
+    scene, mesh = stacked.scene, stacked.mesh
+    systems, joints, _ = assemble(scene, mesh)
+    fields = [stacked.solution[name].reshape(-1) for name, _, _ in block_names(scene.geometry.layers,
+                                                                               len(mesh.regions))]
+    lams = [analysis.multiplier_vector(joint.interface, view.multipliers, view.mesh.sigma.frames[view.multiplier_nodes])
+            for joint, view in zip(joints, stacked.interfaces)]
+    residuals = structure_residuals(systems, joints, fields, lams)
+    return [analysis.constraints(view, np.array([residuals[b] for b in joint.blocks]))
+            for joint, view in zip(joints, stacked.interfaces)]
 
 
 def interface_result(seen: tuple[Scene, Mesh], joint: Joint, lam: np.ndarray, fields: list[np.ndarray],
