@@ -1,7 +1,7 @@
 """G along 3-D crack fronts: ``./run three-d-front`` writes docs/three-d-front.md and docs/three-d-front.png.
 
 Two checks of the G-θ integral with θ localised along the front (:mod:`ddsolve.post.front`) on the 3-D monolithic
-reference (P1 tetrahedra graded towards the front):
+reference (P1 or P2 tetrahedra graded towards the front):
 
 * the plane scene of docs/three-d.md (two materials, the crack pulled open; and partly shut, contact active)
   extruded in z with rollers on both z faces: G(z) at the interior front nodes against the plane G of the same
@@ -24,10 +24,10 @@ from ddsolve.problem.scene import loads
 from ddsolve.solvers import reference as plane_reference
 from ddsolve.solvers import solid as solid_reference
 
-#: The extruded scene's 3-D sizes, the penny's (size, box half-side L), and the grading exponent of both (mesh.grading:
-#: h ∝ r^0.8 near the front, stronger than P1's default 0.4).
-EXTRUDED_SIZES = (0.1, 0.07)
-PENNY_RUNS = ((0.15, 2.0), (0.1, 2.0), (0.1, 3.0))
+#: The extruded scene's runs (mesh.size, degree), the penny's (mesh.size, box half-side L, degree), and the grading
+#: exponent of all (mesh.grading: h ∝ r^0.8 near the front, stronger than P1's default 0.4).
+EXTRUDED_RUNS = ((0.1, 1), (0.07, 1), (0.14, 2))
+PENNY_RUNS = ((0.15, 2.0, 1), (0.1, 2.0, 1), (0.1, 3.0, 1), (0.2, 2.0, 2), (0.15, 2.0, 2), (0.2, 3.0, 2))
 GRADING = 0.2
 #: The quarter penny of radius ½ (tests/test_front.py solves its coarsest size).
 PENNY = """
@@ -54,9 +54,9 @@ z = 0.0
 SNEDDON = 4.0 * (1.0 - 0.3 ** 2) * 0.5 / np.pi
 
 
-def penny_scene(size: float, half_side: float = 2.0, grading: float = GRADING):
-    """The quarter penny in the box [0, L] × [−L, L] × [0, L]."""
-    return loads(PENNY.format(L=half_side, size=size, grading=grading))
+def penny_scene(size: float, half_side: float = 2.0, degree: int = 1):
+    """The quarter penny in the box [0, L] × [−L, L] × [0, L] on P1 or P2 tetrahedra."""
+    return loads(PENNY.format(L=half_side, size=size, grading=GRADING)).with_({"mesh.degree": degree})
 
 
 def solved(scene) -> tuple:
@@ -87,17 +87,18 @@ def measure() -> dict:
     for case in three_d.CASES:
         plane = plane_G(case)
         rows = []
-        for size in EXTRUDED_SIZES:
-            scene = three_d.scene_of(case, size, 3).with_({"mesh.grading": GRADING})
+        for size, degree in EXTRUDED_RUNS:
+            scene = three_d.scene_of(case, size, 3).with_({"mesh.grading": GRADING, "mesh.degree": degree})
             result, released, unknowns, seconds = solved(scene)
             ratios = [interior_ratios(released, plane, tip) for tip in (0, 1)]
-            rows.append({"size": size, "unknowns": unknowns, "seconds": seconds, "closed": result.closed,
+            rows.append({"size": size, "degree": degree, "unknowns": unknowns, "seconds": seconds,
+                         "closed": result.closed,
                          "ratios": ratios, "released": released, "plane": plane})
         out["extruded"][case] = rows
-    for size, half_side in PENNY_RUNS:
-        result, released, unknowns, seconds = solved(penny_scene(size, half_side))
-        out["penny"].append({"size": size, "L": half_side, "unknowns": unknowns, "seconds": seconds,
-                             "released": released})
+    for size, half_side, degree in PENNY_RUNS:
+        result, released, unknowns, seconds = solved(penny_scene(size, half_side, degree))
+        out["penny"].append({"size": size, "L": half_side, "degree": degree, "unknowns": unknowns,
+                             "seconds": seconds, "released": released})
     return out
 
 
@@ -105,7 +106,7 @@ def page(measured: dict) -> str:
     """docs/three-d-front.md from :func:`measure`."""
     lines = ["# Three dimensions: G along the crack front", "",
              "G per unit length of front at every front node by the G-θ integral with θ localised along the front "
-             "(docs/three-d.md's reference, P1 tetrahedra graded towards the front; ddsolve.post.front): θ_k = "
+             "(the 3-D reference, P1 or P2 tetrahedra graded towards the front; ddsolve.post.front): θ_k = "
              "φ_k(s) c(r) n(s), φ_k a hat along the front's arc length s of half-width the inner radius (at least "
              "one front edge), c the radial cut-off (1 inside the inner radius, 0 beyond the outer) and n the "
              "in-plane normal of the front; G_k = J(θ_k) / ∫ φ_k ds.  J is exact for the discrete problem (the "
@@ -133,9 +134,10 @@ def page(measured: dict) -> str:
     for case, rows in measured["extruded"].items():
         plane = rows[0]["plane"]
         lines += [f"### {case} (plane G: {plane[0]:.6e} at the left tip, {plane[1]:.6e} at the right)", "",
-                  "| mesh.size | 3-D unknowns | closed vertices | front | mean G / G_plane | lowest | highest | "
-                  "seconds |", "|---|---|---|---|---|---|---|---|"]
-        lines += [f"| {r['size']:g} | {r['unknowns']} | {r['closed']} | {side} | {ratios.mean():.4f} | "
+                  "| tetrahedra | mesh.size | 3-D unknowns | closed vertices | front | mean G / G_plane | lowest | "
+                  "highest | seconds |", "|---|---|---|---|---|---|---|---|---|"]
+        lines += [f"| P{r['degree']} | {r['size']:g} | {r['unknowns']} | {r['closed']} | {side} | "
+                  f"{ratios.mean():.4f} | "
                   f"{ratios.min():.4f} | {ratios.max():.4f} | {r['seconds']:.1f} |"
                   for r in rows for side, ratios in zip(("left", "right"), r["ratios"])]
         lines.append("")
@@ -144,12 +146,13 @@ def page(measured: dict) -> str:
               f"a unit traction on the top of the box [0, L] × [−L, L] × [0, L] and its bottom on rollers, "
               f"mesh.grading = {GRADING}; Sneddon's G of the infinite body {SNEDDON:.6f}.  Spread = "
               "(largest − smallest G) / mean G over the front; G_II and G_III (the mirror split) against G:", "",
-              "| mesh.size | L / a | unknowns | front nodes | mean G / Sneddon | spread | mean G_I / Sneddon | "
-              "largest abs G_II, G_III / G | seconds |", "|---|---|---|---|---|---|---|---|---|"]
+              "| tetrahedra | mesh.size | L / a | unknowns | front nodes | mean G / Sneddon | spread | "
+              "mean G_I / Sneddon | largest abs G_II, G_III / G | seconds |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
     for run in measured["penny"]:
         f = run["released"]
         mixed = max(np.abs(f.G_II).max(), np.abs(f.G_III).max()) / f.G.mean()
-        lines.append(f"| {run['size']:g} | {run['L'] / 0.5:g} | {run['unknowns']} | {len(f.G)} | "
+        lines.append(f"| P{run['degree']} | {run['size']:g} | {run['L'] / 0.5:g} | {run['unknowns']} | {len(f.G)} | "
                      f"{f.G.mean() / SNEDDON:.4f} | {100 * np.ptp(f.G) / f.G.mean():.1f} % | "
                      f"{f.G_I.mean() / SNEDDON:.4f} | {mixed:.1e} | {run['seconds']:.1f} |")
     lines += ["", penny_text(measured["penny"]), "", MODES_TEXT, "", "![G along each front](three-d-front.png)", ""]
@@ -169,16 +172,17 @@ MODES_TEXT = (
 
 def penny_text(runs: list[dict]) -> str:
     """The penny's accuracy and the finite box's effect, read from the runs."""
-    errors = {(run["size"], run["L"]): run["released"].G.mean() / SNEDDON - 1.0 for run in runs}
-    finest = min(size for size, half_side in errors if half_side == 2.0)
-    return (f"At mesh.size {finest:g} (L/a = 4) the mean G is {100 * errors[finest, 2.0]:+.1f} % from Sneddon's; "
-            f"at the same mesh.size in the larger box L/a = 6 {100 * errors.get((finest, 3.0), np.nan):+.1f} %.  "
-            "A finite box under a given traction releases at least as much as the infinite body, so the box is "
-            "not what keeps G below Sneddon's: P1's stiffness at the front does, and it falls as the mesh is "
-            "refined (the grading radius scales with the box, so at one mesh.size the larger box's mesh is finer "
-            "at the front, and its G closer).  P1 is within 3 % of Sneddon from mesh.size 0.1 with mesh.grading = "
-            f"{GRADING} (68 k unknowns).  P2 would need 10-node tetrahedra (not in 3-D yet): the plane code's "
-            "graded P2 gives G to 0.06 % at mesh.size 0.1 (its G at 0.1 against 0.05).")
+    errors = {(run["degree"], run["size"], run["L"]): run["released"].G.mean() / SNEDDON - 1.0 for run in runs}
+    finest = {degree: min(size for d, size, half_side in errors if d == degree and half_side == 2.0)
+              for degree in (1, 2)}
+    box = errors[2, 0.2, 2.0] - errors[2, 0.2, 3.0]
+    return (f"The finite box: at P2, mesh.size 0.2, G is {100 * box:.1f} % higher in the box L/a = 4 than in L/a = 6 "
+            "(a finite box under a given traction releases more than the infinite body).  P1 at mesh.size "
+            f"{finest[1]:g} (L/a = 4) is {100 * errors[1, finest[1], 2.0]:+.1f} % from Sneddon, and "
+            f"{100 * errors[1, finest[1], 3.0]:+.1f} % at L/a = 6: P1's stiffness at the front keeps G below (it "
+            f"is within 3 % from mesh.size 0.1 with mesh.grading = {GRADING}, 68 k unknowns); P2 at mesh.size "
+            f"{finest[2]:g} is {100 * errors[2, finest[2], 2.0]:+.1f} % (L/a = 4), the box's effect and a little "
+            "more, with the spread well under 1 %.")
 
 
 def plot(measured: dict) -> None:
@@ -195,11 +199,12 @@ def plot(measured: dict) -> None:
                          label=f"{case}, {'right' if tip else 'left'} front")
     axes[0].set_xlabel("z along the front")
     axes[0].set_ylabel("G(z) / plane G (graded P2)")
-    axes[0].set_title(f"extruded plane scene, mesh.size {EXTRUDED_SIZES[-1]:g}", fontsize=10)
+    axes[0].set_title(f"extruded plane scene, P{rows[-1]['degree']} at mesh.size {rows[-1]['size']:g}", fontsize=10)
     for run in measured["penny"]:
         f = run["released"]
         angle = np.degrees(np.arctan2(f.points[:, 2], f.points[:, 0]))
-        axes[1].plot(angle, f.G / SNEDDON, ".-", label=f"mesh.size {run['size']:g}, L/a = {run['L'] / 0.5:g}")
+        axes[1].plot(angle, f.G / SNEDDON, ".-",
+                     label=f"P{run['degree']}, mesh.size {run['size']:g}, L/a = {run['L'] / 0.5:g}")
     axes[1].axhline(1.0, color="k", lw=0.8)
     axes[1].set_xlabel("angle along the front (degrees from the x axis)")
     axes[1].set_ylabel("G / Sneddon")
