@@ -157,6 +157,57 @@ def test_elastic_bond_tends_to_the_rigid_one_and_schur_equals_mprgp():
     assert max(row["methods_differ"] for row in rows) < 1e-8
 
 
+def uniform_pull(method: str, mode: str, moduli: tuple[float, ...], stiffness: float = 50.0,
+                 opening: float = 0.01):
+    """A box of height 3 with Σ at y = 1 bonded by the elastic law, its top moved by ``opening`` normal to Σ
+    (``mode`` "normal": rollers on the bottom and the left side) or along it ("shear": the bottom clamped, the
+    sides held in y): every layer's strain ε is uniform and the bond carries the layers' stresses together,
+    so opening = 3ε + Σ M_i ε / k (M_i = E′_i, or G_i in shear).  The solved result, each layer's closed-form
+    stress and the bond's jump Σ M_i ε / k."""
+    import ddsolve
+
+    names = [f"layer{i + 1}" for i in range(len(moduli))]
+    held = ({"bottom": "y = 0.0", "left": "x = 0.0", "top": f"y = {opening!r}"} if mode == "normal" else
+            {"bottom": "x = 0.0\ny = 0.0", "left": "y = 0.0", "right": "y = 0.0", "top": f"x = {opening!r}\ny = 0.0"})
+    text = (f'title = "uniform {mode}"\n[geometry]\nbox = [0.0, 2.0, 0.0, 3.0]\nsigma = 1.0\ncracks = []\n'
+            f'clamped = []\nlayers = {len(names)}\n[mesh]\nsize = 1.0\n'
+            + "".join(f"[materials.{name}]\nE = {E!r}\nnu = 0.3\n" for name, E in zip(names, moduli))
+            + "".join(f"[displacements.{name}.{side}]\n{values}\n" for name in names for side, values in held.items())
+            + f'[interface]\nlaw = "elastic"\nstiffness = {stiffness!r}\n[solver]\nmethod = "{method}"\n')
+    scene = scenes.loads(text, origin=f"uniform-{mode}")
+    result = (ddsolve.reference(scene) if method == "reference" else
+              ddsolve.solve(scene, progress=lambda line: None))
+    M = np.array([E / (1.0 - 0.3 ** 2) if mode == "normal" else E / 2.6 for E in moduli])
+    strain = opening / (3.0 + M.sum() / stiffness)
+    return result, M * strain, M.sum() * strain / stiffness
+
+
+def sigma_jump(result) -> np.ndarray:
+    """``(k, 2)``: u⁺ − u⁻ at the Σ nodes of layer 1, in x order."""
+    faces = []
+    for name in ("u_minus", "u_plus"):
+        points, field = result.half(name).points, result.solution[name]
+        on = np.flatnonzero(np.isclose(points[:, 1], 1.0))
+        faces.append(field[on[np.argsort(points[on, 0])]])
+    return faces[1] - faces[0]
+
+
+@pytest.mark.solve
+def test_the_elastic_law_gives_the_closed_form_jump_of_a_uniform_pull_and_shear():
+    cases = [(method, mode, (100.0,)) for method in ("schur", "mprgp", "fista") for mode in ("normal", "shear")]
+    cases += [("schur", "normal", (100.0, 250.0)), ("mprgp", "shear", (100.0, 250.0))]
+    for method, mode, moduli in cases:
+        result, stresses, expected = uniform_pull(method, mode, moduli)
+        assert result.converged, (method, mode)
+        component = 1 if mode == "normal" else 0
+        jump = sigma_jump(result)
+        tolerance = 1e-12 if method in ("schur", "reference") else 1e-8  # exact, or an iteration's tol
+        assert np.abs(jump[:, component] / expected - 1.0).max() < tolerance, (method, mode, moduli)
+        assert np.abs(jump[:, 1 - component]).max() < tolerance * expected
+        for name, stress in zip(result.reactions, stresses):  # the top's reaction: the layer's stress × width 2
+            assert result.reactions[name]["top"][component] == pytest.approx(2.0 * stress, rel=tolerance)
+
+
 @pytest.mark.solve
 def test_newton_on_schur_and_the_secant_fixed_point_of_mprgp_agree_on_a_damaged_bond():
     from experiments import cohesive as experiment
