@@ -161,7 +161,7 @@ def uniform_pull(method: str, mode: str, moduli: tuple[float, ...], stiffness: f
                  opening: float = 0.01):
     """A box of height 3 with Σ at y = 1 bonded by the elastic law, its top moved by ``opening`` normal to Σ
     (``mode`` "normal": rollers on the bottom and the left side) or along it ("shear": the bottom clamped, the
-    sides held in y): every layer's strain ε is uniform and the bond carries the layers' stresses together,
+    sides held in y; ``method`` "reference": the monolithic reference): every layer's strain ε is uniform and the bond carries the layers' stresses together,
     so opening = 3ε + Σ M_i ε / k (M_i = E′_i, or G_i in shear).  The solved result, each layer's closed-form
     stress and the bond's jump Σ M_i ε / k."""
     import ddsolve
@@ -173,7 +173,8 @@ def uniform_pull(method: str, mode: str, moduli: tuple[float, ...], stiffness: f
             f'clamped = []\nlayers = {len(names)}\n[mesh]\nsize = 1.0\n'
             + "".join(f"[materials.{name}]\nE = {E!r}\nnu = 0.3\n" for name, E in zip(names, moduli))
             + "".join(f"[displacements.{name}.{side}]\n{values}\n" for name in names for side, values in held.items())
-            + f'[interface]\nlaw = "elastic"\nstiffness = {stiffness!r}\n[solver]\nmethod = "{method}"\n')
+            + f'[interface]\nlaw = "elastic"\nstiffness = {stiffness!r}\n'
+            + ("" if method == "reference" else f'[solver]\nmethod = "{method}"\n'))
     scene = scenes.loads(text, origin=f"uniform-{mode}")
     result = (ddsolve.reference(scene) if method == "reference" else
               ddsolve.solve(scene, progress=lambda line: None))
@@ -194,8 +195,10 @@ def sigma_jump(result) -> np.ndarray:
 
 @pytest.mark.solve
 def test_the_elastic_law_gives_the_closed_form_jump_of_a_uniform_pull_and_shear():
-    cases = [(method, mode, (100.0,)) for method in ("schur", "mprgp", "fista") for mode in ("normal", "shear")]
-    cases += [("schur", "normal", (100.0, 250.0)), ("mprgp", "shear", (100.0, 250.0))]
+    cases = [(method, mode, (100.0,)) for method in ("schur", "mprgp", "fista", "reference")
+             for mode in ("normal", "shear")]
+    cases += [("schur", "normal", (100.0, 250.0)), ("mprgp", "shear", (100.0, 250.0)),
+              ("reference", "shear", (100.0, 250.0))]
     for method, mode, moduli in cases:
         result, stresses, expected = uniform_pull(method, mode, moduli)
         assert result.converged, (method, mode)
@@ -229,7 +232,7 @@ def test_old_results_are_unchanged_without_an_interface_table():
 
 
 @pytest.mark.solve
-def test_uzawa_and_feti_refuse_a_bond_in_one_line():
+def test_uzawa_feti_and_the_reference_refuse_what_they_do_not_solve_in_one_line():
     import ddsolve
 
     for method in ("uzawa", "feti"):
@@ -238,8 +241,27 @@ def test_uzawa_and_feti_refuse_a_bond_in_one_line():
         with pytest.raises(DDSolveError) as error:
             ddsolve.solve(scene, progress=lambda line: None)
         assert "interface.law" in str(error.value) and "\n" not in str(error.value)
-    with pytest.raises(DDSolveError, match="interface.law"):
-        ddsolve.reference(ddsolve.Scene.load("full-opening", ['interface.law="elastic"', "interface.stiffness=1e3"]))
+    bilinear = ddsolve.Scene.load("full-opening", ['interface.law="bilinear"', "interface.strength=0.002",
+                                                   "interface.toughness=1e-6"])
+    with pytest.raises(DDSolveError) as error:
+        ddsolve.reference(bilinear)
+    assert 'interface.law = "bilinear"' in str(error.value) and "\n" not in str(error.value)
+
+
+@pytest.mark.solve
+def test_the_reference_solves_the_elastic_bond_as_springs_and_equals_schur():
+    import ddsolve
+    from ddsolve.post import analysis
+
+    scene = ddsolve.Scene.load("partial-closure", ['interface.law="elastic"', "interface.stiffness=1e5",
+                                                   "mesh.size=0.25", 'solver.method="schur"'])
+    reference = ddsolve.reference(scene)
+    decomposed = ddsolve.solve(scene, progress=lambda line: None)
+    assert reference.converged and reference.attrs["closed_vertices"] > 0  # contact and the bond together
+    assert analysis.compare(decomposed, reference).energy_error < 1e-12
+    assert decomposed.attrs["energy"] == pytest.approx(reference.attrs["energy"], rel=1e-12)
+    rigid = ddsolve.reference(ddsolve.Scene.load("partial-closure", ["mesh.size=0.25"]))
+    assert analysis.compare(rigid, reference).energy_error > 1e-4  # the springs count
 
 
 @pytest.mark.solve
