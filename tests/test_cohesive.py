@@ -277,3 +277,36 @@ def test_a_dcb_grown_with_the_bilinear_law_follows_griffith():
     assert max(record["tip"]) > experiment.CRACK + 0.25  # the crack has grown
     assert record["elements_per_zone"] >= 4
     assert record["irreversible"]  # no vertex's damage ever falls from one step to the next
+
+
+@pytest.mark.mpi
+def test_grow_unloads_along_the_secant_and_reloads_to_the_old_peak(tmp_path):
+    """A coarse DCB (P2, size 0.5) driven by ``grow --to 0.1,0,0.12``: damaged at 0.1, unloaded to 0 and reloaded:
+    the damage stays fixed and the force follows the secant through the origin until the old peak, then the
+    damage grows again and the force falls below that line.  Bad paths are refused in one line."""
+    from conftest import ddsolve, refused
+    from experiments import cohesive as experiment
+
+    from ddsolve.solvers import growth_files
+
+    scene = experiment.dcb_scene(True, size=0.5)
+    toml, output = scene.base / "dcb-bond.toml", tmp_path / "path.h5"
+    ddsolve("grow", str(toml), "--to", "0.1,0,0.12", "--steps", "4", "--pictures", "1", "-o", str(output))
+    run = growth_files.read(output)
+    assert list(run["attrs"]["path"]) == [0.1, 0.0, 0.12]
+    control, load, damage = run["control"], run["load"], run["damage"]
+    peak = int(np.flatnonzero(control == 0.1)[0])
+    assert damage[peak].max() > 0.0  # softening before the unloading
+    secant = load[peak] / run["displacement"][peak]
+    after = np.arange(peak, len(control))
+    below = after[control[after] <= 0.1]  # unloaded to 0 and reloaded to the old peak
+    assert control[below].min() == 0.0 and abs(load[below][control[below] == 0.0]).max() < 1e-12 * load[peak]
+    assert np.allclose(load[below], secant * run["displacement"][below], rtol=1e-9, atol=1e-12 * load[peak])
+    assert np.all(damage[below] == damage[peak])
+    assert damage[-1].max() > damage[peak].max() and load[-1] < secant * run["displacement"][-1] * (1 - 1e-3)
+    assert any("turns down" in event for event in run["events"]) and any("turns up" in e for e in run["events"])
+    assert (tmp_path / f"path-step{len(control) - 1}.png").exists()  # the picture solved again from its start
+    for path in ("0.1,0.1", "0,0.1", "0.1,-0.05"):
+        refused(ddsolve("grow", str(toml), "--to", path, "-o", str(tmp_path / "bad.h5"), check=False), 2, "--to")
+    refused(ddsolve("grow", "partial-closure", "--set", "fracture.toughness=1e-6", "--to", "0.2,0.1", "-o",
+                    str(tmp_path / "bad.h5"), check=False), 2, "--to 0.2,0.1", "damaging bond")
