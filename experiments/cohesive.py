@@ -5,6 +5,8 @@
   two ways: on rank 0 from the Schur complements, and by rounds of block solves);
 - :func:`bilinear_methods`: the bilinear law in one load step by ``schur`` (Newton's method) and ``mprgp`` (the
   secant fixed point), against each other;
+- :func:`enf_growth`: the ENF (mode II under three-point bending) with the bilinear law under Benzeggagh–Kenane
+  against the Griffith growth of the same structure with G_IIc, as :func:`dcb_growth`;
 - :func:`dcb_growth`: a displacement-controlled DCB (two identical layers, plane strain, E = 200, arms h = 1)
   grown with the bilinear law (strength 0.005 E, toughness G_c) against the Griffith growth of the same
   structure with the rigid bond (``ddsolve grow`` with ``[fracture] toughness = G_c``, the same mesh): the load
@@ -36,6 +38,9 @@ LAYERS = ("layer1", "layer2")
 ENF_HALF_SPAN, ENF_CRACK, G_IIC, ETA = 10.0, 9.0, 4e-3, 2.0
 SHEAR_RATIO = math.sqrt(G_IIC / TOUGHNESS)
 NOSE, ENF_SIZE = 0.02, 0.2
+#: The ENF runs' deflection (the crack passes the loading nose at L), the bond's steps to it (at most
+#: ENF_LIMIT/ENF_STEPS, halved where damage moves fast) and Griffith's.
+ENF_LIMIT, ENF_STEPS, ENF_GRIFFITH_STEPS = 0.32, 16, 32
 
 
 def dcb_scene(bond: bool, size: float = SIZE, toughness: float = TOUGHNESS, strength: float = STRENGTH,
@@ -173,13 +178,38 @@ def timed_growth(run, scene, limit: float, steps: int, progress) -> dict:
 def dcb_growth(limit: float = 0.2, steps: int = 20, size: float = SIZE, strength: float = STRENGTH,
                griffith: dict | None = None) -> dict:
     """The bilinear DCB against Griffith on one mesh (module docstring; ``griffith`` a :func:`griffith_run` of the
-    same ``size`` reaching at least ``limit`` if given): per bond step the opening, load, crack tip, process zone and the Griffith
-    load; the largest deviations before damage and once the crack grows."""
+    same ``size`` reaching at least ``limit`` if given): :func:`compared`."""
     bond = bond_run(size, strength, CRACK, limit, steps)
     griffith = griffith if griffith is not None else griffith_run(size, limit, steps)
+    return compared(bond, griffith, CRACK, size)
+
+
+def enf_griffith_run(size: float = ENF_SIZE, limit: float = ENF_LIMIT, steps: int = ENF_GRIFFITH_STEPS) -> dict:
+    """``ddsolve grow`` of the ENF with the rigid bond and Griffith's toughness G_IIc, as :func:`bond_run`."""
+    from ddsolve.solvers import grow
+
+    return timed_growth(grow.grow, enf_scene(False, size), limit, steps, progress=lambda line: None)
+
+
+def enf_growth(size: float = ENF_SIZE, strength: float = STRENGTH, griffith: dict | None = None,
+               limit: float = ENF_LIMIT, steps: int = ENF_STEPS) -> dict:
+    """The ENF with the bilinear law under Benzeggagh–Kenane against Griffith's growth (``griffith`` an
+    :func:`enf_griffith_run` of the same ``size``, made if not given): :func:`compared`."""
+    from ddsolve.solvers import bond_growth
+
+    bond = timed_growth(bond_growth.grow, enf_scene(True, size, strength), limit, steps,
+                        progress=lambda line: print(line, flush=True))
+    griffith = griffith if griffith is not None else enf_griffith_run(size, limit)
+    return compared(bond, griffith, ENF_CRACK, size)
+
+
+def compared(bond: dict, griffith: dict, crack: float, size: float) -> dict:
+    """A bond run's growth file (``bond``) against Griffith's of the same structure and mesh (``griffith``), its
+    initial crack (0, ``crack``): per bond step the opening, load, crack tip, process zone and the Griffith load; the
+    largest deviations before damage and once the crack grows."""
     tips = bond["cracks"][:, 0, 1]
     damaged = bond["damage"].max(axis=1) > 0.0
-    grown = tips > CRACK + 1e-9
+    grown = tips > crack + 1e-9
     expected = np.array([griffith_load(d, griffith) for d in bond["displacement"]])
     deviation = np.abs(bond["load"] / np.where(expected > 0, expected, np.nan) - 1.0)
     spacing = size / 2.0  # P2: the Σ nodes' spacing
