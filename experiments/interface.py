@@ -812,8 +812,8 @@ def cohesive_text(record: dict) -> list[str]:
 
 # --- the ENF with the cohesive law -------------------------------------------------------------------------
 #: The ENF's bonds (experiments/cohesive.py, ``enf_scene``): σ_c / E, τ_c = cohesive.SHEAR_RATIO σ_c; the summary
-#: row is the middle one's.
-ENF_STRENGTHS = (0.0025, 0.005, 0.01)
+#: row is the strongest's (0.01 E on this mesh: a zone of one Σ spacing, the steps halve without end).
+ENF_STRENGTHS = (0.00125, 0.0025, 0.005)
 
 
 def measure_enf_cohesive() -> dict:
@@ -832,7 +832,7 @@ def measure_enf_cohesive() -> dict:
 
 
 def enf_cohesive_summary(record: dict) -> list[dict]:
-    run = record["runs"][f"{ENF_STRENGTHS[1]:g}"]
+    run = record["runs"][f"{ENF_STRENGTHS[-1]:g}"]
     return [summary_row(f"cohesive ENF, strength {run['strength']:g} E, size {cohesive.ENF_SIZE:g}: the load at "
                         f"δ = {run['opening'][-1]:g} (against Griffith growth; the error: the largest once grown)",
                         run["griffith"][-1], run["load"][-1], percent(run["grown"]),
