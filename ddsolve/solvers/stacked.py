@@ -30,8 +30,7 @@ from ddsolve.post import analysis, fracture, toughness
 from ddsolve.post.result import Fracture, Result
 from ddsolve.problem.schema import LAYERS, REGIONS
 from ddsolve.problem.scene import Scene
-from ddsolve.solvers.reference import (PHASES, Joint, contact_violation, refuse_bond, refuse_friction,
-                                       solve_joints)
+from ddsolve.solvers.reference import PHASES, Joint, contact_violation, refuse_friction, solve_joints
 
 
 @dataclass
@@ -164,7 +163,6 @@ def solve_stack(scene: Scene, mesh: Mesh) -> StackResult:
     """Solve the scene of several interfaces exactly on ``mesh`` (:func:`ddsolve.mesh.stack.build_any`); each
     interface's view checked (KKT) and with G at its tips."""
     refuse_friction(scene)
-    refuse_bond(scene)
     geometry.check_loads(scene, mesh)
     supports.check(scene, mesh)
     systems, joints, seen = assemble(scene, mesh)
