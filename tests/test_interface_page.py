@@ -127,8 +127,9 @@ def synthetic_cohesive() -> dict:
 def synthetic_enf_cohesive() -> dict:
     """A record shaped as ``measure_enf_cohesive`` returns it."""
     runs = {f"{strength:g}": {"strength": strength, **synthetic_curve(strength, start=9.0), "before_damage": 2e-3,
-                              "grown": 2e-2, "steps": 20, "irreversible": True, "elements_per_zone": 4.0}
-            for strength in interface.ENF_STRENGTHS}
+                              "grown": 2e-2 if strength > 0.002 else np.nan, "steps": 20, "irreversible": True,
+                              "elements_per_zone": 4.0}
+            for strength in interface.ENF_STRENGTHS}  # the weakest's crack has not grown
     curve = synthetic_curve(0.005, start=9.0)
     griffith = {"opening": curve["opening"], "load": curve["griffith"], "tip": curve["tip"], "solves": curve["solves"],
                 "seconds": 40.0, "unknowns": 21256}
@@ -151,6 +152,7 @@ def test_the_page_is_its_sections_in_order_with_a_summary_row_per_case():
     # ENF's, and the header
     assert "\\|G\\|/G₀" in summary  # the stuck faces' G against the frictionless one
     assert "none: the first step damages" in page  # the weakest bond has no undamaged step to compare
+    assert "no growth by δ = 0.2" in page  # the weakest ENF bond's crack
     # the square's excess divided out: the synthetic G is 1.57 % above at side 20, a quarter of it at 40
     assert re.search(r"closed crack, Coulomb μ = 0\.5 \| 1\.429425e-02 \| 1\.451867e-02 \| [+-]0\.000 %", summary)
 
