@@ -516,7 +516,8 @@ def parser() -> argparse.ArgumentParser:
                    "path, targets in turn: 0.2,0.05,0.3 rises to 0.2, unloads to 0.05 (the damage kept, along the "
                    "secant) and reloads to 0.3")
     p.add_argument("--steps", type=int, default=20, help="equal control steps up to --to, 1 to 1000 (default 20; "
-                   "the initiation factor is added; a bilinear bond's steps are at most --to/--steps, halved where "
+                   "the initiation factor is added; a bilinear bond's steps are at most (its largest) --to/--steps, "
+                   "halved where "
                    "its damage moves fast)")
     p.add_argument("--tolerance", type=float, default=1e-4, help="|G/G_c − 1| at a growing tip, 1e-8 to 1 "
                    "(default 1e-4)")

@@ -847,8 +847,9 @@ def enf_cohesive_plot(record: dict) -> None:
     for ax, key in ((loads, "load"), (cracks, "tip")):
         ax.plot(griffith["opening"], griffith[key], "k-", linewidth=2, label="Griffith growth, G_IIc")
         for index, run in enumerate(record["runs"].values()):
+            shear = cohesive.SHEAR_RATIO * run["strength"]
             ax.plot(run["opening"], run[key], f"C{index}o-", markersize=3, linewidth=1,
-                    label=f"bilinear, σ_c = {run['strength']:g} E, τ_c = {cohesive.SHEAR_RATIO * run['strength']:.4g} E")
+                    label=f"bilinear, σ_c = {run['strength']:g} E, τ_c = {shear:.4g} E")
         ax.set_xlabel("midspan deflection δ")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
@@ -866,6 +867,10 @@ def griffith_corner(griffith: dict) -> tuple[float, float]:
     """The deflection and load of Griffith's initiation: its last step before the crack grows."""
     last = int(np.argmax(np.asarray(griffith["tip"]) > cohesive.ENF_CRACK + 1e-9)) - 1
     return griffith["opening"][last], griffith["load"][last]
+
+
+def griffith_tip_at(griffith: dict, opening: float) -> float:
+    return float(np.interp(opening, griffith["opening"], griffith["tip"]))
 
 
 def grown_text(run: dict) -> str:
@@ -903,7 +908,7 @@ def enf_cohesive_page(record: dict) -> list[str]:
                      f"{np.interp(corner, run['opening'], run['load']) / initiation:.4f}", before_damage(run),
                      grown_text(run),
                      f"{whole_curve(run):.2%}",
-                     f"{run['tip'][-1]:.2f} ({np.interp(run['opening'][-1], griffith['opening'], griffith['tip']):.2f})",
+                     f"{run['tip'][-1]:.2f} ({griffith_tip_at(griffith, run['opening'][-1]):.2f})",
                      str(run["steps"]), f"{speed['newton_mean']:.1f} ({speed['newton_max']})",
                      f"{speed['solves_mean']:.1f}", f"{speed['seconds']:.0f} s"])
     out += table(["σ_c / E", "τ_c / E", f"at the corner (Griffith's {initiation:.5e})",

@@ -161,8 +161,8 @@ def uniform_pull(method: str, mode: str, moduli: tuple[float, ...], stiffness: f
                  opening: float = 0.01):
     """A box of height 3 with Σ at y = 1 bonded by the elastic law, its top moved by ``opening`` normal to Σ
     (``mode`` "normal": rollers on the bottom and the left side) or along it ("shear": the bottom clamped, the
-    sides held in y; ``method`` "reference": the monolithic reference): every layer's strain ε is uniform and the bond carries the layers' stresses together,
-    so opening = 3ε + Σ M_i ε / k (M_i = E′_i, or G_i in shear).  The solved result, each layer's closed-form
+    sides held in y; ``method`` "reference": the monolithic reference): every layer's strain ε is uniform and the
+    bond carries the layers' stresses together, so opening = 3ε + Σ M_i ε / k (M_i = E′_i, or G_i in shear).  The solved result, each layer's closed-form
     stress and the bond's jump Σ M_i ε / k."""
     import ddsolve
 

@@ -2,9 +2,9 @@
 
 The control (a load or displacement factor, :func:`ddsolve.solvers.grow.control_kind`) goes from 0 to each target
 of ``--to`` in turn (``--to 0.2`` rises to 0.2; ``--to 0.2,0.05,0.3`` rises to 0.2, unloads to 0.05 and reloads to
-0.3) in steps of at most (the largest target)/``--steps``; each step is the bond's nonlinear problem on Σ from the damage of the step before
-(Newton's method on ``schur``'s interface stiffness, the secant fixed point with the iterative methods:
-:mod:`ddsolve.dd.cohesive`), on blocks factored once for the whole run (:func:`ddsolve.solvers.driver.prepare`,
+0.3) in steps of at most (the largest target)/``--steps``; each step is the bond's nonlinear problem on Σ from the
+damage of the step before (Newton's method on ``schur``'s interface stiffness, the secant fixed point with the
+iterative methods: :mod:`ddsolve.dd.cohesive`), on blocks factored once for the whole run (:func:`ddsolve.solvers.driver.prepare`,
 new loads by :func:`~ddsolve.solvers.driver.reload`).  A step that moves a vertex by more than
 :data:`DAMAGE_STEP` along the law's softening branch (:func:`ddsolve.dd.cohesive.softening`), or whose solve
 fails, is halved (at most :data:`HALVINGS` times), and the step grows back to its size when the damage moves
@@ -78,7 +78,7 @@ class BondGrowth:
         self.setup = driver.prepare(scene, comm, self.base)
         self.nodes = self.base.sigma.multiplier_nodes
         self.solves = 0
-        self.starts: list[tuple[np.ndarray, np.ndarray]] = []  # per recorded step: the (damage, pressed) it started from
+        self.starts: list[tuple[np.ndarray, np.ndarray]] = []  # per recorded step: the (damage, pressed) it began at
 
     def result_of(self, records: list[Step], index: int):
         """The whole result of the recorded step ``records[index]`` solved again from its start (rank 0)."""

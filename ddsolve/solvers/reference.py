@@ -104,8 +104,8 @@ def joint_traces(interface: Interface, closed: np.ndarray) -> np.ndarray:
 def bond_springs(joint: Joint, numbers: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The bond's springs as COO entries (rows, columns, values) of the glued system numbered ``numbers``: on
     every row of compliance c > 0 (:attr:`~ddsolve.dd.interface.Interface.compliance`) the stiffness w/c between
-    the unknowns of its trace entry on u⁻ and on u⁺, the energy ½ (w/c)(u⁻ − u⁺)², whose force on u⁻ is the
-    dual's −W λ with u⁻ − u⁺ = c λ."""
+    the unknowns of its trace entry on u⁻ and on u⁺, the energy ½ (w/c)(u⁻ − u⁺)², whose force on u⁻ is
+    the dual's −W λ with u⁻ − u⁺ = c λ."""
     interface = joint.interface
     rows = np.flatnonzero(interface.compliance > 0.0)
     entries = interface.trace_index[rows]
