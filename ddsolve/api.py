@@ -30,6 +30,7 @@ import numpy as np
 from ddsolve.errors import ArgumentError, DDSolveError, NotConvergedError, SceneError
 from ddsolve.io import hdf5, inputs
 from ddsolve.post.result import Result
+from ddsolve.post.stack import StackResult
 from ddsolve.problem.scene import Scene
 
 #: Seconds the other ranks of an error every rank met wait for the rank that reports it to end the job.
@@ -199,8 +200,9 @@ def solve(scene: Scene | str | Path, comm=None, output: str | Path | None = None
     """Solve ``scene`` by domain decomposition on every rank of ``comm`` (default: MPI.COMM_WORLD; a
     plain ``python`` process is one rank).  With ``mesh.target_error`` the mesh is refined adaptively.
 
-    Returns the same :class:`Result` on every rank; ``output`` (an ``.h5`` path) also writes the result
-    set (the HDF5 file and its viewer files) from rank 0.  ``progress`` receives progress lines on
+    Returns the same :class:`Result` on every rank (a structure of several interfaces: a
+    :class:`ddsolve.post.stack.StackResult`, as :func:`reference` gives); ``output`` (an ``.h5`` path) also
+    writes the result set (the HDF5 file and its viewer files) from rank 0.  ``progress`` receives progress lines on
     rank 0.  Raises :class:`ddsolve.NotConvergedError` (with the result as ``.result``) when the solve
     did not converge, and other :class:`ddsolve.DDSolveError` for what cannot be solved.
     """
@@ -222,9 +224,9 @@ def solve(scene: Scene | str | Path, comm=None, output: str | Path | None = None
     return _read_by(comm.bcast(result, root=0), loaded, scene)
 
 
-def reference(scene: Scene | str | Path, output: str | Path | None = None) -> Result:
+def reference(scene: Scene | str | Path, output: str | Path | None = None) -> Result | StackResult:
     """The monolithic reference: the same discrete problem as one system, solved exactly on this process (a
-    structure of several interfaces gives a :class:`ddsolve.solvers.stacked.StackResult`: each block's
+    structure of several interfaces gives a :class:`ddsolve.post.stack.StackResult`: each block's
     displacements, the energy, each interface's view as a Result, G at every tip of every interface)."""
     from ddsolve.solvers import run
 
@@ -234,8 +236,9 @@ def reference(scene: Scene | str | Path, output: str | Path | None = None) -> Re
     return _read_by(run.reference(loaded, path, progress=_silent), loaded, scene)
 
 
-def load(path: str | Path) -> Result:
-    """Read a result file written by :func:`solve`, :func:`reference`, :func:`ddsolve.io.save` or the CLI."""
+def load(path: str | Path) -> Result | StackResult:
+    """Read a result file written by :func:`solve`, :func:`reference`, :func:`ddsolve.io.save` or the CLI (of
+    several interfaces: a :class:`ddsolve.post.stack.StackResult`)."""
     if not isinstance(path, (str, Path)):
         raise DDSolveError(f"load: a result file's path (got {type(path).__name__})")
     result = hdf5.read(Path(path))

@@ -108,7 +108,7 @@ def _launch(args, petsc_options: list[str], scene_checks: bool) -> None:
     from ddsolve.io import viewer
 
     if scene is not None:
-        check_size(scene, args.ranks)
+        check_size(scene, args.ranks, stacks=True, solid=args.command == "solve")
         output = check_outputs(args, scene)
         outputs = [output, *viewer.viewer_paths(output.parent, output.stem)]
     else:
@@ -139,7 +139,15 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
     scene = comm.bcast(collective(comm, lambda: _load_scene(args), root_only=True), root=0)
     output = comm.bcast(collective(comm, lambda: check_outputs(args, scene), root_only=True), root=0)
     result = run.decomposition(scene, comm, output, progress=_root_print, gather=False)
-    if result is not None:
+    if result is not None and scene.geometry.dimension == 3:
+        print(f"{result.scene.solver.method} (3-D): {result.steps} iterations, {result.closed} closed crack vertices, "
+              f"energy {result.energy:.10g}, {3 * sum(len(u) for u in result.fields)} unknowns, {result.solves} "
+              f"rounds of block solves, {result.timings['total']:.3f} s on {comm.size} ranks -> {output}", flush=True)
+    elif result is not None and scene.geometry.above:  # no error estimate, reactions or viewer files yet
+        print(f"{result.scene.solver.method}: {len(scene.geometry.sigmas)} interfaces, {result.iterations} "
+              f"iterations, energy {result.energy:.10g}, {result.wall_time:.3f} s on {comm.size} ranks -> {output}")
+        print("\n".join(result.fracture.lines()), flush=True)
+    elif result is not None:
         print(f"{result.method}: converged after {result.iterations} iterations{active_set_part(result)}"
               f"{coulomb_part(result)}{bond_part(result)}, "
               f"{result.solves} rounds of block solves, {result.wall_time:.3f} s on {result.ranks} ranks -> {output}",
@@ -281,6 +289,11 @@ def cmd_reference(args, petsc_options: list[str]) -> int:
     scene = _load_scene(args)
     output = check_outputs(args, scene)
     result = run.reference(scene, output, progress=_root_print)
+    if scene.geometry.dimension == 3:
+        print(f"reference (3-D): {result.steps} active-set steps, {result.closed} closed crack vertices, energy "
+              f"{result.energy:.10g}, {3 * sum(len(u) for u in result.fields)} unknowns, "
+              f"{sum(result.timings.values()):.3f} s -> {output}", flush=True)
+        return 0
     if scene.geometry.above:  # no error estimate, reactions or viewer files yet
         print(f"reference: {len(scene.geometry.sigmas)} interfaces, {result.iterations} active-set steps, energy "
               f"{result.energy:.10g}, {result.wall_time:.3f} s -> {output}")
@@ -305,31 +318,57 @@ def estimate_line(result) -> str:
 
 
 def cmd_compare(args, _petsc_options) -> int:
-    from ddsolve.io import hdf5
-    from ddsolve.post import analysis
+    from ddsolve.io import hdf5, solid
+    from ddsolve.post import analysis, stack
 
+    if solid.is_solid(args.result) and solid.is_solid(args.reference):
+        from ddsolve.solvers.solid import comparison
+
+        result, reference = solid.read(args.result), solid.read(args.reference)
+        error, difference, largest = comparison(result, reference)
+        print(f"relative energy-norm error {error:.3e}   max nodal difference {difference:.3e} (max |u| "
+              f"{largest:.3e})   energies {result.energy:.10g} and {reference.energy:.10g}")
+        return 0
     result, reference = hdf5.read(args.result), hdf5.read(args.reference)
-    comparison = analysis.compare(result, reference, (args.result, args.reference))
+    names = (args.result, args.reference)
+    if isinstance(result, stack.StackResult) or isinstance(reference, stack.StackResult):
+        comparison = stack.compare(result, reference, names)
+        same = all(map(analysis.same_meshes, result.interfaces, reference.interfaces))
+        tips = stack.tip_lines(result.fracture, reference.fracture, names)
+    else:
+        comparison, same, tips = analysis.compare(result, reference, names), analysis.same_meshes(result, reference), []
     print(f"relative energy-norm error {comparison.energy_error:.3e}   "
           f"max nodal difference {comparison.max_difference:.3e} (max |u| {comparison.max_displacement:.3e})"
-          + ("" if analysis.same_meshes(result, reference) else "   (on the reference's mesh)"))
+          + ("" if same else "   (on the reference's mesh)"))
+    for line in tips:
+        print(line)
     return 0
 
 
 def cmd_check(args, _petsc_options) -> int:
     from ddsolve.io import hdf5
-    from ddsolve.post import analysis
+    from ddsolve.post import analysis, stack
 
     result = hdf5.read(args.result)
-    c = analysis.constraints(result)
-    tolerance = analysis.tolerance_of(result)
-    violations = c.violations(tolerance)
-    scale = (f"max |u| = {c.max_displacement:.3e}" if c.displacement_scale <= c.max_displacement else
-             f"the data's displacement scale {c.displacement_scale:.3e} (max |u| = {c.max_displacement:.3e})")
-    print(f"{c.summary()}   (scale-free: relative to {scale}, max |mu|, ||K|| ||x||); min mu_c {c.min_mu_c:.3e}")
+    if isinstance(result, stack.StackResult):
+        from ddsolve.solvers import stacked
+
+        checked = list(zip(stacked.check(result), result.interfaces))
+    else:
+        checked = [(analysis.constraints(result), result)]
+    failed = []
+    for number, (c, view) in enumerate(checked, start=1):
+        tolerance = analysis.tolerance_of(view)
+        violations = c.violations(tolerance)
+        scale = (f"max |u| = {c.max_displacement:.3e}" if c.displacement_scale <= c.max_displacement else
+                 f"the data's displacement scale {c.displacement_scale:.3e} (max |u| = {c.max_displacement:.3e})")
+        where = f"interface {number}: " if len(checked) > 1 else ""
+        print(f"{where}{c.summary()}   (scale-free: relative to {scale}, max |mu|, ||K|| ||x||); "
+              f"min mu_c {c.min_mu_c:.3e}")
+        failed += [f"{where}{name}" for name in violations]
     claim = f"the file says converged = {str(result.converged).lower()}"
-    if violations:
-        raise NotConvergedError(f"{args.result}: KKT check failed: {', '.join(violations)} above the tolerance "
+    if failed:
+        raise NotConvergedError(f"{args.result}: KKT check failed: {', '.join(failed)} above the tolerance "
                                 f"{tolerance:g} ({claim})")
     print(f"KKT check passed: every residual within {tolerance:g} ({claim})")
     return 0
@@ -352,32 +391,47 @@ def _scale(text: str | None) -> float | None:
 MAX_DRAWN = 100.0
 
 
+def _check_drawn(text: str, drawn: float) -> None:
+    """Refuse ``--scale text`` if it draws the largest displacement at ``drawn`` > :data:`MAX_DRAWN` domain sizes."""
+    if not drawn <= MAX_DRAWN:
+        raise DDSolveError(f"--scale {text}: draws the largest displacement at {drawn:.3g} times the domain's size "
+                           f"(at most {MAX_DRAWN:g}); leave --scale out to choose it from the data")
+
+
 def cmd_plot(args, _petsc_options) -> int:
     import io as memory
 
     import numpy as np
 
     from ddsolve.io import hdf5
-    from ddsolve.post import analysis, plots
+    from ddsolve.io import solid as solid_files
+    from ddsolve.post import analysis, plots, stack
 
     scale = _scale(args.scale)
+    if solid_files.is_solid(Path(args.result)):
+        return _plot_solid(args, scale)
     result = hdf5.read(args.result)
     stem = Path(args.result).with_suffix("")
     broken = next((name for name, u in result.solution.items() if not np.isfinite(u).all()), None)
     if broken is not None:
         raise DDSolveError(f"{args.result}: /solution/{broken} holds values that are not finite numbers: "
                            "nothing to draw")
+    several = isinstance(result, stack.StackResult)
+    blocks = stack.drawn(result) if several else plots.drawn_blocks(result)
     if scale is not None:
-        points = np.vstack([result.lower.points, result.upper.points])
-        drawn = scale * analysis.largest_displacement(result.solution.values()) / np.ptp(points, axis=0).max()
-        if not drawn <= MAX_DRAWN:
-            raise DDSolveError(f"--scale {args.scale}: draws the largest displacement at {drawn:.3g} times the "
-                               f"domain's size (at most {MAX_DRAWN:g}); leave --scale out to choose it from the data")
-    names = [Path(f"{stem}-{name}.png") for name in ("deformed", "crack-faces", "convergence")]
+        points = np.vstack([block.points for block in blocks])
+        _check_drawn(args.scale, scale * analysis.largest_displacement(result.solution.values())
+                     / np.ptp(points, axis=0).max())
+    views = result.interfaces if several else [result]
+    faces = [f"crack-faces-{number}" for number in range(1, len(views) + 1)] if several else ["crack-faces"]
+    names = [Path(f"{stem}-{name}.png") for name in ("deformed", *faces, "convergence")]
     images = [memory.BytesIO() for _ in names]
-    scale = plots.deformed_layers(result, images[0], scale)
-    plots.crack_faces(result, images[1])
-    plots.convergence([(result.method, result)], images[2])
+    scale = plots.deformed_blocks(blocks, result.scene.layers, images[0],
+                                  (plots.block_magnification(blocks) if several else plots.magnification(result))
+                                  if scale is None else scale, plots.drawn_title(result))
+    for view, image in zip(views, images[1:]):
+        plots.crack_faces(view, image)
+    plots.convergence([(views[0].method, views[0])], images[-1])
     safe.check_targets(names, [Path(args.result)])
     safe.replace_together({path: (lambda name, data=image.getvalue(): Path(name).write_bytes(data))
                          for path, image in zip(names, images)}, final=True)
@@ -385,18 +439,57 @@ def cmd_plot(args, _petsc_options) -> int:
     return 0
 
 
+def _plot_solid(args, scale: float | None) -> int:
+    """``plot`` of a 3-D result: the opening map of Σ and the deformed body."""
+    import io as memory
+
+    import numpy as np
+
+    from ddsolve.io import solid as solid_files
+    from ddsolve.post import solid_plots
+
+    result = solid_files.read(args.result)
+    if scale is not None:
+        size = np.ptp(np.vstack([half.points for half in result.mesh.halves]), axis=0).max()
+        _check_drawn(args.scale, scale * max(float(np.abs(u).max()) for u in result.fields) / size)
+    scale = solid_plots.magnification(result) if scale is None else scale
+    stem = Path(args.result).with_suffix("")
+    names = [Path(f"{stem}-{name}.png") for name in ("opening", "deformed")]
+    images = [memory.BytesIO() for _ in names]
+    solid_plots.opening_map(result, images[0])
+    solid_plots.deformed_body(result, images[1], scale)
+    safe.check_targets(names, [Path(args.result)])
+    safe.replace_together({path: (lambda name, data=image.getvalue(): Path(name).write_bytes(data))
+                           for path, image in zip(names, images)}, final=True)
+    print(f"wrote {', '.join(map(str, names))} (displacements ×{scale:g})")
+    return 0
+
+
 def cmd_export(args, _petsc_options) -> int:
     from ddsolve.io import hdf5
+    from ddsolve.io import solid as solid_files
     from ddsolve.io import viewer
+    from ddsolve.post.stack import StackResult
 
-    result = hdf5.read(args.result)
+    solid = solid_files.is_solid(Path(args.result))
+    if solid and args.format not in solid_files.VIEWER_FORMATS:
+        raise DDSolveError(f"--format {args.format}: a 3-D result is exported as "
+                           f"{' or '.join(solid_files.VIEWER_FORMATS)}")
+    result = solid_files.read(args.result) if solid else hdf5.read(args.result)
     folder = Path(args.output) if args.output is not None else Path(args.result).parent
     if not folder.is_dir():
         raise DDSolveError(f"-o {folder}: " + ("is a file, not a folder: give -o the folder for the viewer files"
                                                if folder.exists() else "no such directory"))
     stem = Path(args.result).stem
-    safe.check_targets(viewer.viewer_paths(folder, stem, args.format), [Path(args.result)])
-    written = hdf5.write_viewer(result, folder, stem, args.format, final=True)
+    if solid or isinstance(result, StackResult):
+        writers = (solid_files.viewer_writers(result, folder, stem, args.format) if solid else
+                   viewer.stack_files(result, folder, stem, args.format))
+        safe.check_targets(list(writers), [Path(args.result)])
+        safe.replace_together(writers, final=True)
+        written = list(writers)
+    else:
+        safe.check_targets(viewer.viewer_paths(folder, stem, args.format), [Path(args.result)])
+        written = hdf5.write_viewer(result, folder, stem, args.format, final=True)
     print("wrote " + ", ".join(map(str, written)))
     return 0
 

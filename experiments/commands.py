@@ -34,9 +34,15 @@ EXPERIMENTS = {
     "stacks": ("stacks", "stacks", "stacked structures against closed forms: the Griffith interface crack between "
                "two materials, bi-material DCB and ENF, the thermal bilayer and its edge delamination",
                "docs/stacks.md, docs/stacks-*.png, results/stacks.h5"),
+    "laminate": ("laminate", "laminate", "a laminate of four plies with two delaminations at two interfaces: G at "
+                 "every tip on three meshes, the picture (also part of stacks)",
+                 "docs/stacks.md (laminate section), docs/stacks-laminate.png, results/stacks-laminate.h5"),
     "interface": ("interface", "interface", "interface laws against closed forms: friction on the faces of a closed "
                   "crack under compression and shear, and between the arms of the ENF",
                   "docs/interface.md, docs/interface-*.png, results/interface.h5"),
+    "three-d": ("three_d", "three_d", "the 3-D reference on a plane scene extruded with rollers: energy per unit "
+                "depth and the crack opening against the plane continuous values, open and partly shut",
+                "docs/three-d.md"),
     "architecture": ("architecture", "architecture", "the package's stages and the imports between them, read "
                      "from the source", "docs/architecture.png"),
 }

@@ -43,7 +43,8 @@ RUNNERS = ("python", "mpiexec", "mpirun", "pvpython", "xvfb-run", "run", "bash",
 #: The in-process solves of a whole structure (the monolithic reference, the DD driver): a test that calls
 #: one is marked ``solve`` (or ``mpi``), which keeps ``-m unit`` the fast loop.
 STRUCTURE_SOLVES = (("ddsolve.solvers.reference", "solve_monolithic"), ("ddsolve.solvers.driver", "solve_decomposed"),
-                    ("ddsolve.solvers.stacked", "solve_stack"))
+                    ("ddsolve.solvers.stacked", "solve_stack"), ("ddsolve.solvers.stacked_dd", "solve"),
+                    ("ddsolve.solvers.solid", "solve_solid"), ("ddsolve.solvers.solid_dd", "solve"))
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:

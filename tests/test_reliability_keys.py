@@ -59,12 +59,14 @@ def cases(folder: Path) -> list[tuple[str, list[str], list[str]]]:
            ("mesh.grading", ["mesh.size=0.5"], ["mesh.grading=true"]),
            ("mesh.target_error", [], ["mesh.target_error=0.25"]),
            ("mesh.refine", ["mesh.sigma_vertices=25"], ["mesh.refine=1"]),
+           ("mesh.extrude", [], ["mesh.extrude=2"]),  # refused in the plane
            ("materials.model", [], ['materials.model="plane_stress"']),
            ("materials.layer1.E", [], ["materials.layer1.E=150.0"]),
            ("materials.layer2.nu", [], ["materials.layer2.nu=0.2"])]
     heated = ["temperature.layer1=100.0"]
     laws = [(ORTHOTROPIC, [], {"E1": "300.0", "E2": "120.0", "G12": "50.0", "nu12": "0.25", "angle": "30.0",
-                               "E3": "150.0", "nu13": "0.2", "nu23": "0.2"}),
+                               "E3": "150.0", "nu13": "0.2", "nu23": "0.2",
+                               "fibre": "[1.0, 0.0, 0.0]"}),  # refused in the plane
             (ANISOTROPIC, [], {"D": "[[300.0, 80.0, 0.0], [80.0, 250.0, 0.0], [0.0, 0.0, 90.0]]",
                                "Dzz": "[100.0, 100.0, 0.0]"}),
             *((ORTHOTROPIC | {other: "2e-5"}, heated, {key: "1e-5"})  # a heated layer gives an expansion
@@ -82,10 +84,12 @@ def cases(folder: Path) -> list[tuple[str, list[str], list[str]]]:
             ("temperature.layer1", ["materials.layer1.alpha=1e-5"], ["temperature.layer1=50.0"]),
             ("displacements.layer1.top.x", [], ["displacements.layer1.top.x=0.001"]),
             ("displacements.layer1.top.y", [], ["displacements.layer1.top.y=0.001"]),
+            ("displacements.layer1.top.z", [], ["displacements.layer1.top.z=0.001"]),  # refused in the plane
             ("displacements.layer1.top.normal", [], ["displacements.layer1.top.normal=0.001"]),
             ("displacements.layer1.pin.point", [], ["displacements.layer1.pin={point=[0.5, 1.0], x=0.001}"])]
     out += [("loads.layer1.top.x", [], ["loads.layer1.top.x=0.01"]),
             ("loads.layer1.top.y", [], ["loads.layer1.top.y=[0.0, -0.05]"]),
+            ("loads.layer1.top.z", [], ["loads.layer1.top.z=0.01"]),  # refused in the plane
             ("loads.layer2.top.pressure", [], ["loads.layer2.top.pressure=0.01"]),
             ("contact.nonpenetration", [], ["contact.nonpenetration=false"]),
             ("contact.friction", [], ["contact.friction=0.5"]),

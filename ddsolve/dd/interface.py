@@ -2,7 +2,9 @@
 
 Every block has the same *trace*: the displacements of the k Σ nodes that are not clamped, in order
 along Σ, each in its local frame (tangential, normal) — a vector of length 2k (for a straight Σ
-along x the frame is (x, y)).  The multipliers are nodal values (densities, as in the paper) stacked
+along x the frame is (x, y)).  On the plane Σ (y = const) of a 3-D box a vertex has d = 3 entries
+(x, ν = y, z: the normal stays component 1) and the trace d k; every vector family below then has three
+components (``components``).  The multipliers are nodal values (densities, as in the paper) stacked
 into one vector λ = [μᶜ | μᵍ | μ⁻ | μ⁺], vectors in the same local frames:
 
 ==========  ======================  ===================  ========================
@@ -15,6 +17,10 @@ multiplier  vertices                gap it enforces      admissible set
 μ_t         crack, with friction    (u⁻ − u⁺)·τ = 0      −g ≤ μ_t ≤ g (and |μ_t| ≤ p)
             (x only: tangential)    unless |μ_t| = g
 ==========  ======================  ===================  ========================
+
+Several interfaces make one :class:`Interface` (:meth:`Interface.joined`): its trace the interfaces' traces
+concatenated, its rows theirs family by family, each row knowing its two blocks of the structure (``row_blocks``)
+and each block the face of every trace entry it holds (``faces``; 0 where it holds none).
 
 A one-layer structure has the blocks u⁻ and u⁺ only, and μᶜ, μᵍ (and μ_t) only: the families that glue a region's
 layers together (μ⁻, μ⁺) come from the pairs :func:`ddsolve.mesh.mesh.glued_layers` lists.
@@ -69,10 +75,11 @@ class Interface:
 
     def __init__(self, weights: np.ndarray, crack: np.ndarray, contact: bool, fixed: np.ndarray | None = None,
                  modulus: float = 0.0, data: float = 0.0, friction: np.ndarray | None = None, coulomb: bool = False,
-                 specs: tuple[BlockSpec, ...] = blocks(2), bond: Bond | None = None):
+                 specs: tuple[BlockSpec, ...] = blocks(2), bond: Bond | None = None, components: int = 2):
         """``weights`` and ``crack`` (bool) of the k multiplier nodes; ``contact``: non-penetration holds;
-        ``specs``: the structure's blocks (:func:`ddsolve.mesh.mesh.blocks`);
-        ``fixed`` ``(blocks, 2k)``: the blocks' prescribed trace entries (:mod:`ddsolve.fem.supports`): a
+        ``specs``: the structure's blocks (:func:`ddsolve.mesh.mesh.blocks`); ``components``: d, the trace
+        entries per vertex (2 in the plane, 3 on a 3-D box's Σ: (τ₁, ν, τ₂), the normal component 1 always);
+        ``fixed`` ``(blocks, d k)``: the blocks' prescribed trace entries (:mod:`ddsolve.fem.supports`): a
         multiplier between two prescribed entries has nothing to enforce and does not exist; ``modulus``:
         the largest elastic modulus of the layers (the scale of the stresses a displacement makes, for the
         KKT check); ``data``: the displacement the scene's data would make
@@ -81,6 +88,7 @@ class Interface:
         law of the bonded vertices (None: rigid), undamaged until :meth:`with_damage`."""
         self.modulus = float(modulus)
         self.data = float(data)
+        self.components = int(components)
         self.weights = np.asarray(weights, dtype=np.float64)
         self.crack = np.asarray(crack, dtype=bool)
         k = len(self.weights)
@@ -94,8 +102,8 @@ class Interface:
         # the order of the class docstring: Σ's faces, each region's layers glued, the friction.
         families = {
             "mu_c": (contact_vertices, np.ones(len(contact_vertices), dtype=np.int64), (U_MINUS, U_PLUS)),
-            "mu_g": (*_both_components(glued_vertices), (U_MINUS, U_PLUS)),
-            **{LAYER_FAMILIES[self.blocks[first].side]: (*_both_components(all_vertices), (first, other))
+            "mu_g": (*self._every_component(glued_vertices), (U_MINUS, U_PLUS)),
+            **{LAYER_FAMILIES[self.blocks[first].side]: (*self._every_component(all_vertices), (first, other))
                for first, other in glued_layers(self.blocks)},
         }
         friction = np.zeros(k) if friction is None else np.asarray(friction, dtype=np.float64)
@@ -106,14 +114,61 @@ class Interface:
         #: holds them: the KKT check measures their penetration from the traces alone.
         self.prescribed_contact = np.zeros(0, dtype=np.int64)
         if fixed is not None:
-            normals = 2 * contact_vertices + 1
+            normals = self.components * contact_vertices + 1
             self.prescribed_contact = normals[fixed[U_MINUS, normals] & fixed[U_PLUS, normals]]
             for name, (vertices, components, pair) in families.items():
-                entries = 2 * vertices + components
+                entries = self.components * vertices + components
                 kept = ~(fixed[pair[0], entries] & fixed[pair[1], entries])
                 families[name] = (vertices[kept], components[kept], pair)
-        #: family -> the blocks (minuend, subtrahend) of its gap
-        self.pairs = {name: pair for name, (_, _, pair) in families.items()}
+        #: ``(blocks, d k)``: the face of Σ each block's trace entry lies on (−1 lower, +1 upper)
+        self.faces = np.array([np.full(self.components * k, spec.side) for spec in self.blocks], dtype=np.int64)
+        self._lay_out({name: (vertices, components, np.broadcast_to(np.array(pair), (len(vertices), 2)))
+                       for name, (vertices, components, pair) in families.items()}, friction, coulomb)
+        self.bond = bond
+        self.damage = np.zeros(k)
+        self.pressed = np.zeros(k, dtype=bool)
+
+    @classmethod
+    def joined(cls, parts: list[Interface], members: list[tuple[int, ...]], specs: tuple[BlockSpec, ...]
+               ) -> Interface:
+        """The interfaces ``parts`` of a structure of several interfaces as one: its trace the parts' traces
+        concatenated (part i's entries follow those of the parts below it), its rows the parts' rows family by
+        family (every μᶜ row first, then μᵍ, ...), ``members[i]``: the structure's block (of ``specs``) of each of
+        part i's blocks.  ``part_rows[i]``: the rows of part i, in its own order.  Neither friction nor a bond."""
+        out = cls.__new__(cls)
+        out.modulus = max(part.modulus for part in parts)
+        out.components = d = parts[0].components
+        out.data = max(part.data for part in parts)
+        out.weights = np.concatenate([part.weights for part in parts])
+        out.crack = np.concatenate([part.crack for part in parts])
+        out.contact = any(part.contact for part in parts)
+        out.blocks = tuple(specs)
+        nodes = np.cumsum([0] + [len(part.weights) for part in parts])
+        out.prescribed_contact = np.concatenate([d * first + part.prescribed_contact
+                                                 for first, part in zip(nodes, parts)])
+        out.faces = np.zeros((len(specs), d * nodes[-1]), dtype=np.int64)
+        families: dict[str, list] = {}
+        for first, part, blocks in zip(nodes, parts, members):
+            for own, block in enumerate(blocks):
+                out.faces[block, d * first:d * first + part.trace_size] = part.faces[own]
+            for name, rows in part.slices.items():
+                families.setdefault(name, []).append((first + part.vertex[rows], part.component[rows],
+                                                      np.asarray(blocks)[part.row_blocks[rows]]))
+        out._lay_out({name: tuple(np.concatenate(column) for column in zip(*lists))
+                      for name, lists in families.items()}, np.zeros(nodes[-1]), False)
+        before = {name: np.cumsum([0] + [part.slices[name].stop - part.slices[name].start for part in parts])
+                  for name in out.slices}  # each family's rows of the parts below
+        out.part_rows = [np.concatenate([np.arange(rows.start, rows.stop) - rows.start + out.slices[name].start
+                                         + before[name][index] for name, rows in part.slices.items()])
+                         for index, part in enumerate(parts)]
+        out.bond, out.damage, out.pressed = None, np.zeros(nodes[-1]), np.zeros(nodes[-1], dtype=bool)
+        return out
+
+    def _lay_out(self, families: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]], friction: np.ndarray,
+                 coulomb: bool) -> None:
+        """The rows of ``families`` (name -> each row's vertex, component and blocks (minuend, subtrahend)), one
+        family after another, and each block's coupling: a row's gap is its minuend's trace less its
+        subtrahend's."""
         self.slices: dict[str, slice] = {}
         start = 0
         for name, (vertices, _, _) in families.items():
@@ -122,23 +177,19 @@ class Interface:
         self.size = start
         self.vertex = np.concatenate([v for v, _, _ in families.values()])
         self.component = np.concatenate([c for _, c, _ in families.values()])
-        self.trace_index = 2 * self.vertex + self.component
+        #: ``(size, 2)``: the blocks (minuend, subtrahend) of each row's gap
+        self.row_blocks = np.concatenate([np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+                                          for _, _, pairs in families.values()])
+        self.trace_index = self.components * self.vertex + self.component
         self.row_weights = self.weights[self.vertex]
         self.is_contact = np.zeros(self.size, dtype=bool)
         self.is_contact[self.slices["mu_c"]] = True
         self._friction_rows(friction, coulomb)
-        self.bond = bond
-        self.damage = np.zeros(k)
-        self.pressed = np.zeros(k, dtype=bool)
-
-        # (family, block, sign): a family's gap rows are its minuend's trace less its subtrahend's.
-        signs = [(name, block, sign) for name, pair in self.pairs.items() for block, sign in zip(pair, (1.0, -1.0))]
         self.couplings = []
-        for block in range(len(self.blocks)):
-            rows = np.concatenate([np.arange(self.size)[self.slices[f]] for f, b, _ in signs if b == block])
-            sign = np.concatenate([np.full(self.slices[f].stop - self.slices[f].start, s)
-                                   for f, b, s in signs if b == block])
-            self.couplings.append(Coupling(rows, self.trace_index[rows], sign))
+        for block in range(len(self.blocks)):  # family after family, as the rows are
+            taking = np.flatnonzero((self.row_blocks == block).any(axis=1))
+            sign = np.where(self.row_blocks[taking, 0] == block, 1.0, -1.0)
+            self.couplings.append(Coupling(taking, self.trace_index[taking], sign))
 
     def _friction_rows(self, friction: np.ndarray, coulomb: bool) -> None:
         """The μ_t rows' data: ``is_friction``, Coulomb's μ or Tresca's g per row, the row of the contact
@@ -153,6 +204,10 @@ class Interface:
         normal[self.vertex[self.slices["mu_c"]]] = np.arange(self.size)[self.slices["mu_c"]]
         self.normal_row = normal[self.vertex[rows]]
         self.slip = None if self.coulomb else self.friction_values.copy()
+
+    def _every_component(self, vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A row per component of each of ``vertices``: their vertices and components."""
+        return np.repeat(vertices, self.components), np.tile(np.arange(self.components), len(vertices))
 
     @property
     def friction(self) -> bool:
@@ -202,7 +257,7 @@ class Interface:
 
     @property
     def trace_size(self) -> int:
-        return 2 * len(self.weights)
+        return self.components * len(self.weights)
 
     def bounds(self, p: float | None) -> tuple[np.ndarray, np.ndarray]:
         """Lower and upper bounds of λ: μᶜ in [0, p], μ_t in [−g, g] (g: :attr:`slip`, 0 where Coulomb's is not
@@ -239,21 +294,23 @@ class Interface:
     def multipliers(self, loads: np.ndarray) -> np.ndarray:
         """The λ with ``self.loads(λ) == loads`` when ``loads`` is in the range of that map.
 
-        v⁻ and v⁺ carry only μ⁻ and μ⁺ (force +W μ); u⁻ carries −W(μᶜν + μᵍ + μ⁻).
+        A row gluing a region's layers is the only one its subtrahend (v⁻, v⁺: force +W μ) carries at its
+        entry; a row of Σ's faces then follows from its minuend's load, −W(μᶜν + μᵍ + the layers' rows it
+        carries there).
         """
         lam = np.zeros(self.size)
-        minus = np.zeros(self.trace_size)  # indexed by trace position: the layer families u⁻ carries
-        for name, (first, other) in self.pairs.items():
+        carried = np.zeros((len(self.blocks), self.trace_size))  # the layers' rows each block carries as minuend
+        for name, rows in self.slices.items():
             if name in SIGMA_FAMILIES:
                 continue
-            rows = self.slices[name]
-            lam[rows] = loads[other][self.trace_index[rows]] / self.row_weights[rows]
-            if first == U_MINUS:
-                minus[self.trace_index[rows]] += lam[rows]
+            first, other = self.row_blocks[rows].T
+            entries = self.trace_index[rows]
+            lam[rows] = loads[other, entries] / self.row_weights[rows]
+            carried[first, entries] += lam[rows]
         for name in SIGMA_FAMILIES:
             rows = self.slices.get(name, slice(0, 0))
-            traces = self.trace_index[rows]
-            lam[rows] = -loads[U_MINUS][traces] / self.row_weights[rows] - minus[traces]
+            first, entries = self.row_blocks[rows, 0], self.trace_index[rows]
+            lam[rows] = -loads[first, entries] / self.row_weights[rows] - carried[first, entries]
         return lam
 
     def dual_matrix(self, flexibilities: np.ndarray) -> np.ndarray:
@@ -268,19 +325,20 @@ class Interface:
         """``(blocks, 2k)``: one interface unknown per trace entry, tied entries sharing it.
 
         Glued vertices tie all the blocks; a crack vertex ties u⁻ with v⁻ (lower face) and u⁺ with
-        v⁺ (upper face), and also the faces' normal components where ``closed`` (per μᶜ row).
+        v⁺ (upper face), and also the faces' normal components where ``closed`` (per μᶜ row).  Entries a block
+        does not hold (:attr:`faces` 0, several interfaces) take the lower face's unknown.
         """
-        k = len(self.weights)
-        lower = np.arange(2 * k)
-        upper = lower + 2 * k
-        glued = np.repeat(~self.crack, 2)
+        k, d = len(self.weights), self.components
+        lower = np.arange(d * k)
+        upper = lower + d * k
+        glued = np.repeat(~self.crack, d)
         upper[glued] = lower[glued]
         if closed is not None:
-            normal = 2 * self.vertex[self.slices["mu_c"]][closed] + 1
+            normal = d * self.vertex[self.slices["mu_c"]][closed] + 1
             upper[normal] = lower[normal]
         _, numbers = np.unique(np.concatenate([lower, upper]), return_inverse=True)
-        lower, upper = numbers[:2 * k], numbers[2 * k:]
-        return np.array([lower if spec.side < 0 else upper for spec in self.blocks])
+        lower, upper = numbers[:d * k], numbers[d * k:]
+        return np.where(self.faces > 0, upper, lower)
 
     def split(self, lam: np.ndarray, frames: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """Per-node arrays: mu_c ``(k,)``, mu_g, mu_minus, mu_plus ``(k, 2)``; 0 where absent (a one-layer
@@ -298,7 +356,7 @@ class Interface:
             out["mu_t"] = np.zeros(k)
             out["mu_t"][self.vertex[self.slices["mu_t"]]] = lam[self.slices["mu_t"]]
         for name in (name for name in self.slices if name not in ("mu_c", "mu_t")):
-            values = np.zeros((k, 2))
+            values = np.zeros((k, self.components))
             rows = self.slices[name]
             values[self.vertex[rows], self.component[rows]] = lam[rows]
             out[name] = values if frames is None else np.einsum("nab,na->nb", frames, values)
@@ -329,7 +387,3 @@ def friction_values(sigma: SigmaLine, friction: Friction) -> np.ndarray:
     for value, (first, last) in zip(friction.per_crack(len(runs)), runs):
         values[first:last + 1] = value
     return values
-
-
-def _both_components(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    return np.repeat(vertices, 2), np.tile(np.array([0, 1]), len(vertices))

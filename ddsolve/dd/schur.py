@@ -193,7 +193,8 @@ class ExactDual:
         normal = interface.trace_index[contact]  # the faces' entries the crack rows act on
         # The crack faces' unknowns the crack rows act on go last: the contact forces act on them only, so with
         # S = L Lᵀ, L⁻¹ Bᵀ lives in the last block of L and A_c = (L_cc⁻¹ B_cᵀ)ᵀ(L_cc⁻¹ B_cᵀ).
-        faces = np.concatenate([unknowns[0][normal], unknowns[1][normal]])
+        minuend, subtrahend = interface.row_blocks[contact].T  # each crack row's lower and upper face
+        faces = np.concatenate([unknowns[minuend, normal], unknowns[subtrahend, normal]])
         last = np.zeros(size, dtype=bool)
         last[faces] = True
         position = np.argsort(last, kind="stable").argsort()
@@ -203,8 +204,8 @@ class ExactDual:
             stiffness[np.ix_(numbers, numbers)] += S_b
         sqrt_w = problem.sqrt_w[contact]
         jump = np.zeros((len(faces), len(normal)))  # B_cᵀ W^½: forces of a unit scaled contact multiplier
-        jump[unknowns[0][normal] - first, np.arange(len(normal))] += sqrt_w
-        jump[unknowns[1][normal] - first, np.arange(len(normal))] -= sqrt_w
+        jump[unknowns[minuend, normal] - first, np.arange(len(normal))] += sqrt_w
+        jump[unknowns[subtrahend, normal] - first, np.arange(len(normal))] -= sqrt_w
         import scipy.linalg  # here, on rank 0: importing it costs every rank 35 ms of its start-up
 
         try:  # in place: the stiffness's memory (rank 0's largest array with the S_b) becomes L
@@ -302,6 +303,7 @@ class ExactDual:
         rhs = loaded.copy()
         rhs[self.first:] -= self.forces @ y_c
         traces = triangular_solve(self.L, rhs, transpose=True)[self.unknowns]
+        traces[self.interface.faces == 0] = 0.0  # entries a block does not hold (several interfaces)
         loads = np.einsum("bij,bj->bi", self.schur_complements, traces) - condensed  # ℓ_b = S_b t_b − g_b
         y = self.problem.sqrt_w * self.interface.multipliers(loads)
         y[self.contact] = y_c
@@ -321,7 +323,9 @@ class ExactDual:
             raise SolverError(f"schur: a multiplier bound solver.p = {problem.solver.p:g} is active, and its exact "
                               "solve needs every block invertible, which floating blocks are not: use solver.method = "
                               "\"feti\" or a larger solver.p")
-        flexibilities = np.linalg.inv(self.schur_complements)
+        flexibilities = np.zeros_like(self.schur_complements)  # G_b = S_b⁻¹ on the entries block b holds
+        for G_b, S_b, held in zip(flexibilities, self.schur_complements, interface.faces != 0):
+            G_b[np.ix_(held, held)] = np.linalg.inv(S_b[np.ix_(held, held)])
         A = interface.dual_matrix(flexibilities) / np.outer(problem.sqrt_w, problem.sqrt_w)
         b = problem.sqrt_w * interface.gap(initial)
 

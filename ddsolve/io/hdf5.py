@@ -15,9 +15,10 @@ import numpy as np
 from ddsolve.errors import ArgumentError, DDSolveError, SceneError
 from ddsolve.io.viewer import FORMATS, Distributed, distributed_files, padded, viewer_files, viewer_paths
 from ddsolve.io.safe import check_targets, hdf5_image, recover, replace_together, same_file
-from ddsolve.mesh.mesh import HalfMesh, Mesh, SigmaLine, blocks
-from ddsolve.post import analysis
+from ddsolve.mesh.mesh import HalfMesh, Mesh, SigmaLine, blocks, region_of
+from ddsolve.post import analysis, stack
 from ddsolve.post.result import OnSigma, Result
+from ddsolve.post.stack import StackResult
 from ddsolve.problem import scene as scenes
 
 MULTIPLIERS = ("mu_c", "mu_g", "mu_minus", "mu_plus")
@@ -122,7 +123,7 @@ def half_datasets(half: HalfMesh, multiplier_nodes: np.ndarray, piece=None, skel
     """``/mesh/<half>/...``: the points, cells, Σ nodes, interface nodes and boundaries of ``half`` (with
     ``piece``, a :class:`~ddsolve.mesh.pieces.Piece` of it: the slabs of its owned nodes and cells, and
     unless not ``skeleton`` Σ's nodes and the boundaries)."""
-    group = f"mesh/{half.name}"
+    group = f"mesh/{region_of(half.side)}"  # a region of several interfaces, too, as the half it is in its result
     out: dict[str, np.ndarray | Slab] = {}
     def numbered(local: np.ndarray) -> np.ndarray:  # the half's node numbers, as the half holds them
         return local if piece is None else piece.nodes[local].astype(local.dtype, copy=False)
@@ -193,20 +194,23 @@ def fracture_datasets(fracture) -> dict[str, np.ndarray]:
     return out
 
 
-def write_stack(path: Path, solved) -> list[Path]:
-    """Write the reference's result of several interfaces (:class:`ddsolve.solvers.stacked.StackResult`) to
-    ``path``: each region's mesh, each block's displacements, ``/fracture`` with each tip's interface, the
-    energy and the check; no viewer files, and :func:`read` refuses it in one line (not read back yet)."""
+def write_stack(path: Path, solved: StackResult) -> list[Path]:
+    """Write a result of several interfaces (:class:`ddsolve.post.stack.StackResult`) to ``path``: each block's
+    displacements (``/solution/u1`` ...), ``/fracture`` with each tip's interface, the energy and the check, and
+    each interface's view as a one-interface result file's layout under ``/interfaces/N`` (N = 1 the lowest:
+    its two regions' meshes, Σ, multipliers, history, G); no viewer files (``ddsolve export`` writes them)."""
     path = Path(path)
-    datasets = {name: values for region in solved.mesh.regions
-                for name, values in ((f"mesh/{region.name}/points", region.points),
-                                     (f"mesh/{region.name}/cells", region.cells))}
-    datasets.update({f"solution/{block}": u for block, u in solved.solution.items()})
+    datasets = {f"solution/{block}": u for block, u in solved.solution.items()}
     datasets.update(fracture_datasets(solved.fracture))
-    root = {"converged": solved.converged, "method": "reference", "scene": solved.scene.text, "message": solved.message,
-            "energy": solved.energy, "interfaces": len(solved.mesh.sigmas), "iterations": solved.iterations,
-            "wall_time": solved.wall_time}
-    part = Part(datasets, {"": root, "timings": dict(solved.timings)})
+    attrs = {}
+    for number, view in enumerate(solved.interfaces, start=1):
+        part = result_part(view, analysis.cell_fields(view))
+        datasets.update({f"interfaces/{number}/{key}": values for key, values in part.datasets.items()})
+        attrs.update({f"interfaces/{number}/{group}".rstrip("/"): values for group, values in part.attrs.items()})
+    root = {"converged": solved.converged, "method": solved.method, "scene": solved.scene.text,
+            "message": solved.message, "energy": solved.energy, "interfaces": len(solved.interfaces),
+            "iterations": solved.iterations, "wall_time": solved.wall_time}
+    part = Part(datasets, {"": root, "timings": dict(solved.timings), **attrs})
     replace_together({path: lambda name: write_part(name, part)}, final=True)
     return [path]
 
@@ -295,16 +299,20 @@ def _room(folder: Path, needed: int) -> bool:
     return stats.f_bavail * stats.f_frsize >= needed + HDF5_OVERHEAD
 
 
-def read(path: Path) -> Result:
-    """Read a result file written by :func:`write`, checking that its parts fit together (one line
-    naming the file and the part otherwise)."""
+def read(path: Path) -> Result | StackResult:
+    """Read a result file written by :func:`write` (or, of several interfaces, by :func:`write_stack`: a
+    :class:`~ddsolve.post.stack.StackResult`), checking that its parts fit together (one line naming the file
+    and the part otherwise)."""
     path = Path(path)
     recover([path])
     scenes.readable(path, "result file")
     try:
         with h5py.File(path, "r") as f:
             runs, interfaces = _runs(f), int(f.attrs.get("interfaces", 1))
-            result = None if runs or interfaces > 1 else _read(f, path)
+            if interfaces > 1 and "interfaces" not in f:
+                raise DDSolveError(f"a result of {interfaces} interfaces written before such files were read back "
+                                   "(no /interfaces): solve it again (ddsolve reference or solve)")
+            result = None if runs else _read_stack(f, path) if "interfaces" in f else _read(f, path)
     except (OSError, KeyError, TypeError, ValueError, IndexError, AttributeError, RuntimeError, MemoryError) as exc:
         raise DDSolveError(f"{path}: not a ddsolve result file ({' '.join(str(exc).split())})") from None
     except DDSolveError as exc:
@@ -312,9 +320,6 @@ def read(path: Path) -> Result:
     if runs:
         raise DDSolveError(f"{path}: the file of a {runs}, not one solve's result: give a result file written by "
                            "solve or reference")
-    if result is None:
-        raise DDSolveError(f"{path}: a result of {interfaces} interfaces (ddsolve reference): reading it back is not "
-                           "done yet; its /fracture, /solution and /mesh are plain HDF5 datasets")
     return result
 
 
@@ -347,7 +352,7 @@ def _dataset(f: h5py.File, name: str) -> h5py.Dataset:
     dataset = f[name]
     if not isinstance(dataset, h5py.Dataset):
         raise DDSolveError(f"{name} is not a dataset")
-    if dataset.size * dataset.dtype.itemsize > READ_LIMIT * os.path.getsize(f.filename) + 2 ** 20:
+    if dataset.size * dataset.dtype.itemsize > READ_LIMIT * os.path.getsize(f.file.filename) + 2 ** 20:
         raise DDSolveError(f"{name} claims {dataset.shape} values, more than the file can hold")
     return dataset
 
@@ -359,7 +364,17 @@ def _indices(values: np.ndarray, count: int, name: str) -> np.ndarray:
     return values.astype(np.int64)
 
 
+def _scene(f: h5py.File) -> scenes.Scene:
+    """The scene a result file holds (its canonical TOML text)."""
+    text = f.attrs["scene"]
+    try:
+        return scenes.loads(text.decode() if isinstance(text, bytes) else str(text), origin="its scene")
+    except SceneError as exc:
+        raise DDSolveError(str(exc)) from None
+
+
 def _read(f: h5py.File, path: Path) -> Result:
+    """The result in ``f`` (a file, or a group of one laid out alike)."""
     sigma_count = len(_array(f, "sigma/points", "f", (None, 2)))
     sigma = SigmaLine(**{key: _array(f, f"sigma/{key}", "f" if key in ("points", "normals", "weights") else "b",
                                      (sigma_count, 2) if key in ("points", "normals") else (sigma_count,))
@@ -379,12 +394,7 @@ def _read(f: h5py.File, path: Path) -> Result:
         halves.append(HalfMesh(points, cells, side, on_sigma, boundaries, named_points))
     mesh = Mesh(*halves, sigma, str(path))
     k = len(sigma.multiplier_nodes)
-    scene_text = f.attrs["scene"]
-    scene_text = scene_text.decode() if isinstance(scene_text, bytes) else str(scene_text)
-    try:
-        scene = scenes.loads(scene_text, origin="its scene")
-    except SceneError as exc:
-        raise DDSolveError(str(exc)) from None
+    scene = _scene(f)
     specs = blocks(scene.geometry.layers)
     solution = {spec.name: _array(f, f"solution/{spec.name}", "f", (len(mesh.half(spec.side).points), 2))
                 for spec in specs}
@@ -424,6 +434,26 @@ def _read(f: h5py.File, path: Path) -> Result:
                     for spec in specs if spec.name in f.get("error/indicator", {})},
         levels={name: _array(f, f"levels/{name}", "f", (None,)) for name in f.get("levels", {})},
     )
+
+
+def _read_stack(f: h5py.File, path: Path) -> StackResult:
+    """A file of :func:`write_stack`: each interface's view read as a one-interface result (its scene the
+    view's: :func:`ddsolve.post.stack.view_scene`), the structure's mesh made of theirs, the blocks' fields."""
+    scene = _scene(f)
+    count = len(scene.geometry.sigmas)
+    if int(f.attrs["interfaces"]) != count or sorted(f["interfaces"]) != [str(n) for n in range(1, count + 1)]:
+        raise DDSolveError(f"/interfaces holds {sorted(f['interfaces'])}, not the scene's {count} interfaces")
+    views = [_read(f[f"interfaces/{number}"], path) for number in range(1, count + 1)]
+    counts = [len(view.mesh.sigma.pieces(view.mesh.sigma.crack)) for view in views]
+    for index, (view, cracks) in enumerate(zip(views, stack.crack_slices(counts))):
+        view.scene = stack.view_scene(scene, index, cracks)
+    mesh = stack.mesh_of_views(scene, views, str(path))
+    solution = {name: _array(f, f"solution/{name}", "f", (len(mesh.regions[region].points), 2))
+                for name, _, region in stack.block_names(scene.geometry.layers, len(mesh.regions))}
+    fracture = _read_fracture(f)
+    return StackResult(scene, mesh, solution, float(f.attrs["energy"]), views, fracture, bool(f.attrs["converged"]),
+                       str(f.attrs.get("message", "")), int(f.attrs["iterations"]),
+                       {k: float(v) for k, v in f["timings"].attrs.items()})
 
 
 # --- /fracture: G at the crack tips, crack faces and contact zones ------------------------------

@@ -9,6 +9,7 @@ returns writers for :func:`ddsolve.io.safe.replace_together`.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 import os
 from importlib import resources
@@ -21,6 +22,7 @@ from ddsolve.errors import DDSolveError
 from ddsolve.problem.schema import LAYERS
 from ddsolve.post import analysis, plots
 from ddsolve.post.result import OnSigma, Result
+from ddsolve.post.stack import StackResult, block_names, cell_fields
 from ddsolve.problem.scene import Friction
 
 #: meshio cell type -> XDMF topology type.
@@ -121,12 +123,7 @@ def layer_share(layer: str, side: int, points: np.ndarray, u: np.ndarray, cells:
         points, displacement, cells = points[own], u[own], layer_numbers(glue, cells.reshape(-1)).reshape(cells.shape)
         first = lower_count + first_node - int(np.count_nonzero(glue.upper_sigma[glued] < first_node))
         first_cell_row = glue.cells[-1] + first_cell
-    cell_data_out = {
-        "stress": tensors(*fields.stress.T, fields.stress_zz),
-        "strain": tensors(fields.strain[:, 0], fields.strain[:, 1], 0.5 * fields.strain[:, 2], fields.strain_zz),
-        "von_mises": fields.von_mises, "energy_density": fields.energy_density,
-        "half": np.full(len(cells), side, dtype=np.int32),
-    }
+    cell_data_out = {**field_arrays(fields), "half": np.full(len(cells), side, dtype=np.int32)}
     extra = [("error_indicator", indicator)] if indicator is not None else []
     for name, values in extra + list((cell_data or {}).items()):
         if name in cell_data_out:
@@ -139,6 +136,13 @@ def layer_share(layer: str, side: int, points: np.ndarray, u: np.ndarray, cells:
     return ViewerMesh(layer, padded(points), "triangle" if cells.shape[1] == 3 else "triangle6", cells,
                       {"displacement": padded(displacement)}, cell_data_out, first, first_cell_row,
                       node_count(glue), glue.cells[-1] + glue.cells[1])
+
+
+def field_arrays(fields: analysis.CellFields) -> dict[str, np.ndarray]:
+    """The per-cell arrays of a block's viewer mesh: stress and strain tensors, von Mises stress, energy density."""
+    return {"stress": tensors(*fields.stress.T, fields.stress_zz),
+            "strain": tensors(fields.strain[:, 0], fields.strain[:, 1], 0.5 * fields.strain[:, 2], fields.strain_zz),
+            "von_mises": fields.von_mises, "energy_density": fields.energy_density}
 
 
 def joined(shares: list[ViewerMesh]) -> ViewerMesh:
@@ -378,17 +382,17 @@ def write_heavy_data(meshes: list[ViewerMesh], name: str) -> None:
 
 def vtu_files(meshes: list[ViewerMesh], folder: Path, stem: str) -> dict[Path, Callable[[str], None]]:
     """A VTU file per viewer mesh."""
-    names = viewer_names(stem, "vtu")
-    return {folder / names[mesh.name]: (lambda name, mesh=mesh: write_vtu(mesh, name)) for mesh in meshes}
+    return {folder / file_name(stem, mesh.name, "vtu"): (lambda name, mesh=mesh: write_vtu(mesh, name))
+            for mesh in meshes}
 
 
 def xdmf_files(meshes: list[ViewerMesh], folder: Path, stem: str) -> dict[Path, Callable[[str], None]]:
     """The arrays of every mesh in ``stem-xdmf.h5``, then an XDMF file per viewer mesh."""
-    heavy, names = f"{stem}-xdmf.h5", viewer_names(stem, "xdmf")
+    heavy = f"{stem}-xdmf.h5"
     writers = {folder / heavy: lambda name: write_heavy_data(meshes, name)}
     for mesh in meshes:
         text = xdmf_text(mesh, heavy)
-        writers[folder / names[mesh.name]] = lambda name, text=text: Path(name).write_text(text, encoding="utf-8")
+        writers[folder / file_name(stem, mesh.name, "xdmf")] = lambda name, text=text: Path(name).write_text(text, encoding="utf-8")
     return writers
 
 
@@ -458,9 +462,14 @@ def result_script(result: Result, folder: Path, files: dict[str, str], fields: d
 VIEWER_MESHES = (*LAYERS, "sigma")
 
 
+def file_name(stem: str, mesh: str, fmt: str) -> str:
+    """The file of viewer mesh ``mesh`` of the result ``stem`` in format ``fmt``."""
+    return f"{stem}-{mesh}.{fmt}"
+
+
 def viewer_names(stem: str, fmt: str = "vtu", layers: tuple[str, ...] = LAYERS) -> dict[str, str]:
     """Viewer mesh -> its file name, for a structure of ``layers`` (a one-layer structure has no layer2 file)."""
-    return {mesh: f"{stem}-{mesh}.{fmt}" for mesh in (*layers, "sigma")}
+    return {mesh: file_name(stem, mesh, fmt) for mesh in (*layers, "sigma")}
 
 
 def viewer_paths(folder: Path, stem: str, fmt: str = "vtu", layers: tuple[str, ...] = LAYERS) -> list[Path]:
@@ -484,6 +493,23 @@ def viewer_files(result: Result, folder: Path, stem: str, fmt: str = "vtu",
     writers = write(meshes, folder, stem)
     writers[folder / f"{stem}-paraview.py"] = lambda name: Path(name).write_text(script, encoding="utf-8")
     return writers
+
+
+def stack_files(stacked: StackResult, folder: Path, stem: str, fmt: str = "vtu"
+                ) -> dict[Path, Callable[[str], None]]:
+    """Path -> writer of the viewer files of a result of several interfaces: a mesh per block (``stem-u1`` ...:
+    its region's cells, its displacement and per-cell fields) and per interface Σ (``stem-sigma1`` ...); no
+    ParaView script."""
+    fields = cell_fields(stacked)
+    meshes = []
+    for name, _, region in block_names(stacked.scene.geometry.layers, len(stacked.mesh.regions)):
+        half = stacked.mesh.regions[region]
+        meshes.append(ViewerMesh(name, padded(half.points), "triangle" if half.degree == 1 else "triangle6",
+                                 half.cells, {"displacement": padded(stacked.solution[name])},
+                                 field_arrays(fields[name])))
+    for number, view in enumerate(stacked.interfaces, start=1):
+        meshes.append(dataclasses.replace(sigma_mesh(view.on_sigma, view.mesh.degree), name=f"sigma{number}"))
+    return viewer_format(fmt).write(meshes, Path(folder), stem)
 
 
 @dataclass(frozen=True)

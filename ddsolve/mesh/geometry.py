@@ -103,18 +103,46 @@ def apportion(total: int, lengths) -> np.ndarray:
 def generate_half(scene: Scene, side: int) -> HalfMesh:
     """One half of the box meshed by gmsh (:func:`_mesh_half`) in a child process (:func:`apart`)."""
     one_interface(scene)
+    if scene.mesh.grading is None:  # Σ divided uniformly between crack tips (a graded mesh refines at the tips)
+        x0, x1, _, _ = scene.geometry.box
+        size = scene.mesh.size
+        check_pieces(scene, size or (x1 - x0) / (scene.mesh.sigma_vertices - 1),
+                     "mesh.size" if size else "mesh.sigma_vertices")
     return apart(_mesh_half, scene, side)
+
+
+#: The shortest piece of a Σ between crack tips (or its ends) a box takes: its elements' size over this.
+FINEST = 100.0
+
+
+def check_pieces(scene: Scene, spacing: float, key: str) -> None:
+    """Refuse, naming ``geometry.cracks``, a piece of a Σ between crack tips (or its ends) shorter than ``spacing``
+    (the Σ elements' size, set by ``key``) / :data:`FINEST`: it would be one element among far longer ones, its
+    triangles slivers."""
+    x0, x1, _, _ = scene.geometry.box
+    finest = spacing / FINEST
+    several = len(scene.geometry.sigmas) > 1
+    for number, cracks in enumerate(scene.geometry.crack_lists, start=1):
+        tips = sorted({x0, *(tip for piece in cracks for tip in piece if x0 < tip < x1), x1})
+        short = next(((a, b) for a, b in zip(tips[:-1], tips[1:]) if b - a < finest), None)
+        if short is not None:
+            which = f"interface {number}'s" if several else "the"
+            raise SceneError(f"{scene.origin}: geometry.cracks: {which} piece "
+                             f"[{short[0]:.10g}, {short[1]:.10g}] of Σ between crack tips is {short[1] - short[0]:.3g} "
+                             f"long, less than 1/{FINEST:g} of its elements' size {spacing:.3g} ({key}): they would be "
+                             f"slivers; refine ({key}) or lengthen the piece")
 
 
 def one_interface(scene: Scene) -> None:
     """Refuse, in one line, to do with a structure of several interfaces what is done for one interface only: it is
     read, checked and meshed (:func:`ddsolve.mesh.stack.build_any`, the ``mesh`` command) and solved by the
-    monolithic reference (:mod:`ddsolve.solvers.stacked`), not yet by the domain decomposition, sweeps, growth or
-    adaptivity."""
+    monolithic reference (:mod:`ddsolve.solvers.stacked`) and the domain decomposition
+    (:mod:`ddsolve.solvers.stacked_dd`), not yet by sweeps, growth or adaptivity."""
     if scene.geometry.above:
         raise SceneError(f"geometry.sigma: {len(scene.geometry.sigmas)} interfaces: a structure of several "
                          "interfaces is meshed (ddsolve mesh) and solved by the monolithic reference (ddsolve "
-                         "reference), not yet by the domain decomposition, sweeps, growth or adaptivity")
+                         "reference) and the domain decomposition (ddsolve solve), not yet by sweeps, growth or "
+                         "adaptivity")
 
 
 def _mesh_half(scene: Scene, side: int) -> HalfMesh:
@@ -309,9 +337,9 @@ def coarse_segments(scene: Scene, levels: int) -> int:
 def estimated_vertices(scene: Scene) -> float | None:
     """About how many vertices :func:`generate_half` makes for both halves of the box (the paper's
     family integrated over its size field, or a uniform ``mesh.size``; P2 nodes counted as vertices of
-    the halved size); None for geometries from files."""
+    the halved size); None for geometries from files and 3-D boxes (:mod:`ddsolve.mesh.solid`)."""
     options = scene.mesh
-    if options.kind != "box":
+    if options.kind != "box" or scene.geometry.dimension == 3:
         return None
     x0, x1, y0, y1 = scene.geometry.box
     width, below, above = x1 - x0, scene.geometry.sigma - y0, y1 - scene.geometry.sigma

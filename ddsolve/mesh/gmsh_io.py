@@ -198,43 +198,10 @@ def from_gmsh(scene: Scene) -> Mesh:
 
 def _from_gmsh(scene: Scene) -> Mesh:
     """Mesh a .geo (honouring ``mesh.size`` and ``mesh.grading``) or read a .msh, both with physical groups."""
-    path, options = scene.mesh.file, scene.mesh
-    where = str(path)
-    if scene.geometry.given:
-        raise MeshError(f"{where}: geometry.{sorted(scene.geometry.given)[0]} does not apply to a geometry "
-                        "with physical groups (they define it)")
-    readable(path, "mesh file", MeshError)
+    options, where = scene.mesh, str(scene.mesh.file)
     with session() as gmsh:
-        if options.kind == "geo":
-            gmsh.option.setNumber("General.NumThreads", 1)
-            gmsh.option.setNumber("Mesh.MaxNumThreads2D", 1)
-        open_file(gmsh, path)
-        groups = physical_groups(gmsh, where)
-        if options.kind == "geo":
-            if options.size is not None:
-                gmsh.option.setNumber("Mesh.MeshSizeMax", options.size)
-            low, high = np.reshape(gmsh.model.getBoundingBox(-1, -1), (2, 3))
-            length = float(np.min((high - low)[:2]))
-            _bounded_curves(gmsh, groups, options.degree, length, where)
-            if options.grading is not None:
-                singular = model_singular_points(gmsh, groups) if options.grading is not None else None
-                set_size_field(gmsh, options, singular, length)
-            try:
-                gmsh.model.mesh.generate(2)
-                if options.degree == 2:
-                    gmsh.model.mesh.setOrder(2)
-            except Exception as exc:
-                raise MeshError(f"{where}: gmsh cannot mesh it ({' '.join(str(exc).split())})") from None
-        tags, coordinates, _ = gmsh.model.mesh.getNodes()
-        points = np.asarray(coordinates, dtype=np.float64).reshape(-1, 3)
-        if np.abs(points[:, 2]).max(initial=0.0) > TOL * max(np.ptp(points[:, :2], axis=0).max(), 1e-300):
-            raise MeshError(f"{where}: the geometry is not planar (z != 0)")
-        points = points[:, :2]
-        position = node_positions(tags)
-        surfaces = {name: _elements(gmsh, groups[(2, name)], (GMSH_TRIANGLE, GMSH_TRIANGLE6), position, where)
-                    for name in ("lower", "upper")}
-        curves = {name: _elements(gmsh, entities, (GMSH_LINE, GMSH_LINE3), position, where)
-                  for (dim, name), entities in groups.items() if dim == 1}
+        groups, points, position = meshed(gmsh, scene, REQUIRED_GROUPS)
+        surfaces, curves = group_elements(gmsh, groups, ("lower", "upper"), position, where)
         normals = _curve_normals(gmsh, groups[(1, SIGMA)], position, len(points)) if options.kind == "geo" else None
         named_points = _named_points(gmsh, groups, points, position)
     cells = surfaces["lower"]
@@ -260,6 +227,51 @@ def _from_gmsh(scene: Scene) -> Mesh:
         old[renumbered[0][renumbered[0] >= 0]] = np.flatnonzero(renumbered[0] >= 0)
         exact = normals[old[lower.sigma]]
     return with_named_points(make_mesh(*halves, where, exact_normals=exact), named_points)
+
+
+def meshed(gmsh, scene: Scene, required: dict[int, tuple[str, ...]]) -> tuple[dict, np.ndarray, np.ndarray]:
+    """The scene's gmsh file opened in the session ``gmsh`` (its physical groups checked: ``required``) and, for a
+    .geo, meshed (``mesh.size``, ``mesh.grading``, ``mesh.degree``): its groups (:func:`physical_groups`), its nodes
+    ``(n, 2)`` and the position of each node tag among them."""
+    path, options = scene.mesh.file, scene.mesh
+    where = str(path)
+    if scene.geometry.given:
+        raise MeshError(f"{where}: geometry.{sorted(scene.geometry.given)[0]} does not apply to a geometry "
+                        "with physical groups (they define it)")
+    readable(path, "mesh file", MeshError)
+    if options.kind == "geo":
+        gmsh.option.setNumber("General.NumThreads", 1)
+        gmsh.option.setNumber("Mesh.MaxNumThreads2D", 1)
+    open_file(gmsh, path)
+    groups = physical_groups(gmsh, where, required)
+    if options.kind == "geo":
+        if options.size is not None:
+            gmsh.option.setNumber("Mesh.MeshSizeMax", options.size)
+        low, high = np.reshape(gmsh.model.getBoundingBox(-1, -1), (2, 3))
+        length = float(np.min((high - low)[:2]))
+        _bounded_curves(gmsh, groups, options.degree, length, where)
+        if options.grading is not None:
+            set_size_field(gmsh, options, model_singular_points(gmsh, groups), length)
+        try:
+            gmsh.model.mesh.generate(2)
+            if options.degree == 2:
+                gmsh.model.mesh.setOrder(2)
+        except Exception as exc:
+            raise MeshError(f"{where}: gmsh cannot mesh it ({' '.join(str(exc).split())})") from None
+    tags, coordinates, _ = gmsh.model.mesh.getNodes()
+    points = np.asarray(coordinates, dtype=np.float64).reshape(-1, 3)
+    if np.abs(points[:, 2]).max(initial=0.0) > TOL * max(np.ptp(points[:, :2], axis=0).max(), 1e-300):
+        raise MeshError(f"{where}: the geometry is not planar (z != 0)")
+    return groups, points[:, :2], node_positions(tags)
+
+
+def group_elements(gmsh, groups: dict[tuple[int, str], list[int]], surfaces: tuple[str, ...], position: np.ndarray,
+                   where: str) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """The triangles of the physical ``surfaces`` and the edges of every physical curve, by name (node indices)."""
+    return ({name: _elements(gmsh, groups[(2, name)], (GMSH_TRIANGLE, GMSH_TRIANGLE6), position, where)
+             for name in surfaces},
+            {name: _elements(gmsh, entities, (GMSH_LINE, GMSH_LINE3), position, where)
+             for (dim, name), entities in groups.items() if dim == 1})
 
 
 def _named_points(gmsh, groups: dict[tuple[int, str], list[int]], points: np.ndarray, position: np.ndarray
@@ -303,7 +315,7 @@ def _bounded_curves(gmsh, groups: dict[tuple[int, str], list[int]], degree: int,
         np.asarray(gmsh.model.mesh.getElementsByType(GMSH_LINE)[1], dtype=np.int64)]].reshape(-1, 2, 3)
     shortest = factor * float(np.linalg.norm(points[:, 1] - points[:, 0], axis=1).min(initial=math.inf))
     vertices = 0.0
-    for surface in groups[(2, "lower")] + groups[(2, "upper")]:
+    for surface in (entity for (dim, _), entities in groups.items() if dim == 2 for entity in entities):
         curves = {abs(tag) for _, tag in gmsh.model.getBoundary([(2, surface)], combined=False)}
         boundary = sum(len(gmsh.model.mesh.getNodes(1, curve, includeBoundary=True)[0]) for curve in curves)
         vertices += VERTICES_PER_BOUNDARY_NODE_SQUARED * (boundary / min(factor, 1.0)) ** 2 * degree ** 2
@@ -324,14 +336,15 @@ def _bounded_curves(gmsh, groups: dict[tuple[int, str], list[int]], degree: int,
 VERTICES_PER_BOUNDARY_NODE_SQUARED = 0.08
 
 
-def physical_groups(gmsh, where: str) -> dict[tuple[int, str], list[int]]:
-    """(dim, name) -> entity tags (points, curves, surfaces); the required groups must exist."""
+def physical_groups(gmsh, where: str, required: dict[int, tuple[str, ...]] = REQUIRED_GROUPS
+                    ) -> dict[tuple[int, str], list[int]]:
+    """(dim, name) -> entity tags (points, curves, surfaces); the ``required`` groups must exist."""
     groups: dict[tuple[int, str], list[int]] = {}
     for dim, tag in gmsh.model.getPhysicalGroups():
         name = gmsh.model.getPhysicalName(dim, tag)
         if dim in (0, 1, 2) and name:
             groups.setdefault((dim, name), []).extend(int(e) for e in gmsh.model.getEntitiesForPhysicalGroup(dim, tag))
-    for dim, names in REQUIRED_GROUPS.items():
+    for dim, names in required.items():
         for name in names:
             if (dim, name) not in groups:
                 kind = "surface" if dim == 2 else "curve"

@@ -316,7 +316,8 @@ class Block:
 
     def largest_displacement(self, x: np.ndarray) -> float:
         """max nodal |x| over the block (``x``: this rank's rows, whole nodes; collective)."""
-        local = float(np.hypot(x[0::2], x[1::2]).max(initial=0.0))
+        size = self.system.block_size
+        local = float(functools.reduce(np.hypot, (x[c::size] for c in range(size))).max(initial=0.0))
         if self.mpi.size == 1:
             return local
         from mpi4py import MPI

@@ -2,6 +2,7 @@
 rank 0 gathers traces (or Schur complements); the other ranks serve rounds until STOP."""
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -35,8 +36,12 @@ class BlockServer:
     """The blocks this rank works on and what a round does with them."""
 
     def __init__(self, blocks: list[Block], exchange: Exchange, piece_dofs: dict[int, np.ndarray] | None = None,
-                 gather: bool = True):
+                 gather: bool = True, positions: dict[int, np.ndarray] | None = None):
+        """``positions``: with several interfaces, each local block's trace entries in the structure's trace
+        (rounds send and return the structure's trace, which a block holds only at these; none: a block's
+        trace is the structure's)."""
         self.blocks, self.exchange, self.gather = blocks, exchange, gather
+        self.positions = positions or {}
         self.solutions: dict[int, np.ndarray] = {}  # led blocks' solutions from the last full solve (``gather``)
         self.piece_dofs = piece_dofs or {}  # local block -> the dofs of this rank's piece of its half
         self.piece_values: dict[int, np.ndarray] = {}  # ... and the last full solve there
@@ -55,16 +60,17 @@ class BlockServer:
                 if command == SCHUR:
                     value = block.schur_complement()
                 elif command in (DIRICHLET, DIAGONAL, CONDENSED, KERNEL_WORK):
-                    trace = (block.dirichlet(loads[i]) if command == DIRICHLET else block.trace_diagonal()
-                             if command == DIAGONAL else self._floating_value(block, command))
+                    trace = (block.dirichlet(self._own(index, loads[i])) if command == DIRICHLET else
+                             block.trace_diagonal() if command == DIAGONAL else self._floating_value(block, command))
                     value = np.concatenate([trace, np.zeros(width - len(trace))]) if block.is_leader else None
                 elif command == SOLVE_HELD:
-                    value = self._solve(index, block, loads[i][:len(loads[i]) // 2], full=True,
-                                        held=loads[i][len(loads[i]) // 2:] if block.floating else None)
+                    given, held = np.split(loads[i], 2)
+                    value = self._solve(index, block, self._own(index, given), full=True,
+                                        held=self._own(index, held) if block.floating else None)
                 else:
-                    value = self._solve(index, block, loads[i], full=command == SOLVE_FULL)
+                    value = self._solve(index, block, self._own(index, loads[i]), full=command == SOLVE_FULL)
                 if block.is_leader:
-                    rows[index] = value
+                    rows[index] = self._spread(index, command, value, width)
         except DDSolveError as exc:
             self.error, failed = str(exc), True
         # Every rank of a block learns whether one of them failed (PETSc errors are collective anyway).
@@ -76,6 +82,25 @@ class BlockServer:
         if not failed:
             for i, index in enumerate(self.exchange.led_blocks):
                 out[i, :-1] = rows[index].ravel()
+        return out
+
+    def _own(self, index: int, values: np.ndarray) -> np.ndarray:
+        """The entries of a structure's trace ``values`` that block ``index`` holds."""
+        return values[self.positions[index]] if index in self.positions else values
+
+    def _spread(self, index: int, command: int, value: np.ndarray, width: int) -> np.ndarray:
+        """A block's round ``value`` on the structure's trace: a Schur complement with zero rows and columns off
+        its entries, a trace with zeros (a diagonal: infinity, no share of a jump) and the numbers after it."""
+        if index not in self.positions:
+            return value
+        at, size = self.positions[index], len(self.positions[index])
+        if command == SCHUR:
+            out = np.zeros((math.isqrt(width),) * 2)
+            out[np.ix_(at, at)] = value
+            return out
+        out = np.full(width, np.inf if command == DIAGONAL else 0.0)
+        out[width - 4:] = value[size:size + 4]  # see result_width
+        out[at] = value[:size]
         return out
 
     @staticmethod
@@ -216,7 +241,7 @@ def drive(setup, server: BlockServer, work) -> tuple[object, ParallelRounds | No
     if not exchange.is_root:
         serve(exchange, server, setup.interface.trace_size, stages)
         return None, None, None
-    rounds = ParallelRounds(exchange, server, setup.interface.trace_size, stages, kernel_traces(setup.mesh))
+    rounds = ParallelRounds(exchange, server, setup.interface.trace_size, stages, setup.kernel_traces())
     value, failure = None, None
     stages["Update"].push()
     try:

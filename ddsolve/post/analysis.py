@@ -58,6 +58,13 @@ def compare(a: Result, b: Result, names: tuple[str, str] = ("the result", "the r
     fine one), ``a`` is first evaluated at ``b``'s nodes with its own shape functions; meshes of
     different domains (a node of one outside the other: see :func:`locate`) are refused, naming the
     results by ``names``; so are results of structures of different layers."""
+    return combined(block_errors(a, b, names).values())
+
+
+def block_errors(a: Result, b: Result, names: tuple[str, str] = ("the result", "the reference")
+                 ) -> dict[str, np.ndarray]:
+    """Per block of ``b``: (‖b‖²_K, ‖a − b‖²_K, max nodal |b|, max nodal |a − b|), ``a`` evaluated on ``b``'s
+    nodes as :func:`compare` does (and refused where it refuses)."""
     if a.blocks != b.blocks:
         raise DDSolveError(f"{names[0]} and {names[1]} are results of different structures ({len(a.scene.layers)} "
                            f"and {len(b.scene.layers)} layers, geometry.layers): compare results of one structure")
@@ -72,16 +79,20 @@ def compare(a: Result, b: Result, names: tuple[str, str] = ("the result", "the r
                                        f"of {them}'s {other.name} half lie outside {me}'s; compare results of one "
                                        "geometry (geometry.box, geometry.sigma, mesh.file)")
         fields = {s.name: interpolate(a.half(s.name), a.solution[s.name], b.half(s.name).points) for s in specs}
-    reference = block_energies(b).sum()
-    error = block_energies(b, difference=fields).sum()
-    largest = max(np.abs(b.solution[s.name]).max() for s in specs)
-    difference = max(np.abs(fields[s.name] - b.solution[s.name]).max() for s in specs)
+    reference, error = block_energies(b), block_energies(b, difference=fields)
+    return {s.name: np.array([reference[k], error[k], np.abs(b.solution[s.name]).max(),
+                              np.abs(fields[s.name] - b.solution[s.name]).max()]) for k, s in enumerate(specs)}
+
+
+def combined(errors) -> Comparison:
+    """The :class:`Comparison` of blocks' :func:`block_errors`: the energy norms summed over the blocks."""
+    reference, error, largest, difference = np.array(list(errors)).T
+    reference, error = reference.sum(), error.sum()
     if reference > 0:
         relative = np.sqrt(error / reference)
     else:  # a zero reference (no load): exact agreement or an infinite relative error
         relative = 0.0 if error == 0 else np.inf
-    return Comparison(float(relative), float(difference), float(largest))
-
+    return Comparison(float(relative), float(difference.max()), float(largest.max()))
 
 
 def local_traces(result: Result) -> np.ndarray:

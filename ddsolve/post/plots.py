@@ -87,6 +87,12 @@ def magnification(result: Result, fraction: float = 0.08) -> float:
     return scale_for(np.ptp(points, axis=0).max(), result.on_sigma.largest, fraction)
 
 
+def block_magnification(blocks: list[Drawn], fraction: float = 0.08) -> float:
+    """:func:`magnification` of the blocks ``blocks`` (:class:`Drawn`)."""
+    points = np.vstack([block.points for block in blocks])
+    return scale_for(np.ptp(points, axis=0).max(), max(np.abs(block.u).max(initial=0.0) for block in blocks), fraction)
+
+
 def scale_for(size: float, largest: float, fraction: float = 0.08) -> float:
     """:func:`magnification` for a domain of ``size`` and a largest nodal displacement ``largest``."""
     if largest == 0.0 or not np.isfinite(largest):
@@ -106,39 +112,58 @@ def one_above_the_other(points: np.ndarray) -> bool:
     return bool(width > 2.0 * height)
 
 
+@dataclass(frozen=True)
+class Drawn:
+    """One block as :func:`deformed_blocks` draws it: its layer, its half's (or region's) nodes and cells, its
+    displacements ``(n, 2)`` and its cells' von Mises stress."""
+
+    layer: str
+    points: np.ndarray
+    cells: np.ndarray
+    u: np.ndarray
+    stress: np.ndarray
+
+
+def drawn_blocks(result: Result) -> list[Drawn]:
+    """The blocks of a result, to draw."""
+    stresses = layer_stresses(result)
+    return [Drawn(spec.layer, result.half(spec.name).points, result.half(spec.name).cells, result.solution[spec.name],
+                  stresses[spec.name]) for spec in result.blocks]
+
+
 def deformed_layers(result: Result, path: Path, scale: float | None = None, heading: str | None = None) -> float:
     """The layers (one panel each), displacements magnified by ``scale`` (from the data by default), cells coloured by
     von Mises stress on a range that ignores the stress singularities (:func:`stress_ceiling`), under
     ``heading`` (default: the scene's title); returns the scale."""
+    return deformed_blocks(drawn_blocks(result), result.scene.layers, path, magnification(result) if scale is None
+                           else scale, drawn_title(result) if heading is None else heading)
+
+
+def deformed_blocks(blocks: list[Drawn], layers: tuple[str, ...], path: Path, scale: float, heading: str) -> float:
+    """:func:`deformed_layers` of ``blocks``: a panel per layer of ``layers``; returns the scale."""
     plt = _pyplot()
-    scale = magnification(result) if scale is None else scale
-    stresses = layer_stresses(result)
-    moved = np.vstack([half.points + scale * result.solution[name] for name in result.solution
-                       for half in [result.half(name)]])
+    moved = np.vstack([block.points + scale * block.u for block in blocks])
     width, height = np.ptp(moved, axis=0)
     wide = one_above_the_other(moved)
     panel = (8.5, 8.5 * height / width) if wide else (4.6 * min(width / height, 1.6), 4.6)
-    layers = result.scene.layers
     fig, axes = plt.subplots(len(layers) if wide else 1, 1 if wide else len(layers), constrained_layout=True,
                              squeeze=False, figsize=(panel[0] + 2.5, len(layers) * (panel[1] + 1.0) + 0.4) if wide
                              else (len(layers) * (panel[0] + 2.2), panel[1] + 1.2))
     for ax, layer in zip(axes.ravel(), layers):
-        title = LAYER_TITLES[layer]
-        names = [spec.name for spec in result.blocks if spec.layer == layer]
-        top = stress_ceiling(np.concatenate([stresses[name] for name in names]))
-        for name in names:
-            half = result.half(name)
-            moved = half.points + scale * result.solution[name]
-            triangles, parent = linear_triangles(half.cells)
-            image = ax.tripcolor(moved[:, 0], moved[:, 1], triangles, facecolors=stresses[name][parent],
+        own = [block for block in blocks if block.layer == layer]
+        top = stress_ceiling(np.concatenate([block.stress for block in own]))
+        for block in own:
+            moved = block.points + scale * block.u
+            triangles, parent = linear_triangles(block.cells)
+            image = ax.tripcolor(moved[:, 0], moved[:, 1], triangles, facecolors=block.stress[parent],
                                  cmap="viridis", vmin=0.0, vmax=top, edgecolors="none")
         fig.colorbar(image, ax=ax, shrink=0.9, label=f"von Mises stress ({STRESS})" if wide else
                      f"von Mises stress ({STRESS}; top: {STRESS_PERCENTILE:g}th percentile)")
-        ax.set_title(f"{title}, displacements ×{scale:g}")
+        ax.set_title(f"{LAYER_TITLES[layer]}, displacements ×{scale:g}")
         ax.set_xlabel(f"x ({LENGTH})")
         ax.set_ylabel(f"y ({LENGTH})")
         ax.set_aspect("equal")
-    fig.suptitle(drawn_title(result) if heading is None else heading, **PLAIN_TEXT)
+    fig.suptitle(heading, **PLAIN_TEXT)
     fig.savefig(path, dpi=130)
     plt.close(fig)
     return scale

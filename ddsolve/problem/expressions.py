@@ -1,4 +1,5 @@
-"""Arithmetic expressions in x and y for loads, read by a small parser: nothing is evaluated as code.
+"""Arithmetic expressions in x and y (and z, in 3-D) for loads, read by a small parser: nothing is evaluated as
+code.
 
 Grammar (``^`` is the power, right-associative and binding tighter than a unary minus)::
 
@@ -6,7 +7,7 @@ Grammar (``^`` is the power, right-associative and binding tighter than a unary 
     term       := unary (("*" | "/") unary)*
     unary      := ("+" | "-") unary | power
     power      := atom ("^" unary)?
-    atom       := number | "x" | "y" | "pi" | function "(" expression ")" | "(" expression ")"
+    atom       := number | "x" | "y" | "z" | "pi" | function "(" expression ")" | "(" expression ")"
     function   := "sin" | "cos" | "exp" | "sqrt"
 
 An :class:`Expression` evaluates on numpy arrays and knows its polynomial degree (None when it is
@@ -29,7 +30,7 @@ import numpy as np
 
 FUNCTIONS = {"sin": np.sin, "cos": np.cos, "exp": np.exp, "sqrt": np.sqrt}
 CONSTANTS = {"pi": math.pi}
-VARIABLES = ("x", "y")
+VARIABLES = ("x", "y", "z")
 #: Bounds no real load meets: characters of an expression, its nesting depth, the degree of a polynomial
 #: (quadrature is exact up to it; a coefficient list has at most MAX_DEGREE + 1 entries).
 MAX_LENGTH = 10_000
@@ -64,16 +65,30 @@ class Expression:
     tree: Node
     coefficients: tuple[float, ...] | None = None  # set for a polynomial in x given by its coefficients
 
-    def __call__(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """Values at the points (x, y) (arrays of one shape)."""
+    def __call__(self, x: np.ndarray, y: np.ndarray, z: np.ndarray | float = 0.0) -> np.ndarray:
+        """Values at the points (x, y, z) (arrays of one shape; a plane scene lies at z = 0, and refuses z)."""
         with np.errstate(all="ignore"):  # the caller checks finiteness and names the key
-            return np.broadcast_to(_evaluate(self.tree, np.asarray(x, float), np.asarray(y, float)),
-                                   np.shape(x)).astype(float)
+            point = {"x": np.asarray(x, float), "y": np.asarray(y, float), "z": np.asarray(z, float)}
+            return np.broadcast_to(_evaluate(self.tree, point), np.shape(x)).astype(float)
 
     @property
     def degree(self) -> int | None:
-        """Total polynomial degree in (x, y), or None if the expression is not a polynomial."""
+        """Total polynomial degree in (x, y, z), or None if the expression is not a polynomial."""
         return _degree(self.tree)
+
+    @property
+    def variables(self) -> set[str]:
+        """The coordinates it reads."""
+        found: set[str] = set()
+
+        def visit(node: Node) -> None:
+            if isinstance(node, str):
+                found.add(node)
+            elif isinstance(node, tuple):
+                for operand in node[1:]:
+                    visit(operand)
+        visit(self.tree)
+        return found
 
     @property
     def constant(self) -> bool:
@@ -270,7 +285,7 @@ def fold(node: tuple, position: int) -> Node:
     if not all(_constant(operand) for operand in node[1:]):
         return node
     with np.errstate(all="ignore"):
-        value = float(_evaluate(node, np.zeros(()), np.zeros(())))
+        value = float(_evaluate(node, dict.fromkeys(VARIABLES, np.zeros(()))))
     if not math.isfinite(value):
         name = "the quotient" if not isinstance(node[-1], float) else _NAMES.get(node[0], f"{node[0]}(...)")
         raise ExpressionError(f"{name} of constants gives {value} (an overflow, a division by zero or a value "
@@ -291,26 +306,26 @@ def fold_chain(operator: str, operands: list[Node], positions: list[int]) -> Nod
     return value
 
 
-def _evaluate(node: Node, x: np.ndarray, y: np.ndarray):
+def _evaluate(node: Node, point: dict[str, np.ndarray]):
     if isinstance(node, float):
         return node
     if isinstance(node, str):
-        return x if node == "x" else y
+        return point[node]
     operator, *operands = node
     if operator == "+":
-        value = _evaluate(operands[0], x, y)
+        value = _evaluate(operands[0], point)
         for operand in operands[1:]:
-            value = np.add(value, _evaluate(operand, x, y))
+            value = np.add(value, _evaluate(operand, point))
         return value
     if operator == "*":
-        value = _evaluate(operands[0], x, y)
+        value = _evaluate(operands[0], point)
         for operand in operands[1:]:
             if isinstance(operand, tuple) and operand[0] == "inv":
-                value = np.true_divide(value, _evaluate(operand[1], x, y))
+                value = np.true_divide(value, _evaluate(operand[1], point))
             else:
-                value = np.multiply(value, _evaluate(operand, x, y))
+                value = np.multiply(value, _evaluate(operand, point))
         return value
-    values = [_evaluate(operand, x, y) for operand in operands]
+    values = [_evaluate(operand, point) for operand in operands]
     if operator in FUNCTIONS:
         return FUNCTIONS[operator](values[0])
     if operator == "neg":
@@ -339,7 +354,7 @@ def _degree(node: Node) -> int | None:
     a, b = degrees
     if b != 0:
         return None
-    exponent = float(_evaluate(operands[1], np.zeros(1), np.zeros(1)))
+    exponent = float(_evaluate(operands[1], dict.fromkeys(VARIABLES, np.zeros(1))))
     if a == 0:
         return 0
     if exponent >= 0 and exponent == int(exponent):

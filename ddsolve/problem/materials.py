@@ -45,6 +45,7 @@ class Orthotropic:
     nu23: float | None = None
     alpha1: float = 0.0  # thermal expansion along the fibres
     alpha2: float = 0.0  # across them, in the plane and out of it
+    fibre: tuple[float, float, float] | None = None  # 3-D only: the fibre direction (x, y, z), replacing angle
 
 
 @dataclass(frozen=True)
@@ -211,6 +212,12 @@ def _rotate_about_z(C: np.ndarray, angle: float) -> np.ndarray:
     """Rotate a 6×6 Voigt stiffness by ``angle`` (radians) about z, as a fourth-order tensor."""
     if angle == 0.0:
         return C
+    cos, sin = math.cos(angle), math.sin(angle)
+    return _rotated(C, np.array([[cos, -sin, 0.0], [sin, cos, 0.0], [0.0, 0.0, 1.0]]))
+
+
+def _rotated(C: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """A 6×6 Voigt stiffness given in the frame of ``R``'s columns, as a fourth-order tensor in x, y, z."""
     pairs = [(0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1)]
     tensor = np.zeros((3, 3, 3, 3))
     for I, (i, j) in enumerate(pairs):
@@ -218,10 +225,54 @@ def _rotate_about_z(C: np.ndarray, angle: float) -> np.ndarray:
             for a, b in {(i, j), (j, i)}:
                 for c, d in {(k, l), (l, k)}:
                     tensor[a, b, c, d] = C[I, J]
-    cos, sin = math.cos(angle), math.sin(angle)
-    R = np.array([[cos, -sin, 0.0], [sin, cos, 0.0], [0.0, 0.0, 1.0]])
     rotated = np.einsum("ia,jb,kc,ld,abcd->ijkl", R, R, R, R, tensor)
     return np.array([[rotated[i, j, k, l] for k, l in pairs] for i, j in pairs])
+
+
+def fibre_direction(material: Orthotropic) -> np.ndarray:
+    """The unit fibre direction in 3-D: ``fibre`` normalised, else ``angle`` degrees from x towards y (about z, as in
+    the plane)."""
+    if material.fibre is not None:
+        fibre = np.asarray(material.fibre, dtype=float)
+        fibre = fibre / np.abs(fibre).max()  # first to about 1: the norm of huge or tiny numbers over- or underflows
+        return fibre / np.linalg.norm(fibre)
+    angle = math.radians(material.angle)
+    return np.array([math.cos(angle), math.sin(angle), 0.0])
+
+
+def _fibre_frame(fibre: np.ndarray) -> np.ndarray:
+    """A rotation whose first column is the unit ``fibre`` (the other two: any right-handed orthonormal pair)."""
+    helper = np.eye(3)[np.argmin(np.abs(fibre))]
+    second = np.cross(helper, fibre)
+    second /= np.linalg.norm(second)
+    return np.column_stack([fibre, second, np.cross(fibre, second)])
+
+
+def solid_stiffness(material: Isotropic | Orthotropic) -> np.ndarray:
+    """The 6×6 Voigt stiffness (engineering shears) of a 3-D body: isotropic, or a transversely isotropic ply about
+    its fibre (:func:`fibre_direction`): E3 = E2, ν13 = ν12, G13 = G12 and G23 = E2/(2(1 + ν23)), ν23 defaulting to
+    ν12."""
+    if isinstance(material, Isotropic):
+        return stiffness_3d(material)
+    m = material
+    nu23 = m.nu12 if m.nu23 is None else m.nu23
+    S = np.zeros((6, 6))
+    S[:3, :3] = [[1.0 / m.E1, -m.nu12 / m.E1, -m.nu12 / m.E1],
+                 [-m.nu12 / m.E1, 1.0 / m.E2, -nu23 / m.E2],
+                 [-m.nu12 / m.E1, -nu23 / m.E2, 1.0 / m.E2]]
+    S[[3, 4, 5], [3, 4, 5]] = [2.0 * (1.0 + nu23) / m.E2, 1.0 / m.G12, 1.0 / m.G12]
+    check_positive_definite(S, "the transversely isotropic compliance (E1, E2, G12, nu12, nu23)")
+    return _rotated(np.linalg.inv(S), _fibre_frame(fibre_direction(m)))
+
+
+def solid_expansion(material: Isotropic | Orthotropic) -> np.ndarray:
+    """The 3-D eigenstrain per unit temperature change ``(6,)`` (Voigt, engineering shears): α I, or
+    α2 I + (α1 − α2) f ⊗ f about the fibre f."""
+    if isinstance(material, Isotropic):
+        return expansion(material)
+    f = fibre_direction(material)
+    along = np.array([f[0] ** 2, f[1] ** 2, f[2] ** 2, 2.0 * f[1] * f[2], 2.0 * f[0] * f[2], 2.0 * f[0] * f[1]])
+    return material.alpha2 * np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0]) + (material.alpha1 - material.alpha2) * along
 
 
 def von_mises(stress: np.ndarray, szz: np.ndarray) -> np.ndarray:

@@ -1,13 +1,16 @@
 """Input text and files for messages and reading: text made printable for a one-line message, excerpts of
-long text, a file checked readable before any reader opens it, UTF-8 text with its first bad byte named."""
+long text, a file checked readable before any reader opens it, UTF-8 text with its first bad byte named, the
+structure a gmsh file of several interfaces gives a scene (its physical groups' names)."""
 from __future__ import annotations
 
 import codecs
 import os
+import re
 import stat
+from dataclasses import dataclass
 from pathlib import Path
 
-from ddsolve.errors import DDSolveError
+from ddsolve.errors import DDSolveError, SceneError
 
 
 def excerpt(text: str, position: int, width: int = 60) -> str:
@@ -63,3 +66,65 @@ def utf8_text(path: Path, what: str, error: type[DDSolveError] = DDSolveError) -
         raise error(f"{printable(str(path))}: {what} is not UTF-8 text: byte 0x{data[at]:02x} at line {line}, "
                     f"column {column} (byte offset {at}); save it as UTF-8") from None
 
+
+
+#: A gmsh file's physical groups of several interfaces: curves ``sigma1``, ``sigma2``, ... and ``crack1``, ...
+NUMBERED_SIGMA, NUMBERED_CRACK = re.compile(r"sigma(\d+)"), re.compile(r"crack(\d+)")
+#: Physical group kinds of a .geo file by dimension.
+GEO_GROUPS = re.compile(r'Physical\s+(Point|Line|Curve|Surface)\s*\(\s*"([^"]*)"')
+
+
+@dataclass(frozen=True)
+class FileStructure:
+    """A gmsh file of several interfaces: their number and its region surfaces, bottom to top."""
+
+    interfaces: int
+    regions: tuple[str, ...]
+
+
+def physical_names(path: Path) -> dict[int, list[str]]:
+    """The physical groups' names of a gmsh file by dimension, in the file's order: a .geo's ``Physical Curve("name")``
+    ... (its text), a .msh's ``$PhysicalNames`` (by tag); nothing for a file that cannot be read."""
+    try:
+        data = readable(path, "mesh file").read_bytes()  # a FIFO or a folder is not read (its checks say so)
+    except (DDSolveError, OSError):
+        return {}
+    names: dict[int, list[str]] = {}
+    if Path(path).suffix.lower() == ".geo":
+        dims = {"Point": 0, "Line": 1, "Curve": 1, "Surface": 2}
+        for kind, name in GEO_GROUPS.findall(data.decode("utf-8", "replace")):
+            names.setdefault(dims[kind], []).append(name)
+        return names
+    start, stop = data.find(b"$PhysicalNames"), data.find(b"$EndPhysicalNames")
+    rows = [line.split(maxsplit=2) for line in data[start:stop].decode("utf-8", "replace").splitlines()[2:]]
+    for dim, tag, name in sorted((int(row[0]), int(row[1]), row[2].strip().strip('"')) for row in rows
+                                 if len(row) == 3 and row[0].isdigit() and row[1].isdigit()):
+        names.setdefault(dim, []).append(name)
+    return names
+
+
+def file_structure(path: Path, where: str) -> FileStructure | None:
+    """The structure of a gmsh file with curves ``sigma1`` ... ``sigmaN`` (and ``crack1`` ...), its region surfaces
+    listed bottom to top; None for a file of one interface (``sigma``).  A file that mixes the forms, skips a
+    number, names a crack of no interface or has another count of surfaces than N + 1 is refused in one line."""
+    names = physical_names(path)
+    curves, surfaces = names.get(1, []), names.get(2, [])
+    numbered = sorted(int(match[1]) for match in map(NUMBERED_SIGMA.fullmatch, curves) if match)
+    if not numbered:
+        return None
+    if "sigma" in curves or "crack" in curves:
+        raise SceneError(f"{where}: physical curves {'sigma' if 'sigma' in curves else 'crack'} and sigma1: name "
+                         "one interface sigma (and crack), several sigma1, sigma2, ... (and crack1, ...)")
+    missing = next((k for k in range(1, numbered[-1] + 1) if k not in numbered), None)
+    if missing is not None:
+        raise SceneError(f"{where}: physical curve sigma{numbered[-1]} without sigma{missing}: number the interfaces "
+                         "sigma1, sigma2, ... bottom to top")
+    stray = next((name for name in curves if (match := NUMBERED_CRACK.fullmatch(name))
+                  and int(match[1]) not in numbered), None)
+    if stray is not None:
+        raise SceneError(f"{where}: physical curve {stray} lies on no interface (no sigma{stray[5:]})")
+    if len(surfaces) != len(numbered) + 1:
+        raise SceneError(f"{where}: {len(numbered)} interfaces (sigma1 ... sigma{len(numbered)}) cut Ω into "
+                         f"{len(numbered) + 1} regions, and the file has {len(surfaces)} physical surfaces "
+                         f"({', '.join(map(printable, surfaces))}): one per region, bottom to top")
+    return FileStructure(len(numbered), tuple(surfaces))

@@ -8,24 +8,29 @@ from typing import Sequence
 from ddsolve.errors import SceneError
 from ddsolve.problem import materials
 from ddsolve.problem.method_options import OPTIONS
-from ddsolve.problem.reading import printable
-from ddsolve.problem.schema import (ADAPTIVE_DEGREE, DEFAULT_TOL, GEOMETRIC_TOLERANCE, GRADING, LAWS,
-                                    MAX_SPACING_RATIO, PAPER_CRACK, STRUCTURE_KEYS, PerInterface, layer_material,
+from ddsolve.problem.reading import FileStructure, printable
+from ddsolve.problem.schema import (ADAPTIVE_DEGREE, DEFAULT_TOL, DEPTH_SIDES, GEOMETRIC_TOLERANCE, GRADING,
+                                    LAWS, MAX_SPACING_RATIO, SIDES, PAPER_CRACK, STRUCTURE_KEYS, PerInterface, layer_material,
                                     region_names,
                                     layers_of)
 
 
-def cross_checks(data: dict, raw: dict, origin: str) -> None:
-    """Rules between keys; fills in the defaults that depend on other keys."""
+def cross_checks(data: dict, raw: dict, origin: str, structure: FileStructure | None = None) -> None:
+    """Rules between keys; fills in the defaults that depend on other keys (``structure``: that of a gmsh file of
+    several interfaces, :func:`ddsolve.problem.reading.file_structure`)."""
     given = set(raw.get("geometry", {})) - set(STRUCTURE_KEYS) if isinstance(raw.get("geometry"), dict) else set()
+    _plane_checks(data, origin)
     _geometry_checks(data["geometry"], given, origin)
+    data["geometry"]["regions"] = structure.regions if structure else ()
+    if structure:  # the file's interfaces: their lines and cracks are its curves (no heights here)
+        data["geometry"]["above"] = [(data["geometry"]["sigma"], [])] * (structure.interfaces - 1)
     _several_interfaces_checks(data, raw, origin)
     _mesh_checks(data["mesh"], data["geometry"], raw, given, origin)
     _material_checks(data, origin)
     _load_checks(data, origin)
     _displacement_checks(data, origin)
     _temperature_checks(data, origin)
-    _solver_checks(data, origin)
+    solver_checks(data, origin)
     _radii_checks(data, origin)
     _toughness_checks(data, origin)
     _split_checks(data, origin)
@@ -37,6 +42,48 @@ def cross_checks(data: dict, raw: dict, origin: str) -> None:
             coulomb if isinstance(coulomb, tuple) else (coulomb,), default=0.0) > 0.0:
         raise SceneError(f"{origin}: contact.friction (Coulomb) is not solved with interface.law: give the crack "
                          "faces Tresca's contact.slip_bound, or no friction")
+
+
+def _plane_checks(data: dict, origin: str) -> None:
+    """What only a 3-D box (``geometry.box`` of 6 numbers) takes is refused in a plane scene: rectangle cracks,
+    ``mesh.extrude``, the front and back sides, z components."""
+    geometry = data["geometry"]
+    for key, pieces in (("crack", [geometry["crack"]] if geometry["crack"] else []),
+                        ("cracks", _flat_pieces(geometry["cracks"]))):
+        if any(len(piece) == 4 for piece in pieces):
+            raise SceneError(f"{origin}: geometry.{key}: a rectangle crack [a, b, c, d] needs a 3-D box "
+                             "(geometry.box = [x0, x1, y0, y1, z0, z1]); a plane crack is [a, b]")
+    depth = [side for side in geometry["clamped"] if side in DEPTH_SIDES]
+    if depth:
+        raise SceneError(f"{origin}: geometry.clamped: {depth[0]!r} is a side of a 3-D box (geometry.box = "
+                         "[x0, x1, y0, y1, z0, z1]); a plane box has " + ", ".join(SIDES))
+    if data["mesh"]["extrude"] is not None:
+        raise SceneError(f"{origin}: mesh.extrude: extrudes a plane section into a 3-D box (geometry.box = "
+                         "[x0, x1, y0, y1, z0, z1]); a plane scene is not extruded")
+    for section in ("loads", "displacements"):
+        for layer, tables in data.get(section, {}).items():
+            for name, table in tables.items():
+                key = f"{section}.{layer}.{printable(name)}"
+                if table["z"] is not None:
+                    raise SceneError(f"{origin}: {key}.z: a plane scene has no z component (a 3-D box has: "
+                                     "geometry.box = [x0, x1, y0, y1, z0, z1])")
+                _refuse_depth([(f"{key}.{part}", value) for part, value in table.items() if part != "point"], origin)
+    _refuse_depth([(f"temperature.{layer}", value) for layer, value in data.get("temperature", {}).items()], origin)
+
+
+def _refuse_depth(expressions: list, origin: str) -> None:
+    """The (key, expression or None) pairs of a plane scene read x and y only."""
+    for key, value in expressions:
+        if value is not None and "z" in value.variables:
+            raise SceneError(f"{origin}: {key}: a plane scene's expressions take x and y (z is a 3-D box's "
+                             "coordinate: geometry.box = [x0, x1, y0, y1, z0, z1])")
+
+
+def _flat_pieces(cracks) -> list:
+    """Every crack of ``geometry.cracks`` (one list, or one list per interface), or none."""
+    if not cracks:
+        return []
+    return [piece for group in cracks for piece in group] if isinstance(cracks, PerInterface) else list(cracks)
 
 
 def _geometry_checks(geometry: dict, given: set[str], origin: str) -> None:
@@ -56,27 +103,33 @@ def _geometry_checks(geometry: dict, given: set[str], origin: str) -> None:
     lists = _crack_lists(geometry, given, len(heights), origin)
     for cracks in lists:
         _check_cracks(cracks, geometry["box"], crack_key, origin)
-    _check_apart([y0, *heights, y1], geometry["box"], "geometry.sigma", "of the box's y range (interfaces, sides)",
+    check_apart([y0, *heights, y1], geometry["box"], "geometry.sigma", "of the box's y range (interfaces, sides)",
                  "move or remove an interface", origin)
     geometry["sigma"], geometry["cracks"] = heights[0], lists[0]
     geometry["above"] = list(zip(heights[1:], lists[1:]))
     del geometry["crack"]
 
 
-#: The mesh keys a structure of several interfaces takes: its regions are meshed with pieces of about mesh.size.
+#: The mesh keys a structure of several interfaces takes: its regions are meshed with pieces of about mesh.size
+#: (a gmsh file's with its own sizes, or mesh.size where given).
 STACK_MESH_KEYS = ("size", "degree")
 
 
 def _several_interfaces_checks(data: dict, raw: dict, origin: str) -> None:
-    """A structure of several interfaces is the built-in box meshed with ``mesh.size`` and no point supports."""
+    """A structure of several interfaces is the built-in box meshed with ``mesh.size``, or a gmsh file, with no
+    point supports."""
     if not data["geometry"]["above"]:
         return
     written = raw["mesh"] if isinstance(raw.get("mesh"), dict) else {}
-    other = next((key for key in written if key not in STACK_MESH_KEYS), None)
-    if other is not None or data["mesh"]["size"] is None:
+    from_file = bool(data["geometry"]["regions"])
+    other = next((key for key in written if key not in STACK_MESH_KEYS + ("file",) * from_file), None)
+    if other is not None or data["mesh"]["size"] is None and not from_file:
         key = f"mesh.{other}" if other is not None else "mesh.size"
-        raise SceneError(f"{origin}: {key}: a structure of several interfaces (geometry.sigma = [y1, y2, ...]) is "
-                         "the built-in box meshed with mesh.size (and mesh.degree) only")
+        raise SceneError(f"{origin}: {key}: " + ("the several interfaces of a gmsh file (sigma1, sigma2, ...) are "
+                                                 "meshed from the file with mesh.size and mesh.degree only" if from_file
+                                                 else "a structure of several interfaces (geometry.sigma = [y1, y2, "
+                                                 "...]) is the built-in box meshed with mesh.size (and mesh.degree) "
+                                                 "only"))
     points = [f"displacements.{layer}.{name}.point" for layer, tables in data.get("displacements", {}).items()
               for name, table in tables.items() if table["point"] is not None]
     if points:
@@ -111,11 +164,11 @@ def _check_cracks(cracks: list, box: Sequence[float], key: str, origin: str) -> 
     for a, b in cracks:
         if a < x0 or b > x1:
             raise SceneError(f"{origin}: {key}: the crack [{a:g}, {b:g}] leaves the box's x range [{x0:g}, {x1:g}]")
-    _check_apart([x0, x1, *(tip for piece in cracks for tip in piece)], box, key, "of Σ (crack tips, box ends)",
+    check_apart([x0, x1, *(tip for piece in cracks for tip in piece)], box, key, "of Σ (crack tips, box ends)",
                  "lengthen, move or remove the crack", origin)
 
 
-def _check_apart(values: list[float], box: Sequence[float], key: str, what: str, remedy: str, origin: str) -> None:
+def check_apart(values: list[float], box: Sequence[float], key: str, what: str, remedy: str, origin: str) -> None:
     """The coordinates ``values`` (points ``what``) are farther apart than the meshing tolerance."""
     x0, x1, y0, y1 = box
     breaks = sorted(set(values))
@@ -168,6 +221,9 @@ def _material_checks(data: dict, origin: str) -> None:
         given = [(f"materials.{layer}", table)] + [(f"materials.{layer}.{region}", inner)
                                                    for region, inner in table.items() if isinstance(inner, dict)]
         for key, material in given:
+            if material.get("fibre") is not None:
+                raise SceneError(f"{origin}: {key}.fibre: a fibre direction in 3-D (a 6-number geometry.box); in the "
+                                 "plane give angle")
             try:
                 D, _ = materials.elasticity(layer_material(material), model)
             except materials.MaterialError as exc:
@@ -184,8 +240,8 @@ def acting_tables(data: dict, layer: str) -> dict[str, tuple[str, dict]]:
 
 
 def _regions(data: dict) -> tuple[str, ...]:
-    """The regions of Ω of a scene whose geometry is checked, bottom to top."""
-    return region_names(len(data["geometry"]["above"]) + 2)
+    """The regions of Ω of a scene whose geometry is checked, bottom to top (a gmsh file's own names)."""
+    return tuple(data["geometry"].get("regions", ())) or region_names(len(data["geometry"]["above"]) + 2)
 
 
 def dissimilar_layers(data: dict, thermal: bool = True) -> list[str]:
@@ -248,7 +304,7 @@ def _load_checks(data: dict, origin: str) -> None:
                                  "(a pressure acts along the normal)")
 
 
-def _solver_checks(data: dict, origin: str) -> None:
+def solver_checks(data: dict, origin: str) -> None:
     """The method's step, its stopping rule and the rule's tolerance."""
     solver, method = data["solver"], OPTIONS[data["solver"]["method"]]
     if method.step and solver["theta"] is None:

@@ -28,12 +28,13 @@ from ddsolve.errors import SceneError
 from ddsolve.problem import expressions, materials
 from ddsolve.problem.expressions import Expression
 from ddsolve.problem.overrides import REPLACES, apply_overrides, dumps, override_items, parse_override
-from ddsolve.problem.reading import printable, readable, utf8_text
+from ddsolve.problem.reading import file_structure, printable, readable, utf8_text
 from ddsolve.problem.rules import COARSE, CONDITIONING, SAME_COMPONENT, coarse_size, cross_checks
+from ddsolve.problem.solid_rules import solid_checks
 from ddsolve.problem.schema import (ADAPTIVE_DEGREE, DEFAULT_TOL, GEOMETRIC_TOLERANCE,
                                     GRADING, LAWS, LAYERS, MAX_ANGLE, MAX_SPACING_RATIO, OPTIONAL_TABLES,
                                     PAPER_BOX, PAPER_CRACK, REGIONS, REQUIRED, SCHEMA, SIDES, STOP_RULES, Invalid,
-                                    STRUCTURE_KEYS, Tables, check_table, layer_material, layers_of,
+                                    STRUCTURE_KEYS, Tables, check_table, is_solid, layer_material, layers_of,
                                     region_materials, region_names, structure_schema)
 
 
@@ -48,21 +49,30 @@ __all__ = ["ADAPTIVE_DEGREE", "COARSE", "CONDITIONING", "DEFAULT_TOL",
 
 @dataclass(frozen=True)
 class Geometry:
-    """A box (x0, x1, y0, y1) cut by Σ at height ``sigma``, cracks as x intervals on Σ, clamped sides.
+    """A box (x0, x1, y0, y1) cut by Σ at height ``sigma``, cracks as x intervals on Σ, clamped sides; a 3-D
+    box (x0, x1, y0, y1, z0, z1) has its cracks as rectangles (a, b, c, d): a < x < b, c < z < d on Σ.
 
     A ``.geo`` or ``.msh`` file with physical groups replaces all of it but ``layers``; ``given`` lists the
     box's keys the scene wrote, so that such a file can refuse them.
     """
 
-    box: tuple[float, float, float, float] = PAPER_BOX
+    box: tuple[float, ...] = PAPER_BOX
     sigma: float = 0.0
-    cracks: tuple[tuple[float, float], ...] = (PAPER_CRACK,)
+    cracks: tuple[tuple[float, ...], ...] = (PAPER_CRACK,)
     clamped: tuple[str, ...] = ("left", "right")
     #: 2: two sheets (layer1 and layer2) glued on Σ; 1: one body (layer1) cut by Σ.
     layers: int = 2
     given: frozenset[str] = field(default=frozenset(), compare=False)
-    #: The interfaces above the first (``sigma``, ``cracks``), bottom to top: (height, cracks) each.
+    #: The interfaces above the first (``sigma``, ``cracks``), bottom to top: (height, cracks) each (a gmsh file's:
+    #: placeholders, its curves give them).
     above: tuple[tuple[float, tuple[tuple[float, float], ...]], ...] = ()
+    #: A gmsh file's region surfaces, bottom to top, when it has several interfaces (else the regions are numbered).
+    regions: tuple[str, ...] = ()
+
+    @property
+    def dimension(self) -> int:
+        """2 for a plane box (or a mesh file), 3 for a 3-D box."""
+        return len(self.box) // 2
 
     @property
     def sigmas(self) -> tuple[float, ...]:
@@ -76,8 +86,8 @@ class Geometry:
 
     @property
     def region_names(self) -> tuple[str, ...]:
-        """The regions of Ω, bottom to top (:func:`ddsolve.problem.schema.region_names`)."""
-        return region_names(len(self.above) + 2)
+        """The regions of Ω, bottom to top (a gmsh file's, else :func:`ddsolve.problem.schema.region_names`)."""
+        return self.regions or region_names(len(self.above) + 2)
 
 
 @dataclass(frozen=True)
@@ -98,6 +108,8 @@ class MeshOptions:
     grading: float | None = None
     target_error: float | None = None
     refine: int | None = None
+    #: A 3-D box's section meshed in the plane and extruded in this many layers along z (None: gmsh's tetrahedra).
+    extrude: int | None = None
 
     @property
     def kind(self) -> str:
@@ -139,12 +151,13 @@ class Load(Components):
     Each part is an expression in x and y, or None (zero).  ``key`` is ``loads.LAYER.NAME``.
     """
 
-    COMPONENTS = ("x", "y", "pressure")
+    COMPONENTS = ("x", "y", "z", "pressure")
     NOUN = "load"
 
     key: str
     x: Expression | None = None
     y: Expression | None = None
+    z: Expression | None = None  # 3-D only
     pressure: Expression | None = None
 
 
@@ -155,12 +168,13 @@ class Displacement(Components):
     or the normal component (boundaries only); each an expression in x and y, or None (that component
     is free)."""
 
-    COMPONENTS = ("x", "y", "normal")
+    COMPONENTS = ("x", "y", "z", "normal")
     NOUN = "displacement"
 
     key: str
     x: Expression | None = None
     y: Expression | None = None
+    z: Expression | None = None  # 3-D only
     normal: Expression | None = None
     point: tuple[float, float] | None = None
 
@@ -364,7 +378,8 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str, 
         geometry=Geometry(box=tuple(geometry["box"]), sigma=geometry["sigma"],
                           cracks=tuple(tuple(piece) for piece in geometry["cracks"]),
                           clamped=tuple(geometry["clamped"]), layers=geometry["layers"], given=given,
-                          above=tuple((height, tuple(map(tuple, cracks))) for height, cracks in geometry["above"])),
+                          above=tuple((height, tuple(map(tuple, cracks))) for height, cracks in geometry["above"]),
+                          regions=tuple(geometry.get("regions", ()))),
         mesh=MeshOptions(**mesh),
         materials={layer: layer_material(data["materials"][layer]) for layer in layers_of(data)},
         regions=region_materials(data["materials"]),
@@ -384,6 +399,16 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str, 
         origin=origin,
         base=base,
     )
+
+
+def _gmsh_file(raw: dict, base: Path | None) -> Path | None:
+    """The scene's gmsh file (.geo, .msh), found from ``base``; None where ``mesh.file`` is no such path (its checks
+    say what is wrong)."""
+    mesh = raw.get("mesh")
+    name = mesh.get("file") if isinstance(mesh, dict) else None
+    if not isinstance(name, str) or not name.lower().endswith((".geo", ".msh")):
+        return None
+    return Path(name) if Path(name).is_absolute() or base is None else base / name
 
 
 def builtin_folder() -> Path:
@@ -417,7 +442,7 @@ def load(source: str | Path, overrides: list[str] = ()) -> Scene:
 def _written_geometry(geometry: dict) -> dict:
     """A checked geometry table as a scene writes it: one interface as ``sigma = y``, ``cracks = [[a, b], ...]``;
     several as ``sigma = [y1, ...]``, ``cracks = [[[a, b], ...], ...]``."""
-    written = {key: value for key, value in geometry.items() if key != "above"}
+    written = {key: value for key, value in geometry.items() if key not in ("above", "regions")}
     if geometry["above"]:
         written["sigma"] = [geometry["sigma"], *(height for height, _ in geometry["above"])]
         written["cracks"] = [geometry["cracks"], *(cracks for _, cracks in geometry["above"])]
@@ -433,10 +458,17 @@ def loads(text: str, overrides: list[str] = (), origin: str = "scene", base: Pat
     except RecursionError:  # tomllib's parser recurses into arrays and tables
         raise SceneError(f"{origin}: malformed TOML: arrays or tables nested too deeply") from None
     apply_overrides(raw, list(overrides))
-    data = check_table(raw, structure_schema(raw, origin), (), origin)
-    cross_checks(data, raw, origin)
+    path = _gmsh_file(raw, base)
+    structure = file_structure(path, f"{origin}: mesh.file {printable(raw['mesh']['file'])}") if path else None
+    data = check_table(raw, structure_schema(raw, origin, structure.regions if structure else ()), (), origin)
+    if is_solid(raw):
+        solid_checks(data, raw, origin)
+    else:
+        cross_checks(data, raw, origin, structure)
     written = {key: value for key, value in data.items() if key != "geometry"}
-    if data["mesh"]["file"] is not None and data["mesh"]["file"].lower().endswith(".geo"):
+    if structure:  # its text names the file wherever it is read: the file gives the structure
+        written["mesh"] = {**written["mesh"], "file": str(path.absolute())}
+    if structure or data["mesh"]["file"] is not None and data["mesh"]["file"].lower().endswith(".geo"):
         written["geometry"] = {key: data["geometry"][key] for key in STRUCTURE_KEYS}
     else:
         written["geometry"] = _written_geometry(data["geometry"])

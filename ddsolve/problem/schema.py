@@ -28,6 +28,8 @@ REGIONS = ("lower", "upper")
 NUMBERED_REGION = "region{}"
 #: The sides of a box geometry, as boundary names.
 SIDES = ("bottom", "top", "left", "right")
+#: The sides a 3-D box (``geometry.box = [x0, x1, y0, y1, z0, z1]``) adds: z = z0 and z = z1.
+DEPTH_SIDES = ("front", "back")
 #: The paper's geometry: the square, Σ at y = 0, the crack (−1/2, 1/2), clamped at x = ±1.
 PAPER_BOX = (-1.0, 1.0, -1.0, 1.0)
 PAPER_CRACK = (-0.5, 0.5)
@@ -160,9 +162,18 @@ def _choice(options: tuple[str, ...]) -> Callable[[Any], str]:
 
 
 def _interval(value: Any) -> tuple[float, ...]:
+    """A crack: [a, b] along x (through the depth of a 3-D box), [a, b, c, d] the rectangle a < x < b, c < z < d
+    of a 3-D box's Σ, or [] for none."""
     values = _numbers(value)
-    if values and (len(values) != 2 or not values[0] < values[1]):
-        raise ValueError("[a, b] with a < b, or []")
+    if values and _piece(values) is None:
+        raise ValueError("[a, b] with a < b, or [] (a 3-D box also takes [a, b, c, d] with c < d)")
+    return values
+
+
+def _piece(values: tuple[float, ...]) -> tuple[float, ...] | None:
+    """An interval [a, b] (a < b) or a rectangle [a, b, c, d] (a < b, c < d) of finite numbers, or None."""
+    if len(values) not in (2, 4) or not all(low < high for low, high in zip(values[::2], values[1::2])):
+        return None
     return values
 
 
@@ -200,43 +211,50 @@ def _crack_lists(value: Any) -> tuple[tuple[float, float], ...] | PerInterface:
         raise ValueError(f"one list of intervals per interface, each {exc}") from None
 
 
-def _pair(item: Any) -> tuple[float, ...] | None:
-    """Two finite numbers, or None."""
+def _crack_piece(item: Any) -> tuple[float, ...] | None:
+    """An interval [a, b] or a 3-D rectangle [a, b, c, d] of finite numbers (:func:`_piece`), or None."""
     try:
-        return _numbers(item) if isinstance(item, list) and len(item) == 2 else None
+        return _piece(_numbers(item)) if isinstance(item, list) else None
     except (TypeError, ValueError):
         return None
 
 
-def _intervals(value: Any) -> tuple[tuple[float, float], ...]:
+def _intervals(value: Any) -> tuple[tuple[float, ...], ...]:
+    """Disjoint cracks along x: [a, b] intervals, or in 3-D [a, b, c, d] rectangles (disjoint in x too)."""
     if not isinstance(value, list):
         raise TypeError("a list of [a, b] intervals")
     pieces = []
     for item in value:
-        piece = _pair(item)
-        if piece is None or not piece[0] < piece[1]:
-            raise ValueError("a list of [a, b] intervals of finite numbers with a < b")
+        piece = _crack_piece(item)
+        if piece is None:
+            raise ValueError("a list of [a, b] intervals of finite numbers with a < b (in 3-D also [a, b, c, d] "
+                             "rectangles with c < d)")
         pieces.append(piece)
     pieces.sort()
-    for (_, b), (a, _) in zip(pieces[:-1], pieces[1:]):
-        if a <= b:
+    for first, second in zip(pieces[:-1], pieces[1:]):
+        if second[0] <= first[1]:
             raise ValueError("a list of disjoint [a, b] intervals (they overlap or touch)")
     return tuple(pieces)
 
 
 def _sides(value: Any) -> tuple[str, ...]:
+    """Side names of a box (a 3-D box's front and back too: the rules refuse them in the plane)."""
+    names = SIDES + DEPTH_SIDES
     if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
-        raise TypeError("a list of side names (" + ", ".join(SIDES) + ")")
-    unknown = [v for v in value if v not in SIDES]
+        raise TypeError("a list of side names (" + ", ".join(names) + ")")
+    unknown = [v for v in value if v not in names]
     if unknown:
-        raise ValueError("a list of side names among " + ", ".join(SIDES) + f" ({unknown[0]!r} is not one)")
+        raise ValueError("a list of side names among " + ", ".join(names) + f" ({unknown[0]!r} is not one)")
     return tuple(dict.fromkeys(value))
 
 
 def _box(value: Any) -> tuple[float, ...]:
-    values = _fixed_numbers(4)(value)
-    if not (values[0] < values[1] and values[2] < values[3]):
-        raise ValueError("[x0, x1, y0, y1] with x0 < x1 and y0 < y1")
+    """[x0, x1, y0, y1], or [x0, x1, y0, y1, z0, z1] for a 3-D box; each range increasing."""
+    values = _numbers(value)
+    if len(values) not in (4, 6):
+        raise ValueError("a list of 4 numbers [x0, x1, y0, y1] (or 6 for a 3-D box: [x0, x1, y0, y1, z0, z1])")
+    if not all(low < high for low, high in zip(values[::2], values[1::2])):
+        raise ValueError("[x0, x1, y0, y1] with x0 < x1 and y0 < y1 (3-D: [x0, x1, y0, y1, z0, z1], z0 < z1)")
     return values
 
 
@@ -348,7 +366,7 @@ ISOTROPIC = {"E": (_positive(_number), REQUIRED), "nu": (_poisson, REQUIRED), "a
 ORTHOTROPIC = {"E1": (_positive(_number), REQUIRED), "E2": (_positive(_number), REQUIRED),
                 "G12": (_positive(_number), REQUIRED), "nu12": (_number, REQUIRED), "angle": (_angle, 0.0),
                 "E3": (_positive(_number), None), "nu13": (_number, None), "nu23": (_number, None),
-                "alpha1": (_number, None), "alpha2": (_number, None)}
+                "alpha1": (_number, None), "alpha2": (_number, None), "fibre": (_fixed_numbers(3), None)}
 ANISOTROPIC = {"D": (_matrix3, REQUIRED), "Dzz": (_fixed_numbers(3), [0.0, 0.0, 0.0])}
 
 
@@ -397,8 +415,9 @@ def _region_schema(layer: dict, kind: dict) -> Callable[[dict], dict]:
     return schema
 
 
-_LOAD = {"x": (_load_value, None), "y": (_load_value, None), "pressure": (_load_value, None)}
-_DISPLACEMENT = {"x": (_load_value, None), "y": (_load_value, None), "normal": (_load_value, None),
+_LOAD = {"x": (_load_value, None), "y": (_load_value, None), "z": (_load_value, None), "pressure": (_load_value, None)}
+_DISPLACEMENT = {"x": (_load_value, None), "y": (_load_value, None), "z": (_load_value, None),
+                 "normal": (_load_value, None),
                  "point": (_fixed_numbers(2), None)}
 
 SCHEMA: dict[str, Any] = {
@@ -420,6 +439,7 @@ SCHEMA: dict[str, Any] = {
         "grading": (_grading, None),
         "target_error": (_fraction, None),
         "refine": (_count(0), None),
+        "extrude": (_count(1), None),
     },
     "materials": {
         "model": (_choice(materials.MODELS), "plane_strain"),
@@ -460,6 +480,13 @@ def _optional(path: tuple[str, ...]) -> bool:
     return path in OPTIONAL_TABLES or path[:1] == ("materials",) and len(path) == 3
 
 
+def is_solid(raw: dict) -> bool:
+    """Whether a raw scene is three-dimensional: its ``geometry.box`` has six numbers (one body, one layer)."""
+    geometry = raw.get("geometry")
+    box = geometry.get("box") if isinstance(geometry, dict) else None
+    return isinstance(box, list) and len(box) == 6
+
+
 def region_count(raw: dict) -> int:
     """The regions of Ω a raw scene describes: one more than its interfaces (``geometry.sigma`` as a list), 2
     otherwise (its value is checked with the rest of the table)."""
@@ -468,14 +495,20 @@ def region_count(raw: dict) -> int:
     return len(heights) + 1 if isinstance(heights, list) and heights else len(REGIONS)
 
 
-def structure_schema(raw: dict, origin: str) -> dict:
+def structure_schema(raw: dict, origin: str, regions: tuple[str, ...] = ()) -> dict:
     """The schema of the structure the raw scene describes: :data:`SCHEMA` with two layers and two regions; with
     one layer (``geometry.layers = 1``), without layer2's tables, and a layer2 table or key in the scene is refused;
-    with several interfaces, the layers' region tables are ``region1`` ... (:func:`region_names`)."""
+    with several interfaces, the layers' region tables are ``region1`` ... (:func:`region_names`), or ``regions``
+    (a gmsh file's region surfaces)."""
     geometry = raw.get("geometry")
-    written = {"layers": geometry["layers"]} if isinstance(geometry, dict) and "layers" in geometry else {}
+    written = {"layers": geometry["layers"]} if isinstance(geometry, dict) and "layers" in geometry else (
+        {"layers": 1} if is_solid(raw) else {})
     layers = check_table(written, {"layers": SCHEMA["geometry"]["layers"]}, ("geometry",), origin)["layers"]
-    regions = region_names(region_count(raw))
+    if layers != 1 and is_solid(raw):
+        raise SceneError(f"{origin}: geometry.layers: a 3-D box is one body (layers = 1): the plane's layers are "
+                         "sheets over the same plane domain, stacked through a thickness that a 3-D body meshes itself; "
+                         "its regions below and above Σ take materials.layer1.lower and materials.layer1.upper")
+    regions = regions or region_names(region_count(raw))
     schema = SCHEMA if regions == REGIONS else {
         **SCHEMA, "materials": {**SCHEMA["materials"], **{layer: _material_schema(regions) for layer in LAYERS}}}
     if layers == len(LAYERS):

@@ -22,13 +22,19 @@ def check_ranks(ranks: int, blocks: int | None = None) -> None:
                          f"{physical_memory() / 1e9:.3g} GB; for ranks on several machines start mpiexec yourself")
 
 
-def check_size(scene, ranks: int = 1, solving: bool = True) -> None:
+def check_size(scene, ranks: int = 1, solving: bool = True, stacks: bool = False, solid: bool = False) -> None:
     """Refuse a mesh that cannot fit in this machine's memory, a ``mesh.refine`` its geometry cannot take
     (:func:`ddsolve.mesh.geometry.refinement`), or, ``solving``, a structure that cannot be solved yet, before
-    it is made."""
+    it is made (``stacks``: the solve takes several interfaces, as the domain decomposition and the reference do;
+    ``solid``: it takes a 3-D box, as they do)."""
     from ddsolve.mesh import geometry
 
-    if solving:
+    if scene.geometry.dimension == 3:
+        if solid:
+            return
+        raise SceneError("geometry.box: a 3-D box (6 numbers) is solved by ddsolve solve and ddsolve reference only, "
+                         "for now; the other commands are plane")
+    if solving and not stacks:
         geometry.one_interface(scene)
     geometry.refinement(scene)
     vertices = geometry.estimated_vertices(scene)

@@ -34,7 +34,7 @@ from ddsolve.parallel.distribution import LocalMesh, half_bytes, local_mesh, who
 from ddsolve.parallel.exchange import Exchange, collective
 from ddsolve.parallel.launch import supported, usable
 from ddsolve.parallel.phases import Phases, launch_age, memory_record
-from ddsolve.parallel.rounds import BlockServer, drive
+from ddsolve.parallel.rounds import BlockServer, drive, kernel_traces
 from ddsolve.post.result import Result
 from ddsolve.problem.scene import Scene
 
@@ -88,6 +88,10 @@ class Setup:
     @property
     def timings(self) -> dict:
         return self.phases.wall
+
+    def kernel_traces(self) -> list[np.ndarray] | None:
+        """The traces of the blocks' kernels (:func:`ddsolve.parallel.rounds.kernel_traces`)."""
+        return kernel_traces(self.mesh)
 
     def destroy(self) -> None:
         for block in self.blocks:

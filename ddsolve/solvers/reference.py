@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
@@ -230,18 +231,10 @@ def solve_joints(systems: list[BlockSystem], joints: list[Joint], out_of_core: b
                                      for joint in joints]))
     merged = merged_system(systems, numbers, jumps,
                            [bond_springs(joint, numbers) for joint in joints if joint.interface.bond is not None])
-    block = Block(dataclasses.replace(merged, trace_dofs=merged.size - len(sqrt_w) + np.arange(len(sqrt_w))))
     phases.end("merge")
-    try:
-        block.factor(schur=len(sqrt_w) > 0, out_of_core=out_of_core)
-        phases.end("factorization")
-        x = block.solve(np.zeros(len(sqrt_w)), body=True).copy()
-        solved = GluedSolution(block.out_of_core())
-        if len(sqrt_w):
-            solved.face = FaceProblem(block.schur_complement(), x[block.trace_dofs], sqrt_w)
-            x = contact_solve(block, x, joints[0].interface, solved)
-    finally:
-        block.destroy()
+    x, solved = solve_merged(merged, sqrt_w, lambda largest: constraints.displacement_scale(joints[0].interface,
+                                                                                             largest),
+                             out_of_core, phases)
     solved.fields = [x[number] + np.where(jump >= 0, x[jump], 0.0) for number, jump in zip(numbers, jumps)]
     phases.end("solve")
     solved.timings = {**{name: phases.wall[name] for name in PHASES},
@@ -249,11 +242,32 @@ def solve_joints(systems: list[BlockSystem], joints: list[Joint], out_of_core: b
     return solved
 
 
-def contact_solve(block: Block, unconstrained: np.ndarray, interface: Interface, solved: GluedSolution) -> np.ndarray:
+def solve_merged(merged: BlockSystem, sqrt_w: np.ndarray, scale_of: Callable[[float], float], out_of_core: bool,
+                 phases: Phases) -> tuple[np.ndarray, GluedSolution]:
+    """The merged system whose last ``len(sqrt_w)`` unknowns are the crack's jumps (W^½ their weights') factored
+    once (phase ``factorization``, with S_j on the jumps), solved unconstrained, then with contact the crack's
+    dual problem and the solve with its forces (:func:`contact_solve`; ``scale_of``: the displacement scale of a
+    largest displacement).  The solution and the record of the solve (its ``fields`` left to the caller)."""
+    block = Block(dataclasses.replace(merged, trace_dofs=merged.size - len(sqrt_w) + np.arange(len(sqrt_w))))
+    try:
+        block.factor(schur=len(sqrt_w) > 0, out_of_core=out_of_core)
+        phases.end("factorization")
+        x = block.solve(np.zeros(len(sqrt_w)), body=True).copy()
+        solved = GluedSolution(block.out_of_core())
+        if len(sqrt_w):
+            solved.face = FaceProblem(block.schur_complement(), x[block.trace_dofs], sqrt_w)
+            x = contact_solve(block, x, scale_of, solved)
+    finally:
+        block.destroy()
+    return x, solved
+
+
+def contact_solve(block: Block, unconstrained: np.ndarray, scale_of: Callable[[float], float],
+                  solved: GluedSolution) -> np.ndarray:
     """The glued solution under contact from the ``unconstrained`` one: ``solved.face`` solved, then the solve
     with the contact forces −W μᶜ on the jumps, refined while its jumps differ from the model's by more than
-    :data:`REFINEMENT_TOLERANCE` (relative to the KKT check's displacement scale of ``interface``), at most
-    :data:`MAX_REFINEMENTS` times."""
+    :data:`REFINEMENT_TOLERANCE` (relative to ``scale_of`` the largest displacement: the KKT check's displacement
+    scale), at most :data:`MAX_REFINEMENTS` times."""
     face = solved.face
     solved.y = face.solve()
     x = unconstrained
@@ -261,7 +275,7 @@ def contact_solve(block: Block, unconstrained: np.ndarray, interface: Interface,
         x = block.solve(-face.sqrt_w * solved.y, body=True).copy()
         solved.solves += 1
         mismatch = x[block.trace_dofs] - face.jumps(solved.y)
-        scale = constraints.displacement_scale(interface, float(np.abs(x).max()))
+        scale = scale_of(float(np.abs(x).max()))
         if np.abs(mismatch).max() <= REFINEMENT_TOLERANCE * scale or solved.refinements == MAX_REFINEMENTS:
             return x
         solved.y = face.refine(solved.y, mismatch)

@@ -14,17 +14,18 @@ from ddsolve.parallel.exchange import collective
 from ddsolve.parallel.phases import Phases, launch_age
 from ddsolve.parallel.runtime import check_out_of_core
 from ddsolve.post.result import Result
+from ddsolve.post.solid import SolidResult
 from ddsolve.problem.scene import Scene
-from ddsolve.solvers import adapt, checks, critical, driver, stacked
+from ddsolve.solvers import adapt, checks, critical, driver, solid, solid_dd, stacked, stacked_dd
 from ddsolve.solvers import reference as monolithic
 from ddsolve.solvers.stacked import StackResult
 
 
-def _before_work(scene: Scene, ranks: int = 1, solving: bool = True) -> None:
+def _before_work(scene: Scene, ranks: int = 1) -> None:
     """What the machine must offer a solve of ``scene`` on ``ranks`` ranks: the memory of its mesh, and a
-    folder for out-of-core factors if the scene or a PETSc option asks for them (``solving``: and a structure
-    the domain decomposition solves, see :func:`ddsolve.solvers.checks.check_size`)."""
-    checks.check_size(scene, ranks, solving)
+    folder for out-of-core factors if the scene or a PETSc option asks for them (see
+    :func:`ddsolve.solvers.checks.check_size`)."""
+    checks.check_size(scene, ranks, stacks=True, solid=True)
     check_out_of_core(scene.solver.out_of_core)
 
 
@@ -38,6 +39,11 @@ def decomposition(scene: Scene, comm, output: Path | None, progress: Callable[[s
     (:func:`ddsolve.solvers.critical.factors`), so that the file written holds them; the search is the
     launch's phase ``critical_factors``."""
     collective(comm, lambda: _before_work(scene, comm.size), root_only=True)
+    if scene.geometry.dimension == 3:
+        return solid_dd.solve(scene, comm, output, progress)
+    if scene.geometry.above:
+        collective(comm, lambda: refuse_critical_factors(scene))
+        return stacked_dd.solve(scene, comm, output, progress)
     if scene.mesh.target_error is not None:
         return adapt.solve_adaptively(scene, comm, output, progress=progress)
     if not critical.needed(scene):
@@ -57,12 +63,14 @@ def decomposition(scene: Scene, comm, output: Path | None, progress: Callable[[s
 
 
 def reference(scene: Scene, output: Path | None = None, progress: Callable[[str], None] = print
-              ) -> Result | StackResult:
+              ) -> Result | StackResult | SolidResult:
     """The monolithic reference of ``scene`` on this process (adaptive when the scene asks; several interfaces:
-    :func:`_stack_reference`); raises
+    :func:`_stack_reference`; a 3-D box: :func:`ddsolve.solvers.solid.reference`); raises
     NotConvergedError, with the result, when its final check fails.  The critical load factors of a scene
     with a toughness and a temperature change come from reference solves of the scaled scene."""
-    _before_work(scene, solving=not scene.geometry.above)
+    if scene.geometry.dimension == 3:
+        return _converged(solid.reference(scene, output))
+    _before_work(scene)
     monolithic.refuse_friction(scene)
     monolithic.refuse_bond(scene)
     if scene.geometry.above:
@@ -91,12 +99,17 @@ def _converged(result):
     return result
 
 
-def _stack_reference(scene: Scene, output: Path | None) -> StackResult:
-    """The monolithic reference of several interfaces (:func:`ddsolve.solvers.stacked.solve_stack`), ``output``
-    written (:func:`ddsolve.io.hdf5.write_stack`); critical load factors are refused in one line."""
+def refuse_critical_factors(scene: Scene) -> None:
+    """The critical load factors of several interfaces are refused in one line."""
     if critical.needed(scene):
         raise SceneError("fracture.toughness: the critical load factors of a structure of several interfaces are not "
                          "found yet (a toughness with a temperature change)")
+
+
+def _stack_reference(scene: Scene, output: Path | None) -> StackResult:
+    """The monolithic reference of several interfaces (:func:`ddsolve.solvers.stacked.solve_stack`), ``output``
+    written (:func:`ddsolve.io.hdf5.write_stack`)."""
+    refuse_critical_factors(scene)
     result = stacked.solve_stack(scene, stack.build_any(scene))
     if output is not None:
         hdf5.write_stack(output, result)

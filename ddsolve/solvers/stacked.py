@@ -16,10 +16,12 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
 from ddsolve.dd import constraints, kernels
+from ddsolve.dd.constraints import Constraints
 from ddsolve.dd.interface import for_mesh
 from ddsolve.errors import SceneError
 from ddsolve.fem import assembly, supports
@@ -27,53 +29,10 @@ from ddsolve.fem.assembly import BlockSystem
 from ddsolve.mesh import geometry
 from ddsolve.mesh.mesh import BlockSpec, Mesh, blocks, facing_above
 from ddsolve.post import analysis, fracture, toughness
-from ddsolve.post.result import Fracture, Result
-from ddsolve.problem.schema import LAYERS, REGIONS
-from ddsolve.problem.scene import Scene
+from ddsolve.post.result import Result
+from ddsolve.post.stack import StackResult, block_names, crack_counts, crack_slices, view_scene
+from ddsolve.problem.scene import Scene, Solver
 from ddsolve.solvers.reference import PHASES, Joint, contact_violation, refuse_friction, solve_joints
-
-
-@dataclass
-class StackResult:
-    """The reference's solution of several interfaces: the blocks' displacements ``(n, 2)`` by name (u1, u2, ..
-    bottom to top, then v1, ..), the potential energy, and each interface's view (:func:`views`) solved, with G
-    at its tips."""
-
-    scene: Scene
-    mesh: Mesh
-    solution: dict[str, np.ndarray]
-    energy: float
-    interfaces: list[Result]
-    fracture: Fracture
-    converged: bool
-    message: str
-    iterations: int
-    timings: dict[str, float]
-
-    @property
-    def wall_time(self) -> float:
-        return self.timings["total"]
-
-
-def block_names(layers: int, count: int) -> list[tuple[str, str, int]]:
-    """(name, layer, region index) of the blocks of ``layers`` layers on ``count`` regions, layer by layer, the
-    lowest region first."""
-    return [(f"{letter}{region + 1}", layer, region) for layer, letter in zip(LAYERS[:layers], "uv")
-            for region in range(count)]
-
-
-def view_scene(scene: Scene, interface: int, cracks: slice) -> Scene:
-    """The scene of interface ``interface`` alone: its Σ and cracks, its two regions' materials as those of
-    ``lower`` and ``upper``, its ``cracks`` of a toughness given per crack."""
-    shape, options = scene.geometry, scene.fracture
-    names = shape.region_names[interface:interface + 2]
-    toughness = options.toughness[cracks] if isinstance(options.toughness, tuple) else options.toughness
-    return dataclasses.replace(
-        scene, geometry=dataclasses.replace(shape, sigma=shape.sigmas[interface],
-                                            cracks=shape.crack_lists[interface], above=()),
-        fracture=dataclasses.replace(options, toughness=toughness),
-        regions={(layer, region): scene.material(layer, name) for layer in scene.layers
-                 for region, name in zip(REGIONS, names)})
 
 
 def views(scene: Scene, mesh: Mesh) -> list[tuple[Scene, Mesh]]:
@@ -82,16 +41,10 @@ def views(scene: Scene, mesh: Mesh) -> list[tuple[Scene, Mesh]]:
     regions = mesh.regions
     counts = crack_counts(mesh)
     toughness.check_cracks(scene, sum(counts))
-    first = np.concatenate([[0], np.cumsum(counts)]).astype(int)
-    return [(view_scene(scene, index, slice(first[index], first[index + 1])),
+    return [(view_scene(scene, index, cracks),
              Mesh(regions[index] if index == 0 else facing_above(regions[index]), regions[index + 1], line,
                   mesh.origin))
-            for index, line in enumerate(mesh.sigmas)]
-
-
-def crack_counts(mesh: Mesh) -> list[int]:
-    """The number of cracks on each interface, bottom to top."""
-    return [len(line.pieces(line.crack)) for line in mesh.sigmas]
+            for index, (line, cracks) in enumerate(zip(mesh.sigmas, crack_slices(counts)))]
 
 
 def straight_lines(mesh: Mesh) -> None:
@@ -104,6 +57,17 @@ def straight_lines(mesh: Mesh) -> None:
 def assemble(scene: Scene, mesh: Mesh) -> tuple[list[BlockSystem], list[Joint], list[tuple[Scene, Mesh]]]:
     """The structure's block systems (:func:`block_names`) with the supports each interface's ties spread, the
     interfaces as joints of those blocks, and the interfaces' views."""
+    joints, seen, held = joined(scene, mesh)
+    names = block_names(scene.geometry.layers, len(mesh.regions))
+    systems = [block_system(scene, mesh, names[block], prescribed) for block, prescribed in enumerate(held)]
+    return systems, joints, seen
+
+
+def joined(scene: Scene, mesh: Mesh
+           ) -> tuple[list[Joint], list[tuple[Scene, Mesh]], list[tuple[np.ndarray, np.ndarray]]]:
+    """The interfaces as joints of the structure's blocks (:func:`block_names`), their views, and each block's
+    prescribed dofs and values ``(n, 2)``: its own supports and those each interface's ties spread; refuses a
+    structure that can move rigidly (:func:`check_supported`)."""
     straight_lines(mesh)
     seen = views(scene, mesh)
     names = block_names(scene.geometry.layers, len(mesh.regions))
@@ -124,30 +88,45 @@ def assemble(scene: Scene, mesh: Mesh) -> tuple[list[BlockSystem], list[Joint], 
             ties[block].append((at, table.fixed[view_block].reshape(-1, 2),
                                 table.values[view_block].reshape(-1, 2)))
         joints.append(Joint(interface, tuple(members), tuple(dofs)))
-    systems, held_fixed = [], []
-    for (name, layer, region), held in zip(names, ties):
-        half, line = mesh.regions[region], mesh.sigmas[max(region - 1, 0)]
-        fixed, values = supports.own_supports(scene, half, line, layer)
-        for at, tied, tied_values in held:
-            fixed[at], values[at] = tied, tied_values
-        held_fixed.append(fixed)
-        systems.append(assembly.block_system(name, half, line, assembly.elasticity(scene, layer, half.name)[0],
-                                             assembly.layer_loads(scene, layer, half), prescribed=(fixed, values),
-                                             thermal=assembly.thermal_of(scene, layer, half.name)))
-    check_supported(mesh, names, held_fixed, joints)
-    return systems, joints, seen
+    held = []
+    for (_, layer, region), tied in zip(names, ties):
+        fixed, values = supports.own_supports(scene, mesh.regions[region], mesh.sigmas[max(region - 1, 0)], layer)
+        for at, tied_fixed, tied_values in tied:
+            fixed[at], values[at] = tied_fixed, tied_values
+        held.append((fixed, values))
+    check_supported(mesh, names, [fixed for fixed, _ in held], joints)
+    return joints, seen, held
 
 
-def check_supported(mesh: Mesh, names: list[tuple[str, str, int]], fixed: list[np.ndarray], joints: list[Joint]
-                    ) -> None:
-    """Refuse, naming the free motion, a structure whose blocks' prescribed dofs ``fixed`` ``(n, 2)`` (x, y) and
-    the gluing of every interface leave a rigid motion (:mod:`ddsolve.dd.kernels`)."""
+def block_system(scene: Scene, mesh: Mesh, block: tuple[str, str, int], prescribed: tuple[np.ndarray, np.ndarray],
+                 rows: tuple[int, int] | None = None) -> BlockSystem:
+    """The system of ``block`` (name, layer, region index) with its ``prescribed`` dofs and values (its ``rows``
+    only, where given)."""
+    name, layer, region = block
+    half, line = mesh.regions[region], mesh.sigmas[max(region - 1, 0)]
+    return assembly.block_system(name, half, line, assembly.elasticity(scene, layer, half.name)[0],
+                                 assembly.layer_loads(scene, layer, half), rows, prescribed=prescribed,
+                                 thermal=assembly.thermal_of(scene, layer, half.name))
+
+
+def support_rows(mesh: Mesh, names: list[tuple[str, str, int]], fixed: list[np.ndarray]
+                 ) -> tuple[kernels.Frame, list[np.ndarray]]:
+    """The structure's frame and each block's constraint rows ``(c, 3)`` (:func:`ddsolve.dd.kernels.constraint_rows`)
+    from its prescribed dofs ``fixed`` ``(n, 2)`` (x, y)."""
     frame = kernels.frame_of(np.vstack([region.points for region in mesh.regions]))
     rows = []
     for (_, _, region), held in zip(names, fixed):
         points = mesh.regions[region].points
         directions = kernels.prescribed_directions(held, np.broadcast_to(np.eye(2), (len(points), 2, 2)))
         rows.append(kernels.constraint_rows(frame.modes(points), np.zeros(0, dtype=np.int64), directions))
+    return frame, rows
+
+
+def check_supported(mesh: Mesh, names: list[tuple[str, str, int]], fixed: list[np.ndarray], joints: list[Joint]
+                    ) -> None:
+    """Refuse, naming the free motion, a structure whose blocks' prescribed dofs ``fixed`` ``(n, 2)`` (x, y) and
+    the gluing of every interface leave a rigid motion (:mod:`ddsolve.dd.kernels`)."""
+    frame, rows = support_rows(mesh, names, fixed)
     gluing = []
     for joint, line in zip(joints, mesh.sigmas):
         of_view = kernels.gluing_rows(joint.interface, kernels.trace_modes(line, frame))
@@ -168,54 +147,104 @@ def solve_stack(scene: Scene, mesh: Mesh) -> StackResult:
     systems, joints, seen = assemble(scene, mesh)
     solved = solve_joints(systems, joints, out_of_core=scene.solver.out_of_core)
     fields = solved.fields
-    largest = analysis.largest_displacement(u.reshape(-1, 2) for u in fields)
     forces = [assembly.csr_matvec(s, u) - s.rhs for s, u in zip(systems, fields)]  # the interfaces' loads
     contact_rows = np.cumsum([0] + [j.interface.slices["mu_c"].stop - j.interface.slices["mu_c"].start
                                     for j in joints])
-    interface_loads, lams = [[] for _ in systems], []
+    lams = []
     for joint, first, stop in zip(joints, contact_rows[:-1], contact_rows[1:]):
         interface = joint.interface
         lam = interface.multipliers(np.array([forces[b][dofs] for b, dofs in zip(joint.blocks, joint.dofs)]))
         contact = interface.slices["mu_c"]
         lam[contact] = solved.y[first:stop] / np.sqrt(interface.row_weights[contact])
         lams.append(lam)
-        for b, dofs, load in zip(joint.blocks, joint.dofs, interface.loads(lam)):
-            interface_loads[b].append((dofs, load))
-    residuals = [analysis.block_residual(dataclasses.replace(s, trace_dofs=np.concatenate([d for d, _ in held])),
-                                         u, np.concatenate([load for _, load in held]))
-                 for s, u, held in zip(systems, fields, interface_loads)]
+    residuals = structure_residuals(systems, joints, fields, lams)
     steps, changes = (solved.face.violations, solved.face.changes) if solved.face else ([(0.0, 0.0)], [0])
     energy = sum(0.5 * u @ assembly.csr_matvec(s, u) - s.rhs @ u + s.energy_offset for s, u in zip(systems, fields))
     total = sum(solved.timings[name] for name in PHASES)
-    results = [interface_result((part, view), joint, lam, fields, residuals, largest, steps, changes,
-                                solved.solves)
-               for (part, view), joint, lam in zip(seen, joints, lams)]
+    run = Run("reference", 1, len(steps), solved.solves, np.array(changes, dtype=np.int64),
+              lambda scale_u, scale_mu: np.array([contact_violation(*step, scale_u, scale_mu) for step in steps]),
+              {**solved.timings, "total": total})
+    return stack_result(scene, mesh, seen, joints, fields, lams, residuals, float(energy), run)
+
+
+@dataclass
+class Run:
+    """How a structure of several interfaces was solved: the method, the ranks, its iterations, block solves,
+    active-set changes, its history (given the KKT check's displacement and traction scales) and timings."""
+
+    method: str
+    ranks: int
+    iterations: int
+    solves: int
+    changes: np.ndarray
+    history: Callable[[float, float], np.ndarray]
+    timings: dict[str, float]
+    solver: Solver | None = None  # the KKT check's tolerance and bound p (None: the reference's)
+
+
+def stack_result(scene: Scene, mesh: Mesh, seen: list[tuple[Scene, Mesh]], joints: list[Joint],
+                 fields: list[np.ndarray], lams: list[np.ndarray], residuals: list[float], energy: float, run: Run
+                 ) -> StackResult:
+    """The solution of several interfaces as a :class:`StackResult`: the blocks' displacements ``fields`` (flat,
+    :func:`block_names`), each joint's multipliers ``lams`` and the blocks' equilibrium residuals under both their
+    interfaces' loads; each interface's view checked and with G at its tips (:func:`interface_result`)."""
+    largest = analysis.largest_displacement(u.reshape(-1, 2) for u in fields)
+    results = [interface_result(view, joint, lam, fields, residuals, largest, run)
+               for view, joint, lam in zip(seen, joints, lams)]
     violated = [f"interface {n + 1}: {r.message}" for n, r in enumerate(results) if r.message]
-    joined = fracture.of_interfaces([r.fracture for r in results], crack_counts(mesh))
+    joined_fracture = fracture.of_interfaces([r.fracture for r in results], crack_counts(mesh))
     names = block_names(scene.geometry.layers, len(mesh.regions))
-    return StackResult(scene, mesh, {name: u.reshape(-1, 2) for (name, _, _), u in zip(names, fields)}, float(energy),
-                       results, joined, not violated, "reference: " + "; ".join(violated) if violated else "",
-                       len(steps), {**solved.timings, "total": total})
+    return StackResult(scene, mesh, {name: u.reshape(-1, 2) for (name, _, _), u in zip(names, fields)}, energy,
+                       results, joined_fracture, not violated,
+                       f"{run.method}: " + "; ".join(violated) if violated else "", run.iterations, run.timings)
+
+
+def structure_residuals(systems: list[BlockSystem], joints: list[Joint], fields: list[np.ndarray],
+                        lams: list[np.ndarray]) -> list[float]:
+    """Each block's equilibrium residual (:func:`ddsolve.post.analysis.block_residual`) under the loads of every
+    interface it is on (the multipliers ``lams`` of each joint)."""
+    held = [[] for _ in systems]  # per block: (its dofs on an interface, that interface's load)
+    for joint, lam in zip(joints, lams):
+        for b, dofs, load in zip(joint.blocks, joint.dofs, joint.interface.loads(lam)):
+            held[b].append((dofs, load))
+    return [analysis.block_residual(dataclasses.replace(s, trace_dofs=np.concatenate([d for d, _ in loads])),
+                                    u, np.concatenate([load for _, load in loads]))
+            for s, u, loads in zip(systems, fields, held)]
+
+
+def check(stacked: StackResult) -> list[Constraints]:
+    """The KKT residuals of each interface of a result of several interfaces (one read back): the blocks
+    assembled again, each block's equilibrium under the loads of every interface it is on."""
+    scene, mesh = stacked.scene, stacked.mesh
+    systems, joints, _ = assemble(scene, mesh)
+    fields = [stacked.solution[name].reshape(-1) for name, _, _ in block_names(scene.geometry.layers,
+                                                                               len(mesh.regions))]
+    lams = [analysis.multiplier_vector(joint.interface, view.multipliers, view.mesh.sigma.frames[view.multiplier_nodes])
+            for joint, view in zip(joints, stacked.interfaces)]
+    residuals = structure_residuals(systems, joints, fields, lams)
+    return [analysis.constraints(view, np.array([residuals[b] for b in joint.blocks]))
+            for joint, view in zip(joints, stacked.interfaces)]
 
 
 def interface_result(seen: tuple[Scene, Mesh], joint: Joint, lam: np.ndarray, fields: list[np.ndarray],
-                     residuals: list[float], largest: float, steps: list, changes: list, solves: int) -> Result:
+                     residuals: list[float], largest: float, run: Run) -> Result:
     """One interface's view as a result: its blocks' displacements and multipliers, its KKT check (the blocks'
     equilibrium residuals under both their interfaces' loads) and G at its tips."""
     part, view = seen
     interface = joint.interface
     traces = np.array([fields[b][dofs] for b, dofs in zip(joint.blocks, joint.dofs)])
-    checked = constraints.kkt(interface, traces, lam, None, np.array([residuals[b] for b in joint.blocks]), largest)
-    violations = checked.violations(constraints.kkt_tolerance(None))
+    solver, tolerance = run.solver, constraints.kkt_tolerance(run.solver)
+    checked = constraints.kkt(interface, traces, lam, None if solver is None else solver.p,
+                              np.array([residuals[b] for b in joint.blocks]), largest)
+    violations = checked.violations(tolerance)
     scale_u = constraints.displacement_scale(interface, largest)
     scale_mu = constraints.traction_scale(interface, lam, scale_u)
     result = Result.from_blocks(
-        part, "reference", view, [fields[b] for b in joint.blocks], interface, lam, converged=not violations,
-        iterations=len(steps), solves=solves, wall_time=0.0, ranks=1,
-        history=np.array([contact_violation(*step, scale_u, scale_mu) for step in steps]),
-        active_set_changes=np.array(changes, dtype=np.int64),
+        part, run.method, view, [fields[b] for b in joint.blocks], interface, lam, converged=not violations,
+        iterations=run.iterations, solves=run.solves, wall_time=0.0, ranks=run.ranks,
+        history=run.history(scale_u, scale_mu), active_set_changes=run.changes,
         message=f"the solution violates {', '.join(violations)}" if violations else "",
-        attrs={"kkt_tolerance": constraints.kkt_tolerance(None),
+        attrs={"kkt_tolerance": tolerance,
                **{f"kkt_{name}": getattr(checked, name) for name in constraints.Constraints.NAMES}})
     result.fracture = fracture.of_result(result, fracture.find_tips(view, part.fracture.inner, part.fracture.outer))
     return result

@@ -1,0 +1,285 @@
+"""The meshes of a 3-D box (``geometry.box = [x0, x1, y0, y1, z0, z1]``): the two halves below and above the plane
+Σ (y = ``sigma``) as P1 tetrahedra, and Σ itself as the triangles both halves share.
+
+gmsh (OpenCASCADE, in a child process: :func:`ddsolve.mesh.gmsh_io.apart`) meshes the two boxes and the crack
+rectangles fragmented together, so that the mesh is conforming across Σ and along the cracks' edges: every Σ
+vertex is a vertex of both halves (P2: a node in the middle of every edge, the edges straight), the same triangulation of Σ on both sides.  A half (:class:`SolidHalf`) holds
+its own numbering of its nodes, its boundary triangles by side, and its node of each Σ vertex; Σ
+(:class:`SigmaSurface`) holds its vertices with lumped weights, a normal frame per vertex, the crack vertices
+(whose two faces are separate) and the crack front (the cracks' edges inside the box).  Conventions follow
+meshio: ``points (n, 3)`` float64, ``tetrahedra (m, 4)`` or ``(m, 10)`` (tetra10: vertices, then the edges
+01 12 02 03 13 23) int64 of positive volume, triangles ``(k, 3)`` or ``(k, 6)`` (v0 v1 v2 m01 m12 m20).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from ddsolve.errors import MeshError
+from ddsolve.mesh.mesh import TOL
+from ddsolve.problem.schema import DEPTH_SIDES, REGIONS, SIDES
+from ddsolve.problem.scene import Scene
+
+#: The sides of the box as planes: name -> (axis, which end of the box's range on that axis).
+SIDE_PLANES = {"left": (0, 0), "right": (0, 1), "bottom": (1, 0), "top": (1, 1), "front": (2, 0), "back": (2, 1)}
+#: The faces of a tetrahedron (v0 v1 v2 v3), each as the three vertices opposite one of them.
+TETRA_FACES = np.array([[1, 2, 3], [0, 3, 2], [0, 1, 3], [0, 2, 1]])
+#: The edges of a tetrahedron in the order of its mid-edge nodes 4 … 9 (meshio's and VTK's tetra10).
+TETRA_EDGES = np.array([[0, 1], [1, 2], [0, 2], [0, 3], [1, 3], [2, 3]])
+#: Each node's share of a triangle's area in Σ's lumped weights: P1 (3 nodes) and P2 (6 nodes, HRZ).
+LUMPED = {3: np.full(3, 1.0 / 3.0), 6: np.array([3.0, 3.0, 3.0, 16.0, 16.0, 16.0]) / 57.0}
+
+
+@dataclass(frozen=True, eq=False)
+class SolidHalf:
+    """One half: ``name`` lower (y < sigma) or upper; its nodes, tetrahedra, boundary triangles by side name
+    (the six sides' parts on this half, and ``sigma``), and ``sigma_nodes``: its node of each Σ vertex."""
+
+    name: str
+    points: np.ndarray
+    tetrahedra: np.ndarray
+    faces: dict[str, np.ndarray]
+    sigma_nodes: np.ndarray
+
+    @property
+    def dofs(self) -> int:
+        """Its unknowns: three displacement components per node."""
+        return 3 * len(self.points)
+
+
+@dataclass(frozen=True, eq=False)
+class SigmaSurface:
+    """Σ: its vertices, triangles, lumped weights (a third of each triangle's area per vertex), the crack
+    vertices (``cracked``: their faces are separate; the front's vertices are not among them) and the crack
+    front's edges (``front``, pairs of Σ vertices)."""
+
+    points: np.ndarray
+    triangles: np.ndarray
+    cracked: np.ndarray
+    front: np.ndarray
+
+    @cached_property
+    def weights(self) -> np.ndarray:
+        """The lumped weight of every node: a third of each P1 triangle's area per vertex; on 6-node triangles
+        the diagonal of the consistent mass scaled to the area (HRZ: 1/19 per vertex, 16/57 per mid-edge node),
+        positive at every node."""
+        a, b, c = (self.points[self.triangles[:, k]] for k in range(3))
+        areas = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+        shares = LUMPED[self.triangles.shape[1]]
+        return np.bincount(self.triangles.ravel(), (areas[:, None] * shares).ravel(), minlength=len(self.points))
+
+    @property
+    def frames(self) -> np.ndarray:
+        """(s, 3, 3): at every vertex the rows ν (the lower half's outward normal, +y), then the tangents x and z."""
+        return np.broadcast_to(np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]),
+                               (len(self.points), 3, 3))
+
+
+@dataclass(frozen=True, eq=False)
+class SolidMesh:
+    """The two halves (lower, upper) of a 3-D box and Σ between them."""
+
+    halves: tuple[SolidHalf, SolidHalf]
+    sigma: SigmaSurface
+
+    @property
+    def degree(self) -> int:
+        """1 (4-node tetrahedra) or 2 (10-node)."""
+        return 1 if self.halves[0].tetrahedra.shape[1] == 4 else 2
+
+    @property
+    def unknowns(self) -> int:
+        return sum(half.dofs for half in self.halves)
+
+
+def build(scene: Scene) -> SolidMesh:
+    """The mesh of a 3-D box scene: gmsh in a child process, then the halves and Σ (:func:`assemble`); with
+    ``mesh.extrude`` the plane section's mesh extruded (:mod:`ddsolve.mesh.extrude`)."""
+    from ddsolve.mesh import extrude, gmsh_io  # both import the plane mesh modules
+
+    geometry = scene.geometry
+    if scene.mesh.extrude is not None:
+        points, tetrahedra, upper = extrude.tetrahedra(scene)
+    else:
+        points, tetrahedra, upper = gmsh_io.apart(_tetrahedra, geometry.box, geometry.sigma, geometry.cracks,
+                                                  scene.mesh.size, scene.mesh.grading)
+    return assemble(points, tetrahedra, upper, geometry.box, geometry.sigma, geometry.cracks, scene.mesh.degree)
+
+
+def _tetrahedra(box: tuple[float, ...], sigma: float, cracks: tuple[tuple[float, ...], ...], size: float,
+                grading: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """In gmsh: the boxes below and above Σ and the crack rectangles on it fragmented together and meshed with
+    tetrahedra of about ``size`` (graded towards the crack front with exponent ``grading``, if given); the
+    nodes, the tetrahedra and whether each lies in the upper box."""
+    from ddsolve.mesh.gmsh_io import session
+
+    x0, x1, y0, y1, z0, z1 = box
+    with session(deterministic=True) as gmsh:
+        occ = gmsh.model.occ
+        volumes = [occ.addBox(x0, y0, z0, x1 - x0, sigma - y0, z1 - z0),
+                   occ.addBox(x0, sigma, z0, x1 - x0, y1 - sigma, z1 - z0)]
+        rectangles = []
+        for a, b, c, d in cracks:  # made in the xy plane, then turned onto Σ: (x, y, 0) -> (x, sigma, y)
+            tag = occ.addRectangle(a, c, 0.0, b - a, d - c)
+            occ.rotate([(2, tag)], 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, np.pi / 2)
+            occ.translate([(2, tag)], 0.0, sigma, 0.0)
+            rectangles.append((2, tag))
+        occ.fragment([(3, tag) for tag in volumes], rectangles)
+        occ.synchronize()
+        gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+        front = _front_curves(gmsh, box, sigma, cracks)
+        if grading is not None and front:
+            _graded_towards(gmsh, front, size, grading, min(box[1] - box[0], box[3] - box[2]))
+        try:
+            gmsh.model.mesh.generate(3)
+        except Exception as exc:  # gmsh raises a bare Exception with its last error
+            raise MeshError(f"gmsh cannot mesh the 3-D box ({' '.join(str(exc).split())}): change mesh.size") from None
+        tags, coordinates, _ = gmsh.model.mesh.getNodes()
+        index = np.zeros(int(tags.max()) + 1, dtype=np.int64)
+        index[tags] = np.arange(len(tags))
+        cells, upper = [], []
+        for _, volume in gmsh.model.getEntities(3):
+            _, _, nodes = gmsh.model.mesh.getElements(3, volume)
+            cells.append(index[np.asarray(nodes[0], dtype=np.int64)].reshape(-1, 4))
+            centre_y = 0.5 * (gmsh.model.getBoundingBox(3, volume)[1] + gmsh.model.getBoundingBox(3, volume)[4])
+            upper.append(np.full(len(cells[-1]), centre_y > sigma))
+    return np.asarray(coordinates, dtype=np.float64).reshape(-1, 3), np.concatenate(cells), np.concatenate(upper)
+
+
+def _front_curves(gmsh, box: tuple[float, ...], sigma: float, cracks: tuple[tuple[float, ...], ...]) -> list[int]:
+    """The model's curves along the crack front: on Σ, on a crack rectangle's edge that lies inside the box."""
+    x0, x1, _, _, z0, z1 = box
+    tolerance = TOL * max(np.ptp(np.reshape(box, (3, 2)), axis=1))
+    lines = [(axis, value, crack) for crack in cracks
+             for axis, value, end in ((0, crack[0], x0), (0, crack[1], x1), (2, crack[2], z0), (2, crack[3], z1))
+             if abs(value - end) > tolerance]
+    found = []
+    for _, curve in gmsh.model.getEntities(1):
+        low, high = np.reshape(gmsh.model.getBoundingBox(1, curve), (2, 3))
+        for axis, value, (a, b, c, d) in lines:
+            along = (2 if axis == 0 else 0)
+            span = (c, d) if axis == 0 else (a, b)
+            if (np.abs([low[1] - sigma, high[1] - sigma, low[axis] - value, high[axis] - value]).max() <= 1e3 * tolerance
+                    and low[along] >= span[0] - 1e3 * tolerance and high[along] <= span[1] + 1e3 * tolerance):
+                found.append(curve)
+                break
+    return found
+
+
+def _graded_towards(gmsh, curves: list[int], size: float, mu: float, length: float) -> None:
+    """The background size field h(r) = min(H, H ((r + r₀)/R)^(1−μ)) at distance r from the ``curves``
+    (the plane grading, :func:`ddsolve.mesh.sizing.graded_size`, about a front instead of a tip)."""
+    from ddsolve.mesh.sizing import GRADING_RADIUS, grading_offset
+
+    radius = GRADING_RADIUS * length
+    offset = grading_offset(size, mu, length)
+    fields = gmsh.model.mesh.field
+    distance = fields.add("Distance")
+    fields.setNumbers(distance, "CurvesList", curves)
+    fields.setNumber(distance, "NumPointsPerCurve", 200)
+    graded = fields.add("MathEval")
+    fields.setString(graded, "F", f"min({size!r}, {size!r} * ((F{distance} + {offset!r}) / {radius!r})^{1.0 - mu!r})")
+    fields.setAsBackgroundMesh(graded)
+
+
+def assemble(points: np.ndarray, tetrahedra: np.ndarray, upper: np.ndarray, box: tuple[float, ...], sigma: float,
+             cracks: tuple[tuple[float, ...], ...], degree: int = 1) -> SolidMesh:
+    """The halves and Σ of a conforming tetrahedral mesh of the box (``upper``: which tetrahedra lie above Σ), with
+    a node in the middle of every edge for ``degree`` 2."""
+    tolerance = TOL * max(np.ptp(np.reshape(box, (3, 2)), axis=1))
+    tetrahedra = _positive(points, tetrahedra)
+    points, cells, middle = elevated(points, tetrahedra) if degree == 2 else (points, tetrahedra, None)
+    on_sigma = np.flatnonzero(np.abs(points[:, 1] - sigma) <= tolerance)
+    if not len(on_sigma):
+        raise MeshError("the 3-D mesh has no vertex on Σ")
+    halves = tuple(_half(name, points, cells[upper == (name == REGIONS[1])], middle, box, sigma, on_sigma, tolerance)
+                   for name in REGIONS)
+    lower = halves[0]
+    sigma_of = np.full(len(lower.points), -1, dtype=np.int64)
+    sigma_of[lower.sigma_nodes] = np.arange(len(on_sigma))
+    triangles = sigma_of[lower.faces["sigma"]]
+    cracked, front = _crack_roles(points[on_sigma], triangles, box, cracks, tolerance)
+    return SolidMesh(halves, SigmaSurface(points[on_sigma], triangles, cracked, front))
+
+
+def elevated(points: np.ndarray, tetrahedra: np.ndarray):
+    """P1 → P2 with straight edges: the points with a node in the middle of every edge appended, the 10-node
+    tetrahedra (:data:`TETRA_EDGES` order), and ``middle(a, b)``: the mid-edge nodes of the edges (a, b)."""
+    edges = np.sort(tetrahedra[:, TETRA_EDGES].reshape(-1, 2), axis=1)
+    keys = edges[:, 0] * len(points) + edges[:, 1]
+    unique, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+    numbers = len(points) + np.arange(len(unique))
+
+    def middle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        return numbers[np.searchsorted(unique, np.minimum(a, b) * len(points) + np.maximum(a, b))]
+    middles = 0.5 * (points[edges[first, 0]] + points[edges[first, 1]])
+    return (np.vstack([points, middles]), np.column_stack([tetrahedra, numbers[inverse].reshape(-1, 6)]), middle)
+
+
+def _positive(points: np.ndarray, tetrahedra: np.ndarray) -> np.ndarray:
+    """The tetrahedra ordered to positive volume (two vertices swapped where negative); degenerate ones refused."""
+    volumes = signed_volumes(points, tetrahedra)
+    if np.any(np.abs(volumes) <= 1e-14 * np.abs(volumes).max(initial=1.0)):
+        raise MeshError("the 3-D mesh has a degenerate tetrahedron: change mesh.size")
+    flipped = tetrahedra.copy()
+    flipped[volumes < 0] = flipped[volumes < 0][:, [1, 0, 2, 3]]
+    return flipped
+
+
+def signed_volumes(points: np.ndarray, tetrahedra: np.ndarray) -> np.ndarray:
+    """Each tetrahedron's volume, negative where its vertices turn the other way."""
+    a, b, c, d = (points[tetrahedra[:, k]] for k in range(4))
+    return np.einsum("ij,ij->i", np.cross(b - a, c - a), d - a) / 6.0
+
+
+def _half(name: str, points: np.ndarray, cells: np.ndarray, middle, box: tuple[float, ...], sigma: float,
+          on_sigma: np.ndarray, tolerance: float) -> SolidHalf:
+    """One half in its own numbering: its nodes, tetrahedra, boundary triangles by side (6-node, v0 v1 v2 m01 m12
+    m20, with ``middle``) and Σ nodes."""
+    used = np.unique(cells)
+    local = np.full(len(points), -1, dtype=np.int64)
+    local[used] = np.arange(len(used))
+    faces = boundary_faces(cells[:, :4])
+    if middle is not None:
+        faces = np.column_stack([faces, *(middle(faces[:, i], faces[:, (i + 1) % 3]) for i in range(3))])
+    centres = points[faces[:, :3]].mean(axis=1)
+    planes = {**{side: (axis, box[2 * axis + end]) for side, (axis, end) in SIDE_PLANES.items()}, "sigma": (1, sigma)}
+    named = {side: local[faces[np.abs(centres[:, axis] - value) <= tolerance]] for side, (axis, value) in planes.items()}
+    if sum(len(f) for f in named.values()) != len(faces):
+        raise MeshError(f"the {name} half of the 3-D mesh has boundary faces off the box's sides and Σ")
+    if np.any(local[on_sigma] < 0):
+        raise MeshError(f"the {name} half of the 3-D mesh misses vertices of Σ (the halves do not conform)")
+    return SolidHalf(name, points[used], local[cells], named, local[on_sigma])
+
+
+def boundary_faces(tetrahedra: np.ndarray) -> np.ndarray:
+    """The triangles that bound exactly one tetrahedron, oriented outward (with positive tetrahedra)."""
+    faces = tetrahedra[:, TETRA_FACES].reshape(-1, 3)
+    keys = np.sort(faces, axis=1)
+    _, first, counts = np.unique(keys, axis=0, return_index=True, return_counts=True)
+    return faces[np.sort(first[counts == 1])]
+
+
+def _crack_roles(points: np.ndarray, triangles: np.ndarray, box: tuple[float, ...],
+                 cracks: tuple[tuple[float, ...], ...], tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+    """The Σ vertices whose faces are separate (inside a crack's rectangle, off its front), and the front's edges:
+    the rectangles' edges inside the box (an edge on the box's side is free, not a front)."""
+    x, z = points[:, 0], points[:, 2]
+    cracked = np.zeros(len(points), dtype=bool)
+    on_front = np.zeros(len(points), dtype=bool)
+    edges = np.unique(np.sort(triangles[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1), axis=0)  # vertices
+    front = []
+    for a, b, c, d in cracks:
+        inside = (x >= a - tolerance) & (x <= b + tolerance) & (z >= c - tolerance) & (z <= d + tolerance)
+        lines = [(coordinate, value) for coordinate, value, end in ((x, a, box[0]), (x, b, box[1]), (z, c, box[4]),
+                                                                     (z, d, box[5])) if abs(value - end) > tolerance]
+        here = np.zeros(len(points), dtype=bool)
+        for coordinate, value in lines:
+            line = inside & (np.abs(coordinate - value) <= tolerance)
+            here |= line
+            front.append(edges[line[edges].all(axis=1)])
+        on_front |= here
+        cracked |= inside
+    return cracked & ~on_front, np.concatenate(front) if front else np.zeros((0, 2), dtype=np.int64)

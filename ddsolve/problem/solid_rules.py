@@ -1,0 +1,148 @@
+"""Rules between the keys of a 3-D scene (``geometry.box = [x0, x1, y0, y1, z0, z1]``), checked after each key
+alone: one body (``layer1``, its regions ``lower`` and ``upper`` below and above the plane Σ y = ``sigma``),
+cracks on Σ as rectangles, the box meshed with ``mesh.size``, isotropic or transversely isotropic materials,
+temperature changes, loads and supports on the box's six sides.  What the plane scenes have and 3-D does not yet
+is refused in one line naming the key."""
+from __future__ import annotations
+
+import numpy as np
+
+from ddsolve.errors import SceneError
+from ddsolve.problem import materials
+from ddsolve.problem.reading import printable
+from ddsolve.problem.rules import check_apart, solver_checks
+from ddsolve.problem.schema import DEPTH_SIDES, GRADING, SIDES, layer_material
+
+#: The boundaries a 3-D box names (loads and supports act on them).
+SOLID_SIDES = SIDES + DEPTH_SIDES
+#: The mesh keys a 3-D box takes: tetrahedra of about ``mesh.size`` (P1 or P2), graded towards the crack fronts,
+#: or the plane mesh of the section extruded in ``mesh.extrude`` layers.
+SOLID_MESH_KEYS = ("size", "degree", "grading", "extrude")
+#: Elements per shortest side of the box when the scene gives no ``mesh.size``.
+DEFAULT_ELEMENTS = 4
+#: Keys of the plane scenes that 3-D does not solve yet: (section, key) -> what they would need.
+NOT_YET = {("fracture", None): "G along a crack front is not computed in 3-D yet",
+           ("interface", None): "a bond law on Σ is not solved in 3-D yet",
+           ("contact", "friction"): "friction is not solved in 3-D yet",
+           ("contact", "slip_bound"): "friction is not solved in 3-D yet"}
+
+
+def solid_checks(data: dict, raw: dict, origin: str) -> None:
+    """The rules of a 3-D scene; fills in Σ's height (the box's middle), the cracks as rectangles
+    ``(a, b, c, d)`` (an interval [a, b] spans the depth) and the mesh size."""
+    _refuse_plane_only(data, raw, origin)
+    geometry = data["geometry"]
+    x0, x1, y0, y1, z0, z1 = geometry["box"]
+    sigma = 0.5 * (y0 + y1) if geometry["sigma"] is None else geometry["sigma"]
+    if not y0 < sigma < y1:
+        raise SceneError(f"{origin}: geometry.sigma = {sigma:g} must lie strictly between the box's y0 = {y0:g} and "
+                         f"y1 = {y1:g}")
+    key = "geometry.crack" if geometry["crack"] is not None else "geometry.cracks"
+    pieces = [geometry["crack"]] if geometry["crack"] else list(geometry["cracks"] or ())
+    cracks = [tuple(piece) if len(piece) == 4 else (*piece, z0, z1) for piece in pieces]
+    for crack in cracks:
+        _check_on_sigma(crack, geometry["box"], key, origin)
+        if data["mesh"]["extrude"] is not None and not (isinstance(crack, tuple) and crack[2:] == (z0, z1)):
+            raise SceneError(f"{origin}: {key}: a crack that does not span the depth (a rectangle or an ellipse) is "
+                             "not extruded, and mesh.extrude extrudes a plane section: give cracks [a, b], or leave "
+                             "mesh.extrude out")
+    box = geometry["box"][:4]
+    check_apart([y0, sigma, y1], box, "geometry.sigma", "of the box's y range", "move Σ", origin)
+    check_apart([x0, x1, *(v for crack in cracks for v in crack[:2])], box, key, "of Σ along x (crack edges, box "
+                "ends)", "move or resize the crack", origin)
+    check_apart([z0, z1, *(v for crack in cracks for v in crack[2:])], box, key, "of Σ along z (crack edges, box "
+                "ends)", "move or resize the crack", origin)
+    geometry.update(sigma=sigma, cracks=cracks, above=[], layers=1)
+    del geometry["crack"]
+    if data["mesh"]["size"] is None:
+        data["mesh"]["size"] = min(x1 - x0, y1 - y0, z1 - z0) / DEFAULT_ELEMENTS
+    _material_checks(data, origin)
+    _boundary_checks(data, origin)
+    solver_checks(data, origin)
+
+
+def _refuse_plane_only(data: dict, raw: dict, origin: str) -> None:
+    """The keys a 3-D scene does not take (yet), each refused naming it."""
+    if isinstance(raw["geometry"].get("sigma"), list):
+        raise SceneError(f"{origin}: geometry.sigma: a 3-D box has one interface (a number) for now")
+    written = raw.get("mesh", {}) if isinstance(raw.get("mesh"), dict) else {}
+    if "file" in written:
+        raise SceneError(f"{origin}: geometry.box: a 3-D box (6 numbers) is meshed by ddsolve, and mesh files are "
+                         "plane: give a 4-number box with mesh.file, or leave mesh.file out")
+    other = next((name for name in written if name not in SOLID_MESH_KEYS), None)
+    if other is not None:
+        raise SceneError(f"{origin}: mesh.{other}: a 3-D box is meshed with tetrahedra of about mesh.size "
+                         "(mesh.size, mesh.grading, mesh.degree and mesh.extrude only, for now)")
+    grading = data["mesh"]["grading"]
+    data["mesh"]["grading"] = GRADING[data["mesh"]["degree"]] if grading is True else (None if grading is False else grading)
+    if data["materials"]["model"] != "plane_strain":
+        raise SceneError(f"{origin}: materials.model: a 3-D body has no plane model (leave it out)")
+    for (section, key), why in NOT_YET.items():
+        table = raw.get(section)
+        if isinstance(table, dict) and table and (key is None or key in table):
+            named = f"{section}.{key}" if key else f"{section}.{next(iter(table))}"
+            raise SceneError(f"{origin}: {printable(named)}: {why}")
+
+
+def _check_on_sigma(crack: tuple[float, ...], box: tuple[float, ...], key: str, origin: str) -> None:
+    """A crack rectangle lies on Σ, inside the box's x and z ranges."""
+    a, b, c, d = crack
+    x0, x1, _, _, z0, z1 = box
+    for axis, (low, high), (start, end) in (("x", (a, b), (x0, x1)), ("z", (c, d), (z0, z1))):
+        if low < start or high > end:
+            raise SceneError(f"{origin}: {key}: the crack {[float(v) for v in crack]} leaves Σ: its {axis} range "
+                             f"[{low:g}, {high:g}] is not inside the box's [{start:g}, {end:g}]")
+
+
+def _material_checks(data: dict, origin: str) -> None:
+    """The body's material, and its regions': isotropic, or a transversely isotropic ply about its fibre (``angle``
+    about z as in the plane, or ``fibre = [x, y, z]``), with an elastic law double precision can factor."""
+    table = data["materials"]["layer1"]
+    given = [("materials.layer1", table)] + [(f"materials.layer1.{region}", inner)
+                                             for region, inner in table.items() if isinstance(inner, dict)]
+    for key, written in given:
+        material = layer_material(written)
+        if isinstance(material, materials.Orthotropic):
+            _ply_checks(material, key, origin)
+        elif not isinstance(material, materials.Isotropic):
+            raise SceneError(f"{origin}: {key}: a 3-D body takes isotropic (E, nu) or orthotropic (E1, E2, G12, "
+                             "nu12) materials: a plane matrix D has no law in 3-D")
+        elif not (material.E > 0 and -1.0 < material.nu < 0.5):
+            raise SceneError(f"{origin}: {key}: E > 0 and -1 < nu < 0.5 make a 3-D elastic law")
+
+
+def _ply_checks(material: materials.Orthotropic, key: str, origin: str) -> None:
+    """A ply is transversely isotropic about its fibre (E3 = E2, nu13 = nu12), its fibre a direction given once,
+    its law positive definite."""
+    for name, value, equal in (("E3", material.E3, material.E2), ("nu13", material.nu13, material.nu12)):
+        if value is not None and value != equal:
+            raise SceneError(f"{origin}: {key}.{name}: a 3-D ply is transversely isotropic about its fibre "
+                             f"({name} = {'E2' if name == 'E3' else 'nu12'}): leave {name} out")
+    if material.fibre is not None and (material.angle != 0.0 or not np.linalg.norm(material.fibre) > 0.0):
+        raise SceneError(f"{origin}: {key}.fibre: " + ("a direction, not zero" if material.angle == 0.0 else
+                                                       "give the fibre by fibre or by angle, not both"))
+    try:
+        materials.solid_stiffness(material)
+    except materials.MaterialError as exc:
+        raise SceneError(f"{origin}: {key}: {exc}") from None
+
+
+def _boundary_checks(data: dict, origin: str) -> None:
+    """Loads and prescribed displacements act on the box's sides; a pressure excludes x, y and z, a normal
+    displacement x, y and z; no point supports; no prescribed values on a clamped side."""
+    clamped = set(data["geometry"]["clamped"])
+    for section, exclusive in (("loads", "pressure"), ("displacements", "normal")):
+        for layer, tables in data.get(section, {}).items():
+            for name, table in tables.items():
+                key = f"{section}.{layer}.{printable(name)}"
+                if name not in SOLID_SIDES:
+                    raise SceneError(f"{origin}: {key}: a 3-D box's boundaries are its sides "
+                                     f"({', '.join(SOLID_SIDES)})")
+                given = [part for part, value in table.items() if value is not None and part != "point"]
+                if table.get("point") is not None:
+                    raise SceneError(f"{origin}: {key}.point: point supports are not available in 3-D yet")
+                if exclusive in given and len(given) > 1:
+                    raise SceneError(f"{origin}: {key}: {exclusive} excludes x, y and z")
+                if section == "displacements" and (name in clamped or not given):
+                    raise SceneError(f"{origin}: {key}: " + ("give x, y, z or normal" if not given else
+                                     f"boundary {name!r} is clamped (geometry.clamped)"))

@@ -1,0 +1,133 @@
+"""The monolithic reference of a 3-D box (``geometry.box = [x0, x1, y0, y1, z0, z1]``): the two halves glued on Σ
+off the cracks, the crack faces free or under non-penetration along Σ's normal, solved exactly.
+
+The plane reference's machinery with three dofs per node (:mod:`ddsolve.solvers.reference`): a glued Σ vertex's
+dofs are one unknown for both halves; at a crack vertex under non-penetration the lower face's normal
+displacement is the upper face's plus the jump j = u⁻·ν − u⁺·ν (ν = +y), an unknown of its own numbered last;
+MUMPS factors the merged system once with the Schur complement on the jumps, and the crack's small dense dual
+problem (:class:`~ddsolve.solvers.reference.FaceProblem`) gives the contact pressures.  The final check: the
+merged system's residual, no penetration, no tension, complementarity.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ddsolve.dd import constraints
+from ddsolve.errors import DDSolveError
+from ddsolve.fem import tetra
+from ddsolve.fem.assembly import csr_matvec
+from ddsolve.io import solid as solid_files
+from ddsolve.mesh import solid as solid_meshes
+from ddsolve.mesh.solid import SolidMesh
+from ddsolve.parallel.phases import Phases
+from ddsolve.post.solid import SolidResult
+from ddsolve.problem.scene import Scene
+from ddsolve.solvers.reference import PHASES, merged_system, solve_merged
+
+#: Σ's normal ν (the lower half's outward normal) as a component: y.
+NORMAL = 1
+
+
+def numbering(mesh: SolidMesh, contact: bool) -> tuple[list[np.ndarray], list[np.ndarray], np.ndarray]:
+    """The unknown of every dof of the lower and the upper half (a glued Σ vertex's dofs shared; under
+    ``contact`` a crack vertex's normal dofs share the upper face's), the jump unknown of each lower dof (−1 for
+    none; numbered last, in Σ order) and the crack vertices that carry a jump."""
+    lower, upper = mesh.halves
+    surface = mesh.sigma
+    numbers = [np.arange(lower.dofs), lower.dofs + np.arange(upper.dofs)]
+    below, above = (tetra.element_dofs(half.sigma_nodes[:, None]) for half in mesh.halves)  # (s, 3) each
+    glued = ~surface.cracked
+    numbers[1][above[glued]] = numbers[0][below[glued]]
+    jumping = np.flatnonzero(surface.cracked) if contact else np.zeros(0, dtype=np.int64)
+    numbers[0][below[jumping, NORMAL]] = numbers[1][above[jumping, NORMAL]]
+    _, compact = np.unique(np.concatenate(numbers), return_inverse=True)
+    numbers = np.split(compact.astype(np.int64), [lower.dofs])
+    jumps = [np.full(lower.dofs, -1, dtype=np.int64), np.full(upper.dofs, -1, dtype=np.int64)]
+    jumps[0][below[jumping, NORMAL]] = int(compact.max()) + 1 + np.arange(len(jumping))
+    return numbers, jumps, jumping
+
+
+def solve_solid(scene: Scene, mesh: SolidMesh) -> SolidResult:
+    """The scene's discrete problem on ``mesh`` solved exactly, with its final check."""
+    phases = Phases()
+    systems = [tetra.half_system(scene, half) for half in mesh.halves]
+    blocks = [system.decoupled(half.name) for system, half in zip(systems, mesh.halves)]
+    numbers, jumps, jumping = numbering(mesh, scene.nonpenetration)
+    sqrt_w = np.sqrt(mesh.sigma.weights[jumping])
+    merged = merged_system(blocks, numbers, jumps)
+    phases.end("merge")
+    x, solved = solve_merged(merged, sqrt_w, lambda largest: largest, scene.solver.out_of_core, phases)
+    fields = [x[number] + np.where(jump >= 0, x[jump], 0.0) for number, jump in zip(numbers, jumps)]
+    phases.end("solve")
+    pressure = np.zeros(len(mesh.sigma.points))
+    if solved.face is not None:
+        pressure[jumping] = solved.y / sqrt_w
+    contact_load = np.zeros(merged.size)
+    contact_load[merged.size - len(sqrt_w):] = -sqrt_w * solved.y
+    residual = csr_matvec(merged, x) - merged.rhs - contact_load
+    result = SolidResult(scene, mesh, tuple(u.reshape(-1, 3) for u in fields), pressure,
+                         energy=sum(system.energy(u) for system, u in zip(systems, fields)),
+                         steps=len(solved.face.changes) if solved.face else 1, solves=solved.solves, converged=True,
+                         timings={name: phases.wall[name] for name in PHASES})
+    _final_check(result, float(np.abs(residual).max()) / max(float(np.abs(merged.rhs).max()),
+                                                             float(np.abs(contact_load).max()), 1e-300))
+    return result
+
+
+def _final_check(result: SolidResult, residual: float) -> None:
+    """The merged system's relative residual, the largest penetration (relative to the largest displacement),
+    tension (none by construction) and complementarity (pressure × opening × weight against the energy scale):
+    each within the KKT tolerance, else the result is not converged, with a message naming them."""
+    opening = result.normal_opening
+    largest = max(float(np.abs(u).max()) for u in result.fields)
+    cracked = result.mesh.sigma.cracked if result.scene.nonpenetration else np.zeros(len(opening), dtype=bool)
+    work = float(np.abs(result.pressure * opening * result.mesh.sigma.weights).sum())
+    scale = max(abs(result.energy), 1e-300)
+    result.checks = {"residual": residual,
+                     "penetration": float(np.max(-opening[cracked], initial=0.0)) / max(largest, 1e-300),
+                     "tension": float(np.max(-result.pressure, initial=0.0)) + 0.0,  # not -0.0
+                     "complementarity": work / scale}
+    tolerance = constraints.kkt_tolerance(None)
+    violated = [name for name, value in result.checks.items() if value > tolerance]
+    result.converged = not violated
+    result.message = (f"reference: the 3-D solution violates {', '.join(violated)} (tolerance {tolerance:g})"
+                      if violated else "")
+
+
+def energy_error(result: SolidResult, reference: SolidResult) -> float:
+    """‖u − u_ref‖_a / ‖u_ref‖_a over both halves, on the reference's mesh (the same as the result's, else
+    refused in one line) with the reference scene's materials."""
+    same = all(mine.points.shape == theirs.points.shape and np.array_equal(mine.points, theirs.points)
+               for mine, theirs in zip(result.mesh.halves, reference.mesh.halves))
+    if not same:
+        raise DDSolveError("the 3-D results lie on different meshes: compare results of one mesh (geometry.box, "
+                           "mesh.size, mesh.grading)")
+    error = norm = 0.0
+    for half, u, v in zip(reference.mesh.halves, result.fields, reference.fields):
+        material = reference.scene.material("layer1", half.name)
+        K = tetra.stiffness(half.points, half.tetrahedra, tetra.elastic_matrix(material))
+        difference = (u - v).ravel()
+        error += difference @ (K @ difference)
+        norm += v.ravel() @ (K @ v.ravel())
+    return float(np.sqrt(error / norm)) if norm > 0 else (0.0 if error == 0 else float("inf"))
+
+
+def comparison(result: SolidResult, reference: SolidResult) -> tuple[float, float, float]:
+    """:func:`energy_error`, the largest nodal difference and the reference's largest nodal displacement."""
+    error = energy_error(result, reference)  # first: it refuses results on different meshes
+    difference = max(float(np.abs(u - v).max()) for u, v in zip(result.fields, reference.fields))
+    return error, difference, max(float(np.abs(u).max()) for u in reference.fields)
+
+
+def reference(scene: Scene, output: Path | None = None) -> SolidResult:
+    """A 3-D scene meshed and solved by the monolithic reference, ``output`` and its VTU files written."""
+    phases = Phases()
+    mesh = solid_meshes.build(scene)
+    phases.end("meshing")
+    result = solve_solid(scene, mesh)
+    result.timings["meshing"] = phases.wall["meshing"]
+    if output is not None:
+        solid_files.write(output, result)
+    return result
