@@ -271,11 +271,12 @@ def sweep(scene: Scene | str | Path, parameters: dict[str, Sequence], paired: bo
     return comm.bcast(records, root=0)
 
 
-def grow(scene: Scene | str | Path, limit: float, steps: int = 20, tolerance: float = 1e-4,
+def grow(scene: Scene | str | Path, limit: float | Sequence[float], steps: int = 20, tolerance: float = 1e-4,
          output: str | Path | None = None, comm=None, progress: Callable[[str], None] | None = None) -> list:
     """Grow the cracks of ``scene`` along Σ (Griffith, the scene's ``[fracture]`` toughness; or the damage of its
     ``[interface]`` bilinear bond, :mod:`ddsolve.solvers.bond_growth`) as a factor on its loads or prescribed
-    displacements rises to ``limit`` in ``steps`` steps (docs/growth.md).
+    displacements rises to ``limit`` in ``steps`` steps (docs/growth.md); a bilinear bond also takes a path of
+    targets, ``limit=[0.2, 0.05, 0.3]``: it rises, unloads along the secant and reloads.
 
     Returns the steps (:class:`ddsolve.solvers.grow.Step`: ``state`` with control, load, displacement,
     cracks, G per tip; ``unstable``; ``events``) on every rank; ``output`` writes them as ``ddsolve grow``
@@ -289,7 +290,9 @@ def grow(scene: Scene | str | Path, limit: float, steps: int = 20, tolerance: fl
 
     def check():
         loaded, path = _scene(scene), _path("grow", "output", output)
-        return loaded, {"limit": _number("grow", "limit", limit), "steps": _whole("grow", "steps", steps),
+        targets = (tuple(_number("grow", "limit", target) for target in limit)
+                   if isinstance(limit, (list, tuple)) else _number("grow", "limit", limit))
+        return loaded, {"limit": targets, "steps": _whole("grow", "steps", steps),
                         "tolerance": _number("grow", "tolerance", tolerance),
                         "output": _output(path, loaded, scene, viewer=False), "progress": _progress("grow", progress)}
 

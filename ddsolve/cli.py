@@ -48,6 +48,16 @@ def _root_print(*args, **kwargs) -> None:
         print(*args, **kwargs, flush=True)
 
 
+def _control_targets(text: str) -> float | tuple[float, ...]:
+    """``--to``: one control factor, or a path of them separated by commas."""
+    try:
+        values = tuple(float(word) for word in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid control factor(s): {text!r} (a number, or numbers separated by "
+                                         "commas)") from None
+    return values[0] if len(values) == 1 else values
+
+
 def _load_scene(args):
     """The scene of ``args`` (with its ``--set`` items, each of which the command must read)."""
     from ddsolve.problem import scene
@@ -597,11 +607,14 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("-n", dest="ranks", type=int, metavar="N", help="launch N ranks with mpiexec (as for solve)")
     p.add_argument("-o", dest="output", help="HDF5 file of every step (default: SCENE-growth.h5; the curve "
                    "goes to the same name with .csv and .png)")
-    p.add_argument("--to", dest="limit", type=float, metavar="FACTOR",
+    p.add_argument("--to", dest="limit", type=_control_targets, metavar="FACTOR[,FACTOR...]",
                    help="the control factor's last value (it multiplies the scene's loads or displacements; "
-                   "default: 2 × the initiation factor; a bilinear bond needs it)")
+                   "default: 2 × the initiation factor; a bilinear bond needs it); a bilinear bond also takes a "
+                   "path, targets in turn: 0.2,0.05,0.3 rises to 0.2, unloads to 0.05 (the damage kept, along the "
+                   "secant) and reloads to 0.3")
     p.add_argument("--steps", type=int, default=20, help="equal control steps up to --to, 1 to 1000 (default 20; "
-                   "the initiation factor is added; a bilinear bond's steps are at most --to/--steps, halved where "
+                   "the initiation factor is added; a bilinear bond's steps are at most (its largest) --to/--steps, "
+                   "halved where "
                    "its damage moves fast)")
     p.add_argument("--tolerance", type=float, default=1e-4, help="|G/G_c − 1| at a growing tip, 1e-8 to 1 "
                    "(default 1e-4)")

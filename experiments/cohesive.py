@@ -5,6 +5,8 @@
   two ways: on rank 0 from the Schur complements, and by rounds of block solves);
 - :func:`bilinear_methods`: the bilinear law in one load step by ``schur`` (Newton's method) and ``mprgp`` (the
   secant fixed point), against each other;
+- :func:`enf_growth`: the ENF (mode II under three-point bending) with the bilinear law under Benzeggagh–Kenane
+  against the Griffith growth of the same structure with G_IIc, as :func:`dcb_growth`;
 - :func:`dcb_growth`: a displacement-controlled DCB (two identical layers, plane strain, E = 200, arms h = 1)
   grown with the bilinear law (strength 0.005 E, toughness G_c) against the Griffith growth of the same
   structure with the rigid bond (``ddsolve grow`` with ``[fracture] toughness = G_c``, the same mesh): the load
@@ -15,6 +17,7 @@
 """
 from __future__ import annotations
 
+import math
 import tempfile
 import time
 from pathlib import Path
@@ -28,6 +31,16 @@ LENGTH, ARM, CRACK, MODULUS, POISSON = 12.0, 1.0, 4.0, 200.0, 0.28
 STRENGTH, TOUGHNESS = 0.005 * MODULUS, 2e-3
 #: The uniform P2 mesh's size.
 SIZE = 0.1
+LAYERS = ("layer1", "layer2")
+#: The ENF: half span L, initial crack a (a/L = 0.9 > 0.69: stable growth under the deflection), G_IIc, η, the
+#: shear strength over the normal one (√(G_IIc/G_Ic): both modes' softening starts at one opening under one
+#: stiffness, Turon et al. 2007), the loading nose's width, the uniform P2 mesh's size.
+ENF_HALF_SPAN, ENF_CRACK, G_IIC, ETA = 10.0, 9.0, 4e-3, 2.0
+SHEAR_RATIO = math.sqrt(G_IIC / TOUGHNESS)
+NOSE, ENF_SIZE = 0.02, 0.2
+#: The ENF runs' deflection (the crack passes the loading nose at L), the bond's steps to it (at most
+#: ENF_LIMIT/ENF_STEPS, halved where damage moves fast) and Griffith's.
+ENF_LIMIT, ENF_STEPS, ENF_GRIFFITH_STEPS = 0.32, 16, 32
 
 
 def dcb_scene(bond: bool, size: float = SIZE, toughness: float = TOUGHNESS, strength: float = STRENGTH,
@@ -36,24 +49,49 @@ def dcb_scene(bond: bool, size: float = SIZE, toughness: float = TOUGHNESS, stre
     uniform P2 mesh of ``size``, its initial crack (0, ``crack``); with no crack the end faces' outer halves are
     opened (the whole faces would meet at Σ's glued end). With the bilinear bond of ``strength`` (``bond``) or
     the Griffith toughness."""
-    from ddsolve.problem import scene as scenes
-
-    folder = Path(tempfile.mkdtemp(prefix="cohesive-"))
-    name = f"dcb-{'bond' if bond else 'griffith'}"
     pieces = {"clamped": [("right", -ARM, ARM)], "opened_upper": [("left", 0.5 * ARM, ARM)],
               "opened_lower": [("left", -ARM, -0.5 * ARM)]}
     opened = ("left_upper", "left_lower") if crack > 0 else ("opened_upper", "opened_lower")
     cracks = [(0.0, crack)] if crack > 0 else []
-    (folder / f"{name}.geo").write_text(beams.strip_geo(LENGTH, ARM, cracks, pieces if crack <= 0 else
-                                                        {"clamped": pieces["clamped"]}))
-    displacements = "".join(f"[displacements.{layer}.{face}]\ny = {value}\n" for layer in ("layer1", "layer2")
+    geo = beams.strip_geo(LENGTH, ARM, cracks, pieces if crack <= 0 else {"clamped": pieces["clamped"]})
+    displacements = "".join(f"[displacements.{layer}.{face}]\ny = {value}\n" for layer in LAYERS
                             for face, value in zip(opened, (0.5, -0.5)))
-    materials = "".join(f"[materials.{layer}]\nE = {MODULUS}\nnu = {POISSON}\n" for layer in ("layer1", "layer2"))
     law = (f'[interface]\nlaw = "bilinear"\nstrength = {strength!r}\ntoughness = {toughness!r}\n' if bond else
            f"[fracture]\ntoughness = {toughness!r}\n")
-    text = (f'title = "{name}"\n[mesh]\nfile = "{name}.geo"\nsize = {size!r}\ndegree = 2\n{materials}{displacements}'
-            f'{law}[solver]\nmethod = "schur"\n')
-    (folder / f"{name}.toml").write_text(text)  # for the command line: ddsolve grow FOLDER/dcb-bond.toml --to F
+    return written(f"dcb-{'bond' if bond else 'griffith'}", geo, displacements + law, size)
+
+
+def enf_scene(bond: bool, size: float = ENF_SIZE, strength: float = STRENGTH):
+    """The ENF (span 2L, arms h, the crack (0, a) from the roller's end; :data:`ENF_HALF_SPAN`, :data:`ENF_CRACK`)
+    under a unit midspan deflection (a nose ``NOSE`` wide moved by −1, both layers), a pin at the right end's Σ
+    and rollers under the left end face's lower part and the right one's, on a uniform P2 mesh of ``size``.
+    With the bilinear bond under Benzeggagh–Kenane (``bond``: σ_c = ``strength``, τ_c = SHEAR_RATIO σ_c,
+    G_Ic = TOUGHNESS, G_IIc, η = ETA) or Griffith's toughness G_IIc (the ENF's crack grows in mode II)."""
+    middle = ENF_HALF_SPAN
+    pieces = {"pin": [("right", -0.02 * ARM, 0.02 * ARM)], "roller": [("left", -ARM, -0.1 * ARM)],
+              "load": [("top", middle - 0.5 * NOSE, middle + 0.5 * NOSE)]}
+    geo = beams.strip_geo(2.0 * ENF_HALF_SPAN, ARM, [(0.0, ENF_CRACK)], pieces)
+    held = {"roller": "y = 0.0", "right_lower": "y = 0.0", "pin": "x = 0.0\ny = 0.0", "load": "y = -1.0"}
+    displacements = "".join(f"[displacements.{layer}.{name}]\n{body}\n" for layer in LAYERS
+                            for name, body in held.items())
+    law = (f'[interface]\nlaw = "bilinear"\nstrength = {strength!r}\ntoughness = {TOUGHNESS!r}\n'
+           f'mode_mix = "benzeggagh-kenane"\nG_IIc = {G_IIC!r}\neta = {ETA!r}\n'
+           f"shear_strength = {SHEAR_RATIO * strength!r}\n" if bond else f"[fracture]\ntoughness = {G_IIC!r}\n")
+    return written(f"enf-{'bond' if bond else 'griffith'}", geo, displacements + law, size)
+
+
+def written(name: str, geo: str, conditions: str, size: float):
+    """The scene ``name`` of two identical layers on the strip ``geo`` (a uniform P2 mesh of ``size``) with
+    ``conditions`` (its displacements and its law, scene text), written with its .geo to a new folder (for the
+    command line: ``ddsolve grow FOLDER/NAME.toml --to F``) and loaded, solved by schur."""
+    from ddsolve.problem import scene as scenes
+
+    folder = Path(tempfile.mkdtemp(prefix="cohesive-"))
+    (folder / f"{name}.geo").write_text(geo)
+    materials = "".join(f"[materials.{layer}]\nE = {MODULUS}\nnu = {POISSON}\n" for layer in LAYERS)
+    text = (f'title = "{name}"\n[mesh]\nfile = "{name}.geo"\nsize = {size!r}\ndegree = 2\n{materials}{conditions}'
+            '[solver]\nmethod = "schur"\n')
+    (folder / f"{name}.toml").write_text(text)
     return scenes.loads(text, origin=name, base=folder)
 
 
@@ -140,13 +178,38 @@ def timed_growth(run, scene, limit: float, steps: int, progress) -> dict:
 def dcb_growth(limit: float = 0.2, steps: int = 20, size: float = SIZE, strength: float = STRENGTH,
                griffith: dict | None = None) -> dict:
     """The bilinear DCB against Griffith on one mesh (module docstring; ``griffith`` a :func:`griffith_run` of the
-    same ``size`` reaching at least ``limit`` if given): per bond step the opening, load, crack tip, process zone and the Griffith
-    load; the largest deviations before damage and once the crack grows."""
+    same ``size`` reaching at least ``limit`` if given): :func:`compared`."""
     bond = bond_run(size, strength, CRACK, limit, steps)
     griffith = griffith if griffith is not None else griffith_run(size, limit, steps)
+    return compared(bond, griffith, CRACK, size)
+
+
+def enf_griffith_run(size: float = ENF_SIZE, limit: float = ENF_LIMIT, steps: int = ENF_GRIFFITH_STEPS) -> dict:
+    """``ddsolve grow`` of the ENF with the rigid bond and Griffith's toughness G_IIc, as :func:`bond_run`."""
+    from ddsolve.solvers import grow
+
+    return timed_growth(grow.grow, enf_scene(False, size), limit, steps, progress=lambda line: None)
+
+
+def enf_growth(size: float = ENF_SIZE, strength: float = STRENGTH, griffith: dict | None = None,
+               limit: float = ENF_LIMIT, steps: int = ENF_STEPS) -> dict:
+    """The ENF with the bilinear law under Benzeggagh–Kenane against Griffith's growth (``griffith`` an
+    :func:`enf_griffith_run` of the same ``size``, made if not given): :func:`compared`."""
+    from ddsolve.solvers import bond_growth
+
+    bond = timed_growth(bond_growth.grow, enf_scene(True, size, strength), limit, steps,
+                        progress=lambda line: print(line, flush=True))
+    griffith = griffith if griffith is not None else enf_griffith_run(size, limit)
+    return compared(bond, griffith, ENF_CRACK, size)
+
+
+def compared(bond: dict, griffith: dict, crack: float, size: float) -> dict:
+    """A bond run's growth file (``bond``) against Griffith's of the same structure and mesh (``griffith``), its
+    initial crack (0, ``crack``): per bond step the opening, load, crack tip, process zone and the Griffith load; the
+    largest deviations before damage and once the crack grows."""
     tips = bond["cracks"][:, 0, 1]
     damaged = bond["damage"].max(axis=1) > 0.0
-    grown = tips > CRACK + 1e-9
+    grown = tips > crack + 1e-9
     expected = np.array([griffith_load(d, griffith) for d in bond["displacement"]])
     deviation = np.abs(bond["load"] / np.where(expected > 0, expected, np.nan) - 1.0)
     spacing = size / 2.0  # P2: the Σ nodes' spacing

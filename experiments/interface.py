@@ -13,7 +13,8 @@ on the crack faces:
 
 The cohesive bond (experiments/cohesive.py's DCB, ``ddsolve grow`` in one process): the bilinear law at three
 strengths against Griffith's growth of the same structure, the process zone against Hillerborg's and the slender
-arm's estimates, mesh convergence, a bond with no initial crack, and the runs' Newton steps and block solves.
+arm's estimates, mesh convergence, a bond with no initial crack, and the runs' Newton steps and block solves; the
+ENF (mode II) with the law under Benzeggagh–Kenane at three strengths against Griffith's growth with G_IIc.
 """
 from __future__ import annotations
 
@@ -809,6 +810,115 @@ def cohesive_text(record: dict) -> list[str]:
             *cohesive_speed_page(record)]
 
 
+# --- the ENF with the cohesive law -------------------------------------------------------------------------
+#: The ENF's bonds (experiments/cohesive.py, ``enf_scene``): σ_c / E, τ_c = cohesive.SHEAR_RATIO σ_c; the summary
+#: row is the strongest's (0.01 E on this mesh: a zone of one Σ spacing, the steps halve without end).
+ENF_STRENGTHS = (0.00125, 0.0025, 0.005)
+
+
+def measure_enf_cohesive() -> dict:
+    """Griffith's growth of the ENF (G_IIc) and the bilinear ENF at every strength of ENF_STRENGTHS against it."""
+    griffith = cohesive.enf_griffith_run()
+    runs = {}
+    for strength in ENF_STRENGTHS:
+        run = cohesive.enf_growth(strength=strength * cohesive.MODULUS, griffith=griffith)
+        runs[f"{strength:g}"] = {"strength": strength, **run}
+        print(f"interface: cohesive ENF, strength {strength:g} E: before damage {run['before_damage']:.3%}, once "
+              f"grown {run['grown']:.3%}, {run['seconds']:.0f} s", flush=True)
+    curve = {"opening": griffith["displacement"].tolist(), "load": griffith["load"].tolist(),
+             "tip": tips(griffith["cracks"], cohesive.ENF_CRACK).tolist(), "solves": griffith["solves"].tolist(),
+             "seconds": griffith["seconds"], "unknowns": griffith["unknowns"]}
+    return {"runs": runs, "griffith": curve, "commit": str(griffith["attrs"].get("git_commit", "unknown"))}
+
+
+def enf_cohesive_summary(record: dict) -> list[dict]:
+    run = record["runs"][f"{ENF_STRENGTHS[-1]:g}"]
+    return [summary_row(f"cohesive ENF, strength {run['strength']:g} E, size {cohesive.ENF_SIZE:g}: the load at "
+                        f"δ = {run['opening'][-1]:g} (against Griffith growth; the error: the largest once grown)",
+                        run["griffith"][-1], run["load"][-1], percent(run["grown"]),
+                        {"unknowns": run["unknowns"], "method": "schur", "seconds": run["seconds"]})]
+
+
+def enf_cohesive_plot(record: dict) -> None:
+    """The load and the crack tip against the midspan deflection: Griffith's growth and the bond at each strength."""
+    plt = _pyplot()
+    fig, (loads, cracks) = plt.subplots(1, 2, figsize=(12, 4.6), constrained_layout=True)
+    griffith = record["griffith"]
+    for ax, key in ((loads, "load"), (cracks, "tip")):
+        ax.plot(griffith["opening"], griffith[key], "k-", linewidth=2, label="Griffith growth, G_IIc")
+        for index, run in enumerate(record["runs"].values()):
+            shear = cohesive.SHEAR_RATIO * run["strength"]
+            ax.plot(run["opening"], run[key], f"C{index}o-", markersize=3, linewidth=1,
+                    label=f"bilinear, σ_c = {run['strength']:g} E, τ_c = {shear:.4g} E")
+        ax.set_xlabel("midspan deflection δ")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    loads.set_ylabel("load P (both layers)")
+    cracks.set_ylabel("crack tip x (d = 1)")
+    cracks.axhline(cohesive.ENF_HALF_SPAN, color="0.5", linestyle=":")
+    loads.set_title("ENF: the bilinear law under Benzeggagh–Kenane meets Griffith's curve as the strength grows",
+                    fontsize=10)
+    cracks.set_title(f"the crack tip (dotted: the loading nose at x = {cohesive.ENF_HALF_SPAN:g})", fontsize=10)
+    fig.savefig(DOCS / "interface-enf-cohesive.png", dpi=110)
+    plt.close(fig)
+
+
+def griffith_corner(griffith: dict) -> tuple[float, float]:
+    """The deflection and load of Griffith's initiation: its last step before the crack grows."""
+    last = int(np.argmax(np.asarray(griffith["tip"]) > cohesive.ENF_CRACK + 1e-9)) - 1
+    return griffith["opening"][last], griffith["load"][last]
+
+
+def griffith_tip_at(griffith: dict, opening: float) -> float:
+    return float(np.interp(opening, griffith["opening"], griffith["tip"]))
+
+
+def grown_text(run: dict) -> str:
+    """The largest deviation once the crack grows, or that it has not grown."""
+    return f"{run['grown']:.2%}" if np.isfinite(run["grown"]) else f"no growth by δ = {run['opening'][-1]:g}"
+
+
+def enf_cohesive_page(record: dict) -> list[str]:
+    griffith = record["griffith"]
+    corner, initiation = griffith_corner(griffith)
+    out = ["## The ENF with the bilinear law against Griffith growth", "",
+           f"Mode II: `experiments/cohesive.py`'s ENF, span 2L = {2 * cohesive.ENF_HALF_SPAN:g}, arms h = {ARM:g}, "
+           f"initial crack (0, {cohesive.ENF_CRACK:g}) from the roller's end (a/L = "
+           f"{cohesive.ENF_CRACK / cohesive.ENF_HALF_SPAN:g} > 0.69: beam theory's growth is stable under the "
+           "deflection), a pin at the other end's Σ, two identical layers (E = "
+           f"{cohesive.MODULUS:g}, ν = {cohesive.POISSON:g}, plane strain) bent at three points by a loading nose "
+           f"{cohesive.NOSE:g} wide moved down by δ, to δ = {cohesive.ENF_LIMIT:g} in steps of at most "
+           f"{cohesive.ENF_LIMIT / cohesive.ENF_STEPS:g} (halved where damage moves fast), uniform P2 mesh of size "
+           f"{cohesive.ENF_SIZE:g}. `[interface] law = \"bilinear\"` with `mode_mix = \"benzeggagh-kenane\"`: "
+           f"G_Ic = {cohesive.TOUGHNESS:g}, G_IIc = {cohesive.G_IIC:g}, η = {cohesive.ETA:g}, the strength σ_c below "
+           f"and the shear strength τ_c = √(G_IIc/G_Ic) σ_c = {cohesive.SHEAR_RATIO:.4g} σ_c (both modes start to "
+           "soften at one opening, Turon et al. 2007); against `ddsolve grow` of the same scene with the rigid bond "
+           f"and `[fracture] toughness = G_IIc` on the same mesh ({len(griffith['opening']) - 1} steps; the crack "
+           "grows in mode II, G_I ≈ 0). Griffith's load falls from its initiation as the crack runs to the nose, "
+           "then rises as it passes it. *Before damage*: the largest deviation while no vertex is damaged; *once "
+           "grown*: while the crack (d = 1) is beyond its start; *whole curve*: every step. The cohesive curve rounds "
+           "Griffith's corner from below (its process zone softens the bond ahead of the tip before the crack "
+           f"grows): *at the corner* is its load at Griffith's initiation deflection δ = {corner:.4g} over "
+           "Griffith's initiation load, which rises to 1 as the strength grows.", "",
+           "![cohesive ENF](interface-enf-cohesive.png)", ""]
+    rows = []
+    for run in record["runs"].values():
+        speed = bond_speed(run)
+        rows.append([f"{run['strength']:g}", f"{cohesive.SHEAR_RATIO * run['strength']:.4g}",
+                     f"{np.interp(corner, run['opening'], run['load']) / initiation:.4f}", before_damage(run),
+                     grown_text(run),
+                     f"{whole_curve(run):.2%}",
+                     f"{run['tip'][-1]:.2f} ({griffith_tip_at(griffith, run['opening'][-1]):.2f})",
+                     str(run["steps"]), f"{speed['newton_mean']:.1f} ({speed['newton_max']})",
+                     f"{speed['solves_mean']:.1f}", f"{speed['seconds']:.0f} s"])
+    out += table(["σ_c / E", "τ_c / E", f"at the corner (Griffith's {initiation:.5e})",
+                  "before damage", "once grown", "whole curve", "tip at the end (Griffith's)", "steps",
+                  "Newton steps per step (most)", "block solves per step", "wall time"], rows)
+    out += ["", f"Griffith's run: {len(griffith['opening']) - 1} steps, {griffith['unknowns']:,} unknowns, "
+            f"{griffith['seconds']:.0f} s (one process, two cores shared with other work)."]
+    return out
+
+
 @dataclass(frozen=True)
 class Section:
     """A part of the page: ``measure()`` solves its cases into a record; ``draw``, ``text`` (markdown lines) and
@@ -823,7 +933,8 @@ class Section:
 #: The page, in order.
 SECTIONS = [Section("closed_crack", measure_closed_crack, closed_crack_plot, closed_crack_page, closed_crack_summary),
             Section("enf", measure_enf, enf_plot, enf_page, enf_summary),
-            Section("cohesive", measure_cohesive, cohesive_plot, cohesive_text, cohesive_summary)]
+            Section("cohesive", measure_cohesive, cohesive_plot, cohesive_text, cohesive_summary),
+            Section("enf_cohesive", measure_enf_cohesive, enf_cohesive_plot, enf_cohesive_page, enf_cohesive_summary)]
 
 
 def page(records: dict[str, dict], sections: list[Section] = SECTIONS) -> str:

@@ -157,6 +157,60 @@ def test_elastic_bond_tends_to_the_rigid_one_and_schur_equals_mprgp():
     assert max(row["methods_differ"] for row in rows) < 1e-8
 
 
+def uniform_pull(method: str, mode: str, moduli: tuple[float, ...], stiffness: float = 50.0,
+                 opening: float = 0.01):
+    """A box of height 3 with Σ at y = 1 bonded by the elastic law, its top moved by ``opening`` normal to Σ
+    (``mode`` "normal": rollers on the bottom and the left side) or along it ("shear": the bottom clamped, the
+    sides held in y; ``method`` "reference": the monolithic reference): every layer's strain ε is uniform and the
+    bond carries the layers' stresses together, so opening = 3ε + Σ M_i ε / k (M_i = E′_i, or G_i in shear).  The solved result, each layer's closed-form
+    stress and the bond's jump Σ M_i ε / k."""
+    import ddsolve
+
+    names = [f"layer{i + 1}" for i in range(len(moduli))]
+    held = ({"bottom": "y = 0.0", "left": "x = 0.0", "top": f"y = {opening!r}"} if mode == "normal" else
+            {"bottom": "x = 0.0\ny = 0.0", "left": "y = 0.0", "right": "y = 0.0", "top": f"x = {opening!r}\ny = 0.0"})
+    text = (f'title = "uniform {mode}"\n[geometry]\nbox = [0.0, 2.0, 0.0, 3.0]\nsigma = 1.0\ncracks = []\n'
+            f'clamped = []\nlayers = {len(names)}\n[mesh]\nsize = 1.0\n'
+            + "".join(f"[materials.{name}]\nE = {E!r}\nnu = 0.3\n" for name, E in zip(names, moduli))
+            + "".join(f"[displacements.{name}.{side}]\n{values}\n" for name in names for side, values in held.items())
+            + f'[interface]\nlaw = "elastic"\nstiffness = {stiffness!r}\n'
+            + ("" if method == "reference" else f'[solver]\nmethod = "{method}"\n'))
+    scene = scenes.loads(text, origin=f"uniform-{mode}")
+    result = (ddsolve.reference(scene) if method == "reference" else
+              ddsolve.solve(scene, progress=lambda line: None))
+    M = np.array([E / (1.0 - 0.3 ** 2) if mode == "normal" else E / 2.6 for E in moduli])
+    strain = opening / (3.0 + M.sum() / stiffness)
+    return result, M * strain, M.sum() * strain / stiffness
+
+
+def sigma_jump(result) -> np.ndarray:
+    """``(k, 2)``: u⁺ − u⁻ at the Σ nodes of layer 1, in x order."""
+    faces = []
+    for name in ("u_minus", "u_plus"):
+        points, field = result.half(name).points, result.solution[name]
+        on = np.flatnonzero(np.isclose(points[:, 1], 1.0))
+        faces.append(field[on[np.argsort(points[on, 0])]])
+    return faces[1] - faces[0]
+
+
+@pytest.mark.solve
+def test_the_elastic_law_gives_the_closed_form_jump_of_a_uniform_pull_and_shear():
+    cases = [(method, mode, (100.0,)) for method in ("schur", "mprgp", "fista", "reference")
+             for mode in ("normal", "shear")]
+    cases += [("schur", "normal", (100.0, 250.0)), ("mprgp", "shear", (100.0, 250.0)),
+              ("reference", "shear", (100.0, 250.0))]
+    for method, mode, moduli in cases:
+        result, stresses, expected = uniform_pull(method, mode, moduli)
+        assert result.converged, (method, mode)
+        component = 1 if mode == "normal" else 0
+        jump = sigma_jump(result)
+        tolerance = 1e-12 if method in ("schur", "reference") else 1e-8  # exact, or an iteration's tol
+        assert np.abs(jump[:, component] / expected - 1.0).max() < tolerance, (method, mode, moduli)
+        assert np.abs(jump[:, 1 - component]).max() < tolerance * expected
+        for name, stress in zip(result.reactions, stresses):  # the top's reaction: the layer's stress × width 2
+            assert result.reactions[name]["top"][component] == pytest.approx(2.0 * stress, rel=tolerance)
+
+
 @pytest.mark.solve
 def test_newton_on_schur_and_the_secant_fixed_point_of_mprgp_agree_on_a_damaged_bond():
     from experiments import cohesive as experiment
@@ -178,7 +232,7 @@ def test_old_results_are_unchanged_without_an_interface_table():
 
 
 @pytest.mark.solve
-def test_uzawa_and_feti_refuse_a_bond_in_one_line():
+def test_uzawa_feti_and_the_reference_refuse_what_they_do_not_solve_in_one_line():
     import ddsolve
 
     for method in ("uzawa", "feti"):
@@ -187,8 +241,27 @@ def test_uzawa_and_feti_refuse_a_bond_in_one_line():
         with pytest.raises(DDSolveError) as error:
             ddsolve.solve(scene, progress=lambda line: None)
         assert "interface.law" in str(error.value) and "\n" not in str(error.value)
-    with pytest.raises(DDSolveError, match="interface.law"):
-        ddsolve.reference(ddsolve.Scene.load("full-opening", ['interface.law="elastic"', "interface.stiffness=1e3"]))
+    bilinear = ddsolve.Scene.load("full-opening", ['interface.law="bilinear"', "interface.strength=0.002",
+                                                   "interface.toughness=1e-6"])
+    with pytest.raises(DDSolveError) as error:
+        ddsolve.reference(bilinear)
+    assert 'interface.law = "bilinear"' in str(error.value) and "\n" not in str(error.value)
+
+
+@pytest.mark.solve
+def test_the_reference_solves_the_elastic_bond_as_springs_and_equals_schur():
+    import ddsolve
+    from ddsolve.post import analysis
+
+    scene = ddsolve.Scene.load("partial-closure", ['interface.law="elastic"', "interface.stiffness=1e5",
+                                                   "mesh.size=0.25", 'solver.method="schur"'])
+    reference = ddsolve.reference(scene)
+    decomposed = ddsolve.solve(scene, progress=lambda line: None)
+    assert reference.converged and reference.attrs["closed_vertices"] > 0  # contact and the bond together
+    assert analysis.compare(decomposed, reference).energy_error < 1e-12
+    assert decomposed.attrs["energy"] == pytest.approx(reference.attrs["energy"], rel=1e-12)
+    rigid = ddsolve.reference(ddsolve.Scene.load("partial-closure", ["mesh.size=0.25"]))
+    assert analysis.compare(rigid, reference).energy_error > 1e-4  # the springs count
 
 
 @pytest.mark.solve
@@ -204,3 +277,36 @@ def test_a_dcb_grown_with_the_bilinear_law_follows_griffith():
     assert max(record["tip"]) > experiment.CRACK + 0.25  # the crack has grown
     assert record["elements_per_zone"] >= 4
     assert record["irreversible"]  # no vertex's damage ever falls from one step to the next
+
+
+@pytest.mark.mpi
+def test_grow_unloads_along_the_secant_and_reloads_to_the_old_peak(tmp_path):
+    """A coarse DCB (P2, size 0.5) driven by ``grow --to 0.1,0,0.12``: damaged at 0.1, unloaded to 0 and reloaded:
+    the damage stays fixed and the force follows the secant through the origin until the old peak, then the
+    damage grows again and the force falls below that line.  Bad paths are refused in one line."""
+    from conftest import ddsolve, refused
+    from experiments import cohesive as experiment
+
+    from ddsolve.solvers import growth_files
+
+    scene = experiment.dcb_scene(True, size=0.5)
+    toml, output = scene.base / "dcb-bond.toml", tmp_path / "path.h5"
+    ddsolve("grow", str(toml), "--to", "0.1,0,0.12", "--steps", "4", "--pictures", "1", "-o", str(output))
+    run = growth_files.read(output)
+    assert list(run["attrs"]["path"]) == [0.1, 0.0, 0.12]
+    control, load, damage = run["control"], run["load"], run["damage"]
+    peak = int(np.flatnonzero(control == 0.1)[0])
+    assert damage[peak].max() > 0.0  # softening before the unloading
+    secant = load[peak] / run["displacement"][peak]
+    after = np.arange(peak, len(control))
+    below = after[control[after] <= 0.1]  # unloaded to 0 and reloaded to the old peak
+    assert control[below].min() == 0.0 and abs(load[below][control[below] == 0.0]).max() < 1e-12 * load[peak]
+    assert np.allclose(load[below], secant * run["displacement"][below], rtol=1e-9, atol=1e-12 * load[peak])
+    assert np.all(damage[below] == damage[peak])
+    assert damage[-1].max() > damage[peak].max() and load[-1] < secant * run["displacement"][-1] * (1 - 1e-3)
+    assert any("turns down" in event for event in run["events"]) and any("turns up" in e for e in run["events"])
+    assert (tmp_path / f"path-step{len(control) - 1}.png").exists()  # the picture solved again from its start
+    for path in ("0.1,0.1", "0,0.1", "0.1,-0.05"):
+        refused(ddsolve("grow", str(toml), "--to", path, "-o", str(tmp_path / "bad.h5"), check=False), 2, "--to")
+    refused(ddsolve("grow", "partial-closure", "--set", "fracture.toughness=1e-6", "--to", "0.2,0.1", "-o",
+                    str(tmp_path / "bad.h5"), check=False), 2, "--to 0.2,0.1", "damaging bond")

@@ -92,7 +92,7 @@ def synthetic_records(seed: int = 0) -> dict:
                for mu in interface.ENF_CHECKED]
     return {"closed_crack": closed, "enf": {"rows": rows, "refined": [enf(5.0, mu, 0.1) for mu in interface.ENF_REFINED],
                                             "methods": methods, "profile": profile, "commit": "0123456789abcdef"},
-            "cohesive": synthetic_cohesive()}
+            "cohesive": synthetic_cohesive(), "enf_cohesive": synthetic_enf_cohesive()}
 
 
 def synthetic_curve(strength: float, start: float = 4.0) -> dict:
@@ -124,6 +124,18 @@ def synthetic_cohesive() -> dict:
     return {"runs": runs, "griffith": griffith, "opened": opened, "commit": "0123456789abcdef"}
 
 
+def synthetic_enf_cohesive() -> dict:
+    """A record shaped as ``measure_enf_cohesive`` returns it."""
+    runs = {f"{strength:g}": {"strength": strength, **synthetic_curve(strength, start=9.0), "before_damage": 2e-3,
+                              "grown": 2e-2 if strength > 0.002 else np.nan, "steps": 20, "irreversible": True,
+                              "elements_per_zone": 4.0}
+            for strength in interface.ENF_STRENGTHS}  # the weakest's crack has not grown
+    curve = synthetic_curve(0.005, start=9.0)
+    griffith = {"opening": curve["opening"], "load": curve["griffith"], "tip": curve["tip"], "solves": curve["solves"],
+                "seconds": 40.0, "unknowns": 21256}
+    return {"runs": runs, "griffith": griffith, "commit": "0123456789abcdef"}
+
+
 @pytest.mark.unit
 def test_the_page_is_its_sections_in_order_with_a_summary_row_per_case():
     page = interface.page(synthetic_records())
@@ -131,13 +143,16 @@ def test_the_page_is_its_sections_in_order_with_a_summary_row_per_case():
                                                      "The ENF with friction between the arms",
                                                      "The DCB with the bilinear law against Griffith growth",
                                                      "The process-zone length", "A bond with no initial crack",
-                                                     "Speed of the cohesive runs"]
-    assert "(0123456789)" in page and "\n\n\n" not in page and "nan" not in page.lower()
+                                                     "Speed of the cohesive runs",
+                                                     "The ENF with the bilinear law against Griffith growth"]
+    assert "(0123456789)" in page and "\n\n\n" not in page and not re.search(r"\bnan\b", page.lower())
     summary = page[page.index("## Summary"):page.index("## The closed crack")]
     cases = 1 + len(interface.COULOMB) + len(interface.TRESCA) + len(interface.ENF_CRACKS) * len(interface.ENF_FRICTION)
-    assert summary.count("\n| ") == cases + 2 + 1  # the cohesive DCB's and the bond with no crack's, and the header
+    assert summary.count("\n| ") == cases + 3 + 1  # the cohesive DCB's, the bond with no crack's, the cohesive
+    # ENF's, and the header
     assert "\\|G\\|/G₀" in summary  # the stuck faces' G against the frictionless one
     assert "none: the first step damages" in page  # the weakest bond has no undamaged step to compare
+    assert "no growth by δ = 0.2" in page  # the weakest ENF bond's crack
     # the square's excess divided out: the synthetic G is 1.57 % above at side 20, a quarter of it at 40
     assert re.search(r"closed crack, Coulomb μ = 0\.5 \| 1\.429425e-02 \| 1\.451867e-02 \| [+-]0\.000 %", summary)
 
@@ -173,6 +188,8 @@ def test_the_cohesive_pictures_are_drawn_from_the_record(tmp_path, monkeypatch):
     monkeypatch.setattr(interface, "DOCS", tmp_path)
     interface.cohesive_plot(synthetic_cohesive())
     assert (tmp_path / "interface-cohesive.png").stat().st_size > 10_000
+    interface.enf_cohesive_plot(synthetic_enf_cohesive())
+    assert (tmp_path / "interface-enf-cohesive.png").stat().st_size > 10_000
 
 
 @pytest.mark.unit

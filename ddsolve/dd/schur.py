@@ -417,7 +417,10 @@ class SpringDual:
             gap = np.zeros((len(self.vertices), 2)) if traces is None else self.gaps(traces)
             law = cohesive.response(bond, history, gap)
             prestress = law.traction - np.einsum("mij,mj->mi", law.tangent, gap)
-            y, traces, more = self.linear(law.tangent, prestress, condensed)
+            try:
+                y, traces, more = self.linear(law.tangent, prestress, condensed)
+            except np.linalg.LinAlgError:  # a softening tangent made the crack rows' dual indefinite: Newton fails
+                return None, traces, steps, MAX_NEWTON
             steps += more
             change = np.abs(self.gaps(traces) - gap).max(initial=0.0)
             reach = bond.strength / bond.stiffness if bond.strength else np.abs(self.gaps(traces)).max(initial=0.0)

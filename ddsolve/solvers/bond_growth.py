@@ -1,9 +1,10 @@
-"""Growth of a damaging bond (``[interface] law = "bilinear"``) as the control rises: ``ddsolve grow`` on such a scene.
+"""Growth of a damaging bond (``[interface] law = "bilinear"``) as the control follows a path: ``ddsolve grow``.
 
-The control (a load or displacement factor, :func:`ddsolve.solvers.grow.control_kind`) rises to ``--to`` in steps of
-at most ``--to``/``--steps``; each step is the bond's nonlinear problem on Σ from the damage of the step before
-(Newton's method on ``schur``'s interface stiffness, the secant fixed point with the iterative methods:
-:mod:`ddsolve.dd.cohesive`), on blocks factored once for the whole run (:func:`ddsolve.solvers.driver.prepare`,
+The control (a load or displacement factor, :func:`ddsolve.solvers.grow.control_kind`) goes from 0 to each target
+of ``--to`` in turn (``--to 0.2`` rises to 0.2; ``--to 0.2,0.05,0.3`` rises to 0.2, unloads to 0.05 and reloads to
+0.3) in steps of at most (the largest target)/``--steps``; each step is the bond's nonlinear problem on Σ from the
+damage of the step before (Newton's method on ``schur``'s interface stiffness, the secant fixed point with the
+iterative methods: :mod:`ddsolve.dd.cohesive`), on blocks factored once for the whole run (:func:`ddsolve.solvers.driver.prepare`,
 new loads by :func:`~ddsolve.solvers.driver.reload`).  A step that moves a vertex by more than
 :data:`DAMAGE_STEP` along the law's softening branch (:func:`ddsolve.dd.cohesive.softening`), or whose solve
 fails, is halved (at most :data:`HALVINGS` times), and the step grows back to its size when the damage moves
@@ -11,11 +12,17 @@ less than a quarter of that.  The crack is where the damage has reached 1 (with 
 cracks); its tip is the last broken vertex.  The run is recorded as a Griffith run is
 (:mod:`ddsolve.solvers.growth_files`), with the damage along Σ and the process zone's length per step (the
 length of Σ where 0 < d < 1); G is not computed (the bond's traction is not a crack's singular field).
+
+Unloading keeps the damage (it never heals) and follows the secant: every vertex's traction falls along
+k(1 − d) δ, so under displacement control a structure whose bond alone has softened unloads linearly to the
+origin; reloading retraces that line to the old peak, after which the damage grows again.
 """
 from __future__ import annotations
 
+import math
+import numbers
 from pathlib import Path
-from typing import Callable, Iterable, Mapping
+from typing import Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -34,6 +41,8 @@ from ddsolve.solvers.growth_files import Outputs
 DAMAGE_STEP = 0.5
 #: The most halvings of the step size --to/--steps.
 HALVINGS = 12
+#: The most targets of a path (``--to T1,T2,...``).
+MAX_TARGETS = 100
 
 
 def open_runs(mesh: Mesh, broken: np.ndarray) -> list[tuple[float, float]]:
@@ -69,14 +78,15 @@ class BondGrowth:
         self.setup = driver.prepare(scene, comm, self.base)
         self.nodes = self.base.sigma.multiplier_nodes
         self.solves = 0
-        self.history: dict[float, tuple[np.ndarray, np.ndarray]] = {}  # control -> (damage, pressed) it started from
+        self.starts: list[tuple[np.ndarray, np.ndarray]] = []  # per recorded step: the (damage, pressed) it began at
 
-    def mesh_for(self, cracks) -> Mesh:
-        return self.base
+    def result_of(self, records: list[Step], index: int):
+        """The whole result of the recorded step ``records[index]`` solved again from its start (rank 0)."""
+        return self.result(records[index].state.control, self.starts[index])
 
-    def result(self, mesh: Mesh, control: float, start: tuple[np.ndarray, np.ndarray] | None = None):
-        """The result at ``control`` from the damage ``start`` (or the one its step started from; rank 0)."""
-        damage, pressed = start if start is not None else self.history[control]
+    def result(self, control: float, start: tuple[np.ndarray, np.ndarray]):
+        """The result at ``control`` from the damage and pressed rows ``start`` (rank 0)."""
+        damage, pressed = start
         scaled = self.scene.scaled(control)
         driver.reload(self.setup, scaled)
         self.setup.interface = self.setup.interface.with_damage(damage, pressed)
@@ -88,7 +98,7 @@ class BondGrowth:
              ) -> tuple[State, np.ndarray, np.ndarray, tuple[int, int]]:
         """The state at ``control`` from ``damage`` and ``pressed``: the state, the new damage and pressed rows, and
         the block solves and linear problems on Σ it took (every rank)."""
-        result = self.result(self.base, control, (damage, pressed))
+        result = self.result(control, (damage, pressed))
 
         def numbers():
             if not result.converged:
@@ -120,61 +130,80 @@ def damaging(scene) -> bool:
     return scene.bond is not None and scene.bond.law != "elastic"
 
 
-def grow(scene, comm, limit: float | None, steps: int, progress: Callable[[str], None] = print,
+def control_path(limit: float | Sequence[float]) -> tuple[float, ...]:
+    """The targets of ``--to`` (one number, or several: a path), or a collective UsageError naming what is wrong:
+    at most :data:`MAX_TARGETS` finite numbers ≥ 0, the first above 0, none equal to the one before."""
+    path = tuple(limit) if isinstance(limit, (tuple, list)) else (limit,)
+    numeric = all(isinstance(t, numbers.Real) and not isinstance(t, bool) and math.isfinite(t) for t in path)
+    if (not path or len(path) > MAX_TARGETS or not numeric or min(path) < 0.0 or path[0] <= 0.0
+            or any(a == b for a, b in zip(path, path[1:]))):
+        error = UsageError(f"grow: --to {','.join(str(t) for t in path)}: a path is 1 to {MAX_TARGETS} control "
+                           "targets, numbers ≥ 0 (the first above 0), each different from the one before")
+        error.collective = True
+        raise error
+    return tuple(float(t) for t in path)
+
+
+def grow(scene, comm, limit: float | Sequence[float] | None, steps: int, progress: Callable[[str], None] = print,
          output: Path | None = None, pictures: int = 0, inputs: Iterable[Path] | Mapping[Path, str] = ()
          ) -> list[Step] | None:
-    """Grow the damaging bond of ``scene`` as the control rises to ``limit`` in steps of at most ``limit/steps``
-    (module docstring), with the files of :class:`~ddsolve.solvers.growth_files.Outputs`; the steps on rank 0."""
-    check_controls(limit, steps, 1e-4, pictures)
+    """Grow the damaging bond of ``scene`` as the control follows ``limit`` (a target, or a path of targets) in
+    steps of at most (its largest target)/``steps`` (module docstring), with the files of
+    :class:`~ddsolve.solvers.growth_files.Outputs`; the steps on rank 0."""
     if limit is None:
         error = UsageError("grow: interface.law = \"bilinear\" has no initiation factor to multiply: give --to")
         error.collective = True
         raise error
+    path = control_path(limit)
+    check_controls(max(path), steps, 1e-4, pictures)
     files = Outputs(Path(output)) if output is not None else None
     if files is not None:
         collective(comm, lambda: files.check(inputs), root_only=True)
     growth = BondGrowth(scene, comm)
     try:
-        records = climb(growth, limit, steps, progress)
+        records = climb(growth, path, steps, progress)
         if files is not None:
-            files.commit(growth, records, limit, 0.0, pictures)
+            files.commit(growth, records, path if len(path) > 1 else path[0], 0.0, pictures)
     finally:
         growth.setup.destroy()
     return records if comm.rank == 0 else None
 
 
-def climb(growth: BondGrowth, limit: float, steps: int, progress: Callable[[str], None]) -> list[Step]:
-    """The steps of a run from the unloaded, undamaged state to ``limit``."""
+def climb(growth: BondGrowth, path: tuple[float, ...], steps: int, progress: Callable[[str], None]) -> list[Step]:
+    """The steps of a run from the unloaded, undamaged state along the targets of ``path``."""
     k = len(growth.nodes)
     damage, pressed = np.zeros(k), np.zeros(k, dtype=bool)
     state, damage, pressed, solves = growth.step(0.0, damage, pressed)
-    growth.history[0.0] = (np.zeros(k), np.zeros(k, dtype=bool))
-    records, control, largest = [Step(state, solves=solves[0], bond_solves=solves[1])], 0.0, limit / steps
+    growth.starts.append((np.zeros(k), np.zeros(k, dtype=bool)))
+    records, control, largest = [Step(state, solves=solves[0], bond_solves=solves[1])], 0.0, max(path) / steps
     size = largest
-    while control < limit * (1.0 - 1e-12):
-        target = min(control + size, limit)
-        try:
-            state, new, opening, solves = growth.step(target, damage, pressed)
-            moved = float(np.abs(softening(growth.scene.bond, new) - softening(growth.scene.bond, damage)).max(initial=0.0))
-        except SolverError as error:  # Newton's method on too long a step
-            if size <= largest / 2 ** HALVINGS:
-                raise
-            state, moved, reason = None, np.inf, str(error)
-        if moved > DAMAGE_STEP and size > largest / 2 ** HALVINGS:
-            size /= 2.0
-            continue
-        if state is None:
-            raise SolverError(reason)
-        events = [event for event, happened in (("damage starts", damage.max(initial=0.0) == 0.0 < new.max()),
-                                                ("the crack grows", np.sum(new >= BROKEN) > np.sum(damage >= BROKEN)))
-                  if happened]
-        growth.history[target] = (damage, pressed)
-        records.append(Step(state, events=events, solves=solves[0], bond_solves=solves[1]))
-        control, damage, pressed = target, new, opening
-        if growth.comm.rank == 0:
-            progress(line(len(records) - 1, growth.kind, records[-1]))
-        if moved < DAMAGE_STEP / 4:
-            size = min(2.0 * size, largest)
+    for number, end in enumerate(path):
+        turn = ([f"the control turns {'down' if end < control else 'up'} towards {end:.6g}"] if number else [])
+        while abs(end - control) > 1e-12 * max(path):
+            target = control + np.sign(end - control) * min(size, abs(end - control))
+            try:
+                state, new, opening, solves = growth.step(target, damage, pressed)
+                moved = float(np.abs(softening(growth.scene.bond, new) - softening(growth.scene.bond, damage)).max(
+                    initial=0.0))
+            except SolverError as error:  # Newton's method on too long a step
+                if size <= largest / 2 ** HALVINGS:
+                    raise
+                state, moved, reason = None, np.inf, str(error)
+            if moved > DAMAGE_STEP and size > largest / 2 ** HALVINGS:
+                size /= 2.0
+                continue
+            if state is None:
+                raise SolverError(reason)
+            events = turn + [event for event, happened in (
+                ("damage starts", damage.max(initial=0.0) == 0.0 < new.max()),
+                ("the crack grows", np.sum(new >= BROKEN) > np.sum(damage >= BROKEN))) if happened]
+            growth.starts.append((damage, pressed))
+            records.append(Step(state, events=events, solves=solves[0], bond_solves=solves[1]))
+            control, damage, pressed, turn = target, new, opening, []
+            if growth.comm.rank == 0:
+                progress(line(len(records) - 1, growth.kind, records[-1]))
+            if moved < DAMAGE_STEP / 4:
+                size = min(2.0 * size, largest)
     return records
 
 

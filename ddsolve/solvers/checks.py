@@ -72,8 +72,9 @@ def unread(command: str, path: list[str], scene) -> str | None:
         if section in NOT_MESHING or path[:2] == ["mesh", "target_error"]:
             return "mesh makes the starting mesh only (solve, reference and sweep read the key)"
         return None
-    if section == "interface" and command == "reference":
-        return "the monolithic reference ties the bonded faces of Σ (solve and sweep solve a bond law)"
+    if section == "interface" and command == "reference" and scene.bond is not None and scene.bond.law != "elastic":
+        return ("the monolithic reference solves the elastic law only (solve and sweep solve the bilinear law's "
+                "damage)")
     if section == "solver" and command == "reference" and path[1:] != ["out_of_core"]:
         return ("it sets how solve and sweep iterate and bound their multipliers, and reference solves the discrete "
                 "problem exactly, without a bound")

@@ -224,6 +224,11 @@ class Growth:
                        displacement=unit.displacement * factor,
                        boundaries={key: values * factor for key, values in unit.boundaries.items()})
 
+    def result_of(self, records: list[Step], index: int):
+        """The whole result of the recorded step ``records[index]`` solved again (rank 0; None elsewhere)."""
+        state = records[index].state
+        return self.result(self.mesh_for(state.cracks), state.control)
+
     def result(self, mesh: Mesh, control: float):
         """The whole result on ``mesh`` (from :meth:`mesh_for`) at ``control`` (rank 0; None elsewhere)."""
         from ddsolve.solvers import driver
@@ -525,7 +530,11 @@ def check_controls(limit: float | None, steps: int, tolerance: float, pictures: 
     def number(value) -> bool:
         return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
-    problems = [(limit is not None and not (number(limit) and math.isfinite(limit) and limit > 0.0),
+    path = isinstance(limit, (tuple, list))
+    problems = [(path, f"--to {','.join(str(target) for target in limit) if path else limit}: a path of several "
+                 "targets unloads a damaging bond (interface.law = \"bilinear\") only; Griffith growth rises to one "
+                 "--to"),
+                (limit is not None and not path and not (number(limit) and math.isfinite(limit) and limit > 0.0),
                  f"--to {limit}: the control's limit must be a positive number"),
                 (not whole(steps) or not 1 <= steps <= MAX_STEPS, f"--steps {steps}: a whole number of steps, at "
                  f"least one and at most {MAX_STEPS:,} (each is a record of the output and a root solve)"),

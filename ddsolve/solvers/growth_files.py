@@ -48,7 +48,7 @@ class Outputs:
         names (step pictures of an earlier run included: they are replaced or removed), an unwritable folder."""
         safe.check_targets([self.h5, self.csv, self.curves, *self.step_pictures()], inputs)
 
-    def commit(self, growth, records: list, limit: float, tolerance: float, pictures: int) -> None:
+    def commit(self, growth, records: list, limit: float | tuple[float, ...], tolerance: float, pictures: int) -> None:
         """Draw every picture (the step pictures' solves on every rank), then replace the previous set with
         the new one at once on rank 0 (step pictures it no longer has removed with it)."""
         from ddsolve.post import plots
@@ -82,7 +82,7 @@ def draw(growth, records: list, pictures: int) -> dict[int, bytes]:
     scale, images = None, {}
     for index in reversed(chosen):
         state = records[index].state
-        result = growth.result(growth.mesh_for(state.cracks), state.control)
+        result = growth.result_of(records, index)
         title = (f"{growth.scene.title or growth.scene.origin}: step {index}, λ = {state.control:.6g}, crack length"
                  f"{'s' if len(state.cracks) > 1 else ''} " + ", ".join(f"{b - a:.6g}" for a, b in state.cracks))
         image = io.BytesIO()
@@ -92,8 +92,9 @@ def draw(growth, records: list, pictures: int) -> dict[int, bytes]:
     return images if growth.comm.rank == 0 else {}
 
 
-def table(scene: Scene, kind: str, limit: float, tolerance: float, steps: list) -> dict:
-    """The datasets of a run as :func:`read` returns them (``attrs``, ``/growth`` by name, ``boundaries``)."""
+def table(scene: Scene, kind: str, limit: float | tuple[float, ...], tolerance: float, steps: list) -> dict:
+    """The datasets of a run as :func:`read` returns them (``attrs``, ``/growth`` by name, ``boundaries``);
+    ``limit``: the control's last value, or a damaging bond's path of targets (``attrs['path']``)."""
     count = len(steps)
     cracks = max(len(s.state.cracks) for s in steps)
     tips = max(len(s.state.G) for s in steps)
@@ -122,8 +123,9 @@ def table(scene: Scene, kind: str, limit: float, tolerance: float, steps: list) 
         data["damage"] = np.array([s.state.damage for s in steps])
         data["process_zone"] = np.array([s.state.process_zone for s in steps])
         data["bond_solves"] = np.array([s.bond_solves for s in steps], dtype=np.int64)
-    data["attrs"] = {"scene": scene.origin, "scene_text": scene.text, "control_kind": kind, "limit": limit,
-                     "tolerance": tolerance, "steps": count}
+    path = np.atleast_1d(np.asarray(limit, dtype=np.float64))  # a damaging bond's path of targets, or one
+    data["attrs"] = {"scene": scene.origin, "scene_text": scene.text, "control_kind": kind, "limit": float(path.max()),
+                     "tolerance": tolerance, "steps": count, **({"path": path} if len(path) > 1 else {})}
     return data
 
 

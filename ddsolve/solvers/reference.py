@@ -16,6 +16,10 @@ size and no sparse work.  One more solve with the contact forces −W μᶜ on t
 displacements, refined while its jumps differ from the model's (:data:`REFINEMENT_TOLERANCE`).  The jumps
 are eliminated last inside the sparse factorization, so the layers' bending never enters S_j⁻¹, as it
 would in the flexibility of the two faces' separate displacements.
+
+With the elastic bond (``[interface] law = "elastic"``, :mod:`ddsolve.dd.cohesive`) the bonded vertices' faces
+are not tied: each has its own unknowns, joined by a spring w/c per row (c the row's compliance, w its lumped
+weight), the primal form of the dual's gap = c λ.  The bilinear law is refused (its damage is a nonlinear problem).
 """
 from __future__ import annotations
 
@@ -32,7 +36,7 @@ from ddsolve.errors import SolverError
 from ddsolve.fem import assembly, supports
 from ddsolve.fem.assembly import BlockSystem, coo_to_csr
 from ddsolve.mesh import mesh as meshes
-from ddsolve.mesh.mesh import Mesh
+from ddsolve.mesh.mesh import U_MINUS, U_PLUS, Mesh
 from ddsolve.parallel.blocks import Block
 from ddsolve.parallel.distribution import whole_mesh_checks
 from ddsolve.parallel.launch import provenance
@@ -75,7 +79,7 @@ def joint_numbering(sizes: list[int], joints: list[Joint], closed: list[np.ndarr
     numbers = [np.full(size, -1, dtype=np.int64) for size in sizes]
     following = 0
     for joint, shut in zip(joints, closed):
-        traces = joint.interface.trace_unknowns(shut)
+        traces = joint_traces(joint.interface, shut)
         for block, dofs, trace in zip(joint.blocks, joint.dofs, traces):
             numbers[block][dofs] = following + trace
         following += int(traces.max(initial=-1)) + 1
@@ -84,6 +88,32 @@ def joint_numbering(sizes: list[int], joints: list[Joint], closed: list[np.ndarr
         number[own] = following + np.arange(own.sum())
         following += int(own.sum())
     return numbers
+
+
+def joint_traces(interface: Interface, closed: np.ndarray) -> np.ndarray:
+    """``interface.trace_unknowns(closed)`` with the faces of a bond's sprung rows (compliance c > 0) apart: the
+    upper side's entry of each numbered after the others, the spring of :func:`bond_springs` between them."""
+    traces = interface.trace_unknowns(closed)
+    if interface.bond is None:
+        return traces
+    entries = interface.trace_index[interface.compliance > 0.0]
+    upper = np.array([spec.side > 0 for spec in interface.blocks])
+    traces[np.ix_(upper, entries)] = int(traces.max(initial=-1)) + 1 + np.arange(len(entries))
+    return traces
+
+
+def bond_springs(joint: Joint, numbers: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The bond's springs as COO entries (rows, columns, values) of the glued system numbered ``numbers``: on
+    every row of compliance c > 0 (:attr:`~ddsolve.dd.interface.Interface.compliance`) the stiffness w/c between
+    the unknowns of its trace entry on u⁻ and on u⁺, the energy ½ (w/c)(u⁻ − u⁺)², whose force on u⁻ is
+    the dual's −W λ with u⁻ − u⁺ = c λ."""
+    interface = joint.interface
+    rows = np.flatnonzero(interface.compliance > 0.0)
+    entries = interface.trace_index[rows]
+    lower, upper = (numbers[joint.blocks[block]][joint.dofs[block][entries]] for block in (U_MINUS, U_PLUS))
+    stiffness = interface.row_weights[rows] / interface.compliance[rows]
+    return (np.concatenate([lower, upper, lower, upper]), np.concatenate([lower, upper, upper, lower]),
+            np.concatenate([stiffness, stiffness, -stiffness, -stiffness]))
 
 
 def jump_numbering(sizes: list[int], joints: list[Joint]) -> tuple[list[np.ndarray], list[np.ndarray]]:
@@ -105,9 +135,11 @@ def jump_numbering(sizes: list[int], joints: list[Joint]) -> tuple[list[np.ndarr
 
 
 def merged_system(systems: list[BlockSystem], numbers: list[np.ndarray],
-                  jumps: list[np.ndarray] | None = None) -> BlockSystem:
+                  jumps: list[np.ndarray] | None = None,
+                  springs: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = ()) -> BlockSystem:
     """Tᵀ diag(K_b) T and Tᵀ f for the map T that gives block dof i the value of unknown ``numbers[b][i]``,
-    plus that of unknown ``jumps[b][i]`` where it is not −1."""
+    plus that of unknown ``jumps[b][i]`` where it is not −1; plus the COO entries ``springs``
+    (:func:`bond_springs`)."""
     jumps = jumps if jumps is not None else [np.full(len(n), -1, dtype=np.int64) for n in numbers]
     size = int(max(max(n.max(), j.max()) for n, j in zip(numbers, jumps))) + 1
     rows, cols, values, rhs = [], [], [], np.zeros(size)
@@ -122,6 +154,10 @@ def merged_system(systems: list[BlockSystem], numbers: list[np.ndarray],
         rhs += np.bincount(number, system.rhs, minlength=size)
         second = jump >= 0
         rhs += np.bincount(jump[second], system.rhs[second], minlength=size)
+    for spring_rows, spring_cols, spring_values in springs:
+        rows.append(spring_rows)
+        cols.append(spring_cols)
+        values.append(spring_values)
     indptr, indices, data = coo_to_csr(size, np.concatenate(rows), np.concatenate(cols), np.concatenate(values))
     return BlockSystem("reference", indptr, indices, data, rhs, np.zeros(0, dtype=np.int64), size, block_size=1)
 
@@ -193,7 +229,8 @@ def solve_joints(systems: list[BlockSystem], joints: list[Joint], out_of_core: b
     numbers, jumps = jump_numbering([system.size for system in systems], joints)
     sqrt_w = np.sqrt(np.concatenate([joint.interface.row_weights[joint.interface.slices["mu_c"]]
                                      for joint in joints]))
-    merged = merged_system(systems, numbers, jumps)
+    merged = merged_system(systems, numbers, jumps,
+                           [bond_springs(joint, numbers) for joint in joints if joint.interface.bond is not None])
     phases.end("merge")
     x, solved = solve_merged(merged, sqrt_w, lambda largest: constraints.displacement_scale(joints[0].interface,
                                                                                              largest),
@@ -262,10 +299,14 @@ def refuse_friction(scene: Scene) -> None:
 
 
 def refuse_bond(scene: Scene) -> None:
-    """The reference ties the bonded vertices' faces: a bond law (``[interface]``) is refused in one line."""
-    if scene.bond is not None:
-        raise SolverError("reference: interface.law is not solved by the monolithic reference (it ties the bonded "
-                          "faces): solve the scene with solver.method = \"schur\", \"mprgp\" or \"fista\"")
+    """The reference solves the elastic law (``[interface] law = "elastic"``) as springs between the bonded faces:
+    a damaging law, or a bond on a structure of several interfaces, is refused in one line."""
+    if scene.bond is None or scene.bond.law == "elastic" and not scene.geometry.above:
+        return
+    why = ("a structure of several interfaces (geometry.sigma) ties its bonded faces" if scene.geometry.above else
+           "its damage is a nonlinear problem on Σ; the reference solves interface.law = \"elastic\" only")
+    raise SolverError(f"reference: interface.law = \"{scene.bond.law}\" is not solved by the monolithic reference "
+                      f"({why}): solve the scene with solver.method = \"schur\", \"mprgp\" or \"fista\"")
 
 
 def solve_assembled(scene: Scene, mesh: Mesh, systems: list[BlockSystem],
@@ -277,7 +318,7 @@ def solve_assembled(scene: Scene, mesh: Mesh, systems: list[BlockSystem],
     table = table if table is not None else supports.sigma_supports(scene, mesh)
     interface = for_mesh(mesh.sigma, scene.nonpenetration, table.fixed, assembly.modulus(scene),
                          assembly.data_displacement(scene, mesh.halves, mesh.sigma),
-                         specs=meshes.blocks(scene.geometry.layers))
+                         specs=meshes.blocks(scene.geometry.layers), bond=scene.bond)
     solved = solve_glued(systems, interface, out_of_core=scene.solver.out_of_core)
     fields, contact = solved.fields, interface.slices["mu_c"]
     steps, changes = (solved.face.violations, solved.face.changes) if solved.face else ([(0.0, 0.0)], [0])
