@@ -143,6 +143,7 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
         print(f"{result.scene.solver.method} (3-D): {result.steps} iterations, {result.closed} closed crack vertices, "
               f"energy {result.energy:.10g}, {3 * sum(len(u) for u in result.fields)} unknowns, {result.solves} "
               f"rounds of block solves, {result.timings['total']:.3f} s on {comm.size} ranks -> {output}", flush=True)
+        _print_front(result, output)
     elif result is not None and scene.geometry.above:  # no error estimate, reactions or viewer files yet
         print(f"{result.scene.solver.method}: {len(scene.geometry.sigmas)} interfaces, {result.iterations} "
               f"iterations, energy {result.energy:.10g}, {result.wall_time:.3f} s on {comm.size} ranks -> {output}")
@@ -282,6 +283,14 @@ def cmd_grow(args, petsc_options: list[str]) -> int:
     return 0
 
 
+def _print_front(result, output: Path | None) -> None:
+    """G along a 3-D result's crack fronts in a line: its nodes, mean and range."""
+    if result.fracture is not None and len(result.fracture.G):
+        G = result.fracture.G
+        print(f"G along the crack front ({len(G)} nodes, /fracture in {output}): mean {G.mean():.6g}, from "
+              f"{G.min():.6g} to {G.max():.6g}", flush=True)
+
+
 def cmd_reference(args, petsc_options: list[str]) -> int:
     init_petsc(petsc_options)
     from ddsolve.solvers import run
@@ -293,10 +302,7 @@ def cmd_reference(args, petsc_options: list[str]) -> int:
         print(f"reference (3-D): {result.steps} active-set steps, {result.closed} closed crack vertices, energy "
               f"{result.energy:.10g}, {3 * sum(len(u) for u in result.fields)} unknowns, "
               f"{sum(result.timings.values()):.3f} s -> {output}", flush=True)
-        if result.fracture is not None and len(result.fracture.G):
-            G = result.fracture.G
-            print(f"G along the crack front ({len(G)} nodes, /fracture in {output}): mean {G.mean():.6g}, from "
-                  f"{G.min():.6g} to {G.max():.6g}", flush=True)
+        _print_front(result, output)
         return 0
     if scene.geometry.above:  # no error estimate, reactions or viewer files yet
         print(f"reference: {len(scene.geometry.sigmas)} interfaces, {result.iterations} active-set steps, energy "

@@ -122,6 +122,16 @@ def comparison(result: SolidResult, reference: SolidResult) -> tuple[float, floa
     return error, difference, max(float(np.abs(u).max()) for u in reference.fields)
 
 
+def with_fracture(result: SolidResult) -> None:
+    """G along ``result``'s crack fronts (:func:`ddsolve.post.front.release`) in its ``fracture``, timed as its phase
+    ``fracture``; none under a temperature change (an eigenstrain's term is not in G yet)."""
+    if len(result.mesh.sigma.front) and "layer1" not in result.scene.temperature:
+        phases = Phases()
+        result.fracture = front.release(result)
+        phases.end("fracture")
+        result.timings["fracture"] = phases.wall["fracture"]
+
+
 def reference(scene: Scene, output: Path | None = None) -> SolidResult:
     """A 3-D scene meshed and solved by the monolithic reference, G along its crack fronts
     (:func:`ddsolve.post.front.release`), ``output`` and its VTU files written."""
@@ -131,10 +141,7 @@ def reference(scene: Scene, output: Path | None = None) -> SolidResult:
     result = solve_solid(scene, mesh)
     phases.end("solve")
     result.timings["meshing"] = phases.wall["meshing"]
-    if len(mesh.sigma.front) and "layer1" not in scene.temperature:  # an eigenstrain's term is not in G yet
-        result.fracture = front.release(result)
-        phases.end("fracture")
-        result.timings["fracture"] = phases.wall["fracture"]
+    with_fracture(result)
     if output is not None:
         solid_files.write(output, result)
     return result

@@ -37,7 +37,7 @@ from ddsolve.parallel.launch import supported, usable
 from ddsolve.parallel.rounds import BlockServer
 from ddsolve.post.solid import SolidResult
 from ddsolve.problem.scene import Scene
-from ddsolve.solvers import driver
+from ddsolve.solvers import driver, solid
 
 #: The trace entries of a Σ vertex: x, y (Σ's normal, component 1 as in the plane) and z.
 COMPONENTS = 3
@@ -200,6 +200,7 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print) -> 
         if exchange.is_root:
             setup.timings["total"] = time.perf_counter() - started
             result = finished(setup, outcome, rounds, fields)
+            solid.with_fracture(result)
             if output is not None:
                 collective(comm, lambda: solid_files.write(output, result), root_only=True)
         elif output is not None:
