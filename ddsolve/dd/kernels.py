@@ -22,7 +22,7 @@ import numpy as np
 
 from ddsolve.dd.interface import Interface, for_mesh
 from ddsolve.errors import SceneError
-from ddsolve.fem import supports
+from ddsolve.fem import supports, tetra
 from ddsolve.fem.assembly import rigid_body_modes, rotate_vector
 from ddsolve.fem.supports import SigmaSupports
 from ddsolve.mesh.mesh import BlockSpec, HalfMesh, Mesh, SigmaLine, blocks
@@ -41,7 +41,12 @@ class Frame:
     length: float
 
     def modes(self, points: np.ndarray) -> np.ndarray:
-        """``(3, 2n)`` modes at ``points``: translations in x and y, rotation (scaled) about the centre."""
+        """The modes at ``points``, rotations (scaled) about the centre: in the plane ``(3, 2n)``, translations in
+        x and y and the rotation; in 3-D ``(6, 3n)``, translations in x, y and z and rotations about them."""
+        if points.shape[1] == 3:
+            modes = tetra.rigid_modes(points, centre=self.centre)
+            modes[3:] /= self.length
+            return modes
         modes = rigid_body_modes(points, centre=self.centre)
         modes[2] /= self.length
         return modes
@@ -55,13 +60,15 @@ def frame_of(points: np.ndarray) -> Frame:
 
 def constraint_rows(modes: np.ndarray, dofs: np.ndarray,
                     directions: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-    """The values ``(c, 3)`` of the modes ``(3, 2n)`` at the constrained ``dofs``, and d·mode at the
-    constrained ``directions`` (nodes ``(d,)``, unit vectors ``(d, 2)``)."""
+    """The values ``(c, M)`` of the M modes ``(M, dim n)`` at the constrained ``dofs``, and d·mode at the
+    constrained ``directions`` (nodes ``(d,)``, unit vectors ``(d, dim)``)."""
     rows = [modes[:, np.asarray(dofs, dtype=np.int64)].T]
     if directions is not None:
         nodes, vectors = directions
-        pairs = modes.reshape(3, -1, 2)[:, np.asarray(nodes, dtype=np.int64)]  # (3, d, 2)
-        rows.append(np.einsum("mdc,dc->dm", pairs, np.asarray(vectors, dtype=np.float64)))
+        dimension = 2 if len(modes) == 3 else 3  # 3 modes in the plane, 6 in 3-D
+        vectors = np.asarray(vectors, dtype=np.float64).reshape(len(nodes), dimension)
+        pairs = modes.reshape(len(modes), -1, dimension)[:, np.asarray(nodes, dtype=np.int64)]  # (M, d, dim)
+        rows.append(np.einsum("mdc,dc->dm", pairs, vectors))
     return np.concatenate(rows, axis=0)
 
 
@@ -82,7 +89,8 @@ def block_kernel(points: np.ndarray, dofs: np.ndarray, frame: Frame,
                  directions: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Coefficients ``(3, m)`` (modes of ``frame``) of the rigid motions of a block with nodes ``points``
     that its constrained ``dofs`` and ``directions`` do not remove: its kernel (m = 0: invertible)."""
-    return null_space(constraint_rows(frame.modes(points), dofs, directions), 3)
+    modes = frame.modes(points)
+    return null_space(constraint_rows(modes, dofs, directions), len(modes))
 
 
 def prescribed_directions(fixed: np.ndarray, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -108,12 +116,13 @@ def trace_modes(sigma: SigmaLine, frame: Frame) -> np.ndarray:
 
 
 def gluing_rows(interface: Interface, traces: np.ndarray) -> np.ndarray:
-    """``(equalities, blocks·3)``: the gluing gaps (every multiplier row but the contact ones) of rigid motions
-    of the blocks with mode traces ``traces`` ``(2k, 3)``, per block coefficient."""
-    rows = np.zeros((interface.size, len(interface.blocks), 3))
+    """``(equalities, blocks·M)``: the gluing gaps (every multiplier row but the contact ones) of rigid motions
+    of the blocks with mode traces ``traces`` ``(trace size, M)``, per block coefficient."""
+    size = traces.shape[1]
+    rows = np.zeros((interface.size, len(interface.blocks), size))
     for block, coupling in enumerate(interface.couplings):
         rows[coupling.rows, block] += coupling.sign[:, None] * traces[coupling.trace]
-    return rows[~interface.is_contact].reshape(-1, 3 * len(interface.blocks))
+    return rows[~interface.is_contact].reshape(-1, size * len(interface.blocks))
 
 
 def structure_kernel(blocks: list[np.ndarray], interface: Interface, sigma: SigmaLine, frame: Frame) -> np.ndarray:
@@ -124,15 +133,15 @@ def structure_kernel(blocks: list[np.ndarray], interface: Interface, sigma: Sigm
 
 
 def free_motions(blocks: list[np.ndarray], gluing: np.ndarray) -> np.ndarray:
-    """``(blocks·3, m)``: the rigid motions of the blocks that satisfy each block's constraint rows ``blocks``
-    ``(c, 3)`` and the ``gluing`` rows ``(equalities, blocks·3)``."""
-    count = len(blocks)
-    supports = np.zeros((sum(len(rows) for rows in blocks), 3 * count))
+    """``(blocks·M, m)``: the rigid motions of the blocks that satisfy each block's constraint rows ``blocks``
+    ``(c, M)`` and the ``gluing`` rows ``(equalities, blocks·M)``."""
+    count, size = len(blocks), blocks[0].shape[1]
+    supports = np.zeros((sum(len(rows) for rows in blocks), size * count))
     start = 0
     for block, rows in enumerate(blocks):
-        supports[start:start + len(rows), 3 * block:3 * block + 3] = rows
+        supports[start:start + len(rows), size * block:size * (block + 1)] = rows
         start += len(rows)
-    return null_space(np.vstack([supports, gluing]), 3 * count)
+    return null_space(np.vstack([supports, gluing]), size * count)
 
 
 def refuse_motion(kernel: np.ndarray, frame: Frame, specs: tuple[BlockSpec, ...]) -> None:
@@ -151,26 +160,29 @@ def describe(kernel: np.ndarray, frame: Frame, specs: tuple[BlockSpec, ...] = bl
     motion of the whole structure if there is one (translations first), else the blocks that move relative to
     the rest."""
     count = len(specs)
-    together = np.tile(np.eye(3), (count, 1))  # (blocks·3, 3): one rigid motion of every block
-    projector = np.eye(3 * count) - kernel @ kernel.T
-    common = null_space(projector @ together, 3)  # (3, g): motions of the whole structure in the kernel
+    size = kernel.shape[0] // count  # M modes: 3 in the plane, 6 in 3-D
+    together = np.tile(np.eye(size), (count, 1))  # (blocks·M, M): one rigid motion of every block
+    projector = np.eye(size * count) - kernel @ kernel.T
+    common = null_space(projector @ together, size)  # (M, g): motions of the whole structure in the kernel
     if common.shape[1]:
-        for axis, name in ((0, "x"), (1, "y")):
-            unit = np.eye(3)[axis]
+        for axis, name in enumerate("xyz"[:len(frame.centre)]):
+            unit = np.eye(size)[axis]
             if np.linalg.norm(unit - common @ (common.T @ unit)) < 1e-6:
                 return f"the structure can translate in {name}"
         motion = common[:, 0]
         return "the structure can " + _motion(motion, frame)
-    motions = kernel.reshape(count, 3, -1)  # per block, the span of its part of every free motion
+    motions = kernel.reshape(count, size, -1)  # per block, the span of its part of every free motion
     moving = [spec.name for spec, part in zip(specs, motions) if np.linalg.norm(part) > 1e-6]
     span = motions[[spec.name for spec in specs].index(moving[0])]
     return f"blocks {', '.join(moving)} can {_motions(span, frame)} relative to the rest"
 
 
 def _motions(span: np.ndarray, frame: Frame) -> str:
-    """The rigid motions of a block whose coefficients span ``span`` ``(3, m)``, in words: every motion,
-    both translations, one direction of translation, or a rotation about a point."""
-    basis = null_space(null_space(span.T, 3).T, 3)  # orthonormal basis of the span
+    """The rigid motions of a block whose coefficients span ``span`` ``(M, m)``, in words: every motion,
+    both translations, one direction of translation, or a rotation about a point (in 3-D: how many motions)."""
+    basis = null_space(null_space(span.T, len(span)).T, len(span))  # orthonormal basis of the span
+    if len(span) == 6:
+        return f"move rigidly ({basis.shape[1]} of the six motions)" if basis.shape[1] > 1 else _motion(basis[:, 0], frame)
     if basis.shape[1] == 3:
         return "translate and rotate freely"
     if basis.shape[1] == 2 and np.linalg.norm(basis[2]) < 1e-6:
@@ -181,7 +193,9 @@ def _motions(span: np.ndarray, frame: Frame) -> str:
 
 
 def _motion(coefficients: np.ndarray, frame: Frame) -> str:
-    """A rigid motion (tx, ty, ω/length about the centre) in words."""
+    """A rigid motion (tx, ty, ω/length about the centre; in 3-D tx, ty, tz, ω/length) in words."""
+    if len(coefficients) == 6:
+        return _motion_3d(coefficients)
     tx, ty, omega = coefficients
     omega = omega / frame.length
     if abs(omega) * frame.length < 1e-6 * max(abs(tx), abs(ty)):
@@ -192,6 +206,17 @@ def _motion(coefficients: np.ndarray, frame: Frame) -> str:
     # velocity (tx − ω(y − cy), ty + ω(x − cx)) vanishes at the centre of rotation
     x, y = frame.centre[0] - ty / omega, frame.centre[1] + tx / omega
     return f"rotate about ({x + 0.0:.6g}, {y + 0.0:.6g})"
+
+
+def _motion_3d(coefficients: np.ndarray) -> str:
+    """A 3-D rigid motion (tx, ty, tz, ω/length) in words: a translation, or a rotation about an axis's direction."""
+    translation, rotation = coefficients[:3], coefficients[3:]
+    moving = translation if np.linalg.norm(rotation) < 1e-6 * np.linalg.norm(translation) else rotation
+    direction = moving / np.linalg.norm(moving)
+    first = direction[np.flatnonzero(np.abs(direction) > 1e-12)[0]]
+    direction = direction if first > 0 else -direction  # a line: either sign
+    words = "translate along" if moving is translation else "rotate about an axis along"
+    return f"{words} ({', '.join(f'{value + 0.0:.3g}' for value in direction)})"
 
 
 @dataclass(frozen=True)
@@ -219,8 +244,15 @@ def block_kernels(halves: dict[int, HalfMesh], sigma: SigmaLine, interface: Inte
     frame = frame_of(np.vstack([half.points for half in halves.values()]))
     rows = [constraint_rows(frame.modes(halves[spec.side].points), np.zeros(0, dtype=np.int64), directions)
             for spec, directions in zip(interface.blocks, constraints)]
-    refuse_motion(structure_kernel(rows, interface, sigma, frame), frame, interface.blocks)
-    return Kernels([null_space(block_rows, 3) for block_rows in rows], frame, interface.blocks)
+    return held_kernels(rows, trace_modes(sigma, frame), interface, frame)
+
+
+def held_kernels(rows: list[np.ndarray], traces: np.ndarray, interface: Interface, frame: Frame) -> Kernels:
+    """The blocks' kernels under their constraint ``rows`` ``(c, M)`` (:func:`constraint_rows`), the modes'
+    ``traces`` ``(trace size, M)`` gluing them; a SceneError naming the free motion when the structure as a whole
+    is not supported."""
+    refuse_motion(free_motions(rows, gluing_rows(interface, traces)), frame, interface.blocks)
+    return Kernels([null_space(block_rows, block_rows.shape[1]) for block_rows in rows], frame, interface.blocks)
 
 
 def of_scene(scene: Scene, mesh: Mesh, table: SigmaSupports) -> Kernels:

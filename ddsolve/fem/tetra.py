@@ -134,9 +134,10 @@ def thermal_load(points: np.ndarray, cells: np.ndarray, D: np.ndarray, eigenstra
     return vector, 0.5 * float((weighted * change).sum()) * float(eigenstrain @ D @ eigenstrain)
 
 
-def rigid_modes(points: np.ndarray) -> np.ndarray:
-    """The six rigid-body motions ``(6, 3 n)``: three translations, three rotations about the centroid."""
-    r = points - points.mean(axis=0)
+def rigid_modes(points: np.ndarray, centre: np.ndarray | None = None) -> np.ndarray:
+    """The six rigid-body motions ``(6, 3 n)``: three translations, three rotations about ``centre`` (the
+    centroid unless given)."""
+    r = points - (points.mean(axis=0) if centre is None else centre)
     modes = np.zeros((6, len(points), 3))
     modes[np.arange(3), :, np.arange(3)] = 1.0
     for k, axis in enumerate(np.eye(3)):

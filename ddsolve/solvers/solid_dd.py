@@ -7,7 +7,9 @@ with ``components = 3``), μᶜ acts on the normal (y) at the crack vertices, μ
 The mesh is built once on rank 0 and broadcast; each rank assembles its blocks (or its rows of one,
 :func:`block_system`); rank 0 runs the multiplier method and finishes the same
 :class:`~ddsolve.post.solid.SolidResult` as the monolithic reference (:mod:`ddsolve.solvers.solid`), written to the
-same files.  A block held only through Σ (floating: six rigid modes in 3-D) is refused in one line.
+same files.  A half held only through Σ floats: its kernel is the rigid motions (of six) its own supports leave
+(:mod:`ddsolve.dd.kernels`), factored and solved as the plane driver does; a box that can move rigidly as a whole is
+refused in one line.
 """
 from __future__ import annotations
 
@@ -20,7 +22,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ddsolve.dd import registry
+from ddsolve.dd import kernels, registry
 from ddsolve.dd.constraints import Constraints
 from ddsolve.dd.interface import Interface
 from ddsolve.environment import physical_memory
@@ -58,12 +60,14 @@ class SolidSetup:
     exchange: Exchange
     blocks: list[Block]
     interface: Interface
+    kernels: kernels.Kernels
     stages: dict
     timings: dict[str, float]
 
-    def kernel_traces(self) -> None:
-        """No block floats (:func:`method_of` refuses it)."""
-        return None
+    def kernel_traces(self) -> list[np.ndarray]:
+        """The traces ``(3 s, m_b)`` of the halves' kernels on Σ."""
+        modes = self.kernels.frame.modes(self.mesh.sigma.points).T
+        return [modes @ kernel for kernel in self.kernels.kernels]
 
     def destroy(self) -> None:
         for block in self.blocks:
@@ -71,16 +75,24 @@ class SolidSetup:
         self.exchange.free()
 
 
-def method_of(scene: Scene, mesh: SolidMesh) -> Scene:
+def kernels_of(scene: Scene, mesh: SolidMesh, interface: Interface) -> kernels.Kernels:
+    """The halves' kernels: the rigid motions their own supports leave (:func:`ddsolve.dd.kernels.held_kernels`);
+    a SceneError naming the motion when the box can move rigidly as a whole."""
+    frame = kernels.frame_of(np.vstack([half.points for half in mesh.halves]))
+    rows = [kernels.constraint_rows(frame.modes(half.points), tetra.prescribed(scene, half)[0])
+            for half in mesh.halves]
+    return kernels.held_kernels(rows, frame.modes(mesh.sigma.points).T, interface, frame)
+
+
+def method_of(scene: Scene, mesh: SolidMesh, held: kernels.Kernels) -> Scene:
     """The scene with ``auto`` resolved (``schur`` while its dense matrices fit, :func:`schur_bytes`, else
-    ``feti``); in one line, what this solve does not take: ``schur`` above that limit, a floating half (its six
-    rigid modes not all held by its own supports; friction and bonds the scene refuses)."""
-    floating = [half.name for half in mesh.halves
-                if np.linalg.matrix_rank(tetra.rigid_modes(half.points)[:, tetra.prescribed(scene, half)[0]]) < 6]
-    if floating:
-        raise SceneError(f"geometry.clamped: the {' and '.join(floating)} half of the 3-D box is held only through Σ "
-                         "(floating, six rigid modes), which its domain decomposition does not solve yet: support "
-                         "both halves, or use ddsolve reference")
+    ``feti``); in one line, what this solve does not take: ``schur`` above that limit, a floating half (kernels
+    ``held``) with a method that cannot solve it (friction and bonds the scene refuses)."""
+    method = registry.METHODS.get(scene.solver.method)
+    if held.floating and method is not None and not method.floating:
+        raise SceneError(f"solver.method = {method.name}: the {held.names()} half of the 3-D box is floating (held "
+                         f"only through Σ, its stiffness singular), which {method.name} cannot solve: use "
+                         f"{' or '.join(registry.floating_methods())}")
     dense, limit = schur_bytes(mesh), SCHUR_MEMORY_SHARE * physical_memory()
     if scene.solver.method == "schur" and dense > limit:
         raise SceneError(f"solver.method = schur: the dense Σ Schur complements of this 3-D box ({COMPONENTS} × "
@@ -153,7 +165,9 @@ def prepare(scene: Scene, comm: MPI.Comm) -> SolidSetup:
         raise error
     mesh = comm.bcast(collective(comm, lambda: solid_meshes.build(scene), root_only=True), root=0)
     meshed = time.perf_counter()
-    scene = collective(comm, lambda: method_of(scene, mesh))
+    interface = interface_of(scene, mesh)
+    held = collective(comm, lambda: kernels_of(scene, mesh, interface))
+    scene = collective(comm, lambda: method_of(scene, mesh, held))
     method = registry.METHODS[scene.solver.method]
     exchange = Exchange(comm, len(specs))
     stages = {name: PETSc.Log.Stage(name) for name in driver.STAGES}
@@ -166,17 +180,34 @@ def prepare(scene: Scene, comm: MPI.Comm) -> SolidSetup:
             half = mesh.halves[index]
             rows = None if group.size == 1 else row_ranges(len(half.points), group.size)[group.rank]
             assembled = time.perf_counter()
-            made.append(Block(block_system(scene, half, specs[index].name, rows), comm=PETSc.Comm(group),
-                              factor_package=method.factorization))
+            block = Block(block_system(scene, half, specs[index].name, rows), comm=PETSc.Comm(group),
+                          factor_package=method.factorization)
+            made.append(block)
             timings["assembly"] += time.perf_counter() - assembled
-            made[-1].factor(schur=method.schur_complements, out_of_core=scene.solver.out_of_core)
-            if method.dirichlet:
-                made[-1].factor_dirichlet(out_of_core=scene.solver.out_of_core)
+            if index in held.floating:
+                block.make_floating(*floating_kernel(scene, half, held, index, rows,
+                                                     fixed=method.floating == registry.GENERALIZED_INVERSE))
+            block.factor(schur=method.schur_complements, out_of_core=scene.solver.out_of_core)
+            if method.dirichlet or block.floating:
+                block.factor_dirichlet(out_of_core=scene.solver.out_of_core)
         return made
 
     blocks = collective(comm, make)
     timings["factorization"] = time.perf_counter() - meshed - timings["setup"] - timings["assembly"]
-    return SolidSetup(scene, mesh, exchange, blocks, interface_of(scene, mesh), stages, timings)
+    return SolidSetup(scene, mesh, exchange, blocks, interface, held, stages, timings)
+
+
+def floating_kernel(scene: Scene, half: SolidHalf, held: kernels.Kernels, index: int, rows: tuple[int, int] | None,
+                    fixed: bool) -> tuple[np.ndarray, np.ndarray | None]:
+    """A floating half's kernel ``(m, rows)`` at its ``rows`` here (all where None) and, with ``fixed``, the m dofs
+    fixed for FETI's K⁺: off Σ and the prescribed dofs, where the kernel is independent (the same on every rank)."""
+    vectors = (held.frame.modes(half.points).T @ held.kernels[index]).T
+    chosen = None
+    if fixed:
+        excluded = np.union1d(tetra.prescribed(scene, half)[0], trace_dofs(half))
+        chosen = kernels.fixing_dofs(vectors, excluded).astype(np.int64)
+    first, last = rows if rows is not None else (0, half.dofs)
+    return vectors[:, first:last], chosen
 
 
 def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print) -> SolidResult | None:
