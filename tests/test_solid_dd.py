@@ -55,8 +55,8 @@ def test_an_interface_of_three_components_glues_every_component_and_presses_the_
 @pytest.mark.solve
 def test_schur_and_feti_equal_the_3d_reference_with_contact_active(tmp_path, monkeypatch):
     """On one rank (in this process) both methods give the reference's solution to 1e-8 in energy norm with crack
-    vertices shut; the file is the reference's, read back; a floating half is refused naming the key, and schur
-    above its memory limit (auto then takes feti)."""
+    vertices shut; the file is the reference's, read back; schur above its memory limit is refused (auto then
+    takes feti)."""
     from mpi4py import MPI
 
     from ddsolve.environment import physical_memory
@@ -77,13 +77,68 @@ def test_schur_and_feti_equal_the_3d_reference_with_contact_active(tmp_path, mon
         assert abs(result.energy - reference.energy) < 1e-8 * abs(reference.energy)
         read = solid_files.read(tmp_path / f"{method}.h5")
         assert energy_error(read, reference) < 1e-8 and read.scene.solver.method == method
-    with pytest.raises(SceneError, match="^geometry.clamped: the upper half of the 3-D box is held only through Σ"):
-        solid_dd.method_of(scene.with_({"geometry.clamped": ["bottom"]}), mesh)  # the rollers hold z alone
+    held = solid_dd.kernels_of(scene, mesh, solid_dd.interface_of(scene, mesh))
     monkeypatch.setattr(solid_dd, "SCHUR_MEMORY_SHARE", 0.5 * solid_dd.schur_bytes(mesh) / physical_memory())
     refused = "^solver.method = schur: the dense Σ Schur complements .* use solver.method = feti$"
     with pytest.raises(SceneError, match=refused):
-        solid_dd.method_of(scene.with_({"solver.method": "schur"}), mesh)
-    assert solid_dd.method_of(scene, mesh).solver.method == "feti"  # auto
+        solid_dd.method_of(scene.with_({"solver.method": "schur"}), mesh, held)
+    assert solid_dd.method_of(scene, mesh, held).solver.method == "feti"  # auto
+
+
+#: The quarter penny-shaped crack of radius ½ (experiments/three_d_front.py, coarse): rollers on x = 0 and z = 0,
+#: the bottom held in y, a traction on top; the upper half is held only through Σ (its rollers leave it y).
+PENNY = """
+[geometry]
+box = [0, 2, -2, 2, 0, 2]
+cracks = [{center = [0, 0], radii = [0.5, 0.5]}]
+clamped = []
+[mesh]
+size = 0.3
+grading = 0.2
+[materials.layer1]
+E = 1.0
+nu = 0.3
+[loads.layer1.top]
+y = 1.0
+[displacements.layer1.bottom]
+y = 0.0
+[displacements.layer1.left]
+x = 0.0
+[displacements.layer1.front]
+z = 0.0
+"""
+
+
+@pytest.mark.solve
+def test_a_floating_half_is_solved_and_a_box_free_as_a_whole_refused(tmp_path):
+    """The penny's upper half floats (its kernel: the translation in y): schur and feti (at solver.tol 1e-10: its
+    default KKT tolerance leaves ~1e-7 in energy norm, as in the plane) give the reference's solution to 1e-8 in
+    energy norm and its G along the front; mprgp is refused naming the half; without the bottom's support the box
+    can translate in y, refused in one line."""
+    from mpi4py import MPI
+
+    from ddsolve.dd import kernels
+    from ddsolve.mesh import solid
+    from ddsolve.solvers import solid as solid_solver, solid_dd
+    from ddsolve.solvers.solid import energy_error
+
+    scene = loads(PENNY)
+    mesh = solid.build(scene)
+    held = solid_dd.kernels_of(scene, mesh, solid_dd.interface_of(scene, mesh))
+    relative = kernels.describe(np.concatenate([np.zeros((6, 1)), held.kernels[1]]), held.frame, held.specs)
+    assert held.floating == [1] and relative == "blocks u_plus can translate along (0, 1, 0) relative to the rest"
+    reference = solid_solver.reference(scene)
+    for method, tol in (("schur", 1e-8), ("feti", 1e-10)):
+        result = solid_dd.solve(scene.with_({"solver.method": method, "solver.tol": tol}), MPI.COMM_SELF, None,
+                                progress=lambda _line: None)
+        assert result.converged and energy_error(result, reference) < 1e-8
+        assert np.allclose(result.fracture.G, reference.fracture.G, rtol=1e-6)
+    with pytest.raises(SceneError, match="^solver.method = mprgp: the u_plus half of the 3-D box is floating"):
+        solid_dd.method_of(scene.with_({"solver.method": "mprgp"}), mesh, held)
+    free = loads(PENNY.replace("[displacements.layer1.bottom]\ny = 0.0\n", ""))
+    free_mesh = solid.build(free)
+    with pytest.raises(SceneError, match="^the structure can translate in y: add a support"):
+        solid_dd.kernels_of(free, free_mesh, solid_dd.interface_of(free, free_mesh))
 
 
 @pytest.mark.mpi

@@ -182,7 +182,7 @@ def _motions(span: np.ndarray, frame: Frame) -> str:
     both translations, one direction of translation, or a rotation about a point (in 3-D: how many motions)."""
     basis = null_space(null_space(span.T, len(span)).T, len(span))  # orthonormal basis of the span
     if len(span) == 6:
-        return f"move rigidly ({basis.shape[1]} of the six motions)" if basis.shape[1] > 1 else _motion(basis[:, 0], frame)
+        return _motion(basis[:, 0], frame) if basis.shape[1] == 1 else f"move rigidly ({basis.shape[1]} of six motions)"
     if basis.shape[1] == 3:
         return "translate and rotate freely"
     if basis.shape[1] == 2 and np.linalg.norm(basis[2]) < 1e-6:
@@ -213,7 +213,8 @@ def _motion_3d(coefficients: np.ndarray) -> str:
     translation, rotation = coefficients[:3], coefficients[3:]
     moving = translation if np.linalg.norm(rotation) < 1e-6 * np.linalg.norm(translation) else rotation
     direction = moving / np.linalg.norm(moving)
-    first = direction[np.flatnonzero(np.abs(direction) > 1e-12)[0]]
+    direction[np.abs(direction) < 1e-9] = 0.0  # round-off off the axes
+    first = direction[np.flatnonzero(direction)[0]]
     direction = direction if first > 0 else -direction  # a line: either sign
     words = "translate along" if moving is translation else "rotate about an axis along"
     return f"{words} ({', '.join(f'{value + 0.0:.3g}' for value in direction)})"
