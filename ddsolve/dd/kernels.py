@@ -12,7 +12,9 @@ Constraints are nodal: dof indices ``2·node + component`` (x = 0, y = 1), and c
 node and a unit vector d: d·u = 0, e.g. a roller, or a prescribed component of a Σ node's frame).  A
 scene's constraints are the blocks' prescribed dofs (:mod:`ddsolve.fem.supports`: Γ_D, every
 ``[displacements.LAYER.NAME]`` component, the Σ ties) whatever their values: a kernel is a motion of the
-homogeneous problem, and nonzero values are lifted into the loads.  No PETSc or MPI here.
+homogeneous problem, and nonzero values are lifted into the loads.  The frame, the constraint and gluing rows
+and the free motions take the dimension from the points: in 3-D six modes (translations in x, y, z, rotations
+about the axes), the halves of a box (:mod:`ddsolve.solvers.solid_dd`).  No PETSc or MPI here.
 """
 from __future__ import annotations
 
