@@ -55,8 +55,8 @@ def test_an_interface_of_three_components_glues_every_component_and_presses_the_
 @pytest.mark.solve
 def test_schur_and_feti_equal_the_3d_reference_with_contact_active(tmp_path, monkeypatch):
     """On one rank (in this process) both methods give the reference's solution to 1e-8 in energy norm with crack
-    vertices shut; the file is the reference's, read back; schur above its memory limit is refused (auto then
-    takes feti)."""
+    vertices shut, and G along the front; the file is the reference's, read back; schur above its memory limit is
+    refused (auto then takes feti)."""
     from mpi4py import MPI
 
     from ddsolve.environment import physical_memory
@@ -68,13 +68,15 @@ def test_schur_and_feti_equal_the_3d_reference_with_contact_active(tmp_path, mon
     scene = loads(CLOSURE)
     mesh = solid.build(scene)
     reference = solid_solver.solve_solid(scene, mesh)
-    assert reference.converged and reference.closed > 0
+    solid_solver.with_fracture(reference)
+    assert reference.converged and reference.closed > 0 and len(reference.fracture.G)
     for method in ("schur", "feti"):
         result = solid_dd.solve(scene.with_({"solver.method": method}), MPI.COMM_SELF, tmp_path / f"{method}.h5",
                                 progress=lambda _line: None)
         assert result.converged and result.closed == reference.closed and max(result.checks.values()) < 1e-6
         assert energy_error(result, reference) < 1e-8
         assert abs(result.energy - reference.energy) < 1e-8 * abs(reference.energy)
+        assert np.allclose(result.fracture.G, reference.fracture.G, rtol=1e-6, atol=1e-8 * reference.fracture.G.max())
         read = solid_files.read(tmp_path / f"{method}.h5")
         assert energy_error(read, reference) < 1e-8 and read.scene.solver.method == method
     held = solid_dd.kernels_of(scene, mesh, solid_dd.interface_of(scene, mesh))

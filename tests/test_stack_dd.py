@@ -3,6 +3,8 @@ two interfaces, its faces pressed together, solved by the DD equals the monolith
 (:mod:`ddsolve.solvers.stacked`) to round-off, on any number of ranks the six blocks can use."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import h5py
 import numpy as np
 import pytest
@@ -17,32 +19,9 @@ from ddsolve.mesh.mesh import blocks
 from ddsolve.problem import scene as scenes
 from ddsolve.solvers import stacked, stacked_dd
 
-#: Three regions, two interfaces, a crack on each; layer 1 pressed onto Σ from above and below and pulled at the
-#: right, its middle region stiffer: both cracks have faces in contact.
-STRIP = """
-title = "three regions, a crack on each interface"
-[geometry]
-box = [0.0, 4.0, 0.0, 3.0]
-sigma = [1.0, 2.0]
-cracks = [[[1.0, 2.0]], [[2.0, 3.0]]]
-clamped = ["left"]
-[mesh]
-size = 0.5
-[materials.layer1]
-E = 1.0
-nu = 0.3
-[materials.layer1.region2]
-E = 2.0
-[materials.layer2]
-E = 1.0
-nu = 0.3
-[loads.layer1.right]
-x = 0.1
-[loads.layer1.top]
-y = -0.05
-[loads.layer1.bottom]
-y = 0.05
-"""
+#: Three regions, two interfaces, a crack on each (docs/two-interfaces.toml); layer 1 pressed onto Σ from above and
+#: below and pulled at the right, its middle region stiffer: both cracks have faces in contact.
+STRIP = (Path(__file__).resolve().parents[1] / "docs" / "two-interfaces.toml").read_text()
 
 
 #: The same strip as one body: the blocks u1, u2, u3.
