@@ -13,6 +13,7 @@ launch is timed, with its CPU time and peak memory (:class:`Phases`); the result
 from __future__ import annotations
 
 import dataclasses
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -357,6 +358,35 @@ def solve_decomposed(scene: Scene, comm: MPI.Comm, output: Path | None, progress
     finally:
         if own:
             setup.destroy()
+
+
+def gathered_solve(setup, server: BlockServer, sizes: list[int], made: Callable, write: Callable,
+                   output: Path | None, started: float, progress=print):
+    """The method of a setup whose mesh every rank holds (several interfaces, a 3-D box): run it, gather the blocks'
+    fields (``sizes`` dofs each) on rank 0, make its result there (``made(outcome, rounds, fields)``) and write it
+    (``write(output, result)``).  The result on rank 0 (None elsewhere); a method that does not converge writes its
+    result with converged = false and raises NotConvergedError on every rank, with the result."""
+    comm = setup.exchange.comm
+    outcome, rounds, failure = run_method(setup.scene, setup, server, progress)
+    failure = comm.bcast(failure, root=0)
+    if failure is not None:
+        failure.collective = True
+        if not isinstance(failure, NotConvergedError):
+            raise failure
+    exchange = setup.exchange
+    fields = exchange.gather_varying([server.solutions[b] for b in exchange.led_blocks], sizes)
+    result = None
+    if exchange.is_root:
+        setup.timings["total"] = time.perf_counter() - started
+        result = made(outcome, rounds, fields)
+        if output is not None:
+            collective(comm, lambda: write(output, result), root_only=True)
+    elif output is not None:
+        collective(comm, lambda: None, root_only=True)
+    if failure is not None:
+        failure.result = result
+        raise failure
+    return result
 
 
 def end_method(setup: Setup, server: BlockServer, rounds, free: bool) -> dict:

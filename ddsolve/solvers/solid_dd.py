@@ -26,7 +26,7 @@ from ddsolve.dd import kernels, registry
 from ddsolve.dd.constraints import Constraints
 from ddsolve.dd.interface import Interface
 from ddsolve.environment import physical_memory
-from ddsolve.errors import DDSolveError, NotConvergedError, SceneError
+from ddsolve.errors import DDSolveError, SceneError
 from ddsolve.fem import tetra
 from ddsolve.fem.assembly import BlockSystem
 from ddsolve.io import solid as solid_files
@@ -217,29 +217,14 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print) -> 
     started = time.perf_counter()
     setup = prepare(scene, comm)
     try:
-        server = BlockServer(setup.blocks, setup.exchange)
-        outcome, rounds, failure = driver.run_method(setup.scene, setup, server, progress)
-        failure = comm.bcast(failure, root=0)
-        if failure is not None:
-            failure.collective = True
-            if not isinstance(failure, NotConvergedError):
-                raise failure
-        exchange = setup.exchange
-        fields = exchange.gather_varying([server.solutions[b] for b in exchange.led_blocks],
-                                         [half.dofs for half in setup.mesh.halves])
-        result = None
-        if exchange.is_root:
-            setup.timings["total"] = time.perf_counter() - started
+        def made(outcome, rounds, fields: list[np.ndarray]) -> SolidResult:
             result = finished(setup, outcome, rounds, fields)
             solid.with_fracture(result)
-            if output is not None:
-                collective(comm, lambda: solid_files.write(output, result), root_only=True)
-        elif output is not None:
-            collective(comm, lambda: None, root_only=True)
-        if failure is not None:
-            failure.result = result
-            raise failure
-        return result
+            return result
+
+        return driver.gathered_solve(setup, BlockServer(setup.blocks, setup.exchange),
+                                     [half.dofs for half in setup.mesh.halves], made, solid_files.write, output,
+                                     started, progress)
     finally:
         setup.destroy()
 

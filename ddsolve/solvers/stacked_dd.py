@@ -23,7 +23,7 @@ from petsc4py import PETSc
 
 from ddsolve.dd import kernels, registry
 from ddsolve.dd.interface import Interface
-from ddsolve.errors import DDSolveError, NotConvergedError, SceneError
+from ddsolve.errors import DDSolveError, SceneError
 from ddsolve.fem import assembly, supports
 from ddsolve.io import hdf5
 from ddsolve.mesh import geometry, stack
@@ -161,29 +161,11 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print) -> 
     started = time.perf_counter()
     setup = prepare(scene, comm)
     try:
-        server = BlockServer(setup.blocks, setup.exchange, positions=setup.positions)
-        outcome, rounds, failure = driver.run_method(setup.scene, setup, server, progress)
-        failure = comm.bcast(failure, root=0)
-        if failure is not None:
-            failure.collective = True
-            if not isinstance(failure, NotConvergedError):
-                raise failure
         sizes = [2 * len(setup.mesh.regions[region].points)
                  for _, _, region in stacked.block_names(setup.scene.geometry.layers, len(setup.mesh.regions))]
-        exchange = setup.exchange
-        fields = exchange.gather_varying([server.solutions[b] for b in exchange.led_blocks], sizes)
-        result = None
-        if exchange.is_root:
-            setup.timings["total"] = time.perf_counter() - started
-            result = finished(setup, outcome, rounds, fields, comm.size)
-            if output is not None:
-                collective(comm, lambda: hdf5.write_stack(output, result), root_only=True)
-        elif output is not None:
-            collective(comm, lambda: None, root_only=True)
-        if failure is not None:
-            failure.result = result
-            raise failure
-        return result
+        return driver.gathered_solve(setup, BlockServer(setup.blocks, setup.exchange, positions=setup.positions), sizes,
+                                     lambda outcome, rounds, fields: finished(setup, outcome, rounds, fields, comm.size),
+                                     hdf5.write_stack, output, started, progress)
     finally:
         setup.destroy()
 
