@@ -9,6 +9,7 @@ from ddsolve.dd.interface import Interface
 from ddsolve.errors import SceneError
 from ddsolve.mesh.mesh import blocks
 from ddsolve.problem.scene import loads
+from experiments import three_d_front
 
 #: Example 1's loads on one body extruded over [0, ½] with rollers on the front and back: part of the crack shut.
 CLOSURE = """
@@ -89,26 +90,7 @@ def test_schur_and_feti_equal_the_3d_reference_with_contact_active(tmp_path, mon
 
 #: The quarter penny-shaped crack of radius ½ (experiments/three_d_front.py, coarse): rollers on x = 0 and z = 0,
 #: the bottom held in y, a traction on top; the upper half is held only through Σ (its rollers leave it y).
-PENNY = """
-[geometry]
-box = [0, 2, -2, 2, 0, 2]
-cracks = [{center = [0, 0], radii = [0.5, 0.5]}]
-clamped = []
-[mesh]
-size = 0.3
-grading = 0.2
-[materials.layer1]
-E = 1.0
-nu = 0.3
-[loads.layer1.top]
-y = 1.0
-[displacements.layer1.bottom]
-y = 0.0
-[displacements.layer1.left]
-x = 0.0
-[displacements.layer1.front]
-z = 0.0
-"""
+PENNY = three_d_front.PENNY.format(L=2, size=0.3, grading=0.2)
 
 
 @pytest.mark.solve
