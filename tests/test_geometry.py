@@ -94,14 +94,26 @@ def test_example1_as_a_geo_file(tmp_path):
     assert all(0.0 < value < 0.2 for value in above)
 
 
-@pytest.mark.parametrize("name", ["arc-bond", "strip-disbonds"])
-def test_curved_sigma_and_the_strip_converge_from_above_without_penetration(tmp_path, name):
+CONVERGING = ["arc-bond", "strip-disbonds"]
+CONVERGING_SIZES = (0.2, 0.1, 0.05)
+
+
+@pytest.fixture(scope="module")
+def converging(tmp_path_factory):
+    """CONVERGING on CONVERGING_SIZES: the references in one launch on 1 rank, the solves in one on 4."""
+    folder = tmp_path_factory.mktemp("converging")
+    for command, ranks in (("reference", 1), ("solve", 4)):
+        launch([[command, name, "--set", f"mesh.size={size}", "-o", str(folder / f"{name}-{size}-{command}.h5")]
+                for name in CONVERGING for size in CONVERGING_SIZES], ranks, folder)
+    return folder
+
+
+@pytest.mark.parametrize("name", CONVERGING)
+def test_curved_sigma_and_the_strip_converge_from_above_without_penetration(converging, name):
     energies = []
-    for size in (0.2, 0.1, 0.05):
-        output = tmp_path / f"{size}.h5"
-        ddsolve("solve", name, "--set", f"mesh.size={size}", "-o", str(output), ranks=4)
-        ddsolve("reference", name, "--set", f"mesh.size={size}", "-o", str(tmp_path / "ref.h5"))
-        result, reference = hdf5.read(output), hdf5.read(tmp_path / "ref.h5")
+    for size in CONVERGING_SIZES:
+        output = converging / f"{name}-{size}-solve.h5"
+        result, reference = hdf5.read(output), hdf5.read(converging / f"{name}-{size}-reference.h5")
         error, penetration = analysis.compare(result, reference).energy_error, analysis.constraints(result).penetration
         energies.append(energy(output))
         print(f"\n{name}, mesh.size = {size}: energy {energies[-1]:.10e}, DD against the reference {error:.1e}, "
