@@ -30,13 +30,23 @@ def references(tmp_path_factory):
     return paper_references(tmp_path_factory.mktemp("references"), *SMALL)
 
 
+PAPER_SCENES = ["partial-closure", "full-opening", "linear"]
+
+
+@pytest.fixture(scope="module")
+def solved_on_four(tmp_path_factory) -> Path:
+    """Each paper scene (small) by each method of TIGHT on 4 ranks, one launch: NAME-METHOD.h5."""
+    folder = tmp_path_factory.mktemp("four")
+    launch([["solve", name, *SMALL, *TIGHT[method], "-o", str(folder / f"{name}-{method}.h5")]
+            for name in PAPER_SCENES for method in TIGHT], 4, folder)
+    return folder
+
+
 @pytest.mark.mpi
 @pytest.mark.parametrize("method", TIGHT)
-@pytest.mark.parametrize("name", ["partial-closure", "full-opening", "linear"])
-def test_dd_equals_the_reference(tmp_path, references, name, method):
-    output = tmp_path / "dd.h5"
-    ddsolve("solve", name, *SMALL, *TIGHT[method], "-o", str(output), ranks=4)
-    result, reference = hdf5.read(output), hdf5.read(references[name])
+@pytest.mark.parametrize("name", PAPER_SCENES)
+def test_dd_equals_the_reference(solved_on_four, references, name, method):
+    result, reference = hdf5.read(solved_on_four / f"{name}-{method}.h5"), hdf5.read(references[name])
     assert result.converged and result.ranks == 4 and result.method == method
     if method == "uzawa":
         assert result.solves == result.iterations + 2
