@@ -217,12 +217,10 @@ def test_at_eight_ranks_a_rank_holds_its_piece_of_the_mesh_and_of_the_solution(t
 @pytest.mark.mpi
 def test_an_active_multiplier_bound_p_is_honoured_by_schur_and_mprgp(tmp_path):
     """With p smaller than the gluing forces, schur's fallback (all bounds) and MPRGP solve the same QP."""
-    results = {}
-    for method in ("schur", "mprgp"):
-        output = tmp_path / f"{method}.h5"
-        ddsolve("solve", "partial-closure", *SMALL, "--set", f"solver.method={method}", "--set", "solver.p=0.005",
-                "--set", "solver.tol=1e-11", "-o", str(output), ranks=4)
-        results[method] = hdf5.read(output)
+    methods = ("schur", "mprgp")
+    launch([["solve", "partial-closure", *SMALL, "--set", f"solver.method={method}", "--set", "solver.p=0.005",
+             "--set", "solver.tol=1e-11", "-o", str(tmp_path / f"{method}.h5")] for method in methods], 4, tmp_path)
+    results = {method: hdf5.read(tmp_path / f"{method}.h5") for method in methods}
     multipliers = np.concatenate([np.ravel(v) for v in results["schur"].multipliers.values()])
     assert np.abs(multipliers).max() == pytest.approx(0.005)  # the bound is active
     assert analysis.compare(results["mprgp"], results["schur"]).energy_error < 1e-6
@@ -291,11 +289,9 @@ def test_out_of_core_factors_solve_the_reference_problem(tmp_path, references, m
 def test_the_contact_zone_does_not_depend_on_the_method(tmp_path):
     """MPRGP's openings where the faces press are its tolerance (1-4e-9 max|u|), not 0: the zone is where
     μᶜ > 0 or the faces touch, one zone as schur finds it, not two."""
-    zones = {}
-    for method in ("schur", "mprgp"):
-        output = tmp_path / f"{method}.h5"
-        ddsolve("solve", "partial-closure", "--set", "mesh.sigma_vertices=48", "--set", "mesh.boundary_vertices=80",
-                "--set", f"solver.method={method}", "-o", str(output), ranks=2)
-        zones[method] = hdf5.read(output).fracture.zones
+    methods = ("schur", "mprgp")
+    launch([["solve", "partial-closure", "--set", "mesh.sigma_vertices=48", "--set", "mesh.boundary_vertices=80",
+             "--set", f"solver.method={method}", "-o", str(tmp_path / f"{method}.h5")] for method in methods], 2, tmp_path)
+    zones = {method: hdf5.read(tmp_path / f"{method}.h5").fracture.zones for method in methods}
     assert len(zones["schur"]) == 1
     np.testing.assert_allclose(zones["mprgp"], zones["schur"])
