@@ -13,11 +13,15 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
+#: The sockets of each command's interrupt watcher, open until the process ends (the next command's watcher
+#: replaces them, and a watcher whose sockets close ends with an error).
+WATCHERS: list = []
 
 
 def launch(commands: list[list[str]], ranks: int, folder: Path, timeout: float = 600) -> list[str]:
     """Run the ddsolve ``commands`` (argument lists) one after the other in one launch on ``ranks``
-    ranks; their standard outputs, in order.  A failure raises AssertionError with the launch's output."""
+    ranks; their standard outputs, in order.  A failure (a nonzero status, a traceback) raises AssertionError
+    with the launch's output."""
     from ddsolve.cli import mpiexec_command
 
     listing = folder / f"commands-{ranks}.json"
@@ -27,7 +31,8 @@ def launch(commands: list[list[str]], ranks: int, folder: Path, timeout: float =
                                text=True, timeout=timeout, stdin=subprocess.DEVNULL,
                                env={**os.environ, "MPLBACKEND": "Agg",
                                     "PYTHONPATH": os.pathsep.join([str(HERE), *sys.path])})
-    assert completed.returncode == 0, f"{listing.read_text()}\n{completed.stdout}\n{completed.stderr}"
+    assert completed.returncode == 0 and "Traceback" not in completed.stderr, \
+        f"{listing.read_text()}\n{completed.stdout}\n{completed.stderr}"
     return [output.read_text() for output in outputs]
 
 
@@ -37,12 +42,11 @@ def main(listing: Path) -> None:
     from ddsolve.parallel.launch import world_position
 
     rank = world_position()[0]  # before MPI starts, as ddsolve's own start-up needs
-    watchers = []  # each command's interrupt watcher keeps its sockets open (closed, it would end with an error)
     for command, output in json.loads(listing.read_text()):
         with open(output if rank == 0 else os.devnull, "w") as stream, contextlib.redirect_stdout(stream):
             status = ddsolve_main(command)
             sys.stdout.flush()
-        watchers.append(getattr(runtime.watch_interrupts, "sockets", None))
+        WATCHERS.append(getattr(runtime.watch_interrupts, "sockets", None))
         if status != 0:
             sys.exit(status)
 
