@@ -156,7 +156,8 @@ def gallery_results(tmp_path_factory):
                   for name in sorted(GALLERY_SMALL)]
     for ranks in (1, 2, 4, 8):
         solves = [["solve", name, *GALLERY_SMALL[name], *gallery_options(method), "-o",
-                   str(folder / f"{name}-{method}-{ranks}.h5")] for name, method in cases if ranks in gallery_ranks(method)]
+                   str(folder / f"{name}-{method}-{ranks}.h5")]
+                  for name, method in cases if ranks in gallery_ranks(method)]
         launch((references if ranks == 1 else []) + solves, ranks, folder)
     return folder
 

@@ -85,8 +85,8 @@ def agreeing(tmp_path_factory) -> dict[tuple[str, int], Path]:
     folder = tmp_path_factory.mktemp("agreeing")
     paths = {(method, ranks): folder / f"{method}-{ranks}.h5" for method in AGREEING_METHODS for ranks in (1, 2, 4)}
     for ranks in (1, 2, 4):
-        launch([["solve", "partial-closure", *SMALL, "--set", f"solver.method={method}", "-o", str(paths[method, ranks])]
-                for method in AGREEING_METHODS], ranks, folder)
+        launch([["solve", "partial-closure", *SMALL, "--set", f"solver.method={method}", "-o",
+                 str(paths[method, ranks])] for method in AGREEING_METHODS], ranks, folder)
     return paths
 
 
@@ -291,7 +291,8 @@ def test_the_contact_zone_does_not_depend_on_the_method(tmp_path):
     μᶜ > 0 or the faces touch, one zone as schur finds it, not two."""
     methods = ("schur", "mprgp")
     launch([["solve", "partial-closure", "--set", "mesh.sigma_vertices=48", "--set", "mesh.boundary_vertices=80",
-             "--set", f"solver.method={method}", "-o", str(tmp_path / f"{method}.h5")] for method in methods], 2, tmp_path)
+             "--set", f"solver.method={method}", "-o", str(tmp_path / f"{method}.h5")] for method in methods],
+           2, tmp_path)
     zones = {method: hdf5.read(tmp_path / f"{method}.h5").fracture.zones for method in methods}
     assert len(zones["schur"]) == 1
     np.testing.assert_allclose(zones["mprgp"], zones["schur"])
