@@ -1,9 +1,12 @@
 """P2, graded and adaptive meshes and the error estimate, end to end under mpiexec."""
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
-from conftest import ddsolve, paper_references
+from conftest import ddsolve
+from launch_many import launch
 
 from ddsolve.io import hdf5
 from ddsolve.post import analysis
@@ -31,16 +34,31 @@ def graded_scene(folder, name: str = "partial-closure", size: float = 0.25) -> s
     return str(path)
 
 
+P2_CASES = [("partial-closure", method) for method in METHODS] + [("full-opening", "schur"), ("linear", "schur")]
+
+
 @pytest.fixture(scope="module")
-def p2_references(tmp_path_factory):
-    return paper_references(tmp_path_factory.mktemp("p2"), *P2)
+def p2_references(tmp_path_factory) -> dict[str, Path]:
+    """The paper scenes' P2 references, one launch (1 rank)."""
+    folder = tmp_path_factory.mktemp("p2")
+    paths = {name: folder / f"{name}.h5" for name in ("partial-closure", "full-opening", "linear")}
+    launch([["reference", name, *P2, "-o", str(path)] for name, path in paths.items()], 1, folder)
+    return paths
 
 
-@pytest.mark.parametrize("name, method", [("partial-closure", m) for m in METHODS]
-                         + [("full-opening", "schur"), ("linear", "schur")])
-def test_p2_dd_equals_the_reference(tmp_path, p2_references, name, method):
-    output = tmp_path / "dd.h5"
-    completed = ddsolve("solve", name, *P2, *METHODS[method], "-o", str(output), ranks=4)
+@pytest.fixture(scope="module")
+def p2_solved(tmp_path_factory) -> dict[tuple[str, str], tuple[Path, str]]:
+    """Each of P2_CASES solved on 4 ranks, one launch: its result path and standard output."""
+    folder = tmp_path_factory.mktemp("p2dd")
+    paths = [folder / f"{name}-{method}.h5" for name, method in P2_CASES]
+    stdout = launch([["solve", name, *P2, *METHODS[method], "-o", str(path)]
+                     for (name, method), path in zip(P2_CASES, paths)], 4, folder)
+    return dict(zip(P2_CASES, zip(paths, stdout)))
+
+
+@pytest.mark.parametrize("name, method", P2_CASES)
+def test_p2_dd_equals_the_reference(p2_solved, p2_references, name, method):
+    output, stdout = p2_solved[name, method]
     result, reference = hdf5.read(output), hdf5.read(p2_references[name])
     assert result.mesh.degree == 2 and result.lower.cells.shape[1] == 6 and result.converged
     error = analysis.compare(result, reference).energy_error
@@ -52,26 +70,31 @@ def test_p2_dd_equals_the_reference(tmp_path, p2_references, name, method):
         assert not result.mesh.sigma.corner[result.multiplier_nodes][result.crack].all()
     # The same estimate from the blocks' ranks as from the reference, printed at the end.
     assert result.attrs["error_estimate"] == pytest.approx(reference.attrs["error_estimate"], rel=1e-6)
-    assert f"estimated discretization error {100 * result.attrs['error_estimate']:.3g} %" in completed.stdout
+    assert f"estimated discretization error {100 * result.attrs['error_estimate']:.3g} %" in stdout
 
 
-def test_compare_and_check_work_on_p2_results(tmp_path, p2_references):
-    output = tmp_path / "dd.h5"
-    ddsolve("solve", "partial-closure", *P2, "-o", str(output), ranks=2)
+def test_compare_and_check_work_on_p2_results(p2_solved, p2_references):
+    output = p2_solved["partial-closure", "schur"][0]
     compared = ddsolve("compare", str(output), str(p2_references["partial-closure"])).stdout
     assert float(compared.split()[3]) < 1e-10
     checked = ddsolve("check", str(output)).stdout
     assert float(checked.split()[2]) < 1e-9  # max penetration
 
 
-def test_graded_p2_gives_the_same_solution_on_1_2_4_and_8_ranks(tmp_path):
-    """With 2 ranks or more the halves are meshed in two processes: the Σ nodes must still match."""
-    path = graded_scene(tmp_path)
-    results = {}
-    for ranks in (1, 2, 4, 8):
-        output = tmp_path / f"n{ranks}.h5"
+@pytest.fixture(scope="module")
+def graded_by_ranks(tmp_path_factory) -> dict[int, Path]:
+    """The graded P2 partial closure (graded_scene) solved on 1, 2, 4 and 8 ranks: the result paths."""
+    folder = tmp_path_factory.mktemp("graded")
+    path = graded_scene(folder)
+    outputs = {ranks: folder / f"n{ranks}.h5" for ranks in (1, 2, 4, 8)}
+    for ranks, output in outputs.items():
         ddsolve("solve", path, "-o", str(output), ranks=ranks)
-        results[ranks] = hdf5.read(output)
+    return outputs
+
+
+def test_graded_p2_gives_the_same_solution_on_1_2_4_and_8_ranks(graded_by_ranks):
+    """With 2 ranks or more the halves are meshed in two processes: the Σ nodes must still match."""
+    results = {ranks: hdf5.read(output) for ranks, output in graded_by_ranks.items()}
     for ranks in (1, 2, 8):
         assert results[ranks].ranks == ranks
         assert np.array_equal(results[ranks].lower.points, results[4].lower.points)
@@ -79,12 +102,10 @@ def test_graded_p2_gives_the_same_solution_on_1_2_4_and_8_ranks(tmp_path):
         assert results[ranks].attrs["error_estimate"] == pytest.approx(results[4].attrs["error_estimate"], rel=1e-8)
 
 
-def test_the_result_file_has_the_indicators_per_cell(tmp_path):
-    output = tmp_path / "dd.h5"
-    ddsolve("solve", graded_scene(tmp_path), "-o", str(output), ranks=4)
+def test_the_result_file_has_the_indicators_per_cell(graded_by_ranks):
     import h5py
 
-    with h5py.File(output) as f:
+    with h5py.File(graded_by_ranks[4]) as f:
         assert 0 < f.attrs["error_estimate"] < 0.2
         for block in ("u_minus", "u_plus", "v_minus", "v_plus"):
             half = "lower" if block.endswith("minus") else "upper"
@@ -106,12 +127,21 @@ def test_adaptive_refinement_reaches_the_target(tmp_path):
     assert len(lines) == len(levels["unknowns"]) and "unknowns, estimated error" in lines[0]
 
 
-@pytest.mark.parametrize("name", ["strip-disbonds", "arc-bond", "kinked-bond", "orthotropic-plate"])
-def test_target_error_works_on_the_gallery_scenes(tmp_path, name):
-    output = tmp_path / f"{name}.h5"
-    ddsolve("solve", name, "--set", "mesh.size=0.25", "--set", "mesh.degree=2", "--set", "mesh.target_error=0.02",
-            "-o", str(output), ranks=2)
-    result = hdf5.read(output)
+TARGET_GALLERY = ["strip-disbonds", "arc-bond", "kinked-bond", "orthotropic-plate"]
+
+
+@pytest.fixture(scope="module")
+def gallery_to_target(tmp_path_factory) -> Path:
+    """TARGET_GALLERY solved to mesh.target_error = 0.02 (P2 from mesh.size 0.25) on 2 ranks, one launch."""
+    folder = tmp_path_factory.mktemp("target")
+    launch([["solve", name, "--set", "mesh.size=0.25", "--set", "mesh.degree=2", "--set", "mesh.target_error=0.02",
+             "-o", str(folder / f"{name}.h5")] for name in TARGET_GALLERY], 2, folder)
+    return folder
+
+
+@pytest.mark.parametrize("name", TARGET_GALLERY)
+def test_target_error_works_on_the_gallery_scenes(gallery_to_target, name):
+    result = hdf5.read(gallery_to_target / f"{name}.h5")
     assert result.attrs["error_estimate"] <= 0.02 and len(result.levels["unknowns"]) <= 3
 
 

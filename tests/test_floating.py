@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from conftest import MATERIALS, both_layers, ddsolve, refused
+from launch_many import launch
 
 from ddsolve.io import hdf5
 from ddsolve.post import analysis
@@ -32,24 +33,41 @@ def strip(folder, clamped: str = '"bottom"'):
     return path
 
 
+#: The scenes solved by schur and feti on 1, 2, 4 and 8 ranks against their references.
+FLOATING_SCENES = ("strip", "enf", "pin-and-roller")
+
+
 @pytest.fixture(scope="module")
-def floating_reference(tmp_path_factory):
+def every_rank_count(tmp_path_factory) -> tuple[dict, dict]:
+    """The references of FLOATING_SCENES, and their schur and feti solutions (tol 1e-12) on 1, 2, 4 and
+    8 ranks: one launch per rank count (the references in the 1-rank one).  The result paths by (scene,
+    method, ranks) (the reference's method None), and each solve's standard output by the same key."""
     folder = tmp_path_factory.mktemp("floating")
-    scene = strip(folder)
-    ddsolve("reference", str(scene), "-o", str(folder / "reference.h5"))
-    return scene, hdf5.read(folder / "reference.h5")
+    scenes = {"strip": strip(folder)}
+    for name, text in (("enf", ENF), ("pin-and-roller", PIN_AND_ROLLER)):
+        (folder / name).mkdir()
+        scenes[name] = supported_strip(folder / name, text)
+    paths = {(name, None, 1): folder / f"{name}-reference.h5" for name in FLOATING_SCENES}
+    references = [["reference", str(scenes[name]), "-o", str(paths[name, None, 1])] for name in FLOATING_SCENES]
+    stdout = {}
+    for ranks in (1, 2, 4, 8):
+        keys = [(name, method, ranks) for name in FLOATING_SCENES for method in ("schur", "feti")]
+        paths.update({key: folder / "{}-{}-{}.h5".format(*key) for key in keys})
+        solves = [["solve", str(scenes[name]), "--set", f"solver.method={method}", "--set", "solver.tol=1e-12", "-o",
+                   str(paths[name, method, ranks])] for name, method, ranks in keys]
+        outputs = launch((references if ranks == 1 else []) + solves, ranks, folder)
+        stdout.update(zip(keys, outputs[-len(keys):]))
+    return paths, stdout
 
 
 @pytest.mark.mpi
 @pytest.mark.parametrize("method", ["schur", "feti"])
-def test_floating_halves_equal_the_reference_on_every_rank_count(tmp_path, floating_reference, method):
-    scene, reference = floating_reference
+def test_floating_halves_equal_the_reference_on_every_rank_count(every_rank_count, method):
+    paths, _ = every_rank_count
+    reference = hdf5.read(paths["strip", None, 1])
     assert reference.attrs["closed_vertices"] > 0  # contact on part of the crack
     for ranks in (1, 2, 4, 8):
-        output = tmp_path / f"n{ranks}.h5"
-        ddsolve("solve", str(scene), "--set", f"solver.method={method}", "--set", "solver.tol=1e-12", "-o",
-                str(output), ranks=ranks)
-        result = hdf5.read(output)
+        result = hdf5.read(paths["strip", method, ranks])
         assert result.converged and result.ranks == ranks
         assert analysis.compare(result, reference).energy_error < 1e-10, ranks
         assert abs(result.attrs["energy"] - reference.attrs["energy"]) <= 1e-10 * abs(reference.attrs["energy"])
@@ -125,24 +143,20 @@ def supported_strip(folder, text: str):
 
 
 @pytest.mark.mpi
-@pytest.mark.parametrize("text, applied", [(ENF, 0.0), (PIN_AND_ROLLER, -0.05)], ids=["enf", "pin-and-roller"])
-def test_supported_strips_with_floating_halves_equal_the_reference(tmp_path, text, applied):
+@pytest.mark.parametrize("name, applied", [("enf", 0.0), ("pin-and-roller", -0.05)], ids=["enf", "pin-and-roller"])
+def test_supported_strips_with_floating_halves_equal_the_reference(every_rank_count, name, applied):
     """ENF (the upper arm unsupported) and a strip on a pin and a roller: schur and feti on 1, 2, 4 and 8
     ranks give the reference's solution to 1e-10, and the reactions balance the load."""
-    scene = supported_strip(tmp_path, text)
-    ddsolve("reference", str(scene), "-o", str(tmp_path / "reference.h5"))
-    reference = hdf5.read(tmp_path / "reference.h5")
+    paths, stdout = every_rank_count
+    reference = hdf5.read(paths[name, None, 1])
     assert reference.converged
     for method in ("schur", "feti"):
         for ranks in (1, 2, 4, 8):
-            output = tmp_path / f"{method}{ranks}.h5"
-            completed = ddsolve("solve", str(scene), "--set", f"solver.method={method}", "--set", "solver.tol=1e-12",
-                                "-o", str(output), ranks=ranks)
-            result = hdf5.read(output)
+            result = hdf5.read(paths[name, method, ranks])
             comparison = analysis.compare(result, reference)
             assert result.converged and comparison.energy_error < 1e-10, (method, ranks)
             assert comparison.max_difference <= 1e-10 * comparison.max_displacement, (method, ranks)
-            assert "reaction on layer1 at support_right: " in completed.stdout
+            assert "reaction on layer1 at support_right: " in stdout[name, method, ranks]
     reactions = [force for named in reference.reactions.values() for force in named.values()]
     largest = max(np.abs(force).max() for force in reactions)
     assert largest > 0 and np.abs(sum(reactions) + [0.0, applied]).max() <= 1e-10 * largest

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 from conftest import MATERIALS, ROOT, SMALL, ddsolve
+from launch_many import launch
 
 from ddsolve.errors import MeshError
 from ddsolve.io import hdf5
@@ -93,14 +94,26 @@ def test_example1_as_a_geo_file(tmp_path):
     assert all(0.0 < value < 0.2 for value in above)
 
 
-@pytest.mark.parametrize("name", ["arc-bond", "strip-disbonds"])
-def test_curved_sigma_and_the_strip_converge_from_above_without_penetration(tmp_path, name):
+CONVERGING = ["arc-bond", "strip-disbonds"]
+CONVERGING_SIZES = (0.2, 0.1, 0.05)
+
+
+@pytest.fixture(scope="module")
+def converging(tmp_path_factory):
+    """CONVERGING on CONVERGING_SIZES: the references in one launch on 1 rank, the solves in one on 4."""
+    folder = tmp_path_factory.mktemp("converging")
+    for command, ranks in (("reference", 1), ("solve", 4)):
+        launch([[command, name, "--set", f"mesh.size={size}", "-o", str(folder / f"{name}-{size}-{command}.h5")]
+                for name in CONVERGING for size in CONVERGING_SIZES], ranks, folder)
+    return folder
+
+
+@pytest.mark.parametrize("name", CONVERGING)
+def test_curved_sigma_and_the_strip_converge_from_above_without_penetration(converging, name):
     energies = []
-    for size in (0.2, 0.1, 0.05):
-        output = tmp_path / f"{size}.h5"
-        ddsolve("solve", name, "--set", f"mesh.size={size}", "-o", str(output), ranks=4)
-        ddsolve("reference", name, "--set", f"mesh.size={size}", "-o", str(tmp_path / "ref.h5"))
-        result, reference = hdf5.read(output), hdf5.read(tmp_path / "ref.h5")
+    for size in CONVERGING_SIZES:
+        output = converging / f"{name}-{size}-solve.h5"
+        result, reference = hdf5.read(output), hdf5.read(converging / f"{name}-{size}-reference.h5")
         error, penetration = analysis.compare(result, reference).energy_error, analysis.constraints(result).penetration
         energies.append(energy(output))
         print(f"\n{name}, mesh.size = {size}: energy {energies[-1]:.10e}, DD against the reference {error:.1e}, "
@@ -111,15 +124,13 @@ def test_curved_sigma_and_the_strip_converge_from_above_without_penetration(tmp_
 
 GALLERY_SMALL = {"strip-disbonds": ["--set", "mesh.size=0.25"], "arc-bond": ["--set", "mesh.size=0.25"],
                  "kinked-bond": ["--set", "mesh.size=0.25"], "orthotropic-plate": ["--set", "mesh.size=0.25"]}
+GALLERY_METHODS = ["schur", "mprgp", "fista", "uzawa"]
+#: Uzawa's stable step on the slender strip is 2/λmax ≈ 0.006: millions of iterations.
+UZAWA_TOO_SLOW = "strip-disbonds"
 
 
-@pytest.mark.parametrize("name", sorted(GALLERY_SMALL))
-@pytest.mark.parametrize("method", ["schur", "mprgp", "fista", "uzawa"])
-def test_every_method_on_1_2_4_8_ranks_gives_the_same_solution_on_the_gallery(tmp_path, name, method):
-    ddsolve("reference", name, *GALLERY_SMALL[name], "-o", str(tmp_path / "ref.h5"))
-    reference = hdf5.read(tmp_path / "ref.h5")
-    if method == "uzawa" and name == "strip-disbonds":
-        pytest.skip("Uzawa's stable step on the slender strip is 2/λmax ≈ 0.006: millions of iterations")
+def gallery_options(method: str) -> list[str]:
+    """The settings of ``method`` on the gallery (which sets no θ and no iteration limit)."""
     options = ["--set", f"solver.method={method}"]
     if method != "schur":  # an exact solve reads no iteration limit (and refuses one)
         options += ["--set", "solver.max_iterations=100000"]
@@ -127,10 +138,39 @@ def test_every_method_on_1_2_4_8_ranks_gives_the_same_solution_on_the_gallery(tm
         options += ["--set", "solver.theta=auto", "--set", "solver.stop=relative", "--set", "solver.tol=1e-10"]
     elif method != "schur":
         options += ["--set", "solver.tol=1e-10"]
-    for ranks in (1, 2, 4, 8) if method == "schur" else (1, 4):
-        output = tmp_path / f"{ranks}.h5"
-        ddsolve("solve", name, *GALLERY_SMALL[name], *options, "-o", str(output), ranks=ranks)
-        assert analysis.compare(hdf5.read(output), reference).energy_error < (1e-10 if method == "schur" else 1e-6)
+    return options
+
+
+def gallery_ranks(method: str) -> tuple[int, ...]:
+    return (1, 2, 4, 8) if method == "schur" else (1, 4)
+
+
+@pytest.fixture(scope="module")
+def gallery_results(tmp_path_factory):
+    """The gallery's references, and every method's solution on each of its rank counts: one launch per
+    rank count (the references in the 1-rank one)."""
+    folder = tmp_path_factory.mktemp("gallery")
+    cases = [(name, method) for name in sorted(GALLERY_SMALL) for method in GALLERY_METHODS
+             if not (method == "uzawa" and name == UZAWA_TOO_SLOW)]
+    references = [["reference", name, *GALLERY_SMALL[name], "-o", str(folder / f"{name}-ref.h5")]
+                  for name in sorted(GALLERY_SMALL)]
+    for ranks in (1, 2, 4, 8):
+        solves = [["solve", name, *GALLERY_SMALL[name], *gallery_options(method), "-o",
+                   str(folder / f"{name}-{method}-{ranks}.h5")]
+                  for name, method in cases if ranks in gallery_ranks(method)]
+        launch((references if ranks == 1 else []) + solves, ranks, folder)
+    return folder
+
+
+@pytest.mark.parametrize("name", sorted(GALLERY_SMALL))
+@pytest.mark.parametrize("method", GALLERY_METHODS)
+def test_every_method_on_1_2_4_8_ranks_gives_the_same_solution_on_the_gallery(gallery_results, name, method):
+    if method == "uzawa" and name == UZAWA_TOO_SLOW:
+        pytest.skip("Uzawa's stable step on the slender strip is 2/λmax ≈ 0.006: millions of iterations")
+    reference = hdf5.read(gallery_results / f"{name}-ref.h5")
+    for ranks in gallery_ranks(method):
+        result = hdf5.read(gallery_results / f"{name}-{method}-{ranks}.h5")
+        assert analysis.compare(result, reference).energy_error < (1e-10 if method == "schur" else 1e-6), ranks
 
 
 @pytest.mark.parametrize("edit, message", [

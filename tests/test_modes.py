@@ -8,6 +8,7 @@ import h5py
 import numpy as np
 import pytest
 from conftest import ddsolve
+from launch_many import launch
 
 from ddsolve.io import hdf5, save
 from ddsolve.mesh import geometry
@@ -199,18 +200,26 @@ def test_two_ranks_print_and_write_no_phase_at_a_closed_tip(tmp_path):
     assert np.isfinite(phase[0]) and np.isnan(phase[1])
 
 
+SPLIT_SCENES = {"partial-closure": True, "arc-bond": False}  # whether the split is the mirror split
+
+
+@pytest.fixture(scope="module")
+def split_by_ranks(tmp_path_factory):
+    """SPLIT_SCENES (graded P2, mesh.size 0.1) solved on 1, 2, 4 and 8 ranks, one launch per rank count."""
+    folder = tmp_path_factory.mktemp("split")
+    for ranks in (1, 2, 4, 8):
+        launch([["solve", name, "--set", "mesh.size=0.1", "--set", "mesh.degree=2", "--set", "mesh.grading=true",
+                 "-o", str(folder / f"{name}-{ranks}.h5")] for name in SPLIT_SCENES], ranks, folder)
+    return folder
+
+
 @pytest.mark.mpi
-@pytest.mark.parametrize("name, symmetric", [("partial-closure", True), ("arc-bond", False)])
-def test_the_ranks_split_the_modes_as_one_process_does(tmp_path, name, symmetric):
+@pytest.mark.parametrize("name, symmetric", SPLIT_SCENES.items())
+def test_the_ranks_split_the_modes_as_one_process_does(split_by_ranks, name, symmetric):
     """With the result written by the ranks, each block's leader integrates its share of the mirror split
     with its partner's field read by the partner's leader (Example 1), and rank 0 splits a curved Σ's tips
     by crack closure from Σ's data (arc-bond): the same split, by the same method, as one process."""
-    split = {}
-    for ranks in (1, 2, 4, 8):
-        output = tmp_path / f"n{ranks}.h5"
-        ddsolve("solve", name, "--set", "mesh.size=0.1", "--set", "mesh.degree=2", "--set",
-                "mesh.grading=true", "-o", str(output), ranks=ranks)
-        split[ranks] = hdf5.read(output).fracture
+    split = {ranks: hdf5.read(split_by_ranks / f"{name}-{ranks}.h5").fracture for ranks in (1, 2, 4, 8)}
     assert np.all(split[1].symmetric == symmetric)
     for ranks in (2, 4, 8):
         assert np.array_equal(split[ranks].symmetric, split[1].symmetric)

@@ -2,10 +2,12 @@
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
 from conftest import SMALL, ddsolve, paper_references, refused
+from launch_many import launch
 
 from ddsolve.io import hdf5
 from ddsolve.parallel.phases import PHASES
@@ -28,13 +30,23 @@ def references(tmp_path_factory):
     return paper_references(tmp_path_factory.mktemp("references"), *SMALL)
 
 
+PAPER_SCENES = ["partial-closure", "full-opening", "linear"]
+
+
+@pytest.fixture(scope="module")
+def solved_on_four(tmp_path_factory) -> Path:
+    """Each paper scene (small) by each method of TIGHT on 4 ranks, one launch: NAME-METHOD.h5."""
+    folder = tmp_path_factory.mktemp("four")
+    launch([["solve", name, *SMALL, *TIGHT[method], "-o", str(folder / f"{name}-{method}.h5")]
+            for name in PAPER_SCENES for method in TIGHT], 4, folder)
+    return folder
+
+
 @pytest.mark.mpi
 @pytest.mark.parametrize("method", TIGHT)
-@pytest.mark.parametrize("name", ["partial-closure", "full-opening", "linear"])
-def test_dd_equals_the_reference(tmp_path, references, name, method):
-    output = tmp_path / "dd.h5"
-    ddsolve("solve", name, *SMALL, *TIGHT[method], "-o", str(output), ranks=4)
-    result, reference = hdf5.read(output), hdf5.read(references[name])
+@pytest.mark.parametrize("name", PAPER_SCENES)
+def test_dd_equals_the_reference(solved_on_four, references, name, method):
+    result, reference = hdf5.read(solved_on_four / f"{name}-{method}.h5"), hdf5.read(references[name])
     assert result.converged and result.ranks == 4 and result.method == method
     if method == "uzawa":
         assert result.solves == result.iterations + 2
@@ -63,15 +75,25 @@ def test_contact_where_the_linear_problem_overlaps(references):
     assert np.all(contact.multipliers["mu_c"][crack & ~overlap] < 1e-9)
 
 
-@pytest.mark.mpi
-@pytest.mark.parametrize("method", ["uzawa", "schur", "mprgp", "fista"])
-def test_rank_counts_agree(tmp_path, method):
-    results = {}
+AGREEING_METHODS = ["uzawa", "schur", "mprgp", "fista"]
+
+
+@pytest.fixture(scope="module")
+def agreeing(tmp_path_factory) -> dict[tuple[str, int], Path]:
+    """Partial closure (small) by each of AGREEING_METHODS on 1, 2 and 4 ranks, one launch per rank count:
+    the result paths by (method, ranks)."""
+    folder = tmp_path_factory.mktemp("agreeing")
+    paths = {(method, ranks): folder / f"{method}-{ranks}.h5" for method in AGREEING_METHODS for ranks in (1, 2, 4)}
     for ranks in (1, 2, 4):
-        output = tmp_path / f"n{ranks}.h5"
-        ddsolve("solve", "partial-closure", *SMALL, "--set", f"solver.method={method}", "-o", str(output),
-                ranks=ranks)
-        results[ranks] = hdf5.read(output)
+        launch([["solve", "partial-closure", *SMALL, "--set", f"solver.method={method}", "-o",
+                 str(paths[method, ranks])] for method in AGREEING_METHODS], ranks, folder)
+    return paths
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("method", AGREEING_METHODS)
+def test_rank_counts_agree(agreeing, method):
+    results = {ranks: hdf5.read(agreeing[method, ranks]) for ranks in (1, 2, 4)}
     assert len({(r.iterations, r.solves) for r in results.values()}) == 1
     for ranks in (1, 2):
         assert results[ranks].ranks == ranks
@@ -111,19 +133,36 @@ def test_divergence_stops_early_and_keeps_the_previous_file(tmp_path):
     assert output.read_bytes() == b"previous result"
 
 
+#: Per method, the PETSc options of its run on 8 ranks.
+SPLIT_OPTIONS = {
+    "schur": [],  # block interface matrices by parallel multi-column MUMPS solves
+    "feti": [],  # Neumann and Dirichlet solves by parallel MUMPS
+    "mprgp": ["-u_minus_ksp_type", "cg", "-u_minus_pc_type", "gamg", "-u_minus_ksp_rtol", "1e-13"],
+}
+
+
+@pytest.fixture(scope="module")
+def split(tmp_path_factory) -> dict[tuple[str, int], Path]:
+    """Partial closure (small) by each method of SPLIT_OPTIONS on 4 and 8 ranks: one launch on 4 ranks, one
+    on 8 for the methods without PETSc options, one per method with them (PETSc reads its options once per
+    process).  The result paths by (method, ranks)."""
+    folder = tmp_path_factory.mktemp("split")
+    paths = {(method, ranks): folder / f"{method}-{ranks}.h5" for method in SPLIT_OPTIONS for ranks in (4, 8)}
+
+    def command(method: str, ranks: int) -> list[str]:
+        return ["solve", "partial-closure", *SMALL, "--set", f"solver.method={method}", "-o", str(paths[method, ranks]),
+                *(SPLIT_OPTIONS[method] if ranks == 8 else [])]
+    launch([command(method, 4) for method in SPLIT_OPTIONS], 4, folder)
+    launch([command(method, 8) for method, options in SPLIT_OPTIONS.items() if not options], 8, folder)
+    for method in (method for method, options in SPLIT_OPTIONS.items() if options):
+        launch([command(method, 8)], 8, folder)
+    return paths
+
+
 @pytest.mark.mpi
-@pytest.mark.parametrize("method, options", [
-    ("schur", []),  # block interface matrices by parallel multi-column MUMPS solves
-    ("feti", []),  # Neumann and Dirichlet solves by parallel MUMPS
-    ("mprgp", ["-u_minus_ksp_type", "cg", "-u_minus_pc_type", "gamg", "-u_minus_ksp_rtol", "1e-13"]),
-])
-def test_eight_ranks_split_every_block_over_two(tmp_path, method, options):
-    results = {}
-    for ranks in (4, 8):
-        output = tmp_path / f"n{ranks}.h5"
-        ddsolve("solve", "partial-closure", *SMALL, "--set", f"solver.method={method}", "-o", str(output),
-                *(options if ranks == 8 else []), ranks=ranks)
-        results[ranks] = hdf5.read(output)
+@pytest.mark.parametrize("method", SPLIT_OPTIONS)
+def test_eight_ranks_split_every_block_over_two(split, method):
+    results = {ranks: hdf5.read(split[method, ranks]) for ranks in (4, 8)}
     assert results[8].ranks == 8 and results[8].converged
     assert analysis.compare(results[8], results[4]).energy_error < 1e-8
     # the error estimate and G's volume terms, made by both ranks of each block on their pieces: those of 4 ranks
@@ -178,12 +217,10 @@ def test_at_eight_ranks_a_rank_holds_its_piece_of_the_mesh_and_of_the_solution(t
 @pytest.mark.mpi
 def test_an_active_multiplier_bound_p_is_honoured_by_schur_and_mprgp(tmp_path):
     """With p smaller than the gluing forces, schur's fallback (all bounds) and MPRGP solve the same QP."""
-    results = {}
-    for method in ("schur", "mprgp"):
-        output = tmp_path / f"{method}.h5"
-        ddsolve("solve", "partial-closure", *SMALL, "--set", f"solver.method={method}", "--set", "solver.p=0.005",
-                "--set", "solver.tol=1e-11", "-o", str(output), ranks=4)
-        results[method] = hdf5.read(output)
+    methods = ("schur", "mprgp")
+    launch([["solve", "partial-closure", *SMALL, "--set", f"solver.method={method}", "--set", "solver.p=0.005",
+             "--set", "solver.tol=1e-11", "-o", str(tmp_path / f"{method}.h5")] for method in methods], 4, tmp_path)
+    results = {method: hdf5.read(tmp_path / f"{method}.h5") for method in methods}
     multipliers = np.concatenate([np.ravel(v) for v in results["schur"].multipliers.values()])
     assert np.abs(multipliers).max() == pytest.approx(0.005)  # the bound is active
     assert analysis.compare(results["mprgp"], results["schur"]).energy_error < 1e-6
@@ -252,11 +289,10 @@ def test_out_of_core_factors_solve_the_reference_problem(tmp_path, references, m
 def test_the_contact_zone_does_not_depend_on_the_method(tmp_path):
     """MPRGP's openings where the faces press are its tolerance (1-4e-9 max|u|), not 0: the zone is where
     μᶜ > 0 or the faces touch, one zone as schur finds it, not two."""
-    zones = {}
-    for method in ("schur", "mprgp"):
-        output = tmp_path / f"{method}.h5"
-        ddsolve("solve", "partial-closure", "--set", "mesh.sigma_vertices=48", "--set", "mesh.boundary_vertices=80",
-                "--set", f"solver.method={method}", "-o", str(output), ranks=2)
-        zones[method] = hdf5.read(output).fracture.zones
+    methods = ("schur", "mprgp")
+    launch([["solve", "partial-closure", "--set", "mesh.sigma_vertices=48", "--set", "mesh.boundary_vertices=80",
+             "--set", f"solver.method={method}", "-o", str(tmp_path / f"{method}.h5")] for method in methods],
+           2, tmp_path)
+    zones = {method: hdf5.read(tmp_path / f"{method}.h5").fracture.zones for method in methods}
     assert len(zones["schur"]) == 1
     np.testing.assert_allclose(zones["mprgp"], zones["schur"])

@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import launch_many
 import meshio
 import numpy as np
 import pytest
@@ -169,14 +170,23 @@ def one_layer(tmp_path_factory) -> tuple[Path, Path]:
     return scene, folder / "reference.h5"
 
 
+@pytest.fixture(scope="module")
+def every_method(one_layer) -> dict[tuple[str, int], Path]:
+    """The one-layer box by each of METHODS on 1 and 2 ranks, one launch per rank count: the result paths."""
+    scene, _ = one_layer
+    folder = scene.parent
+    paths = {(method, ranks): folder / f"{method}-{ranks}.h5" for method in METHODS for ranks in (1, 2)}
+    for ranks in (1, 2):
+        launch_many.launch([["solve", str(scene), *METHODS[method], "-o", str(paths[method, ranks])]
+                            for method in METHODS], ranks, folder)
+    return paths
+
+
 @pytest.mark.mpi
 @pytest.mark.parametrize("ranks", [1, 2])
 @pytest.mark.parametrize("method", METHODS)
-def test_every_method_equals_the_reference(tmp_path, one_layer, method, ranks):
-    scene, reference_file = one_layer
-    output = tmp_path / "dd.h5"
-    ddsolve("solve", str(scene), *METHODS[method], "-o", str(output), ranks=ranks)
-    result, expected = hdf5.read(output), hdf5.read(reference_file)
+def test_every_method_equals_the_reference(one_layer, every_method, method, ranks):
+    result, expected = hdf5.read(every_method[method, ranks]), hdf5.read(one_layer[1])
     assert result.converged and result.ranks == ranks and len(result.blocks) == 2
     assert method == "auto" or result.method == method
     assert analysis.compare(result, expected).energy_error < 1e-8
@@ -194,10 +204,12 @@ def test_floating_blocks_and_four_ranks(tmp_path):
     scene.write_text(structure(1, loads=FLOATING_LOADS, geometry='clamped = ["bottom"]'))
     ddsolve("reference", str(scene), "-o", str(tmp_path / "reference.h5"))
     expected = hdf5.read(tmp_path / "reference.h5")
+    runs = {2: ("schur", "feti"), 4: ("schur",)}  # one launch per rank count
+    for ranks, methods in runs.items():
+        launch_many.launch([["solve", str(scene), *TIGHT[method], "-o", str(tmp_path / f"{method}-{ranks}.h5")]
+                            for method in methods], ranks, tmp_path)
     for method, ranks in (("schur", 2), ("feti", 2), ("schur", 4)):
-        output = tmp_path / f"{method}-{ranks}.h5"
-        ddsolve("solve", str(scene), *TIGHT[method], "-o", str(output), ranks=ranks)
-        result = hdf5.read(output)
+        result = hdf5.read(tmp_path / f"{method}-{ranks}.h5")
         assert result.converged and result.ranks == ranks
         assert analysis.compare(result, expected).energy_error < 1e-8 and close(result.G, expected.G) < 1e-6
     refused(ddsolve("solve", str(scene), "-n", "3", "-o", str(tmp_path / "three.h5"), check=False), 2,

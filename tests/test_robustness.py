@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import signal
 import subprocess
+from pathlib import Path
 
 import meshio
 import numpy as np
@@ -10,6 +11,7 @@ import pytest
 from conftest import SMALL, ddsolve, structured_square
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from launch_many import launch
 
 from ddsolve.errors import SceneError
 from ddsolve.io import hdf5
@@ -27,19 +29,44 @@ def solve_and_reference(tmp_path, name, *overrides, method_args=(), ranks=4):
 
 
 # --- hard numerical cases ---------------------------------------------------------------------
+#: Paper scenes (small) that the default method on 4 ranks must solve as the reference does: (scene, overrides).
+HARD_CASES = {
+    "E-ratio-1e-4": ("partial-closure", ["--set", "materials.layer2.E=0.02"]),
+    "E-ratio-1e4": ("partial-closure", ["--set", "materials.layer2.E=2e6"]),
+    "nu-0.49": ("partial-closure", ["--set", "materials.layer1.nu=0.49", "--set", "materials.layer2.nu=0.49"]),
+    "nu-0.4999": ("partial-closure", ["--set", "materials.layer1.nu=0.4999", "--set", "materials.layer2.nu=0.4999"]),
+    "crack-almost-all": ("partial-closure", ["--set", "geometry.crack=[-0.98, 0.98]"]),
+    "crack-one-element": ("partial-closure", ["--set", "geometry.crack=[0.0, 0.05]"]),  # no crack vertex inside
+    "no-crack": ("partial-closure", ["--set", "geometry.crack=[]"]),
+    "full-closure": ("full-closure", []),
+    "full-opening": ("full-opening", []),
+    "layer-2-only": ("partial-closure", ["--set", "loads.layer1.bottom.y=[]", "--set", "loads.layer1.top.y=[]",
+                                         "--set", "loads.layer2.bottom.y=[0.0, 0.05]",
+                                         "--set", "loads.layer2.top.x=[0.02]"]),
+}
+
+
+@pytest.fixture(scope="module")
+def hard_cases(tmp_path_factory) -> Path:
+    """HARD_CASES by the default method on 4 ranks (one launch) and by the reference (one launch):
+    CASE-solve.h5 and CASE-reference.h5."""
+    folder = tmp_path_factory.mktemp("hard")
+    for command, ranks in (("solve", 4), ("reference", 1)):
+        launch([[command, name, *SMALL, *overrides, "-o", str(folder / f"{case}-{command}.h5")]
+                for case, (name, overrides) in HARD_CASES.items()], ranks, folder)
+    return folder
+
+
+def solved_case(folder: Path, case: str):
+    """(result, reference) of the HARD_CASES ``case``."""
+    return hdf5.read(folder / f"{case}-solve.h5"), hdf5.read(folder / f"{case}-reference.h5")
+
+
 @pytest.mark.mpi
-@pytest.mark.parametrize("overrides", [
-    ["--set", "materials.layer2.E=0.02"],  # E2/E1 = 1e-4
-    ["--set", "materials.layer2.E=2e6"],  # E2/E1 = 1e4
-    ["--set", "materials.layer1.nu=0.49", "--set", "materials.layer2.nu=0.49"],
-    ["--set", "materials.layer1.nu=0.4999", "--set", "materials.layer2.nu=0.4999"],
-    ["--set", "geometry.crack=[-0.98, 0.98]"],
-    ["--set", "geometry.crack=[0.0, 0.05]"],  # one Σ element: no crack vertex inside
-    ["--set", "geometry.crack=[]"],
-], ids=["E-ratio-1e-4", "E-ratio-1e4", "nu-0.49", "nu-0.4999", "crack-almost-all", "crack-one-element",
-        "no-crack"])
-def test_default_method_matches_the_reference_on_hard_cases(tmp_path, overrides):
-    result, reference = solve_and_reference(tmp_path, "partial-closure", *SMALL, *overrides)
+@pytest.mark.parametrize("case", ["E-ratio-1e-4", "E-ratio-1e4", "nu-0.49", "nu-0.4999", "crack-almost-all",
+                                  "crack-one-element", "no-crack"])
+def test_default_method_matches_the_reference_on_hard_cases(hard_cases, case):
+    result, reference = solved_case(hard_cases, case)
     assert result.converged and result.solves == 3
     assert analysis.compare(result, reference).energy_error < 1e-6
     assert analysis.constraints(result).penetration < 1e-9
@@ -47,8 +74,8 @@ def test_default_method_matches_the_reference_on_hard_cases(tmp_path, overrides)
 
 @pytest.mark.mpi
 @pytest.mark.parametrize("name", ["full-closure", "full-opening"])
-def test_full_closure_and_full_opening(tmp_path, name):
-    result, reference = solve_and_reference(tmp_path, name, *SMALL)
+def test_full_closure_and_full_opening(hard_cases, name):
+    result, reference = solved_case(hard_cases, name)
     assert analysis.compare(result, reference).energy_error < 1e-6
     crack = result.crack
     if name == "full-closure":
@@ -59,43 +86,63 @@ def test_full_closure_and_full_opening(tmp_path, name):
 
 
 @pytest.mark.mpi
-def test_load_on_layer_2_only(tmp_path):
-    overrides = ["--set", "loads.layer1.bottom.y=[]", "--set", "loads.layer1.top.y=[]",
-                 "--set", "loads.layer2.bottom.y=[0.0, 0.05]", "--set", "loads.layer2.top.x=[0.02]"]
-    result, reference = solve_and_reference(tmp_path, "partial-closure", *SMALL, *overrides)
+def test_load_on_layer_2_only(hard_cases):
+    result, reference = solved_case(hard_cases, "layer-2-only")
     assert analysis.compare(result, reference).energy_error < 1e-6
     assert np.abs(result.solution["u_minus"]).max() > 0  # layer 1 moves through the gluing
 
 
+ZERO_METHODS = ["schur", "mprgp", "fista", "uzawa"]
+
+
+@pytest.fixture(scope="module")
+def zero_loads(tmp_path_factory) -> Path:
+    """Partial closure (small) without loads by each of ZERO_METHODS on 2 ranks, one launch: METHOD.h5."""
+    folder = tmp_path_factory.mktemp("zero")
+    launch([["solve", "partial-closure", *SMALL, "--set", "loads.layer1.bottom.y=[0.0]", "--set",
+             "loads.layer1.top.y=[0.0]", "--set", f"solver.method={method}", "-o", str(folder / f"{method}.h5")]
+            for method in ZERO_METHODS], 2, folder)
+    return folder
+
+
 @pytest.mark.mpi
-@pytest.mark.parametrize("method", ["schur", "mprgp", "fista", "uzawa"])
-def test_zero_load_gives_exactly_zero_without_division_by_zero(tmp_path, method):
-    overrides = ["--set", "loads.layer1.bottom.y=[0.0]", "--set", "loads.layer1.top.y=[0.0]",
-                 "--set", f"solver.method={method}"]
-    output = tmp_path / "zero.h5"
-    ddsolve("solve", "partial-closure", *SMALL, *overrides, "-o", str(output), ranks=2)
-    result = hdf5.read(output)
+@pytest.mark.parametrize("method", ZERO_METHODS)
+def test_zero_load_gives_exactly_zero_without_division_by_zero(zero_loads, method):
+    result = hdf5.read(zero_loads / f"{method}.h5")
     assert result.converged and result.iterations <= 1
     assert all(np.all(values == 0.0) for values in result.solution.values())
     assert np.all(np.isfinite(result.history))
 
 
+SCALED_METHODS = ["schur", "mprgp", "fista"]
+#: The load factors: exact in floating point (2^±40), and decimal (1e±12).
+SCALINGS = {"powers-of-two": (2.0 ** -40, 2.0 ** 40), "decimal": (1e-12, 1e12)}
+
+
+@pytest.fixture(scope="module")
+def scaled_loads(tmp_path_factory) -> dict[tuple[str, float], Path]:
+    """Partial closure (small) with its loads scaled by 1 and by each factor of SCALINGS, by each of
+    SCALED_METHODS on 4 ranks, one launch: the result paths by (method, factor)."""
+    folder = tmp_path_factory.mktemp("scaled")
+    factors = [1.0, *(factor for pair in SCALINGS.values() for factor in pair)]
+    paths = {(method, factor): folder / f"{method}-{factor:g}.h5" for method in SCALED_METHODS for factor in factors}
+    # p = 1e7 (the scene's) would be an active bound at 1e12 × the loads: lift it
+    launch([["solve", "partial-closure", *SMALL, "--set", f"solver.method={method}", "--set", "solver.p=1e300",
+             "--set", f"loads.layer1.bottom.y=[0.0, {0.078125 * factor!r}]",
+             "--set", f"loads.layer1.top.y=[0.0, {-0.078125 * factor!r}]", "-o", str(path)]
+            for (method, factor), path in paths.items()], 4, folder)
+    return paths
+
+
 @pytest.mark.mpi
-@pytest.mark.parametrize("method", ["schur", "mprgp", "fista"])
-@pytest.mark.parametrize("factors", [(2.0 ** -40, 2.0 ** 40), (1e-12, 1e12)], ids=["powers-of-two", "decimal"])
-def test_scaled_loads_give_scaled_solutions_in_the_same_iterations(tmp_path, method, factors):
+@pytest.mark.parametrize("method", SCALED_METHODS)
+@pytest.mark.parametrize("scaling", SCALINGS)
+def test_scaled_loads_give_scaled_solutions_in_the_same_iterations(scaled_loads, method, scaling):
     """Scaling by 2^±40 (about 1e±12) is exact in floating point, so every iterate scales exactly and
     the iterations are identical; 1e±12 is not, and a criterion that lands within round-off of the
     tolerance may stop one iteration apart."""
-    results = {}
-    for factor in (factors[0], 1.0, factors[1]):
-        c = 0.078125 * factor
-        output = tmp_path / f"scaled-{factor:g}.h5"
-        # p = 1e7 (the scene's) would be an active bound at 1e12 × the loads: lift it
-        ddsolve("solve", "partial-closure", *SMALL, "--set", f"solver.method={method}", "--set", "solver.p=1e300",
-                "--set", f"loads.layer1.bottom.y=[0.0, {c!r}]", "--set", f"loads.layer1.top.y=[0.0, {-c!r}]",
-                "-o", str(output), ranks=4)
-        results[factor] = hdf5.read(output)
+    factors = SCALINGS[scaling]
+    results = {factor: hdf5.read(scaled_loads[method, factor]) for factor in (factors[0], 1.0, factors[1])}
     iterations = [r.iterations for r in results.values()]
     exact = factors[1] == 2.0 ** 40
     assert max(iterations) - min(iterations) <= (0 if exact else 1)
