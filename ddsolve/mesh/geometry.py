@@ -117,9 +117,11 @@ FINEST = 100.0
 
 def check_pieces(scene: Scene, spacing: float, key: str) -> None:
     """Refuse, naming ``geometry.cracks``, a piece of a Σ between crack tips (or its ends) shorter than ``spacing``
-    (the Σ elements' size, set by ``key``) / :data:`FINEST`: it would be one element among far longer ones, its
-    triangles slivers."""
-    x0, x1, _, _ = scene.geometry.box
+    (the Σ elements' size, set by ``key``, or the box's width or height where it is smaller: no element is larger
+    than the box) / :data:`FINEST`: it would be one element among far longer ones, its triangles slivers."""
+    x0, x1, y0, y1 = scene.geometry.box
+    if spacing > min(x1 - x0, y1 - y0):
+        spacing, key = min(x1 - x0, y1 - y0), f"{key}, bounded by the box"
     finest = spacing / FINEST
     several = len(scene.geometry.sigmas) > 1
     for number, cracks in enumerate(scene.geometry.crack_lists, start=1):
