@@ -38,7 +38,8 @@ EXPERIMENTS = {
                  "every tip on three meshes, the picture (also part of stacks)",
                  "docs/stacks.md (laminate section), docs/stacks-laminate.png, results/stacks-laminate.h5"),
     "interface": ("interface", "interface", "interface laws against closed forms: friction on the faces of a closed "
-                  "crack under compression and shear, and between the arms of the ENF",
+                  "crack under compression and shear and between the arms of the ENF, the cohesive bond's DCB and ENF "
+                  "against Griffith growth",
                   "docs/interface.md, docs/interface-*.png, results/interface.h5"),
     "three-d": ("three_d", "three_d", "the 3-D reference on a plane scene extruded with rollers: energy per unit "
                 "depth and the crack opening against the plane continuous values, open and partly shut",

@@ -9,30 +9,11 @@ from ddsolve.dd.interface import Interface
 from ddsolve.errors import SceneError
 from ddsolve.mesh.mesh import blocks
 from ddsolve.problem.scene import loads
-from experiments import three_d_front
+from experiments import three_d, three_d_front
 
-#: Example 1's loads on one body extruded over [0, ½] with rollers on the front and back: part of the crack shut.
-CLOSURE = """
-[geometry]
-box = [-1, 1, -1, 1, 0, 0.5]
-crack = [-0.5, 0.5]
-[mesh]
-size = 0.3
-[materials.layer1]
-E = 200.0
-nu = 0.28
-[materials.layer1.upper]
-E = 112.0
-nu = 0.32
-[loads.layer1.bottom]
-y = [0.0, 0.078125]
-[loads.layer1.top]
-y = [0.0, -0.078125]
-[displacements.layer1.front]
-z = 0.0
-[displacements.layer1.back]
-z = 0.0
-"""
+#: Example 1's loads on one body extruded over [0, ½] with rollers on the front and back (the 3-D page's scene):
+#: part of the crack shut.
+CLOSURE = three_d.scene_of("partial closure", 0.3, 3)
 
 
 @pytest.mark.unit
@@ -66,7 +47,7 @@ def test_schur_and_feti_equal_the_3d_reference_with_contact_active(tmp_path, mon
     from ddsolve.solvers import solid as solid_solver, solid_dd
     from ddsolve.solvers.solid import energy_error
 
-    scene = loads(CLOSURE)
+    scene = CLOSURE
     mesh = solid.build(scene)
     reference = solid_solver.solve_solid(scene, mesh)
     solid_solver.with_fracture(reference)
@@ -136,8 +117,8 @@ def test_the_3d_decomposition_on_2_and_4_ranks_equals_the_reference(tmp_path):
     from ddsolve.solvers import solid as solid_solver
 
     scene = tmp_path / "closure.toml"
-    scene.write_text(CLOSURE)
-    reference = solid_solver.solve_solid(loads(CLOSURE), solid.build(loads(CLOSURE)))
+    scene.write_text(CLOSURE.text)
+    reference = solid_solver.solve_solid(CLOSURE, solid.build(CLOSURE))
     for ranks, method in ((4, "schur"), (2, "feti")):
         solved = ddsolve("solve", str(scene), "-o", str(tmp_path / f"{ranks}.h5"), "--set", f"solver.method={method}",
                          ranks=ranks)
