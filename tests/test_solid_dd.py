@@ -61,12 +61,14 @@ def test_schur_and_feti_equal_the_3d_reference_with_contact_active(tmp_path, mon
         assert np.allclose(result.fracture.G, reference.fracture.G, rtol=1e-6, atol=1e-8 * reference.fracture.G.max())
         read = solid_files.read(tmp_path / f"{method}.h5")
         assert energy_error(read, reference) < 1e-8 and read.scene.solver.method == method
-    held = solid_dd.kernels_of(scene, mesh, solid_dd.interface_of(scene, mesh))
-    monkeypatch.setattr(solid_dd, "SCHUR_MEMORY_SHARE", 0.5 * solid_dd.schur_bytes(mesh) / physical_memory())
-    refused = "^solver.method = schur: the dense Σ Schur complements .* use solver.method = feti$"
+    parts = solid_dd.decomposition(scene, mesh, 1)
+    held = solid_dd.kernels_of(scene, parts)
+    monkeypatch.setattr(solid_dd, "SCHUR_MEMORY_SHARE",
+                        0.5 * solid_dd.schur_bytes(parts.interface) / physical_memory())
+    refused = "^solver.method = schur: the dense Schur complements .* use solver.method = feti$"
     with pytest.raises(SceneError, match=refused):
-        solid_dd.method_of(scene.with_({"solver.method": "schur"}), mesh, held)
-    assert solid_dd.method_of(scene, mesh, held).solver.method == "feti"  # auto
+        solid_dd.method_of(scene.with_({"solver.method": "schur"}), parts, held)
+    assert solid_dd.method_of(scene, parts, held).solver.method == "feti"  # auto
 
 
 #: The quarter penny-shaped crack of radius ½ (experiments/three_d_front.py, coarse): rollers on x = 0 and z = 0,
@@ -89,7 +91,7 @@ def test_a_floating_half_is_solved_and_a_box_free_as_a_whole_refused(tmp_path):
 
     scene = loads(PENNY)
     mesh = solid.build(scene)
-    held = solid_dd.kernels_of(scene, mesh, solid_dd.interface_of(scene, mesh))
+    held = solid_dd.kernels_of(scene, solid_dd.decomposition(scene, mesh, 1))
     relative = kernels.describe(np.concatenate([np.zeros((6, 1)), held.kernels[1]]), held.frame, held.specs)
     assert held.floating == [1] and relative == "blocks u_plus can translate along (0, 1, 0) relative to the rest"
     reference = solid_solver.reference(scene)
@@ -98,12 +100,12 @@ def test_a_floating_half_is_solved_and_a_box_free_as_a_whole_refused(tmp_path):
                                 progress=lambda _line: None)
         assert result.converged and energy_error(result, reference) < 1e-8
         assert np.allclose(result.fracture.G, reference.fracture.G, rtol=1e-6)
-    with pytest.raises(SceneError, match="^solver.method = mprgp: the u_plus half of the 3-D box is floating"):
-        solid_dd.method_of(scene.with_({"solver.method": "mprgp"}), mesh, held)
+    with pytest.raises(SceneError, match="^solver.method = mprgp: block u_plus of the 3-D box is floating"):
+        solid_dd.method_of(scene.with_({"solver.method": "mprgp"}), solid_dd.decomposition(scene, mesh, 1), held)
     free = loads(PENNY.replace("[displacements.layer1.bottom]\ny = 0.0\n", ""))
     free_mesh = solid.build(free)
     with pytest.raises(SceneError, match="^the structure can translate in y: add a support"):
-        solid_dd.kernels_of(free, free_mesh, solid_dd.interface_of(free, free_mesh))
+        solid_dd.kernels_of(free, solid_dd.decomposition(free, free_mesh, 1))
 
 
 @pytest.mark.mpi

@@ -55,6 +55,10 @@ class Rounds(Protocol):
     def dirichlet(self, traces: np.ndarray) -> np.ndarray:
         """S_b t_b for trace displacements ``(blocks, 2k)``: one Dirichlet solve per block (``feti``)."""
 
+    def lumped(self, traces: np.ndarray) -> np.ndarray:
+        """K_b,ΣΣ t_b for trace displacements ``(blocks, 2k)``: the blocks' stiffness on their traces, held on rank 0
+        (``feti``'s lumped preconditioner; no round)."""
+
     def trace_diagonals(self) -> np.ndarray:
         """The diagonals of the blocks' stiffness matrices at their traces, ``(blocks, 2k)``."""
 

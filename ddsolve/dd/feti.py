@@ -11,16 +11,19 @@ from ddsolve.dd.interface import Interface
 from ddsolve.problem.scene import Solver
 
 
-class DirichletPreconditioner:
-    """M⁻¹ = B_D S B_Dᵀ ≈ A⁻¹, FETI's Dirichlet preconditioner for A = B K⁻¹ Bᵀ (B = W^½ C).
+class Preconditioner:
+    """M⁻¹ = B_D S B_Dᵀ ≈ A⁻¹, FETI's preconditioner for A = B K⁻¹ Bᵀ (B = W^½ C).
 
-    S = diag(S_b) is applied by one Dirichlet solve per block (a round, never a Schur complement
-    matrix); B_D = (B Δ Bᵀ)⁻¹ B Δ with Δ_b = 1/diag(K_b) on the traces (stiffness scaling: the stiffer
-    block takes the larger share of a jump), so that B B_Dᵀ = I.  B Δ Bᵀ couples only the multipliers
-    of one trace entry (at most three), so its inverse is a batch of 3×3 inverses.
+    Dirichlet's: S = diag(S_b) applied by one Dirichlet solve per block (a round, never a Schur complement
+    matrix); lumped (``lumped``): S_b replaced by K_b,ΣΣ, the block's stiffness on its trace, which rank 0
+    holds (no round, no Dirichlet factorization; more iterations).  B_D = (B Δ Bᵀ)⁻¹ B Δ with Δ_b = 1/diag(K_b)
+    on the traces (stiffness scaling: the stiffer block takes the larger share of a jump), so that
+    B B_Dᵀ = I.  B Δ Bᵀ couples only the multipliers of one trace entry (at most three), so its inverse is a
+    batch of 3×3 inverses.
     """
 
-    def __init__(self, rounds: Rounds, interface: Interface, sqrt_w: np.ndarray):
+    def __init__(self, rounds: Rounds, interface: Interface, sqrt_w: np.ndarray, lumped: bool = False):
+        self.stiffness = rounds.lumped if lumped else rounds.dirichlet
         self.rounds = rounds
         self.delta = 1.0 / rounds.trace_diagonals().T  # (2k, 4)
         self.index = interface.trace_index
@@ -45,7 +48,7 @@ class DirichletPreconditioner:
         R[self.index, self.slot] = r
         Z = np.einsum("tij,tj->ti", self.G_inverse, R)
         traces = self.delta * np.einsum("tib,ti->tb", self.B, Z)  # B_Dᵀ r, per block's trace
-        forces = self.rounds.dirichlet(traces.T).T
+        forces = self.stiffness(traces.T).T
         Y = np.einsum("tij,tjb,tb->ti", self.G_inverse, self.B, self.delta * forces)  # B_D S B_Dᵀ r
         return Y[self.index, self.slot]
 
@@ -234,7 +237,8 @@ def inward(coarse: Coarse, v: np.ndarray, y: np.ndarray, face: np.ndarray, lower
 def feti(rounds: Rounds, interface: Interface, solver: Solver, progress: Progress,
          start: np.ndarray | None = None) -> Outcome:
     """The dual problem by conjugate gradients on a growing subspace, preconditioned by FETI's Dirichlet
-    preconditioner on the free multipliers, with the bounds enforced on the whole subspace.
+    preconditioner (or the lumped one, ``solver.preconditioner``) on the free multipliers, with the bounds enforced
+    on the whole subspace.
 
     Each iteration adds one direction: the preconditioned projected gradient on the free rows and on the
     rows at a bound pulled off it hardest (:func:`released`), projected by the coarse space of the
@@ -242,8 +246,8 @@ def feti(rounds: Rounds, interface: Interface, solver: Solver, progress: Progres
     bounds (a dense least-distance problem of the basis' size on rank 0), so the Krylov space survives
     every change of the active set.  Where the minimizer with only the held rows bounded leaves the
     bounds, an expansion step adds its projection onto them as a direction: the rows it crosses are held
-    together, not one per iteration.  An iteration takes two rounds (the Dirichlet solves, then A z), an
-    expansion one more.  Where rows are held and released in turn (a long zone of crack faces pressed
+    together, not one per iteration.  An iteration takes two rounds (the Dirichlet solves, then A z; one with the
+    lumped preconditioner), an expansion one more.  Where rows are held and released in turn (a long zone of crack faces pressed
     together whose early iterates dip below zero: more reversals than :data:`FLICKER` × the bounded rows),
     the iterations go on as active-set steps on a new subspace (:meth:`Iterations.steps`).  Converged:
     the KKT criterion (the projected gradient of the Lagrangian) is below ``tol``.  ``start``: the
@@ -251,7 +255,7 @@ def feti(rounds: Rounds, interface: Interface, solver: Solver, progress: Progres
     constraint Gᵀy = e.
     """
     problem = DualProblem(rounds, interface, solver)
-    precondition = DirichletPreconditioner(rounds, interface, problem.sqrt_w)
+    precondition = Preconditioner(rounds, interface, problem.sqrt_w, lumped=solver.preconditioner == "lumped")
     coarse = Coarse(rounds, interface, problem.sqrt_w)
     outcome, free = minimize(problem, coarse, precondition, progress, start)
     outcome.held = coarse.held(interface, outcome.lam, problem.sqrt_w, free)

@@ -80,6 +80,16 @@ class BlockSystem:
     energy_offset: float = 0.0
 
 
+def trace_entries(system: BlockSystem, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The entries of K_ΣΣ in the system's rows (row, column, value), numbered by ``positions``: the place of each
+    trace dof in the structure's trace."""
+    place = np.full(system.size, -1, dtype=np.int64)
+    place[system.trace_dofs] = positions
+    rows = np.repeat(np.arange(len(system.rhs)) + system.first, np.diff(system.indptr))
+    kept = (place[rows] >= 0) & (place[system.indices] >= 0)
+    return place[rows[kept]], place[system.indices[kept]], system.data[kept]
+
+
 def row_ranges(nodes: int, parts: int) -> list[tuple[int, int]]:
     """Split a block's dofs into ``parts`` contiguous ranges of whole nodes (as PETSc would)."""
     bounds = np.linspace(0, nodes, parts + 1).round().astype(int)

@@ -232,9 +232,10 @@ class HalfSystem:
                            np.zeros(0, dtype=np.int64), K.shape[0], block_size=3)
 
 
-def half_system(scene: Scene, half: SolidHalf) -> HalfSystem:
+def half_system(scene: Scene, half: SolidHalf, supports: tuple[np.ndarray, np.ndarray] | None = None) -> HalfSystem:
     """The half's stiffness (its region's material of ``layer1``), the loads on its sides, its temperature change
-    (``temperature.layer1``) and its supports."""
+    (``temperature.layer1``) and its supports (``supports``: these prescribed dofs and values instead of
+    :func:`prescribed`'s)."""
     material = scene.material("layer1", half.name)
     D = elastic_matrix(material)
     K = stiffness(half.points, half.tetrahedra, D)
@@ -246,5 +247,5 @@ def half_system(scene: Scene, half: SolidHalf) -> HalfSystem:
         thermal, offset = thermal_load(half.points, half.tetrahedra, D, materials.solid_expansion(material),
                                        scene.temperature["layer1"])
         f += thermal
-    dofs, values = prescribed(scene, half)
+    dofs, values = prescribed(scene, half) if supports is None else supports
     return HalfSystem(K, f, dofs, values, offset)

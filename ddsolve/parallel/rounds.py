@@ -135,8 +135,10 @@ class ParallelRounds:
     """
 
     def __init__(self, exchange: Exchange, server: BlockServer, trace_size: int, stages: dict,
-                 kernel_traces: list[np.ndarray] | None = None):
+                 kernel_traces: list[np.ndarray] | None = None, trace_stiffness: list | None = None):
+        """``trace_stiffness``: the blocks' stiffness on their traces (sparse, for :meth:`lumped`), where gathered."""
         self.exchange, self.server, self.trace_size, self.stages = exchange, server, trace_size, stages
+        self.trace_stiffness = trace_stiffness
         # the traces (2k, m_b) of the blocks' kernels (m_b = 0: invertible)
         self.kernel_traces = kernel_traces or [np.zeros((trace_size, 0))] * exchange.n_blocks
         self.floating = [b for b, kernel in enumerate(self.kernel_traces) if kernel.shape[1]]
@@ -191,6 +193,12 @@ class ParallelRounds:
     def dirichlet(self, traces: np.ndarray) -> np.ndarray:
         return self._round(DIRICHLET, traces)[:, :self.trace_size]
 
+    def lumped(self, traces: np.ndarray) -> np.ndarray:
+        if self.trace_stiffness is None:
+            raise SolverError("feti's lumped preconditioner needs the blocks' stiffness on their traces, which this "
+                              "structure's driver does not gather: solver.preconditioner = dirichlet")
+        return np.array([stiffness @ trace for stiffness, trace in zip(self.trace_stiffness, traces)])
+
     def trace_diagonals(self) -> np.ndarray:
         return self._round(DIAGONAL, None)[:, :self.trace_size]
 
@@ -241,7 +249,8 @@ def drive(setup, server: BlockServer, work) -> tuple[object, ParallelRounds | No
     if not exchange.is_root:
         serve(exchange, server, setup.interface.trace_size, stages)
         return None, None, None
-    rounds = ParallelRounds(exchange, server, setup.interface.trace_size, stages, setup.kernel_traces())
+    rounds = ParallelRounds(exchange, server, setup.interface.trace_size, stages, setup.kernel_traces(),
+                            setup.trace_stiffness)
     value, failure = None, None
     stages["Update"].push()
     try:

@@ -60,6 +60,13 @@ def _plane_checks(data: dict, origin: str) -> None:
     if depth:
         raise SceneError(f"{origin}: geometry.clamped: {depth[0]!r} is a side of a 3-D box (geometry.box = "
                          "[x0, x1, y0, y1, z0, z1]); a plane box has " + ", ".join(SIDES))
+    if data["solver"]["preconditioner"] == "lumped":
+        raise SceneError(f"{origin}: solver.preconditioner = lumped: feti's lumped preconditioner is built for the "
+                         "slabs of a 3-D box (geometry.box = [x0, x1, y0, y1, z0, z1]); a plane scene's feti takes "
+                         "dirichlet")
+    if data["solver"]["pieces"] != "auto":
+        raise SceneError(f"{origin}: solver.pieces: cuts the halves of a 3-D box (geometry.box = [x0, x1, y0, y1, "
+                         "z0, z1]) into slabs; a plane scene's blocks are its layers and halves")
     if data["mesh"]["extrude"] is not None:
         raise SceneError(f"{origin}: mesh.extrude: extrudes a plane section into a 3-D box (geometry.box = "
                          "[x0, x1, y0, y1, z0, z1]); a plane scene is not extruded")

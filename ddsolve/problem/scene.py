@@ -193,6 +193,8 @@ class Solver:
     stop: str
     max_iterations: int
     out_of_core: bool = False  # MUMPS keeps the blocks' factors on disk
+    pieces: int | str = "auto"  # slabs per half of a 3-D box in its domain decomposition (ddsolve.mesh.slabs)
+    preconditioner: str = "auto"  # feti's: dirichlet, lumped (K on the traces), or auto (by the structure)
 
 
 @dataclass(frozen=True)

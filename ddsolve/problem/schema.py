@@ -153,6 +153,19 @@ def _step(value: Any) -> float | str:
         raise ValueError('a number > 0 or "auto" (2/λmax estimated by power iteration, with a margin)') from None
 
 
+#: feti's preconditioners: Dirichlet's (a Dirichlet solve per block), lumped (the blocks' stiffness on their traces,
+#: no solve), or auto: lumped on a 3-D box cut into slabs, Dirichlet's elsewhere.
+PRECONDITIONERS = ("auto", "dirichlet", "lumped")
+
+def _pieces(value: Any) -> int | str:
+    if value == "auto":
+        return value
+    try:
+        return _count(1)(value)
+    except (TypeError, ValueError):
+        raise ValueError('an integer >= 1 or "auto" (chosen from the size of the 3-D box\'s halves)') from None
+
+
 def _choice(options: tuple[str, ...]) -> Callable[[Any], str]:
     def checked(value: Any) -> str:
         value = _string(value)
@@ -467,6 +480,8 @@ SCHEMA: dict[str, Any] = {
         "stop": (_choice(STOP_RULES), None),
         "max_iterations": (_count(1), 20000),
         "out_of_core": (_boolean, False),
+        "pieces": (_pieces, "auto"),
+        "preconditioner": (_choice(PRECONDITIONERS), "auto"),
     },
     "fracture": {"inner": (_positive(_number), None), "outer": (_positive(_number), None),
                  "toughness": (_toughness, None), "law": (_choice(tuple(LAWS)), None),

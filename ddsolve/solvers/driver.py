@@ -90,6 +90,11 @@ class Setup:
     def timings(self) -> dict:
         return self.phases.wall
 
+    @property
+    def trace_stiffness(self) -> None:
+        """Not gathered: the plane driver's feti takes Dirichlet's preconditioner."""
+        return None
+
     def kernel_traces(self) -> list[np.ndarray] | None:
         """The traces of the blocks' kernels (:func:`ddsolve.parallel.rounds.kernel_traces`)."""
         return kernel_traces(self.mesh)

@@ -1,5 +1,7 @@
 """The domain decomposition of a 3-D box (``geometry.box = [x0, x1, y0, y1, z0, z1]``): its two halves as the
-blocks u⁻ (below Σ) and u⁺ (above), on 1, 2 or 2k ranks.
+blocks u⁻ (below Σ) and u⁺ (above), or each half cut into slabs parallel to Σ (``solver.pieces``,
+:mod:`ddsolve.mesh.slabs`) glued across their cuts as Σ is off the cracks, the structure's trace Σ's and the cuts'
+(:meth:`~ddsolve.dd.interface.Interface.joined`, as for several interfaces); on 1, 2 or 2k ranks.
 
 The plane driver's machinery (:mod:`ddsolve.solvers.stacked_dd`) with three trace entries per Σ vertex: a block's
 trace is its displacements at every Σ vertex in Σ's frame (x, ν = y, z; :class:`~ddsolve.dd.interface.Interface`
@@ -14,11 +16,13 @@ refused in one line.
 from __future__ import annotations
 
 import dataclasses
+import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import scipy.sparse
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -28,10 +32,13 @@ from ddsolve.dd.interface import Interface
 from ddsolve.environment import physical_memory
 from ddsolve.errors import DDSolveError, SceneError
 from ddsolve.fem import tetra
-from ddsolve.fem.assembly import BlockSystem
+from ddsolve.fem.assembly import BlockSystem, trace_entries
 from ddsolve.io import solid as solid_files
+from ddsolve.mesh import slabs
 from ddsolve.mesh import solid as solid_meshes
+from ddsolve.mesh.mesh import BlockSpec
 from ddsolve.mesh.mesh import blocks as block_list
+from ddsolve.mesh.slabs import Slab
 from ddsolve.mesh.solid import SolidHalf, SolidMesh
 from ddsolve.parallel.blocks import Block
 from ddsolve.parallel.exchange import Exchange, collective
@@ -40,6 +47,8 @@ from ddsolve.parallel.rounds import BlockServer
 from ddsolve.post.solid import SolidResult
 from ddsolve.problem.scene import Scene
 from ddsolve.solvers import driver, solid
+from ddsolve.solvers.reference import Joint
+from ddsolve.solvers.stacked_dd import trace_layout
 
 #: The trace entries of a Σ vertex: x, y (Σ's normal, component 1 as in the plane) and z.
 COMPONENTS = 3
@@ -48,25 +57,55 @@ COMPONENTS = 3
 SCHUR_COPIES = 8
 #: The share of this machine's memory ``schur``'s dense matrices may take (above it: refused, ``auto`` takes feti).
 SCHUR_MEMORY_SHARE = 0.5
+#: ``solver.pieces = auto``: about this many unknowns per slab, and at most this many slabs per half.
+SLAB_UNKNOWNS = 16000
+MOST_SLABS = 16
+
+
+@dataclass(frozen=True, eq=False)
+class Decomposition:
+    """The blocks of a 3-D box: its halves' slabs (:mod:`ddsolve.mesh.slabs`), block 2j the lower half's slab j and
+    2j + 1 the upper half's (slab 0 at Σ), and the joints between them: Σ first, then the cuts of the lower half,
+    then those of the upper; ``points``, the vertices of the structure's trace, joint after joint.  With one slab
+    per half the interface is Σ's own."""
+
+    slabs: list[Slab]
+    supports: list[tuple[np.ndarray, np.ndarray]]  # each block's prescribed dofs and values, tied across its cuts
+    specs: tuple[BlockSpec, ...]
+    joints: list[Joint]
+    points: np.ndarray
+    interface: Interface
+
+    @property
+    def count(self) -> int:
+        """Slabs per half."""
+        return len(self.slabs) // 2
+
+    def half_of(self, block: int) -> int:
+        """The half (0 lower, 1 upper) of ``block``."""
+        return block % 2
 
 
 @dataclass
 class SolidSetup:
-    """What every rank holds after assembly and factorization: the whole mesh, this rank's factored blocks and
-    the interface (rank 0 runs the method on it)."""
+    """What every rank holds after assembly and factorization: the whole mesh, its decomposition, this rank's
+    factored blocks and the interface (rank 0 runs the method on it)."""
 
     scene: Scene  # with the method resolved
     mesh: SolidMesh
+    parts: Decomposition
     exchange: Exchange
     blocks: list[Block]
+    positions: dict[int, np.ndarray] | None  # each local block's entries of the structure's trace (None: one slab)
     interface: Interface
     kernels: kernels.Kernels
     stages: dict
     timings: dict[str, float]
+    trace_stiffness: list | None  # rank 0, feti's lumped preconditioner: each block's K_ΣΣ (sparse)
 
     def kernel_traces(self) -> list[np.ndarray]:
-        """The traces ``(3 s, m_b)`` of the halves' kernels on Σ."""
-        modes = self.kernels.frame.modes(self.mesh.sigma.points).T
+        """The traces ``(trace size, m_b)`` of the blocks' kernels."""
+        modes = self.kernels.frame.modes(self.parts.points).T
         return [modes @ kernel for kernel in self.kernels.kernels]
 
     def destroy(self) -> None:
@@ -75,37 +114,42 @@ class SolidSetup:
         self.exchange.free()
 
 
-def kernels_of(scene: Scene, mesh: SolidMesh, interface: Interface) -> kernels.Kernels:
-    """The halves' kernels: the rigid motions their own supports leave (:func:`ddsolve.dd.kernels.held_kernels`);
+def kernels_of(scene: Scene, parts: Decomposition) -> kernels.Kernels:
+    """The blocks' kernels: the rigid motions their own supports leave (:func:`ddsolve.dd.kernels.held_kernels`);
     a SceneError naming the motion when the box can move rigidly as a whole."""
-    frame = kernels.frame_of(np.vstack([half.points for half in mesh.halves]))
-    rows = [kernels.constraint_rows(frame.modes(half.points), tetra.prescribed(scene, half)[0])
-            for half in mesh.halves]
-    return kernels.held_kernels(rows, frame.modes(mesh.sigma.points).T, interface, frame)
+    frame = kernels.frame_of(np.vstack([slab.piece.points for slab in parts.slabs]))
+    rows = [kernels.constraint_rows(frame.modes(slab.piece.points), dofs) for slab, (dofs, _) in
+            zip(parts.slabs, parts.supports)]
+    return kernels.held_kernels(rows, frame.modes(parts.points).T, parts.interface, frame)
 
 
-def method_of(scene: Scene, mesh: SolidMesh, held: kernels.Kernels) -> Scene:
-    """The scene with ``auto`` resolved (``schur`` while its dense matrices fit, :func:`schur_bytes`, else
-    ``feti``); in one line, what this solve does not take: ``schur`` above that limit, a floating half (kernels
-    ``held``) with a method that cannot solve it (friction and bonds the scene refuses)."""
+def method_of(scene: Scene, parts: Decomposition, held: kernels.Kernels) -> Scene:
+    """The scene with ``auto`` resolved (``schur`` while its dense matrices fit, :func:`schur_bytes`, on one slab
+    per half, else ``feti``; feti's preconditioner lumped on slabs, Dirichlet's on halves); in one line, what this solve does not take: ``schur`` above that limit, a floating
+    block (kernels ``held``) with a method that cannot solve it (friction and bonds the scene refuses)."""
     method = registry.METHODS.get(scene.solver.method)
     if held.floating and method is not None and not method.floating:
-        raise SceneError(f"solver.method = {method.name}: the {held.names()} half of the 3-D box is floating (held "
-                         f"only through Σ, its stiffness singular), which {method.name} cannot solve: use "
-                         f"{' or '.join(registry.floating_methods())}")
-    dense, limit = schur_bytes(mesh), SCHUR_MEMORY_SHARE * physical_memory()
+        raise SceneError(f"solver.method = {method.name}: block {held.names()} of the 3-D box is floating (held "
+                         f"only through its interfaces, its stiffness singular), which {method.name} cannot solve: "
+                         f"use {' or '.join(registry.floating_methods())}")
+    dense, limit = schur_bytes(parts.interface), SCHUR_MEMORY_SHARE * physical_memory()
     if scene.solver.method == "schur" and dense > limit:
-        raise SceneError(f"solver.method = schur: the dense Σ Schur complements of this 3-D box ({COMPONENTS} × "
-                         f"{len(mesh.sigma.points)} trace entries) need about {dense / 1e9:.3g} GB, above the "
+        raise SceneError(f"solver.method = schur: the dense Schur complements of this 3-D box's interfaces "
+                         f"({parts.interface.trace_size} trace entries) need about {dense / 1e9:.3g} GB, above the "
                          f"{limit / 1e9:.3g} GB allowed ({SCHUR_MEMORY_SHARE:g} of this machine's memory): use "
                          "solver.method = feti")
-    method = scene.solver.method if scene.solver.method in registry.METHODS else "schur" if dense <= limit else "feti"
-    return dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, method=method))
+    method = scene.solver.method if scene.solver.method in registry.METHODS else \
+        "schur" if dense <= limit and parts.count == 1 else "feti"
+    preconditioner = scene.solver.preconditioner
+    if preconditioner == "auto":
+        preconditioner = "lumped" if parts.count > 1 else "dirichlet"
+    return dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, method=method,
+                                                                 preconditioner=preconditioner))
 
 
-def schur_bytes(mesh: SolidMesh) -> float:
-    """Bytes of the dense matrices ``schur`` holds at once (:data:`SCHUR_COPIES` of Σ's size)."""
-    return SCHUR_COPIES * 8.0 * (COMPONENTS * len(mesh.sigma.points)) ** 2
+def schur_bytes(interface: Interface) -> float:
+    """Bytes of the dense matrices ``schur`` holds at once (:data:`SCHUR_COPIES` of the trace's size)."""
+    return SCHUR_COPIES * 8.0 * interface.trace_size ** 2
 
 
 def trace_dofs(half: SolidHalf) -> np.ndarray:
@@ -113,12 +157,12 @@ def trace_dofs(half: SolidHalf) -> np.ndarray:
     return tetra.element_dofs(half.sigma_nodes[:, None]).ravel()
 
 
-def block_system(scene: Scene, half: SolidHalf, name: str, rows: tuple[int, int] | None = None) -> BlockSystem:
-    """The half's system with its prescribed dofs decoupled and its trace on Σ (its ``rows`` only, where given;
-    the energy offset counted on the rows that start at 0)."""
-    system = tetra.half_system(scene, half)
-    whole = dataclasses.replace(system.decoupled(name), trace_dofs=trace_dofs(half),
-                                energy_offset=prescribed_energy(system))
+def block_system(scene: Scene, half: SolidHalf, name: str, trace: np.ndarray, supports: tuple[np.ndarray, np.ndarray],
+                 rows: tuple[int, int] | None = None) -> BlockSystem:
+    """The half's (or slab's) system with its ``supports`` (prescribed dofs, values) decoupled and its ``trace`` dofs
+    (its ``rows`` only, where given; the energy offset counted on the rows that start at 0)."""
+    system = tetra.half_system(scene, half, supports)
+    whole = dataclasses.replace(system.decoupled(name), trace_dofs=trace, energy_offset=prescribed_energy(system))
     if rows is None:
         return whole
     first, last = rows
@@ -148,85 +192,209 @@ def interface_of(scene: Scene, mesh: SolidMesh) -> Interface:
     fixed = np.zeros((len(mesh.halves), COMPONENTS * len(mesh.sigma.points)), dtype=bool)
     for row, half in zip(fixed, mesh.halves):
         row[:] = np.isin(trace_dofs(half), tetra.prescribed(scene, half)[0])
-    modulus = max(tetra.largest_modulus(scene.material("layer1", half.name)) for half in mesh.halves)
-    return Interface(mesh.sigma.weights, mesh.sigma.cracked, scene.nonpenetration, fixed, modulus,
+    return Interface(mesh.sigma.weights, mesh.sigma.cracked, scene.nonpenetration, fixed, modulus_of(scene, mesh),
                      specs=block_list(1), components=COMPONENTS)
 
 
-def prepare(scene: Scene, comm: MPI.Comm) -> SolidSetup:
-    """Build the mesh on rank 0, broadcast it, assemble and factor every rank's blocks (collective: the refusals
-    too)."""
+def modulus_of(scene: Scene, mesh: SolidMesh) -> float:
+    """The largest elastic modulus of the halves' materials (the KKT check's stress scale)."""
+    return max(tetra.largest_modulus(scene.material("layer1", half.name)) for half in mesh.halves)
+
+
+def decomposition(scene: Scene, mesh: SolidMesh, count: int) -> Decomposition | None:
+    """The box's blocks with ``count`` slabs per half, None where that many do not fit both halves."""
+    cut = [slabs.slabs(half, scene.geometry.sigma, count) for half in mesh.halves]
+    if any(pieces is None for pieces in cut):
+        return None
+    (lower, lower_cuts), (upper, upper_cuts) = cut
+    ordered = [slab for pair in zip(lower, upper) for slab in pair]
+    sigma = interface_of(scene, mesh)
+    joints = [Joint(sigma, (0, 1), (trace_dofs(lower[0].piece), trace_dofs(upper[0].piece)))]
+    points = [mesh.sigma.points]
+    values = []
+    for slab in ordered:  # each block's prescribed values, NaN where free
+        dofs, given = tetra.prescribed(scene, slab.piece)
+        values.append(np.full(slab.piece.dofs, np.nan))
+        values[-1][dofs] = given
+    for half, cuts in enumerate((lower_cuts, upper_cuts)):
+        for j, between in enumerate(cuts):
+            near, far = 2 * j + half, 2 * (j + 1) + half  # the lower half's far slab lies below its near one
+            pair = (far, near) if half == 0 else (near, far)
+            nodes = between.nodes[::-1] if half == 0 else between.nodes
+            dofs = tuple(tetra.element_dofs(own[:, None]).ravel() for own in nodes)
+            _tie(values, pair, dofs)
+            fixed = np.array([~np.isnan(values[block][own]) for own, block in zip(dofs, pair)])
+            glued = Interface(between.weights, np.zeros(len(between.points), dtype=bool), False, fixed,
+                              modulus_of(scene, mesh), specs=block_list(1), components=COMPONENTS)
+            joints.append(Joint(glued, pair, dofs))
+            points.append(between.points)
+    supports = [(np.flatnonzero(~np.isnan(v)), v[~np.isnan(v)]) for v in values]
+    names = [f"{spec.name}{f'_{j}' if j else ''}" for j in range(count) for spec in block_list(1)]
+    specs = tuple(BlockSpec(name, "layer1", -1 if block % 2 == 0 else 1) for block, name in enumerate(names))
+    interface = sigma if count == 1 else Interface.joined([joint.interface for joint in joints],
+                                                          [joint.blocks for joint in joints], specs)
+    return Decomposition(ordered, supports, specs, joints, np.vstack(points), interface)
+
+
+def _tie(values: list[np.ndarray], pair: tuple[int, int], dofs: tuple[np.ndarray, np.ndarray]) -> None:
+    """A cut vertex's component that one of the ``pair`` of blocks prescribes is prescribed in both (its value at
+    the same point), as the plane Σ ties its supports: a multiplier row then never loads a prescribed dof."""
+    first, second = (values[block][own] for block, own in zip(pair, dofs))
+    values[pair[0]][dofs[0]] = np.where(np.isnan(first), second, first)
+    values[pair[1]][dofs[1]] = np.where(np.isnan(second), first, second)
+
+
+def pieces_of(scene: Scene, mesh: SolidMesh, ranks: int) -> Decomposition:
+    """The decomposition ``solver.pieces`` asks for (``auto``: :func:`auto_pieces`, fewer where they do not fit or
+    the ranks cannot share them); a SceneError where the slabs asked for do not fit."""
+    wanted = scene.solver.pieces
+    if wanted != "auto":
+        parts = decomposition(scene, mesh, wanted)
+        if parts is None:
+            raise SceneError(f"solver.pieces = {wanted}: this mesh's halves do not hold {wanted} slabs each (a "
+                             "slab must be at least one element thick, whole, and touch only its neighbours): "
+                             "give fewer, or a finer mesh.size")
+        return parts
+    count = auto_pieces(mesh)
+    while count > 1:
+        parts = decomposition(scene, mesh, count) if supported(ranks, 2 * count) else None
+        if parts is not None:
+            return parts
+        count //= 2
+    return decomposition(scene, mesh, 1)
+
+
+def held_pieces(scene: Scene, mesh: SolidMesh, parts: Decomposition) -> tuple[Decomposition, kernels.Kernels]:
+    """The decomposition and its blocks' kernels: slabs that would float (held only through their cuts and Σ) are
+    refused in one line where ``solver.pieces`` asks for them, and ``auto`` keeps the halves whole then."""
+    held = kernels_of(scene, parts)
+    if parts.count == 1 or not held.floating:
+        return parts, held
+    if scene.solver.pieces != "auto":
+        raise SceneError(f"solver.pieces = {parts.count}: slabs {held.names()} of the 3-D box would be held only "
+                         "through their neighbours (floating), which the slabs' decomposition does not solve yet: "
+                         "solver.pieces = 1, or supports on every slab")
+    whole = decomposition(scene, mesh, 1)
+    return whole, kernels_of(scene, whole)
+
+
+def auto_pieces(mesh: SolidMesh) -> int:
+    """Slabs per half for ``solver.pieces = auto``: the power of two nearest the half's unknowns over
+    :data:`SLAB_UNKNOWNS` (at most :data:`MOST_SLABS`), one below twice that."""
+    per_half = mesh.unknowns / 2
+    if per_half < 2 * SLAB_UNKNOWNS:
+        return 1
+    return int(min(MOST_SLABS, 2 ** round(math.log2(per_half / SLAB_UNKNOWNS))))
+
+
+def prepare(scene: Scene, comm: MPI.Comm, mesh: SolidMesh | None = None) -> SolidSetup:
+    """Build the mesh on rank 0 (unless every rank is given it), broadcast it, cut it into blocks, assemble and
+    factor every rank's blocks (collective: the refusals too)."""
     started = time.perf_counter()
-    specs = block_list(1)
-    if not supported(comm.size, len(specs)):
-        error = DDSolveError(f"unsupported number of ranks {comm.size}: use {usable(len(specs))} (the two halves "
-                             "of a 3-D box)")
+    if mesh is None:
+        mesh = comm.bcast(collective(comm, lambda: solid_meshes.build(scene), root_only=True), root=0)
+    meshed = time.perf_counter()
+    parts = collective(comm, lambda: pieces_of(scene, mesh, comm.size))
+    if not supported(comm.size, len(parts.slabs)):
+        error = DDSolveError(f"unsupported number of ranks {comm.size}: use {usable(len(parts.slabs))} (the "
+                             f"{len(parts.slabs)} blocks of the 3-D box: {parts.count} slabs per half)")
         error.collective = True  # every rank sees the same size
         raise error
-    mesh = comm.bcast(collective(comm, lambda: solid_meshes.build(scene), root_only=True), root=0)
-    meshed = time.perf_counter()
-    interface = interface_of(scene, mesh)
-    held = collective(comm, lambda: kernels_of(scene, mesh, interface))
-    scene = collective(comm, lambda: method_of(scene, mesh, held))
+    parts, held = collective(comm, lambda: held_pieces(scene, mesh, parts))
+    scene = collective(comm, lambda: method_of(scene, parts, held))
     method = registry.METHODS[scene.solver.method]
-    exchange = Exchange(comm, len(specs))
+    exchange = Exchange(comm, len(parts.slabs))
+    positions, dofs = trace_layout(parts.joints, len(parts.slabs))
     stages = {name: PETSc.Log.Stage(name) for name in driver.STAGES}
     timings = {"meshing": meshed - started, "setup": time.perf_counter() - meshed}
+
+    lumped = method.name == "feti" and scene.solver.preconditioner == "lumped"
+    entries = []  # this rank's blocks' K_ΣΣ entries, for the lumped preconditioner
 
     def make() -> list[Block]:
         made = []
         timings["assembly"] = 0.0
         for index, group in zip(exchange.local_blocks, exchange.groups):
-            half = mesh.halves[index]
-            rows = None if group.size == 1 else row_ranges(len(half.points), group.size)[group.rank]
+            piece = parts.slabs[index].piece
+            rows = None if group.size == 1 else row_ranges(len(piece.points), group.size)[group.rank]
             assembled = time.perf_counter()
-            block = Block(block_system(scene, half, specs[index].name, rows), comm=PETSc.Comm(group),
-                          factor_package=method.factorization)
+            system = block_system(scene, piece, parts.specs[index].name, dofs[index], parts.supports[index], rows)
+            if lumped:
+                entries.append((index, trace_entries(system, positions[index])))
+            block = Block(system, comm=PETSc.Comm(group), factor_package=method.factorization)
             made.append(block)
             timings["assembly"] += time.perf_counter() - assembled
             if index in held.floating:
-                block.make_floating(*floating_kernel(scene, half, held, index, rows,
+                block.make_floating(*floating_kernel(piece, parts.supports[index][0], dofs[index], held, index, rows,
                                                      fixed=method.floating == registry.GENERALIZED_INVERSE))
             block.factor(schur=method.schur_complements, out_of_core=scene.solver.out_of_core)
-            if method.dirichlet or block.floating:
+            if (method.dirichlet and not lumped) or block.floating:
                 block.factor_dirichlet(out_of_core=scene.solver.out_of_core)
         return made
 
     blocks = collective(comm, make)
     timings["factorization"] = time.perf_counter() - meshed - timings["setup"] - timings["assembly"]
-    return SolidSetup(scene, mesh, exchange, blocks, interface, held, stages, timings)
+    local = {index: positions[index] for index in exchange.local_blocks} if parts.count > 1 else None
+    stiffness = trace_stiffness(comm.gather(entries, root=0), len(parts.slabs), parts.interface.trace_size) \
+        if lumped else None
+    return SolidSetup(scene, mesh, parts, exchange, blocks, local, parts.interface, held, stages, timings, stiffness)
 
 
-def floating_kernel(scene: Scene, half: SolidHalf, held: kernels.Kernels, index: int, rows: tuple[int, int] | None,
-                    fixed: bool) -> tuple[np.ndarray, np.ndarray | None]:
-    """A floating half's kernel ``(m, rows)`` at its ``rows`` here (all where None) and, with ``fixed``, the m dofs
-    fixed for FETI's K⁺: off Σ and the prescribed dofs, where the kernel is independent (the same on every rank)."""
-    vectors = (held.frame.modes(half.points).T @ held.kernels[index]).T
+def trace_stiffness(gathered: list | None, count: int, size: int) -> list[scipy.sparse.csr_matrix] | None:
+    """Rank 0: each of the ``count`` blocks' K_ΣΣ on the structure's trace (``size``) from every rank's ``gathered``
+    entries (:func:`ddsolve.fem.assembly.trace_entries`; a distributed block's rows from each of its ranks)."""
+    if gathered is None:
+        return None
+    parts: list[list] = [[] for _ in range(count)]
+    for rank_entries in gathered:
+        for index, triplets in rank_entries:
+            parts[index].append(triplets)
+    return [scipy.sparse.csr_matrix((np.concatenate([v for _, _, v in block]),
+                                     (np.concatenate([r for r, _, _ in block]), np.concatenate([c for _, c, _ in block]))),
+                                    shape=(size, size)) for block in parts]
+
+
+def floating_kernel(piece: SolidHalf, prescribed: np.ndarray, trace: np.ndarray, held: kernels.Kernels, index: int,
+                    rows: tuple[int, int] | None, fixed: bool) -> tuple[np.ndarray, np.ndarray | None]:
+    """A floating block's kernel ``(m, rows)`` at its ``rows`` here (all where None) and, with ``fixed``, the m dofs
+    fixed for FETI's K⁺: off its ``trace`` and its ``prescribed`` dofs, where the kernel is independent (the same on
+    every rank)."""
+    vectors = (held.frame.modes(piece.points).T @ held.kernels[index]).T
     chosen = None
     if fixed:
-        excluded = np.union1d(tetra.prescribed(scene, half)[0], trace_dofs(half))
+        excluded = np.union1d(prescribed, trace)
         chosen = kernels.fixing_dofs(vectors, excluded).astype(np.int64)
-    first, last = rows if rows is not None else (0, half.dofs)
+    first, last = rows if rows is not None else (0, piece.dofs)
     return vectors[:, first:last], chosen
 
 
-def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print) -> SolidResult | None:
-    """The domain decomposition of the 3-D box ``scene`` on ``comm``; ``output`` and its VTU files written
-    (:func:`ddsolve.io.solid.write`).  The result on rank 0 (None elsewhere); a method that does not converge
+def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mesh: SolidMesh | None = None
+          ) -> SolidResult | None:
+    """The domain decomposition of the 3-D box ``scene`` on ``comm`` (on its ``mesh`` where every rank has it);
+    ``output`` and its VTU files written (:func:`ddsolve.io.solid.write`).  The result on rank 0 (None elsewhere); a method that does not converge
     writes its result with converged = false and raises NotConvergedError on every rank, with the result."""
     started = time.perf_counter()
-    setup = prepare(scene, comm)
+    setup = prepare(scene, comm, mesh)
     try:
         def made(outcome, rounds, fields: list[np.ndarray]) -> SolidResult:
             result = finished(setup, outcome, rounds, fields)
             solid.with_fracture(result)
             return result
 
-        return driver.gathered_solve(setup, BlockServer(setup.blocks, setup.exchange),
-                                     [half.dofs for half in setup.mesh.halves], made, solid_files.write, output,
+        return driver.gathered_solve(setup, BlockServer(setup.blocks, setup.exchange, positions=setup.positions),
+                                     [slab.piece.dofs for slab in setup.parts.slabs], made, solid_files.write, output,
                                      started, progress)
     finally:
         setup.destroy()
+
+
+def halves_of(mesh: SolidMesh, parts: Decomposition, fields: list[np.ndarray]) -> tuple[np.ndarray, ...]:
+    """The halves' displacements ``(n, 3)`` from the blocks' ``fields`` (a cut's vertices: the nearer slab's, glued
+    to the other's within the method's tolerance)."""
+    halves = [np.zeros((len(half.points), COMPONENTS)) for half in mesh.halves]
+    for block in reversed(range(len(parts.slabs))):
+        halves[parts.half_of(block)][parts.slabs[block].nodes] = fields[block].reshape(-1, COMPONENTS)
+    return tuple(halves)
 
 
 def finished(setup: SolidSetup, outcome, rounds, fields: list[np.ndarray]) -> SolidResult:
@@ -238,7 +406,7 @@ def finished(setup: SolidSetup, outcome, rounds, fields: list[np.ndarray]) -> So
     pressure = np.zeros(len(setup.mesh.sigma.points))
     contact = interface.slices["mu_c"]
     pressure[interface.vertex[contact]] = outcome.lam[contact]
-    return SolidResult(setup.scene, setup.mesh, tuple(u.reshape(-1, COMPONENTS) for u in fields), pressure,
+    return SolidResult(setup.scene, setup.mesh, halves_of(setup.mesh, setup.parts, fields), pressure,
                        energy=float(outcome.details["energy"]), steps=outcome.iterations, solves=rounds.count,
                        converged=bool(outcome.converged), message=outcome.message or "",
                        checks={"residual": float(np.max(rounds.residuals, initial=0.0)),

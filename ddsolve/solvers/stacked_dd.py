@@ -55,6 +55,11 @@ class StackSetup:
     stages: dict
     timings: dict[str, float]
 
+    @property
+    def trace_stiffness(self) -> None:
+        """Not gathered: this driver's feti takes Dirichlet's preconditioner."""
+        return None
+
     def kernel_traces(self) -> None:
         """No block floats (:func:`prepare` refuses it)."""
         return None

@@ -1,0 +1,125 @@
+"""A 3-D box's halves cut into slabs parallel to Σ (``solver.pieces``): the cut, the ties of the supports across it,
+the decomposition of the slabs equal to the monolithic reference with contact active, on 1, 2 and 4 ranks, with
+feti's lumped and Dirichlet preconditioners, and the refusals."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ddsolve.errors import SceneError
+from ddsolve.problem.scene import loads
+from experiments import three_d, three_d_front
+
+#: The 3-D page's partly shut crack (three_d.scene_of) at a mesh that holds two slabs per half (seven element layers).
+CLOSURE = three_d.scene_of("partial closure", 0.14, 3)
+
+
+@pytest.mark.unit
+def test_slabs_partition_a_half_and_share_only_their_cuts():
+    """Three slabs of each half: every tetrahedron and side triangle in one slab, Σ's nodes in the first only, a
+    node in at most two neighbouring slabs, each cut's two nodes at one point, its weights the cut's area (at least
+    the box's section, the cut being jagged); too many slabs for the mesh: None; a cut vertex's prescribed z on the
+    back face is prescribed in both slabs."""
+    from ddsolve.mesh import slabs, solid
+    from ddsolve.solvers import solid_dd
+
+    mesh = solid.build(CLOSURE)
+    for half in mesh.halves:
+        cut = slabs.slabs(half, CLOSURE.geometry.sigma, 3)
+        assert cut is not None
+        pieces, cuts = cut
+        assert sum(len(slab.piece.tetrahedra) for slab in pieces) == len(half.tetrahedra)
+        for side, triangles in half.faces.items():
+            assert sum(len(slab.piece.faces[side]) for slab in pieces) == len(triangles)
+        assert np.array_equal(pieces[0].nodes[pieces[0].piece.sigma_nodes], half.sigma_nodes)
+        assert all(len(slab.piece.sigma_nodes) == 0 for slab in pieces[1:])
+        count = np.zeros(len(half.points), dtype=int)
+        for slab in pieces:
+            count[slab.nodes] += 1
+        assert count.min() == 1 and count.max() == 2
+        assert not np.intersect1d(pieces[0].nodes, pieces[2].nodes).size
+        for j, between in enumerate(cuts):
+            near, far = pieces[j], pieces[j + 1]
+            assert np.allclose(near.piece.points[between.nodes[0]], between.points)
+            assert np.allclose(far.piece.points[between.nodes[1]], between.points)
+            assert len(between.points) == np.count_nonzero(np.isin(near.nodes, far.nodes))
+            assert 1.0 <= between.weights.sum() < 2.0 and between.weights.min() > 0  # the section is 2 × ½
+        assert slabs.slabs(half, CLOSURE.geometry.sigma, 12) is None
+    parts = solid_dd.decomposition(CLOSURE, mesh, 3)
+    lower, lower_below = parts.slabs[0], parts.slabs[2]
+    glued = parts.joints[1]  # the lower half's first cut: (slab 1, slab 0)
+    assert glued.blocks == (2, 0)
+    for block, dofs in zip(glued.blocks, glued.dofs):
+        z_back = dofs[2::3][np.isclose(parts.slabs[block].piece.points[dofs[2::3] // 3, 2], three_d.DEPTH)]
+        assert z_back.size and np.all(np.isin(z_back, parts.supports[block][0]))
+    assert lower.piece.name == lower_below.piece.name == "lower"
+
+
+@pytest.mark.unit
+def test_slabs_and_the_lumped_preconditioner_are_refused_where_they_do_not_apply():
+    """A plane scene refuses solver.pieces and the lumped preconditioner; slabs too many for the mesh and slabs that
+    would float are refused naming solver.pieces."""
+    from ddsolve.mesh import solid
+    from ddsolve.solvers import solid_dd
+
+    plane = three_d.scene_of("partial closure", 0.2, 2)
+    with pytest.raises(SceneError, match="solver.pieces: cuts the halves of a 3-D box"):
+        plane.with_({"solver.pieces": 2})
+    with pytest.raises(SceneError, match="solver.preconditioner = lumped: .* a plane scene's feti takes dirichlet"):
+        plane.with_({"solver.preconditioner": "lumped"})
+    mesh = solid.build(CLOSURE)
+    with pytest.raises(SceneError, match=r"^solver.pieces = 9: this mesh's halves do not hold 9 slabs each"):
+        solid_dd.pieces_of(CLOSURE.with_({"solver.pieces": 9}), mesh, 1)
+    penny = loads(three_d_front.PENNY.format(L=2, size=0.2, grading=0.2)).with_({"solver.pieces": 2})
+    penny_mesh = solid.build(penny)
+    with pytest.raises(SceneError, match=r"^solver.pieces = 2: slabs u_minus, u_plus, u_plus_1 of the 3-D box would "
+                                         "be held only through their neighbours"):
+        solid_dd.held_pieces(penny, penny_mesh, solid_dd.pieces_of(penny, penny_mesh, 1))
+    whole, held = solid_dd.held_pieces(penny.with_({"solver.pieces": "auto"}), penny_mesh,
+                                       solid_dd.decomposition(penny, penny_mesh, 2))
+    assert whole.count == 1 and held.floating == [1]  # auto: the halves whole, the upper one floating
+
+
+@pytest.mark.solve
+def test_the_slabs_decomposition_equals_the_reference_with_contact_active():
+    """Two slabs per half (four blocks, three joints): feti with the lumped preconditioner (auto on slabs) and with
+    Dirichlet's, schur and mprgp give the reference's solution to 1e-8 in energy norm at solver.tol 1e-10, with the
+    same crack vertices shut; the lumped preconditioner takes one round per iteration."""
+    from mpi4py import MPI
+
+    from ddsolve.mesh import solid
+    from ddsolve.solvers import solid as solid_solver, solid_dd
+    from ddsolve.solvers.solid import energy_error
+
+    reference = solid_solver.solve_solid(CLOSURE, solid.build(CLOSURE))
+    assert reference.closed > 0
+    for method, preconditioner in (("feti", "auto"), ("feti", "dirichlet"), ("schur", "auto"), ("mprgp", "auto")):
+        scene = CLOSURE.with_({"solver.method": method, "solver.pieces": 2, "solver.tol": 1e-10,
+                               "solver.preconditioner": preconditioner})
+        result = solid_dd.solve(scene, MPI.COMM_SELF, None, progress=lambda _line: None)
+        assert result.converged and result.closed == reference.closed, (method, preconditioner)
+        assert energy_error(result, reference) < 1e-8, (method, preconditioner)
+        if method == "feti":
+            lumped = result.scene.solver.preconditioner == "lumped"
+            assert lumped == (preconditioner == "auto")
+            assert result.solves <= result.steps + 4 if lumped else result.solves > 2 * result.steps
+
+
+@pytest.mark.mpi
+def test_the_slabs_on_2_and_4_ranks_equal_the_reference(tmp_path):
+    """ddsolve solve -n 2 and -n 4 with two slabs per half (four blocks: two a rank, one a rank) hold the reference's
+    solution to 1e-8 in energy norm."""
+    from conftest import ddsolve
+
+    from ddsolve.io import solid as solid_files
+    from ddsolve.mesh import solid
+    from ddsolve.solvers import solid as solid_solver
+
+    scene = tmp_path / "closure.toml"
+    scene.write_text(CLOSURE.text)
+    reference = solid_solver.solve_solid(CLOSURE, solid.build(CLOSURE))
+    for ranks in (2, 4):
+        solved = ddsolve("solve", str(scene), "-o", str(tmp_path / f"{ranks}.h5"), "--set", "solver.pieces=2",
+                         "--set", "solver.tol=1e-10", ranks=ranks)
+        assert "feti (3-D):" in solved.stdout and f"on {ranks} ranks" in solved.stdout
+        assert solid_solver.energy_error(solid_files.read(tmp_path / f"{ranks}.h5"), reference) < 1e-8
