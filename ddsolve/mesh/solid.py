@@ -94,13 +94,25 @@ class SolidMesh:
     def unknowns(self) -> int:
         return sum(half.dofs for half in self.halves)
 
+    @cached_property
+    def box(self) -> tuple[float, ...]:
+        """The bounds of its nodes (x0, x1, y0, y1, z0, z1): a 3-D gmsh file's body's box (a built-in box's own
+        numbers may differ from them in the last bit)."""
+        points = np.vstack([half.points for half in self.halves])
+        return tuple(float(v) for v in np.column_stack([points.min(axis=0), points.max(axis=0)]).ravel())
+
 
 def build(scene: Scene) -> SolidMesh:
     """The mesh of a 3-D box scene: gmsh in a child process, then the halves and Σ (:func:`assemble`); with
-    ``mesh.extrude`` the plane section's mesh extruded (:mod:`ddsolve.mesh.extrude`)."""
+    ``mesh.extrude`` the plane section's mesh extruded (:mod:`ddsolve.mesh.extrude`); a 3-D gmsh file's
+    (:mod:`ddsolve.mesh.solid_files`)."""
     from ddsolve.mesh import extrude, gmsh_io  # both import the plane mesh modules
 
     geometry = scene.geometry
+    if geometry.solid_file:
+        from ddsolve.mesh import solid_files
+
+        return solid_files.build(scene)
     if scene.mesh.extrude is not None:
         points, tetrahedra, upper = extrude.tetrahedra(scene)
     else:

@@ -354,11 +354,12 @@ def release(result, inner: float | None = None, outer: float | None = None,
     flip = np.diag(REFLECTED_VOIGT)
     same = np.allclose(laws[0], laws[1], rtol=1e-12, atol=0.0) and np.allclose(flip @ laws[0] @ flip, laws[0],
                                                                                rtol=1e-12, atol=0.0)
+    box = mesh.box if scene.geometry.solid_file else scene.geometry.box  # a file's body: its bounds
     rows = []
-    for front in fronts(mesh, scene.geometry.box, inner, outer, width):
+    for front in fronts(mesh, box, inner, outer, width):
         parts = np.zeros((4, len(front.points)))  # G, G_I, G_II, G_III
         for k, (half, D, u) in enumerate(zip(mesh.halves, laws, result.fields)):
-            support = Support.of(front, half, scene.geometry.box)
+            support = Support.of(front, half, box)
             parts[0] += support.release(half, D, u)
             if same:
                 parts[1:] += _mode_parts(support, half, mesh.halves[1 - k], D, u, result.fields[1 - k])

@@ -1,0 +1,192 @@
+"""A 3-D gmsh file (``mesh.file``: a ``.geo`` meshed here, or a ``.msh`` in MSH 2.2 or 4.1) read into the
+:class:`~ddsolve.mesh.solid.SolidMesh` a 3-D box makes, so that the reference, the decomposition, G along the
+fronts and the outputs take it unchanged.
+
+The contract is the plane one a dimension up: the physical volumes ``lower`` and ``upper`` (4-node tetrahedra;
+``mesh.degree = 2`` puts a node in the middle of every edge, the edges straight), the physical surface ``sigma``
+between them (the plane y = const, for now), ``crack`` (its part where the faces are separate, optional) and any
+other named surface a boundary for loads and supports (``clamped``: fixed).  Each half takes its own copy of
+Σ's nodes, so the crack's faces are apart; the crack front is the crack's boundary edges inside the body (those
+not on Σ's own boundary, where Σ meets the body's surface).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ddsolve.errors import MeshError
+from ddsolve.mesh.mesh import CRACK, SIGMA, TOL
+from ddsolve.mesh.solid import SigmaSurface, SolidHalf, SolidMesh, _positive, boundary_faces, elevated
+from ddsolve.mesh.sizing import node_positions
+from ddsolve.problem.schema import REGIONS
+from ddsolve.problem.scene import Scene
+
+#: gmsh element types: 3- and 6-node triangles, 4- and 10-node tetrahedra.
+TRIANGLES, TETRAHEDRA = (2, 9), (4, 11)
+#: The edges of a triangle (v0 v1 v2) in the order of its mid-edge nodes 3, 4, 5 (m01 m12 m20).
+TRIANGLE_EDGES = np.array([[0, 1], [1, 2], [2, 0]])
+
+
+def build(scene: Scene) -> SolidMesh:
+    """The scene's 3-D gmsh file meshed (.geo, with ``mesh.size`` as the largest element) or read (.msh) by gmsh in
+    a child process, then its halves and Σ (:func:`assemble`)."""
+    from ddsolve.mesh.gmsh_io import apart
+
+    path, options = scene.mesh.file, scene.mesh
+    points, tetrahedra, upper, surfaces = apart(_read, path, options.kind == "geo", options.size)
+    return assemble(points, tetrahedra, upper, surfaces, options.degree, str(path))
+
+
+def _read(path: Path, geo: bool, size: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
+    """In gmsh: the file opened (a .geo meshed in 3-D), its nodes, the tetrahedra of the volumes lower and upper,
+    whether each lies in upper, and the triangles (vertices) of every named physical surface."""
+    from ddsolve.mesh.gmsh_io import open_file, session
+
+    where = str(path)
+    with session() as gmsh:
+        for name in ("General.NumThreads", "Mesh.MaxNumThreads2D", "Mesh.MaxNumThreads3D"):
+            gmsh.option.setNumber(name, 1)  # the same mesh on every rank
+        open_file(gmsh, path)
+        if geo:
+            if size is not None:
+                gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+            try:
+                gmsh.model.mesh.generate(3)
+            except Exception as exc:  # gmsh raises a bare Exception with its last error
+                raise MeshError(f"{where}: gmsh cannot mesh it ({' '.join(str(exc).split())})") from None
+        tags, coordinates, _ = gmsh.model.mesh.getNodes()
+        position = node_positions(tags)
+        groups: dict[tuple[int, str], list[int]] = {}
+        for dim, tag in gmsh.model.getPhysicalGroups():
+            groups.setdefault((dim, gmsh.model.getPhysicalName(dim, tag)), []).extend(
+                int(entity) for entity in gmsh.model.getEntitiesForPhysicalGroup(dim, tag))
+        cells = [_elements(gmsh, groups.get((3, name), []), 3, position, where) for name in REGIONS]
+        surfaces = {name: _elements(gmsh, entities, 2, position, where) for (dim, name), entities in groups.items()
+                    if dim == 2 and name}
+    points = np.asarray(coordinates, dtype=np.float64).reshape(-1, 3)
+    upper = np.repeat([False, True], [len(cells[0]), len(cells[1])])
+    return points, np.concatenate(cells), upper, surfaces
+
+
+def _elements(gmsh, entities: list[int], dim: int, position: np.ndarray, where: str) -> np.ndarray:
+    """The vertices of the tetrahedra (``dim`` 3) or triangles (2) of the model's ``entities``, each element once
+    (a MSH 2.2 file lists an element once per physical group); a 10-node tetrahedron or another element in a
+    volume is refused."""
+    linear, quadratic = TETRAHEDRA if dim == 3 else TRIANGLES
+    corners = dim + 1
+    found = [np.zeros((0, corners), dtype=np.int64)]
+    for entity in dict.fromkeys(entities):
+        for kind, nodes in zip(*gmsh.model.mesh.getElements(dim, entity)[::2]):
+            if kind == linear or kind == quadratic and dim == 2:
+                width = corners if kind == linear else 6
+                found.append(np.asarray(nodes, dtype=np.int64).reshape(-1, width)[:, :corners])
+            else:
+                raise MeshError(f"{where}: " + (
+                    f"the volumes must hold 4-node tetrahedra only (found gmsh element type {kind}): give the file's "
+                    "P1 tetrahedra, and mesh.degree = 2 for P2" if dim == 3 else
+                    f"the physical surfaces must hold triangles only (found gmsh element type {kind})"))
+    elements = position[np.concatenate(found)]
+    _, first = np.unique(np.sort(elements, axis=1), axis=0, return_index=True)
+    return elements[np.sort(first)]
+
+
+def assemble(points: np.ndarray, tetrahedra: np.ndarray, upper: np.ndarray, surfaces: dict[str, np.ndarray],
+             degree: int, where: str) -> SolidMesh:
+    """The halves and Σ of a file's tetrahedra (``upper``: which lie in the volume upper) and named surfaces'
+    triangles, checked: Σ the plane y = const between the volumes, the crack on Σ; P2 with ``degree`` 2."""
+    tolerance = TOL * float(np.ptp(points[np.unique(tetrahedra)], axis=0).max())
+    height = _sigma_height(points, tetrahedra, upper, surfaces, tolerance, where)
+    crack = surfaces.get(CRACK, np.zeros((0, 3), dtype=np.int64))
+    if not _members(crack, surfaces[SIGMA]).all():
+        raise MeshError(f"{where}: physical surface crack does not lie on sigma ({np.sum(~_members(crack, surfaces[SIGMA]))}"
+                        f" of its {len(crack)} triangles are not sigma's): the cracks are parts of Σ (y = {height:g})")
+    tetrahedra = _positive(points, tetrahedra)
+    points, cells, middle = elevated(points, tetrahedra) if degree == 2 else (points, tetrahedra, None)
+    named = {name: _with_middles(triangles, middle) for name, triangles in surfaces.items() if name != CRACK}
+    on_sigma = np.unique(named[SIGMA])
+    halves, boundaries = [], []
+    for name in REGIONS:
+        mine = cells[upper == (name == REGIONS[1])]
+        boundaries.append(_with_middles(boundary_faces(mine[:, :4]), middle))
+        halves.append(_half(name, points, mine, boundaries[-1], named, on_sigma, where))
+    if np.sum(_members(boundaries[1], boundaries[0])) != len(named[SIGMA]):
+        raise MeshError(f"{where}: the volumes lower and upper touch off sigma (faces they share are not sigma's): "
+                        "Σ must be all of their common boundary")
+    sigma_of = np.full(len(points), -1, dtype=np.int64)
+    sigma_of[on_sigma] = np.arange(len(on_sigma))
+    faces = boundaries[0][_members(boundaries[0], named[SIGMA])]  # the lower half's: outward, ν = +y
+    cracked, front = crack_roles(sigma_of[faces], _members(faces, crack))
+    return SolidMesh(tuple(halves), SigmaSurface(points[on_sigma], sigma_of[faces], cracked, front))
+
+
+def _sigma_height(points: np.ndarray, tetrahedra: np.ndarray, upper: np.ndarray, surfaces: dict[str, np.ndarray],
+                  tolerance: float, where: str) -> float:
+    """Σ's height: the file's ``sigma`` is the plane y = const with the volume lower below it and upper above."""
+    for name, cells in zip(REGIONS, (tetrahedra[~upper], tetrahedra[upper])):
+        if not len(cells):
+            raise MeshError(f"{where}: physical volume {name} has no tetrahedra")
+    if not len(surfaces.get(SIGMA, ())):
+        raise MeshError(f"{where}: physical surface sigma has no triangles")
+    y = points[np.unique(surfaces[SIGMA]), 1]
+    if np.ptp(y) > tolerance:
+        raise MeshError(f"{where}: physical surface sigma is not a plane y = const (its y from {y.min():g} to "
+                        f"{y.max():g}): a curved or tilted Σ is not solved in 3-D yet")
+    height = float(np.mean(y))
+    if points[tetrahedra[~upper], 1].max() > height + tolerance or points[tetrahedra[upper], 1].min() < height - tolerance:
+        raise MeshError(f"{where}: the volume lower must lie below sigma (y = {height:g}) and upper above it")
+    return height
+
+
+def _with_middles(triangles: np.ndarray, middle) -> np.ndarray:
+    """The triangles with their mid-edge nodes (v0 v1 v2 m01 m12 m20) where ``middle`` gives them (P2)."""
+    if middle is None:
+        return triangles
+    return np.column_stack([triangles, *(middle(triangles[:, a], triangles[:, b]) for a, b in TRIANGLE_EDGES)])
+
+
+def _half(name: str, points: np.ndarray, cells: np.ndarray, faces: np.ndarray, named: dict[str, np.ndarray],
+          on_sigma: np.ndarray, where: str) -> SolidHalf:
+    """One half in its own numbering: its nodes, tetrahedra, its boundary ``faces`` (outward) on each named surface
+    and its Σ nodes; it must border all of Σ."""
+    used = np.unique(cells)
+    local = np.full(len(points), -1, dtype=np.int64)
+    local[used] = np.arange(len(used))
+    mine = {surface: faces[_members(faces, triangles)] for surface, triangles in named.items()}
+    if len(mine[SIGMA]) != len(named[SIGMA]):
+        raise MeshError(f"{where}: physical surface sigma is not all on the volume {name}'s boundary "
+                        f"({len(named[SIGMA]) - len(mine[SIGMA])} of its {len(named[SIGMA])} triangles are not): Σ "
+                        "lies between lower and upper, their meshes conforming on it")
+    return SolidHalf(name, points[used], local[cells], {surface: local[f] for surface, f in mine.items()},
+                     local[on_sigma])
+
+
+def _members(triangles: np.ndarray, among: np.ndarray) -> np.ndarray:
+    """Whether each of ``triangles`` is one of ``among``: the same three vertices (the first three columns), in
+    any order."""
+    keys = [np.sort(t[:, :3], axis=1) for t in (among, triangles)]
+    numbers = np.unique(np.vstack(keys), axis=0, return_inverse=True)[1].ravel()
+    return np.isin(numbers[len(keys[0]):], numbers[:len(keys[0])])
+
+
+def crack_roles(triangles: np.ndarray, in_crack: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """From Σ's triangles (3 or 6 nodes) and which are the crack's: the nodes whose faces are separate (the crack's
+    nodes off its front) and the front's edges (pairs of vertices): the crack's boundary edges that are not on Σ's
+    boundary (where Σ meets the body's surface the crack's edge is free, not a front)."""
+    count = int(triangles.max(initial=-1)) + 1
+    crack = triangles[in_crack]
+    edges = np.sort(crack[:, :3][:, TRIANGLE_EDGES], axis=2)  # (c, 3, 2): each crack triangle's edges
+    keys = edges[..., 0] * count + edges[..., 1]
+    sigma_keys = np.sort(triangles[:, :3][:, TRIANGLE_EDGES], axis=2) @ np.array([count, 1])
+    crack_unique, crack_counts = np.unique(keys, return_counts=True)
+    sigma_unique, sigma_counts = np.unique(sigma_keys, return_counts=True)
+    front_keys = np.setdiff1d(crack_unique[crack_counts == 1], sigma_unique[sigma_counts == 1])
+    on_front = np.isin(keys, front_keys)  # (c, 3): the crack triangles' edges on the front
+    front_nodes = edges[on_front].ravel()
+    if crack.shape[1] == 6:
+        front_nodes = np.concatenate([front_nodes, crack[:, 3:][on_front]])
+    cracked = np.zeros(count, dtype=bool)
+    cracked[crack.ravel()] = True
+    cracked[front_nodes] = False
+    front = np.column_stack([front_keys // count, front_keys % count])
+    return cracked, front
