@@ -1,4 +1,5 @@
-"""A 3-D gmsh file (``mesh.file``: a ``.geo`` meshed here, or a ``.msh`` in MSH 2.2 or 4.1) read into the
+"""A 3-D gmsh file (``mesh.file``: a ``.geo`` meshed here, or a ``.msh`` in MSH 2.2 or 4.1) read and checked, and
+the crack roles of its Σ: :func:`ddsolve.mesh.solid.from_surfaces` makes of it the
 :class:`~ddsolve.mesh.solid.SolidMesh` a 3-D box makes, so that the reference, the decomposition, G along the
 fronts and the outputs take it unchanged.
 
@@ -17,7 +18,6 @@ import numpy as np
 
 from ddsolve.errors import MeshError
 from ddsolve.mesh.mesh import CRACK, SIGMA, TOL
-from ddsolve.mesh.solid import SigmaSurface, SolidHalf, SolidMesh, _positive, boundary_faces, elevated
 from ddsolve.mesh.sizing import node_positions
 from ddsolve.problem.schema import REGIONS
 from ddsolve.problem.scene import Scene
@@ -28,14 +28,16 @@ TRIANGLES, TETRAHEDRA = (2, 9), (4, 11)
 TRIANGLE_EDGES = np.array([[0, 1], [1, 2], [2, 0]])
 
 
-def build(scene: Scene) -> SolidMesh:
+def read(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
     """The scene's 3-D gmsh file meshed (.geo, with ``mesh.size`` as the largest element) or read (.msh) by gmsh in
-    a child process, then its halves and Σ (:func:`assemble`)."""
+    a child process, and checked (:func:`checked`): its nodes, its tetrahedra, whether each lies in the volume upper,
+    and the triangles of every named physical surface."""
     from ddsolve.mesh.gmsh_io import apart
 
     path, options = scene.mesh.file, scene.mesh
     points, tetrahedra, upper, surfaces = apart(_read, path, options.kind == "geo", options.size)
-    return assemble(points, tetrahedra, upper, surfaces, options.degree, str(path))
+    checked(points, tetrahedra, upper, surfaces, str(path))
+    return points, tetrahedra, upper, surfaces
 
 
 def _read(path: Path, geo: bool, size: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
@@ -91,33 +93,17 @@ def _elements(gmsh, entities: list[int], dim: int, position: np.ndarray, where: 
     return elements[np.sort(first)]
 
 
-def assemble(points: np.ndarray, tetrahedra: np.ndarray, upper: np.ndarray, surfaces: dict[str, np.ndarray],
-             degree: int, where: str) -> SolidMesh:
-    """The halves and Σ of a file's tetrahedra (``upper``: which lie in the volume upper) and named surfaces'
-    triangles, checked: Σ the plane y = const between the volumes, the crack on Σ; P2 with ``degree`` 2."""
+def checked(points: np.ndarray, tetrahedra: np.ndarray, upper: np.ndarray, surfaces: dict[str, np.ndarray],
+            where: str) -> None:
+    """A file's volumes and surfaces as a 3-D body cut by Σ: ``sigma`` the plane y = const with the volume lower
+    below it and upper above, ``crack`` on it."""
     tolerance = TOL * float(np.ptp(points[np.unique(tetrahedra)], axis=0).max())
     height = _sigma_height(points, tetrahedra, upper, surfaces, tolerance, where)
     crack = surfaces.get(CRACK, np.zeros((0, 3), dtype=np.int64))
-    if not _members(crack, surfaces[SIGMA]).all():
-        raise MeshError(f"{where}: physical surface crack does not lie on sigma ({np.sum(~_members(crack, surfaces[SIGMA]))}"
-                        f" of its {len(crack)} triangles are not sigma's): the cracks are parts of Σ (y = {height:g})")
-    tetrahedra = _positive(points, tetrahedra)
-    points, cells, middle = elevated(points, tetrahedra) if degree == 2 else (points, tetrahedra, None)
-    named = {name: _with_middles(triangles, middle) for name, triangles in surfaces.items() if name != CRACK}
-    on_sigma = np.unique(named[SIGMA])
-    halves, boundaries = [], []
-    for name in REGIONS:
-        mine = cells[upper == (name == REGIONS[1])]
-        boundaries.append(_with_middles(boundary_faces(mine[:, :4]), middle))
-        halves.append(_half(name, points, mine, boundaries[-1], named, on_sigma, where))
-    if np.sum(_members(boundaries[1], boundaries[0])) != len(named[SIGMA]):
-        raise MeshError(f"{where}: the volumes lower and upper touch off sigma (faces they share are not sigma's): "
-                        "Σ must be all of their common boundary")
-    sigma_of = np.full(len(points), -1, dtype=np.int64)
-    sigma_of[on_sigma] = np.arange(len(on_sigma))
-    faces = boundaries[0][_members(boundaries[0], named[SIGMA])]  # the lower half's: outward, ν = +y
-    cracked, front = crack_roles(sigma_of[faces], _members(faces, crack))
-    return SolidMesh(tuple(halves), SigmaSurface(points[on_sigma], sigma_of[faces], cracked, front))
+    off = int(np.sum(~members(crack, surfaces[SIGMA])))
+    if off:
+        raise MeshError(f"{where}: physical surface crack does not lie on sigma ({off} of its {len(crack)} triangles "
+                        f"are not sigma's): the cracks are parts of Σ (y = {height:g})")
 
 
 def _sigma_height(points: np.ndarray, tetrahedra: np.ndarray, upper: np.ndarray, surfaces: dict[str, np.ndarray],
@@ -133,35 +119,13 @@ def _sigma_height(points: np.ndarray, tetrahedra: np.ndarray, upper: np.ndarray,
         raise MeshError(f"{where}: physical surface sigma is not a plane y = const (its y from {y.min():g} to "
                         f"{y.max():g}): a curved or tilted Σ is not solved in 3-D yet")
     height = float(np.mean(y))
+    height = 0.0 if abs(height) <= tolerance else height  # gmsh's rotated planes: y within round-off of 0
     if points[tetrahedra[~upper], 1].max() > height + tolerance or points[tetrahedra[upper], 1].min() < height - tolerance:
         raise MeshError(f"{where}: the volume lower must lie below sigma (y = {height:g}) and upper above it")
     return height
 
 
-def _with_middles(triangles: np.ndarray, middle) -> np.ndarray:
-    """The triangles with their mid-edge nodes (v0 v1 v2 m01 m12 m20) where ``middle`` gives them (P2)."""
-    if middle is None:
-        return triangles
-    return np.column_stack([triangles, *(middle(triangles[:, a], triangles[:, b]) for a, b in TRIANGLE_EDGES)])
-
-
-def _half(name: str, points: np.ndarray, cells: np.ndarray, faces: np.ndarray, named: dict[str, np.ndarray],
-          on_sigma: np.ndarray, where: str) -> SolidHalf:
-    """One half in its own numbering: its nodes, tetrahedra, its boundary ``faces`` (outward) on each named surface
-    and its Σ nodes; it must border all of Σ."""
-    used = np.unique(cells)
-    local = np.full(len(points), -1, dtype=np.int64)
-    local[used] = np.arange(len(used))
-    mine = {surface: faces[_members(faces, triangles)] for surface, triangles in named.items()}
-    if len(mine[SIGMA]) != len(named[SIGMA]):
-        raise MeshError(f"{where}: physical surface sigma is not all on the volume {name}'s boundary "
-                        f"({len(named[SIGMA]) - len(mine[SIGMA])} of its {len(named[SIGMA])} triangles are not): Σ "
-                        "lies between lower and upper, their meshes conforming on it")
-    return SolidHalf(name, points[used], local[cells], {surface: local[f] for surface, f in mine.items()},
-                     local[on_sigma])
-
-
-def _members(triangles: np.ndarray, among: np.ndarray) -> np.ndarray:
+def members(triangles: np.ndarray, among: np.ndarray) -> np.ndarray:
     """Whether each of ``triangles`` is one of ``among``: the same three vertices (the first three columns), in
     any order."""
     keys = [np.sort(t[:, :3], axis=1) for t in (among, triangles)]
