@@ -103,11 +103,11 @@ def physical_names(path: Path) -> dict[int, list[str]]:
     return names
 
 
-def file_structure(path: Path, where: str) -> FileStructure | None:
+def file_structure(names: dict[int, list[str]], where: str) -> FileStructure | None:
     """The structure of a gmsh file with curves ``sigma1`` ... ``sigmaN`` (and ``crack1`` ...), its region surfaces
-    listed bottom to top; None for a file of one interface (``sigma``).  A file that mixes the forms, skips a
-    number, names a crack of no interface or has another count of surfaces than N + 1 is refused in one line."""
-    names = physical_names(path)
+    listed bottom to top, from its physical ``names`` (:func:`physical_names`); None for a file of one interface
+    (``sigma``).  A file that mixes the forms, skips a number, names a crack of no interface or has another count of
+    surfaces than N + 1 is refused in one line."""
     curves, surfaces = names.get(1, []), names.get(2, [])
     numbered = sorted(int(match[1]) for match in map(NUMBERED_SIGMA.fullmatch, curves) if match)
     if not numbered:

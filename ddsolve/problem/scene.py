@@ -466,7 +466,7 @@ def loads(text: str, overrides: list[str] = (), origin: str = "scene", base: Pat
     where = f"{origin}: mesh.file {printable(raw['mesh']['file'])}" if path else origin
     names = physical_names(path) if path else {}
     volumes = names if 3 in names else None  # a 3-D gmsh file's physical groups
-    structure = file_structure(path, where) if path and volumes is None else None
+    structure = file_structure(names, where) if path and volumes is None else None
     solid = is_solid(raw) or volumes is not None
     data = check_table(raw, structure_schema(raw, origin, structure.regions if structure else (), solid), (), origin)
     if solid:
