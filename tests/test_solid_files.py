@@ -35,13 +35,15 @@ def test_the_scene_reads_the_file_s_groups_and_refuses_what_does_not_fit(tmp_pat
                     "physical volume 'core': a 3-D file's volumes are lower and upper"),
            "box4": (geo, "[geometry]\nbox = [-1.0, 1.0, -1.0, 1.0]\n", "geometry.box: the file is a 3-D geometry"),
            "box6": (geo, "[geometry]\nbox = [-1.0, 1.0, -1.0, 1.0, 0.0, 0.5]\n", "geometry.box: the file is a 3-D"),
-           "graded": (geo, "", "mesh.grading: a 3-D gmsh file is meshed"),
+           "unsized": (geo, "", "mesh.grading: grades a .geo's tetrahedra from mesh.size"),
+           "extruded": (geo, "", "mesh.extrude: a 3-D gmsh file is meshed"),
            "lid": (geo, "", "loads.layer1.lid: no physical surface 'lid' in mesh.file (its boundaries: clamped, bottom")}
     for name, (text, head, message) in bad.items():
         (tmp_path / f"{name}.geo").write_text(text)
         scene = strip_text(f"{name}.geo").replace("[loads.layer1.top]", "[loads.layer1.lid]" if name == "lid"
                                                   else "[loads.layer1.top]") + head
-        scene = scene.replace("size = 0.2", "size = 0.2\ngrading = true") if name == "graded" else scene
+        mesh = {"unsized": "grading = true", "extruded": "size = 0.2\nextrude = 2"}.get(name)
+        scene = scene.replace("size = 0.2", mesh) if mesh else scene
         with pytest.raises(SceneError, match=message.replace("(", r"\(")):
             loads(scene, base=tmp_path)
     (tmp_path / "plane.geo").write_text((DOCS / "example1.geo").read_text())
@@ -66,7 +68,8 @@ def written_msh(geo: Path, size: float, version: float, target: Path) -> None:
 @pytest.mark.solve
 def test_the_strip_file_gives_the_box_s_tetrahedra_and_energy_as_geo_and_msh(tmp_path):
     """The .geo is built as the box is: at the same mesh.size the same tetrahedra, Σ, crack vertices and front, the
-    same energy to round-off; gmsh's .msh of it (2.2 and 4.1) give the same energy (coordinates as printed)."""
+    same energy to round-off, graded towards the front too; gmsh's .msh of it (2.2 and 4.1) give the same energy
+    (coordinates as printed)."""
     from ddsolve.mesh import solid
     from ddsolve.mesh.gmsh_io import apart
     from ddsolve.solvers import solid as solid_solver
@@ -84,6 +87,11 @@ def test_the_strip_file_gives_the_box_s_tetrahedra_and_energy_as_geo_and_msh(tmp
     energies = [solid_solver.solve_solid(scene, mesh) for scene, mesh in zip((box, file), meshes)]
     assert all(result.converged and result.closed == 4 for result in energies)
     assert abs(energies[1].energy - energies[0].energy) <= 1e-12 * abs(energies[0].energy)
+    graded = [three_d.scene_of("partial closure", 0.2, 3).with_({"mesh.grading": True}),
+              load(STRIP, ["mesh.size=0.2", "mesh.grading=true"])]  # the box's size field about the file's front
+    results = [solid_solver.solve_solid(scene, solid.build(scene)) for scene in graded]
+    assert results[0].mesh.unknowns == results[1].mesh.unknowns == 1791  # 1644 without grading
+    assert abs(results[1].energy - results[0].energy) <= 1e-12 * abs(results[0].energy)
     for version in (2.2, 4.1):
         target = tmp_path / f"strip-{version}.msh"
         apart(written_msh, DOCS / "three-d-strip.geo", SIZE, version, target)

@@ -111,7 +111,7 @@ def build(scene: Scene) -> SolidMesh:
 
     geometry = scene.geometry
     if geometry.solid_file:
-        return from_surfaces(*solid_files.read(scene), scene.mesh.degree, str(scene.mesh.file))
+        return from_surfaces(*solid_files.read(scene, _graded_towards), scene.mesh.degree, str(scene.mesh.file))
     if scene.mesh.extrude is not None:
         points, tetrahedra, upper = extrude.tetrahedra(scene)
     else:

@@ -13,6 +13,7 @@ not on Σ's own boundary, where Σ meets the body's surface).
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -28,21 +29,30 @@ TRIANGLES, TETRAHEDRA = (2, 9), (4, 11)
 TRIANGLE_EDGES = np.array([[0, 1], [1, 2], [2, 0]])
 
 
-def read(scene: Scene) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
-    """The scene's 3-D gmsh file meshed (.geo, with ``mesh.size`` as the largest element) or read (.msh) by gmsh in
-    a child process, and checked (:func:`checked`): its nodes, its tetrahedra, whether each lies in the volume upper,
-    and the triangles of every named physical surface."""
+#: ``grade(gmsh, curves, size, mu, length)``: a background size field graded towards the model's ``curves``
+#: (:func:`ddsolve.mesh.solid.build` gives the box's).
+Grading = Callable[[object, list[int], float, float, float], None]
+
+
+def read(scene: Scene, grade: Grading) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """The scene's 3-D gmsh file meshed (.geo, with ``mesh.size`` as the largest element, graded by ``grade``
+    towards the crack fronts with ``mesh.grading``) or read (.msh) by gmsh in a child process, and checked
+    (:func:`checked`): its nodes, its tetrahedra, whether each lies in the volume upper, and the triangles of every
+    named physical surface."""
     from ddsolve.mesh.gmsh_io import apart
 
     path, options = scene.mesh.file, scene.mesh
-    points, tetrahedra, upper, surfaces = apart(_read, path, options.kind == "geo", options.size)
+    sizes = (options.size, options.grading, grade) if options.kind == "geo" else None
+    points, tetrahedra, upper, surfaces = apart(_read, path, sizes)
     checked(points, tetrahedra, upper, surfaces, str(path))
     return points, tetrahedra, upper, surfaces
 
 
-def _read(path: Path, geo: bool, size: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
-    """In gmsh: the file opened (a .geo meshed in 3-D), its nodes, the tetrahedra of the volumes lower and upper,
-    whether each lies in upper, and the triangles (vertices) of every named physical surface."""
+def _read(path: Path, sizes: tuple[float | None, float | None, Grading] | None
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
+    """In gmsh: the file opened (a .geo meshed in 3-D with ``sizes``: :func:`_meshed`), its nodes, the tetrahedra of
+    the volumes lower and upper, whether each lies in upper, and the triangles (vertices) of every named physical
+    surface."""
     from ddsolve.mesh.gmsh_io import open_file, session
 
     where = str(path)
@@ -50,25 +60,42 @@ def _read(path: Path, geo: bool, size: float | None) -> tuple[np.ndarray, np.nda
         for name in ("General.NumThreads", "Mesh.MaxNumThreads2D", "Mesh.MaxNumThreads3D"):
             gmsh.option.setNumber(name, 1)  # the same mesh on every rank
         open_file(gmsh, path)
-        if geo:
-            if size is not None:
-                gmsh.option.setNumber("Mesh.MeshSizeMax", size)
-            try:
-                gmsh.model.mesh.generate(3)
-            except Exception as exc:  # gmsh raises a bare Exception with its last error
-                raise MeshError(f"{where}: gmsh cannot mesh it ({' '.join(str(exc).split())})") from None
-        tags, coordinates, _ = gmsh.model.mesh.getNodes()
-        position = node_positions(tags)
         groups: dict[tuple[int, str], list[int]] = {}
         for dim, tag in gmsh.model.getPhysicalGroups():
             groups.setdefault((dim, gmsh.model.getPhysicalName(dim, tag)), []).extend(
                 int(entity) for entity in gmsh.model.getEntitiesForPhysicalGroup(dim, tag))
+        if sizes is not None:
+            _meshed(gmsh, groups, *sizes, where)
+        tags, coordinates, _ = gmsh.model.mesh.getNodes()
+        position = node_positions(tags)
         cells = [_elements(gmsh, groups.get((3, name), []), 3, position, where) for name in REGIONS]
         surfaces = {name: _elements(gmsh, entities, 2, position, where) for (dim, name), entities in groups.items()
                     if dim == 2 and name}
     points = np.asarray(coordinates, dtype=np.float64).reshape(-1, 3)
     upper = np.repeat([False, True], [len(cells[0]), len(cells[1])])
     return points, np.concatenate(cells), upper, surfaces
+
+
+def _meshed(gmsh, groups: dict[tuple[int, str], list[int]], size: float | None, grading: float | None,
+            grade: Grading, where: str) -> None:
+    """The .geo meshed in 3-D: elements of at most ``size``, graded towards the crack fronts (the curves bounding
+    the surface crack but not the surface sigma) with exponent ``grading`` by ``grade``."""
+    if size is not None:
+        gmsh.option.setNumber("Mesh.MeshSizeMax", size)
+    if grading is not None:
+        def bounding(name: str) -> set[int]:
+            entities = [(2, entity) for entity in groups.get((2, name), [])]
+            return {abs(tag) for _, tag in gmsh.model.getBoundary(entities, combined=True, oriented=False)} \
+                if entities else set()
+        front = sorted(bounding(CRACK) - bounding(SIGMA))
+        corners = np.array([gmsh.model.getValue(0, tag, []) for _, tag in gmsh.model.getEntities(0)])
+        extent = np.ptp(corners, axis=0)  # the span of its points (OpenCASCADE's bounding boxes are padded)
+        if front:
+            grade(gmsh, front, size, grading, float(min(extent[0], extent[1])))
+    try:
+        gmsh.model.mesh.generate(3)
+    except Exception as exc:  # gmsh raises a bare Exception with its last error
+        raise MeshError(f"{where}: gmsh cannot mesh it ({' '.join(str(exc).split())})") from None
 
 
 def _elements(gmsh, entities: list[int], dim: int, position: np.ndarray, where: str) -> np.ndarray:

@@ -20,7 +20,7 @@ SOLID_SIDES = SIDES + DEPTH_SIDES
 #: or the plane mesh of the section extruded in ``mesh.extrude`` layers.
 SOLID_MESH_KEYS = ("size", "degree", "grading", "extrude")
 #: The mesh keys a 3-D gmsh file takes: the file, a .geo's largest element size and the degree.
-SOLID_FILE_MESH_KEYS = ("file", "size", "degree")
+SOLID_FILE_MESH_KEYS = ("file", "size", "degree", "grading")
 #: A 3-D gmsh file's physical surfaces of fixed meaning: Σ (the plane y = const between the volumes lower and
 #: upper), the cracks on it, and the clamped boundary.
 SIGMA, CRACK, CLAMPED = "sigma", "crack", "clamped"
@@ -120,11 +120,16 @@ def _refuse_plane_only(data: dict, raw: dict, origin: str, file: bool = False) -
     other = next((name for name in written if name not in keys), None)
     if other is not None:
         raise SceneError(f"{origin}: mesh.{other}: a 3-D " + (
-            "gmsh file is meshed (.geo) or read (.msh) with mesh.file, mesh.size and mesh.degree only, for now"
+            "gmsh file is meshed (.geo) or read (.msh) with mesh.file, mesh.size, mesh.degree and mesh.grading only, "
+            "for now"
             if file else "box is meshed with tetrahedra of about mesh.size (mesh.size, mesh.grading, mesh.degree "
             "and mesh.extrude only, for now)"))
     grading = data["mesh"]["grading"]
     data["mesh"]["grading"] = GRADING[data["mesh"]["degree"]] if grading is True else (None if grading is False else grading)
+    if file and data["mesh"]["grading"] is not None and not (data["mesh"]["size"] and
+                                                             str(data["mesh"]["file"]).lower().endswith(".geo")):
+        raise SceneError(f"{origin}: mesh.grading: grades a .geo's tetrahedra from mesh.size towards the crack fronts: "
+                         "give mesh.size with a .geo (a .msh is read as it is)")
     if data["materials"]["model"] != "plane_strain":
         raise SceneError(f"{origin}: materials.model: a 3-D body has no plane model (leave it out)")
     for (section, key), why in NOT_YET.items():
