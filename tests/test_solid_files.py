@@ -37,6 +37,8 @@ def test_the_scene_reads_the_file_s_groups_and_refuses_what_does_not_fit(tmp_pat
            "box6": (geo, "[geometry]\nbox = [-1.0, 1.0, -1.0, 1.0, 0.0, 0.5]\n", "geometry.box: the file is a 3-D"),
            "unsized": (geo, "", "mesh.grading: grades a .geo's tetrahedra from mesh.size"),
            "extruded": (geo, "", "mesh.extrude: a 3-D gmsh file is meshed"),
+           "normal": (geo, "[displacements.layer1.bottom]\nnormal = 0.0\n",
+                      "displacements.layer1.bottom.normal: on a 3-D file's surfaces give the x, y and z"),
            "lid": (geo, "", "loads.layer1.lid: no physical surface 'lid' in mesh.file (its boundaries: clamped, bottom")}
     for name, (text, head, message) in bad.items():
         (tmp_path / f"{name}.geo").write_text(text)
@@ -68,8 +70,8 @@ def written_msh(geo: Path, size: float, version: float, target: Path) -> None:
 @pytest.mark.solve
 def test_the_strip_file_gives_the_box_s_tetrahedra_and_energy_as_geo_and_msh(tmp_path):
     """The .geo is built as the box is: at the same mesh.size the same tetrahedra, Σ, crack vertices and front, the
-    same energy to round-off, graded towards the front too; gmsh's .msh of it (2.2 and 4.1) give the same energy
-    (coordinates as printed)."""
+    same energy to round-off (also with the loads as pressures on the file's surfaces), graded towards the front
+    too; gmsh's .msh of it (2.2 and 4.1) give the same energy (coordinates as printed)."""
     from ddsolve.mesh import solid
     from ddsolve.mesh.gmsh_io import apart
     from ddsolve.solvers import solid as solid_solver
@@ -84,9 +86,12 @@ def test_the_strip_file_gives_the_box_s_tetrahedra_and_energy_as_geo_and_msh(tmp
     for half, other in zip(*(mesh.halves for mesh in meshes)):
         assert all(np.array_equal(np.unique(half.faces[side], axis=0), np.unique(other.faces[side], axis=0))
                    for side in ("bottom", "top", "front", "back"))
-    energies = [solid_solver.solve_solid(scene, mesh) for scene, mesh in zip((box, file), meshes)]
+    pressed = loads(STRIP.read_text().replace("y = [0.0, 0.078125]", "pressure = [0.0, 0.078125]")
+                    .replace("y = [0.0, -0.078125]", "pressure = [0.0, 0.078125]"), [f"mesh.size={SIZE}"], base=DOCS)
+    energies = [solid_solver.solve_solid(scene, mesh) for scene, mesh in zip((box, file, pressed), meshes + meshes[1:])]
     assert all(result.converged and result.closed == 4 for result in energies)
-    assert abs(energies[1].energy - energies[0].energy) <= 1e-12 * abs(energies[0].energy)
+    for result in energies[1:]:  # the pressures along the file's surfaces' normals are the box's tractions
+        assert abs(result.energy - energies[0].energy) <= 1e-12 * abs(energies[0].energy)
     graded = [three_d.scene_of("partial closure", 0.2, 3).with_({"mesh.grading": True}),
               load(STRIP, ["mesh.size=0.2", "mesh.grading=true"])]  # the box's size field about the file's front
     results = [solid_solver.solve_solid(scene, solid.build(scene)) for scene in graded]

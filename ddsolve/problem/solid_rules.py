@@ -214,9 +214,9 @@ def _boundary_checks(data: dict, origin: str, sides: tuple[str, ...]) -> None:
                 given = [part for part, value in table.items() if value is not None and part != "point"]
                 if table.get("point") is not None:
                     raise SceneError(f"{origin}: {key}.point: point supports are not available in 3-D yet")
-                if exclusive in given and sides != SOLID_SIDES:
-                    raise SceneError(f"{origin}: {key}.{exclusive}: on a 3-D file's surfaces give the x, y and z "
-                                     f"components (a {exclusive} along the surface's normal is not available yet)")
+                if section == "displacements" and exclusive in given and sides != SOLID_SIDES:
+                    raise SceneError(f"{origin}: {key}.normal: on a 3-D file's surfaces give the x, y and z "
+                                     "components (a displacement along the surface's normal is not available yet)")
                 if exclusive in given and len(given) > 1:
                     raise SceneError(f"{origin}: {key}: {exclusive} excludes x, y and z")
                 if section == "displacements" and (name in clamped or not given):
