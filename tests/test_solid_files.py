@@ -39,7 +39,8 @@ def test_the_scene_reads_the_file_s_groups_and_refuses_what_does_not_fit(tmp_pat
            "extruded": (geo, "", "mesh.extrude: a 3-D gmsh file is meshed"),
            "normal": (geo, "[displacements.layer1.bottom]\nnormal = 0.0\n",
                       "displacements.layer1.bottom.normal: on a 3-D file's surfaces give the x, y and z"),
-           "lid": (geo, "", "loads.layer1.lid: no physical surface 'lid' in mesh.file (its boundaries: clamped, bottom")}
+           "lid": (geo, "", "loads.layer1.lid: no physical surface 'lid' in mesh.file (its boundaries: clamped, "
+                            "bottom")}
     for name, (text, head, message) in bad.items():
         (tmp_path / f"{name}.geo").write_text(text)
         scene = strip_text(f"{name}.geo").replace("[loads.layer1.top]", "[loads.layer1.lid]" if name == "lid"
@@ -123,10 +124,9 @@ def test_the_penny_file_gives_the_box_ellipse_s_g_and_a_crack_off_sigma_or_a_cur
                                                   .replace("b + e, ys + e", "x1 + e, y1 + e")))  # the top face
     with pytest.raises(MeshError, match="off.geo: physical surface crack does not lie on sigma"):
         solid.build(loads(strip_text("off.geo"), base=tmp_path).with_({"mesh.size": 0.5}))
-    (tmp_path / "tilted.geo").write_text(geo.replace("BooleanFragments{ Volume{1, 2}; Delete; }{ Surface{s}; Delete; }",
-                                                     "Rotate {{0, 0, 1}, {0, 0, 0}, 0.1} { Volume{1, 2}; Surface{s}; }\n"
-                                                     "BooleanFragments{ Volume{1, 2}; Delete; }{ Surface{s}; Delete; }")
-                                         .replace("e = 1e-6;", "e = 0.2;"))
+    fragments = "BooleanFragments{ Volume{1, 2}; Delete; }{ Surface{s}; Delete; }"
+    turned = "Rotate {{0, 0, 1}, {0, 0, 0}, 0.1} { Volume{1, 2}; Surface{s}; }\n" + fragments  # Σ tilted by 0.1
+    (tmp_path / "tilted.geo").write_text(geo.replace(fragments, turned).replace("e = 1e-6;", "e = 0.2;"))
     with pytest.raises(MeshError, match="tilted.geo: physical surface sigma is not a plane y = const"):
         solid.build(loads(strip_text("tilted.geo"), base=tmp_path).with_({"mesh.size": 0.5}))
 

@@ -147,7 +147,8 @@ def _sigma_height(points: np.ndarray, tetrahedra: np.ndarray, upper: np.ndarray,
                         f"{y.max():g}): a curved or tilted Σ is not solved in 3-D yet")
     height = float(np.mean(y))
     height = 0.0 if abs(height) <= tolerance else height  # gmsh's rotated planes: y within round-off of 0
-    if points[tetrahedra[~upper], 1].max() > height + tolerance or points[tetrahedra[upper], 1].min() < height - tolerance:
+    below, above = points[tetrahedra[~upper], 1], points[tetrahedra[upper], 1]
+    if below.max() > height + tolerance or above.min() < height - tolerance:
         raise MeshError(f"{where}: the volume lower must lie below sigma (y = {height:g}) and upper above it")
     return height
 
