@@ -19,7 +19,7 @@ SOLID_SIDES = SIDES + DEPTH_SIDES
 #: The mesh keys a 3-D box takes: tetrahedra of about ``mesh.size`` (P1 or P2), graded towards the crack fronts,
 #: or the plane mesh of the section extruded in ``mesh.extrude`` layers.
 SOLID_MESH_KEYS = ("size", "degree", "grading", "extrude")
-#: The mesh keys a 3-D gmsh file takes: the file, a .geo's largest element size and the degree.
+#: The mesh keys a 3-D gmsh file takes: the file, a .geo's largest element size and its grading, the degree.
 SOLID_FILE_MESH_KEYS = ("file", "size", "degree", "grading")
 #: A 3-D gmsh file's physical surfaces of fixed meaning: Σ (the plane y = const between the volumes lower and
 #: upper), the cracks on it, and the clamped boundary.
