@@ -10,6 +10,8 @@ docs/three-d-dcb.png, docs/three-d-ellipse.png.
 * An elliptical delamination, semi-axes a = ½ along x and b = ¼ along z, in the penny's quarter-model box
   (docs/three-d-front.md): G against Irwin's K_I(φ) = σ√(πb/a) (a² sin²φ + b² cos²φ)^¼ / E(k), k² = 1 − b²/a²,
   G = (1 − ν²) K_I² / E, φ the ellipse's parametric angle from the major axis.
+* G under a temperature change: docs/three-d.md's scene extruded with rollers, the two materials' expansions and a
+  ΔT varying in x, against the plane G of the same heated scene.
 """
 from __future__ import annotations
 
@@ -48,6 +50,9 @@ nu = {nu}
 y = "2*y"
 {rollers}
 """
+#: The heated extruded scene: its load case, the expansions (below, above Σ), the temperature change, the 3-D run
+#: (mesh.size, degree).
+HEAT = {"case": "opening", "alpha": (2e-5, 1e-5), "change": "100 + 50 * x", "run": (0.14, 2)}
 #: The ellipse's semi-axes (x, z), its box's half-side and P2 mesh.size.
 ELLIPSE, ELLIPSE_BOX, ELLIPSE_SIZE = (0.5, 0.25), 2.0, 0.15
 
@@ -222,10 +227,52 @@ def plot_ellipse(measured: dict) -> None:
     plt.close(fig)
 
 
+def heated(scene):
+    """``scene`` (docs/three-d.md's, plane or extruded) with the two materials' expansions and HEAT."""
+    lower, upper = HEAT["alpha"]
+    text = scene.text.replace("nu = 0.28\n", f"nu = 0.28\nalpha = {lower!r}\n").replace(
+        "nu = 0.32\n", f"nu = 0.32\nalpha = {upper!r}\n")
+    return loads(text + f'\n[temperature]\nlayer1 = "{HEAT["change"]}"\n')
+
+
+def measure_thermal() -> dict:
+    """The heated extruded scene's G(z) against the heated plane G (plane strain, graded P2)."""
+    plane_scene = heated(three_d.scene_of(HEAT["case"], PLANE_SIZE, 2, graded=True))
+    plane = fracture.evaluate(plane_reference.solve_monolithic(plane_scene, geometry.build(plane_scene))).G
+    size, degree = HEAT["run"]
+    scene = heated(three_d.scene_of(HEAT["case"], size, 3)).with_({"mesh.grading": three_d_front.GRADING,
+                                                                  "mesh.degree": degree})
+    result, released, unknowns, seconds = three_d_front.solved(scene)
+    return {"plane": plane, "closed": result.closed, "unknowns": unknowns, "seconds": seconds,
+            "ratios": [three_d_front.interior_ratios(released, plane, tip) for tip in (0, 1)]}
+
+
+def thermal_text(measured: dict) -> list[str]:
+    """The heated extruded scene's table."""
+    lower, upper = HEAT["alpha"]
+    size, degree = HEAT["run"]
+    return ["## G under a temperature change", "",
+            "Under `temperature.layer1` the G-θ integral takes the eigenstrain ε₀ = α ΔT as the plane code does "
+            "(ddsolve.post.fracture): σ = D (ε − ε₀), W = ½ σ:(ε − ε₀), and the term ∫ σ:(∂ε₀/∂x_k) θ_k dV of a "
+            "temperature that varies in space (Shih, Moran and Nakamura 1986), ∇ΔT from ΔT at the nodes; it is "
+            "the derivative of the discrete energy as the nodes move (tests/test_front.py, with a ΔT linear in x, "
+            "y and z), and a free thermal expansion adds nothing to G.  Modes are split when the eigenstrain is "
+            "its own mirror image about Σ (then it is all mode I).", "",
+            f"docs/three-d.md's {HEAT['case']} scene extruded with rollers as above, heated by ΔT = "
+            f"{HEAT['change']} with α = {lower:g} below Σ and {upper:g} above, against the plane-strain G of the same "
+            f"heated scene at graded P2 (mesh.size {PLANE_SIZE:g}): "
+            f"{measured['plane'][0]:.6e} at the left tip, {measured['plane'][1]:.6e} at the right.  P{degree} at "
+            f"mesh.size {size:g}, grading {three_d_front.GRADING:g}: {measured['unknowns']} unknowns, "
+            f"{measured['closed']} closed Σ vertices, {measured['seconds']:.1f} s.", "",
+            "| front | mean G / G_plane | lowest | highest |", "|---|---|---|---|",
+            *(f"| {side} | {ratios.mean():.4f} | {ratios.min():.4f} | {ratios.max():.4f} |"
+              for side, ratios in zip(("left", "right"), measured["ratios"])), ""]
+
+
 def three_d_shapes() -> None:
     """Measure, and rewrite docs/three-d-front.md's shapes section and its pictures."""
-    dcb_measured, ellipse_measured = measure_dcb(), measure_ellipse()
+    dcb_measured, ellipse_measured, thermal_measured = measure_dcb(), measure_ellipse(), measure_thermal()
     plot_dcb(dcb_measured)
     plot_ellipse(ellipse_measured)
-    report.section(PAGE, "shapes", "\n".join(dcb_text(dcb_measured) + ellipse_text(ellipse_measured)))
-    print(f"wrote {PAGE}")
+    report.section(PAGE, "shapes", "\n".join(dcb_text(dcb_measured) + ellipse_text(ellipse_measured)
+                                             + thermal_text(thermal_measured)))
