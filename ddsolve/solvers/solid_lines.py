@@ -29,3 +29,15 @@ def front_line(fracture: FrontRelease, seconds: float) -> str:
     """How many front nodes on how many fronts G was computed at, and its seconds."""
     return (f"G along the crack fronts: {len(fracture.G):,} nodes on {len(np.unique(fracture.front))} "
             f"front{'s' if len(np.unique(fracture.front)) != 1 else ''}, {seconds:.1f} s")
+
+
+#: The phases of a 3-D solve in the order they run (the reference's merge, factorization and solve; the
+#: decomposition's setup, assembly and factorization).
+PHASE_ORDER = ("meshing", "setup", "merge", "assembly", "factorization", "solve", "fracture")
+
+
+def phases_line(timings: dict[str, float]) -> str:
+    """The solve's phases in the order they ran, in seconds (rank 0's clock), as the plane launch line lists its."""
+    names = sorted((name for name in timings if name != "total"),
+                   key=lambda name: PHASE_ORDER.index(name) if name in PHASE_ORDER else len(PHASE_ORDER))
+    return "phases (s): " + ", ".join(f"{name} {timings[name]:.2f}" for name in names)
