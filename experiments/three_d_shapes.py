@@ -284,6 +284,26 @@ def thermal_text(measured: dict) -> list[str]:
               for side, ratios in zip(("left", "right"), measured["ratios"])), ""]
 
 
+def summary(dcb_measured: dict, ellipse_measured: dict, thermal_measured: dict) -> list[str]:
+    """The numbers the command prints: G at the DCB's centre and edge and its width average, the ellipse's and
+    the heated scene's ratios."""
+    plane = dcb_measured["plane"]
+    lines = []
+    for run in dcb_measured["runs"]:
+        f = run["released"]
+        order = np.argsort(f.points[:, 2])
+        lines.append(f"DCB W/h = {2 * run['half'] / ARM:g}, P2 mesh.size {run['size']:g}: G centre "
+                     f"{f.G[order[0]]:.2f}, edge {f.G[order[-1]]:.2f}, width average {run['average']:.2f} "
+                     f"({run['average'] / plane['plane_strain']:.4f} of plane strain, "
+                     f"{run['average'] / plane['plane_stress']:.4f} of plane stress)")
+    ratios = [(f"ellipse, θ radii {name}", f.G / ellipse_measured["irwin"], "Irwin")
+              for name, f in ellipse_measured["released"].items()]
+    ratios += [(f"heated extruded scene, {side} front", values, "the plane G")
+               for side, values in zip(("left", "right"), thermal_measured["ratios"])]
+    return lines + [f"{what}: G / {against} mean {values.mean():.4f}, from {values.min():.4f} to {values.max():.4f}"
+                    for what, values, against in ratios]
+
+
 def three_d_shapes() -> None:
     """Measure, and rewrite docs/three-d-front.md's shapes section and its pictures."""
     dcb_measured, ellipse_measured, thermal_measured = measure_dcb(), measure_ellipse(), measure_thermal()
@@ -291,3 +311,4 @@ def three_d_shapes() -> None:
     plot_ellipse(ellipse_measured)
     report.section(PAGE, "shapes", "\n".join(dcb_text(dcb_measured) + ellipse_text(ellipse_measured)
                                              + thermal_text(thermal_measured)))
+    print("\n".join(summary(dcb_measured, ellipse_measured, thermal_measured)))
