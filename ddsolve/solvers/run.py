@@ -69,7 +69,7 @@ def reference(scene: Scene, output: Path | None = None, progress: Callable[[str]
     NotConvergedError, with the result, when its final check fails.  The critical load factors of a scene
     with a toughness and a temperature change come from reference solves of the scaled scene."""
     if scene.geometry.dimension == 3:
-        return _converged(solid.reference(scene, output))
+        return _converged(solid.reference(scene, output, progress))
     _before_work(scene)
     monolithic.refuse_friction(scene)
     monolithic.refuse_bond(scene)

@@ -46,7 +46,7 @@ from ddsolve.parallel.launch import supported, usable
 from ddsolve.parallel.rounds import BlockServer
 from ddsolve.post.solid import SolidResult
 from ddsolve.problem.scene import Scene
-from ddsolve.solvers import driver, solid
+from ddsolve.solvers import driver, solid, solid_lines
 from ddsolve.solvers.reference import Joint
 from ddsolve.solvers.stacked_dd import trace_layout
 
@@ -203,13 +203,14 @@ def modulus_of(scene: Scene, mesh: SolidMesh) -> float:
 
 def decomposition(scene: Scene, mesh: SolidMesh, count: int) -> Decomposition | None:
     """The box's blocks with ``count`` slabs per half, None where that many do not fit both halves."""
-    cut = [slabs.slabs(half, scene.geometry.sigma, count) for half in mesh.halves]
+    sigma = float(mesh.sigma.points[0, 1])  # Σ is the plane y = sigma (a box's, or a file's)
+    cut = [slabs.slabs(half, sigma, count) for half in mesh.halves]
     if any(pieces is None for pieces in cut):
         return None
     (lower, lower_cuts), (upper, upper_cuts) = cut
     ordered = [slab for pair in zip(lower, upper) for slab in pair]
-    sigma = interface_of(scene, mesh)
-    joints = [Joint(sigma, (0, 1), (trace_dofs(lower[0].piece), trace_dofs(upper[0].piece)))]
+    surface = interface_of(scene, mesh)
+    joints = [Joint(surface, (0, 1), (trace_dofs(lower[0].piece), trace_dofs(upper[0].piece)))]
     points = [mesh.sigma.points]
     values = []
     for slab in ordered:  # each block's prescribed values, NaN where free
@@ -231,7 +232,7 @@ def decomposition(scene: Scene, mesh: SolidMesh, count: int) -> Decomposition | 
     supports = [(np.flatnonzero(~np.isnan(v)), v[~np.isnan(v)]) for v in values]
     names = [f"{spec.name}{f'_{j}' if j else ''}" for j in range(count) for spec in block_list(1)]
     specs = tuple(BlockSpec(name, "layer1", -1 if block % 2 == 0 else 1) for block, name in enumerate(names))
-    interface = sigma if count == 1 else Interface.joined([joint.interface for joint in joints],
+    interface = surface if count == 1 else Interface.joined([joint.interface for joint in joints],
                                                           [joint.blocks for joint in joints], specs)
     return Decomposition(ordered, supports, specs, joints, np.vstack(points), interface)
 
@@ -287,13 +288,16 @@ def auto_pieces(mesh: SolidMesh) -> int:
     return int(min(MOST_SLABS, 2 ** round(math.log2(per_half / SLAB_UNKNOWNS))))
 
 
-def prepare(scene: Scene, comm: MPI.Comm, mesh: SolidMesh | None = None) -> SolidSetup:
+def prepare(scene: Scene, comm: MPI.Comm, progress=None, mesh: SolidMesh | None = None) -> SolidSetup:
     """Build the mesh on rank 0 (unless every rank is given it), broadcast it, cut it into blocks, assemble and
-    factor every rank's blocks (collective: the refusals too)."""
+    factor every rank's blocks (collective: the refusals too); rank 0's ``progress`` lines after the mesh and after
+    the factorization."""
     started = time.perf_counter()
     if mesh is None:
         mesh = comm.bcast(collective(comm, lambda: solid_meshes.build(scene), root_only=True), root=0)
     meshed = time.perf_counter()
+    if progress is not None and comm.rank == 0:
+        progress(solid_lines.mesh_line(mesh, meshed - started))
     parts = collective(comm, lambda: pieces_of(scene, mesh, comm.size))
     if not supported(comm.size, len(parts.slabs)):
         error = DDSolveError(f"unsupported number of ranks {comm.size}: use {usable(len(parts.slabs))} (the "
@@ -334,11 +338,20 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: SolidMesh | None = None) -> Soli
 
     blocks = collective(comm, make)
     timings["factorization"] = time.perf_counter() - meshed - timings["setup"] - timings["assembly"]
+    if progress is not None and comm.rank == 0:
+        progress(solid_lines.factored_line(f"rank 0's blocks ({describe(scene, parts)})", timings))
     local = {index: positions[index] for index in exchange.local_blocks} if parts.count > 1 else None
     stiffness = trace_stiffness(comm.gather(entries, root=0), len(parts.slabs), parts.interface.trace_size) \
         if lumped else None
     return SolidSetup(scene, mesh, parts, exchange, blocks, local, parts.interface, held, stages, timings, stiffness)
 
+
+def describe(scene: Scene, parts: Decomposition) -> str:
+    """The method, and the slabs and feti's preconditioner where the halves are cut, for the progress lines."""
+    if parts.count == 1:
+        return scene.solver.method
+    lumped = f", {scene.solver.preconditioner} preconditioner" if scene.solver.method == "feti" else ""
+    return f"{scene.solver.method}, {parts.count} slabs per half{lumped}"
 
 def trace_stiffness(gathered: list | None, count: int, size: int) -> list[scipy.sparse.csr_matrix] | None:
     """Rank 0: each of the ``count`` blocks' K_ΣΣ on the structure's trace (``size``) from every rank's ``gathered``
@@ -374,11 +387,11 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
     ``output`` and its VTU files written (:func:`ddsolve.io.solid.write`).  The result on rank 0 (None elsewhere); a method that does not converge
     writes its result with converged = false and raises NotConvergedError on every rank, with the result."""
     started = time.perf_counter()
-    setup = prepare(scene, comm, mesh)
+    setup = prepare(scene, comm, progress, mesh)
     try:
         def made(outcome, rounds, fields: list[np.ndarray]) -> SolidResult:
             result = finished(setup, outcome, rounds, fields)
-            solid.with_fracture(result)
+            solid.with_fracture(result, progress)
             return result
 
         return driver.gathered_solve(setup, BlockServer(setup.blocks, setup.exchange, positions=setup.positions),
