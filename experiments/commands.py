@@ -78,17 +78,20 @@ def cmd_bench(args, petsc_options) -> int:
         contact.contact(output)
         print(f"wrote {output}, docs/methods.md (bench-contact section), docs/bench-contact.png")
         return 0
-    from experiments import bench
+    from experiments import bench, bench_solid
 
     if args.what == "factor":
         init_petsc(petsc_options)
         for P, M in meshes(args.meshes or "200:256"):
             bench.factor(P, M)
-    elif args.what == "baseline":
-        output = Path(args.output or "results/bench-baseline.h5")
-        bench.baseline(meshes(args.meshes or "400:512,800:1024"), ranks=args.ranks, repeats=args.repeats,
-                       busy=args.busy, output=output)
-        print(f"wrote {output}, docs/methods.md (bench-baseline section)")
+    elif args.what in ("baseline", "baseline-3d"):
+        if args.what == "baseline":
+            output = Path(args.output or "results/bench-baseline.h5")
+            bench.baseline(meshes(args.meshes or "400:512,800:1024"), ranks=args.ranks, repeats=args.repeats,
+                           busy=args.busy, output=output)
+            print(f"wrote {output}, docs/methods.md (bench-baseline section)")
+        bench_solid.baseline(args.size or bench_solid.SIZE, repeats=args.repeats)
+        print("wrote results/bench-baseline-3d.json, docs/methods.md (bench-baseline-3d section)")
     else:
         args.output = args.output or "results/bench-methods.h5"
         bench.methods(meshes(args.meshes), Path(args.output), Path("docs"))
@@ -112,11 +115,13 @@ def parser() -> argparse.ArgumentParser:
     for name, (_, _, summary, written) in EXPERIMENTS.items():
         sub.add_parser(name, description=f"{summary}; writes {written}").set_defaults(run=cmd_experiment)
     summary = ("`bench methods`: every method and tolerance; `bench baseline`: the default method against one MUMPS "
-               "factorization of the whole problem; `bench contact`: every method against the length of Σ in contact "
+               "factorization of the whole problem, plane and 3-D (`bench baseline-3d`: the 3-D case alone); `bench contact`: every method against the length of Σ in contact "
                "(ENF, ELS, a closed strip); `bench factor`: block factorizations")
     p = sub.add_parser("bench", description=summary)
     p.set_defaults(run=cmd_bench)
-    p.add_argument("what", choices=("methods", "baseline", "contact", "factor"))
+    p.add_argument("what", choices=("methods", "baseline", "baseline-3d", "contact", "factor"))
+    p.add_argument("--size", type=float, help="mesh.size of the 3-D case of `bench baseline` and `bench baseline-3d` "
+                   "(default 0.026: about 0.3 M unknowns)")
     p.add_argument("--meshes", help="comma-separated P:M pairs (default: Table 1 and 400:512; baseline: "
                    "400:512,800:1024)")
     p.add_argument("-n", dest="ranks", type=int, metavar="N",

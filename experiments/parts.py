@@ -13,6 +13,8 @@ from ddsolve.parallel.runtime import guarded, init_petsc, split_arguments
 PARTS = {
     "bench-mesh": ("bench", "bench_mesh", (("plan", str), ("P", int), ("M", int))),
     "bench-baseline": ("bench", "bench_baseline", (("name", str), ("P", int), ("M", int), ("repeats", int))),
+    "bench-baseline-3d": ("bench_solid", "bench_solid", (("size", float), ("repeats", int))),
+    "bench-memory-3d": ("bench_solid", "memory", (("side", str), ("size", float))),
     "theta-mesh": ("paper", "theta_mesh", (("P", int), ("M", int), ("scene", str))),
     "accuracy-family": ("accuracy", "family_run", (("scene", str), ("family", str), ("degree", int))),
     "scaling-network": ("scaling", "network", ()),

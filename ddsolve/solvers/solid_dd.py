@@ -58,7 +58,7 @@ SCHUR_COPIES = 8
 #: The share of this machine's memory ``schur``'s dense matrices may take (above it: refused, ``auto`` takes feti).
 SCHUR_MEMORY_SHARE = 0.5
 #: ``solver.pieces = auto``: about this many unknowns per slab, and at most this many slabs per half.
-SLAB_UNKNOWNS = 16000
+SLAB_UNKNOWNS = 32000
 MOST_SLABS = 16
 
 
@@ -124,7 +124,7 @@ def kernels_of(scene: Scene, parts: Decomposition) -> kernels.Kernels:
 
 
 def method_of(scene: Scene, parts: Decomposition, held: kernels.Kernels) -> Scene:
-    """The scene with ``auto`` resolved (``schur`` while its dense matrices fit, :func:`schur_bytes`, on one slab
+    """The scene with ``auto`` resolved, and the slabs per half of ``parts`` (``schur`` while its dense matrices fit, :func:`schur_bytes`, on one slab
     per half, else ``feti``; feti's preconditioner lumped on slabs, Dirichlet's on halves); in one line, what this solve does not take: ``schur`` above that limit, a floating
     block (kernels ``held``) with a method that cannot solve it (friction and bonds the scene refuses)."""
     method = registry.METHODS.get(scene.solver.method)
@@ -143,7 +143,7 @@ def method_of(scene: Scene, parts: Decomposition, held: kernels.Kernels) -> Scen
     preconditioner = scene.solver.preconditioner
     if preconditioner == "auto":
         preconditioner = "lumped" if parts.count > 1 else "dirichlet"
-    return dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, method=method,
+    return dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, method=method, pieces=parts.count,
                                                                  preconditioner=preconditioner))
 
 
