@@ -12,13 +12,13 @@ from ddsolve.problem import materials
 from ddsolve.problem.reading import printable
 from ddsolve.problem.rules import check_apart, solver_checks
 from ddsolve.problem.shapes import Ellipse, bounds
-from ddsolve.problem.schema import DEPTH_SIDES, GRADING, SIDES, layer_material
+from ddsolve.problem.schema import ADAPTIVE_DEGREE, DEPTH_SIDES, GRADING, SIDES, layer_material
 
 #: The boundaries a 3-D box names (loads and supports act on them).
 SOLID_SIDES = SIDES + DEPTH_SIDES
 #: The mesh keys a 3-D box takes: tetrahedra of about ``mesh.size`` (P1 or P2), graded towards the crack fronts,
-#: or the plane mesh of the section extruded in ``mesh.extrude`` layers.
-SOLID_MESH_KEYS = ("size", "degree", "grading", "extrude")
+#: or the plane mesh of the section extruded in ``mesh.extrude`` layers; or meshed again to ``mesh.target_error``.
+SOLID_MESH_KEYS = ("size", "degree", "grading", "extrude", "target_error")
 #: Elements per shortest side of the box when the scene gives no ``mesh.size``.
 DEFAULT_ELEMENTS = 4
 #: The fracture keys a 3-D box takes: θ's radii about the crack fronts (:mod:`ddsolve.post.front`).
@@ -76,6 +76,8 @@ def _refuse_plane_only(data: dict, raw: dict, origin: str) -> None:
     if other is not None:
         raise SceneError(f"{origin}: mesh.{other}: a 3-D box is meshed with tetrahedra of about mesh.size "
                          "(mesh.size, mesh.grading, mesh.degree and mesh.extrude only, for now)")
+    if data["mesh"]["target_error"] is not None:
+        _adaptive_defaults(data["mesh"], written, origin)
     grading = data["mesh"]["grading"]
     data["mesh"]["grading"] = GRADING[data["mesh"]["degree"]] if grading is True else (None if grading is False else grading)
     if data["materials"]["model"] != "plane_strain":
@@ -90,6 +92,18 @@ def _refuse_plane_only(data: dict, raw: dict, origin: str) -> None:
     if other is not None:
         raise SceneError(f"{origin}: fracture.{printable(other)}: G along a 3-D crack front takes fracture.inner and "
                          "fracture.outer only (θ's radii), for now")
+
+
+def _adaptive_defaults(mesh: dict, written: dict, origin: str) -> None:
+    """``mesh.target_error`` re-meshes the box with gmsh: not an extruded plane mesh; alone it chooses P2 and a
+    first mesh graded towards the crack fronts, as in the plane."""
+    if mesh["extrude"] is not None:
+        raise SceneError(f"{origin}: mesh.target_error: a 3-D box is refined by meshing it again with gmsh, and "
+                         "mesh.extrude extrudes a fixed plane section: leave one of them out")
+    if "degree" not in written:
+        mesh["degree"] = ADAPTIVE_DEGREE
+    if "grading" not in written:
+        mesh["grading"] = True
 
 
 def _check_on_sigma(crack: tuple[float, ...] | Ellipse, box: tuple[float, ...], key: str, origin: str) -> None:

@@ -153,9 +153,9 @@ def interface_of(scene: Scene, mesh: SolidMesh) -> Interface:
                      specs=block_list(1), components=COMPONENTS)
 
 
-def prepare(scene: Scene, comm: MPI.Comm) -> SolidSetup:
-    """Build the mesh on rank 0, broadcast it, assemble and factor every rank's blocks (collective: the refusals
-    too)."""
+def prepare(scene: Scene, comm: MPI.Comm, mesh: SolidMesh | None = None) -> SolidSetup:
+    """Build the mesh on rank 0 (rank 0's ``mesh`` if given), broadcast it, assemble and factor every rank's blocks
+    (collective: the refusals too)."""
     started = time.perf_counter()
     specs = block_list(1)
     if not supported(comm.size, len(specs)):
@@ -163,7 +163,7 @@ def prepare(scene: Scene, comm: MPI.Comm) -> SolidSetup:
                              "of a 3-D box)")
         error.collective = True  # every rank sees the same size
         raise error
-    mesh = comm.bcast(collective(comm, lambda: solid_meshes.build(scene), root_only=True), root=0)
+    mesh = comm.bcast(collective(comm, lambda: mesh or solid_meshes.build(scene), root_only=True), root=0)
     meshed = time.perf_counter()
     interface = interface_of(scene, mesh)
     held = collective(comm, lambda: kernels_of(scene, mesh, interface))
@@ -210,12 +210,13 @@ def floating_kernel(scene: Scene, half: SolidHalf, held: kernels.Kernels, index:
     return vectors[:, first:last], chosen
 
 
-def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print) -> SolidResult | None:
-    """The domain decomposition of the 3-D box ``scene`` on ``comm``; ``output`` and its VTU files written
-    (:func:`ddsolve.io.solid.write`).  The result on rank 0 (None elsewhere); a method that does not converge
+def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mesh: SolidMesh | None = None
+          ) -> SolidResult | None:
+    """The domain decomposition of the 3-D box ``scene`` on ``comm`` (on rank 0's ``mesh`` if given, else the scene's);
+    ``output`` and its VTU files written (:func:`ddsolve.io.solid.write`).  The result on rank 0 (None elsewhere); a method that does not converge
     writes its result with converged = false and raises NotConvergedError on every rank, with the result."""
     started = time.perf_counter()
-    setup = prepare(scene, comm)
+    setup = prepare(scene, comm, mesh)
     try:
         def made(outcome, rounds, fields: list[np.ndarray]) -> SolidResult:
             result = finished(setup, outcome, rounds, fields)
