@@ -116,7 +116,7 @@ def _means(points: np.ndarray, pairs: np.ndarray, fits: np.ndarray, scale: np.nd
     values = np.einsum("pb,pbd->pd", monomials((points[node] - points[vertex]) / scale[vertex][:, None], degree),
                        fits[vertex])
     count = np.bincount(node, minlength=len(points))
-    sums = np.stack([np.bincount(node, values[:, d], minlength=len(points)) for d in range(6)], axis=1)
+    sums = np.stack([np.bincount(node, values[:, d], minlength=len(points)) for d in range(6)], axis=1).astype(float)
     found = count > 0
     sums[found] /= count[found][:, None]
     return sums, found
