@@ -1,10 +1,12 @@
 """The 3-D error estimate (ddsolve.post.solid_estimate): zero for a field the elements hold exactly, the rate of the
 error and an effectivity near one for smooth fields on uniform tetrahedra."""
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
 from ddsolve.fem import tetra
-from ddsolve.mesh.solid import elevated
+from ddsolve.mesh.solid import assemble, elevated
 from ddsolve.post import solid_estimate
 
 #: The six tetrahedra of a cube (Kuhn's), by the cube's corners numbered x + 2 y + 4 z.
@@ -82,3 +84,19 @@ def test_rate_and_effectivity_on_a_smooth_field(degree, sizes):
     assert abs(true_rate - degree) < 0.25
     assert abs(rate - degree) < 0.3
     assert 0.7 < estimates[1] / errors[1] < 1.3, estimates[1] / errors[1]
+
+
+@pytest.mark.unit
+def test_the_contact_term_goes_to_the_tetrahedra_on_each_side_of_the_crack():
+    """μᶜ = [u]·ν = 1 over a crack covering Σ (area 1): |∫ μ [u]·ν| = 1 in each half, on tetrahedra with a face on Σ."""
+    points, cells = cube(2, 1)
+    upper = points[cells].mean(axis=1)[:, 1] > 0.5
+    mesh = assemble(points, cells, upper, (0.0, 1.0, 0.0, 1.0, 0.0, 1.0), 0.5, ((0.0, 1.0, 0.0, 1.0),))
+    ones = np.ones(len(mesh.sigma.points))
+    terms = solid_estimate.contact_indicators(SimpleNamespace(mesh=mesh, pressure=ones, normal_opening=ones))
+    for term, half in zip(terms, mesh.halves):
+        assert term.sum() == pytest.approx(1.0)
+        on_sigma = np.isin(half.tetrahedra, half.sigma_nodes).sum(axis=1) == 3
+        assert np.all(on_sigma[term > 0]) and np.count_nonzero(term) == len(mesh.sigma.triangles)
+    nothing = SimpleNamespace(mesh=mesh, pressure=0 * ones, normal_opening=ones)
+    assert all(not term.any() for term in solid_estimate.contact_indicators(nothing))

@@ -12,7 +12,9 @@ the usable interior patches of its tetrahedra's vertices.  The indicator of a te
 
 and the estimate η / sqrt(‖u_h‖²_E + η²) with η² = Σ η_K² over both halves.  Recovery never crosses Σ: each half
 is recovered on its own, keeping the jumps of the stress the crack and the gluing forces make.  Everything is
-vectorized over tetrahedra, a chunk at a time; no PETSc or MPI here.
+vectorized over tetrahedra, a chunk at a time; no PETSc or MPI here.  The crack adds the plane estimate's contact
+term: between the crack's nodes the contact pressure and the opening can both be positive, and 2 |∫_T μᶜ_h [u_h]·ν|
+per Σ triangle T goes half to the tetrahedron on each side.
 """
 from __future__ import annotations
 
@@ -20,7 +22,8 @@ import numpy as np
 import scipy.sparse
 
 from ddsolve.fem import tetra
-from ddsolve.mesh.solid import TETRA_EDGES, boundary_faces, signed_volumes
+from ddsolve.mesh.element import TRIANGLE_RULES, shape_functions
+from ddsolve.mesh.solid import TETRA_EDGES, TETRA_FACES, boundary_faces, signed_volumes
 from ddsolve.post.estimate import Estimate, _solve_spd, rounding_energy
 
 #: Tetrahedra whose temporaries are held at once: the recovery's (a few points each), the indicators' (up to 64
@@ -168,14 +171,45 @@ def half_indicators(points: np.ndarray, cells: np.ndarray, D: np.ndarray, u: np.
     return out
 
 
+def contact_indicators(result) -> list[np.ndarray]:
+    """Per tetrahedron of the lower and the upper half: half of 2 |∫_T μᶜ_h [u_h]·ν| for its triangles T on Σ, the
+    contact pressure and the opening interpolated between the crack's nodes, where the discrete contact conditions
+    hold (the plane estimate's contact term, :func:`ddsolve.post.estimate.contact_indicators`)."""
+    halves, sigma = result.mesh.halves, result.mesh.sigma
+    out = [np.zeros(len(half.tetrahedra)) for half in halves]
+    if not np.any(result.pressure):
+        return out
+    xi, w = TRIANGLE_RULES[6]  # degree 4: exact for the product of two quadratics
+    shapes = shape_functions(sigma.triangles.shape[1], xi)[0]  # (q, k)
+    a, b, c = (sigma.points[sigma.triangles[:, k]] for k in range(3))
+    areas = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    product = (result.pressure[sigma.triangles] @ shapes.T) * (result.normal_opening[sigma.triangles] @ shapes.T)
+    defect = np.abs(product @ w) * 2.0 * areas  # |∫_T μ [u]·ν|: the rule's weights sum to ½
+    for cells, half in zip(out, halves):
+        np.add.at(cells, _face_owners(half.tetrahedra[:, :4], half.sigma_nodes[sigma.triangles[:, :3]]), defect)
+    return out
+
+
+def _face_owners(tetrahedra: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """The tetrahedron each of the boundary ``triangles`` ``(t, 3)`` is a face of."""
+    faces = np.sort(tetrahedra[:, TETRA_FACES].reshape(-1, 3), axis=1)
+    _, inverse = np.unique(np.vstack([faces, np.sort(triangles, axis=1)]), axis=0, return_inverse=True)
+    inverse = inverse.ravel()
+    owner = np.full(int(inverse.max()) + 1, -1, dtype=np.int64)
+    owner[inverse[:len(faces)]] = np.arange(len(faces)) // 4
+    return owner[inverse[len(faces):]]
+
+
 def of_result(result) -> Estimate:
     """The estimate of a 3-D result (:class:`~ddsolve.post.solid.SolidResult`): indicators η_K per tetrahedron of
-    each half, ‖u_h‖²_E, and the rounding level of a strain-free field."""
+    each half (with the contact term, :func:`contact_indicators`), ‖u_h‖²_E, and the rounding level of a
+    strain-free field."""
     laws = [tetra.elastic_matrix(result.scene.material("layer1", half.name)) for half in result.mesh.halves]
-    parts = {half.name: half_indicators(half.points, half.tetrahedra, D, u)
-             for half, D, u in zip(result.mesh.halves, laws, result.fields)}
+    parts = [half_indicators(half.points, half.tetrahedra, D, u)
+             for half, D, u in zip(result.mesh.halves, laws, result.fields)]
+    contact = contact_indicators(result)
     largest = max(float(np.abs(u).max(initial=0.0)) for u in result.fields)
-    return Estimate({name: np.sqrt(np.maximum(part[0], 0.0)) for name, part in parts.items()},
-                    float(sum(part[1].sum() for part in parts.values())),
+    return Estimate({half.name: np.sqrt(np.maximum(part[0] + extra, 0.0))
+                     for half, part, extra in zip(result.mesh.halves, parts, contact)},
+                    float(sum(part[1].sum() for part in parts)),
                     rounding_energy(max(float(np.abs(D).max()) for D in laws), largest))
-

@@ -47,7 +47,7 @@ SMALLEST = 1e-4
 #: the DD's, or the DD's on other ranks) give the same sizes, so gmsh meshes the same nodes and both end on one mesh.
 SIZE_STEP = 1e-3
 #: 3-D unknowns a level may have at most: a sparse factor of a 3-D body fills in far more than a plane one's.
-MAX_UNKNOWNS = 1_500_000
+MAX_UNKNOWNS = 600_000
 
 
 def edge_means(points: np.ndarray, tetrahedra: np.ndarray) -> np.ndarray:
@@ -85,17 +85,22 @@ def solve_adaptively(scene: Scene, comm, level: Callable[[SolidMesh | None], Sol
                      output: Path | None, progress: Callable[[str], None] = print) -> SolidResult | None:
     """Levels until the estimate is at most ``scene.mesh.target_error``: ``level(mesh)`` solves rank 0's mesh on
     every rank of ``comm`` (the result on rank 0); rank 0 prints a line per level, decides and meshes again.
-    ``output`` is the last level's result.  Raises DDSolveError on every rank after the first level, nothing
+    ``output`` is the last level's result, with the attributes ``error_estimate``, ``target_error`` and ``levels`` and
+    the level table ``/levels/<column>`` (``unknowns``, ``energy``, ``mesh_time``, ``solve_time``,
+    ``error_estimate``).  Raises DDSolveError on every rank after the first level, nothing
     written, if the target needs more unknowns than a level may have; NotConvergedError (the last result
     written, and held as ``result``) if it is not reached within :data:`MAX_LEVELS` levels or that many unknowns."""
     started = time.perf_counter()
     mesh = collective(comm, lambda: solid_meshes.build(scene), root_only=True)
-    meshing, message, result = time.perf_counter() - started, "", None
+    meshing, message, result, rows = time.perf_counter() - started, "", None, []
     for number in range(MAX_LEVELS):
         mark = time.perf_counter()
         result = level(mesh)
         solving = time.perf_counter() - mark
-        decision = collective(comm, lambda: _next_level(scene, result, number, comm.size, meshing, solving, progress),
+        if comm.rank == 0:
+            rows.append({"unknowns": result.mesh.unknowns, "energy": result.energy, "mesh_time": meshing,
+                         "solve_time": solving})
+        decision = collective(comm, lambda: _next_level(scene, result, number, comm.size, rows[-1], progress),
                               root_only=True)
         done, message = comm.bcast(decision[1:] if comm.rank == 0 else None, root=0)
         mesh, meshing = decision[0] if comm.rank == 0 else None, time.perf_counter() - mark - solving
@@ -103,6 +108,9 @@ def solve_adaptively(scene: Scene, comm, level: Callable[[SolidMesh | None], Sol
             break
     if comm.rank == 0:
         result.timings["adaptive"] = time.perf_counter() - started
+        result.levels = {column: np.array([row[column] for row in rows]) for column in rows[0]}
+        result.attrs.update(error_estimate=rows[-1]["error_estimate"], target_error=scene.mesh.target_error,
+                            levels=len(rows))
     if output is not None:
         collective(comm, lambda: solid_files.write(output, result), root_only=True)
     if message:
@@ -113,12 +121,14 @@ def solve_adaptively(scene: Scene, comm, level: Callable[[SolidMesh | None], Sol
     return result
 
 
-def _next_level(scene: Scene, result: SolidResult, number: int, ranks: int, meshing: float, solving: float,
+def _next_level(scene: Scene, result: SolidResult, number: int, ranks: int, row: dict,
                 progress: Callable[[str], None]) -> tuple[SolidMesh | None, bool, str]:
-    """Rank 0's decision after level ``number``: (the next mesh, stop, why the target was not reached)."""
+    """Rank 0's decision after level ``number``: (the next mesh, stop, why the target was not reached); the
+    estimate in the level's ``row``."""
     target = scene.mesh.target_error
     estimate = solid_estimate.of_result(result)
-    relative = estimate.relative
+    relative = row["error_estimate"] = estimate.relative
+    meshing, solving = row["mesh_time"], row["solve_time"]
     progress(f"level {number}: {result.mesh.unknowns:,} unknowns, estimated error {100 * relative:.3g} %, "
              f"{meshing + solving:.2f} s (mesh {meshing:.2f} s, solve {solving:.2f} s)")
     if relative <= target:
