@@ -42,14 +42,14 @@ def test_target_error_chooses_p2_and_grading_and_refuses_extrusion():
 
 @pytest.mark.solve
 def test_levels_reach_the_target_and_the_dd_ends_on_the_references_mesh():
-    scene = loads(BOX.format(mesh="target_error = 0.2\ndegree = 1"))
+    scene = loads(BOX.format(mesh="target_error = 0.3\ndegree = 1"))
     lines = []
     reference = solid_adapt.solve_adaptively(scene, MPI.COMM_SELF, lambda mesh: solid.reference_on(scene, mesh),
                                              None, lines.append)
     assert len(lines) >= 2 and all(line.startswith(f"level {k}: ") for k, line in enumerate(lines))
-    assert float(lines[-1].split("estimated error ")[1].split(" %")[0]) <= 20.0
-    assert float(lines[0].split("estimated error ")[1].split(" %")[0]) > 20.0
-    assert reference.attrs["levels"] == len(lines) and reference.levels["error_estimate"][-1] <= 0.2
+    assert float(lines[-1].split("estimated error ")[1].split(" %")[0]) <= 30.0
+    assert float(lines[0].split("estimated error ")[1].split(" %")[0]) > 30.0
+    assert reference.attrs["levels"] == len(lines) and reference.levels["error_estimate"][-1] <= 0.3
     assert reference.levels["unknowns"][-1] == reference.mesh.unknowns
     decomposed = solid_adapt.solve_adaptively(scene, MPI.COMM_SELF, lambda mesh: solid_dd.solve(
         scene, MPI.COMM_SELF, None, lambda _line: None, mesh), None, lambda _line: None)
