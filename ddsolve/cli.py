@@ -133,7 +133,7 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
     from mpi4py import MPI
 
     from ddsolve.parallel.exchange import collective
-    from ddsolve.solvers import run
+    from ddsolve.solvers import run, solid_lines
 
     comm = MPI.COMM_WORLD
     scene = comm.bcast(collective(comm, lambda: _load_scene(args), root_only=True), root=0)
@@ -143,6 +143,7 @@ def cmd_solve(args, petsc_options: list[str]) -> int:
         print(f"{result.scene.solver.method} (3-D): {result.steps} iterations, {result.closed} closed crack vertices, "
               f"energy {result.energy:.10g}, {3 * sum(len(u) for u in result.fields)} unknowns, {result.solves} "
               f"rounds of block solves, {result.timings['total']:.3f} s on {comm.size} ranks -> {output}", flush=True)
+        print(solid_lines.phases_line(result.timings), flush=True)
         _print_front(result, output)
     elif result is not None and scene.geometry.above:  # no error estimate, reactions or viewer files yet
         print(f"{result.scene.solver.method}: {len(scene.geometry.sigmas)} interfaces, {result.iterations} "
@@ -293,7 +294,7 @@ def _print_front(result, output: Path | None) -> None:
 
 def cmd_reference(args, petsc_options: list[str]) -> int:
     init_petsc(petsc_options)
-    from ddsolve.solvers import run
+    from ddsolve.solvers import run, solid_lines
 
     scene = _load_scene(args)
     output = check_outputs(args, scene)
@@ -302,6 +303,7 @@ def cmd_reference(args, petsc_options: list[str]) -> int:
         print(f"reference (3-D): {result.steps} active-set steps, {result.closed} closed crack vertices, energy "
               f"{result.energy:.10g}, {3 * sum(len(u) for u in result.fields)} unknowns, "
               f"{sum(result.timings.values()):.3f} s -> {output}", flush=True)
+        print(solid_lines.phases_line(result.timings), flush=True)
         _print_front(result, output)
         return 0
     if scene.geometry.above:  # no error estimate, reactions or viewer files yet

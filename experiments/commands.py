@@ -47,6 +47,10 @@ EXPERIMENTS = {
     "three-d-front": ("three_d_front", "three_d_front", "G along 3-D crack fronts: the extruded plane scene against "
                       "the plane G, the penny-shaped crack against Sneddon", "docs/three-d-front.md, "
                       "docs/three-d-front.png"),
+    "three-d-shapes": ("three_d_shapes", "three_d_shapes", "G along 3-D fronts of other shapes: a DCB across its "
+                       "width against plane-strain and plane-stress beam theory, an elliptical delamination against "
+                       "Irwin", "docs/three-d-front.md (shapes section), docs/three-d-dcb.png, "
+                       "docs/three-d-ellipse.png"),
     "three-d-adapt": ("three_d_adapt", "three_d_adapt", "3-D mesh.target_error on the extruded plane scene: "
                       "levels, estimate against the true error, G against the plane G, the DD on the final mesh",
                       "docs/three-d-adapt.md"),

@@ -10,6 +10,10 @@ mesh sizes (comparable meshes), then P1 graded towards the crack front (``mesh.g
 graded (``mesh.degree = 2``), and last the plane mesh of the section (graded towards the tips) extruded in layers
 along z (``mesh.extrude``), set beside the plane reference on that same section mesh;
 every solve's wall time (meshing included for 3-D) is measured in this process, on a shared machine.
+
+The same scene comes from a 3-D gmsh file too: ``docs/three-d-strip.geo`` (its scene ``docs/three-d-strip.toml``,
+[geometry.md](geometry.md#3-d-files)) builds the body as the box is built, so that at the same mesh size its
+tetrahedra, and so its energies, are the box's (``tests/test_solid_files.py``, also for gmsh's .msh of it).
 """
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""G along 3-D crack fronts: ``./run three-d-front`` writes docs/three-d-front.md and docs/three-d-front.png.
+"""G along 3-D crack fronts: ``./run three-d-front`` writes docs/three-d-front.md (its front section: the shapes
+section is ``./run three-d-shapes``'s) and docs/three-d-front.png.
 
 Two checks of the G-θ integral with θ localised along the front (:mod:`ddsolve.post.front`) on the 3-D monolithic
 reference (P1 or P2 tetrahedra graded towards the front):
@@ -17,7 +18,7 @@ import time
 
 import numpy as np
 
-from experiments import three_d
+from experiments import report, three_d
 from ddsolve.mesh import geometry, solid
 from ddsolve.post import fracture, front
 from ddsolve.problem.scene import loads
@@ -221,5 +222,5 @@ def three_d_front() -> None:
     """Measure, and write docs/three-d-front.md and its picture."""
     measured = measure()
     plot(measured)
-    (three_d.DOCS / "three-d-front.md").write_text(page(measured))
+    report.section(three_d.DOCS / "three-d-front.md", "front", page(measured))
     print(f"wrote {three_d.DOCS / 'three-d-front.md'}")

@@ -324,3 +324,41 @@ def test_the_paraview_script_renders_both_layers_and_sigma(tmp_path, fmt):
     blue = (chart[:, :, 2] > 0.6) & (chart[:, :, 0] < 0.3)  # the opening's line
     red = (chart[:, :, 0] > 0.7) & (chart[:, :, 1] < 0.3)  # the contact pressure's line
     assert blue.sum() > 300 and red.sum() > 300
+
+
+#: A 3-D box, coarse, the crack pulled open (tests/test_three_d.py's scene).
+SOLID_BOX = """
+[geometry]
+box = [-1, 1, -1, 1, 0, 0.5]
+crack = [-0.5, 0.5]
+[mesh]
+size = 0.3
+[materials.layer1]
+E = 200.0
+nu = 0.3
+[loads.layer1.top]
+y = [0.1]
+[loads.layer1.bottom]
+y = [-0.1]
+"""
+
+
+@pytest.mark.mpi
+@needs_paraview
+def test_the_paraview_script_renders_a_3d_box_and_the_opening_over_sigma(tmp_path):
+    """The script written beside a 3-D result's XDMF files (``ddsolve export --format xdmf``) draws the warped halves
+    on the left and Σ's opening map on the right."""
+    scene = tmp_path / "box.toml"
+    scene.write_text(SOLID_BOX)
+    ddsolve("reference", str(scene), "-o", str(tmp_path / "box.h5"))
+    ddsolve("export", str(tmp_path / "box.h5"), "--format", "xdmf")
+    assert "box-sigma.xdmf" in (tmp_path / "box-paraview.py").read_text()
+    picture = tmp_path / "picture.png"
+    completed = pvpython(str(tmp_path / "box-paraview.py"), "--png", str(picture), cwd=tmp_path)
+    assert completed.returncode == 0 and "ERR|" not in completed.stderr, completed.stderr
+    from matplotlib.image import imread
+
+    image = imread(picture)[:, :, :3]
+    assert image.shape[:2] == (1000, 1600)
+    for panel in (image[:, :800], image[:, 900:]):  # viridis colours in both views
+        assert (np.ptp(panel, axis=2) > 0.25).mean() > 0.1

@@ -80,16 +80,22 @@ z = 0.0
 """
 
 
+#: PULLED heated: two expansions and a temperature change varying in x, y and z (linear: the eigenstrain's term
+#: is exact for the discrete problem).
+HEATED = PULLED.replace("nu = 0.25\n", "nu = 0.25\nalpha = 2e-3\n").replace("nu = 0.3\n", "nu = 0.3\nalpha = 1e-3\n") \
+    + '[temperature]\nlayer1 = "1.0 + 2.0 * x - 1.5 * y + 0.5 * z"\n'
+
+
 @pytest.mark.solve
-@pytest.mark.parametrize("degree", [1, 2])
-def test_the_domain_integral_is_the_derivative_of_the_discrete_energy(degree):
+@pytest.mark.parametrize("degree, text", [(1, PULLED), (2, PULLED), (1, HEATED)], ids=["P1", "P2", "P1-heated"])
+def test_the_domain_integral_is_the_derivative_of_the_discrete_energy(degree, text):
     """J(θ_k) = −dΠ_h/dε when every vertex moves by ε θ_k (P2's mid-edge nodes with their edges), by central
     differences, for front nodes along a side, at a corner and between: the G-θ integral is exact for the discrete
-    problem (two materials, contact off)."""
+    problem (two materials, contact off), with a temperature change's eigenstrain term too."""
     from ddsolve.mesh.solid import TETRA_EDGES
     from ddsolve.solvers import solid as solid_solver
 
-    scene = loads(PULLED).with_({"mesh.degree": degree})
+    scene = loads(text).with_({"mesh.degree": degree})
     mesh = solid.build(scene)
     result = solid_solver.solve_solid(scene, mesh)
     (chain,) = front.fronts(mesh, scene.geometry.box, inner=0.1, outer=0.2)
@@ -135,6 +141,21 @@ def test_the_penny_crack_opens_in_mode_one_near_sneddon_and_writes_its_front(tmp
         rows = len(released.G)
         assert written["fracture/points"].shape == written["fracture/tangents"].shape == (rows, 3)
         assert np.allclose(written["fracture/G_I"][...], released.G_I) and written["fracture/G_III"].shape == (rows,)
+
+
+@pytest.mark.solve
+def test_a_free_thermal_expansion_adds_no_release_along_the_penny_front():
+    """The quarter penny on its rollers heated uniformly expands freely (no stress): G is the unheated one, and so
+    are its modes (the eigenstrain in the symmetric part, mode I) up to the mirror images' interpolation, which
+    leaves the symmetric part's stress out of the discrete equilibrium by a little."""
+    from ddsolve.solvers import solid as solid_solver
+
+    cold = penny_scene(0.15)
+    hot = loads(cold.text.replace("nu = 0.3\n", "nu = 0.3\nalpha = 1e-3\n") + "[temperature]\nlayer1 = 50.0\n")
+    released = [solid_solver.reference(scene).fracture for scene in (cold, hot)]
+    for name, tolerance in (("G", 1e-8), ("G_I", 1e-3), ("G_II", 1e-3), ("G_III", 1e-3)):
+        assert np.allclose(getattr(released[1], name), getattr(released[0], name), rtol=0.0,
+                           atol=tolerance * released[0].G.max()), name
 
 
 @pytest.mark.solve

@@ -195,7 +195,8 @@ def test_ply_keys_are_refused_where_they_mean_nothing():
 @pytest.mark.solve
 def test_a_3d_result_equals_the_decomposition_s_and_is_read_back_exported_and_plotted(tmp_path):
     """A heated P2 body with a ply above Σ and a crack rectangle, partly shut: the domain decomposition (schur, one
-    rank) gives the reference's solution to 1e-8 in energy norm and its energy (the thermal offset counted); the
+    rank) gives the reference's solution to 1e-8 in energy norm, its energy (the thermal offset counted) and its G
+    along the front (the eigenstrain's term), each printing its progress lines stage by stage; the
     reference's file read back gives the same result; export writes VTU files meshio reads (tetra10, 6-node triangles); plot writes the opening map and the
     deformed body; XDMF files (arrays inline) read back to the last bit."""
     import meshio
@@ -209,12 +210,18 @@ def test_a_3d_result_equals_the_decomposition_s_and_is_read_back_exported_and_pl
         "[loads.layer1.top]\ny = 0.5", "[temperature]\nlayer1 = \"20 * x\"").replace(
         "nu = 0.1", "nu = 0.1\nalpha = 1e-5").replace("nu12 = 0.25", "nu12 = 0.25\nalpha1 = 3e-5\nalpha2 = 1e-6")
     scene = loads(text).with_({"mesh.degree": 2, "mesh.size": 0.8})
-    solved = solid_solver.reference(scene, tmp_path / "hot.h5")
+    lines = []
+    solved = solid_solver.reference(scene, tmp_path / "hot.h5", progress=lines.append)
+    assert [line.split(":")[0] for line in lines] == ["mesh", "the merged system", "G along the crack fronts"]
+    lines.clear()
     assert solved.converged and solved.closed > 0 and solved.normal_opening.max() > 0
     decomposed = solid_dd.solve(scene.with_({"solver.method": "schur"}), MPI.COMM_SELF, tmp_path / "dd.h5",
-                                progress=lambda _line: None)
+                                progress=lines.append)
     assert decomposed.converged and solid_solver.energy_error(decomposed, solved) < 1e-8
     assert abs(decomposed.energy - solved.energy) < 1e-10 * abs(solved.energy)
+    assert np.allclose(decomposed.fracture.G, solved.fracture.G, rtol=0.0, atol=1e-7 * np.abs(solved.fracture.G).max())
+    assert [line.split(":")[0] for line in lines] == ["mesh", "rank 0's blocks (schur)", "schur",
+                                                      "G along the crack fronts"]
     read = solid_files.read(tmp_path / "hot.h5")
     assert read.energy == solved.energy and read.scene == scene and read.checks == solved.checks
     assert all(np.array_equal(a, b) for a, b in zip(read.fields, solved.fields))

@@ -161,18 +161,26 @@ def face_load(points: np.ndarray, triangles: np.ndarray, traction) -> np.ndarray
 def side_traction(load: Load, side: str):
     """The traction of ``load`` on the box side ``side`` at points ``(q, 3)``: its x, y, z components, or
     −pressure × the side's outward normal; each an expression in x, y and z."""
+    if load.pressure is None:
+        return lambda at: np.stack([np.zeros(len(at)) if getattr(load, name) is None else
+                                    _evaluated(getattr(load, name), at, load.key) for name in AXES], axis=1)
     axis, end = SIDE_PLANES[side]
     outward = np.zeros(3)
     outward[axis] = 1.0 if end else -1.0
+    return lambda at: -_evaluated(load.pressure, at, load.key)[:, None] * outward
 
-    def traction(at: np.ndarray) -> np.ndarray:
-        if load.pressure is not None:
-            values = -_evaluated(load.pressure, at, load.key)[:, None] * outward
-        else:
-            values = np.stack([np.zeros(len(at)) if getattr(load, name) is None else
-                               _evaluated(getattr(load, name), at, load.key) for name in AXES], axis=1)
-        return values
-    return traction
+
+def boundary_load(points: np.ndarray, triangles: np.ndarray, load: Load, side: str, box: bool) -> np.ndarray:
+    """The load vector of ``load`` on the ``triangles`` of the boundary ``side``: on a ``box``'s side its traction
+    (:func:`side_traction`); on a 3-D file's surface its components, or its pressure along each triangle's outward
+    normal (the triangles are oriented outward)."""
+    if box or load.pressure is None:
+        return face_load(points, triangles, side_traction(load, side))
+    a, b, c = (points[triangles[:, k]] for k in range(3))
+    normals = np.cross(b - a, c - a)
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    outward = np.repeat(normals, len(TRIANGLE_RULES[6][1]), axis=0)  # at face_load's points, triangle by triangle
+    return face_load(points, triangles, lambda at: -_evaluated(load.pressure, at, load.key)[:, None] * outward)
 
 
 def _evaluated(expression: Expression, at: np.ndarray, key: str) -> np.ndarray:
@@ -240,7 +248,7 @@ def half_system(scene: Scene, half: SolidHalf) -> HalfSystem:
     K = stiffness(half.points, half.tetrahedra, D)
     f = np.zeros(half.dofs)
     for (_, side), load in scene.loads.items():
-        f += face_load(half.points, half.faces[side], side_traction(load, side))
+        f += boundary_load(half.points, half.faces[side], load, side, not scene.geometry.solid_file)
     offset = 0.0
     if "layer1" in scene.temperature:
         thermal, offset = thermal_load(half.points, half.tetrahedra, D, materials.solid_expansion(material),

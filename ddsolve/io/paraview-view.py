@@ -6,7 +6,8 @@
 The layers side by side, displacements magnified by SCALE (the largest displacement drawn as a
 fixed fraction of the domain), cells coloured by von Mises stress up to its PERCENTILE-th percentile
 (the corner singularities would otherwise set the range), and the opening [u].nu of the crack faces
-with the contact pressure along Sigma.
+with the contact pressure along Sigma.  A 3-D box (SOLID): its two halves warped by SCALE in one view,
+coloured by the displacement's magnitude, and beside it Sigma seen from above, coloured by the opening.
 """
 import argparse
 import os
@@ -24,7 +25,8 @@ else:  # ParaView's GUI runs scripts without __file__: where the files were writ
 DARK = [0.1, 0.1, 0.1]
 IMAGE = [1600, 1000]  # pixels of the --png picture
 LAYERS_HEIGHT = 0.62  # the layers' share of the height; the chart below
-LAYERS = [layer for layer in TITLES if layer in FILES]  # the structure's: one or two
+SOLID_TITLES = {"lower": "below Sigma", "upper": "above Sigma"}  # a 3-D box's halves
+LAYERS = [layer for layer in (SOLID_TITLES if SOLID else TITLES) if layer in FILES]  # one or two
 #: A layer's view in that picture, and the band of its height (fractions) between the colour bar
 #: and the title, where the camera puts the layer.
 VIEW_PIXELS = [IMAGE[0] / (1 if STACKED else len(LAYERS)), IMAGE[1] * LAYERS_HEIGHT / (len(LAYERS) if STACKED else 1)]
@@ -79,6 +81,62 @@ def layer_view(layer):
     return view
 
 
+def coloured(display, view, array, low, high, title):
+    """``display`` coloured by the point array ``array`` (a vector's magnitude) from ``low`` to ``high``, with a
+    bar."""
+    ColorBy(display, ("POINTS", array, "Magnitude") if array == "displacement" else ("POINTS", array), separate=True)
+    lut = GetColorTransferFunction(array, display, separate=True)
+    lut.ApplyPreset("Viridis (matplotlib)", True)
+    lut.AutomaticRescaleRangeMode = "Never"
+    lut.RescaleTransferFunction(low, high)
+    display.SetScalarBarVisibility(view, True)
+    bar = GetScalarBar(lut, view)
+    bar.Title, bar.ComponentTitle = title, ""
+    bar.Orientation = "Horizontal"
+    bar.WindowLocation = "Lower Center"
+    bar.TitleColor = bar.LabelColor = DARK
+    optional(bar, TitleFontSize=22, LabelFontSize=20, ScalarBarLength=0.6, ScalarBarThickness=24,
+             RangeLabelFormat="%-#6.2g")
+
+
+def render_view(text):
+    """A white render view titled ``text``."""
+    view = CreateView("RenderView")
+    view.OrientationAxesVisibility = 1
+    optional(view, UseColorPaletteForBackground=0)
+    view.Background = [1.0, 1.0, 1.0]
+    label = Show(Text(Text=text), view)
+    label.WindowLocation = "Upper Center"
+    label.FontSize = 26
+    label.Color = DARK
+    return view
+
+
+def solid_view():
+    """The 3-D box's halves warped by SCALE, coloured by |u|, seen from the front, right and above."""
+    view = render_view("%s: displacements x%g" % (TITLE, SCALE))
+    for layer in LAYERS:
+        warped = WarpByVector(Input=OpenDataFile(os.path.join(HERE, FILES[layer])),
+                              Vectors=["POINTS", "displacement"], ScaleFactor=SCALE)
+        coloured(Show(warped, view), view, "displacement", 0.0, CEILINGS[layer], "displacement magnitude")
+    view.CameraPosition, view.CameraViewUp = [1.0, 0.8, 1.6], [0.0, 1.0, 0.0]
+    view.CameraFocalPoint = [0.0, 0.0, 0.0]
+    view.ResetCamera()
+    return view
+
+
+def sigma_map():
+    """Sigma seen from above (along -y), coloured by the opening [u].nu."""
+    view = render_view("Sigma: opening [u].nu")
+    display = Show(OpenDataFile(os.path.join(HERE, FILES["sigma"])), view)
+    display.Ambient, display.Diffuse = 1.0, 0.0
+    coloured(display, view, "normal_opening", OPENING[0], OPENING[1], "opening [u].nu (length unit)")
+    view.InteractionMode = "2D"
+    view.CameraPosition, view.CameraFocalPoint, view.CameraViewUp = [0.0, 1.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, -1.0]
+    view.ResetCamera()
+    return view
+
+
 def sigma_view():
     reader = OpenDataFile(os.path.join(HERE, FILES["sigma"]))
     view = CreateView("XYChartView")
@@ -107,18 +165,29 @@ def main(argv):
     parser.add_argument("--png", help="save the picture to this PNG file")
     options, _ = parser.parse_known_args(argv)
     layout = CreateLayout(TITLE)
+    if SOLID:
+        body = layout.SplitHorizontal(0, 0.55)
+        AssignViewToLayout(solid_view(), layout, hint=body)
+        AssignViewToLayout(sigma_map(), layout, hint=body + 1)
+        save(layout, options.png)
+        return
     layers = layout.SplitVertical(0, LAYERS_HEIGHT)
     split = layout.SplitVertical if STACKED else layout.SplitHorizontal
     first = split(layers, 0.5) if len(LAYERS) > 1 else layers
     for position, layer in enumerate(LAYERS):
         AssignViewToLayout(layer_view(layer), layout, hint=first + position)
     AssignViewToLayout(sigma_view(), layout, hint=layers + 1)
-    if options.png:
+    save(layout, options.png)
+
+
+def save(layout, png):
+    """Render the layout, and save it to ``png`` if given."""
+    if png:
         layout.SetSize(*IMAGE)  # the picture's size (else the views are drawn small and magnified)
     Render()
-    if options.png:
-        SaveScreenshot(options.png, layout, ImageResolution=IMAGE)
-        print("wrote " + options.png)
+    if png:
+        SaveScreenshot(png, layout, ImageResolution=IMAGE)
+        print("wrote " + png)
 
 
 main(getattr(sys, "argv", [""])[1:])  # ParaView's GUI may run scripts without sys.argv

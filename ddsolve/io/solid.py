@@ -26,15 +26,32 @@ VIEWER_FORMATS = {"vtu": {}, "xdmf": {"data_format": "XML"}}
 
 def viewer_paths(folder: Path, stem: str, fmt: str = "vtu") -> list[Path]:
     """The viewer files of the result ``stem`` in ``folder``: ``STEM-lower.FMT``, ``STEM-upper.FMT``,
-    ``STEM-sigma.FMT``."""
-    return [Path(folder) / f"{stem}-{part}.{fmt}" for part in VIEWER_PARTS]
+    ``STEM-sigma.FMT`` and the ParaView script ``STEM-paraview.py`` that shows them."""
+    return [Path(folder) / f"{stem}-{part}.{fmt}" for part in VIEWER_PARTS] + [Path(folder) / f"{stem}-paraview.py"]
 
 
 def viewer_writers(result: SolidResult, folder: Path, stem: str, fmt: str = "vtu") -> dict:
     """Path -> writer of each viewer file of ``result`` in format ``fmt`` (:data:`VIEWER_FORMATS`,
     :func:`viewer_paths`), for :func:`replace_together`."""
-    return {target: (lambda temporary, part=part: _write_part(temporary, result, part, fmt))
-            for target, part in zip(viewer_paths(folder, stem, fmt), VIEWER_PARTS)}
+    *parts, script = viewer_paths(folder, stem, fmt)
+    text = paraview_script(result, folder, {part: path.name for part, path in zip(VIEWER_PARTS, parts)})
+    return {**{target: (lambda temporary, part=part: _write_part(temporary, result, part, fmt))
+               for target, part in zip(parts, VIEWER_PARTS)},
+            script: lambda temporary: Path(temporary).write_text(text, encoding="utf-8")}
+
+
+def paraview_script(result: SolidResult, folder: Path, files: dict[str, str]) -> str:
+    """The ParaView script (:func:`ddsolve.io.viewer.paraview_script`) of a 3-D result's viewer ``files`` (part ->
+    name in ``folder``): the halves warped by :func:`ddsolve.post.solid_plots.magnification`, coloured by the
+    displacement's magnitude up to its largest, Σ by the opening over its range."""
+    from ddsolve.io import viewer
+    from ddsolve.post import solid_plots
+
+    largest = max(float(np.linalg.norm(u, axis=1).max(initial=0.0)) for u in result.fields)
+    opening = result.normal_opening
+    return viewer.paraview_script(result.scene.title, folder, files, {part: largest for part in VIEWER_PARTS[:2]},
+                                  solid_plots.magnification(result), stacked=False, graph=False,
+                                  opening=(float(opening.min(initial=0.0)), float(opening.max(initial=0.0))))
 
 
 def write(path: Path, result: SolidResult) -> list[Path]:
@@ -124,7 +141,8 @@ def _write_part(name: str, result: SolidResult, part: str, fmt: str) -> None:
         surface = result.mesh.sigma
         mesh = meshio.Mesh(surface.points, [("triangle" if surface.triangles.shape[1] == 3 else "triangle6",
                                              surface.triangles)],
-                           point_data={"opening": result.opening, "contact_pressure": result.pressure,
+                           point_data={"opening": result.opening, "normal_opening": result.normal_opening,
+                                       "contact_pressure": result.pressure,
                                        "cracked": surface.cracked.astype(np.int32)})
     else:
         index = [half.name for half in result.mesh.halves].index(part)

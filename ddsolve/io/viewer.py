@@ -432,16 +432,18 @@ def viewer_format(fmt: str) -> ViewerFormat:
 
 # --- the ParaView script -----------------------------------------------------------------------
 def paraview_script(title: str, folder: Path, files: dict[str, str], ceilings: dict[str, float], scale: float,
-                    stacked: bool, graph: bool) -> str:
+                    stacked: bool, graph: bool, opening: tuple[float, float] | None = None) -> str:
     """A pvpython script showing the layers side by side (warped by ``scale``, coloured by von Mises
     stress up to ``ceilings`` per layer) and the opening along Σ (against x if Σ is a ``graph``);
     ``files``: each layer (layer1, and layer2 with two layers), sigma -> file names in ``folder``, beside the
-    script."""
+    script.  With the ``opening``'s range, a 3-D box: ``files`` of its halves (lower, upper) and Σ, the halves
+    coloured by the displacement's magnitude up to ``ceilings``, Σ by the opening."""
     settings = {
         "TITLE": title, "FILES": files, "WRITTEN_TO": str(Path(folder).resolve()), "SCALE": scale,
         "CEILINGS": ceilings, "TITLES": plots.LAYER_TITLES, "STACKED": stacked, "PERCENTILE": plots.STRESS_PERCENTILE,
         "SIGMA_X": "x" if graph else "arc_length",
         "SIGMA_X_LABEL": f"{'x on Sigma' if graph else 'arc length along Sigma'} ({plots.LENGTH})",
+        "SOLID": opening is not None, "OPENING": opening,
     }
     values = "\n".join(f"{key} = {value!r}" for key, value in settings.items())
     template = resources.files("ddsolve.io").joinpath("paraview-view.py").read_text(encoding="utf-8")

@@ -18,6 +18,7 @@ from functools import cached_property
 import numpy as np
 
 from ddsolve.errors import MeshError
+from ddsolve.mesh import solid_files
 from ddsolve.mesh.mesh import TOL
 from ddsolve.mesh.solid_sizing import SizeField, as_background
 from ddsolve.problem.schema import DEPTH_SIDES, REGIONS, SIDES
@@ -95,14 +96,23 @@ class SolidMesh:
     def unknowns(self) -> int:
         return sum(half.dofs for half in self.halves)
 
+    @cached_property
+    def box(self) -> tuple[float, ...]:
+        """The bounds of its nodes (x0, x1, y0, y1, z0, z1): a 3-D gmsh file's body's box (a built-in box's own
+        numbers may differ from them in the last bit)."""
+        points = np.vstack([half.points for half in self.halves])
+        return tuple(float(v) for v in np.column_stack([points.min(axis=0), points.max(axis=0)]).ravel())
+
 
 def build(scene: Scene, sizes: SizeField | None = None) -> SolidMesh:
     """The mesh of a 3-D box scene: gmsh in a child process, then the halves and Σ (:func:`assemble`); with
-    ``mesh.extrude`` the plane section's mesh extruded (:mod:`ddsolve.mesh.extrude`); with ``sizes``, gmsh's
-    tetrahedra of those sizes (adaptive re-meshing)."""
+    ``mesh.extrude`` the plane section's mesh extruded (:mod:`ddsolve.mesh.extrude`); a 3-D gmsh file's
+    (:mod:`ddsolve.mesh.solid_files`); with ``sizes``, the box's tetrahedra of those sizes (adaptive re-meshing)."""
     from ddsolve.mesh import extrude, gmsh_io  # both import the plane mesh modules
 
     geometry = scene.geometry
+    if geometry.solid_file:
+        return from_surfaces(*solid_files.read(scene, _graded_towards), scene.mesh.degree, str(scene.mesh.file))
     if scene.mesh.extrude is not None:
         points, tetrahedra, upper = extrude.tetrahedra(scene)
     else:
@@ -339,3 +349,53 @@ def _ellipse_roles(crack: Ellipse, x: np.ndarray, z: np.ndarray, edges: np.ndarr
     keys = edges[:, 0] * (len(x) + 1) + edges[:, 1]
     along = pairs[np.isin(pairs[:, 0] * (len(x) + 1) + pairs[:, 1], keys)]
     return level <= 1.0 + 2.0 * scaled + 1e-9, arc, along
+
+
+def from_surfaces(points: np.ndarray, tetrahedra: np.ndarray, upper: np.ndarray, surfaces: dict[str, np.ndarray],
+                  degree: int, where: str) -> SolidMesh:
+    """The halves and Σ of a 3-D gmsh file's tetrahedra (``upper``: which lie in the volume upper) and its named
+    surfaces' triangles (:func:`ddsolve.mesh.solid_files.read`, checked there): each half's faces by the surface
+    they lie on, Σ the surface ``sigma``, its crack vertices and front from the surface ``crack``
+    (:func:`ddsolve.mesh.solid_files.crack_roles`); P2 with ``degree`` 2."""
+    tetrahedra = _positive(points, tetrahedra)
+    points, cells, middle = elevated(points, tetrahedra) if degree == 2 else (points, tetrahedra, None)
+    named = {name: _with_middles(triangles, middle) for name, triangles in surfaces.items() if name != "crack"}
+    on_sigma = np.unique(named["sigma"])
+    halves, boundaries = [], []
+    for name in REGIONS:
+        mine = cells[upper == (name == REGIONS[1])]
+        boundaries.append(_with_middles(boundary_faces(mine[:, :4]), middle))
+        halves.append(_named_half(name, points, mine, boundaries[-1], named, on_sigma, where))
+    if np.sum(solid_files.members(boundaries[1], boundaries[0])) != len(named["sigma"]):
+        raise MeshError(f"{where}: the volumes lower and upper touch off sigma (faces they share are not sigma's): "
+                        "Σ must be all of their common boundary")
+    sigma_of = np.full(len(points), -1, dtype=np.int64)
+    sigma_of[on_sigma] = np.arange(len(on_sigma))
+    faces = boundaries[0][solid_files.members(boundaries[0], named["sigma"])]  # the lower half's: outward, ν = +y
+    crack = surfaces.get("crack", np.zeros((0, 3), dtype=np.int64))
+    cracked, front = solid_files.crack_roles(sigma_of[faces], solid_files.members(faces, crack))
+    return SolidMesh(tuple(halves), SigmaSurface(points[on_sigma], sigma_of[faces], cracked, front))
+
+
+def _with_middles(triangles: np.ndarray, middle) -> np.ndarray:
+    """The triangles with their mid-edge nodes (v0 v1 v2 m01 m12 m20) where ``middle`` gives them (P2)."""
+    if middle is None:
+        return triangles
+    return np.column_stack([triangles, *(middle(triangles[:, a], triangles[:, (a + 1) % 3]) for a in range(3))])
+
+
+def _named_half(name: str, points: np.ndarray, cells: np.ndarray, faces: np.ndarray, named: dict[str, np.ndarray],
+                on_sigma: np.ndarray, where: str) -> SolidHalf:
+    """One half of a file in its own numbering: its nodes, tetrahedra, its boundary ``faces`` (outward) on each
+    named surface and its Σ nodes; it must border all of Σ."""
+    used = np.unique(cells)
+    local = np.full(len(points), -1, dtype=np.int64)
+    local[used] = np.arange(len(used))
+    mine = {surface: faces[solid_files.members(faces, triangles)] for surface, triangles in named.items()}
+    missing = len(named["sigma"]) - len(mine["sigma"])
+    if missing:
+        raise MeshError(f"{where}: physical surface sigma is not all on the volume {name}'s boundary ({missing} of "
+                        f"its {len(named['sigma'])} triangles are not): Σ lies between lower and upper, their meshes "
+                        "conforming on it")
+    return SolidHalf(name, points[used], local[cells], {surface: local[f] for surface, f in mine.items()},
+                     local[on_sigma])

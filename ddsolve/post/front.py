@@ -15,7 +15,9 @@ with no load where θ ≠ 0 (the radii keep it off the loaded and clamped sides)
 F the nodal configurational forces (P1: σ and ∇u constant per tetrahedron), and G_k = J(θ_k) / ∫ φ_k ds, G per
 unit length of front at node k (the mean of G(s) weighted by the hat).  J(θ) is the derivative of the discrete
 energy as the nodes move by θ (tests/test_front.py checks it by finite differences).  Σ is flat, so
-non-penetration adds no term (its normal does not turn).
+non-penetration adds no term (its normal does not turn).  Under a temperature change (``temperature.layer1``) σ and
+W are those of ε − ε₀, ε₀ = ε₀′ ΔT, and F gains the eigenstrain's term Σ_e |e| σ:ε₀′ ∇ΔT λ_a (the plane code's,
+:func:`ddsolve.post.fracture.eigenstrain_term`).
 
 Modes: where the materials above and below Σ are the same and the reflection about Σ leaves their law unchanged
 (isotropic, or a ply whose fibre lies in Σ), the fields split into the part symmetric about Σ
@@ -23,16 +25,19 @@ Modes: where the materials above and below Σ are the same and the reflection ab
 the antisymmetric part; G_I is J of the symmetric part, and the antisymmetric one is split in the front's frame:
 its component along t (tearing) gives G_III, the rest (sliding along n and the normal component) G_II.  The
 cross terms vanish for the near-front fields; G_I + G_II + G_III = G up to them (and to the interpolation at the
-images).  Between different materials the modes are not split (NaN).  No PETSc or MPI here.
+images).  An eigenstrain that is its own mirror image about Σ goes with the symmetric part (mode I); between different
+materials, or under one that is not, the modes are not split (NaN).  No PETSc or MPI here.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from ddsolve.fem import tetra
 from ddsolve.mesh.solid import SIDE_PLANES, SolidHalf, SolidMesh
+from ddsolve.problem import materials
 
 #: Default radii as in the plane: outer = OUTER_FRACTION × the clearance, inner = INNER_FRACTION × outer.
 OUTER_FRACTION = 0.5
@@ -228,25 +233,53 @@ def _clearance(points: np.ndarray, closed: bool, box: tuple[float, ...], others:
     return float(min(distances))
 
 
-def forces(half: SolidHalf, D: np.ndarray, u: np.ndarray, cells: np.ndarray) -> np.ndarray:
+#: A half's temperature change: its eigenstrain per unit ΔT ``(6,)`` (Voigt, engineering shears) and ΔT(x, y, z).
+Thermal = tuple[np.ndarray, Callable]
+
+
+def thermal_of(scene, half: SolidHalf) -> Thermal | None:
+    """The half's eigenstrain per unit ΔT and ``temperature.layer1`` (None without a temperature change)."""
+    if "layer1" not in scene.temperature:
+        return None
+    return materials.solid_expansion(scene.material("layer1", half.name)), scene.temperature["layer1"]
+
+
+def forces(half: SolidHalf, D: np.ndarray, u: np.ndarray, cells: np.ndarray,
+           thermal: Thermal | None = None) -> np.ndarray:
     """The configurational forces F ``(n, 3)`` at the half's vertices from the tetrahedra ``cells`` (indices, P1
-    or P2) and the displacements ``u`` ``(n, 3)``: F_a = Σ_e Σ_q w_q |J| (∇uᵀσ − W I)(x_q) ∇λ_a, λ_a the
-    vertices' barycentric coordinates (θ moves the vertices: each tetrahedron's affine map), the stiffness's
-    rule."""
+    or P2) and the displacements ``u`` ``(n, 3)``: F_a = Σ_e Σ_q w_q |J| [(∇uᵀσ − W I) ∇λ_a + σ:ε₀′ ∇ΔT λ_a](x_q),
+    λ_a the vertices' barycentric coordinates (θ moves the vertices: each tetrahedron's affine map), σ = D (ε − ε₀)
+    and W = ½ σ:(ε − ε₀) with the eigenstrain ε₀ = ε₀′ ΔT of ``thermal`` (none without); the last term is the
+    eigenstrain's (Shih, Moran and Nakamura 1986), ∇ΔT from ΔT interpolated at the nodes.  The stiffness's rule,
+    or the thermal load's (degree 2) under a temperature change."""
     tetrahedra = half.tetrahedra[cells]
-    xi, weights = tetra.TETRA_RULES[tetrahedra.shape[1]]
+    xi, weights = tetra.TETRA_RULES[tetrahedra.shape[1]] if thermal is None else tetra.THERMAL_RULE
     grads, dets = tetra.gradients(half.points, tetrahedra, xi)  # (m, q, k, 3)
     grad_u = np.einsum("mkd,mqkj->mqdj", u[tetrahedra], grads)  # u_d,j
     strain = np.einsum("mqij,mj->mqi", tetra.strain_operator(grads), u[tetrahedra].reshape(len(cells), -1))
+    barycentric = tetra.tetra_shapes(4, xi)[0]  # λ_a at the rule's points (q, 4)
+    if thermal is not None:
+        eigenstrain, temperature = thermal
+        at = np.einsum("qa,mad->mqd", barycentric, half.points[tetrahedra[:, :4]])  # straight edges
+        strain = strain - _temperature(temperature, at)[..., None] * eigenstrain
     stress = strain @ D.T
     sigma = stress[..., [[0, 5, 4], [5, 1, 3], [4, 3, 2]]]
     density = 0.5 * np.einsum("mqi,mqi->mq", stress, strain)
     tensor = np.einsum("mqik,mqij->mqkj", grad_u, sigma) - density[..., None, None] * np.eye(3)  # σ_ij u_i,k
     vertex = tetra.gradients(half.points, tetrahedra[:, :4], xi[:1])[0][:, 0]  # ∇λ_a (m, 4, 3)
-    nodal = np.einsum("mq,mqkj,maj->mak", dets[:, None] * weights, tensor, vertex)
+    volume = dets[:, None] * weights
+    nodal = np.einsum("mq,mqkj,maj->mak", volume, tensor, vertex)
+    if thermal is not None:
+        grad_change = np.einsum("mk,mqkd->mqd", _temperature(temperature, half.points[tetrahedra]), grads)
+        nodal += np.einsum("mq,mq,mqd,qa->mad", volume, stress @ eigenstrain, grad_change, barycentric)
     out = np.zeros((len(half.points), 3))
     np.add.at(out, tetrahedra[:, :4].ravel(), nodal.reshape(-1, 3))
     return out
+
+
+def _temperature(temperature: Callable, at: np.ndarray) -> np.ndarray:
+    """ΔT at the points ``at`` ``(..., 3)``, in their shape."""
+    return np.broadcast_to(temperature(at[..., 0], at[..., 1], at[..., 2]), at.shape[:-1]).astype(float)
 
 
 def tangential(points: np.ndarray, box: tuple[float, ...], field: np.ndarray) -> np.ndarray:
@@ -292,9 +325,10 @@ class Support:
             gap = np.minimum(gap, self.front.arclength[-1] + self.front.closure - gap)
         return (np.clip(1.0 - gap / self.front.width, 0.0, None) * self.cut)[:, None] * self.directions
 
-    def release(self, half: SolidHalf, D: np.ndarray, u: np.ndarray) -> np.ndarray:
-        """J(θ_k) ``(k,)`` on this half for the displacements ``u`` ``(n, 3)``: Σ_a φ_k(s_a) c_a direction_a·F_a."""
-        force = forces(half, D, u, self.cells)[self.nodes]
+    def release(self, half: SolidHalf, D: np.ndarray, u: np.ndarray, thermal: Thermal | None = None) -> np.ndarray:
+        """J(θ_k) ``(k,)`` on this half for the displacements ``u`` ``(n, 3)`` (and the eigenstrain of ``thermal``):
+        Σ_a φ_k(s_a) c_a direction_a·F_a."""
+        force = forces(half, D, u, self.cells, thermal)[self.nodes]
         return self.front.integrate(self.s, self.cut * np.einsum("qd,qd->q", self.directions, force))
 
 
@@ -351,17 +385,19 @@ def release(result, inner: float | None = None, outer: float | None = None,
     inner = inner if inner is not None else scene.fracture.inner
     outer = outer if outer is not None else scene.fracture.outer
     laws = [tetra.elastic_matrix(scene.material("layer1", half.name)) for half in mesh.halves]
+    thermals = [thermal_of(scene, half) for half in mesh.halves]
     flip = np.diag(REFLECTED_VOIGT)
-    same = np.allclose(laws[0], laws[1], rtol=1e-12, atol=0.0) and np.allclose(flip @ laws[0] @ flip, laws[0],
-                                                                               rtol=1e-12, atol=0.0)
+    same = (np.allclose(laws[0], laws[1], rtol=1e-12, atol=0.0)
+            and np.allclose(flip @ laws[0] @ flip, laws[0], rtol=1e-12, atol=0.0) and _mirrored_heat(mesh, thermals))
+    box = mesh.box if scene.geometry.solid_file else scene.geometry.box  # a file's body: its bounds
     rows = []
-    for front in fronts(mesh, scene.geometry.box, inner, outer, width):
+    for front in fronts(mesh, box, inner, outer, width):
         parts = np.zeros((4, len(front.points)))  # G, G_I, G_II, G_III
-        for k, (half, D, u) in enumerate(zip(mesh.halves, laws, result.fields)):
-            support = Support.of(front, half, scene.geometry.box)
-            parts[0] += support.release(half, D, u)
+        for k, (half, D, u, thermal) in enumerate(zip(mesh.halves, laws, result.fields, thermals)):
+            support = Support.of(front, half, box)
+            parts[0] += support.release(half, D, u, thermal)
             if same:
-                parts[1:] += _mode_parts(support, half, mesh.halves[1 - k], D, u, result.fields[1 - k])
+                parts[1:] += _mode_parts(support, half, mesh.halves[1 - k], D, u, result.fields[1 - k], thermal)
         G, G_I, G_II, G_III = parts / front.lengths
         if not same:
             G_I = G_II = G_III = np.full(len(G), np.nan)
@@ -369,9 +405,26 @@ def release(result, inner: float | None = None, outer: float | None = None,
     return _table(rows, result)
 
 
+def _mirrored_heat(mesh: SolidMesh, thermals: list[Thermal | None]) -> bool:
+    """Whether the eigenstrain is its own mirror image about Σ: none, or the same reflection-invariant eigenstrain
+    per unit ΔT in both halves and ΔT equal at every lower vertex and its image (then it is all in the symmetric
+    part of the fields, mode I)."""
+    if thermals[0] is None:
+        return True
+    (lower, temperature), (upper, _) = thermals
+    if not (np.allclose(lower, upper, rtol=1e-12, atol=0.0) and np.allclose(lower * REFLECTED_VOIGT, lower)):
+        return False
+    half = mesh.halves[0]
+    height = half.points[half.sigma_nodes[0], 1]
+    change = _temperature(temperature, half.points)
+    image = _temperature(temperature, half.points * [1.0, -1.0, 1.0] + [0.0, 2.0 * height, 0.0])
+    return bool(np.allclose(change, image, rtol=1e-12, atol=1e-12 * float(np.abs(change).max(initial=0.0))))
+
+
 def _mode_parts(support: Support, half: SolidHalf, other: SolidHalf, D: np.ndarray, u: np.ndarray,
-                u_other: np.ndarray) -> np.ndarray:
-    """J(θ_k) ``(3, k)`` of the symmetric part, the antisymmetric part less its tearing, and the tearing."""
+                u_other: np.ndarray, thermal: Thermal | None = None) -> np.ndarray:
+    """J(θ_k) ``(3, k)`` of the symmetric part (with the eigenstrain of ``thermal``, its own mirror image), the
+    antisymmetric part less its tearing, and the tearing."""
     nodes = support.every
     image = mirrored(half, other, u_other, nodes)
     symmetric, antisymmetric = (np.zeros_like(u) for _ in range(2))
@@ -380,7 +433,8 @@ def _mode_parts(support: Support, half: SolidHalf, other: SolidHalf, D: np.ndarr
     tearing = np.zeros_like(u)
     along = np.einsum("qd,qd->q", antisymmetric[nodes], support.tangents)
     tearing[nodes] = along[:, None] * support.tangents
-    return np.array([support.release(half, D, field) for field in (symmetric, antisymmetric - tearing, tearing)])
+    return np.array([support.release(half, D, field, heat)
+                     for field, heat in ((symmetric, thermal), (antisymmetric - tearing, None), (tearing, None))])
 
 
 def _table(rows: list, result) -> FrontRelease:

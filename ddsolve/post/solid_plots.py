@@ -45,13 +45,16 @@ def opening_map(result: SolidResult, target: Path) -> None:
     fig.colorbar(filled, ax=ax, label=f"opening [u]·ν ({LENGTH})")
     for a, b, c, d in result.scene.geometry.cracks:
         ax.plot([a, b, b, a, a], [c, c, d, d, c], color="white", linestyle="--", linewidth=1.2)
+    if result.scene.geometry.solid_file:  # a gmsh file's cracks: their fronts
+        ends = surface.points[surface.front][:, :, [0, 2]]  # (k, 2 ends, x z)
+        ax.plot(*np.transpose(ends, (2, 1, 0)), color="white", linestyle="--", linewidth=1.2)
     closed = result.pressure > 0.0
     ax.plot(x[closed], z[closed], "o", color="tab:red", markersize=3, linestyle="none",
             label=f"in contact ({int(closed.sum())} vertices)")
     ax.set_aspect("equal")
     ax.set_xlabel(f"x ({LENGTH})")
     ax.set_ylabel(f"z ({LENGTH})")
-    ax.set_title(f"Σ (y = {result.scene.geometry.sigma:g}): the crack opening; dashed: cracks")
+    ax.set_title(f"Σ (y = {float(surface.points[0, 1]):g}): the crack opening; dashed: cracks")
     ax.legend(loc="upper right", fontsize=8)
     fig.savefig(target, dpi=120)
     plt.close(fig)

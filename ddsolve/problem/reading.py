@@ -71,7 +71,7 @@ def utf8_text(path: Path, what: str, error: type[DDSolveError] = DDSolveError) -
 #: A gmsh file's physical groups of several interfaces: curves ``sigma1``, ``sigma2``, ... and ``crack1``, ...
 NUMBERED_SIGMA, NUMBERED_CRACK = re.compile(r"sigma(\d+)"), re.compile(r"crack(\d+)")
 #: Physical group kinds of a .geo file by dimension.
-GEO_GROUPS = re.compile(r'Physical\s+(Point|Line|Curve|Surface)\s*\(\s*"([^"]*)"')
+GEO_GROUPS = re.compile(r'Physical\s+(Point|Line|Curve|Surface|Volume)\s*\(\s*"([^"]*)"')
 
 
 @dataclass(frozen=True)
@@ -91,7 +91,7 @@ def physical_names(path: Path) -> dict[int, list[str]]:
         return {}
     names: dict[int, list[str]] = {}
     if Path(path).suffix.lower() == ".geo":
-        dims = {"Point": 0, "Line": 1, "Curve": 1, "Surface": 2}
+        dims = {"Point": 0, "Line": 1, "Curve": 1, "Surface": 2, "Volume": 3}
         for kind, name in GEO_GROUPS.findall(data.decode("utf-8", "replace")):
             names.setdefault(dims[kind], []).append(name)
         return names
@@ -103,11 +103,11 @@ def physical_names(path: Path) -> dict[int, list[str]]:
     return names
 
 
-def file_structure(path: Path, where: str) -> FileStructure | None:
+def file_structure(names: dict[int, list[str]], where: str) -> FileStructure | None:
     """The structure of a gmsh file with curves ``sigma1`` ... ``sigmaN`` (and ``crack1`` ...), its region surfaces
-    listed bottom to top; None for a file of one interface (``sigma``).  A file that mixes the forms, skips a
-    number, names a crack of no interface or has another count of surfaces than N + 1 is refused in one line."""
-    names = physical_names(path)
+    listed bottom to top, from its physical ``names`` (:func:`physical_names`); None for a file of one interface
+    (``sigma``).  A file that mixes the forms, skips a number, names a crack of no interface or has another count of
+    surfaces than N + 1 is refused in one line."""
     curves, surfaces = names.get(1, []), names.get(2, [])
     numbered = sorted(int(match[1]) for match in map(NUMBERED_SIGMA.fullmatch, curves) if match)
     if not numbered:

@@ -28,7 +28,7 @@ from ddsolve.errors import SceneError
 from ddsolve.problem import expressions, materials
 from ddsolve.problem.expressions import Expression
 from ddsolve.problem.overrides import REPLACES, apply_overrides, dumps, override_items, parse_override
-from ddsolve.problem.reading import file_structure, printable, readable, utf8_text
+from ddsolve.problem.reading import file_structure, physical_names, printable, readable, utf8_text
 from ddsolve.problem.rules import COARSE, CONDITIONING, SAME_COMPONENT, coarse_size, cross_checks
 from ddsolve.problem.shapes import Ellipse
 from ddsolve.problem.solid_rules import solid_checks
@@ -69,11 +69,13 @@ class Geometry:
     above: tuple[tuple[float, tuple[tuple[float, float], ...]], ...] = ()
     #: A gmsh file's region surfaces, bottom to top, when it has several interfaces (else the regions are numbered).
     regions: tuple[str, ...] = ()
+    #: A 3-D gmsh file (physical volumes) gives the body: its groups replace the box, Σ's height and the cracks.
+    solid_file: bool = False
 
     @property
     def dimension(self) -> int:
-        """2 for a plane box (or a mesh file), 3 for a 3-D box."""
-        return len(self.box) // 2
+        """2 for a plane box (or a plane mesh file), 3 for a 3-D box or a 3-D gmsh file."""
+        return 3 if self.solid_file else len(self.box) // 2
 
     @property
     def sigmas(self) -> tuple[float, ...]:
@@ -381,7 +383,7 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str, 
                                        for piece in geometry["cracks"]),
                           clamped=tuple(geometry["clamped"]), layers=geometry["layers"], given=given,
                           above=tuple((height, tuple(map(tuple, cracks))) for height, cracks in geometry["above"]),
-                          regions=tuple(geometry.get("regions", ()))),
+                          regions=tuple(geometry.get("regions", ())), solid_file=geometry.get("solid_file", False)),
         mesh=MeshOptions(**mesh),
         materials={layer: layer_material(data["materials"][layer]) for layer in layers_of(data)},
         regions=region_materials(data["materials"]),
@@ -461,16 +463,20 @@ def loads(text: str, overrides: list[str] = (), origin: str = "scene", base: Pat
         raise SceneError(f"{origin}: malformed TOML: arrays or tables nested too deeply") from None
     apply_overrides(raw, list(overrides))
     path = _gmsh_file(raw, base)
-    structure = file_structure(path, f"{origin}: mesh.file {printable(raw['mesh']['file'])}") if path else None
-    data = check_table(raw, structure_schema(raw, origin, structure.regions if structure else ()), (), origin)
-    if is_solid(raw):
-        solid_checks(data, raw, origin)
+    where = f"{origin}: mesh.file {printable(raw['mesh']['file'])}" if path else origin
+    names = physical_names(path) if path else {}
+    volumes = names if 3 in names else None  # a 3-D gmsh file's physical groups
+    structure = file_structure(names, where) if path and volumes is None else None
+    solid = is_solid(raw) or volumes is not None
+    data = check_table(raw, structure_schema(raw, origin, structure.regions if structure else (), solid), (), origin)
+    if solid:
+        solid_checks(data, raw, origin, volumes, where)
     else:
         cross_checks(data, raw, origin, structure)
     written = {key: value for key, value in data.items() if key != "geometry"}
-    if structure:  # its text names the file wherever it is read: the file gives the structure
+    if structure or volumes:  # its text names the file wherever it is read: the file gives the structure
         written["mesh"] = {**written["mesh"], "file": str(path.absolute())}
-    if structure or data["mesh"]["file"] is not None and data["mesh"]["file"].lower().endswith(".geo"):
+    if structure or volumes or data["mesh"]["file"] is not None and data["mesh"]["file"].lower().endswith(".geo"):
         written["geometry"] = {key: data["geometry"][key] for key in STRUCTURE_KEYS}
     else:
         written["geometry"] = _written_geometry(data["geometry"])

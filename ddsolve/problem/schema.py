@@ -504,16 +504,17 @@ def region_count(raw: dict) -> int:
     return len(heights) + 1 if isinstance(heights, list) and heights else len(REGIONS)
 
 
-def structure_schema(raw: dict, origin: str, regions: tuple[str, ...] = ()) -> dict:
+def structure_schema(raw: dict, origin: str, regions: tuple[str, ...] = (), solid: bool = False) -> dict:
     """The schema of the structure the raw scene describes: :data:`SCHEMA` with two layers and two regions; with
     one layer (``geometry.layers = 1``), without layer2's tables, and a layer2 table or key in the scene is refused;
     with several interfaces, the layers' region tables are ``region1`` ... (:func:`region_names`), or ``regions``
-    (a gmsh file's region surfaces)."""
+    (a gmsh file's region surfaces); ``solid``: a 3-D body (a 6-number box or a 3-D gmsh file), one layer."""
+    solid = solid or is_solid(raw)
     geometry = raw.get("geometry")
     written = {"layers": geometry["layers"]} if isinstance(geometry, dict) and "layers" in geometry else (
-        {"layers": 1} if is_solid(raw) else {})
+        {"layers": 1} if solid else {})
     layers = check_table(written, {"layers": SCHEMA["geometry"]["layers"]}, ("geometry",), origin)["layers"]
-    if layers != 1 and is_solid(raw):
+    if layers != 1 and solid:
         raise SceneError(f"{origin}: geometry.layers: a 3-D box is one body (layers = 1): the plane's layers are "
                          "sheets over the same plane domain, stacked through a thickness that a 3-D body meshes itself; "
                          "its regions below and above Σ take materials.layer1.lower and materials.layer1.upper")

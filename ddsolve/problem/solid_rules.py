@@ -12,13 +12,18 @@ from ddsolve.problem import materials
 from ddsolve.problem.reading import printable
 from ddsolve.problem.rules import check_apart, solver_checks
 from ddsolve.problem.shapes import Ellipse, bounds
-from ddsolve.problem.schema import ADAPTIVE_DEGREE, DEPTH_SIDES, GRADING, SIDES, layer_material
+from ddsolve.problem.schema import ADAPTIVE_DEGREE, DEPTH_SIDES, GRADING, REGIONS, SIDES, STRUCTURE_KEYS, layer_material
 
 #: The boundaries a 3-D box names (loads and supports act on them).
 SOLID_SIDES = SIDES + DEPTH_SIDES
 #: The mesh keys a 3-D box takes: tetrahedra of about ``mesh.size`` (P1 or P2), graded towards the crack fronts,
 #: or the plane mesh of the section extruded in ``mesh.extrude`` layers; or meshed again to ``mesh.target_error``.
 SOLID_MESH_KEYS = ("size", "degree", "grading", "extrude", "target_error")
+#: The mesh keys a 3-D gmsh file takes: the file, a .geo's largest element size and its grading, the degree.
+SOLID_FILE_MESH_KEYS = ("file", "size", "degree", "grading")
+#: A 3-D gmsh file's physical surfaces of fixed meaning: Σ (the plane y = const between the volumes lower and
+#: upper), the cracks on it, and the clamped boundary.
+SIGMA, CRACK, CLAMPED = "sigma", "crack", "clamped"
 #: Elements per shortest side of the box when the scene gives no ``mesh.size``.
 DEFAULT_ELEMENTS = 4
 #: The fracture keys a 3-D box takes: θ's radii about the crack fronts (:mod:`ddsolve.post.front`).
@@ -29,10 +34,18 @@ NOT_YET = {("interface", None): "a bond law on Σ is not solved in 3-D yet",
            ("contact", "slip_bound"): "friction is not solved in 3-D yet"}
 
 
-def solid_checks(data: dict, raw: dict, origin: str) -> None:
+def solid_checks(data: dict, raw: dict, origin: str, groups: dict[int, list[str]] | None = None,
+                 where: str = "") -> None:
     """The rules of a 3-D scene; fills in Σ's height (the box's middle), the cracks as rectangles
-    ``(a, b, c, d)`` (an interval [a, b] spans the depth) and the mesh size."""
-    _refuse_plane_only(data, raw, origin)
+    ``(a, b, c, d)`` (an interval [a, b] spans the depth) and the mesh size.  ``groups``: a 3-D gmsh file's
+    physical names by dimension (``where`` names the file), which give the body instead of the box."""
+    _refuse_plane_only(data, raw, origin, groups is not None)
+    if groups is not None:
+        _file_checks(data, raw, groups, where)
+        _material_checks(data, origin)
+        _boundary_checks(data, origin, _file_surfaces(groups))
+        solver_checks(data, origin)
+        return
     geometry = data["geometry"]
     x0, x1, y0, y1, z0, z1 = geometry["box"]
     sigma = 0.5 * (y0 + y1) if geometry["sigma"] is None else geometry["sigma"]
@@ -60,26 +73,65 @@ def solid_checks(data: dict, raw: dict, origin: str) -> None:
     if data["mesh"]["size"] is None:
         data["mesh"]["size"] = min(x1 - x0, y1 - y0, z1 - z0) / DEFAULT_ELEMENTS
     _material_checks(data, origin)
-    _boundary_checks(data, origin)
+    _boundary_checks(data, origin, SOLID_SIDES)
     solver_checks(data, origin)
 
 
-def _refuse_plane_only(data: dict, raw: dict, origin: str) -> None:
-    """The keys a 3-D scene does not take (yet), each refused naming it."""
-    if isinstance(raw["geometry"].get("sigma"), list):
+def _file_checks(data: dict, raw: dict, groups: dict[int, list[str]], where: str) -> None:
+    """A 3-D gmsh file's groups: the volumes ``lower`` and ``upper``, the surface ``sigma``; no box keys beside
+    them.  Fills in the geometry a file gives: its ``clamped`` surface, if any (Σ and the cracks come with the
+    mesh)."""
+    given = [key for key in (raw.get("geometry") or {}) if key not in STRUCTURE_KEYS]
+    if given:
+        raise SceneError(f"{where}: geometry.{given[0]}: the file is a 3-D geometry (physical volumes), whose groups "
+                         f"define the body, its Σ and its cracks: leave geometry.{given[0]} out")
+    volumes, surfaces = groups[3], groups.get(2, [])
+    other = next((name for name in volumes if name not in REGIONS), None)
+    if other is not None:
+        raise SceneError(f"{where}: physical volume {printable(other)!r}: a 3-D file's volumes are lower and upper "
+                         "(below and above Σ; several interfaces are not solved in 3-D yet)")
+    missing = next((name for name in (*REGIONS, SIGMA) if name not in (volumes if name in REGIONS else surfaces)),
+                   None)
+    if missing is not None:
+        kind = "volume" if missing in REGIONS else "surface"
+        raise SceneError(f"{where}: missing physical {kind} {missing!r} (a 3-D file needs the volumes lower and "
+                         "upper and the surface sigma, the plane y = const between them; optional surfaces: crack, "
+                         "clamped and names for loads and displacements)")
+    data["geometry"].update(clamped=[CLAMPED] if CLAMPED in surfaces else [], sigma=0.0, cracks=[], above=[],
+                            layers=1, solid_file=True)  # Σ's height and the cracks: placeholders, as in the plane
+    del data["geometry"]["crack"]
+
+
+def _file_surfaces(groups: dict[int, list[str]]) -> tuple[str, ...]:
+    """The boundaries a 3-D file names (its physical surfaces but Σ and the cracks): loads and supports act on them."""
+    return tuple(name for name in groups.get(2, []) if name not in (SIGMA, CRACK))
+
+
+def _refuse_plane_only(data: dict, raw: dict, origin: str, file: bool = False) -> None:
+    """The keys a 3-D scene does not take (yet), each refused naming it (``file``: a 3-D gmsh file's scene)."""
+    if isinstance((raw.get("geometry") or {}).get("sigma"), list):
         raise SceneError(f"{origin}: geometry.sigma: a 3-D box has one interface (a number) for now")
     written = raw.get("mesh", {}) if isinstance(raw.get("mesh"), dict) else {}
-    if "file" in written:
-        raise SceneError(f"{origin}: geometry.box: a 3-D box (6 numbers) is meshed by ddsolve, and mesh files are "
-                         "plane: give a 4-number box with mesh.file, or leave mesh.file out")
-    other = next((name for name in written if name not in SOLID_MESH_KEYS), None)
+    if "file" in written and not file:
+        raise SceneError(f"{origin}: geometry.box: a 3-D box (6 numbers) is meshed by ddsolve, and mesh.file "
+                         f"{printable(str(written['file']))} is plane (no physical volumes): give a 4-number box "
+                         "with a plane mesh file, a 3-D gmsh file without geometry.box, or leave mesh.file out")
+    keys = SOLID_FILE_MESH_KEYS if file else SOLID_MESH_KEYS
+    other = next((name for name in written if name not in keys), None)
     if other is not None:
-        raise SceneError(f"{origin}: mesh.{other}: a 3-D box is meshed with tetrahedra of about mesh.size "
-                         "(mesh.size, mesh.grading, mesh.degree and mesh.extrude only, for now)")
+        raise SceneError(f"{origin}: mesh.{other}: a 3-D " + (
+            "gmsh file is meshed (.geo) or read (.msh) with mesh.file, mesh.size, mesh.degree and mesh.grading only, "
+            "for now"
+            if file else "box is meshed with tetrahedra of about mesh.size (mesh.size, mesh.grading, mesh.degree, "
+            "mesh.extrude and mesh.target_error only, for now)"))
     if data["mesh"]["target_error"] is not None:
         _adaptive_defaults(data["mesh"], written, origin)
     grading = data["mesh"]["grading"]
     data["mesh"]["grading"] = GRADING[data["mesh"]["degree"]] if grading is True else (None if grading is False else grading)
+    if file and data["mesh"]["grading"] is not None and not (data["mesh"]["size"] and
+                                                             str(data["mesh"]["file"]).lower().endswith(".geo")):
+        raise SceneError(f"{origin}: mesh.grading: grades a .geo's tetrahedra from mesh.size towards the crack fronts: "
+                         "give mesh.size with a .geo (a .msh is read as it is)")
     if data["materials"]["model"] != "plane_strain":
         raise SceneError(f"{origin}: materials.model: a 3-D body has no plane model (leave it out)")
     for (section, key), why in NOT_YET.items():
@@ -159,20 +211,26 @@ def _ply_checks(material: materials.Orthotropic, key: str, origin: str) -> None:
         raise SceneError(f"{origin}: {key}: {exc}") from None
 
 
-def _boundary_checks(data: dict, origin: str) -> None:
-    """Loads and prescribed displacements act on the box's sides; a pressure excludes x, y and z, a normal
-    displacement x, y and z; no point supports; no prescribed values on a clamped side."""
+def _boundary_checks(data: dict, origin: str, sides: tuple[str, ...]) -> None:
+    """Loads and prescribed displacements act on the body's ``sides`` (a box's six, a file's named surfaces); a
+    pressure excludes x, y and z, a normal displacement x, y and z; no point supports; no prescribed values on a
+    clamped side."""
     clamped = set(data["geometry"]["clamped"])
     for section, exclusive in (("loads", "pressure"), ("displacements", "normal")):
         for layer, tables in data.get(section, {}).items():
             for name, table in tables.items():
                 key = f"{section}.{layer}.{printable(name)}"
-                if name not in SOLID_SIDES:
-                    raise SceneError(f"{origin}: {key}: a 3-D box's boundaries are its sides "
-                                     f"({', '.join(SOLID_SIDES)})")
+                if name not in sides:
+                    raise SceneError(f"{origin}: {key}: " + (
+                        f"a 3-D box's boundaries are its sides ({', '.join(SOLID_SIDES)})" if sides == SOLID_SIDES
+                        else f"no physical surface {printable(name)!r} in mesh.file (its boundaries: "
+                        f"{', '.join(map(printable, sides)) or 'none'})"))
                 given = [part for part, value in table.items() if value is not None and part != "point"]
                 if table.get("point") is not None:
                     raise SceneError(f"{origin}: {key}.point: point supports are not available in 3-D yet")
+                if section == "displacements" and exclusive in given and sides != SOLID_SIDES:
+                    raise SceneError(f"{origin}: {key}.normal: on a 3-D file's surfaces give the x, y and z "
+                                     "components (a displacement along the surface's normal is not available yet)")
                 if exclusive in given and len(given) > 1:
                     raise SceneError(f"{origin}: {key}: {exclusive} excludes x, y and z")
                 if section == "displacements" and (name in clamped or not given):

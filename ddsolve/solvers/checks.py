@@ -32,8 +32,9 @@ def check_size(scene, ranks: int = 1, solving: bool = True, stacks: bool = False
     if scene.geometry.dimension == 3:
         if solid:
             return
-        raise SceneError("geometry.box: a 3-D box (6 numbers) is solved by ddsolve solve and ddsolve reference only, "
-                         "for now; the other commands are plane")
+        body = "mesh.file: a 3-D gmsh file" if scene.geometry.solid_file else "geometry.box: a 3-D box (6 numbers)"
+        raise SceneError(f"{body} is solved by ddsolve solve and ddsolve reference only, for now; the other commands "
+                         "are plane")
     if solving and not stacks:
         geometry.one_interface(scene)
     geometry.refinement(scene)

@@ -77,7 +77,7 @@ def reference(scene: Scene, output: Path | None = None, progress: Callable[[str]
 
             return _converged(solid_adapt.solve_adaptively(scene, MPI.COMM_SELF, lambda mesh: solid.reference_on(
                 scene, mesh), output, progress))
-        return _converged(solid.reference(scene, output))
+        return _converged(solid.reference(scene, output, progress))
     _before_work(scene)
     monolithic.refuse_friction(scene)
     monolithic.refuse_bond(scene)

@@ -10,6 +10,7 @@ merged system's residual, no penetration, no tension, complementarity.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +26,7 @@ from ddsolve.parallel.phases import Phases
 from ddsolve.post import front
 from ddsolve.post.solid import SolidResult
 from ddsolve.problem.scene import Scene
+from ddsolve.solvers import solid_lines
 from ddsolve.solvers.reference import PHASES, merged_system, solve_merged
 
 #: Σ's normal ν (the lower half's outward normal) as a component: y.
@@ -122,24 +124,34 @@ def comparison(result: SolidResult, reference: SolidResult) -> tuple[float, floa
     return error, difference, max(float(np.abs(u).max()) for u in reference.fields)
 
 
-def with_fracture(result: SolidResult) -> None:
+def with_fracture(result: SolidResult, progress: Callable[[str], None] | None = None) -> None:
     """G along ``result``'s crack fronts (:func:`ddsolve.post.front.release`) in its ``fracture``, timed as its phase
-    ``fracture``; none under a temperature change (an eigenstrain's term is not in G yet)."""
-    if len(result.mesh.sigma.front) and "layer1" not in result.scene.temperature:
+    ``fracture`` (with the eigenstrain's term under a temperature change), and a ``progress`` line."""
+    if len(result.mesh.sigma.front):
         phases = Phases()
         result.fracture = front.release(result)
         phases.end("fracture")
         result.timings["fracture"] = phases.wall["fracture"]
+        if progress is not None:
+            progress(solid_lines.front_line(result.fracture, phases.wall["fracture"]))
 
 
-def reference(scene: Scene, output: Path | None = None) -> SolidResult:
+def reference(scene: Scene, output: Path | None = None, progress: Callable[[str], None] | None = None) -> SolidResult:
     """A 3-D scene meshed and solved by the monolithic reference, G along its crack fronts
-    (:func:`ddsolve.post.front.release`), ``output`` and its VTU files written."""
+    (:func:`ddsolve.post.front.release`), ``output`` and its VTU files written; ``progress`` lines after each
+    stage."""
     phases = Phases()
     mesh = solid_meshes.build(scene)
     phases.end("meshing")
-    result = reference_on(scene, mesh)
+    if progress is not None:
+        progress(solid_lines.mesh_line(mesh, phases.wall["meshing"]))
+    result = solve_solid(scene, mesh)
+    phases.end("solve")
     result.timings["meshing"] = phases.wall["meshing"]
+    if progress is not None:
+        progress(solid_lines.factored_line("the merged system", result.timings)
+                 + f", solved in {result.timings['solve']:.1f} s ({result.steps} active-set steps)")
+    with_fracture(result, progress)
     if output is not None:
         solid_files.write(output, result)
     return result

@@ -39,7 +39,7 @@ from ddsolve.parallel.launch import supported, usable
 from ddsolve.parallel.rounds import BlockServer
 from ddsolve.post.solid import SolidResult
 from ddsolve.problem.scene import Scene
-from ddsolve.solvers import driver, solid
+from ddsolve.solvers import driver, solid, solid_lines
 
 #: The trace entries of a Σ vertex: x, y (Σ's normal, component 1 as in the plane) and z.
 COMPONENTS = 3
@@ -153,9 +153,9 @@ def interface_of(scene: Scene, mesh: SolidMesh) -> Interface:
                      specs=block_list(1), components=COMPONENTS)
 
 
-def prepare(scene: Scene, comm: MPI.Comm, mesh: SolidMesh | None = None) -> SolidSetup:
+def prepare(scene: Scene, comm: MPI.Comm, progress=None, mesh: SolidMesh | None = None) -> SolidSetup:
     """Build the mesh on rank 0 (rank 0's ``mesh`` if given), broadcast it, assemble and factor every rank's blocks
-    (collective: the refusals too)."""
+    (collective: the refusals too); rank 0's ``progress`` lines after the mesh and after the factorization."""
     started = time.perf_counter()
     specs = block_list(1)
     if not supported(comm.size, len(specs)):
@@ -165,6 +165,8 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: SolidMesh | None = None) -> Soli
         raise error
     mesh = comm.bcast(collective(comm, lambda: mesh or solid_meshes.build(scene), root_only=True), root=0)
     meshed = time.perf_counter()
+    if progress is not None and comm.rank == 0:
+        progress(solid_lines.mesh_line(mesh, meshed - started))
     interface = interface_of(scene, mesh)
     held = collective(comm, lambda: kernels_of(scene, mesh, interface))
     scene = collective(comm, lambda: method_of(scene, mesh, held))
@@ -194,6 +196,8 @@ def prepare(scene: Scene, comm: MPI.Comm, mesh: SolidMesh | None = None) -> Soli
 
     blocks = collective(comm, make)
     timings["factorization"] = time.perf_counter() - meshed - timings["setup"] - timings["assembly"]
+    if progress is not None and comm.rank == 0:
+        progress(solid_lines.factored_line(f"rank 0's blocks ({scene.solver.method})", timings))
     return SolidSetup(scene, mesh, exchange, blocks, interface, held, stages, timings)
 
 
@@ -216,11 +220,11 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
     ``output`` and its VTU files written (:func:`ddsolve.io.solid.write`).  The result on rank 0 (None elsewhere); a method that does not converge
     writes its result with converged = false and raises NotConvergedError on every rank, with the result."""
     started = time.perf_counter()
-    setup = prepare(scene, comm, mesh)
+    setup = prepare(scene, comm, progress, mesh)
     try:
         def made(outcome, rounds, fields: list[np.ndarray]) -> SolidResult:
             result = finished(setup, outcome, rounds, fields)
-            solid.with_fracture(result)
+            solid.with_fracture(result, progress)
             return result
 
         return driver.gathered_solve(setup, BlockServer(setup.blocks, setup.exchange),
