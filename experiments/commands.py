@@ -51,6 +51,9 @@ EXPERIMENTS = {
                        "width against plane-strain and plane-stress beam theory, an elliptical delamination against "
                        "Irwin", "docs/three-d-front.md (shapes section), docs/three-d-dcb.png, "
                        "docs/three-d-ellipse.png"),
+    "three-d-adapt": ("three_d_adapt", "three_d_adapt", "3-D mesh.target_error on the extruded plane scene: "
+                      "levels, estimate against the true error, G against the plane G, the DD on the final mesh",
+                      "docs/three-d-adapt.md"),
     "architecture": ("architecture", "architecture", "the package's stages and the imports between them, read "
                      "from the source", "docs/architecture.png"),
 }

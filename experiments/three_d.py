@@ -183,7 +183,9 @@ def opening_comparison(run: dict, x: np.ndarray, reference: np.ndarray) -> dict:
 
 
 def page(measured: dict) -> str:
-    lines = ["# Three dimensions: the extrusion check", "", __doc__.split("\n\n", 1)[1].strip(), ""]
+    lines = ["# Three dimensions: the extrusion check", "", __doc__.split("\n\n", 1)[1].strip(), "",
+             "The same scene solved to a target error (``mesh.target_error``, meshes adapted by the estimate): "
+             "[three-d-adapt.md](three-d-adapt.md) (``./run three-d-adapt``).", ""]
     for case, record in measured.items():
         exact = record["exact"]
         lines += [f"## {case}", "", "The plane reference at graded P2 (its continuous value: the finest):", "",

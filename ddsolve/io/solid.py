@@ -121,7 +121,9 @@ def _write_hdf5(name: str, result: SolidResult) -> None:
                           "active_set_steps": result.steps, "solves": result.solves, "converged": result.converged,
                           "closed_vertices": result.closed, "message": result.message,
                           **{f"check_{key}": value for key, value in result.checks.items()},
-                          **{f"time_{key}": value for key, value in result.timings.items()}})
+                          **{f"time_{key}": value for key, value in result.timings.items()}, **result.attrs})
+        for column, values in result.levels.items():
+            out[f"levels/{column}"] = values
 
 
 def _write_fracture(group, fracture: FrontRelease) -> None:

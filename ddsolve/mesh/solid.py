@@ -20,6 +20,7 @@ import numpy as np
 from ddsolve.errors import MeshError
 from ddsolve.mesh import solid_files
 from ddsolve.mesh.mesh import TOL
+from ddsolve.mesh.solid_sizing import SizeField, as_background
 from ddsolve.problem.schema import DEPTH_SIDES, REGIONS, SIDES
 from ddsolve.problem.scene import Scene
 from ddsolve.problem.shapes import Ellipse
@@ -103,10 +104,10 @@ class SolidMesh:
         return tuple(float(v) for v in np.column_stack([points.min(axis=0), points.max(axis=0)]).ravel())
 
 
-def build(scene: Scene) -> SolidMesh:
+def build(scene: Scene, sizes: SizeField | None = None) -> SolidMesh:
     """The mesh of a 3-D box scene: gmsh in a child process, then the halves and Σ (:func:`assemble`); with
     ``mesh.extrude`` the plane section's mesh extruded (:mod:`ddsolve.mesh.extrude`); a 3-D gmsh file's
-    (:mod:`ddsolve.mesh.solid_files`)."""
+    (:mod:`ddsolve.mesh.solid_files`); with ``sizes``, the box's tetrahedra of those sizes (adaptive re-meshing)."""
     from ddsolve.mesh import extrude, gmsh_io  # both import the plane mesh modules
 
     geometry = scene.geometry
@@ -116,15 +117,15 @@ def build(scene: Scene) -> SolidMesh:
         points, tetrahedra, upper = extrude.tetrahedra(scene)
     else:
         points, tetrahedra, upper = gmsh_io.apart(_tetrahedra, geometry.box, geometry.sigma, geometry.cracks,
-                                                  scene.mesh.size, scene.mesh.grading)
+                                                  scene.mesh.size, scene.mesh.grading, sizes)
     return assemble(points, tetrahedra, upper, geometry.box, geometry.sigma, geometry.cracks, scene.mesh.degree)
 
 
 def _tetrahedra(box: tuple[float, ...], sigma: float, cracks: tuple[tuple[float, ...], ...], size: float,
-                grading: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                grading: float | None, sizes: SizeField | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """In gmsh: the boxes below and above Σ and the crack rectangles on it fragmented together and meshed with
-    tetrahedra of about ``size`` (graded towards the crack front with exponent ``grading``, if given); the
-    nodes, the tetrahedra and whether each lies in the upper box."""
+    tetrahedra of about ``size`` (graded towards the crack front with exponent ``grading``, if given; of the
+    ``sizes`` field, at most ``size``, if given); the nodes, the tetrahedra and whether each lies in the upper box."""
     from ddsolve.mesh.gmsh_io import session
 
     x0, x1, y0, y1, z0, z1 = box
@@ -142,7 +143,9 @@ def _tetrahedra(box: tuple[float, ...], sigma: float, cracks: tuple[tuple[float,
         occ.synchronize()
         gmsh.option.setNumber("Mesh.MeshSizeMax", size)
         front = _front_curves(gmsh, box, sigma, cracks)
-        if grading is not None and front:
+        if sizes is not None:
+            as_background(gmsh, sizes)
+        elif grading is not None and front:
             _graded_towards(gmsh, front, size, grading, min(box[1] - box[0], box[3] - box[2]))
         try:
             gmsh.model.mesh.generate(3)

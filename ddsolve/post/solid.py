@@ -30,6 +30,8 @@ class SolidResult:
     checks: dict[str, float] = field(default_factory=dict)
     timings: dict[str, float] = field(default_factory=dict)
     fracture: FrontRelease | None = None
+    attrs: dict[str, float] = field(default_factory=dict)  # an adaptive run's: error_estimate, target_error, levels
+    levels: dict[str, np.ndarray] = field(default_factory=dict)  # an adaptive run's level table, a column each
 
     @property
     def opening(self) -> np.ndarray:

@@ -12,13 +12,13 @@ from ddsolve.problem import materials
 from ddsolve.problem.reading import printable
 from ddsolve.problem.rules import check_apart, solver_checks
 from ddsolve.problem.shapes import Ellipse, bounds
-from ddsolve.problem.schema import DEPTH_SIDES, GRADING, REGIONS, SIDES, STRUCTURE_KEYS, layer_material
+from ddsolve.problem.schema import ADAPTIVE_DEGREE, DEPTH_SIDES, GRADING, REGIONS, SIDES, STRUCTURE_KEYS, layer_material
 
 #: The boundaries a 3-D box names (loads and supports act on them).
 SOLID_SIDES = SIDES + DEPTH_SIDES
 #: The mesh keys a 3-D box takes: tetrahedra of about ``mesh.size`` (P1 or P2), graded towards the crack fronts,
-#: or the plane mesh of the section extruded in ``mesh.extrude`` layers.
-SOLID_MESH_KEYS = ("size", "degree", "grading", "extrude")
+#: or the plane mesh of the section extruded in ``mesh.extrude`` layers; or meshed again to ``mesh.target_error``.
+SOLID_MESH_KEYS = ("size", "degree", "grading", "extrude", "target_error")
 #: The mesh keys a 3-D gmsh file takes: the file, a .geo's largest element size and its grading, the degree.
 SOLID_FILE_MESH_KEYS = ("file", "size", "degree", "grading")
 #: A 3-D gmsh file's physical surfaces of fixed meaning: Σ (the plane y = const between the volumes lower and
@@ -122,8 +122,10 @@ def _refuse_plane_only(data: dict, raw: dict, origin: str, file: bool = False) -
         raise SceneError(f"{origin}: mesh.{other}: a 3-D " + (
             "gmsh file is meshed (.geo) or read (.msh) with mesh.file, mesh.size, mesh.degree and mesh.grading only, "
             "for now"
-            if file else "box is meshed with tetrahedra of about mesh.size (mesh.size, mesh.grading, mesh.degree "
-            "and mesh.extrude only, for now)"))
+            if file else "box is meshed with tetrahedra of about mesh.size (mesh.size, mesh.grading, mesh.degree, "
+            "mesh.extrude and mesh.target_error only, for now)"))
+    if data["mesh"]["target_error"] is not None:
+        _adaptive_defaults(data["mesh"], written, origin)
     grading = data["mesh"]["grading"]
     data["mesh"]["grading"] = GRADING[data["mesh"]["degree"]] if grading is True else (None if grading is False else grading)
     if file and data["mesh"]["grading"] is not None and not (data["mesh"]["size"] and
@@ -142,6 +144,18 @@ def _refuse_plane_only(data: dict, raw: dict, origin: str, file: bool = False) -
     if other is not None:
         raise SceneError(f"{origin}: fracture.{printable(other)}: G along a 3-D crack front takes fracture.inner and "
                          "fracture.outer only (θ's radii), for now")
+
+
+def _adaptive_defaults(mesh: dict, written: dict, origin: str) -> None:
+    """``mesh.target_error`` re-meshes the box with gmsh: not an extruded plane mesh; alone it chooses P2 and a
+    first mesh graded towards the crack fronts, as in the plane."""
+    if mesh["extrude"] is not None:
+        raise SceneError(f"{origin}: mesh.target_error: a 3-D box is refined by meshing it again with gmsh, and "
+                         "mesh.extrude extrudes a fixed plane section: leave one of them out")
+    if "degree" not in written:
+        mesh["degree"] = ADAPTIVE_DEGREE
+    if "grading" not in written:
+        mesh["grading"] = True
 
 
 def _check_on_sigma(crack: tuple[float, ...] | Ellipse, box: tuple[float, ...], key: str, origin: str) -> None:

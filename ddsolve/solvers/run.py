@@ -16,7 +16,7 @@ from ddsolve.parallel.runtime import check_out_of_core
 from ddsolve.post.result import Result
 from ddsolve.post.solid import SolidResult
 from ddsolve.problem.scene import Scene
-from ddsolve.solvers import adapt, checks, critical, driver, solid, solid_dd, stacked, stacked_dd
+from ddsolve.solvers import adapt, checks, critical, driver, solid, solid_adapt, solid_dd, stacked, stacked_dd
 from ddsolve.solvers import reference as monolithic
 from ddsolve.solvers.stacked import StackResult
 
@@ -40,6 +40,9 @@ def decomposition(scene: Scene, comm, output: Path | None, progress: Callable[[s
     launch's phase ``critical_factors``."""
     collective(comm, lambda: _before_work(scene, comm.size), root_only=True)
     if scene.geometry.dimension == 3:
+        if scene.mesh.target_error is not None:
+            return solid_adapt.solve_adaptively(scene, comm, lambda mesh: solid_dd.solve(scene, comm, None, _silent, mesh),
+                                                output, progress)
         return solid_dd.solve(scene, comm, output, progress)
     if scene.geometry.above:
         collective(comm, lambda: refuse_critical_factors(scene))
@@ -69,6 +72,11 @@ def reference(scene: Scene, output: Path | None = None, progress: Callable[[str]
     NotConvergedError, with the result, when its final check fails.  The critical load factors of a scene
     with a toughness and a temperature change come from reference solves of the scaled scene."""
     if scene.geometry.dimension == 3:
+        if scene.mesh.target_error is not None:  # adaptive, every level solved by the reference
+            from mpi4py import MPI
+
+            return _converged(solid_adapt.solve_adaptively(scene, MPI.COMM_SELF, lambda mesh: solid.reference_on(
+                scene, mesh), output, progress))
         return _converged(solid.reference(scene, output, progress))
     _before_work(scene)
     monolithic.refuse_friction(scene)
@@ -88,6 +96,10 @@ def reference(scene: Scene, output: Path | None = None, progress: Callable[[str]
         if output is not None:
             hdf5.write(output, result, final=True)
     return _converged(result)
+
+
+def _silent(_line: str) -> None:
+    pass
 
 
 def _converged(result):

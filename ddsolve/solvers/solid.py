@@ -155,3 +155,10 @@ def reference(scene: Scene, output: Path | None = None, progress: Callable[[str]
     if output is not None:
         solid_files.write(output, result)
     return result
+
+
+def reference_on(scene: Scene, mesh: SolidMesh) -> SolidResult:
+    """The monolithic reference on ``mesh`` with G along its crack fronts."""
+    result = solve_solid(scene, mesh)
+    with_fracture(result)
+    return result

@@ -289,12 +289,11 @@ def auto_pieces(mesh: SolidMesh) -> int:
 
 
 def prepare(scene: Scene, comm: MPI.Comm, progress=None, mesh: SolidMesh | None = None) -> SolidSetup:
-    """Build the mesh on rank 0 (unless every rank is given it), broadcast it, cut it into blocks, assemble and
-    factor every rank's blocks (collective: the refusals too); rank 0's ``progress`` lines after the mesh and after
-    the factorization."""
+    """Build the mesh on rank 0 (rank 0's ``mesh`` if given), broadcast it, cut it into blocks, assemble and factor
+    every rank's blocks (collective: the refusals too); rank 0's ``progress`` lines after the mesh and after the
+    factorization."""
     started = time.perf_counter()
-    if mesh is None:
-        mesh = comm.bcast(collective(comm, lambda: solid_meshes.build(scene), root_only=True), root=0)
+    mesh = comm.bcast(collective(comm, lambda: mesh or solid_meshes.build(scene), root_only=True), root=0)
     meshed = time.perf_counter()
     if progress is not None and comm.rank == 0:
         progress(solid_lines.mesh_line(mesh, meshed - started))
@@ -383,7 +382,7 @@ def floating_kernel(piece: SolidHalf, prescribed: np.ndarray, trace: np.ndarray,
 
 def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mesh: SolidMesh | None = None
           ) -> SolidResult | None:
-    """The domain decomposition of the 3-D box ``scene`` on ``comm`` (on its ``mesh`` where every rank has it);
+    """The domain decomposition of the 3-D box ``scene`` on ``comm`` (on rank 0's ``mesh`` if given, else the scene's);
     ``output`` and its VTU files written (:func:`ddsolve.io.solid.write`).  The result on rank 0 (None elsewhere); a method that does not converge
     writes its result with converged = false and raises NotConvergedError on every rank, with the result."""
     started = time.perf_counter()
