@@ -207,7 +207,7 @@ def rounds() -> list[dict]:
                 rows.append({"size": size, "unknowns": mesh.unknowns, "pieces": pieces,
                              "preconditioner": preconditioner, "iterations": result.steps, "rounds": result.solves,
                              "error": solid_solver.energy_error(result, reference)})
-                print(f"rounds: size {size}, {pieces} slabs per half, {preconditioner}: {result.steps} iterations, "
+                print(f"rounds: size {size}, slabs per half {pieces}, {preconditioner}: {result.steps} iterations, "
                       f"{result.solves} rounds", flush=True)
     return rows
 
