@@ -45,3 +45,11 @@ class NotConvergedError(DDSolveError):
     with converged = false."""
 
     exit_status = 3
+
+    @classmethod
+    def collective_with(cls, message: str, result) -> "NotConvergedError":
+        """The error every rank raises together, carrying the (unconverged) ``result``."""
+        error = cls(message)
+        error.collective = True
+        error.result = result
+        return error

@@ -332,7 +332,21 @@ def _crack_roles(points: np.ndarray, triangles: np.ndarray, box: tuple[float, ..
             front.append(edges[line[edges].all(axis=1)])
         on_front |= here
         cracked |= inside
-    return cracked & ~on_front, np.concatenate(front) if front else np.zeros((0, 2), dtype=np.int64)
+    front = np.concatenate(front) if front else np.zeros((0, 2), dtype=np.int64)
+    on_front[_middles_of(triangles, front)] = True  # P2: a curved front's chords keep their middles glued
+    return cracked & ~on_front, front
+
+
+def _middles_of(triangles: np.ndarray, edges: np.ndarray) -> np.ndarray:
+    """The mid-edge nodes of the vertex pairs ``edges`` in 6-node ``triangles`` (v0 v1 v2 m01 m12 m20); none for
+    3-node ones."""
+    if triangles.shape[1] != 6 or not len(edges):
+        return np.zeros(0, dtype=np.int64)
+    pairs = np.sort(triangles[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2), axis=1)
+    size = int(triangles.max()) + 1
+    keys, first = np.unique(pairs[:, 0] * size + pairs[:, 1], return_index=True)
+    wanted = np.sort(edges, axis=1)
+    return triangles[:, 3:].reshape(-1)[first[np.searchsorted(keys, wanted[:, 0] * size + wanted[:, 1])]]
 
 
 def _ellipse_roles(crack: Ellipse, x: np.ndarray, z: np.ndarray, edges: np.ndarray, tolerance: float

@@ -156,10 +156,7 @@ def solve_adaptively(scene: Scene, comm: MPI.Comm, output: Path | None, progress
         if result is not None:
             result.timings["write"] = time.perf_counter() - written
     if message:
-        error = NotConvergedError(message)
-        error.collective = True
-        error.result = result
-        raise error
+        raise NotConvergedError.collective_with(message, result)
     return result
 
 

@@ -131,10 +131,7 @@ def solve_adaptively(scene: Scene, comm, level: Callable[[SolidMesh | None], Sol
     if output is not None:
         collective(comm, lambda: solid_files.write(output, result), root_only=True)
     if message:
-        error = NotConvergedError(message)
-        error.collective = True
-        error.result = result
-        raise error
+        raise NotConvergedError.collective_with(message, result)
     return result
 
 
