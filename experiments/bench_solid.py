@@ -128,22 +128,26 @@ def ratios(record: dict) -> tuple[str, list[float]]:
     return best, sorted(m["solve_phase"] / d["solve_phase"] for m, d in zip(record[f"mono {best}"], record["dd"]))
 
 
+def bests(record: dict) -> dict[str, dict[str, float]]:
+    """Each side's best seconds of the pairs (``dd`` and each ordering's label): solve phase, factorization, setup
+    (the monolithic's merge) and CPU."""
+    sides = {"dd": record["dd"], **{label: record[f"mono {label}"] for label in ORDERINGS}}
+    return {side: {key: min(r["merge" if key == "setup" and side != "dd" else key] for r in runs)
+                   for key in ("solve_phase", "factorization", "setup", "cpu")} for side, runs in sides.items()}
+
+
 def summary(record: dict) -> list[str]:
     """The case in a few lines: each side's best solve phase, the ratios, the memory."""
-    dd = record["dd"]
     best, pairs = ratios(record)
-    first = dd[0]
+    seconds, first = bests(record), record["dd"][0]
+    dd = seconds["dd"]
     lines = [f"3-D box, {record['unknowns']:,} unknowns (P1), load {record['load']:.1f} -> {record['load_after']:.1f}: "
              f"DD {first['method']} ({first['pieces']} slabs per half, {first['preconditioner']} preconditioner), "
-             f"{first['iterations']} iterations, "
-             f"{first['rounds']} rounds, on {record['ranks']} ranks: solve phase "
-             f"{min(d['solve_phase'] for d in dd):.2f} s (factorization {min(d['factorization'] for d in dd):.2f} s), "
-             f"setup and assembly {min(d['setup'] for d in dd):.2f} s, CPU {min(d['cpu'] for d in dd):.1f} s, error "
-             f"{max(d['error'] for d in dd):.1e}"]
-    for label in ORDERINGS:
-        mono = record[f"mono {label}"]
-        lines.append(f"  monolithic MUMPS ({label}): solve phase {min(m['solve_phase'] for m in mono):.2f} s, merge "
-                     f"{min(m['merge'] for m in mono):.2f} s, CPU {min(m['cpu'] for m in mono):.1f} s")
+             f"{first['iterations']} iterations, {first['rounds']} rounds, on {record['ranks']} ranks: solve phase "
+             f"{dd['solve_phase']:.2f} s (factorization {dd['factorization']:.2f} s), setup and assembly "
+             f"{dd['setup']:.2f} s, CPU {dd['cpu']:.1f} s, error {max(d['error'] for d in record['dd']):.1e}"]
+    lines += [f"  monolithic MUMPS ({label}): solve phase {seconds[label]['solve_phase']:.2f} s, merge "
+              f"{seconds[label]['setup']:.2f} s, CPU {seconds[label]['cpu']:.1f} s" for label in ORDERINGS]
     lines.append(f"  ratio monolithic ({best}) / DD, solve phases: {np.median(pairs):.2f} median ({pairs[0]:.2f}-"
                  f"{pairs[-1]:.2f}); peak memory: monolithic {record['memory']['mono'][0]:.0f} MB, DD "
                  f"{sum(record['memory']['dd']):.0f} MB ({' + '.join(f'{m:.0f}' for m in record['memory']['dd'])})")
@@ -152,33 +156,31 @@ def summary(record: dict) -> list[str]:
 
 def table(record: dict) -> str:
     """Markdown for docs/methods.md."""
-    dd = record["dd"]
     best, pairs = ratios(record)
-    first = dd[0]
+    seconds, first = bests(record), record["dd"][0]
+    memory = {"dd": sum(record["memory"]["dd"]), **{label: record["memory"]["mono"][0] for label in ORDERINGS}}
     rows = ["`./run bench baseline` (or `./run bench baseline-3d` alone), the 3-D case: the 3-D page's box pulled open "
             f"with its crack faces free (linear), P1 at mesh.size {record['size']:g}, {record['unknowns']:,} unknowns; "
             f"the decomposition with its defaults ({first['method']}, {first['pieces']} slabs per half, "
-            f"{first['preconditioner']} preconditioner, "
-            f"{first['iterations']} iterations, {first['rounds']} rounds) on {record['ranks']} ranks against one MUMPS "
-            f"factorization of the whole glued system in one process, {len(dd)} side-by-side pairs in one launch "
-            f"(machine load {record['load']:.1f} before, {record['load_after']:.1f} after). Seconds: the best of "
-            "each side; ratio: monolithic / DD per pair (median, range), solve phases (factorization and solves, or "
-            "factorization and rounds); CPU: the whole call, the DD's summed over its ranks; peak memory from "
-            "launches of their own (the DD's: the sum of its ranks).", "",
+            f"{first['preconditioner']} preconditioner, {first['iterations']} iterations, {first['rounds']} rounds) on "
+            f"{record['ranks']} ranks against one MUMPS factorization of the whole glued system in one process, "
+            f"{len(record['dd'])} side-by-side pairs in one launch (machine load {record['load']:.1f} before, "
+            f"{record['load_after']:.1f} after). Seconds: the best of each side; ratio: monolithic / DD per pair "
+            "(median, range), solve phases (factorization and solves, or factorization and rounds); CPU: the whole "
+            "call, the DD's summed over its ranks; peak memory from launches of their own (the DD's: the sum of its "
+            "ranks).", "",
             "| side | solve phase (s) | factorization (s) | setup and assembly (s) | CPU (s) | peak memory (MB) |",
-            "|---|---|---|---|---|---|",
-            f"| DD, {record['ranks']} ranks | {min(d['solve_phase'] for d in dd):.2f} "
-            f"| {min(d['factorization'] for d in dd):.2f} | {min(d['setup'] for d in dd):.2f} "
-            f"| {min(d['cpu'] for d in dd):.1f} | {sum(record['memory']['dd']):.0f} |"]
-    for label in ORDERINGS:
-        mono = record[f"mono {label}"]
-        rows.append(f"| monolithic, {label} | {min(m['solve_phase'] for m in mono):.2f} "
-                    f"| {min(m['factorization'] for m in mono):.2f} | {min(m['merge'] for m in mono):.2f} "
-                    f"| {min(m['cpu'] for m in mono):.1f} | {record['memory']['mono'][0]:.0f} |")
+            "|---|---|---|---|---|---|"]
+    for side, name in (("dd", f"DD, {record['ranks']} ranks"), *((label, f"monolithic, {label}") for label in ORDERINGS)):
+        row = seconds[side]
+        rows.append(f"| {name} | {row['solve_phase']:.2f} | {row['factorization']:.2f} | {row['setup']:.2f} "
+                    f"| {row['cpu']:.1f} | {memory[side]:.0f} |")
     rows += ["", f"Ratio monolithic ({best}, the faster) / DD of the solve phases: {np.median(pairs):.2f} (pairs "
              f"{', '.join(f'{p:.2f}' for p in pairs)}); the DD's energy-norm difference from the monolithic solution "
-             f"{max(d['error'] for d in dd):.1e}."]
+             f"{max(d['error'] for d in record['dd']):.1e}."]
     return "\n".join(rows)
+
+
 #: The rounds' growth: slabs per half and mesh sizes of the in-process solves (iterations only, no timing).
 ROUND_PIECES, ROUND_SIZES = (1, 2, 4), (0.1, 0.07, 0.05, 0.04)
 

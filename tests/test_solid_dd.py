@@ -62,7 +62,7 @@ def test_schur_and_feti_equal_the_3d_reference_with_contact_active(tmp_path, mon
         read = solid_files.read(tmp_path / f"{method}.h5")
         assert energy_error(read, reference) < 1e-8 and read.scene.solver.method == method
     parts = solid_dd.decomposition(scene, mesh, 1)
-    held = solid_dd.kernels_of(scene, parts)
+    held = solid_dd.kernels_of(parts)
     monkeypatch.setattr(solid_dd, "SCHUR_MEMORY_SHARE",
                         0.5 * solid_dd.schur_bytes(parts.interface) / physical_memory())
     refused = "^solver.method = schur: the dense Schur complements .* use solver.method = feti$"
@@ -91,7 +91,7 @@ def test_a_floating_half_is_solved_and_a_box_free_as_a_whole_refused(tmp_path):
 
     scene = loads(PENNY)
     mesh = solid.build(scene)
-    held = solid_dd.kernels_of(scene, solid_dd.decomposition(scene, mesh, 1))
+    held = solid_dd.kernels_of(solid_dd.decomposition(scene, mesh, 1))
     relative = kernels.describe(np.concatenate([np.zeros((6, 1)), held.kernels[1]]), held.frame, held.specs)
     assert held.floating == [1] and relative == "blocks u_plus can translate along (0, 1, 0) relative to the rest"
     reference = solid_solver.reference(scene)
@@ -105,7 +105,7 @@ def test_a_floating_half_is_solved_and_a_box_free_as_a_whole_refused(tmp_path):
     free = loads(PENNY.replace("[displacements.layer1.bottom]\ny = 0.0\n", ""))
     free_mesh = solid.build(free)
     with pytest.raises(SceneError, match="^the structure can translate in y: add a support"):
-        solid_dd.kernels_of(free, solid_dd.decomposition(free, free_mesh, 1))
+        solid_dd.kernels_of(solid_dd.decomposition(free, free_mesh, 1))
 
 
 @pytest.mark.mpi

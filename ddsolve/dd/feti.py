@@ -246,9 +246,9 @@ def feti(rounds: Rounds, interface: Interface, solver: Solver, progress: Progres
     bounds (a dense least-distance problem of the basis' size on rank 0), so the Krylov space survives
     every change of the active set.  Where the minimizer with only the held rows bounded leaves the
     bounds, an expansion step adds its projection onto them as a direction: the rows it crosses are held
-    together, not one per iteration.  An iteration takes two rounds (the Dirichlet solves, then A z; one with the
-    lumped preconditioner), an expansion one more.  Where rows are held and released in turn (a long zone of crack faces pressed
-    together whose early iterates dip below zero: more reversals than :data:`FLICKER` × the bounded rows),
+    together, not one per iteration.  An iteration takes two rounds (the Dirichlet solves, then A z; one with
+    the lumped preconditioner), an expansion one more.  Where rows are held and released in turn (a long zone of
+    crack faces pressed together whose early iterates dip below zero: more reversals than :data:`FLICKER` × the bounded rows),
     the iterations go on as active-set steps on a new subspace (:meth:`Iterations.steps`).  Converged:
     the KKT criterion (the projected gradient of the Lagrangian) is below ``tol``.  ``start``: the
     multipliers to start from (0 by default: the crack faces free), moved onto the bounds and the coarse

@@ -114,7 +114,7 @@ class SolidSetup:
         self.exchange.free()
 
 
-def kernels_of(scene: Scene, parts: Decomposition) -> kernels.Kernels:
+def kernels_of(parts: Decomposition) -> kernels.Kernels:
     """The blocks' kernels: the rigid motions their own supports leave (:func:`ddsolve.dd.kernels.held_kernels`);
     a SceneError naming the motion when the box can move rigidly as a whole."""
     frame = kernels.frame_of(np.vstack([slab.piece.points for slab in parts.slabs]))
@@ -124,9 +124,10 @@ def kernels_of(scene: Scene, parts: Decomposition) -> kernels.Kernels:
 
 
 def method_of(scene: Scene, parts: Decomposition, held: kernels.Kernels) -> Scene:
-    """The scene with ``auto`` resolved, and the slabs per half of ``parts`` (``schur`` while its dense matrices fit, :func:`schur_bytes`, on one slab
-    per half, else ``feti``; feti's preconditioner lumped on slabs, Dirichlet's on halves); in one line, what this solve does not take: ``schur`` above that limit, a floating
-    block (kernels ``held``) with a method that cannot solve it (friction and bonds the scene refuses)."""
+    """The scene with ``auto`` resolved (``schur`` while its dense matrices fit, :func:`schur_bytes`, on one slab per
+    half, else ``feti``; feti's preconditioner lumped on slabs, Dirichlet's on halves) and the slabs per half of
+    ``parts``; in one line, what this solve does not take: ``schur`` above that limit, a floating block (kernels
+    ``held``) with a method that cannot solve it (friction and bonds the scene refuses)."""
     method = registry.METHODS.get(scene.solver.method)
     if held.floating and method is not None and not method.floating:
         raise SceneError(f"solver.method = {method.name}: block {held.names()} of the 3-D box is floating (held "
@@ -268,7 +269,7 @@ def pieces_of(scene: Scene, mesh: SolidMesh, ranks: int) -> Decomposition:
 def held_pieces(scene: Scene, mesh: SolidMesh, parts: Decomposition) -> tuple[Decomposition, kernels.Kernels]:
     """The decomposition and its blocks' kernels: slabs that would float (held only through their cuts and Σ) are
     refused in one line where ``solver.pieces`` asks for them, and ``auto`` keeps the halves whole then."""
-    held = kernels_of(scene, parts)
+    held = kernels_of(parts)
     if parts.count == 1 or not held.floating:
         return parts, held
     if scene.solver.pieces != "auto":
@@ -276,7 +277,7 @@ def held_pieces(scene: Scene, mesh: SolidMesh, parts: Decomposition) -> tuple[De
                          "through their neighbours (floating), which the slabs' decomposition does not solve yet: "
                          "solver.pieces = 1, or supports on every slab")
     whole = decomposition(scene, mesh, 1)
-    return whole, kernels_of(scene, whole)
+    return whole, kernels_of(whole)
 
 
 def auto_pieces(mesh: SolidMesh) -> int:
@@ -382,9 +383,10 @@ def floating_kernel(piece: SolidHalf, prescribed: np.ndarray, trace: np.ndarray,
 
 def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mesh: SolidMesh | None = None
           ) -> SolidResult | None:
-    """The domain decomposition of the 3-D box ``scene`` on ``comm`` (on rank 0's ``mesh`` if given, else the scene's);
-    ``output`` and its VTU files written (:func:`ddsolve.io.solid.write`).  The result on rank 0 (None elsewhere); a method that does not converge
-    writes its result with converged = false and raises NotConvergedError on every rank, with the result."""
+    """The domain decomposition of the 3-D box ``scene`` on ``comm`` (on rank 0's ``mesh`` if given, else the
+    scene's); ``output`` and its VTU files written (:func:`ddsolve.io.solid.write`).  The result on rank 0 (None
+    elsewhere); a method that does not converge writes its result with converged = false and raises
+    NotConvergedError on every rank, with the result."""
     started = time.perf_counter()
     setup = prepare(scene, comm, progress, mesh)
     try:
