@@ -6,7 +6,8 @@ The box is the 3-D page's (experiments/three_d.py: the paper's square cut by Σ 
 over [0, ½] with rollers on the z faces), the crack pulled open with its faces free (a linear problem), P1.  One
 launch on 2 ranks (``bench-baseline-3d``) builds the mesh once; in turn ``repeats`` times, rank 0 solves the glued
 system in one process with each of METIS's and AMF's orderings while the other rank sleeps, then both ranks run
-the decomposition with the scene's defaults (``solver.pieces`` and feti's preconditioner chosen by it).  The solve
+the decomposition with the scene's defaults (``solver.pieces`` and feti's preconditioner chosen by it), and last
+the decomposition once at each of several ``solver.tol`` (its speed against its error).  The solve
 phase is the factorization and the solves (the monolithic's) or the factorization and the method's rounds (the
 decomposition's); setup and assembly are reported apart.  Peak memory comes from launches of their own
 (``bench-memory-3d``): the monolithic alone in one process, the decomposition alone on 2 ranks (their sum).
@@ -29,6 +30,8 @@ SIZE = 0.026
 ORDERINGS = {"METIS": 5, "AMF": 2}
 #: Ranks of the decomposition.
 RANKS = 2
+#: The decomposition's solver.tol for the speed against error, one run each after the pairs.
+TOLERANCES = (1e-4, 1e-6, 1e-8, 1e-10)
 
 
 def scene_of(size: float):
@@ -38,7 +41,8 @@ def scene_of(size: float):
 
 def bench_solid(size: float, repeats: int, output: Path, comm) -> None:
     """Inside one launch: the monolithic solve on rank 0 (each ordering; the other ranks sleep) and the
-    decomposition on every rank, in turn ``repeats`` times; rank 0 writes the record as JSON."""
+    decomposition on every rank, in turn ``repeats`` times, then the decomposition once at each of
+    :data:`TOLERANCES`; rank 0 writes the record as JSON."""
     from petsc4py import PETSc
 
     from ddsolve.mesh import solid as solid_meshes
@@ -62,6 +66,21 @@ def bench_solid(size: float, repeats: int, output: Path, comm) -> None:
         return result, {"merge": t["merge"], "solve_phase": t["factorization"] + t["solve"],
                         "factorization": t["factorization"], "cpu": time.process_time() - cpu}
 
+    def decomposed(chosen, reference) -> dict | None:
+        """The decomposition of ``chosen`` on every rank: rank 0's record of its phases, CPU and error."""
+        cpu = time.process_time()
+        dd = solid_dd.solve(chosen, comm, None, progress=lambda line: None, mesh=mesh)
+        cpus = comm.gather(time.process_time() - cpu, root=0)
+        if comm.rank != 0:
+            return None
+        t = dd.timings
+        method = t["total"] - t.get("meshing", 0.0) - t["setup"] - t["assembly"] - t["factorization"]
+        return {"setup": t["setup"] + t["assembly"], "factorization": t["factorization"], "rounds_time": method,
+                "solve_phase": t["factorization"] + method, "cpu": float(sum(cpus)), "cpu_largest": float(max(cpus)),
+                "method": dd.scene.solver.method, "preconditioner": dd.scene.solver.preconditioner,
+                "pieces": dd.scene.solver.pieces, "tol": dd.scene.solver.tol, "iterations": dd.steps,
+                "rounds": dd.solves, "error": solid_solver.energy_error(dd, reference)}
+
     reference = None
     for _ in range(repeats):
         for label, ordering in ORDERINGS.items():
@@ -69,18 +88,8 @@ def bench_solid(size: float, repeats: int, output: Path, comm) -> None:
             if comm.rank == 0:
                 reference, timings = solved
                 record[f"mono {label}"].append(timings)
-        cpu = time.process_time()
-        dd = solid_dd.solve(scene, comm, None, progress=lambda line: None, mesh=mesh)
-        cpus = comm.gather(time.process_time() - cpu, root=0)
-        if comm.rank == 0:
-            t = dd.timings
-            method = t["total"] - t.get("meshing", 0.0) - t["setup"] - t["assembly"] - t["factorization"]
-            record["dd"].append({"setup": t["setup"] + t["assembly"], "factorization": t["factorization"],
-                                 "rounds_time": method, "solve_phase": t["factorization"] + method,
-                                 "cpu": float(sum(cpus)), "cpu_largest": float(max(cpus)),
-                                 "method": dd.scene.solver.method, "preconditioner": dd.scene.solver.preconditioner,
-                                 "pieces": dd.scene.solver.pieces, "iterations": dd.steps,
-                                 "rounds": dd.solves, "error": solid_solver.energy_error(dd, reference)})
+        record["dd"].append(decomposed(scene, reference))
+    record["tolerances"] = [decomposed(scene.with_({"solver.tol": tol}), reference) for tol in TOLERANCES]
     if comm.rank == 0:
         record["load_after"] = os.getloadavg()[0]
         output.write_text(json.dumps(record))
@@ -116,8 +125,10 @@ def baseline(size: float = SIZE, repeats: int = 3, output: Path = Path("results/
     print("\n".join(summary(record)), flush=True)
     record["rounds"] = rounds()
     output.write_text(json.dumps(record))
-    report.section(docs / "methods.md", "bench-baseline-3d", table(record) + "\n\nHow the rounds grow with the mesh "
-                   "and the slabs, in one process on the same box:\n\n" + rounds_table(record["rounds"]))
+    speed_error_plot(record, docs / "bench-3d.png")
+    report.section(docs / "methods.md", "bench-baseline-3d", table(record) + "\n\n" + tolerance_text(record)
+                   + "\n\nHow the rounds grow with the mesh and the slabs, in one process on the same box:\n\n"
+                   + rounds_table(record["rounds"]))
     return record
 
 
@@ -142,7 +153,7 @@ def summary(record: dict) -> list[str]:
     seconds, first = bests(record), record["dd"][0]
     dd = seconds["dd"]
     lines = [f"3-D box, {record['unknowns']:,} unknowns (P1), load {record['load']:.1f} -> {record['load_after']:.1f}: "
-             f"DD {first['method']} ({first['pieces']} slabs per half, {first['preconditioner']} preconditioner), "
+             f"DD {first['method']} (slabs per half: {first['pieces']}, {first['preconditioner']} preconditioner), "
              f"{first['iterations']} iterations, {first['rounds']} rounds, on {record['ranks']} ranks: solve phase "
              f"{dd['solve_phase']:.2f} s (factorization {dd['factorization']:.2f} s), setup and assembly "
              f"{dd['setup']:.2f} s, CPU {dd['cpu']:.1f} s, error {max(d['error'] for d in record['dd']):.1e}"]
@@ -161,7 +172,7 @@ def table(record: dict) -> str:
     memory = {"dd": sum(record["memory"]["dd"]), **{label: record["memory"]["mono"][0] for label in ORDERINGS}}
     rows = ["`./run bench baseline` (or `./run bench baseline-3d` alone), the 3-D case: the 3-D page's box pulled open "
             f"with its crack faces free (linear), P1 at mesh.size {record['size']:g}, {record['unknowns']:,} unknowns; "
-            f"the decomposition with its defaults ({first['method']}, {first['pieces']} slabs per half, "
+            f"the decomposition with its defaults ({first['method']}, slabs per half: {first['pieces']}, "
             f"{first['preconditioner']} preconditioner, {first['iterations']} iterations, {first['rounds']} rounds) on "
             f"{record['ranks']} ranks against one MUMPS factorization of the whole glued system in one process, "
             f"{len(record['dd'])} side-by-side pairs in one launch (machine load {record['load']:.1f} before, "
@@ -179,6 +190,44 @@ def table(record: dict) -> str:
              f"{', '.join(f'{p:.2f}' for p in pairs)}); the DD's energy-norm difference from the monolithic solution "
              f"{max(d['error'] for d in record['dd']):.1e}."]
     return "\n".join(rows)
+
+
+def tolerance_text(record: dict) -> str:
+    """Markdown: the decomposition's solve phase against its error at each of :data:`TOLERANCES`, and the figure."""
+    best = ratios(record)[0]
+    mono = bests(record)[best]["solve_phase"]
+    rows = ["Speed against error (one run at each solver.tol after the pairs; docs/bench-3d.png), against the "
+            f"monolithic solve phase ({best}) {mono:.2f} s:", "",
+            "| solver.tol | iterations | rounds | solve phase (s) | ratio monolithic / DD | energy-norm error |",
+            "|---|---|---|---|---|---|"]
+    rows += [f"| {run['tol']:.0e} | {run['iterations']} | {run['rounds']} | {run['solve_phase']:.2f} "
+             f"| {mono / run['solve_phase']:.2f} | {run['error']:.1e} |" for run in record["tolerances"]]
+    return "\n".join(rows + ["", "![speed against error](bench-3d.png)"])
+
+
+def speed_error_plot(record: dict, path: Path) -> None:
+    """The decomposition's solve phase against its error at each solver.tol, the monolithic solve phases as lines."""
+    from ddsolve.post.plots import _pyplot
+
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6, 4.2), constrained_layout=True)
+    runs = record["tolerances"]
+    ax.semilogx([run["error"] for run in runs], [run["solve_phase"] for run in runs], marker="o",
+                label=f"DD on {record['ranks']} ranks (slabs per half: {runs[0]['pieces']})")
+    for run in runs:
+        ax.annotate(f"tol {run['tol']:.0e}", (run["error"], run["solve_phase"]), textcoords="offset points",
+                    xytext=(4, 4), fontsize=8)
+    for label, style in zip(ORDERINGS, ("--", ":")):
+        ax.axhline(bests(record)[label]["solve_phase"], color="gray", linestyle=style,
+                   label=f"one MUMPS factorization, one process ({label})")
+    ax.set_xlabel("relative energy-norm difference from the monolithic solution")
+    ax.set_ylabel("solve phase (s)")
+    ax.set_ylim(bottom=0.0)
+    ax.set_title(f"3-D box, {record['unknowns']:,} unknowns (P1)")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
 
 
 #: The rounds' growth: slabs per half and mesh sizes of the in-process solves (iterations only, no timing).

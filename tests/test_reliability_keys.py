@@ -101,6 +101,8 @@ def cases(folder: Path) -> list[tuple[str, list[str], list[str]]]:
             ("solver.stop", uzawa, ['solver.stop="relative"']),
             ("solver.max_iterations", uzawa, ["solver.max_iterations=5"]),
             ("solver.out_of_core", [], ["solver.out_of_core=true"]),
+            ("solver.pieces", [], ["solver.pieces=2"]),  # refused in the plane
+            ("solver.preconditioner", [], ['solver.preconditioner="lumped"']),  # refused in the plane
             ("fracture.inner", [], ["fracture.inner=0.1"]),
             ("fracture.outer", [], ["fracture.outer=0.3"]),
             ("fracture.toughness", [], ["fracture.toughness=1e-4"])]
