@@ -40,6 +40,12 @@ MORE_RUNS = ((1, True, (0.14, 0.1, 0.07)), (2, False, (0.3, 0.2, 0.14)), (2, Tru
 ACCEPTED = 0.03
 #: Extruded runs, the section graded towards the tips: (degree, size, layers along z); the last's opening compared.
 EXTRUDED_RUNS = ((1, 0.1, 2), (1, 0.05, 2), (2, 0.2, 1), (2, 0.1, 1), (2, 0.1, 2), (2, 0.05, 1))
+#: Where the page points for the 3-D decomposition's speed and for G along the fronts.
+SPEED = ("Its speed: the scene pulled open with its crack faces free, at about 0.3 M unknowns, is the 3-D case of "
+         "``./run bench baseline`` ([methods.md](methods.md), section *bench-baseline-3d*): the decomposition into "
+         "slabs on 2 ranks against one MUMPS factorization of the whole, its speed against its error "
+         "([bench-3d.png](bench-3d.png)) and how its rounds grow with the mesh and the slabs.  G along the fronts, "
+         "the penny, a DCB across its width and an elliptical crack: [three-d-front.md](three-d-front.md).")
 SCENE = """
 title = "extrusion check: {case}"
 [geometry]
@@ -185,7 +191,7 @@ def opening_comparison(run: dict, x: np.ndarray, reference: np.ndarray) -> dict:
 def page(measured: dict) -> str:
     lines = ["# Three dimensions: the extrusion check", "", __doc__.split("\n\n", 1)[1].strip(), "",
              "The same scene solved to a target error (``mesh.target_error``, meshes adapted by the estimate): "
-             "[three-d-adapt.md](three-d-adapt.md) (``./run three-d-adapt``).", ""]
+             "[three-d-adapt.md](three-d-adapt.md) (``./run three-d-adapt``).", "", SPEED, ""]
     for case, record in measured.items():
         exact = record["exact"]
         lines += [f"## {case}", "", "The plane reference at graded P2 (its continuous value: the finest):", "",
