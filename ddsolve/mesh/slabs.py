@@ -90,6 +90,8 @@ def _connected(tetrahedra: np.ndarray, nodes: int) -> bool:
 def _cut(half: SolidHalf, band: np.ndarray, count: int) -> tuple[list[Slab], list[Cut]]:
     """The slabs of the tetrahedra's ``band`` and the cuts between neighbours."""
     faces, owner = _faces(half.tetrahedra[:, :4], len(half.points))
+    side_bands = {name: band[_owners(triangles, faces, owner, len(half.points))]
+                  for name, triangles in half.faces.items()}
     local = []
     made = []
     for slab in range(count):
@@ -97,8 +99,7 @@ def _cut(half: SolidHalf, band: np.ndarray, count: int) -> tuple[list[Slab], lis
         nodes, renumbered = np.unique(half.tetrahedra[mine], return_inverse=True)
         number = np.full(len(half.points), -1, dtype=np.int64)
         number[nodes] = np.arange(len(nodes))
-        sides = {name: number[triangles[band[_owners(triangles, faces, owner, len(half.points))] == slab]]
-                 for name, triangles in half.faces.items()}
+        sides = {name: number[triangles[side_bands[name] == slab]] for name, triangles in half.faces.items()}
         sigma_nodes = number[half.sigma_nodes] if slab == 0 else np.zeros(0, dtype=np.int64)
         made.append(Slab(SolidHalf(half.name, half.points[nodes], renumbered.reshape(-1, half.tetrahedra.shape[1]),
                                    sides, sigma_nodes), nodes))

@@ -97,11 +97,15 @@ class SolidSetup:
     exchange: Exchange
     blocks: list[Block]
     positions: dict[int, np.ndarray] | None  # each local block's entries of the structure's trace (None: one slab)
-    interface: Interface
     kernels: kernels.Kernels
     stages: dict
     timings: dict[str, float]
     trace_stiffness: list | None  # rank 0, feti's lumped preconditioner: each block's K_ΣΣ (sparse)
+
+    @property
+    def interface(self) -> Interface:
+        """The multipliers of every joint (rank 0 runs the method on them)."""
+        return self.parts.interface
 
     def kernel_traces(self) -> list[np.ndarray]:
         """The traces ``(trace size, m_b)`` of the blocks' kernels."""
@@ -213,6 +217,7 @@ def decomposition(scene: Scene, mesh: SolidMesh, count: int) -> Decomposition | 
     surface = interface_of(scene, mesh)
     joints = [Joint(surface, (0, 1), (trace_dofs(lower[0].piece), trace_dofs(upper[0].piece)))]
     points = [mesh.sigma.points]
+    modulus = modulus_of(scene, mesh)
     values = []
     for slab in ordered:  # each block's prescribed values, NaN where free
         dofs, given = tetra.prescribed(scene, slab.piece)
@@ -227,7 +232,7 @@ def decomposition(scene: Scene, mesh: SolidMesh, count: int) -> Decomposition | 
             _tie(values, pair, dofs)
             fixed = np.array([~np.isnan(values[block][own]) for own, block in zip(dofs, pair)])
             glued = Interface(between.weights, np.zeros(len(between.points), dtype=bool), False, fixed,
-                              modulus_of(scene, mesh), specs=block_list(1), components=COMPONENTS)
+                              modulus, specs=block_list(1), components=COMPONENTS)
             joints.append(Joint(glued, pair, dofs))
             points.append(between.points)
     supports = [(np.flatnonzero(~np.isnan(v)), v[~np.isnan(v)]) for v in values]
@@ -343,7 +348,7 @@ def prepare(scene: Scene, comm: MPI.Comm, progress=None, mesh: SolidMesh | None 
     local = {index: positions[index] for index in exchange.local_blocks} if parts.count > 1 else None
     stiffness = trace_stiffness(comm.gather(entries, root=0), len(parts.slabs), parts.interface.trace_size) \
         if lumped else None
-    return SolidSetup(scene, mesh, parts, exchange, blocks, local, parts.interface, held, stages, timings, stiffness)
+    return SolidSetup(scene, mesh, parts, exchange, blocks, local, held, stages, timings, stiffness)
 
 
 def describe(scene: Scene, parts: Decomposition) -> str:
