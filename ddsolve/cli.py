@@ -452,7 +452,7 @@ def cmd_plot(args, _petsc_options) -> int:
 
 
 def _plot_solid(args, scale: float | None) -> int:
-    """``plot`` of a 3-D result: the opening map of Σ and the deformed body."""
+    """``plot`` of a 3-D result: the opening map of Σ (of each Σ) and the deformed body."""
     import io as memory
 
     import numpy as np
@@ -462,14 +462,17 @@ def _plot_solid(args, scale: float | None) -> int:
 
     result = solid_files.read(args.result)
     if scale is not None:
-        size = np.ptp(np.vstack([half.points for half in result.mesh.halves]), axis=0).max()
+        size = np.ptp(np.vstack([half.points for half in result.mesh.regions]), axis=0).max()
         _check_drawn(args.scale, scale * max(float(np.abs(u).max()) for u in result.fields) / size)
     scale = solid_plots.magnification(result) if scale is None else scale
     stem = Path(args.result).with_suffix("")
-    names = [Path(f"{stem}-{name}.png") for name in ("opening", "deformed")]
+    count = len(result.pressures)  # several interfaces: an opening map of each, opening1 … bottom to top
+    maps = ["opening"] if count == 1 else [f"opening{k}" for k in range(1, count + 1)]
+    names = [Path(f"{stem}-{name}.png") for name in (*maps, "deformed")]
     images = [memory.BytesIO() for _ in names]
-    solid_plots.opening_map(result, images[0])
-    solid_plots.deformed_body(result, images[1], scale)
+    for k, image in enumerate(images[:-1]):
+        solid_plots.opening_map(result.interface(k), image)
+    solid_plots.deformed_body(result, images[-1], scale)
     safe.check_targets(names, [Path(args.result)])
     safe.replace_together({path: (lambda name, data=image.getvalue(): Path(name).write_bytes(data))
                            for path, image in zip(names, images)}, final=True)

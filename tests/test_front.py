@@ -117,7 +117,7 @@ def test_the_domain_integral_is_the_derivative_of_the_discrete_energy(degree, te
                 halves.append(dataclasses.replace(half, points=points))
             moved = halves[0].points[halves[0].sigma_nodes]
             surface = dataclasses.replace(mesh.sigma, points=moved)
-            energies.append(solid_solver.solve_solid(scene, solid.SolidMesh(tuple(halves), surface)).energy)
+            energies.append(solid_solver.solve_solid(scene, solid.SolidMesh(tuple(halves), (surface,))).energy)
         derivative = -(energies[0] - energies[1]) / (2.0 * step)
         assert np.isclose(released.G[k] * chain.lengths[k], derivative, rtol=1e-5)
 

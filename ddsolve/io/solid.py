@@ -1,8 +1,14 @@
 """The files of a 3-D result: the HDF5 file (each half's nodes, tetrahedra and displacements; Σ's vertices,
-triangles, opening and contact pressure; G along the crack fronts under ``/fracture``; the scene's text and the solve's numbers as attributes) and a VTU
-file per half (tetra or tetra10) and for Σ (triangles, 3 or 6 nodes) beside it, written together
-(:func:`ddsolve.io.safe.replace_together`); the result file read back (:func:`read`) and its viewer files, VTU or
-XDMF, written anywhere (:func:`viewer_writers`, for ``ddsolve export``)."""
+triangles, opening and contact pressure; G along the crack fronts under ``/fracture``; the scene's text and the
+solve's numbers as attributes) and a VTU file per half (tetra or tetra10) and for Σ (triangles, 3 or 6 nodes)
+beside it, written together (:func:`ddsolve.io.safe.replace_together`); the result file read back (:func:`read`)
+and its viewer files, VTU or XDMF, written anywhere (:func:`viewer_writers`, for ``ddsolve export``).
+
+A box of several interfaces (attribute ``interfaces``) has a group per region (``region1`` … bottom to top), each
+Σ's group under ``/interfaces/N/sigma`` (N = 1 the lowest, as the plane stacked files keep each interface under
+``/interfaces/N``), ``/fracture`` every interface's rows with ``/fracture/interface`` naming each row's Σ, and a
+VTU file per region and per Σ (``STEM-region1.vtu`` …, ``STEM-sigma1.vtu`` …).
+"""
 from __future__ import annotations
 
 import dataclasses
@@ -12,7 +18,7 @@ import numpy as np
 
 from ddsolve.errors import DDSolveError
 from ddsolve.io.safe import replace_together
-from ddsolve.mesh.solid import SigmaSurface, SolidHalf, SolidMesh
+from ddsolve.mesh.solid import SigmaSurface, SolidHalf, SolidMesh, sigma_side
 from ddsolve.post.front import FrontRelease
 from ddsolve.post.solid import SolidResult
 from ddsolve.problem.schema import REGIONS
@@ -25,19 +31,33 @@ VIEWER_FORMATS = {"vtu": {}, "xdmf": {"data_format": "XML"}}
 
 
 def viewer_paths(folder: Path, stem: str, fmt: str = "vtu") -> list[Path]:
-    """The viewer files of the result ``stem`` in ``folder``: ``STEM-lower.FMT``, ``STEM-upper.FMT``,
-    ``STEM-sigma.FMT`` and the ParaView script ``STEM-paraview.py`` that shows them."""
+    """The viewer files of the result ``stem`` of one interface in ``folder``: ``STEM-lower.FMT``,
+    ``STEM-upper.FMT``, ``STEM-sigma.FMT`` and the ParaView script ``STEM-paraview.py`` that shows them."""
     return [Path(folder) / f"{stem}-{part}.{fmt}" for part in VIEWER_PARTS] + [Path(folder) / f"{stem}-paraview.py"]
+
+
+def viewer_parts(result: SolidResult) -> tuple[str, ...]:
+    """The viewer files' parts of ``result``: :data:`VIEWER_PARTS`, or of several interfaces each region (by
+    name) and each Σ (``sigma1`` … bottom to top)."""
+    count = len(result.pressures)
+    if count == 1:
+        return VIEWER_PARTS
+    return (*(region.name for region in result.mesh.regions), *(sigma_side(k, count) for k in range(count)))
 
 
 def viewer_writers(result: SolidResult, folder: Path, stem: str, fmt: str = "vtu") -> dict:
     """Path -> writer of each viewer file of ``result`` in format ``fmt`` (:data:`VIEWER_FORMATS`,
-    :func:`viewer_paths`), for :func:`replace_together`."""
-    *parts, script = viewer_paths(folder, stem, fmt)
-    text = paraview_script(result, folder, {part: path.name for part, path in zip(VIEWER_PARTS, parts)})
-    return {**{target: (lambda temporary, part=part: _write_part(temporary, result, part, fmt))
-               for target, part in zip(parts, VIEWER_PARTS)},
-            script: lambda temporary: Path(temporary).write_text(text, encoding="utf-8")}
+    :func:`viewer_parts`), for :func:`replace_together`; with one interface the ParaView script that shows them
+    (:func:`viewer_paths`)."""
+    parts = viewer_parts(result)
+    paths = [Path(folder) / f"{stem}-{part}.{fmt}" for part in parts]
+    writers = {target: (lambda temporary, part=part: _write_part(temporary, result, part, fmt))
+               for target, part in zip(paths, parts)}
+    if parts != VIEWER_PARTS:
+        return writers
+    text = paraview_script(result, folder, {part: path.name for part, path in zip(parts, paths)})
+    return {**writers, Path(folder) / f"{stem}-paraview.py":
+            lambda temporary: Path(temporary).write_text(text, encoding="utf-8")}
 
 
 def paraview_script(result: SolidResult, folder: Path, files: dict[str, str]) -> str:
@@ -83,14 +103,17 @@ def read(path: Path) -> SolidResult:
 
     try:
         with h5py.File(path, "r") as f:
-            halves = tuple(SolidHalf(name, f[name]["points"][()], f[name]["tetrahedra"][()], {},
-                                     f[name]["sigma_nodes"][()]) for name in REGIONS)
-            sigma = f["sigma"]
-            surface = SigmaSurface(sigma["points"][()], sigma["triangles"][()], sigma["cracked"][()],
-                                   sigma["front"][()])
             attributes = dict(f.attrs)
-            return SolidResult(loads(str(attributes["scene"]), origin=f"{path}: /scene"), SolidMesh(halves, surface),
-                               tuple(f[name]["displacement"][()] for name in REGIONS), sigma["contact_pressure"][()],
+            scene = loads(str(attributes["scene"]), origin=f"{path}: /scene")
+            count = int(attributes.get("interfaces", 1))
+            names = REGIONS if count == 1 else scene.geometry.region_names
+            regions = tuple(SolidHalf(name, f[name]["points"][()], f[name]["tetrahedra"][()], {},
+                                      f[name]["sigma_nodes"][()]) for name in names)
+            groups = [f["sigma"]] if count == 1 else [f[f"interfaces/{k}/sigma"] for k in range(1, count + 1)]
+            surfaces = tuple(SigmaSurface(sigma["points"][()], sigma["triangles"][()], sigma["cracked"][()],
+                                          sigma["front"][()]) for sigma in groups)
+            return SolidResult(scene, SolidMesh(regions, surfaces), tuple(f[name]["displacement"][()] for name in names),
+                               tuple(sigma["contact_pressure"][()] for sigma in groups),
                                energy=float(attributes["energy"]), steps=int(attributes["active_set_steps"]),
                                solves=int(attributes["solves"]), converged=bool(attributes["converged"]),
                                message=str(attributes["message"]),
@@ -106,17 +129,19 @@ def _write_hdf5(name: str, result: SolidResult) -> None:
     import h5py
 
     with h5py.File(name, "w") as out:
-        for half, u in zip(result.mesh.halves, result.fields):
+        for half, u in zip(result.mesh.regions, result.fields):
             group = out.create_group(half.name)
             group["points"], group["tetrahedra"], group["displacement"] = half.points, half.tetrahedra, u
             group["sigma_nodes"] = half.sigma_nodes
-        sigma = out.create_group("sigma")
-        surface = result.mesh.sigma
-        sigma["points"], sigma["triangles"], sigma["weights"] = surface.points, surface.triangles, surface.weights
-        sigma["cracked"], sigma["front"] = surface.cracked, surface.front
-        sigma["opening"], sigma["contact_pressure"] = result.opening, result.pressure
+        count = len(result.pressures)
+        for k in range(count):
+            _write_sigma(out.create_group("sigma" if count == 1 else f"interfaces/{k + 1}/sigma"), result.interface(k))
         if result.fracture is not None:
             _write_fracture(out.create_group("fracture"), result.fracture)
+            if result.fracture_interface is not None:
+                out["fracture/interface"] = result.fracture_interface
+        if count > 1:
+            out.attrs["interfaces"] = count
         out.attrs.update({"dimension": 3, "scene": result.scene.text, "energy": result.energy,
                           "active_set_steps": result.steps, "solves": result.solves, "converged": result.converged,
                           "closed_vertices": result.closed, "message": result.message,
@@ -124,6 +149,15 @@ def _write_hdf5(name: str, result: SolidResult) -> None:
                           **{f"time_{key}": value for key, value in result.timings.items()}, **result.attrs})
         for column, values in result.levels.items():
             out[f"levels/{column}"] = values
+
+
+def _write_sigma(group, view: SolidResult) -> None:
+    """Σ of a result of one interface (or one interface's view): its vertices, triangles, lumped weights, crack
+    vertices, front, opening and contact pressure."""
+    surface = view.mesh.sigma
+    group["points"], group["triangles"], group["weights"] = surface.points, surface.triangles, surface.weights
+    group["cracked"], group["front"] = surface.cracked, surface.front
+    group["opening"], group["contact_pressure"] = view.opening, view.pressure
 
 
 def _write_fracture(group, fracture: FrontRelease) -> None:
@@ -137,16 +171,18 @@ def _write_fracture(group, fracture: FrontRelease) -> None:
 def _write_part(name: str, result: SolidResult, part: str, fmt: str) -> None:
     import meshio
 
-    if part == "sigma":
-        surface = result.mesh.sigma
+    sides = [sigma_side(k, len(result.pressures)) for k in range(len(result.pressures))]
+    if part in sides:
+        view = result.interface(sides.index(part))
+        surface = view.mesh.sigma
         mesh = meshio.Mesh(surface.points, [("triangle" if surface.triangles.shape[1] == 3 else "triangle6",
                                              surface.triangles)],
-                           point_data={"opening": result.opening, "normal_opening": result.normal_opening,
-                                       "contact_pressure": result.pressure,
+                           point_data={"opening": view.opening, "normal_opening": view.normal_opening,
+                                       "contact_pressure": view.pressure,
                                        "cracked": surface.cracked.astype(np.int32)})
     else:
-        index = [half.name for half in result.mesh.halves].index(part)
-        half = result.mesh.halves[index]
+        index = [half.name for half in result.mesh.regions].index(part)
+        half = result.mesh.regions[index]
         mesh = meshio.Mesh(half.points, [("tetra" if half.tetrahedra.shape[1] == 4 else "tetra10", half.tetrahedra)],
                            point_data={"displacement": result.fields[index]})
     meshio.write(name, mesh, file_format=fmt, **VIEWER_FORMATS[fmt])

@@ -12,6 +12,7 @@ meshio: ``points (n, 3)`` float64, ``tetrahedra (m, 4)`` or ``(m, 10)`` (tetra10
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -21,7 +22,7 @@ from ddsolve.errors import MeshError
 from ddsolve.mesh import solid_files
 from ddsolve.mesh.mesh import TOL
 from ddsolve.mesh.solid_sizing import SizeField, as_background
-from ddsolve.problem.schema import DEPTH_SIDES, REGIONS, SIDES
+from ddsolve.problem.schema import DEPTH_SIDES, REGIONS, SIDES, region_names
 from ddsolve.problem.scene import Scene
 from ddsolve.problem.shapes import Ellipse
 
@@ -37,8 +38,10 @@ LUMPED = {3: np.full(3, 1.0 / 3.0), 6: np.array([3.0, 3.0, 3.0, 16.0, 16.0, 16.0
 
 @dataclass(frozen=True, eq=False)
 class SolidHalf:
-    """One half: ``name`` lower (y < sigma) or upper; its nodes, tetrahedra, boundary triangles by side name
-    (the six sides' parts on this half, and ``sigma``), and ``sigma_nodes``: its node of each Σ vertex."""
+    """One half: ``name`` lower (y < sigma) or upper, or a region of several interfaces (``region1`` … bottom to
+    top); its nodes, tetrahedra, boundary triangles by side name (the six sides' parts on it, and its Σ's:
+    ``sigma``, or ``sigma1`` … of several interfaces, :func:`sigma_side`), and ``sigma_nodes``: its node of each
+    vertex of the Σ it borders (a region between two: the lower Σ's vertices, then the upper's)."""
 
     name: str
     points: np.ndarray
@@ -82,26 +85,64 @@ class SigmaSurface:
 
 @dataclass(frozen=True, eq=False)
 class SolidMesh:
-    """The two halves (lower, upper) of a 3-D box and Σ between them."""
+    """The regions of a 3-D box, bottom to top, and the interfaces Σ between them, bottom to top: one Σ between
+    two halves (lower, upper), or several (``geometry.sigma = [y1, y2, …]``)."""
 
-    halves: tuple[SolidHalf, SolidHalf]
-    sigma: SigmaSurface
+    regions: tuple[SolidHalf, ...]
+    sigmas: tuple[SigmaSurface, ...]
+
+    @property
+    def halves(self) -> tuple[SolidHalf, SolidHalf]:
+        """The two halves of a box of one Σ (a box of several: :meth:`interface`'s)."""
+        self._one("halves")
+        return self.regions
+
+    @property
+    def sigma(self) -> SigmaSurface:
+        """The Σ of a box of one interface (a box of several: :attr:`sigmas`)."""
+        self._one("sigma")
+        return self.sigmas[0]
+
+    def _one(self, what: str) -> None:
+        if len(self.sigmas) != 1:
+            raise MeshError(f"a 3-D box of {len(self.sigmas)} interfaces has no single {what}: take its regions "
+                            "and sigmas, or one interface's view")
+
+    def border(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """Σ number ``k``'s vertices as nodes of the region below it and of the region above it."""
+        count = len(self.sigmas[k].points)
+        return self.regions[k].sigma_nodes[-count:], self.regions[k + 1].sigma_nodes[:count]
+
+    def interface(self, k: int) -> SolidMesh:
+        """Σ number ``k`` with the regions below and above it as a box of one interface (its halves ``lower``
+        and ``upper``, their Σ nodes this Σ's; their faces the regions', Σ's named by :func:`sigma_side`); a box
+        of one interface is its own."""
+        if len(self.sigmas) == 1:
+            return self
+        halves = tuple(dataclasses.replace(region, name=name, sigma_nodes=nodes)
+                       for region, name, nodes in zip(self.regions[k:k + 2], REGIONS, self.border(k)))
+        return SolidMesh(halves, (self.sigmas[k],))
 
     @property
     def degree(self) -> int:
         """1 (4-node tetrahedra) or 2 (10-node)."""
-        return 1 if self.halves[0].tetrahedra.shape[1] == 4 else 2
+        return 1 if self.regions[0].tetrahedra.shape[1] == 4 else 2
 
     @property
     def unknowns(self) -> int:
-        return sum(half.dofs for half in self.halves)
+        return sum(region.dofs for region in self.regions)
 
     @cached_property
     def box(self) -> tuple[float, ...]:
         """The bounds of its nodes (x0, x1, y0, y1, z0, z1): a 3-D gmsh file's body's box (a built-in box's own
         numbers may differ from them in the last bit)."""
-        points = np.vstack([half.points for half in self.halves])
+        points = np.vstack([region.points for region in self.regions])
         return tuple(float(v) for v in np.column_stack([points.min(axis=0), points.max(axis=0)]).ravel())
+
+
+def sigma_side(k: int, count: int) -> str:
+    """The face name of Σ number ``k`` of ``count`` in its regions: ``sigma`` for one interface, else ``sigma1`` …"""
+    return "sigma" if count == 1 else f"sigma{k + 1}"
 
 
 def build(scene: Scene, sizes: SizeField | None = None) -> SolidMesh:
@@ -115,34 +156,38 @@ def build(scene: Scene, sizes: SizeField | None = None) -> SolidMesh:
         return from_surfaces(*solid_files.read(scene, _graded_towards), scene.mesh.degree, str(scene.mesh.file))
     if scene.mesh.extrude is not None:
         points, tetrahedra, upper = extrude.tetrahedra(scene)
-    else:
-        points, tetrahedra, upper = gmsh_io.apart(_tetrahedra, geometry.box, geometry.sigma, geometry.cracks,
-                                                  scene.mesh.size, scene.mesh.grading, sizes)
-    return assemble(points, tetrahedra, upper, geometry.box, geometry.sigma, geometry.cracks, scene.mesh.degree)
+        return assemble(points, tetrahedra, upper, geometry.box, geometry.sigma, geometry.cracks, scene.mesh.degree)
+    points, tetrahedra, region = gmsh_io.apart(_tetrahedra, geometry.box, geometry.sigmas, geometry.crack_lists,
+                                               scene.mesh.size, scene.mesh.grading, sizes)
+    return assemble_regions(points, tetrahedra, region, geometry.box, geometry.sigmas, geometry.crack_lists,
+                            scene.mesh.degree)
 
 
-def _tetrahedra(box: tuple[float, ...], sigma: float, cracks: tuple[tuple[float, ...], ...], size: float,
+def _tetrahedra(box: tuple[float, ...], heights: tuple[float, ...], crack_lists: tuple[tuple, ...], size: float,
                 grading: float | None, sizes: SizeField | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """In gmsh: the boxes below and above Σ and the crack rectangles on it fragmented together and meshed with
-    tetrahedra of about ``size`` (graded towards the crack front with exponent ``grading``, if given; of the
-    ``sizes`` field, at most ``size``, if given); the nodes, the tetrahedra and whether each lies in the upper box."""
+    """In gmsh: the boxes between the interfaces Σ (y = ``heights``, bottom to top) and the crack rectangles on
+    each (``crack_lists``, one per Σ) fragmented together and meshed with tetrahedra of about ``size`` (graded
+    towards the crack fronts with exponent ``grading``, if given; of the ``sizes`` field, at most ``size``, if
+    given); the nodes, the tetrahedra and the region (0 the lowest) each lies in."""
     from ddsolve.mesh.gmsh_io import session
 
     x0, x1, y0, y1, z0, z1 = box
     with session(deterministic=True) as gmsh:
         occ = gmsh.model.occ
-        volumes = [occ.addBox(x0, y0, z0, x1 - x0, sigma - y0, z1 - z0),
-                   occ.addBox(x0, sigma, z0, x1 - x0, y1 - sigma, z1 - z0)]
+        levels = (y0, *heights, y1)
+        volumes = [occ.addBox(x0, low, z0, x1 - x0, high - low, z1 - z0) for low, high in zip(levels, levels[1:])]
         rectangles = []
-        for crack in cracks:  # made in the xy plane, then turned onto Σ: (x, y, 0) -> (x, sigma, y)
-            tag = _crack_surface(occ, crack, (x0, x1, z0, z1))
-            occ.rotate([(2, tag)], 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, np.pi / 2)
-            occ.translate([(2, tag)], 0.0, sigma, 0.0)
-            rectangles.append((2, tag))
+        for sigma, cracks in zip(heights, crack_lists):
+            for crack in cracks:  # made in the xy plane, then turned onto Σ: (x, y, 0) -> (x, sigma, y)
+                tag = _crack_surface(occ, crack, (x0, x1, z0, z1))
+                occ.rotate([(2, tag)], 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, np.pi / 2)
+                occ.translate([(2, tag)], 0.0, sigma, 0.0)
+                rectangles.append((2, tag))
         occ.fragment([(3, tag) for tag in volumes], rectangles)
         occ.synchronize()
         gmsh.option.setNumber("Mesh.MeshSizeMax", size)
-        front = _front_curves(gmsh, box, sigma, cracks)
+        front = [curve for sigma, cracks in zip(heights, crack_lists) for curve in _front_curves(gmsh, box, sigma,
+                                                                                                 cracks)]
         if sizes is not None:
             as_background(gmsh, sizes)
         elif grading is not None and front:
@@ -154,13 +199,13 @@ def _tetrahedra(box: tuple[float, ...], sigma: float, cracks: tuple[tuple[float,
         tags, coordinates, _ = gmsh.model.mesh.getNodes()
         index = np.zeros(int(tags.max()) + 1, dtype=np.int64)
         index[tags] = np.arange(len(tags))
-        cells, upper = [], []
+        cells, region = [], []
         for _, volume in gmsh.model.getEntities(3):
             _, _, nodes = gmsh.model.mesh.getElements(3, volume)
             cells.append(index[np.asarray(nodes[0], dtype=np.int64)].reshape(-1, 4))
             centre_y = 0.5 * (gmsh.model.getBoundingBox(3, volume)[1] + gmsh.model.getBoundingBox(3, volume)[4])
-            upper.append(np.full(len(cells[-1]), centre_y > sigma))
-    return np.asarray(coordinates, dtype=np.float64).reshape(-1, 3), np.concatenate(cells), np.concatenate(upper)
+            region.append(np.full(len(cells[-1]), np.searchsorted(heights, centre_y)))
+    return np.asarray(coordinates, dtype=np.float64).reshape(-1, 3), np.concatenate(cells), np.concatenate(region)
 
 
 def _crack_surface(occ, crack, plane: tuple[float, float, float, float]) -> int:
@@ -231,20 +276,33 @@ def assemble(points: np.ndarray, tetrahedra: np.ndarray, upper: np.ndarray, box:
              cracks: tuple[tuple[float, ...], ...], degree: int = 1) -> SolidMesh:
     """The halves and Σ of a conforming tetrahedral mesh of the box (``upper``: which tetrahedra lie above Σ), with
     a node in the middle of every edge for ``degree`` 2."""
+    return assemble_regions(points, tetrahedra, np.asarray(upper, dtype=np.int64), box, (sigma,), (cracks,), degree)
+
+
+def assemble_regions(points: np.ndarray, tetrahedra: np.ndarray, region: np.ndarray, box: tuple[float, ...],
+                     heights: tuple[float, ...], crack_lists: tuple[tuple, ...], degree: int = 1) -> SolidMesh:
+    """The regions and the interfaces Σ (y = ``heights``, their cracks ``crack_lists``) of a tetrahedral mesh of the
+    box conforming across every Σ (``region``: each tetrahedron's, 0 the lowest), with a node in the middle of
+    every edge for ``degree`` 2."""
     tolerance = TOL * max(np.ptp(np.reshape(box, (3, 2)), axis=1))
     tetrahedra = _positive(points, tetrahedra)
     points, cells, middle = elevated(points, tetrahedra) if degree == 2 else (points, tetrahedra, None)
-    on_sigma = np.flatnonzero(np.abs(points[:, 1] - sigma) <= tolerance)
-    if not len(on_sigma):
+    on = [np.flatnonzero(np.abs(points[:, 1] - height) <= tolerance) for height in heights]
+    if not all(len(vertices) for vertices in on):
         raise MeshError("the 3-D mesh has no vertex on Σ")
-    halves = tuple(_half(name, points, cells[upper == (name == REGIONS[1])], middle, box, sigma, on_sigma, tolerance)
-                   for name in REGIONS)
-    lower = halves[0]
-    sigma_of = np.full(len(lower.points), -1, dtype=np.int64)
-    sigma_of[lower.sigma_nodes] = np.arange(len(on_sigma))
-    triangles = sigma_of[lower.faces["sigma"]]
-    cracked, front = _crack_roles(points[on_sigma], triangles, box, cracks, tolerance)
-    return SolidMesh(halves, SigmaSurface(points[on_sigma], triangles, cracked, front))
+    count = len(heights)
+    regions = tuple(_half(name, points, cells[region == k], middle, box,
+                          {sigma_side(j, count): (heights[j], on[j]) for j in (k - 1, k) if 0 <= j < count}, tolerance)
+                    for k, name in enumerate(region_names(count + 1)))
+    sigmas = []
+    for k, (vertices, cracks) in enumerate(zip(on, crack_lists)):
+        below = regions[k]
+        sigma_of = np.full(len(below.points), -1, dtype=np.int64)
+        sigma_of[below.sigma_nodes[-len(vertices):]] = np.arange(len(vertices))
+        triangles = sigma_of[below.faces[sigma_side(k, count)]]
+        cracked, front = _crack_roles(points[vertices], triangles, box, cracks, tolerance)
+        sigmas.append(SigmaSurface(points[vertices], triangles, cracked, front))
+    return SolidMesh(regions, tuple(sigmas))
 
 
 def elevated(points: np.ndarray, tetrahedra: np.ndarray):
@@ -277,10 +335,11 @@ def signed_volumes(points: np.ndarray, tetrahedra: np.ndarray) -> np.ndarray:
     return np.einsum("ij,ij->i", np.cross(b - a, c - a), d - a) / 6.0
 
 
-def _half(name: str, points: np.ndarray, cells: np.ndarray, middle, box: tuple[float, ...], sigma: float,
-          on_sigma: np.ndarray, tolerance: float) -> SolidHalf:
-    """One half in its own numbering: its nodes, tetrahedra, boundary triangles by side (6-node, v0 v1 v2 m01 m12
-    m20, with ``middle``) and Σ nodes."""
+def _half(name: str, points: np.ndarray, cells: np.ndarray, middle, box: tuple[float, ...],
+          borders: dict[str, tuple[float, np.ndarray]], tolerance: float) -> SolidHalf:
+    """One region in its own numbering: its nodes, tetrahedra, boundary triangles by side (6-node, v0 v1 v2 m01 m12
+    m20, with ``middle``) and Σ nodes (``borders``: the face name, height and vertices of each Σ it borders,
+    bottom to top)."""
     used = np.unique(cells)
     local = np.full(len(points), -1, dtype=np.int64)
     local[used] = np.arange(len(used))
@@ -288,10 +347,12 @@ def _half(name: str, points: np.ndarray, cells: np.ndarray, middle, box: tuple[f
     if middle is not None:
         faces = np.column_stack([faces, *(middle(faces[:, i], faces[:, (i + 1) % 3]) for i in range(3))])
     centres = points[faces[:, :3]].mean(axis=1)
-    planes = {**{side: (axis, box[2 * axis + end]) for side, (axis, end) in SIDE_PLANES.items()}, "sigma": (1, sigma)}
+    planes = {**{side: (axis, box[2 * axis + end]) for side, (axis, end) in SIDE_PLANES.items()},
+              **{key: (1, height) for key, (height, _) in borders.items()}}
     named = {side: local[faces[np.abs(centres[:, axis] - value) <= tolerance]] for side, (axis, value) in planes.items()}
     if sum(len(f) for f in named.values()) != len(faces):
         raise MeshError(f"the {name} half of the 3-D mesh has boundary faces off the box's sides and Σ")
+    on_sigma = np.concatenate([vertices for _, vertices in borders.values()])
     if np.any(local[on_sigma] < 0):
         raise MeshError(f"the {name} half of the 3-D mesh misses vertices of Σ (the halves do not conform)")
     return SolidHalf(name, points[used], local[cells], named, local[on_sigma])
@@ -388,7 +449,7 @@ def from_surfaces(points: np.ndarray, tetrahedra: np.ndarray, upper: np.ndarray,
     faces = boundaries[0][solid_files.members(boundaries[0], named["sigma"])]  # the lower half's: outward, ν = +y
     crack = surfaces.get("crack", np.zeros((0, 3), dtype=np.int64))
     cracked, front = solid_files.crack_roles(sigma_of[faces], solid_files.members(faces, crack))
-    return SolidMesh(tuple(halves), SigmaSurface(points[on_sigma], sigma_of[faces], cracked, front))
+    return SolidMesh(tuple(halves), (SigmaSurface(points[on_sigma], sigma_of[faces], cracked, front),))
 
 
 def _with_middles(triangles: np.ndarray, middle) -> np.ndarray:

@@ -31,6 +31,7 @@ materials, or under one that is not, the modes are not split (NaN).  No PETSc or
 from __future__ import annotations
 
 from collections.abc import Callable
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -472,3 +473,11 @@ def _behind(front: Front, result) -> np.ndarray:
             jump = opening[near].sum(axis=0) @ np.column_stack([NU, n, t])
             out[k] = np.where(jump < 0.0, -1.0, 1.0)
     return out
+
+
+def joined(releases: list[FrontRelease]) -> FrontRelease:
+    """The rows of several releases (of several interfaces) in one table, their chains numbered on."""
+    starts = np.cumsum([0] + [int(release.front.max(initial=-1)) + 1 for release in releases])
+    return FrontRelease(**{name: np.concatenate([getattr(release, name) + (start if name == "front" else 0)
+                                                 for release, start in zip(releases, starts)])
+                           for name in (field.name for field in dataclasses.fields(FrontRelease))})

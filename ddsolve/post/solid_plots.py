@@ -27,7 +27,7 @@ def magnification(result: SolidResult) -> float:
     """The displacement factor that draws the largest displacement at :data:`DRAWN_FRACTION` of the body's
     largest side, to one significant digit (1 for a body that does not move)."""
     largest = max(float(np.abs(u).max(initial=0.0)) for u in result.fields)
-    size = float(np.ptp(np.vstack([half.points for half in result.mesh.halves]), axis=0).max())
+    size = float(np.ptp(np.vstack([half.points for half in result.mesh.regions]), axis=0).max())
     return float(f"{DRAWN_FRACTION * size / largest:.1g}") if largest > 0.0 else 1.0
 
 
@@ -61,7 +61,7 @@ def opening_map(result: SolidResult, target: Path) -> None:
 
 
 def deformed_body(result: SolidResult, target: Path, scale: float) -> None:
-    """Both halves' boundaries displaced by ``scale`` × u, in perspective with y up, each triangle coloured by the
+    """Both halves' (every region's) boundaries displaced by ``scale`` × u, in perspective with y up, each triangle coloured by the
     size of its nodes' mean displacement."""
     plt = _pyplot()
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
@@ -71,7 +71,7 @@ def deformed_body(result: SolidResult, target: Path, scale: float) -> None:
     largest = max(float(np.linalg.norm(u, axis=1).max(initial=0.0)) for u in result.fields) or 1.0
     colours = plt.get_cmap("viridis")
     corners = []
-    for half, u in zip(result.mesh.halves, result.fields):
+    for half, u in zip(result.mesh.regions, result.fields):
         faces = boundary_faces(half.tetrahedra[:, :4])
         drawn = (half.points + scale * u)[:, [0, 2, 1]]  # y drawn upwards
         size = np.linalg.norm(u[faces], axis=2).mean(axis=1) / largest

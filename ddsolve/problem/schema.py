@@ -220,8 +220,8 @@ class PerInterface(tuple):
 def _crack_lists(value: Any) -> tuple[tuple[float, float], ...] | PerInterface:
     """The cracks of one interface (``[[a, b], ...]``), or a list of them per interface (``[[[a, b], ...], ...]``;
     an interface without cracks has ``[]``)."""
-    nested = isinstance(value, list) and any(item == [] or isinstance(item, list) and isinstance(item[0], list)
-                                             for item in value)
+    nested = isinstance(value, list) and any(
+        item == [] or isinstance(item, list) and isinstance(item[0], (list, dict)) for item in value)
     if not nested:
         return _intervals(value)
     try:

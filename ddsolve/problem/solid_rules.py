@@ -10,7 +10,7 @@ import numpy as np
 from ddsolve.errors import SceneError
 from ddsolve.problem import materials
 from ddsolve.problem.reading import printable
-from ddsolve.problem.rules import check_apart, solver_checks
+from ddsolve.problem.rules import _crack_lists, check_apart, solver_checks
 from ddsolve.problem.shapes import Ellipse, bounds
 from ddsolve.problem.schema import ADAPTIVE_DEGREE, DEPTH_SIDES, GRADING, REGIONS, SIDES, STRUCTURE_KEYS, layer_material
 
@@ -48,33 +48,61 @@ def solid_checks(data: dict, raw: dict, origin: str, groups: dict[int, list[str]
         return
     geometry = data["geometry"]
     x0, x1, y0, y1, z0, z1 = geometry["box"]
-    sigma = 0.5 * (y0 + y1) if geometry["sigma"] is None else geometry["sigma"]
-    if not y0 < sigma < y1:
-        raise SceneError(f"{origin}: geometry.sigma = {sigma:g} must lie strictly between the box's y0 = {y0:g} and "
-                         f"y1 = {y1:g}")
+    heights = geometry["sigma"] if isinstance(geometry["sigma"], tuple) else (
+        (0.5 * (y0 + y1),) if geometry["sigma"] is None else (geometry["sigma"],))
+    outside = next((y for y in heights if not y0 < y < y1), None)
+    if outside is not None:
+        raise SceneError(f"{origin}: geometry.sigma = {outside:g} must lie strictly between the box's y0 = {y0:g} "
+                         f"and y1 = {y1:g}")
+    given = set(raw.get("geometry") or {})
     key = "geometry.crack" if geometry["crack"] is not None else "geometry.cracks"
-    pieces = [geometry["crack"]] if geometry["crack"] else list(geometry["cracks"] or ())
-    cracks = [piece if isinstance(piece, Ellipse) or len(piece) == 4 else (*piece, z0, z1) for piece in pieces]
-    for crack in cracks:
-        _check_on_sigma(crack, geometry["box"], key, origin)
-        if data["mesh"]["extrude"] is not None and not (isinstance(crack, tuple) and crack[2:] == (z0, z1)):
-            raise SceneError(f"{origin}: {key}: a crack that does not span the depth (a rectangle or an ellipse) is "
-                             "not extruded, and mesh.extrude extrudes a plane section: give cracks [a, b], or leave "
-                             "mesh.extrude out")
-    box = geometry["box"][:4]
-    check_apart([y0, sigma, y1], box, "geometry.sigma", "of the box's y range", "move Σ", origin)
-    edges = [bounds(crack) for crack in cracks]  # an ellipse's extremes beyond the box are no edges
-    check_apart([x0, x1, *(v for edge in edges for v in edge[:2] if x0 < v < x1)], box, key, "of Σ along x (crack "
-                "edges, box ends)", "move or resize the crack", origin)
-    check_apart([z0, z1, *(v for edge in edges for v in edge[2:] if z0 < v < z1)], box, key, "of Σ along z (crack "
-                "edges, box ends)", "move or resize the crack", origin)
-    geometry.update(sigma=sigma, cracks=cracks, above=[], layers=1)
+    written = [[geometry["crack"]] if geometry["crack"] else []] if "crack" in given and len(heights) == 1 else \
+        _crack_lists(geometry, given, len(heights), origin)
+    lists = [[piece if isinstance(piece, Ellipse) or len(piece) == 4 else (*piece, z0, z1) for piece in pieces]
+             for pieces in written]
+    for cracks in lists:
+        _interface_checks(cracks, geometry["box"], data["mesh"], key, origin)
+    check_apart([y0, *heights, y1], geometry["box"][:4], "geometry.sigma", "of the box's y range (interfaces, "
+                "sides)" if len(heights) > 1 else "of the box's y range", "move Σ", origin)
+    if len(heights) > 1:
+        _several_interfaces(data, raw, origin)
+    geometry.update(sigma=heights[0], cracks=lists[0], above=list(zip(heights[1:], lists[1:])), layers=1)
     del geometry["crack"]
     if data["mesh"]["size"] is None:
         data["mesh"]["size"] = min(x1 - x0, y1 - y0, z1 - z0) / DEFAULT_ELEMENTS
     _material_checks(data, origin)
     _boundary_checks(data, origin, SOLID_SIDES)
     solver_checks(data, origin)
+
+
+def _interface_checks(cracks: list, box: tuple[float, ...], mesh: dict, key: str, origin: str) -> None:
+    """One interface's cracks: each on its Σ (:func:`_check_on_sigma`), spanning the depth where ``mesh.extrude``
+    extrudes a section, their edges apart from each other and from the box's ends along x and z."""
+    x0, x1, _, _, z0, z1 = box
+    for crack in cracks:
+        _check_on_sigma(crack, box, key, origin)
+        if mesh["extrude"] is not None and not (isinstance(crack, tuple) and crack[2:] == (z0, z1)):
+            raise SceneError(f"{origin}: {key}: a crack that does not span the depth (a rectangle or an ellipse) is "
+                             "not extruded, and mesh.extrude extrudes a plane section: give cracks [a, b], or leave "
+                             "mesh.extrude out")
+    edges = [bounds(crack) for crack in cracks]  # an ellipse's extremes beyond the box are no edges
+    check_apart([x0, x1, *(v for edge in edges for v in edge[:2] if x0 < v < x1)], box[:4], key, "of Σ along x "
+                "(crack edges, box ends)", "move or resize the crack", origin)
+    check_apart([z0, z1, *(v for edge in edges for v in edge[2:] if z0 < v < z1)], box[:4], key, "of Σ along z "
+                "(crack edges, box ends)", "move or resize the crack", origin)
+
+
+def _several_interfaces(data: dict, raw: dict, origin: str) -> None:
+    """A 3-D box of several interfaces is meshed by gmsh with mesh.size (mesh.grading, mesh.degree): no extruded
+    section, no adaptive re-meshing; its decomposition's blocks are its regions (``solver.pieces`` = 1 or auto)."""
+    written = raw.get("mesh", {}) if isinstance(raw.get("mesh"), dict) else {}
+    other = next((name for name in ("extrude", "target_error") if name in written), None)
+    if other is not None:
+        raise SceneError(f"{origin}: mesh.{other}: a 3-D box of several interfaces (geometry.sigma a list) is meshed "
+                         "by gmsh with mesh.size, mesh.grading and mesh.degree only, for now")
+    if data["solver"]["pieces"] not in ("auto", 1):
+        raise SceneError(f"{origin}: solver.pieces = {data['solver']['pieces']}: a 3-D box of several interfaces "
+                         "is decomposed into its regions (one block each), not into slabs: solver.pieces = 1 or auto")
 
 
 def _file_checks(data: dict, raw: dict, groups: dict[int, list[str]], where: str) -> None:
@@ -109,8 +137,6 @@ def _file_surfaces(groups: dict[int, list[str]]) -> tuple[str, ...]:
 
 def _refuse_plane_only(data: dict, raw: dict, origin: str, file: bool = False) -> None:
     """The keys a 3-D scene does not take (yet), each refused naming it (``file``: a 3-D gmsh file's scene)."""
-    if isinstance((raw.get("geometry") or {}).get("sigma"), list):
-        raise SceneError(f"{origin}: geometry.sigma: a 3-D box has one interface (a number) for now")
     written = raw.get("mesh", {}) if isinstance(raw.get("mesh"), dict) else {}
     if "file" in written and not file:
         raise SceneError(f"{origin}: geometry.box: a 3-D box (6 numbers) is meshed by ddsolve, and mesh.file "

@@ -75,15 +75,16 @@ class Decomposition:
     joints: list[Joint]
     points: np.ndarray
     interface: Interface
+    regions: int = 2  # a box of several interfaces: its regions, one block each (:func:`regions_decomposition`)
 
     @property
     def count(self) -> int:
-        """Slabs per half."""
-        return len(self.slabs) // 2
+        """Slabs per half (per region)."""
+        return len(self.slabs) // self.regions
 
     def half_of(self, block: int) -> int:
-        """The half (0 lower, 1 upper) of ``block``."""
-        return block % 2
+        """The half (0 lower, 1 upper), or the region (0 the lowest), of ``block``."""
+        return block % self.regions
 
 
 @dataclass
@@ -191,23 +192,41 @@ def row_ranges(nodes: int, parts: int) -> list[tuple[int, int]]:
     return [(COMPONENTS * a, COMPONENTS * b) for a, b in zip(bounds[:-1], bounds[1:])]
 
 
-def interface_of(scene: Scene, mesh: SolidMesh) -> Interface:
-    """Σ's multipliers: μᶜ on the crack vertices' normal under non-penetration, μᵍ (three components) off the
-    cracks; none between two prescribed entries."""
-    fixed = np.zeros((len(mesh.halves), COMPONENTS * len(mesh.sigma.points)), dtype=bool)
-    for row, half in zip(fixed, mesh.halves):
-        row[:] = np.isin(trace_dofs(half), tetra.prescribed(scene, half)[0])
-    return Interface(mesh.sigma.weights, mesh.sigma.cracked, scene.nonpenetration, fixed, modulus_of(scene, mesh),
+def interface_of(scene: Scene, mesh: SolidMesh, k: int = 0) -> Interface:
+    """The multipliers of Σ number ``k``: μᶜ on the crack vertices' normal under non-penetration, μᵍ (three
+    components) off the cracks; none between two prescribed entries."""
+    sigma = mesh.sigmas[k]
+    fixed = np.zeros((2, COMPONENTS * len(sigma.points)), dtype=bool)
+    for row, region, nodes in zip(fixed, mesh.regions[k:k + 2], mesh.border(k)):
+        row[:] = np.isin(tetra.element_dofs(nodes[:, None]).ravel(), tetra.prescribed(scene, region)[0])
+    return Interface(sigma.weights, sigma.cracked, scene.nonpenetration, fixed, modulus_of(scene, mesh),
                      specs=block_list(1), components=COMPONENTS)
 
 
 def modulus_of(scene: Scene, mesh: SolidMesh) -> float:
-    """The largest elastic modulus of the halves' materials (the KKT check's stress scale)."""
-    return max(tetra.largest_modulus(scene.material("layer1", half.name)) for half in mesh.halves)
+    """The largest elastic modulus of the regions' materials (the KKT check's stress scale)."""
+    return max(tetra.largest_modulus(scene.material("layer1", region.name)) for region in mesh.regions)
+
+
+def regions_decomposition(scene: Scene, mesh: SolidMesh) -> Decomposition:
+    """The blocks of a box of several interfaces: its regions, bottom to top, one block each, joined at every Σ
+    (μᶜ on its cracks, μᵍ off them); the structure's trace the interfaces' vertices, bottom to top."""
+    count = len(mesh.regions)
+    joints = [Joint(interface_of(scene, mesh, k), (k, k + 1),
+                    tuple(tetra.element_dofs(nodes[:, None]).ravel() for nodes in mesh.border(k)))
+              for k in range(len(mesh.sigmas))]
+    supports = [tetra.prescribed(scene, region) for region in mesh.regions]
+    specs = tuple(BlockSpec(region.name, "layer1", 0) for region in mesh.regions)
+    interface = Interface.joined([joint.interface for joint in joints], [joint.blocks for joint in joints], specs)
+    return Decomposition([Slab(region, np.arange(len(region.points))) for region in mesh.regions], supports, specs,
+                         joints, np.vstack([sigma.points for sigma in mesh.sigmas]), interface, count)
 
 
 def decomposition(scene: Scene, mesh: SolidMesh, count: int) -> Decomposition | None:
-    """The box's blocks with ``count`` slabs per half, None where that many do not fit both halves."""
+    """The box's blocks with ``count`` slabs per half, None where that many do not fit both halves (a box of
+    several interfaces: its regions, :func:`regions_decomposition`, with one)."""
+    if len(mesh.sigmas) > 1:
+        return regions_decomposition(scene, mesh) if count == 1 else None
     sigma = float(mesh.sigma.points[0, 1])  # Σ is the plane y = sigma (a box's, or a file's)
     cut = [slabs.slabs(half, sigma, count) for half in mesh.halves]
     if any(pieces is None for pieces in cut):
@@ -306,7 +325,8 @@ def prepare(scene: Scene, comm: MPI.Comm, progress=None, mesh: SolidMesh | None 
     parts = collective(comm, lambda: pieces_of(scene, mesh, comm.size))
     if not supported(comm.size, len(parts.slabs)):
         error = DDSolveError(f"unsupported number of ranks {comm.size}: use {usable(len(parts.slabs))} (the "
-                             f"{len(parts.slabs)} blocks of the 3-D box: {parts.count} slabs per half)")
+                             f"{len(parts.slabs)} blocks of the 3-D box: " + (
+                                 f"{parts.count} slabs per half)" if parts.regions == 2 else "one per region)"))
         error.collective = True  # every rank sees the same size
         raise error
     parts, held = collective(comm, lambda: held_pieces(scene, mesh, parts))
@@ -345,7 +365,7 @@ def prepare(scene: Scene, comm: MPI.Comm, progress=None, mesh: SolidMesh | None 
     timings["factorization"] = time.perf_counter() - meshed - timings["setup"] - timings["assembly"]
     if progress is not None and comm.rank == 0:
         progress(solid_lines.factored_line(f"rank 0's blocks ({describe(scene, parts)})", timings))
-    local = {index: positions[index] for index in exchange.local_blocks} if parts.count > 1 else None
+    local = {index: positions[index] for index in exchange.local_blocks} if len(parts.joints) > 1 else None
     stiffness = trace_stiffness(comm.gather(entries, root=0), len(parts.slabs), parts.interface.trace_size) \
         if lumped else None
     return SolidSetup(scene, mesh, parts, exchange, blocks, local, held, stages, timings, stiffness)
@@ -408,9 +428,9 @@ def solve(scene: Scene, comm: MPI.Comm, output: Path | None, progress=print, mes
 
 
 def halves_of(mesh: SolidMesh, parts: Decomposition, fields: list[np.ndarray]) -> tuple[np.ndarray, ...]:
-    """The halves' displacements ``(n, 3)`` from the blocks' ``fields`` (a cut's vertices: the nearer slab's, glued
-    to the other's within the method's tolerance)."""
-    halves = [np.zeros((len(half.points), COMPONENTS)) for half in mesh.halves]
+    """The halves' (regions') displacements ``(n, 3)`` from the blocks' ``fields`` (a cut's vertices: the nearer
+    slab's, glued to the other's within the method's tolerance)."""
+    halves = [np.zeros((len(half.points), COMPONENTS)) for half in mesh.regions]
     for block in reversed(range(len(parts.slabs))):
         halves[parts.half_of(block)][parts.slabs[block].nodes] = fields[block].reshape(-1, COMPONENTS)
     return tuple(halves)
@@ -421,11 +441,13 @@ def finished(setup: SolidSetup, outcome, rounds, fields: list[np.ndarray]) -> So
     pressure μᶜ at the crack vertices, the potential energy of the final round, the method's iterations as its
     ``steps`` (schur's are its active-set steps), the blocks' largest relative residual and the final KKT check's
     residuals as its ``checks``."""
-    interface = setup.interface
-    pressure = np.zeros(len(setup.mesh.sigma.points))
+    interface, sigmas = setup.interface, setup.mesh.sigmas
+    pressure = np.zeros(len(setup.parts.points))  # the trace's vertices: every Σ's first, bottom to top
     contact = interface.slices["mu_c"]
     pressure[interface.vertex[contact]] = outcome.lam[contact]
-    return SolidResult(setup.scene, setup.mesh, halves_of(setup.mesh, setup.parts, fields), pressure,
+    pressures = np.split(pressure[:sum(len(sigma.points) for sigma in sigmas)],
+                         np.cumsum([len(sigma.points) for sigma in sigmas])[:-1])
+    return SolidResult(setup.scene, setup.mesh, halves_of(setup.mesh, setup.parts, fields), tuple(pressures),
                        energy=float(outcome.details["energy"]), steps=outcome.iterations, solves=rounds.count,
                        converged=bool(outcome.converged), message=outcome.message or "",
                        checks={"residual": float(np.max(rounds.residuals, initial=0.0)),

@@ -11,11 +11,14 @@ from ddsolve.post.front import FrontRelease
 
 def mesh_line(mesh: SolidMesh, seconds: float) -> str:
     """The mesh's tetrahedra, nodes, Σ vertices (on the cracks, on the fronts) and unknowns, and its seconds."""
-    sigma = mesh.sigma
-    return (f"mesh: {sum(len(half.tetrahedra) for half in mesh.halves):,} tetrahedra (P{mesh.degree}) in two "
-            f"halves, {sum(len(half.points) for half in mesh.halves):,} nodes, {len(sigma.points):,} Σ vertices "
-            f"({int(np.count_nonzero(sigma.cracked)):,} on cracks, {len(np.unique(sigma.front)):,} on crack "
-            f"fronts), {mesh.unknowns:,} unknowns, {seconds:.1f} s")
+    regions = "two halves" if len(mesh.regions) == 2 else f"{len(mesh.regions)} regions"
+    vertices = sum(len(sigma.points) for sigma in mesh.sigmas)
+    cracked = sum(int(np.count_nonzero(sigma.cracked)) for sigma in mesh.sigmas)
+    fronts = sum(len(np.unique(sigma.front)) for sigma in mesh.sigmas)
+    surfaces = "Σ vertices" if len(mesh.sigmas) == 1 else f"vertices on {len(mesh.sigmas)} interfaces Σ"
+    return (f"mesh: {sum(len(region.tetrahedra) for region in mesh.regions):,} tetrahedra (P{mesh.degree}) in "
+            f"{regions}, {sum(len(region.points) for region in mesh.regions):,} nodes, {vertices:,} {surfaces} "
+            f"({cracked:,} on cracks, {fronts:,} on crack fronts), {mesh.unknowns:,} unknowns, {seconds:.1f} s")
 
 
 def factored_line(what: str, timings: dict[str, float]) -> str:
