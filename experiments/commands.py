@@ -51,6 +51,9 @@ EXPERIMENTS = {
                        "width against plane-strain and plane-stress beam theory, an elliptical delamination against "
                        "Irwin", "docs/three-d-front.md (shapes section), docs/three-d-dcb.png, "
                        "docs/three-d-ellipse.png"),
+    "three-d-interfaces": ("three_d_interfaces", "three_d_interfaces", "a 3-D box of two interfaces: the plane "
+                           "structure extruded with rollers against the plane energy and G, the sample's "
+                           "decomposition against its reference", "docs/three-d.md (three-d-interfaces section)"),
     "three-d-adapt": ("three_d_adapt", "three_d_adapt", "3-D mesh.target_error on the extruded plane scene: "
                       "levels, estimate against the true error, G against the plane G, the DD on the final mesh",
                       "docs/three-d-adapt.md"),

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from experiments import report
 from ddsolve.mesh import geometry, solid
 from ddsolve.problem.scene import loads
 from ddsolve.solvers import reference as plane_reference
@@ -266,5 +267,10 @@ def extruded_lines(record: dict) -> list[str]:
 def three_d() -> None:
     """Measure both cases and write docs/three-d.md."""
     measured = {case: measure(case) for case in CASES}
-    (DOCS / "three-d.md").write_text(page(measured))
+    path = DOCS / "three-d.md"
+    kept = path.read_text() if path.exists() else ""
+    path.write_text(page(measured))
+    begin, end = "<!-- three-d-interfaces:start -->", "<!-- three-d-interfaces:end -->"
+    if begin in kept and end in kept:  # ./run three-d-interfaces's section stays
+        report.section(path, "three-d-interfaces", kept[kept.index(begin) + len(begin):kept.index(end)])
     print(f"wrote {DOCS / 'three-d.md'}")

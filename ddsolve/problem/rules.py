@@ -110,7 +110,7 @@ def _geometry_checks(geometry: dict, given: set[str], origin: str) -> None:
         raise SceneError(f"{origin}: geometry.sigma = {outside[0]:g} must lie strictly between the box's "
                          f"y0 = {y0:g} and y1 = {y1:g}")
     crack_key = "geometry.crack" if "crack" in given else "geometry.cracks"
-    lists = _crack_lists(geometry, given, len(heights), origin)
+    lists = crack_lists(geometry, given, len(heights), origin)
     for cracks in lists:
         _check_cracks(cracks, geometry["box"], crack_key, origin)
     check_apart([y0, *heights, y1], geometry["box"], "geometry.sigma", "of the box's y range (interfaces, sides)",
@@ -147,7 +147,7 @@ def _several_interfaces_checks(data: dict, raw: dict, origin: str) -> None:
                          "available")
 
 
-def _crack_lists(geometry: dict, given: set[str], interfaces: int, origin: str) -> list:
+def crack_lists(geometry: dict, given: set[str], interfaces: int, origin: str) -> list:
     """The cracks of each of the ``interfaces``, bottom to top, from ``geometry.crack`` or ``geometry.cracks``."""
     cracks = geometry["cracks"]
     if "crack" in given or "cracks" in given and not isinstance(cracks, PerInterface):

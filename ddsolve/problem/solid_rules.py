@@ -1,5 +1,6 @@
 """Rules between the keys of a 3-D scene (``geometry.box = [x0, x1, y0, y1, z0, z1]``), checked after each key
-alone: one body (``layer1``, its regions ``lower`` and ``upper`` below and above the plane Σ y = ``sigma``),
+alone: one body (``layer1``, its regions ``lower`` and ``upper`` below and above the plane Σ y = ``sigma``; or
+``region1`` … between several interfaces, ``sigma = [y1, y2, ...]`` with one crack list per interface),
 cracks on Σ as rectangles or ellipses, the box meshed with ``mesh.size``, isotropic or transversely isotropic materials,
 temperature changes, loads and supports on the box's six sides.  What the plane scenes have and 3-D does not yet
 is refused in one line naming the key."""
@@ -10,7 +11,7 @@ import numpy as np
 from ddsolve.errors import SceneError
 from ddsolve.problem import materials
 from ddsolve.problem.reading import printable
-from ddsolve.problem.rules import _crack_lists, check_apart, solver_checks
+from ddsolve.problem.rules import check_apart, crack_lists, solver_checks
 from ddsolve.problem.shapes import Ellipse, bounds
 from ddsolve.problem.schema import ADAPTIVE_DEGREE, DEPTH_SIDES, GRADING, REGIONS, SIDES, STRUCTURE_KEYS, layer_material
 
@@ -37,8 +38,9 @@ NOT_YET = {("interface", None): "a bond law on Σ is not solved in 3-D yet",
 def solid_checks(data: dict, raw: dict, origin: str, groups: dict[int, list[str]] | None = None,
                  where: str = "") -> None:
     """The rules of a 3-D scene; fills in Σ's height (the box's middle), the cracks as rectangles
-    ``(a, b, c, d)`` (an interval [a, b] spans the depth) and the mesh size.  ``groups``: a 3-D gmsh file's
-    physical names by dimension (``where`` names the file), which give the body instead of the box."""
+    ``(a, b, c, d)`` (an interval [a, b] spans the depth), the interfaces above the first (``above``, as in the plane)
+    and the mesh size.  ``groups``: a 3-D gmsh file's physical names by dimension (``where`` names the file), which
+    give the body instead of the box."""
     _refuse_plane_only(data, raw, origin, groups is not None)
     if groups is not None:
         _file_checks(data, raw, groups, where)
@@ -57,7 +59,7 @@ def solid_checks(data: dict, raw: dict, origin: str, groups: dict[int, list[str]
     given = set(raw.get("geometry") or {})
     key = "geometry.crack" if geometry["crack"] is not None else "geometry.cracks"
     written = [[geometry["crack"]] if geometry["crack"] else []] if "crack" in given and len(heights) == 1 else \
-        _crack_lists(geometry, given, len(heights), origin)
+        crack_lists(geometry, given, len(heights), origin)
     lists = [[piece if isinstance(piece, Ellipse) or len(piece) == 4 else (*piece, z0, z1) for piece in pieces]
              for pieces in written]
     for cracks in lists:
