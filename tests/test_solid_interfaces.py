@@ -104,7 +104,7 @@ REFUSED = {
     "sigma = [1.0, 3.5]": "geometry.sigma = 3.5 must lie strictly between the box's y0 = 0 and y1 = 3",
     "cracks = [[[1.0, 2.0]]]": "geometry.cracks lists 1 crack list for the 2 interfaces",
     "cracks = [[1.0, 1.5], [2.0, 3.0]]": "geometry.cracks: with 2 interfaces give one list of intervals per interface",
-    "cracks = [[[1.0, 2.0, 0.5, 1.5]], []]": r"geometry.cracks: the crack \[1.0, 2.0, 0.5, 1.5\] leaves Σ: its z range",
+    "cracks = [[[1.0, 2.0, 0.5, 1.5]], []]": r"geometry.cracks: the crack \[1.0, 2.0, 0.5, 1.5\] leaves Σ: its z",
     "cracks = [[], [{center = [5.0, 0.5], radii = [0.2, 0.2]}]]": "geometry.cracks: the ellipse's centre .* leaves Σ",
     "[materials.layer1.region4]\nE = 2.0": "materials.layer1.region4: no region of that name",
     "[materials.layer1.upper]\nE = 2.0": "materials.layer1.upper: no region of that name",

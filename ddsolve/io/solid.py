@@ -112,7 +112,8 @@ def read(path: Path) -> SolidResult:
             groups = [f["sigma"]] if count == 1 else [f[f"interfaces/{k}/sigma"] for k in range(1, count + 1)]
             surfaces = tuple(SigmaSurface(sigma["points"][()], sigma["triangles"][()], sigma["cracked"][()],
                                           sigma["front"][()]) for sigma in groups)
-            return SolidResult(scene, SolidMesh(regions, surfaces), tuple(f[name]["displacement"][()] for name in names),
+            return SolidResult(scene, SolidMesh(regions, surfaces),
+                               tuple(f[name]["displacement"][()] for name in names),
                                tuple(sigma["contact_pressure"][()] for sigma in groups),
                                energy=float(attributes["energy"]), steps=int(attributes["active_set_steps"]),
                                solves=int(attributes["solves"]), converged=bool(attributes["converged"]),

@@ -9,6 +9,11 @@ its own numbering of its nodes, its boundary triangles by side, and its node of 
 (whose two faces are separate) and the crack front (the cracks' edges inside the box).  Conventions follow
 meshio: ``points (n, 3)`` float64, ``tetrahedra (m, 4)`` or ``(m, 10)`` (tetra10: vertices, then the edges
 01 12 02 03 13 23) int64 of positive volume, triangles ``(k, 3)`` or ``(k, 6)`` (v0 v1 v2 m01 m12 m20).
+
+A box of several interfaces (``geometry.sigma = [y1, y2, ...]``) is the same one level up: its regions (``region1``
+… bottom to top, the boxes between the interfaces) and a :class:`SigmaSurface` per interface, every Σ's vertices
+shared by the regions below and above it (:meth:`SolidMesh.border`); :meth:`SolidMesh.interface` views one Σ with
+its two regions as a box of one interface, and the two halves of one Σ are the case of two regions.
 """
 from __future__ import annotations
 

@@ -49,8 +49,8 @@ class SolidResult:
 
     @property
     def opening(self) -> np.ndarray:
-        """u⁺ − u⁻ at every Σ vertex ``(s, 3)`` of a box of one interface: its y component opens the crack (0 where
-        Σ is glued)."""
+        """u⁺ − u⁻ at every Σ vertex ``(s, 3)`` of a box of one interface: its y component opens the crack (0
+        where Σ is glued)."""
         lower, upper = (u[half.sigma_nodes] for u, half in zip(self.fields, self.mesh.halves))
         return upper - lower
 

@@ -61,8 +61,8 @@ def opening_map(result: SolidResult, target: Path) -> None:
 
 
 def deformed_body(result: SolidResult, target: Path, scale: float) -> None:
-    """Both halves' (every region's) boundaries displaced by ``scale`` × u, in perspective with y up, each triangle coloured by the
-    size of its nodes' mean displacement."""
+    """Both halves' (every region's) boundaries displaced by ``scale`` × u, in perspective with y up, each
+    triangle coloured by the size of its nodes' mean displacement."""
     plt = _pyplot()
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 

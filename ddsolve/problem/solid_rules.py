@@ -119,7 +119,8 @@ def _file_checks(data: dict, raw: dict, groups: dict[int, list[str]], where: str
     other = next((name for name in volumes if name not in REGIONS), None)
     if other is not None:
         raise SceneError(f"{where}: physical volume {printable(other)!r}: a 3-D file's volumes are lower and upper "
-                         "(below and above Σ; several interfaces are not solved in 3-D yet)")
+                         "(below and above Σ; several interfaces in 3-D are a box's, geometry.sigma = [y1, y2, ...], "
+                         "not a file's yet)")
     missing = next((name for name in (*REGIONS, SIGMA) if name not in (volumes if name in REGIONS else surfaces)),
                    None)
     if missing is not None:

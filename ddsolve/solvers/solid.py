@@ -6,7 +6,9 @@ dofs are one unknown for both halves; at a crack vertex under non-penetration th
 displacement is the upper face's plus the jump j = u⁻·ν − u⁺·ν (ν = +y), an unknown of its own numbered last;
 MUMPS factors the merged system once with the Schur complement on the jumps, and the crack's small dense dual
 problem (:class:`~ddsolve.solvers.reference.FaceProblem`) gives the contact pressures.  The final check: the
-merged system's residual, no penetration, no tension, complementarity.
+merged system's residual, no penetration, no tension, complementarity.  A box of several interfaces: its regions
+glued on every Σ alike, each Σ's jumps numbered after the Σ below's, G along each Σ's fronts from its view
+(:meth:`ddsolve.post.solid.SolidResult.interface`).
 """
 from __future__ import annotations
 

@@ -11,7 +11,8 @@ The mesh is built once on rank 0 and broadcast; each rank assembles its blocks (
 :class:`~ddsolve.post.solid.SolidResult` as the monolithic reference (:mod:`ddsolve.solvers.solid`), written to the
 same files.  A half held only through Σ floats: its kernel is the rigid motions (of six) its own supports leave
 (:mod:`ddsolve.dd.kernels`), factored and solved as the plane driver does; a box that can move rigidly as a whole is
-refused in one line.
+refused in one line.  A box of several interfaces is decomposed into its regions, a block each, joined at every Σ
+(:func:`regions_decomposition`), on 1 rank or a multiple of the regions.
 """
 from __future__ import annotations
 
