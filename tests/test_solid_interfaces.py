@@ -50,7 +50,7 @@ def test_regions_conform_on_every_sigma_and_carry_their_tags():
 def test_the_regions_decomposition_equals_the_reference_with_both_cracks_shut_in_part(tmp_path):
     """On one rank (in this process) schur and feti give the reference's solution to 1e-8 in energy norm, some
     but not all crack vertices of each Σ shut, G along each interface's fronts; the file holds each Σ and is read
-    back; slabs are refused in one line naming solver.pieces."""
+    back; no slabs of the regions, and a floating region refused in one line."""
     import h5py
     from mpi4py import MPI
 
@@ -80,6 +80,9 @@ def test_the_regions_decomposition_equals_the_reference_with_both_cracks_shut_in
     assert sorted(path.name for path in tmp_path.glob("schur-*.vtu")) == [
         "schur-region1.vtu", "schur-region2.vtu", "schur-region3.vtu", "schur-sigma1.vtu", "schur-sigma2.vtu"]
     assert solid_dd.decomposition(scene, mesh, 2) is None
+    held = load(SAMPLE, [*COARSE, 'geometry.clamped=["bottom", "top"]'])  # the middle region floats
+    with pytest.raises(SceneError, match="^geometry.sigma: region region2 of the 3-D box would be held only"):
+        solid_dd.held_pieces(held, mesh, solid_dd.decomposition(held, mesh, 1))
 
 
 @pytest.mark.mpi

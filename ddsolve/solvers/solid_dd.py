@@ -293,8 +293,13 @@ def pieces_of(scene: Scene, mesh: SolidMesh, ranks: int) -> Decomposition:
 
 def held_pieces(scene: Scene, mesh: SolidMesh, parts: Decomposition) -> tuple[Decomposition, kernels.Kernels]:
     """The decomposition and its blocks' kernels: slabs that would float (held only through their cuts and Σ) are
-    refused in one line where ``solver.pieces`` asks for them, and ``auto`` keeps the halves whole then."""
+    refused in one line where ``solver.pieces`` asks for them, and ``auto`` keeps the halves whole then; floating
+    regions of several interfaces are refused in one line."""
     held = kernels_of(parts)
+    if parts.regions > 2 and held.floating:
+        raise SceneError(f"geometry.sigma: region {held.names()} of the 3-D box would be held only through its "
+                         "interfaces (floating), which the regions' decomposition does not solve yet: give every "
+                         "region supports of its own (e.g. geometry.clamped on a side all regions touch)")
     if parts.count == 1 or not held.floating:
         return parts, held
     if scene.solver.pieces != "auto":
