@@ -125,8 +125,9 @@ def page(planes: list[dict], solids: list[dict], checked: dict) -> str:
              "`ddsolve solve` (a block per region, joints at every Σ: μᶜ on its cracks, μᵍ off them; 1 rank or a "
              "multiple of the regions), and writes each region's group (`/region1` …), each Σ under "
              "`/interfaces/N/sigma`, `/fracture` with `/fracture/interface` (each front node's Σ, 1 the lowest), "
-             "and a VTU file per region and per Σ.  `mesh.extrude`, `mesh.target_error` and slabs "
-             "(`solver.pieces` > 1) are refused there.", "",
+             "a VTU file per region and per Σ and the ParaView script that shows them.  `mesh.extrude`, "
+             "`mesh.target_error`, slabs (`solver.pieces` > 1) and regions held only through their interfaces (in "
+             "the decomposition) are refused there.", "",
              "### The plane structure extruded", "",
              f"docs/two-interfaces.toml's structure as one body, extruded over z in [0, {DEPTH:g}] with rollers on "
              f"both z faces; the plane reference at P2 gives the continuous energy per unit depth {exact:.9e} "

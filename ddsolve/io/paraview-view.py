@@ -6,8 +6,9 @@
 The layers side by side, displacements magnified by SCALE (the largest displacement drawn as a
 fixed fraction of the domain), cells coloured by von Mises stress up to its PERCENTILE-th percentile
 (the corner singularities would otherwise set the range), and the opening [u].nu of the crack faces
-with the contact pressure along Sigma.  A 3-D box (SOLID): its two halves warped by SCALE in one view,
-coloured by the displacement's magnitude, and beside it Sigma seen from above, coloured by the opening.
+with the contact pressure along Sigma.  A 3-D box (SOLID): its two halves (or the regions of several
+interfaces) warped by SCALE in one view, coloured by the displacement's magnitude, and beside it Sigma (each
+Sigma, one above the other, the lowest at the bottom) seen from above, coloured by the opening.
 """
 import argparse
 import os
@@ -25,8 +26,9 @@ else:  # ParaView's GUI runs scripts without __file__: where the files were writ
 DARK = [0.1, 0.1, 0.1]
 IMAGE = [1600, 1000]  # pixels of the --png picture
 LAYERS_HEIGHT = 0.62  # the layers' share of the height; the chart below
-SOLID_TITLES = {"lower": "below Sigma", "upper": "above Sigma"}  # a 3-D box's halves
-LAYERS = [layer for layer in (SOLID_TITLES if SOLID else TITLES) if layer in FILES]  # one or two
+SIGMAS = [part for part in FILES if part.startswith("sigma")]  # Sigma, or sigma1, sigma2, ... bottom to top
+LAYERS = ([part for part in FILES if part not in SIGMAS] if SOLID else  # a 3-D box's halves or regions
+          [layer for layer in TITLES if layer in FILES])  # one or two
 #: A layer's view in that picture, and the band of its height (fractions) between the colour bar
 #: and the title, where the camera puts the layer.
 VIEW_PIXELS = [IMAGE[0] / (1 if STACKED else len(LAYERS)), IMAGE[1] * LAYERS_HEIGHT / (len(LAYERS) if STACKED else 1)]
@@ -125,10 +127,10 @@ def solid_view():
     return view
 
 
-def sigma_map():
-    """Sigma seen from above (along -y), coloured by the opening [u].nu."""
-    view = render_view("Sigma: opening [u].nu")
-    display = Show(OpenDataFile(os.path.join(HERE, FILES["sigma"])), view)
+def sigma_map(part):
+    """Sigma (the ``part`` of several) seen from above (along -y), coloured by the opening [u].nu."""
+    view = render_view("Sigma: opening [u].nu" if part == "sigma" else "%s: opening [u].nu" % part)
+    display = Show(OpenDataFile(os.path.join(HERE, FILES[part])), view)
     display.Ambient, display.Diffuse = 1.0, 0.0
     coloured(display, view, "normal_opening", OPENING[0], OPENING[1], "opening [u].nu (length unit)")
     view.InteractionMode = "2D"
@@ -168,7 +170,14 @@ def main(argv):
     if SOLID:
         body = layout.SplitHorizontal(0, 0.55)
         AssignViewToLayout(solid_view(), layout, hint=body)
-        AssignViewToLayout(sigma_map(), layout, hint=body + 1)
+        cell = body + 1  # the right half: the Sigmas, the highest at the top
+        for index, part in enumerate(reversed(SIGMAS)):
+            if index < len(SIGMAS) - 1:  # this Sigma on top of the cell, the ones below it in the rest
+                top = layout.SplitVertical(cell, 1.0 / (len(SIGMAS) - index))
+                AssignViewToLayout(sigma_map(part), layout, hint=top)
+                cell = top + 1
+            else:
+                AssignViewToLayout(sigma_map(part), layout, hint=cell)
         save(layout, options.png)
         return
     layers = layout.SplitVertical(0, LAYERS_HEIGHT)

@@ -6,8 +6,8 @@ and its viewer files, VTU or XDMF, written anywhere (:func:`viewer_writers`, for
 
 A box of several interfaces (attribute ``interfaces``) has a group per region (``region1`` … bottom to top), each
 Σ's group under ``/interfaces/N/sigma`` (N = 1 the lowest, as the plane stacked files keep each interface under
-``/interfaces/N``), ``/fracture`` every interface's rows with ``/fracture/interface`` naming each row's Σ, and a
-VTU file per region and per Σ (``STEM-region1.vtu`` …, ``STEM-sigma1.vtu`` …).
+``/interfaces/N``), ``/fracture`` every interface's rows with ``/fracture/interface`` naming each row's Σ, a VTU
+file per region and per Σ (``STEM-region1.vtu`` …, ``STEM-sigma1.vtu`` …) and the ParaView script.
 """
 from __future__ import annotations
 
@@ -23,17 +23,12 @@ from ddsolve.post.front import FrontRelease
 from ddsolve.post.solid import SolidResult
 from ddsolve.problem.schema import REGIONS
 
-#: The viewer files beside ``NAME.h5``: ``NAME-lower.vtu``, ``NAME-upper.vtu``, ``NAME-sigma.vtu``.
+#: The viewer files beside ``NAME.h5`` of one interface: ``NAME-lower.vtu``, ``NAME-upper.vtu``, ``NAME-sigma.vtu``
+#: (and the ParaView script ``NAME-paraview.py``).
 VIEWER_PARTS = ("lower", "upper", "sigma")
 #: The viewer formats of a 3-D result and meshio's options for each: XDMF with its arrays inline (one file per
 #: part, no HDF5 beside it, so that each file is written whole and replaced with the others).
 VIEWER_FORMATS = {"vtu": {}, "xdmf": {"data_format": "XML"}}
-
-
-def viewer_paths(folder: Path, stem: str, fmt: str = "vtu") -> list[Path]:
-    """The viewer files of the result ``stem`` of one interface in ``folder``: ``STEM-lower.FMT``,
-    ``STEM-upper.FMT``, ``STEM-sigma.FMT`` and the ParaView script ``STEM-paraview.py`` that shows them."""
-    return [Path(folder) / f"{stem}-{part}.{fmt}" for part in VIEWER_PARTS] + [Path(folder) / f"{stem}-paraview.py"]
 
 
 def viewer_parts(result: SolidResult) -> tuple[str, ...]:
@@ -47,14 +42,12 @@ def viewer_parts(result: SolidResult) -> tuple[str, ...]:
 
 def viewer_writers(result: SolidResult, folder: Path, stem: str, fmt: str = "vtu") -> dict:
     """Path -> writer of each viewer file of ``result`` in format ``fmt`` (:data:`VIEWER_FORMATS`,
-    :func:`viewer_parts`), for :func:`replace_together`; with one interface the ParaView script that shows them
-    (:func:`viewer_paths`)."""
+    :func:`viewer_parts`) and of the ParaView script ``STEM-paraview.py`` that shows them, for
+    :func:`replace_together`."""
     parts = viewer_parts(result)
     paths = [Path(folder) / f"{stem}-{part}.{fmt}" for part in parts]
     writers = {target: (lambda temporary, part=part: _write_part(temporary, result, part, fmt))
                for target, part in zip(paths, parts)}
-    if parts != VIEWER_PARTS:
-        return writers
     text = paraview_script(result, folder, {part: path.name for part, path in zip(parts, paths)})
     return {**writers, Path(folder) / f"{stem}-paraview.py":
             lambda temporary: Path(temporary).write_text(text, encoding="utf-8")}
@@ -62,16 +55,18 @@ def viewer_writers(result: SolidResult, folder: Path, stem: str, fmt: str = "vtu
 
 def paraview_script(result: SolidResult, folder: Path, files: dict[str, str]) -> str:
     """The ParaView script (:func:`ddsolve.io.viewer.paraview_script`) of a 3-D result's viewer ``files`` (part ->
-    name in ``folder``): the halves warped by :func:`ddsolve.post.solid_plots.magnification`, coloured by the
-    displacement's magnitude up to its largest, Σ by the opening over its range."""
+    name in ``folder``): the halves (regions) warped by :func:`ddsolve.post.solid_plots.magnification`, coloured by
+    the displacement's magnitude up to its largest, Σ (each Σ) by the opening over their range."""
     from ddsolve.io import viewer
     from ddsolve.post import solid_plots
 
     largest = max(float(np.linalg.norm(u, axis=1).max(initial=0.0)) for u in result.fields)
-    opening = result.normal_opening
-    return viewer.paraview_script(result.scene.title, folder, files, {part: largest for part in VIEWER_PARTS[:2]},
+    openings = [result.interface(k).normal_opening for k in range(len(result.pressures))]
+    return viewer.paraview_script(result.scene.title, folder, files,
+                                  {region.name: largest for region in result.mesh.regions},
                                   solid_plots.magnification(result), stacked=False, graph=False,
-                                  opening=(float(opening.min(initial=0.0)), float(opening.max(initial=0.0))))
+                                  opening=(min(float(o.min(initial=0.0)) for o in openings),
+                                           max(float(o.max(initial=0.0)) for o in openings)))
 
 
 def write(path: Path, result: SolidResult) -> list[Path]:
