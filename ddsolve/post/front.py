@@ -30,8 +30,8 @@ materials, or under one that is not, the modes are not split (NaN).  No PETSc or
 """
 from __future__ import annotations
 
-from collections.abc import Callable
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np

@@ -161,7 +161,12 @@ def schur_bytes(interface: Interface) -> float:
 
 def trace_dofs(half: SolidHalf) -> np.ndarray:
     """The half's dofs at every Σ vertex, in Σ order: x, y, z per vertex."""
-    return tetra.element_dofs(half.sigma_nodes[:, None]).ravel()
+    return node_dofs(half.sigma_nodes)
+
+
+def node_dofs(nodes: np.ndarray) -> np.ndarray:
+    """The dofs of ``nodes``, in their order: x, y, z per node."""
+    return tetra.element_dofs(nodes[:, None]).ravel()
 
 
 def block_system(scene: Scene, half: SolidHalf, name: str, trace: np.ndarray, supports: tuple[np.ndarray, np.ndarray],
@@ -199,7 +204,7 @@ def interface_of(scene: Scene, mesh: SolidMesh, k: int = 0) -> Interface:
     sigma = mesh.sigmas[k]
     fixed = np.zeros((2, COMPONENTS * len(sigma.points)), dtype=bool)
     for row, region, nodes in zip(fixed, mesh.regions[k:k + 2], mesh.border(k)):
-        row[:] = np.isin(tetra.element_dofs(nodes[:, None]).ravel(), tetra.prescribed(scene, region)[0])
+        row[:] = np.isin(node_dofs(nodes), tetra.prescribed(scene, region)[0])
     return Interface(sigma.weights, sigma.cracked, scene.nonpenetration, fixed, modulus_of(scene, mesh),
                      specs=block_list(1), components=COMPONENTS)
 
@@ -214,7 +219,7 @@ def regions_decomposition(scene: Scene, mesh: SolidMesh) -> Decomposition:
     (μᶜ on its cracks, μᵍ off them); the structure's trace the interfaces' vertices, bottom to top."""
     count = len(mesh.regions)
     joints = [Joint(interface_of(scene, mesh, k), (k, k + 1),
-                    tuple(tetra.element_dofs(nodes[:, None]).ravel() for nodes in mesh.border(k)))
+                    tuple(node_dofs(nodes) for nodes in mesh.border(k)))
               for k in range(len(mesh.sigmas))]
     supports = [tetra.prescribed(scene, region) for region in mesh.regions]
     specs = tuple(BlockSpec(region.name, "layer1", 0) for region in mesh.regions)
@@ -248,7 +253,7 @@ def decomposition(scene: Scene, mesh: SolidMesh, count: int) -> Decomposition | 
             near, far = 2 * j + half, 2 * (j + 1) + half  # the lower half's far slab lies below its near one
             pair = (far, near) if half == 0 else (near, far)
             nodes = between.nodes[::-1] if half == 0 else between.nodes
-            dofs = tuple(tetra.element_dofs(own[:, None]).ravel() for own in nodes)
+            dofs = tuple(node_dofs(own) for own in nodes)
             _tie(values, pair, dofs)
             fixed = np.array([~np.isnan(values[block][own]) for own, block in zip(dofs, pair)])
             glued = Interface(between.weights, np.zeros(len(between.points), dtype=bool), False, fixed,
