@@ -47,7 +47,7 @@ def bench_solid(size: float, repeats: int, output: Path, comm) -> None:
 
     from ddsolve.mesh import solid as solid_meshes
     from ddsolve.parallel.exchange import collective
-    from ddsolve.solvers import solid as solid_solver, solid_dd
+    from ddsolve.solvers import solid as solid_solver
 
     scene = scene_of(size)
     mesh = comm.bcast(collective(comm, lambda: solid_meshes.build(scene), root_only=True), root=0)
@@ -66,21 +66,6 @@ def bench_solid(size: float, repeats: int, output: Path, comm) -> None:
         return result, {"merge": t["merge"], "solve_phase": t["factorization"] + t["solve"],
                         "factorization": t["factorization"], "cpu": time.process_time() - cpu}
 
-    def decomposed(chosen, reference) -> dict | None:
-        """The decomposition of ``chosen`` on every rank: rank 0's record of its phases, CPU and error."""
-        cpu = time.process_time()
-        dd = solid_dd.solve(chosen, comm, None, progress=lambda line: None, mesh=mesh)
-        cpus = comm.gather(time.process_time() - cpu, root=0)
-        if comm.rank != 0:
-            return None
-        t = dd.timings
-        method = t["total"] - t.get("meshing", 0.0) - t["setup"] - t["assembly"] - t["factorization"]
-        return {"setup": t["setup"] + t["assembly"], "factorization": t["factorization"], "rounds_time": method,
-                "solve_phase": t["factorization"] + method, "cpu": float(sum(cpus)), "cpu_largest": float(max(cpus)),
-                "method": dd.scene.solver.method, "preconditioner": dd.scene.solver.preconditioner,
-                "pieces": dd.scene.solver.pieces, "tol": dd.scene.solver.tol, "iterations": dd.steps,
-                "rounds": dd.solves, "error": solid_solver.energy_error(dd, reference)}
-
     reference = None
     for _ in range(repeats):
         for label, ordering in ORDERINGS.items():
@@ -88,11 +73,31 @@ def bench_solid(size: float, repeats: int, output: Path, comm) -> None:
             if comm.rank == 0:
                 reference, timings = solved
                 record[f"mono {label}"].append(timings)
-        record["dd"].append(decomposed(scene, reference))
-    record["tolerances"] = [decomposed(scene.with_({"solver.tol": tol}), reference) for tol in TOLERANCES]
+        record["dd"].append(decomposed(scene, mesh, reference, comm))
+    record["tolerances"] = [decomposed(scene.with_({"solver.tol": tol}), mesh, reference, comm)
+                           for tol in TOLERANCES]
     if comm.rank == 0:
         record["load_after"] = os.getloadavg()[0]
         output.write_text(json.dumps(record))
+
+
+def decomposed(chosen, mesh, reference, comm) -> dict | None:
+    """The decomposition of the scene ``chosen`` on ``mesh`` on every rank of ``comm``: rank 0's record of its phases,
+    CPU, what it ran and its error against ``reference`` (None elsewhere)."""
+    from ddsolve.solvers import solid as solid_solver, solid_dd
+
+    cpu = time.process_time()
+    dd = solid_dd.solve(chosen, comm, None, progress=lambda line: None, mesh=mesh)
+    cpus = comm.gather(time.process_time() - cpu, root=0)
+    if comm.rank != 0:
+        return None
+    t = dd.timings
+    method = t["total"] - t.get("meshing", 0.0) - t["setup"] - t["assembly"] - t["factorization"]
+    return {"setup": t["setup"] + t["assembly"], "factorization": t["factorization"], "rounds_time": method,
+            "solve_phase": t["factorization"] + method, "cpu": float(sum(cpus)), "cpu_largest": float(max(cpus)),
+            "method": dd.scene.solver.method, "preconditioner": dd.scene.solver.preconditioner,
+            "pieces": dd.scene.solver.pieces, "tol": dd.scene.solver.tol, "iterations": dd.steps,
+            "rounds": dd.solves, "error": solid_solver.energy_error(dd, reference)}
 
 
 def memory(side: str, size: float, output: Path, comm) -> None:

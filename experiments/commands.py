@@ -22,6 +22,9 @@ EXPERIMENTS = {
                  "docs/results.md (accuracy), docs/accuracy.png, results/accuracy.h5"),
     "scaling": ("scaling", "scaling", "strong and weak scaling, P = 800 and 1600, a fitted cost model",
                 "docs/scaling.md, docs/scaling-*.png, results/scaling.h5"),
+    "scaling-3d": ("scaling_3d", "scaling_3d", "auto's cost model in a 3-D box: blocks, rank 0 and feti's rounds "
+                   "measured and fitted, every candidate side by side on 2 ranks",
+                   "docs/scaling.md (scaling-3d section), results/scaling-3d.json"),
     "robustness": ("robustness", "robustness", "every hard case and bad input, measured", "docs/robustness.md"),
     "gallery": ("gallery", "gallery", "structures beyond the paper's square, solved and drawn",
                 "docs/gallery.md, docs/gallery-*.png, results/gallery/"),

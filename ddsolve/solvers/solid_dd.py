@@ -17,7 +17,6 @@ refused in one line.  A box of several interfaces is decomposed into its regions
 from __future__ import annotations
 
 import dataclasses
-import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,7 +26,7 @@ import scipy.sparse
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from ddsolve.dd import kernels, registry
+from ddsolve.dd import kernels, registry, solid_costs
 from ddsolve.dd.constraints import Constraints
 from ddsolve.dd.interface import Interface
 from ddsolve.environment import physical_memory
@@ -58,9 +57,6 @@ COMPONENTS = 3
 SCHUR_COPIES = 8
 #: The share of this machine's memory ``schur``'s dense matrices may take (above it: refused, ``auto`` takes feti).
 SCHUR_MEMORY_SHARE = 0.5
-#: ``solver.pieces = auto``: about this many unknowns per slab, and at most this many slabs per half.
-SLAB_UNKNOWNS = 32000
-MOST_SLABS = 16
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,34 +125,62 @@ def kernels_of(parts: Decomposition) -> kernels.Kernels:
     return kernels.held_kernels(rows, frame.modes(parts.points).T, parts.interface, frame)
 
 
-def method_of(scene: Scene, parts: Decomposition, held: kernels.Kernels) -> Scene:
-    """The scene with ``auto`` resolved (``schur`` while its dense matrices fit, :func:`schur_bytes`, on one slab per
-    half, else ``feti``; feti's preconditioner lumped on slabs, Dirichlet's on halves) and the slabs per half of
-    ``parts``; in one line, what this solve does not take: ``schur`` above that limit, a floating block (kernels
-    ``held``) with a method that cannot solve it (friction and bonds the scene refuses)."""
+def method_of(scene: Scene, parts: Decomposition, held: kernels.Kernels, ranks: int = 1) -> Scene:
+    """The scene with ``auto`` resolved (the method and feti's preconditioner the cost model predicts fastest on
+    ``parts`` and ``ranks``, :func:`ranking`) and the slabs per half of ``parts``; in one line, what this solve does
+    not take: ``schur`` above its memory limit (:func:`schur_bytes`), a floating block (kernels ``held``) with a
+    method that cannot solve it (friction and bonds the scene refuses)."""
     method = registry.METHODS.get(scene.solver.method)
     if held.floating and method is not None and not method.floating:
         raise SceneError(f"solver.method = {method.name}: block {held.names()} of the 3-D box is floating (held "
                          f"only through its interfaces, its stiffness singular), which {method.name} cannot solve: "
                          f"use {' or '.join(registry.floating_methods())}")
-    dense, limit = schur_bytes(parts.interface), SCHUR_MEMORY_SHARE * physical_memory()
+    dense, limit = schur_bytes(parts.interface), schur_limit()
     if scene.solver.method == "schur" and dense > limit:
         raise SceneError(f"solver.method = schur: the dense Schur complements of this 3-D box's interfaces "
                          f"({parts.interface.trace_size} trace entries) need about {dense / 1e9:.3g} GB, above the "
                          f"{limit / 1e9:.3g} GB allowed ({SCHUR_MEMORY_SHARE:g} of this machine's memory): use "
                          "solver.method = feti")
-    method = scene.solver.method if scene.solver.method in registry.METHODS else \
-        "schur" if dense <= limit and parts.count == 1 else "feti"
-    preconditioner = scene.solver.preconditioner
-    if preconditioner == "auto":
-        preconditioner = "lumped" if parts.count > 1 else "dirichlet"
+    best = ranking(scene, box_of(scene, parts), ranks, [parts.count])[0]
+    method = scene.solver.method if scene.solver.method in registry.METHODS else best.method
+    preconditioner = best.preconditioner if scene.solver.preconditioner == "auto" else scene.solver.preconditioner
     return dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, method=method, pieces=parts.count,
                                                                  preconditioner=preconditioner))
 
 
-def schur_bytes(interface: Interface) -> float:
-    """Bytes of the dense matrices ``schur`` holds at once (:data:`SCHUR_COPIES` of the trace's size)."""
-    return SCHUR_COPIES * 8.0 * interface.trace_size ** 2
+def schur_bytes(interface: Interface | int) -> float:
+    """Bytes of the dense matrices ``schur`` holds at once (:data:`SCHUR_COPIES` of the size of the trace, or of
+    ``interface`` trace entries)."""
+    size = interface if isinstance(interface, int) else interface.trace_size
+    return SCHUR_COPIES * 8.0 * size ** 2
+
+
+def schur_limit() -> float:
+    """Bytes ``schur``'s dense matrices may take (:data:`SCHUR_MEMORY_SHARE` of this machine's memory)."""
+    return SCHUR_MEMORY_SHARE * physical_memory()
+
+
+def box_of(scene: Scene, parts: Decomposition) -> solid_costs.Box:
+    """What the cost model reads of the box that ``parts`` cut: its unknowns (a cut's vertices once), Σ's vertices
+    and contact rows, the element degree."""
+    surface = parts.joints[0].interface
+    shared = COMPONENTS * len(parts.points) - surface.trace_size  # the cuts' dofs, held by two slabs each
+    return solid_costs.Box(sum(slab.piece.dofs for slab in parts.slabs) - shared, surface.trace_size // COMPONENTS,
+                           int(np.count_nonzero(surface.is_contact)), scene.mesh.degree)
+
+
+def ranking(scene: Scene, box: solid_costs.Box, ranks: int, counts: list[int]) -> list[solid_costs.Candidate]:
+    """``auto``'s candidates on ``counts`` slabs per half that the ranks share and ``scene``'s solver keys leave
+    (its method, where the model knows it, and feti's preconditioner), predicted fastest first
+    (:mod:`ddsolve.dd.solid_costs`); ``schur`` where its dense matrices fit.  Where none is left (``schur`` asked on
+    slabs, a count the ranks cannot share), feti's on those counts: its preconditioner."""
+    fits = schur_bytes(COMPONENTS * box.sigma) <= schur_limit()
+    shared = [count for count in counts if supported(ranks, 2 * count)] or counts
+    every = solid_costs.candidates(shared, fits)
+    method, preconditioner = scene.solver.method, scene.solver.preconditioner
+    kept = [c for c in every if method in ("auto", c.method) or method not in ("schur", "feti")]
+    kept = [c for c in kept if preconditioner in ("auto", c.preconditioner) or c.method == "schur"]
+    return solid_costs.ranked(box, ranks, kept or [c for c in every if c.method == "feti"])
 
 
 def trace_dofs(half: SolidHalf) -> np.ndarray:
@@ -277,8 +301,9 @@ def _tie(values: list[np.ndarray], pair: tuple[int, int], dofs: tuple[np.ndarray
 
 
 def pieces_of(scene: Scene, mesh: SolidMesh, ranks: int) -> Decomposition:
-    """The decomposition ``solver.pieces`` asks for (``auto``: :func:`auto_pieces`, fewer where they do not fit or
-    the ranks cannot share them); a SceneError where the slabs asked for do not fit."""
+    """The decomposition ``solver.pieces`` asks for (``auto``: the slabs of the candidate the cost model predicts
+    fastest on ``ranks``, :func:`ranking`, the next where they do not fit); a SceneError where the slabs asked for
+    do not fit."""
     wanted = scene.solver.pieces
     if wanted != "auto":
         parts = decomposition(scene, mesh, wanted)
@@ -287,13 +312,13 @@ def pieces_of(scene: Scene, mesh: SolidMesh, ranks: int) -> Decomposition:
                              "slab must be at least one element thick, whole, and touch only its neighbours): "
                              "give fewer, or a finer mesh.size")
         return parts
-    count = auto_pieces(mesh)
-    while count > 1:
-        parts = decomposition(scene, mesh, count) if supported(ranks, 2 * count) else None
+    whole = decomposition(scene, mesh, 1)
+    ranked = ranking(scene, box_of(scene, whole), ranks, list(solid_costs.PIECES))
+    for count in dict.fromkeys(candidate.pieces for candidate in ranked):
+        parts = whole if count == 1 else decomposition(scene, mesh, count)
         if parts is not None:
             return parts
-        count //= 2
-    return decomposition(scene, mesh, 1)
+    return whole
 
 
 def held_pieces(scene: Scene, mesh: SolidMesh, parts: Decomposition) -> tuple[Decomposition, kernels.Kernels]:
@@ -315,15 +340,6 @@ def held_pieces(scene: Scene, mesh: SolidMesh, parts: Decomposition) -> tuple[De
     return whole, kernels_of(whole)
 
 
-def auto_pieces(mesh: SolidMesh) -> int:
-    """Slabs per half for ``solver.pieces = auto``: the power of two nearest the half's unknowns over
-    :data:`SLAB_UNKNOWNS` (at most :data:`MOST_SLABS`), one below twice that."""
-    per_half = mesh.unknowns / 2
-    if per_half < 2 * SLAB_UNKNOWNS:
-        return 1
-    return int(min(MOST_SLABS, 2 ** round(math.log2(per_half / SLAB_UNKNOWNS))))
-
-
 def prepare(scene: Scene, comm: MPI.Comm, progress=None, mesh: SolidMesh | None = None) -> SolidSetup:
     """Build the mesh on rank 0 (rank 0's ``mesh`` if given), broadcast it, cut it into blocks, assemble and factor
     every rank's blocks (collective: the refusals too); rank 0's ``progress`` lines after the mesh and after the
@@ -341,7 +357,7 @@ def prepare(scene: Scene, comm: MPI.Comm, progress=None, mesh: SolidMesh | None 
         error.collective = True  # every rank sees the same size
         raise error
     parts, held = collective(comm, lambda: held_pieces(scene, mesh, parts))
-    scene = collective(comm, lambda: method_of(scene, parts, held))
+    scene = collective(comm, lambda: method_of(scene, parts, held, comm.size))
     method = registry.METHODS[scene.solver.method]
     exchange = Exchange(comm, len(parts.slabs))
     positions, dofs = trace_layout(parts.joints, len(parts.slabs))
