@@ -31,8 +31,10 @@ def test_the_model_follows_its_laws():
     def laws(factor: float, slab_rounds: float, schur: float) -> solid_costs.Laws:
         kinds = {"factor": (1e-9, factor, 0.0), "solve": (1e-8, 1.0, 0.0), "dirichlet_factor": (1e-9, factor, 0.0),
                  "dirichlet_solve": (1e-8, 1.0, 0.0), "schur_factor": (schur, factor, 0.0)}
-        return solid_costs.Laws(blocks={1: kinds}, dense=(1e-10, 2.0), rounds={
-            "dirichlet": (30.0, slab_rounds, 0.0, 0.0), "lumped": (20.0, slab_rounds, 0.0, 0.0)}, steps=(1.0, 0.0))
+        return solid_costs.Laws(blocks={1: kinds}, dense=(1e-10, 2.0), steps=(1.0, 0.0),
+                                update={"dirichlet": (1e-9, 1.0), "lumped": (1e-9, 1.0)},
+                                rounds={"dirichlet": (30.0, slab_rounds, 0.0, 0.0),
+                                        "lumped": (20.0, slab_rounds, 0.0, 0.0)})
 
     box = Box(unknowns=300_000, sigma=2000, contact_rows=0, degree=1)
     options = solid_costs.candidates(list(solid_costs.PIECES), schur_fits=True)

@@ -6,8 +6,8 @@ k slabs per half with the lumped or Dirichlet preconditioner.  The laws are fitt
 ``./run scaling-3d`` (docs/scaling.md, section *scaling-3d*): a block's seconds against n, the box's unknowns over its
 blocks, and s, Σ's vertices (a slab's face), per element degree; rank 0's dense Cholesky factorization against its
 unknowns; feti's rounds against the slabs, the box's unknowns and whether the crack faces press; schur's
-active-set steps against the crack's contact rows (:class:`Laws`).  ``schur`` stays refused above its memory limit, which the
-caller decides (``schur_fits``).
+active-set steps against the crack's contact rows (:class:`Laws`).  ``schur`` stays refused above its memory
+limit, which the caller decides (``schur_fits``).
 """
 from __future__ import annotations
 
@@ -24,12 +24,15 @@ class Laws:
     ``dirichlet_factor``, ``dirichlet_solve`` (its Dirichlet problem) and ``schur_factor`` (a half's factorization
     with its Schur complement on Σ); ``dense``: rank 0's Cholesky factorization of ``schur``'s interface stiffness,
     a·m^p on m = 3s unknowns; ``rounds``: feti's rounds at the default solver.tol per preconditioner,
-    a·k^b·N^c·e^(d·contact) (k slabs per half, N the box's unknowns, contact: the crack faces press); ``steps``:
+    a·k^b·N^c·e^(d·contact) (k slabs per half, N the box's unknowns, contact: the crack faces press); ``update``:
+    feti's rank 0 per round outside the block solves, a·m^p on its m multipliers (:func:`multipliers`), per
+    preconditioner (the lumped one is applied there); ``steps``:
     schur's active-set steps a·c^p on c contact rows."""
 
     blocks: dict[int, dict[str, tuple[float, float, float]]]
     dense: tuple[float, float]
     rounds: dict[str, tuple[float, float, float, float]]
+    update: dict[str, tuple[float, float]]
     steps: tuple[float, float]
 
 
@@ -41,6 +44,7 @@ FITTED = Laws(blocks={1: {"factor": (2.36e-09, 1.77, 0.111), "solve": (1.59e-09,
                           "dirichlet_factor": (1.3e-08, 2.18, -0.716), "dirichlet_solve": (9.06e-10, 1.6, 0.0987),
                           "schur_factor": (3.26e-09, 1.91, 0)}},
               dense=(7.9e-11, 2.73), steps=(1.63, 0.259),
+              update={"dirichlet": (3.86e-05, 0.431), "lumped": (5.06e-05, 0.509)},
               rounds={"dirichlet": (5.28, 0.757, 0.162, 0.278), "lumped": (6.76, 0.568, 0.112, 0.195)})
 #: Slabs per half the model considers.  Eight are left out: on every mesh measured (to 0.3 M unknowns) their slabs
 #: are one or two elements thick and feti's rounds explode (``./run scaling-3d``: 167 to 3,104 rounds at 48 k
@@ -83,6 +87,11 @@ def _block(box: Box, kind: str, pieces: int, laws: Laws) -> float:
     return a * (box.unknowns / (2 * pieces)) ** p * box.sigma ** q
 
 
+def multipliers(box: Box, pieces: int) -> int:
+    """feti's multipliers with ``pieces`` slabs per half: three per vertex of Σ and of every cut (about Σ's size)."""
+    return 3 * box.sigma * (2 * pieces - 1)
+
+
 def feti_rounds(box: Box, pieces: int, preconditioner: str, laws: Laws = FITTED) -> tuple[float, float]:
     """feti's predicted rounds of block solves and of Dirichlet solves (a Dirichlet iteration takes one of each,
     a lumped one a solve; three more solves)."""
@@ -105,9 +114,8 @@ def predicted_seconds(box: Box, candidate: Candidate, ranks: int, laws: Laws = F
     if candidate.preconditioner == "dirichlet":
         factor += _block(box, "dirichlet_factor", candidate.pieces, laws)
     block_rounds = solves * solve + held * _block(box, "dirichlet_solve", candidate.pieces, laws)
-    a, p = COST_LAWS["update"]
-    multipliers = 3 * box.sigma * (2 * candidate.pieces - 1)  # Σ's and every cut's (about Σ's size each)
-    return share * (factor + block_rounds) + (solves + held) * a * multipliers ** p
+    a, p = laws.update[candidate.preconditioner]
+    return share * (factor + block_rounds) + (solves + held) * a * multipliers(box, candidate.pieces) ** p
 
 
 def _schur_seconds(box: Box, share: float, solve: float, distributed: bool, laws: Laws) -> float:

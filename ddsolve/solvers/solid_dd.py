@@ -479,4 +479,4 @@ def finished(setup: SolidSetup, outcome, rounds, fields: list[np.ndarray]) -> So
                        converged=bool(outcome.converged), message=outcome.message or "",
                        checks={"residual": float(np.max(rounds.residuals, initial=0.0)),
                                **{name: float(outcome.details[f"kkt_{name}"]) for name in Constraints.NAMES}},
-                       timings=dict(setup.timings))
+                       timings={**setup.timings, "rounds": rounds.elapsed})
