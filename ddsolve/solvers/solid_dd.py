@@ -467,7 +467,8 @@ def finished(setup: SolidSetup, outcome, rounds, fields: list[np.ndarray]) -> So
     """Rank 0: the method's ``outcome`` as the reference's record: the halves' displacements, the contact
     pressure μᶜ at the crack vertices, the potential energy of the final round, the method's iterations as its
     ``steps`` (schur's are its active-set steps), the blocks' largest relative residual and the final KKT check's
-    residuals as its ``checks``."""
+    residuals as its ``checks``, the setup's timings with the seconds inside the rounds of block solves
+    (``rounds``)."""
     interface, sigmas = setup.interface, setup.mesh.sigmas
     pressure = np.zeros(len(setup.parts.points))  # the trace's vertices: every Σ's first, bottom to top
     contact = interface.slices["mu_c"]
