@@ -395,15 +395,16 @@ def scene_verdict(scene: dict, laws) -> dict:
 def candidate_rows(record: dict) -> list[str]:
     """Markdown: per scene what auto took against the fastest, then every candidate measured against predicted."""
     laws = laws_of(record["laws"])
-    summary = ["| scene | unknowns | Σ vertices | contact rows | load | auto takes | fastest: wall | auto over it | "
-               "fastest: CPU | auto over it |", "|---|---|---|---|---|---|---|---|---|---|"]
+    summary = ["| scene | unknowns | Σ vertices | contact rows | runs | load | auto takes | fastest: wall | auto over it | "
+               "fastest: CPU | auto over it |", "|---|---|---|---|---|---|---|---|---|---|---|"]
     detail = ["| scene | candidate | predicted (s) | solve phase, wall (s) | busiest rank's CPU (s) | iterations | "
               "rounds | energy-norm error |", "|---|---|---|---|---|---|---|---|"]
-    for scene in record["scenes"]:
+    for scene in sorted(record["scenes"], key=lambda scene: scene["unknowns"]):
         verdict = scene_verdict(scene, laws)
         name = f"P{scene['degree']} {scene['size']:g}, {'contact' if scene['contact'] else 'faces free'}"
         box, fastest, over = scene["box"], verdict["fastest"], verdict["over"]
         summary.append(f"| {name} | {scene['unknowns']:,} | {box['sigma']:,} | {box['contact_rows']:,} | "
+                       f"{len(scene['candidates'][0]['runs'])} | "
                        f"{scene['load']:.1f}–{scene['load_after']:.1f} | {_label(verdict['taken']['candidate'])} | "
                        f"{_label(fastest['wall']['candidate'])} | {100 * over['wall']:+.0f} % | "
                        f"{_label(fastest['cpu']['candidate'])} | {100 * over['cpu']:+.0f} % |")
@@ -472,7 +473,7 @@ def text(record: dict) -> str:
         "Laws (n: the box's unknowns over its 2k blocks; s: Σ's vertices; m: rank 0's dense unknowns, 3s; k: slabs per "
         "half; N: the box's unknowns; contact: 1 where the crack faces press; c: contact rows):", "",
         *law_rows(record), "",
-        f"Every candidate of each scene on {RANKS} ranks in one launch, in turn, twice (medians; solve phase: "
+        f"Every candidate of each scene on {RANKS} ranks in one launch, in turn, *runs* times (medians; solve phase: "
         "factorization and rounds, wall seconds; CPU: the busiest rank's CPU seconds of the whole call, which the "
         "machine's other jobs do not inflate as they do the wall), beside the monolithic reference (the energy-norm "
         "error); the predictions are the laws above; *auto takes*: the candidate they predict fastest, which `auto` "
