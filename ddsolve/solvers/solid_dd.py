@@ -171,14 +171,15 @@ def box_of(scene: Scene, parts: Decomposition) -> solid_costs.Box:
 
 def ranking(scene: Scene, box: solid_costs.Box, ranks: int, counts: list[int]) -> list[solid_costs.Candidate]:
     """``auto``'s candidates on ``counts`` slabs per half that the ranks share and ``scene``'s solver keys leave
-    (its method, where the model knows it, and feti's preconditioner), predicted fastest first
-    (:mod:`ddsolve.dd.solid_costs`); ``schur`` where its dense matrices fit.  Where none is left (``schur`` asked on
-    slabs, a count the ranks cannot share), feti's on those counts: its preconditioner."""
+    (its method and feti's preconditioner; the halves whole for a method the model does not know), predicted
+    fastest first (:mod:`ddsolve.dd.solid_costs`); ``schur`` where its dense matrices fit.  Where none is left
+    (``schur`` asked on slabs, a count the ranks cannot share), feti's on those counts: its preconditioner."""
     fits = schur_bytes(COMPONENTS * box.sigma) <= schur_limit()
-    shared = [count for count in counts if supported(ranks, 2 * count)] or counts
-    every = solid_costs.candidates(shared, fits)
     method, preconditioner = scene.solver.method, scene.solver.preconditioner
-    kept = [c for c in every if method in ("auto", c.method) or method not in ("schur", "feti")]
+    modelled = method in ("auto", "schur", "feti")
+    shared = [count for count in counts if supported(ranks, 2 * count) and (modelled or count == 1)] or counts
+    every = solid_costs.candidates(shared, fits)
+    kept = [c for c in every if method in ("auto", c.method) or not modelled]
     kept = [c for c in kept if preconditioner in ("auto", c.preconditioner) or c.method == "schur"]
     return solid_costs.ranked(box, ranks, kept or [c for c in every if c.method == "feti"])
 
