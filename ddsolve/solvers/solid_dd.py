@@ -127,9 +127,9 @@ def kernels_of(parts: Decomposition) -> kernels.Kernels:
 
 def method_of(scene: Scene, parts: Decomposition, held: kernels.Kernels, ranks: int = 1) -> Scene:
     """The scene with ``auto`` resolved (the method and feti's preconditioner the cost model predicts fastest on
-    ``parts`` and ``ranks``, :func:`ranking`) and the slabs per half of ``parts``; in one line, what this solve does
-    not take: ``schur`` above its memory limit (:func:`schur_bytes`), a floating block (kernels ``held``) with a
-    method that cannot solve it (friction and bonds the scene refuses)."""
+    ``parts`` and ``ranks``, :func:`ranking`; several interfaces: ``schur`` while it fits) and the slabs per half of
+    ``parts``; in one line, what this solve does not take: ``schur`` above its memory limit (:func:`schur_bytes`), a
+    floating block (kernels ``held``) with a method that cannot solve it (friction and bonds the scene refuses)."""
     method = registry.METHODS.get(scene.solver.method)
     if held.floating and method is not None and not method.floating:
         raise SceneError(f"solver.method = {method.name}: block {held.names()} of the 3-D box is floating (held "
@@ -141,7 +141,10 @@ def method_of(scene: Scene, parts: Decomposition, held: kernels.Kernels, ranks: 
                          f"({parts.interface.trace_size} trace entries) need about {dense / 1e9:.3g} GB, above the "
                          f"{limit / 1e9:.3g} GB allowed ({SCHUR_MEMORY_SHARE:g} of this machine's memory): use "
                          "solver.method = feti")
-    best = ranking(scene, box_of(scene, parts), ranks, [parts.count])[0]
+    if parts.regions > 2:  # the model knows a box of one Σ: several interfaces take schur while it fits
+        best = solid_costs.Candidate("schur" if dense <= limit else "feti", 1, "dirichlet")
+    else:
+        best = ranking(scene, box_of(scene, parts), ranks, [parts.count])[0]
     method = scene.solver.method if scene.solver.method in registry.METHODS else best.method
     preconditioner = best.preconditioner if scene.solver.preconditioner == "auto" else scene.solver.preconditioner
     return dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, method=method, pieces=parts.count,
@@ -314,6 +317,8 @@ def pieces_of(scene: Scene, mesh: SolidMesh, ranks: int) -> Decomposition:
                              "give fewer, or a finer mesh.size")
         return parts
     whole = decomposition(scene, mesh, 1)
+    if whole.regions > 2:  # several interfaces: a block a region
+        return whole
     ranked = ranking(scene, box_of(scene, whole), ranks, list(solid_costs.PIECES))
     for count in dict.fromkeys(candidate.pieces for candidate in ranked):
         parts = whole if count == 1 else decomposition(scene, mesh, count)
