@@ -206,6 +206,16 @@ def round_law(rows: list[dict], preconditioner: str) -> tuple[float, float, floa
                      np.array([float(row["contact"]) for row in mine])], [row["rounds"] for row in mine])
 
 
+def scene_rounds(record: dict) -> list[dict]:
+    """feti's rounds in the candidates' launches (deterministic, as in one process), as rows of :func:`iterations`:
+    they reach the larger meshes."""
+    return [{"degree": scene["degree"], "size": scene["size"], "contact": scene["contact"], "box": scene["unknowns"],
+             "sigma": scene["box"]["sigma"], "crack_rows": scene["box"]["contact_rows"], "method": method,
+             "pieces": pieces, "preconditioner": preconditioner, "rounds": entry["runs"][0]["rounds"]}
+            for scene in record.get("scenes", []) for entry in scene["candidates"]
+            for method, pieces, preconditioner in [entry["candidate"]] if method == "feti"]
+
+
 def update_law(rows: list[dict], preconditioner: str) -> tuple[float, float]:
     """feti's rank-0 seconds per round outside the block solves, a·m^p on its multipliers, with ``preconditioner``."""
     mine = [row for row in rows if row["preconditioner"] == preconditioner]
@@ -225,7 +235,7 @@ def fit(record: dict) -> dict:
                                 for kind in KINDS} for degree in (1, 2)},
             "dense": fit_logs([np.log([row["unknowns"] for row in dense_rows])],
                               [row["seconds"] for row in dense_rows]),
-            "rounds": {preconditioner: round_law(record["iterations"], preconditioner)
+            "rounds": {preconditioner: round_law(record["iterations"] + scene_rounds(record), preconditioner)
                            for preconditioner in ("dirichlet", "lumped")},
             "update": {preconditioner: update_law(feti, preconditioner) for preconditioner in ("dirichlet", "lumped")},
             "steps": fit_logs([np.log([row["crack_rows"] for row in steps])], [row["iterations"] for row in steps])}
@@ -343,8 +353,8 @@ def law_rows(record: dict) -> list[str]:
     rows.append(f"| rank 0's dense Cholesky | a·m^p | a = {a:.3g}, p = {p:.3f} | m {dense[0]['unknowns']:,}–"
                 f"{dense[-1]['unknowns']:,} | {_quality([(r['seconds'], a * r['unknowns'] ** p) for r in dense])} |")
     for name, (a, b, c, d) in laws.rounds.items():
-        mine = [row for row in record["iterations"] if row["method"] == "feti" and row["preconditioner"] == name
-                and row["pieces"] in PIECES]
+        mine = [row for row in record["iterations"] + scene_rounds(record) if row["method"] == "feti"
+                and row["preconditioner"] == name and row["pieces"] in PIECES]
         pairs = [(row["rounds"], sum(feti_rounds(_box_of(row), row["pieces"], name, laws))) for row in mine]
         rows.append(f"| feti rounds, {name} | a·k^b·N^c·e^(d·contact) | a = {a:.3g}, b = {b:.3f}, c = {c:.3f}, "
                     f"d = {d:.3f} | N {min(r['box'] for r in mine):,}–{max(r['box'] for r in mine):,}, k "

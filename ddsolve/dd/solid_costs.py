@@ -45,7 +45,7 @@ FITTED = Laws(blocks={1: {"factor": (2.36e-09, 1.77, 0.111), "solve": (1.59e-09,
                           "schur_factor": (3.26e-09, 1.91, 0)}},
               dense=(7.9e-11, 2.73), steps=(1.63, 0.259),
               update={"dirichlet": (3.86e-05, 0.431), "lumped": (5.06e-05, 0.509)},
-              rounds={"dirichlet": (5.28, 0.757, 0.162, 0.278), "lumped": (6.76, 0.568, 0.112, 0.195)})
+              rounds={"dirichlet": (1.23, 0.782, 0.301, 0.468), "lumped": (2.91, 0.634, 0.191, 0.273)})
 #: Slabs per half the model considers.  Eight are left out: on every mesh measured (to 0.3 M unknowns) their slabs
 #: are one or two elements thick and feti's rounds explode (``./run scaling-3d``: 167 to 3,104 rounds at 48 k
 #: unknowns, where four slabs take 51 to 119), which no law of the slab count follows.
