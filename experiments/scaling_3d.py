@@ -27,8 +27,7 @@ from experiments import report, three_d
 RESULT = Path("results/scaling-3d.json")
 DOCS = Path("docs")
 #: Block measurements: (degree, mesh.size) of the box, slabs per half.
-BLOCK_MESHES = ((1, 0.1), (1, 0.07), (1, 0.05), (1, 0.04), (1, 0.032), (1, 0.026), (2, 0.2), (2, 0.14), (2, 0.1),
-                (2, 0.08))
+BLOCK_MESHES = ((1, 0.1), (1, 0.07), (1, 0.05), (1, 0.04), (1, 0.032), (2, 0.2), (2, 0.14), (2, 0.1), (2, 0.08))
 BLOCK_PIECES = (1, 2, 4, 8)
 #: Iteration measurements: (degree, mesh.size), each pulled open and partly shut.
 ROUND_MESHES = ((1, 0.1), (1, 0.07), (1, 0.05), (2, 0.2), (2, 0.14))
