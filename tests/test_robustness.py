@@ -245,7 +245,7 @@ def test_a_block_solver_failing_on_one_rank_stops_every_rank(tmp_path):
 def test_a_signal_stops_every_rank_promptly_and_keeps_the_previous_file(tmp_path, signum):
     from experiments.robustness import interrupt
 
-    outcome = interrupt(tmp_path, signum, wait=8.0)
+    outcome = interrupt(tmp_path, signum)
     assert outcome["running"] and outcome["status"] != 0 and not outcome["traceback"]
     assert outcome["seconds"] < 10.0
     assert outcome["kept"] and outcome["leftovers"] == []
