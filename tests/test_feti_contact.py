@@ -11,7 +11,7 @@ import types
 
 import numpy as np
 import pytest
-from conftest import ddsolve
+from conftest import ddsolve, solved_reference
 
 from ddsolve.dd import feti
 from ddsolve.dd.dual import Progress, kkt_criterion
@@ -73,7 +73,7 @@ def test_the_iterations_give_the_dense_active_set_solution(monkeypatch, flicker)
 def solved(scene, method: str = "feti"):
     output = scene.with_suffix(f".{method}.h5")
     if method == "reference":
-        ddsolve("reference", str(scene), "-o", str(output))
+        solved_reference(str(scene), "-o", str(output))
     else:
         ddsolve("solve", str(scene), "--set", f"solver.method={method}", "--set", "solver.tol=1e-11",
                 "-o", str(output), ranks=2)

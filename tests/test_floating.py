@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import MATERIALS, both_layers, ddsolve, refused
+from conftest import MATERIALS, both_layers, ddsolve, refused, solved_reference
 from launch_many import launch
 
 from ddsolve.io import hdf5
@@ -203,7 +203,7 @@ def test_a_slender_floating_structure_on_distributed_blocks_equals_the_reference
     from experiments import contact
 
     scene = contact.scene_file(tmp_path, "ENF", 12.5, 0.4)
-    ddsolve("reference", str(scene), "-o", str(tmp_path / "reference.h5"))
+    solved_reference(str(scene), "-o", str(tmp_path / "reference.h5"))
     ddsolve("solve", str(scene), "--set", "solver.method=schur", "-o", str(tmp_path / "schur.h5"), ranks=8)
     result, reference = (hdf5.read(tmp_path / f"{name}.h5") for name in ("schur", "reference"))
     assert result.converged and reference.attrs["closed_vertices"] > 0

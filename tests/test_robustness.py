@@ -8,7 +8,7 @@ from pathlib import Path
 import meshio
 import numpy as np
 import pytest
-from conftest import SMALL, ddsolve, structured_square
+from conftest import SMALL, ddsolve, solved_reference, structured_square
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from launch_many import launch
@@ -24,7 +24,7 @@ def solve_and_reference(tmp_path, name, *overrides, method_args=(), ranks=4):
     """The default (or given) method and the reference on the same scene; (result, reference)."""
     dd, ref = tmp_path / "dd.h5", tmp_path / "ref.h5"
     ddsolve("solve", name, *overrides, *method_args, "-o", str(dd), ranks=ranks)
-    ddsolve("reference", name, *overrides, "-o", str(ref))
+    solved_reference(name, *overrides, "-o", str(ref))
     return hdf5.read(dd), hdf5.read(ref)
 
 
