@@ -188,7 +188,8 @@ def test_free_thermal_expansion_on_short_supports_carries_no_stress(tmp_path):
     for command, options, ranks in (("reference", [], None), ("solve", ["--set", "solver.method=schur"], 2),
                                      ("solve", ["--set", "solver.method=feti", "--set", "solver.tol=1e-12"], 4)):
         output = tmp_path / f"{command}{ranks}.h5"
-        ddsolve(command, str(scene), *heated, *options, "-o", str(output), ranks=ranks)
+        arguments = [str(scene), *heated, *options, "-o", str(output)]
+        solved_reference(*arguments) if command == "reference" else ddsolve(command, *arguments, ranks=ranks)
         result = hdf5.read(output)
         largest = max(np.abs(fields.stress).max() for fields in analysis.cell_fields(result).values())
         assert result.converged and largest <= 1e-12 * 200.0 * alpha * rise, (command, ranks, largest)
