@@ -100,11 +100,13 @@ CONVERGING_SIZES = (0.2, 0.1, 0.05)
 
 @pytest.fixture(scope="module")
 def converging(tmp_path_factory):
-    """CONVERGING on CONVERGING_SIZES: the references in one launch on 1 rank, the solves in one on 4."""
+    """CONVERGING on CONVERGING_SIZES: the references in this process, the solves in one launch on 4 ranks."""
     folder = tmp_path_factory.mktemp("converging")
-    for command, ranks in (("reference", 1), ("solve", 4)):
-        launch([[command, name, "--set", f"mesh.size={size}", "-o", str(folder / f"{name}-{size}-{command}.h5")]
-                for name in CONVERGING for size in CONVERGING_SIZES], ranks, folder)
+    cases = [(name, size) for name in CONVERGING for size in CONVERGING_SIZES]
+    for name, size in cases:
+        solved_reference(name, "--set", f"mesh.size={size}", "-o", str(folder / f"{name}-{size}-reference.h5"))
+    launch([["solve", name, "--set", f"mesh.size={size}", "-o", str(folder / f"{name}-{size}-solve.h5")]
+            for name, size in cases], 4, folder)
     return folder
 
 
