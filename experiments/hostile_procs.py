@@ -62,6 +62,20 @@ def marked(tag: str) -> dict[int, tuple[int, str, list[str]]]:
     return found
 
 
+def left_after(tag: str, ended: float) -> dict[int, tuple[int, str, list[str]]]:
+    """The processes of the run alive AFTER seconds after ``ended`` (a ``time.perf_counter()``): looked at
+    until then, and the answer is known as soon as none is left twice in a row, since only a process of the
+    run starts one (each inherits the marker)."""
+    empty_before = False
+    while True:
+        late = time.perf_counter() >= ended + AFTER
+        left = marked(tag)
+        if late or (not left and empty_before):
+            return left
+        empty_before = not left
+        time.sleep(0.05)
+
+
 def _ddsolve(argv: list[str]) -> bool:
     """A Python process running ddsolve (a rank, a one-process run or its gmsh child), not mpiexec."""
     return bool(argv) and Path(argv[0]).name.startswith("python") and "ddsolve" in argv
@@ -127,8 +141,7 @@ def stop(folder: Path, phase: str, signum: int, target: str = "launcher", timeou
             except subprocess.TimeoutExpired:
                 status = None
             ended = time.perf_counter()
-            time.sleep(max(0.0, ended + AFTER - time.perf_counter()))
-            left = marked(tag)
+            left = left_after(tag, ended)
         finally:
             for pid in [process.pid, *marked(tag)]:
                 try:

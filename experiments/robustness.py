@@ -109,11 +109,17 @@ class Cases:
                                 f"«{outcome['message']}»; previous file {kept}{left}", why, test))
 
 
-def interrupt(folder: Path, signum: int, wait: float = 6.0) -> dict:
-    """Start a long run writing to ``folder/kept.h5`` (which holds a previous result), signal mpiexec.
+#: Uzawa's first progress line, printed once it has iterated for 2 s (:class:`ddsolve.dd.dual.Progress`).
+ITERATING = "uzawa: iteration"
 
-    Returns the exit status, the seconds from the signal to the exit, the first line of standard
-    error, whether the previous file survived and which temporary files are left in ``folder``.
+
+def interrupt(folder: Path, signum: int, timeout: float = 120.0) -> dict:
+    """Start a long run writing to ``folder/kept.h5`` (which holds a previous result), signal mpiexec once
+    the iterations have run for 2 s (their first progress line; at most ``timeout`` s after the start).
+
+    Returns whether the run was still running then, the exit status, the seconds from the signal to the
+    exit, the first line of standard error, whether the previous file survived and which temporary files
+    are left in ``folder``.
     """
     from ddsolve.parallel.launch import mpiexec_command
 
@@ -123,17 +129,27 @@ def interrupt(folder: Path, signum: int, wait: float = 6.0) -> dict:
     command = mpiexec_command(4, ["solve", "partial-closure", "--set", "solver.method=uzawa",
                                   "--set", "solver.stop=relative", "--set", "solver.tol=1e-300",
                                   "--set", "solver.max_iterations=10000000", "-o", str(kept)])
-    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                               stdin=subprocess.DEVNULL, env=dict(os.environ))
-    time.sleep(wait)  # well into the iterations
-    running = process.poll() is None
-    sent = time.perf_counter()
-    process.send_signal(signum)
-    _, stderr = process.communicate(timeout=60)
+    with tempfile.TemporaryFile() as printed:
+        process = subprocess.Popen(command, stdout=printed, stderr=subprocess.PIPE, text=True,
+                                   stdin=subprocess.DEVNULL, env=dict(os.environ))
+        deadline = time.perf_counter() + timeout
+        while process.poll() is None and time.perf_counter() < deadline and not _printed(printed, ITERATING):
+            time.sleep(0.05)
+        running = process.poll() is None
+        sent = time.perf_counter()
+        process.send_signal(signum)
+        _, stderr = process.communicate(timeout=60)
     return {"running": running, "status": process.returncode, "seconds": time.perf_counter() - sent,
             "message": stderr.strip().splitlines()[0] if stderr.strip() else "",
             "traceback": "Traceback" in stderr, "kept": kept.read_bytes() == b"previous result",
             "leftovers": sorted(p.name for p in folder.iterdir() if p.name not in present)}
+
+
+def _printed(stream, text: str) -> bool:
+    """Whether the file ``stream`` (a process's standard output) holds ``text``; read without moving the
+    offset the process writes at."""
+    descriptor = stream.fileno()
+    return text.encode() in os.pread(descriptor, os.fstat(descriptor).st_size, 0)
 
 
 def _mesh_file(folder: Path, name: str, points, cells) -> Path:

@@ -177,13 +177,22 @@ def ddsolve(*args: str, ranks: int | None = None, check: bool = True, timeout: f
     return completed
 
 
+def solved_reference(*args: str) -> Path:
+    """``ddsolve reference ARGS`` (a scene, ``--set`` items, ``-o`` a result file) solved in this process,
+    for a test that reads the reference as data: the same scene and result set without a process started;
+    returns the result file."""
+    import ddsolve as api
+    from ddsolve.cli import parser
+
+    parsed = parser().parse_args(["reference", *args])
+    api.reference(api.Scene.load(parsed.scene, parsed.set or []), parsed.output)
+    return Path(parsed.output)
+
+
 def paper_references(folder: Path, *options: str) -> dict[str, Path]:
     """Reference results of the paper's three scenes with ``options``, in ``folder``."""
-    out = {}
-    for name in ("partial-closure", "full-opening", "linear"):
-        out[name] = folder / f"{name}.h5"
-        ddsolve("reference", name, *options, "-o", str(out[name]))
-    return out
+    return {name: solved_reference(name, *options, "-o", str(folder / f"{name}.h5"))
+            for name in ("partial-closure", "full-opening", "linear")}
 
 
 def refused(completed: subprocess.CompletedProcess, status: int, *fragments: str) -> str:

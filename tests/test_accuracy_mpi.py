@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import ddsolve
+from conftest import ddsolve, solved_reference
 from launch_many import launch
 
 from ddsolve.io import hdf5
@@ -39,11 +39,10 @@ P2_CASES = [("partial-closure", method) for method in METHODS] + [("full-opening
 
 @pytest.fixture(scope="module")
 def p2_references(tmp_path_factory) -> dict[str, Path]:
-    """The paper scenes' P2 references, one launch (1 rank)."""
+    """The paper scenes' P2 references, solved in this process."""
     folder = tmp_path_factory.mktemp("p2")
-    paths = {name: folder / f"{name}.h5" for name in ("partial-closure", "full-opening", "linear")}
-    launch([["reference", name, *P2, "-o", str(path)] for name, path in paths.items()], 1, folder)
-    return paths
+    return {name: solved_reference(name, *P2, "-o", str(folder / f"{name}.h5"))
+            for name in ("partial-closure", "full-opening", "linear")}
 
 
 @pytest.fixture(scope="module")

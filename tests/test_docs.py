@@ -4,7 +4,7 @@ from __future__ import annotations
 import re
 
 import pytest
-from conftest import ROOT, SMALL, ddsolve
+from conftest import ROOT, SMALL, solved_reference
 
 pytestmark = pytest.mark.mpi
 
@@ -18,7 +18,7 @@ def python_blocks(section: str) -> list[str]:
 
 
 def test_post_processing_examples_run(tmp_path, monkeypatch, capsys):
-    ddsolve("reference", "partial-closure", *SMALL, "-o", str(tmp_path / "partial-closure.h5"))
+    solved_reference("partial-closure", *SMALL, "-o", str(tmp_path / "partial-closure.h5"))
     blocks = python_blocks("Post-processing in Python")
     assert len(blocks) == 2
     monkeypatch.chdir(tmp_path)

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import MATERIALS, ROOT, SMALL, ddsolve
+from conftest import MATERIALS, ROOT, SMALL, ddsolve, solved_reference
 from launch_many import launch
 
 from ddsolve.errors import MeshError
@@ -56,8 +56,8 @@ def test_rotation_by_37_degrees_rotates_the_solution(tmp_path, example, name):
                              for h in mesh.halves), mesh.sigma, "rotated")
     gmsh_io.write_msh(turned, tmp_path / "rotated.msh")
     scene_file = write_scene(tmp_path, "rotated", 'file = "rotated.msh"', rotated_loads(example, angle))
-    ddsolve("reference", name, *SMALL, "-o", str(tmp_path / "plain.h5"))
-    ddsolve("reference", str(scene_file), "-o", str(tmp_path / "turned.h5"))
+    solved_reference(name, *SMALL, "-o", str(tmp_path / "plain.h5"))
+    solved_reference(str(scene_file), "-o", str(tmp_path / "turned.h5"))
     plain, rotated = hdf5.read(tmp_path / "plain.h5"), hdf5.read(tmp_path / "turned.h5")
     energy_difference = abs(energy(tmp_path / "turned.h5") / energy(tmp_path / "plain.h5") - 1.0)
     scale = max(np.abs(u).max() for u in plain.solution.values())
@@ -81,10 +81,10 @@ def test_example1_as_a_geo_file(tmp_path):
     ddsolve("mesh", "partial-closure", *SMALL, "-o", str(tmp_path / "builtin.msh"))
     msh = write_scene(tmp_path, "msh", 'file = "builtin.msh"', loads)
     geo = write_scene(tmp_path, "geo", 'file = "example1.geo"\nsize = 0.15', loads)
-    for name, source in (("builtin", "partial-closure"), ("msh", str(msh)), ("geo", str(geo))):
-        ddsolve("solve", source, *(SMALL if name == "builtin" else []), "-o", str(tmp_path / f"{name}.h5"), ranks=2)
-    ddsolve("reference", "partial-closure", "--set", "mesh.sigma_vertices=96", "--set", "mesh.boundary_vertices=144",
-            "-o", str(tmp_path / "fine.h5"))
+    launch([["solve", source, *(SMALL if name == "builtin" else []), "-o", str(tmp_path / f"{name}.h5")]
+            for name, source in (("builtin", "partial-closure"), ("msh", str(msh)), ("geo", str(geo)))], 2, tmp_path)
+    solved_reference("partial-closure", "--set", "mesh.sigma_vertices=96", "--set", "mesh.boundary_vertices=144",
+                     "-o", str(tmp_path / "fine.h5"))
     builtin, fine = energy(tmp_path / "builtin.h5"), energy(tmp_path / "fine.h5")
     same_mesh = abs(energy(tmp_path / "msh.h5") / builtin - 1.0)
     above = [(coarse - fine) / abs(fine) for coarse in (builtin, energy(tmp_path / "geo.h5"))]
@@ -100,11 +100,13 @@ CONVERGING_SIZES = (0.2, 0.1, 0.05)
 
 @pytest.fixture(scope="module")
 def converging(tmp_path_factory):
-    """CONVERGING on CONVERGING_SIZES: the references in one launch on 1 rank, the solves in one on 4."""
+    """CONVERGING on CONVERGING_SIZES: the references in this process, the solves in one launch on 4 ranks."""
     folder = tmp_path_factory.mktemp("converging")
-    for command, ranks in (("reference", 1), ("solve", 4)):
-        launch([[command, name, "--set", f"mesh.size={size}", "-o", str(folder / f"{name}-{size}-{command}.h5")]
-                for name in CONVERGING for size in CONVERGING_SIZES], ranks, folder)
+    cases = [(name, size) for name in CONVERGING for size in CONVERGING_SIZES]
+    for name, size in cases:
+        solved_reference(name, "--set", f"mesh.size={size}", "-o", str(folder / f"{name}-{size}-reference.h5"))
+    launch([["solve", name, "--set", f"mesh.size={size}", "-o", str(folder / f"{name}-{size}-solve.h5")]
+            for name, size in cases], 4, folder)
     return folder
 
 
@@ -218,9 +220,9 @@ def test_loads_on_a_side_and_plane_stress_equal_plane_strain_with_modified_const
                                       "plane_strain": (200.0 * 1.56 / 1.28 ** 2, 0.28 / 1.28,
                                                        112.0 * 1.64 / 1.32 ** 2, 0.32 / 1.32)}.items():
         output = tmp_path / f"{model}.h5"
-        ddsolve("reference", "partial-closure", *common, "--set", f"materials.model={model}",
-                "--set", f"materials.layer1={{E = {E1!r}, nu = {nu1!r}}}",
-                "--set", f"materials.layer2={{E = {E2!r}, nu = {nu2!r}}}", "-o", str(output))
+        solved_reference("partial-closure", *common, "--set", f"materials.model={model}",
+                         "--set", f"materials.layer1={{E = {E1!r}, nu = {nu1!r}}}",
+                         "--set", f"materials.layer2={{E = {E2!r}, nu = {nu2!r}}}", "-o", str(output))
         results[model] = hdf5.read(output)
     difference = analysis.compare(results["plane_stress"], results["plane_strain"]).energy_error
     print(f"\nplane stress against plane strain with modified constants: {difference:.1e}")
@@ -230,10 +232,9 @@ def test_loads_on_a_side_and_plane_stress_equal_plane_strain_with_modified_const
 
 def test_orthotropic_with_isotropic_constants_reproduces_the_isotropic_solution(tmp_path):
     E, nu = 200.0, 0.28
-    ddsolve("reference", "partial-closure", *SMALL, "-o", str(tmp_path / "iso.h5"))
-    ddsolve("reference", "partial-closure", *SMALL, "--set",
-            f"materials.layer1={{E1 = {E}, E2 = {E}, G12 = {E / (2 * (1 + nu))!r}, nu12 = {nu}, angle = 30.0}}",
-            "-o", str(tmp_path / "ortho.h5"))
+    solved_reference("partial-closure", *SMALL, "-o", str(tmp_path / "iso.h5"))
+    orthotropic = f"materials.layer1={{E1 = {E}, E2 = {E}, G12 = {E / (2 * (1 + nu))!r}, nu12 = {nu}, angle = 30.0}}"
+    solved_reference("partial-closure", *SMALL, "--set", orthotropic, "-o", str(tmp_path / "ortho.h5"))
     difference = analysis.compare(hdf5.read(tmp_path / "ortho.h5"), hdf5.read(tmp_path / "iso.h5")).energy_error
     print(f"\northotropic input with isotropic constants against isotropic: {difference:.1e}")
     assert difference < 1e-12

@@ -2,7 +2,7 @@
 import h5py
 import numpy as np
 import pytest
-from conftest import SMALL, ddsolve
+from conftest import SMALL, ddsolve, solved_reference
 
 from ddsolve import cli
 from ddsolve.errors import UsageError
@@ -12,7 +12,7 @@ from ddsolve.io import hdf5
 @pytest.fixture(scope="module")
 def reference_file(tmp_path_factory):
     path = tmp_path_factory.mktemp("io") / "ref.h5"
-    ddsolve("reference", "partial-closure", *SMALL, "-o", str(path))
+    solved_reference("partial-closure", *SMALL, "-o", str(path))
     return path
 
 

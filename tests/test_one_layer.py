@@ -15,7 +15,7 @@ import launch_many
 import meshio
 import numpy as np
 import pytest
-from conftest import ddsolve, refused
+from conftest import ddsolve, refused, solved_reference
 from test_mpi import TIGHT
 
 from ddsolve.dd.interface import Interface
@@ -166,7 +166,7 @@ def one_layer(tmp_path_factory) -> tuple[Path, Path]:
     folder = tmp_path_factory.mktemp("one-layer")
     scene = folder / "one.toml"
     scene.write_text(structure(1))
-    ddsolve("reference", str(scene), "-o", str(folder / "reference.h5"))
+    solved_reference(str(scene), "-o", str(folder / "reference.h5"))
     return scene, folder / "reference.h5"
 
 
@@ -202,7 +202,7 @@ def test_floating_blocks_and_four_ranks(tmp_path):
     the files together where h5py can)."""
     scene = tmp_path / "floating.toml"
     scene.write_text(structure(1, loads=FLOATING_LOADS, geometry='clamped = ["bottom"]'))
-    ddsolve("reference", str(scene), "-o", str(tmp_path / "reference.h5"))
+    solved_reference(str(scene), "-o", str(tmp_path / "reference.h5"))
     expected = hdf5.read(tmp_path / "reference.h5")
     runs = {2: ("schur", "feti"), 4: ("schur",)}  # one launch per rank count
     for ranks, methods in runs.items():

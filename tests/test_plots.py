@@ -4,7 +4,8 @@ from __future__ import annotations
 import matplotlib
 import numpy as np
 import pytest
-from conftest import SMALL, ddsolve
+from conftest import SMALL, ddsolve, solved_reference
+from launch_many import launch
 
 from ddsolve.io import hdf5
 from ddsolve.post import plots
@@ -17,17 +18,15 @@ METHODS = ("schur", "mprgp", "fista", "uzawa")
 
 @pytest.fixture(scope="module")
 def results(tmp_path_factory):
-    """Example 1 on a small mesh by every method (one rank), and by the reference."""
+    """Example 1 on a small mesh by every method (one rank, one launch), and by the reference."""
     folder = tmp_path_factory.mktemp("plots")
-    out = {}
-    for method in METHODS:
-        path = folder / f"{method}.h5"
-        ddsolve("solve", "partial-closure", *SMALL, "--set", f"solver.method={method}", "-o", str(path), ranks=1)
-        out[method] = hdf5.read(path)
+    launch([["solve", "partial-closure", *SMALL, "--set", f"solver.method={method}", "-o", str(folder / f"{method}.h5")]
+            for method in METHODS], 1, folder)
+    out = {method: hdf5.read(folder / f"{method}.h5") for method in METHODS}
     path = folder / "reference.h5"
     # On the paper's mesh (P = 96) the reference's active set moves for five steps; on the small mesh its first
     # step, from the unconstrained solution's penetrations, is already the contact zone.
-    ddsolve("reference", "partial-closure", "-o", str(path))
+    solved_reference("partial-closure", "-o", str(path))
     out["reference"] = hdf5.read(path)
     return out
 

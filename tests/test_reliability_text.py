@@ -17,7 +17,7 @@ from pathlib import Path
 
 import h5py
 import pytest
-from conftest import SMALL, ddsolve, without_open_mpi_noise
+from conftest import SMALL, solved_reference, without_open_mpi_noise
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -63,9 +63,9 @@ def clean(completed: subprocess.CompletedProcess) -> None:
 def folder(tmp_path_factory) -> Path:
     """A result of the small partial-closure mesh (base.h5), and one of a wider box (wide.h5)."""
     path = tmp_path_factory.mktemp("text")
-    ddsolve("reference", "partial-closure", *SMALL, "-o", str(path / "base.h5"), timeout=120)
-    ddsolve("reference", "partial-closure", *SMALL, "--set", "geometry.box=[-1.0, 1.2, -1.0, 1.0]",
-            "-o", str(path / "wide.h5"), timeout=120)
+    solved_reference("partial-closure", *SMALL, "-o", str(path / "base.h5"))
+    solved_reference("partial-closure", *SMALL, "--set", "geometry.box=[-1.0, 1.2, -1.0, 1.0]",
+                     "-o", str(path / "wide.h5"))
     return path
 
 
@@ -188,7 +188,7 @@ def test_compare_of_different_domains_names_both_files(folder, order):
 def test_compare_of_a_curved_bond_line_at_two_mesh_sizes(tmp_path):
     """The fine mesh's Σ nodes lie just outside the coarse mesh's chords: the same domain."""
     for name, size in (("coarse", "0.25"), ("fine", "0.125")):
-        ddsolve("reference", "arc-bond", "--set", f"mesh.size={size}", "-o", str(tmp_path / f"{name}.h5"))
+        solved_reference("arc-bond", "--set", f"mesh.size={size}", "-o", str(tmp_path / f"{name}.h5"))
     for order in (("coarse.h5", "fine.h5"), ("fine.h5", "coarse.h5")):
         completed = run("compare", *order, cwd=tmp_path)
         clean(completed)
