@@ -394,8 +394,8 @@ def prepare(scene: Scene, comm: MPI.Comm, progress=None, mesh: SolidMesh | None 
                 block.make_floating(*floating_kernel(piece, parts.supports[index][0], dofs[index], held, index, rows,
                                                      fixed=method.floating == registry.GENERALIZED_INVERSE))
             block.factor(schur=method.schur_complements, out_of_core=scene.solver.out_of_core)
-            if (method.dirichlet and not lumped) or block.floating:
-                block.factor_dirichlet(out_of_core=scene.solver.out_of_core)
+            if (method.dirichlet and not lumped) or (block.floating and method.floating == registry.INTERIOR):
+                block.factor_dirichlet(out_of_core=scene.solver.out_of_core)  # feti's K⁺ alone: Block.expand
         return made
 
     blocks = collective(comm, make)
