@@ -101,8 +101,8 @@ def test_slabs_and_the_lumped_preconditioner_are_refused_where_they_do_not_apply
 @pytest.mark.unit
 def test_slabs_held_only_through_their_neighbours_float_and_auto_keeps_them():
     """The penny's slabs off its bottom keep the translation in y, the slabs at Σ of a box held on its top and
-    bottom all six motions; ``auto`` keeps such slabs for the methods that solve floating blocks and the halves
-    whole for the others (the box's halves do not float)."""
+    bottom all six motions, kept as the slabs asked for (auto's method on them: feti); ``auto`` keeps the halves
+    whole for the methods that cannot solve floating blocks (the box's halves do not float)."""
     from ddsolve.mesh import solid
     from ddsolve.solvers import solid_dd
 
@@ -111,13 +111,15 @@ def test_slabs_held_only_through_their_neighbours_float_and_auto_keeps_them():
     assert parts.count == 2 and held.floating == [0, 1, 3] and held.names() == "u_minus, u_plus, u_plus_1"
     assert [kernel.shape[1] for kernel in held.kernels] == [1, 1, 0, 1]
     mesh = solid.build(HELD)
-    slabs = solid_dd.decomposition(HELD, mesh, 2)
-    for method, count, floating in (("auto", 2, [0, 1]), ("feti", 2, [0, 1]), ("mprgp", 1, [])):
+    parts, held = solid_dd.held_pieces(HELD.with_({"solver.pieces": "auto"}), mesh,
+                                       solid_dd.decomposition(HELD, mesh, 2))
+    assert parts.count == 2 and held.floating == [0, 1]
+    assert all(held.kernels[block].shape[1] == 6 for block in held.floating)
+    assert solid_dd.method_of(HELD, parts, held).solver.method == "feti"  # auto on slabs
+    for method in ("mprgp", "fista"):  # auto keeps the halves whole, which do not float
         scene = HELD.with_({"solver.pieces": "auto", "solver.method": method})
-        parts, held = solid_dd.held_pieces(scene, mesh, slabs)
-        assert parts.count == count and held.floating == floating, method
-        assert all(held.kernels[block].shape[1] == 6 for block in floating)
-        assert solid_dd.method_of(scene, parts, held).solver.pieces == count
+        parts, held = solid_dd.held_pieces(scene, mesh, solid_dd.pieces_of(scene, mesh, 2))
+        assert parts.count == 1 and held.floating == [], method
 
 
 @pytest.mark.solve

@@ -335,19 +335,14 @@ def pieces_of(scene: Scene, mesh: SolidMesh, ranks: int) -> Decomposition:
 
 def held_pieces(scene: Scene, mesh: SolidMesh, parts: Decomposition) -> tuple[Decomposition, kernels.Kernels]:
     """The decomposition and its blocks' kernels: slabs held only through their neighbours float, solved as a
-    floating half is; ``auto`` keeps the halves whole where its slabs would float and the method asked for cannot
-    solve floating blocks (:func:`method_of` refuses them where ``solver.pieces`` asks for the slabs); floating
-    regions of several interfaces are refused in one line."""
+    floating half is (:func:`method_of` refuses a method that cannot solve them; ``auto`` keeps the halves whole for
+    those methods, :func:`ranking`); floating regions of several interfaces are refused in one line."""
     held = kernels_of(parts)
     if parts.regions > 2 and held.floating:
         raise SceneError(f"geometry.sigma: region {held.names()} of the 3-D box would be held only through its "
                          "interfaces (floating), which the regions' decomposition does not solve yet: give every "
                          "region supports of its own (e.g. geometry.clamped on a side all regions touch)")
-    method = registry.METHODS.get(scene.solver.method)
-    if parts.count == 1 or not held.floating or scene.solver.pieces != "auto" or method is None or method.floating:
-        return parts, held
-    whole = decomposition(scene, mesh, 1)
-    return whole, kernels_of(whole)
+    return parts, held
 
 
 def prepare(scene: Scene, comm: MPI.Comm, progress=None, mesh: SolidMesh | None = None) -> SolidSetup:
