@@ -88,7 +88,8 @@ def test_auto_takes_schur_on_the_measured_structures_and_feti_where_the_dense_in
 
 
 def test_least_squares_of_a_singular_interface_stiffness_is_the_least_norm_solution():
-    """schur's t⁰ of a floating block: S⁺ g by one shifted Cholesky factorization, as by an SVD."""
+    """schur's t⁰ of a floating block: S⁺ g by one shifted Cholesky factorization, as by an SVD; zero off the
+    entries the block holds."""
     from ddsolve.dd.schur import least_squares
 
     rng = np.random.default_rng(3)
@@ -99,3 +100,7 @@ def test_least_squares_of_a_singular_interface_stiffness_is_the_least_norm_solut
     assert np.allclose(least_squares(S, g, kernel), np.linalg.lstsq(S, g, rcond=None)[0], rtol=1e-9, atol=1e-12)
     assert np.allclose(least_squares(S[:3, :3] + np.eye(3), g[:3], np.zeros((3, 0))),
                        np.linalg.solve(S[:3, :3] + np.eye(3), g[:3]))
+    padded = np.zeros((45, 45))  # a block's S on a structure's trace: zero off the entries it holds
+    padded[5:, 5:] = S
+    t = least_squares(padded, np.r_[np.zeros(5), g], np.vstack([np.zeros((5, 3)), kernel]))
+    assert not t[:5].any() and np.allclose(t[5:], np.linalg.lstsq(S, g, rcond=None)[0], rtol=1e-9, atol=1e-12)

@@ -12,6 +12,27 @@ from experiments import three_d, three_d_front
 
 #: The 3-D page's partly shut crack (three_d.scene_of) at a mesh that holds two slabs per half (seven element layers).
 CLOSURE = three_d.scene_of("partial closure", 0.14, 3)
+#: The quarter penny (its bottom its only support in y) in two slabs per half: the slabs off the bottom float.
+PENNY = loads(three_d_front.PENNY.format(L=2, size=0.3, grading=0.2)).with_({"solver.pieces": 2})
+#: The 3-D page's box held on its top and bottom faces only (the bottom clamped, the top tilted: the crack's left
+#: part shut), in two slabs per half: the slabs at Σ float, free of all six motions.
+HELD = loads("""
+[geometry]
+box = [-1, 1, -1, 1, 0, 0.5]
+crack = [-0.5, 0.5]
+clamped = ["bottom"]
+[mesh]
+size = 0.14
+[materials.layer1]
+E = 200.0
+nu = 0.28
+[displacements.layer1.top]
+x = 0.0
+y = "0.01 * x"
+z = 0.0
+[solver]
+pieces = 2
+""")
 
 
 @pytest.mark.unit
@@ -57,8 +78,8 @@ def test_slabs_partition_a_half_and_share_only_their_cuts():
 
 @pytest.mark.unit
 def test_slabs_and_the_lumped_preconditioner_are_refused_where_they_do_not_apply():
-    """A plane scene refuses solver.pieces and the lumped preconditioner; slabs too many for the mesh and slabs that
-    would float are refused naming solver.pieces."""
+    """A plane scene refuses solver.pieces and the lumped preconditioner; slabs too many for the mesh are refused
+    naming solver.pieces, floating slabs with a method that cannot solve them naming solver.method."""
     from ddsolve.mesh import solid
     from ddsolve.solvers import solid_dd
 
@@ -70,14 +91,35 @@ def test_slabs_and_the_lumped_preconditioner_are_refused_where_they_do_not_apply
     mesh = solid.build(CLOSURE)
     with pytest.raises(SceneError, match=r"^solver.pieces = 9: this mesh's halves do not hold 9 slabs each"):
         solid_dd.pieces_of(CLOSURE.with_({"solver.pieces": 9}), mesh, 1)
-    penny = loads(three_d_front.PENNY.format(L=2, size=0.2, grading=0.2)).with_({"solver.pieces": 2})
-    penny_mesh = solid.build(penny)
-    with pytest.raises(SceneError, match=r"^solver.pieces = 2: slabs u_minus, u_plus, u_plus_1 of the 3-D box would "
-                                         "be held only through their neighbours"):
-        solid_dd.held_pieces(penny, penny_mesh, solid_dd.pieces_of(penny, penny_mesh, 1))
-    whole, held = solid_dd.held_pieces(penny.with_({"solver.pieces": "auto"}), penny_mesh,
-                                       solid_dd.decomposition(penny, penny_mesh, 2))
-    assert whole.count == 1 and held.floating == [1]  # auto: the halves whole, the upper one floating
+    held = HELD.with_({"solver.method": "mprgp"})
+    held_mesh = solid.build(held)
+    parts, kernels = solid_dd.held_pieces(held, held_mesh, solid_dd.pieces_of(held, held_mesh, 1))
+    with pytest.raises(SceneError, match=r"^solver.method = mprgp: block u_minus, u_plus of the 3-D box is floating"):
+        solid_dd.method_of(held, parts, kernels)
+
+
+@pytest.mark.unit
+def test_slabs_held_only_through_their_neighbours_float_and_auto_keeps_them():
+    """The penny's slabs off its bottom keep the translation in y, the slabs at Σ of a box held on its top and
+    bottom all six motions, kept as the slabs asked for (auto's method on them: feti); ``auto`` keeps the halves
+    whole for the methods that cannot solve floating blocks (the box's halves do not float)."""
+    from ddsolve.mesh import solid
+    from ddsolve.solvers import solid_dd
+
+    penny_mesh = solid.build(PENNY)
+    parts, held = solid_dd.held_pieces(PENNY, penny_mesh, solid_dd.pieces_of(PENNY, penny_mesh, 1))
+    assert parts.count == 2 and held.floating == [0, 1, 3] and held.names() == "u_minus, u_plus, u_plus_1"
+    assert [kernel.shape[1] for kernel in held.kernels] == [1, 1, 0, 1]
+    mesh = solid.build(HELD)
+    parts, held = solid_dd.held_pieces(HELD.with_({"solver.pieces": "auto"}), mesh,
+                                       solid_dd.decomposition(HELD, mesh, 2))
+    assert parts.count == 2 and held.floating == [0, 1]
+    assert all(held.kernels[block].shape[1] == 6 for block in held.floating)
+    assert solid_dd.method_of(HELD, parts, held).solver.method == "feti"  # auto on slabs
+    for method in ("mprgp", "fista"):  # auto keeps the halves whole, which do not float
+        scene = HELD.with_({"solver.pieces": "auto", "solver.method": method})
+        parts, held = solid_dd.held_pieces(scene, mesh, solid_dd.pieces_of(scene, mesh, 2))
+        assert parts.count == 1 and held.floating == [], method
 
 
 @pytest.mark.solve
@@ -105,21 +147,48 @@ def test_the_slabs_decomposition_equals_the_reference_with_contact_active():
             assert result.solves <= result.steps + 4 if lumped else result.solves > 2 * result.steps
 
 
+@pytest.mark.solve
+def test_floating_slabs_equal_the_reference():
+    """The penny in two slabs per half (three of its four slabs floating in y) by feti (the lumped preconditioner)
+    and schur, and the box held on its top and bottom in two slabs per half (its slabs at Σ free of six motions,
+    contact active) by feti: the reference's solution to 1e-8 in energy norm at solver.tol 1e-11, G along the
+    penny's front the reference's."""
+    from mpi4py import MPI
+
+    from ddsolve.mesh import solid
+    from ddsolve.post import front
+    from ddsolve.solvers import solid as solid_solver, solid_dd
+    from ddsolve.solvers.solid import energy_error
+
+    for scene, methods in ((PENNY, ("feti", "schur")), (HELD, ("feti",))):
+        mesh = solid.build(scene)
+        reference = solid_solver.solve_solid(scene, mesh)
+        assert (reference.closed > 0) == (scene is HELD)
+        for method in methods:
+            result = solid_dd.solve(scene.with_({"solver.method": method, "solver.tol": 1e-11}), MPI.COMM_SELF, None,
+                                    progress=lambda _line: None, mesh=mesh)
+            assert result.converged and result.closed == reference.closed and result.scene.solver.pieces == 2
+            assert energy_error(result, reference) < 1e-8, method
+            if scene is PENNY:
+                G = front.release(reference).G
+                assert np.abs(result.fracture.G - G).max() < 1e-6 * np.abs(G).max(), method
+
+
 @pytest.mark.mpi
 def test_the_slabs_on_2_and_4_ranks_equal_the_reference(tmp_path):
-    """ddsolve solve -n 2 and -n 4 with two slabs per half (four blocks: two a rank, one a rank) hold the reference's
-    solution to 1e-8 in energy norm."""
+    """ddsolve solve -n 2 and -n 4 with two slabs per half (four blocks: two a rank, one a rank), the partly shut
+    crack on 2 and the penny's floating slabs on 4, hold the reference's solution to 1e-8 in energy norm."""
     from conftest import ddsolve
 
     from ddsolve.io import solid as solid_files
     from ddsolve.mesh import solid
     from ddsolve.solvers import solid as solid_solver
 
-    scene = tmp_path / "closure.toml"
-    scene.write_text(CLOSURE.text)
-    reference = solid_solver.solve_solid(CLOSURE, solid.build(CLOSURE))
-    for ranks in (2, 4):
-        solved = ddsolve("solve", str(scene), "-o", str(tmp_path / f"{ranks}.h5"), "--set", "solver.pieces=2",
-                         "--set", "solver.tol=1e-10", ranks=ranks)
+    for ranks, scene, tol in ((2, CLOSURE, 1e-10), (4, PENNY, 1e-11)):
+        path = tmp_path / f"{ranks}.toml"
+        path.write_text(scene.text)
+        reference = solid_solver.solve_solid(scene, solid.build(scene))
+        solved = ddsolve("solve", str(path), "-o", str(tmp_path / f"{ranks}.h5"), "--set", "solver.pieces=2",
+                         "--set", f"solver.tol={tol:g}", ranks=ranks)
         assert "feti (3-D):" in solved.stdout and f"on {ranks} ranks" in solved.stdout
         assert solid_solver.energy_error(solid_files.read(tmp_path / f"{ranks}.h5"), reference) < 1e-8

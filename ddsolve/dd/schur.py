@@ -93,14 +93,19 @@ def least_squares(S: np.ndarray, g: np.ndarray, kernel: np.ndarray) -> np.ndarra
     """The least-squares solution of least norm of S t = g for a symmetric positive semidefinite S whose
     null space is spanned by the columns of ``kernel`` (none: S invertible), by one Cholesky factorization:
     with Z an orthonormal basis of the kernel, t = (S + s Z Zᵀ)⁻¹ (g − Z Zᵀ g) is orthogonal to Z and
-    solves S t = g − Z Zᵀ g (s: S's largest diagonal entry, which keeps the shifted matrix's scale)."""
+    solves S t = g − Z Zᵀ g (s: S's largest diagonal entry, which keeps the shifted matrix's scale).  Rows of S
+    that are zero (a block's S on a structure's trace, off the entries it holds) are left out: t is zero there."""
     import scipy.linalg  # here, on rank 0 (see ExactDual)
 
+    held = np.flatnonzero(np.diag(S) != 0.0)  # S is semidefinite: a zero diagonal entry is a zero row
+    S, kernel = S[np.ix_(held, held)], kernel[held]
     Z = np.linalg.qr(kernel)[0] if kernel.shape[1] else kernel
     shift = float(np.abs(np.diag(S)).max(initial=1.0))
-    projected = g - Z @ (Z.T @ g)
-    return scipy.linalg.cho_solve(scipy.linalg.cho_factor(S + shift * Z @ Z.T, check_finite=False), projected,
-                                  check_finite=False)
+    projected = g[held] - Z @ (Z.T @ g[held])
+    t = np.zeros_like(g)
+    t[held] = scipy.linalg.cho_solve(scipy.linalg.cho_factor(S + shift * Z @ Z.T, check_finite=False), projected,
+                                     check_finite=False)
+    return t
 
 
 def schur(rounds: Rounds, interface: Interface, solver: Solver, progress: Progress) -> Outcome:

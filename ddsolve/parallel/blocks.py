@@ -544,13 +544,36 @@ class Block:
     def expand(self, trace: np.ndarray, load: np.ndarray) -> np.ndarray:
         """This rank's rows of the solution with trace displacements ``trace`` and no other interface
         condition inside, x = (K_II⁻¹(f_I − K_IΣ t), t); the right-hand side kept is f + E load, so that
-        :meth:`residual` measures the equilibrium with the interface loads ``load`` (both on every rank)."""
+        :meth:`residual` measures the equilibrium with the interface loads ``load`` (both on every rank).
+        A floating block without a Dirichlet factorization (feti's K⁺ alone) takes x = K⁺(f + E load) + R α
+        instead, α fitting its trace to ``trace`` (least squares: TFETI's amplitudes, where ``trace`` is
+        :meth:`~ddsolve.dd.feti.Coarse.held`'s)."""
+        if self._dirichlet is None and self.kernel is not None:
+            return self._kernel_fit(trace, load)
         self._held_solve(trace)
         b = self.rhs.getArray()
         b[:] = self.system.rhs
         b[self.trace_rows] += load[self.trace_positions]
         self._remember_loads(True, load)
         b /= self.scale
+        return self.x.getArray(readonly=True)
+
+    def _kernel_fit(self, trace: np.ndarray, load: np.ndarray) -> np.ndarray:
+        """x = K⁺(f + E load) + R α with α the least-squares fit of its trace to ``trace`` (see :meth:`expand`)."""
+        x = self.solve(load, body=True).copy()
+        b = self.rhs.getArray()
+        b[:] = self.system.rhs  # the whole right-hand side, fixed rows included, for residual
+        b[self.trace_rows] += load[self.trace_positions]
+        b /= self.scale
+        at_trace = self.kernel[:, self.trace_rows]
+        gap = trace[self.trace_positions] - x[self.trace_rows]
+        normal = np.column_stack([at_trace @ at_trace.T, at_trace @ gap])  # RᵀR and Rᵀ gap at this rank's trace
+        if self.mpi.size > 1:
+            from mpi4py import MPI
+
+            normal = self.mpi.allreduce(normal, op=MPI.SUM)
+        x += self.kernel.T @ np.linalg.solve(normal[:, :-1], normal[:, -1])
+        self.x.getArray()[:] = x
         return self.x.getArray(readonly=True)
 
     def kernel_work(self) -> np.ndarray | None:

@@ -90,8 +90,9 @@ class BlockServer:
 
     def _spread(self, index: int, command: int, value: np.ndarray, width: int) -> np.ndarray:
         """A block's round ``value`` on the structure's trace: a Schur complement with zero rows and columns off
-        its entries, a trace with zeros (a diagonal: infinity, no share of a jump) and the numbers after it."""
-        if index not in self.positions:
+        its entries, a trace with zeros (a diagonal: infinity, no share of a jump) and the numbers after it; the work
+        in a floating block's rigid motions (KERNEL_WORK) is no trace and stays as it is."""
+        if index not in self.positions or command == KERNEL_WORK:
             return value
         at, size = self.positions[index], len(self.positions[index])
         if command == SCHUR:

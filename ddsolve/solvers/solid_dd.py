@@ -9,10 +9,10 @@ with ``components = 3``), μᶜ acts on the normal (y) at the crack vertices, μ
 The mesh is built once on rank 0 and broadcast; each rank assembles its blocks (or its rows of one,
 :func:`block_system`); rank 0 runs the multiplier method and finishes the same
 :class:`~ddsolve.post.solid.SolidResult` as the monolithic reference (:mod:`ddsolve.solvers.solid`), written to the
-same files.  A half held only through Σ floats: its kernel is the rigid motions (of six) its own supports leave
-(:mod:`ddsolve.dd.kernels`), factored and solved as the plane driver does; a box that can move rigidly as a whole is
-refused in one line.  A box of several interfaces is decomposed into its regions, a block each, joined at every Σ
-(:func:`regions_decomposition`), on 1 rank or a multiple of the regions.
+same files.  A half held only through Σ floats, as does a slab held only through its neighbours: its kernel is the
+rigid motions (of six) its own supports leave (:mod:`ddsolve.dd.kernels`), factored and solved as the plane driver
+does; a box that can move rigidly as a whole is refused in one line.  A box of several interfaces is decomposed into
+its regions, a block each, joined at every Σ (:func:`regions_decomposition`), on 1 rank or a multiple of the regions.
 """
 from __future__ import annotations
 
@@ -106,9 +106,15 @@ class SolidSetup:
         return self.parts.interface
 
     def kernel_traces(self) -> list[np.ndarray]:
-        """The traces ``(trace size, m_b)`` of the blocks' kernels."""
+        """The traces ``(trace size, m_b)`` of the blocks' kernels: zero off the entries a block holds."""
         modes = self.kernels.frame.modes(self.parts.points).T
-        return [modes @ kernel for kernel in self.kernels.kernels]
+        positions, _ = trace_layout(self.parts.joints, len(self.parts.slabs))
+        traces = []
+        for kernel, held in zip(self.kernels.kernels, positions):
+            trace = np.zeros((len(modes), kernel.shape[1]))
+            trace[held] = modes[held] @ kernel
+            traces.append(trace)
+        return traces
 
     def destroy(self) -> None:
         for block in self.blocks:
@@ -328,22 +334,15 @@ def pieces_of(scene: Scene, mesh: SolidMesh, ranks: int) -> Decomposition:
 
 
 def held_pieces(scene: Scene, mesh: SolidMesh, parts: Decomposition) -> tuple[Decomposition, kernels.Kernels]:
-    """The decomposition and its blocks' kernels: slabs that would float (held only through their cuts and Σ) are
-    refused in one line where ``solver.pieces`` asks for them, and ``auto`` keeps the halves whole then; floating
-    regions of several interfaces are refused in one line."""
+    """The decomposition and its blocks' kernels: slabs held only through their neighbours float, solved as a
+    floating half is (:func:`method_of` refuses a method that cannot solve them; ``auto`` keeps the halves whole for
+    those methods, :func:`ranking`); floating regions of several interfaces are refused in one line."""
     held = kernels_of(parts)
     if parts.regions > 2 and held.floating:
         raise SceneError(f"geometry.sigma: region {held.names()} of the 3-D box would be held only through its "
                          "interfaces (floating), which the regions' decomposition does not solve yet: give every "
                          "region supports of its own (e.g. geometry.clamped on a side all regions touch)")
-    if parts.count == 1 or not held.floating:
-        return parts, held
-    if scene.solver.pieces != "auto":
-        raise SceneError(f"solver.pieces = {parts.count}: slabs {held.names()} of the 3-D box would be held only "
-                         "through their neighbours (floating), which the slabs' decomposition does not solve yet: "
-                         "solver.pieces = 1, or supports on every slab")
-    whole = decomposition(scene, mesh, 1)
-    return whole, kernels_of(whole)
+    return parts, held
 
 
 def prepare(scene: Scene, comm: MPI.Comm, progress=None, mesh: SolidMesh | None = None) -> SolidSetup:
@@ -390,8 +389,8 @@ def prepare(scene: Scene, comm: MPI.Comm, progress=None, mesh: SolidMesh | None 
                 block.make_floating(*floating_kernel(piece, parts.supports[index][0], dofs[index], held, index, rows,
                                                      fixed=method.floating == registry.GENERALIZED_INVERSE))
             block.factor(schur=method.schur_complements, out_of_core=scene.solver.out_of_core)
-            if (method.dirichlet and not lumped) or block.floating:
-                block.factor_dirichlet(out_of_core=scene.solver.out_of_core)
+            if (method.dirichlet and not lumped) or (block.floating and method.floating == registry.INTERIOR):
+                block.factor_dirichlet(out_of_core=scene.solver.out_of_core)  # feti's K⁺ alone: Block.expand
         return made
 
     blocks = collective(comm, make)
