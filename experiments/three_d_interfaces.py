@@ -126,8 +126,8 @@ def page(planes: list[dict], solids: list[dict], checked: dict) -> str:
              "multiple of the regions), and writes each region's group (`/region1` …), each Σ under "
              "`/interfaces/N/sigma`, `/fracture` with `/fracture/interface` (each front node's Σ, 1 the lowest), "
              "a VTU file per region and per Σ and the ParaView script that shows them.  `mesh.extrude`, "
-             "`mesh.target_error`, slabs (`solver.pieces` > 1) and regions held only through their interfaces (in "
-             "the decomposition) are refused there.", "",
+             "`mesh.target_error` and slabs (`solver.pieces` > 1) are refused there; a region held only through its "
+             "interfaces floats and is solved as a floating slab is.", "",
              "### The plane structure extruded", "",
              f"docs/two-interfaces.toml's structure as one body, extruded over z in [0, {DEPTH:g}] with rollers on "
              f"both z faces; the plane reference at P2 gives the continuous energy per unit depth {exact:.9e} "

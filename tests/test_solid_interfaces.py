@@ -50,7 +50,7 @@ def test_regions_conform_on_every_sigma_and_carry_their_tags():
 def test_the_regions_decomposition_equals_the_reference_with_both_cracks_shut_in_part(tmp_path):
     """On one rank (in this process) schur and feti give the reference's solution to 1e-8 in energy norm, some
     but not all crack vertices of each Σ shut, G along each interface's fronts; the file holds each Σ and is read
-    back; no slabs of the regions, and a floating region refused in one line."""
+    back; no slabs of the regions; a floating middle region (held only through both interfaces) solved too."""
     import h5py
     from mpi4py import MPI
 
@@ -81,8 +81,14 @@ def test_the_regions_decomposition_equals_the_reference_with_both_cracks_shut_in
         "schur-region1.vtu", "schur-region2.vtu", "schur-region3.vtu", "schur-sigma1.vtu", "schur-sigma2.vtu"]
     assert solid_dd.decomposition(scene, mesh, 2) is None
     held = load(SAMPLE, [*COARSE, 'geometry.clamped=["bottom", "top"]'])  # the middle region floats
-    with pytest.raises(SceneError, match="^geometry.sigma: region region2 of the 3-D box would be held only"):
-        solid_dd.held_pieces(held, mesh, solid_dd.decomposition(held, mesh, 1))
+    parts, kernels = solid_dd.held_pieces(held, mesh, solid_dd.decomposition(held, mesh, 1))
+    assert kernels.names() == "region2"
+    floating_reference = solid_solver.reference_on(held, mesh)
+    for method in ("schur", "feti"):
+        result = solid_dd.solve(held.with_({"solver.method": method, "solver.tol": 1e-12}), MPI.COMM_SELF, None,
+                                progress=lambda _line: None, mesh=mesh)
+        assert result.converged and result.closed == floating_reference.closed
+        assert solid_solver.energy_error(result, floating_reference) < 1e-8
 
 
 @pytest.mark.mpi

@@ -336,12 +336,8 @@ def pieces_of(scene: Scene, mesh: SolidMesh, ranks: int) -> Decomposition:
 def held_pieces(scene: Scene, mesh: SolidMesh, parts: Decomposition) -> tuple[Decomposition, kernels.Kernels]:
     """The decomposition and its blocks' kernels: slabs held only through their neighbours float, solved as a
     floating half is (:func:`method_of` refuses a method that cannot solve them; ``auto`` keeps the halves whole for
-    those methods, :func:`ranking`); floating regions of several interfaces are refused in one line."""
+    those methods, :func:`ranking`); so do the regions of several interfaces."""
     held = kernels_of(parts)
-    if parts.regions > 2 and held.floating:
-        raise SceneError(f"geometry.sigma: region {held.names()} of the 3-D box would be held only through its "
-                         "interfaces (floating), which the regions' decomposition does not solve yet: give every "
-                         "region supports of its own (e.g. geometry.clamped on a side all regions touch)")
     return parts, held
 
 
