@@ -158,7 +158,8 @@ def build(scene: Scene, sizes: SizeField | None = None) -> SolidMesh:
 
     geometry = scene.geometry
     if geometry.solid_file:
-        return from_surfaces(*solid_files.read(scene, _graded_towards), scene.mesh.degree, str(scene.mesh.file))
+        return from_surfaces(*solid_files.read(scene, _graded_towards), scene.mesh.degree, str(scene.mesh.file),
+                             geometry.regions or REGIONS)
     if scene.mesh.extrude is not None:
         points, tetrahedra, upper = extrude.tetrahedra(scene)
         return assemble(points, tetrahedra, upper, geometry.box, geometry.sigma, geometry.cracks, scene.mesh.degree)
@@ -431,30 +432,36 @@ def _ellipse_roles(crack: Ellipse, x: np.ndarray, z: np.ndarray, edges: np.ndarr
     return level <= 1.0 + 2.0 * scaled + 1e-9, arc, along
 
 
-def from_surfaces(points: np.ndarray, tetrahedra: np.ndarray, upper: np.ndarray, surfaces: dict[str, np.ndarray],
-                  degree: int, where: str) -> SolidMesh:
-    """The halves and Σ of a 3-D gmsh file's tetrahedra (``upper``: which lie in the volume upper) and its named
-    surfaces' triangles (:func:`ddsolve.mesh.solid_files.read`, checked there): each half's faces by the surface
-    they lie on, Σ the surface ``sigma``, its crack vertices and front from the surface ``crack``
-    (:func:`ddsolve.mesh.solid_files.crack_roles`); P2 with ``degree`` 2."""
+def from_surfaces(points: np.ndarray, tetrahedra: np.ndarray, region: np.ndarray, surfaces: dict[str, np.ndarray],
+                  degree: int, where: str, names: tuple[str, ...] = REGIONS) -> SolidMesh:
+    """The regions and the interfaces Σ of a 3-D gmsh file's tetrahedra (``region``: the volume of ``names``,
+    bottom to top, each lies in) and its named surfaces' triangles (:func:`ddsolve.mesh.solid_files.read`, checked
+    there): each region's faces by the surface they lie on, each Σ its surface (``sigma``, or ``sigma1`` …), its
+    crack vertices and front from its crack surface (:func:`ddsolve.mesh.solid_files.crack_roles`); P2 with
+    ``degree`` 2."""
     tetrahedra = _positive(points, tetrahedra)
     points, cells, middle = elevated(points, tetrahedra) if degree == 2 else (points, tetrahedra, None)
-    named = {name: _with_middles(triangles, middle) for name, triangles in surfaces.items() if name != "crack"}
-    on_sigma = np.unique(named["sigma"])
-    halves, boundaries = [], []
-    for name in REGIONS:
-        mine = cells[upper == (name == REGIONS[1])]
-        boundaries.append(_with_middles(boundary_faces(mine[:, :4]), middle))
-        halves.append(_named_half(name, points, mine, boundaries[-1], named, on_sigma, where))
-    if np.sum(solid_files.members(boundaries[1], boundaries[0])) != len(named["sigma"]):
-        raise MeshError(f"{where}: the volumes lower and upper touch off sigma (faces they share are not sigma's): "
-                        "Σ must be all of their common boundary")
-    sigma_of = np.full(len(points), -1, dtype=np.int64)
-    sigma_of[on_sigma] = np.arange(len(on_sigma))
-    faces = boundaries[0][solid_files.members(boundaries[0], named["sigma"])]  # the lower half's: outward, ν = +y
-    crack = surfaces.get("crack", np.zeros((0, 3), dtype=np.int64))
-    cracked, front = solid_files.crack_roles(sigma_of[faces], solid_files.members(faces, crack))
-    return SolidMesh(tuple(halves), (SigmaSurface(points[on_sigma], sigma_of[faces], cracked, front),))
+    interfaces = solid_files.interface_names(len(names) - 1)
+    cracks = {crack for _, crack in interfaces}
+    named = {name: _with_middles(triangles, middle) for name, triangles in surfaces.items() if name not in cracks}
+    on = [np.unique(named[sigma]) for sigma, _ in interfaces]
+    regions, boundaries = [], []
+    for k, name in enumerate(names):
+        boundaries.append(_with_middles(boundary_faces(cells[region == k][:, :4]), middle))
+        borders = [(interfaces[j][0], on[j]) for j in (k - 1, k) if 0 <= j < len(interfaces)]
+        regions.append(_named_half(name, points, cells[region == k], boundaries[-1], named, borders, where))
+    sigmas = []
+    for k, ((sigma, crack), vertices) in enumerate(zip(interfaces, on)):
+        if np.sum(solid_files.members(boundaries[k + 1], boundaries[k])) != len(named[sigma]):
+            raise MeshError(f"{where}: the volumes {names[k]} and {names[k + 1]} touch off {sigma} (faces they share "
+                            f"are not {sigma}'s): Σ must be all of their common boundary")
+        sigma_of = np.full(len(points), -1, dtype=np.int64)
+        sigma_of[vertices] = np.arange(len(vertices))
+        faces = boundaries[k][solid_files.members(boundaries[k], named[sigma])]  # the region below's: ν = +y
+        in_crack = solid_files.members(faces, surfaces.get(crack, np.zeros((0, 3), dtype=np.int64)))
+        cracked, front = solid_files.crack_roles(sigma_of[faces], in_crack)
+        sigmas.append(SigmaSurface(points[vertices], sigma_of[faces], cracked, front))
+    return SolidMesh(tuple(regions), tuple(sigmas))
 
 
 def _with_middles(triangles: np.ndarray, middle) -> np.ndarray:
@@ -465,17 +472,20 @@ def _with_middles(triangles: np.ndarray, middle) -> np.ndarray:
 
 
 def _named_half(name: str, points: np.ndarray, cells: np.ndarray, faces: np.ndarray, named: dict[str, np.ndarray],
-                on_sigma: np.ndarray, where: str) -> SolidHalf:
-    """One half of a file in its own numbering: its nodes, tetrahedra, its boundary ``faces`` (outward) on each
-    named surface and its Σ nodes; it must border all of Σ."""
+                borders: list[tuple[str, np.ndarray]], where: str) -> SolidHalf:
+    """One region of a file in its own numbering: its nodes, tetrahedra, its boundary ``faces`` (outward) on each
+    named surface and its Σ nodes (``borders``: each Σ it borders, bottom to top, and its vertices); it must border
+    all of each."""
     used = np.unique(cells)
     local = np.full(len(points), -1, dtype=np.int64)
     local[used] = np.arange(len(used))
     mine = {surface: faces[solid_files.members(faces, triangles)] for surface, triangles in named.items()}
-    missing = len(named["sigma"]) - len(mine["sigma"])
-    if missing:
-        raise MeshError(f"{where}: physical surface sigma is not all on the volume {name}'s boundary ({missing} of "
-                        f"its {len(named['sigma'])} triangles are not): Σ lies between lower and upper, their meshes "
-                        "conforming on it")
+    for sigma, _ in borders:
+        missing = len(named[sigma]) - len(mine[sigma])
+        if missing:
+            raise MeshError(f"{where}: physical surface {sigma} is not all on the volume {name}'s boundary ({missing} "
+                            f"of its {len(named[sigma])} triangles are not): Σ lies between the volumes below and "
+                            "above it, their meshes conforming on it")
+    on_sigma = np.concatenate([vertices for _, vertices in borders])
     return SolidHalf(name, points[used], local[cells], {surface: local[f] for surface, f in mine.items()},
                      local[on_sigma])

@@ -37,22 +37,29 @@ Grading = Callable[[object, list[int], float, float, float], None]
 def read(scene: Scene, grade: Grading) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict[str, np.ndarray]]:
     """The scene's 3-D gmsh file meshed (.geo, with ``mesh.size`` as the largest element, graded by ``grade``
     towards the crack fronts with ``mesh.grading``) or read (.msh) by gmsh in a child process, and checked
-    (:func:`checked`): its nodes, its tetrahedra, whether each lies in the volume upper, and the triangles of every
-    named physical surface."""
+    (:func:`checked`): its nodes, its tetrahedra, the region each lies in (0 the lowest: ``lower``, or the first of
+    the file's regions of several interfaces) and the triangles of every named physical surface."""
     from ddsolve.mesh.gmsh_io import apart
 
     path, options = scene.mesh.file, scene.mesh
+    names = scene.geometry.regions or REGIONS
     sizes = (options.size, options.grading, grade) if options.kind == "geo" else None
-    points, tetrahedra, upper, surfaces = apart(_read, path, sizes)
-    checked(points, tetrahedra, upper, surfaces, str(path))
-    return points, tetrahedra, upper, surfaces
+    points, tetrahedra, region, surfaces = apart(_read, path, sizes, names)
+    checked(points, tetrahedra, region, surfaces, names, str(path))
+    return points, tetrahedra, region, surfaces
 
 
-def _read(path: Path, sizes: tuple[float | None, float | None, Grading] | None
+def interface_names(count: int) -> list[tuple[str, str]]:
+    """The physical surfaces of each of ``count`` interfaces, bottom to top: (Σ, its cracks): ``sigma`` and
+    ``crack`` for one, ``sigma1`` and ``crack1`` … for several."""
+    return [(SIGMA, CRACK)] if count == 1 else [(f"{SIGMA}{k}", f"{CRACK}{k}") for k in range(1, count + 1)]
+
+
+def _read(path: Path, sizes: tuple[float | None, float | None, Grading] | None, names: tuple[str, ...]
           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, dict]:
     """In gmsh: the file opened (a .geo meshed in 3-D with ``sizes``: :func:`_meshed`), its nodes, the tetrahedra of
-    the volumes lower and upper, whether each lies in upper, and the triangles (vertices) of every named physical
-    surface."""
+    the volumes ``names`` (bottom to top), the region each lies in, and the triangles (vertices) of every named
+    physical surface."""
     from ddsolve.mesh.gmsh_io import open_file, session
 
     where = str(path)
@@ -65,21 +72,21 @@ def _read(path: Path, sizes: tuple[float | None, float | None, Grading] | None
             groups.setdefault((dim, gmsh.model.getPhysicalName(dim, tag)), []).extend(
                 int(entity) for entity in gmsh.model.getEntitiesForPhysicalGroup(dim, tag))
         if sizes is not None:
-            _meshed(gmsh, groups, *sizes, where)
+            _meshed(gmsh, groups, *sizes, len(names) - 1, where)
         tags, coordinates, _ = gmsh.model.mesh.getNodes()
         position = node_positions(tags)
-        cells = [_elements(gmsh, groups.get((3, name), []), 3, position, where) for name in REGIONS]
+        cells = [_elements(gmsh, groups.get((3, name), []), 3, position, where) for name in names]
         surfaces = {name: _elements(gmsh, entities, 2, position, where) for (dim, name), entities in groups.items()
                     if dim == 2 and name}
     points = np.asarray(coordinates, dtype=np.float64).reshape(-1, 3)
-    upper = np.repeat([False, True], [len(cells[0]), len(cells[1])])
-    return points, np.concatenate(cells), upper, surfaces
+    region = np.repeat(np.arange(len(cells)), [len(c) for c in cells])
+    return points, np.concatenate(cells), region, surfaces
 
 
 def _meshed(gmsh, groups: dict[tuple[int, str], list[int]], size: float | None, grading: float | None,
-            grade: Grading, where: str) -> None:
+            grade: Grading, interfaces: int, where: str) -> None:
     """The .geo meshed in 3-D: elements of at most ``size``, graded towards the crack fronts (the curves bounding
-    the surface crack but not the surface sigma) with exponent ``grading`` by ``grade``."""
+    an interface's crack surface but not the interface's own) with exponent ``grading`` by ``grade``."""
     if size is not None:
         gmsh.option.setNumber("Mesh.MeshSizeMax", size)
     if grading is not None:
@@ -87,7 +94,8 @@ def _meshed(gmsh, groups: dict[tuple[int, str], list[int]], size: float | None, 
             entities = [(2, entity) for entity in groups.get((2, name), [])]
             return {abs(tag) for _, tag in gmsh.model.getBoundary(entities, combined=True, oriented=False)} \
                 if entities else set()
-        front = sorted(bounding(CRACK) - bounding(SIGMA))
+        front = sorted(set().union(*(bounding(crack) - bounding(sigma) for sigma, crack in
+                                     interface_names(interfaces))))
         corners = np.array([gmsh.model.getValue(0, tag, []) for _, tag in gmsh.model.getEntities(0)])
         extent = np.ptp(corners, axis=0)  # the span of its points (OpenCASCADE's bounding boxes are padded)
         if front:
@@ -120,37 +128,55 @@ def _elements(gmsh, entities: list[int], dim: int, position: np.ndarray, where: 
     return elements[np.sort(first)]
 
 
-def checked(points: np.ndarray, tetrahedra: np.ndarray, upper: np.ndarray, surfaces: dict[str, np.ndarray],
-            where: str) -> None:
-    """A file's volumes and surfaces as a 3-D body cut by Σ: ``sigma`` the plane y = const with the volume lower
-    below it and upper above, ``crack`` on it."""
+def checked(points: np.ndarray, tetrahedra: np.ndarray, region: np.ndarray, surfaces: dict[str, np.ndarray],
+            names: tuple[str, ...], where: str) -> None:
+    """A file's volumes (``names``, bottom to top; ``region``: each tetrahedron's) and surfaces as a 3-D body cut by
+    its interfaces: each Σ (``sigma``, or ``sigma1`` …) a plane y = const, above the one before it, each volume
+    between the interfaces below and above it, each crack on its Σ."""
     tolerance = TOL * float(np.ptp(points[np.unique(tetrahedra)], axis=0).max())
-    height = _sigma_height(points, tetrahedra, upper, surfaces, tolerance, where)
-    crack = surfaces.get(CRACK, np.zeros((0, 3), dtype=np.int64))
-    off = int(np.sum(~members(crack, surfaces[SIGMA])))
-    if off:
-        raise MeshError(f"{where}: physical surface crack does not lie on sigma ({off} of its {len(crack)} triangles "
-                        f"are not sigma's): the cracks are parts of Σ (y = {height:g})")
+    empty = next((name for k, name in enumerate(names) if not np.any(region == k)), None)
+    if empty is not None:
+        raise MeshError(f"{where}: physical volume {empty} has no tetrahedra")
+    interfaces = interface_names(len(names) - 1)
+    heights = [_height(points, surfaces, sigma, tolerance, where) for sigma, _ in interfaces]
+    for (lower, _), (upper, _), below, above in zip(interfaces, interfaces[1:], heights, heights[1:]):
+        if above <= below + tolerance:
+            raise MeshError(f"{where}: physical surfaces {lower} (y = {below:g}) and {upper} (y = {above:g}) "
+                            + ("cross or touch" if abs(above - below) <= tolerance else "are not bottom to top")
+                            + ": number the interfaces sigma1, sigma2, ... bottom to top, apart")
+    levels = (-np.inf, *heights, np.inf)
+    for k, name in enumerate(names):
+        y = points[tetrahedra[region == k], 1]
+        if y.min() < levels[k] - tolerance or y.max() > levels[k + 1] + tolerance:
+            raise MeshError(f"{where}: " + (
+                f"the volume lower must lie below sigma (y = {heights[0]:g}) and upper above it" if len(names) == 2
+                else f"physical volume {name} does not lie between its interfaces (region {k + 1} from the bottom: "
+                f"{_between(interfaces, k)}): list the volumes bottom to top, each between its interfaces"))
+    for (sigma, crack), height in zip(interfaces, heights):
+        triangles = surfaces.get(crack, np.zeros((0, 3), dtype=np.int64))
+        off = int(np.sum(~members(triangles, surfaces[sigma])))
+        if off:
+            raise MeshError(f"{where}: physical surface {crack} does not lie on {sigma} ({off} of its "
+                            f"{len(triangles)} triangles are not {sigma}'s): the cracks are parts of Σ "
+                            f"(y = {height:g})")
 
 
-def _sigma_height(points: np.ndarray, tetrahedra: np.ndarray, upper: np.ndarray, surfaces: dict[str, np.ndarray],
-                  tolerance: float, where: str) -> float:
-    """Σ's height: the file's ``sigma`` is the plane y = const with the volume lower below it and upper above."""
-    for name, cells in zip(REGIONS, (tetrahedra[~upper], tetrahedra[upper])):
-        if not len(cells):
-            raise MeshError(f"{where}: physical volume {name} has no tetrahedra")
-    if not len(surfaces.get(SIGMA, ())):
-        raise MeshError(f"{where}: physical surface sigma has no triangles")
-    y = points[np.unique(surfaces[SIGMA]), 1]
+def _between(interfaces: list[tuple[str, str]], k: int) -> str:
+    """Which interfaces bound region ``k`` (0 the lowest) of a file of several, in words."""
+    sides = [f"above {interfaces[k - 1][0]}"] * (k > 0) + [f"below {interfaces[k][0]}"] * (k < len(interfaces))
+    return " and ".join(sides)
+
+
+def _height(points: np.ndarray, surfaces: dict[str, np.ndarray], sigma: str, tolerance: float, where: str) -> float:
+    """The height of the file's interface ``sigma``: the plane y = const."""
+    if not len(surfaces.get(sigma, ())):
+        raise MeshError(f"{where}: physical surface {sigma} has no triangles")
+    y = points[np.unique(surfaces[sigma]), 1]
     if np.ptp(y) > tolerance:
-        raise MeshError(f"{where}: physical surface sigma is not a plane y = const (its y from {y.min():g} to "
+        raise MeshError(f"{where}: physical surface {sigma} is not a plane y = const (its y from {y.min():g} to "
                         f"{y.max():g}): a curved or tilted Σ is not solved in 3-D yet")
     height = float(np.mean(y))
-    height = 0.0 if abs(height) <= tolerance else height  # gmsh's rotated planes: y within round-off of 0
-    below, above = points[tetrahedra[~upper], 1], points[tetrahedra[upper], 1]
-    if below.max() > height + tolerance or above.min() < height - tolerance:
-        raise MeshError(f"{where}: the volume lower must lie below sigma (y = {height:g}) and upper above it")
-    return height
+    return 0.0 if abs(height) <= tolerance else height  # gmsh's rotated planes: y within round-off of 0
 
 
 def members(triangles: np.ndarray, among: np.ndarray) -> np.ndarray:

@@ -70,6 +70,8 @@ def utf8_text(path: Path, what: str, error: type[DDSolveError] = DDSolveError) -
 
 #: A gmsh file's physical groups of several interfaces: curves ``sigma1``, ``sigma2``, ... and ``crack1``, ...
 NUMBERED_SIGMA, NUMBERED_CRACK = re.compile(r"sigma(\d+)"), re.compile(r"crack(\d+)")
+#: The kind of a physical group of each dimension, as messages name it.
+GROUP_KINDS = ("point", "curve", "surface", "volume")
 #: Physical group kinds of a .geo file by dimension.
 GEO_GROUPS = re.compile(r'Physical\s+(Point|Line|Curve|Surface|Volume)\s*\(\s*"([^"]*)"')
 
@@ -103,28 +105,30 @@ def physical_names(path: Path) -> dict[int, list[str]]:
     return names
 
 
-def file_structure(names: dict[int, list[str]], where: str) -> FileStructure | None:
-    """The structure of a gmsh file with curves ``sigma1`` ... ``sigmaN`` (and ``crack1`` ...), its region surfaces
-    listed bottom to top, from its physical ``names`` (:func:`physical_names`); None for a file of one interface
-    (``sigma``).  A file that mixes the forms, skips a number, names a crack of no interface or has another count of
-    surfaces than N + 1 is refused in one line."""
-    curves, surfaces = names.get(1, []), names.get(2, [])
+def file_structure(names: dict[int, list[str]], where: str, dimension: int = 2) -> FileStructure | None:
+    """The structure of a gmsh file with interfaces ``sigma1`` ... ``sigmaN`` (and ``crack1`` ...), its regions listed
+    bottom to top, from its physical ``names`` (:func:`physical_names`): in the plane the interfaces are curves and the
+    regions surfaces, in 3-D (``dimension`` 3) surfaces and volumes; None for a file of one interface (``sigma``).  A
+    file that mixes the forms, skips a number, names a crack of no interface or has another count of regions than
+    N + 1 is refused in one line."""
+    side, body = GROUP_KINDS[dimension - 1], GROUP_KINDS[dimension]
+    curves, surfaces = names.get(dimension - 1, []), names.get(dimension, [])
     numbered = sorted(int(match[1]) for match in map(NUMBERED_SIGMA.fullmatch, curves) if match)
     if not numbered:
         return None
     if "sigma" in curves or "crack" in curves:
-        raise SceneError(f"{where}: physical curves {'sigma' if 'sigma' in curves else 'crack'} and sigma1: name "
+        raise SceneError(f"{where}: physical {side}s {'sigma' if 'sigma' in curves else 'crack'} and sigma1: name "
                          "one interface sigma (and crack), several sigma1, sigma2, ... (and crack1, ...)")
     missing = next((k for k in range(1, numbered[-1] + 1) if k not in numbered), None)
     if missing is not None:
-        raise SceneError(f"{where}: physical curve sigma{numbered[-1]} without sigma{missing}: number the interfaces "
-                         "sigma1, sigma2, ... bottom to top")
+        raise SceneError(f"{where}: physical {side} sigma{numbered[-1]} without sigma{missing}: number the "
+                         "interfaces sigma1, sigma2, ... bottom to top")
     stray = next((name for name in curves if (match := NUMBERED_CRACK.fullmatch(name))
                   and int(match[1]) not in numbered), None)
     if stray is not None:
-        raise SceneError(f"{where}: physical curve {stray} lies on no interface (no sigma{stray[5:]})")
+        raise SceneError(f"{where}: physical {side} {stray} lies on no interface (no sigma{stray[5:]})")
     if len(surfaces) != len(numbered) + 1:
         raise SceneError(f"{where}: {len(numbered)} interfaces (sigma1 ... sigma{len(numbered)}) cut Ω into "
-                         f"{len(numbered) + 1} regions, and the file has {len(surfaces)} physical surfaces "
+                         f"{len(numbered) + 1} regions, and the file has {len(surfaces)} physical {body}s "
                          f"({', '.join(map(printable, surfaces))}): one per region, bottom to top")
     return FileStructure(len(numbered), tuple(surfaces))

@@ -468,11 +468,11 @@ def loads(text: str, overrides: list[str] = (), origin: str = "scene", base: Pat
     where = f"{origin}: mesh.file {printable(raw['mesh']['file'])}" if path else origin
     names = physical_names(path) if path else {}
     volumes = names if 3 in names else None  # a 3-D gmsh file's physical groups
-    structure = file_structure(names, where) if path and volumes is None else None
+    structure = file_structure(names, where, 3 if volumes is not None else 2) if path else None
     solid = is_solid(raw) or volumes is not None
     data = check_table(raw, structure_schema(raw, origin, structure.regions if structure else (), solid), (), origin)
     if solid:
-        solid_checks(data, raw, origin, volumes, where)
+        solid_checks(data, raw, origin, volumes, where, structure)
     else:
         cross_checks(data, raw, origin, structure)
     written = {key: value for key, value in data.items() if key != "geometry"}

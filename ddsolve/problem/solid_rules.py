@@ -10,7 +10,7 @@ import numpy as np
 
 from ddsolve.errors import SceneError
 from ddsolve.problem import materials
-from ddsolve.problem.reading import printable
+from ddsolve.problem.reading import NUMBERED_CRACK, NUMBERED_SIGMA, FileStructure, printable
 from ddsolve.problem.rules import check_apart, crack_lists, solver_checks
 from ddsolve.problem.shapes import Ellipse, bounds
 from ddsolve.problem.schema import ADAPTIVE_DEGREE, DEPTH_SIDES, GRADING, REGIONS, SIDES, STRUCTURE_KEYS, layer_material
@@ -36,14 +36,17 @@ NOT_YET = {("interface", None): "a bond law on Σ is not solved in 3-D yet",
 
 
 def solid_checks(data: dict, raw: dict, origin: str, groups: dict[int, list[str]] | None = None,
-                 where: str = "") -> None:
+                 where: str = "", structure: FileStructure | None = None) -> None:
     """The rules of a 3-D scene; fills in Σ's height (the box's middle), the cracks as rectangles
     ``(a, b, c, d)`` (an interval [a, b] spans the depth), the interfaces above the first (``above``, as in the plane)
     and the mesh size.  ``groups``: a 3-D gmsh file's physical names by dimension (``where`` names the file), which
-    give the body instead of the box."""
+    give the body instead of the box; ``structure``: such a file's interfaces and regions when it has several
+    (:func:`ddsolve.problem.reading.file_structure`)."""
     _refuse_plane_only(data, raw, origin, groups is not None)
     if groups is not None:
-        _file_checks(data, raw, groups, where)
+        _file_checks(data, raw, groups, where, structure)
+        if structure is not None:
+            _several_interfaces(data, raw, origin)
         _material_checks(data, origin)
         _boundary_checks(data, origin, _file_surfaces(groups))
         solver_checks(data, origin)
@@ -107,20 +110,31 @@ def _several_interfaces(data: dict, raw: dict, origin: str) -> None:
                          "is decomposed into its regions (one block each), not into slabs: solver.pieces = 1 or auto")
 
 
-def _file_checks(data: dict, raw: dict, groups: dict[int, list[str]], where: str) -> None:
-    """A 3-D gmsh file's groups: the volumes ``lower`` and ``upper``, the surface ``sigma``; no box keys beside
-    them.  Fills in the geometry a file gives: its ``clamped`` surface, if any (Σ and the cracks come with the
-    mesh)."""
+def _file_checks(data: dict, raw: dict, groups: dict[int, list[str]], where: str,
+                 structure: FileStructure | None) -> None:
+    """A 3-D gmsh file's groups: the volumes ``lower`` and ``upper`` and the surface ``sigma``, or (``structure``)
+    the surfaces ``sigma1`` … and a volume per region; no box keys beside them.  Fills in the geometry a file gives:
+    its ``clamped`` surface, if any, and its regions (Σ's heights and the cracks come with the mesh)."""
     given = [key for key in (raw.get("geometry") or {}) if key not in STRUCTURE_KEYS]
     if given:
         raise SceneError(f"{where}: geometry.{given[0]}: the file is a 3-D geometry (physical volumes), whose groups "
                          f"define the body, its Σ and its cracks: leave geometry.{given[0]} out")
     volumes, surfaces = groups[3], groups.get(2, [])
+    if structure is None:
+        _one_interface_groups(volumes, surfaces, where)
+    data["geometry"].update(clamped=[CLAMPED] if CLAMPED in surfaces else [], sigma=0.0, cracks=[], layers=1,
+                            above=[(0.0, [])] * (structure.interfaces - 1 if structure else 0),
+                            regions=structure.regions if structure else (), solid_file=True)  # placeholders
+    del data["geometry"]["crack"]
+
+
+def _one_interface_groups(volumes: list[str], surfaces: list[str], where: str) -> None:
+    """A 3-D file of one interface has the volumes lower and upper and the surface sigma."""
     other = next((name for name in volumes if name not in REGIONS), None)
     if other is not None:
         raise SceneError(f"{where}: physical volume {printable(other)!r}: a 3-D file's volumes are lower and upper "
-                         "(below and above Σ; several interfaces in 3-D are a box's, geometry.sigma = [y1, y2, ...], "
-                         "not a file's yet)")
+                         "(below and above the surface sigma), or with several interfaces (surfaces sigma1, sigma2, "
+                         "... bottom to top) one volume per region")
     missing = next((name for name in (*REGIONS, SIGMA) if name not in (volumes if name in REGIONS else surfaces)),
                    None)
     if missing is not None:
@@ -128,14 +142,12 @@ def _file_checks(data: dict, raw: dict, groups: dict[int, list[str]], where: str
         raise SceneError(f"{where}: missing physical {kind} {missing!r} (a 3-D file needs the volumes lower and "
                          "upper and the surface sigma, the plane y = const between them; optional surfaces: crack, "
                          "clamped and names for loads and displacements)")
-    data["geometry"].update(clamped=[CLAMPED] if CLAMPED in surfaces else [], sigma=0.0, cracks=[], above=[],
-                            layers=1, solid_file=True)  # Σ's height and the cracks: placeholders, as in the plane
-    del data["geometry"]["crack"]
 
 
 def _file_surfaces(groups: dict[int, list[str]]) -> tuple[str, ...]:
     """The boundaries a 3-D file names (its physical surfaces but Σ and the cracks): loads and supports act on them."""
-    return tuple(name for name in groups.get(2, []) if name not in (SIGMA, CRACK))
+    return tuple(name for name in groups.get(2, []) if name not in (SIGMA, CRACK)
+                 and not NUMBERED_SIGMA.fullmatch(name) and not NUMBERED_CRACK.fullmatch(name))
 
 
 def _refuse_plane_only(data: dict, raw: dict, origin: str, file: bool = False) -> None:
