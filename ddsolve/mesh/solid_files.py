@@ -133,10 +133,10 @@ def checked(points: np.ndarray, tetrahedra: np.ndarray, region: np.ndarray, surf
     """A file's volumes (``names``, bottom to top; ``region``: each tetrahedron's) and surfaces as a 3-D body cut by
     its interfaces: each Σ (``sigma``, or ``sigma1`` …) a plane y = const, above the one before it, each volume
     between the interfaces below and above it, each crack on its Σ."""
-    tolerance = TOL * float(np.ptp(points[np.unique(tetrahedra)], axis=0).max())
     empty = next((name for k, name in enumerate(names) if not np.any(region == k)), None)
     if empty is not None:
         raise MeshError(f"{where}: physical volume {empty} has no tetrahedra")
+    tolerance = TOL * float(np.ptp(points[np.unique(tetrahedra)], axis=0).max())
     interfaces = interface_names(len(names) - 1)
     heights = [_height(points, surfaces, sigma, tolerance, where) for sigma, _ in interfaces]
     for (lower, _), (upper, _), below, above in zip(interfaces, interfaces[1:], heights, heights[1:]):
