@@ -83,7 +83,7 @@ def test_the_sample_file_gives_the_box_s_tetrahedra_energy_and_decomposition_and
     dd = solid_dd.solve(scenes[1], MPI.COMM_SELF, None, progress=lambda _line: None, mesh=meshes[1])
     assert dd.converged and solid_solver.energy_error(dd, results[1]) < 1e-8
 
-    points, tetrahedra, region, surfaces = solid_files.read(scenes[1], solid._graded_towards)
+    points, tetrahedra, region, surfaces = solid_files.read(scenes[1], solid.graded_towards)
     names = ("base", "core", "cover")
 
     def refused(message: str, points=points, region=region, **changed) -> None:

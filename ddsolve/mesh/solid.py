@@ -158,7 +158,7 @@ def build(scene: Scene, sizes: SizeField | None = None) -> SolidMesh:
 
     geometry = scene.geometry
     if geometry.solid_file:
-        return from_surfaces(*solid_files.read(scene, _graded_towards), scene.mesh.degree, str(scene.mesh.file),
+        return from_surfaces(*solid_files.read(scene, graded_towards), scene.mesh.degree, str(scene.mesh.file),
                              geometry.regions or REGIONS)
     if scene.mesh.extrude is not None:
         points, tetrahedra, upper = extrude.tetrahedra(scene)
@@ -197,7 +197,7 @@ def _tetrahedra(box: tuple[float, ...], heights: tuple[float, ...], crack_lists:
         if sizes is not None:
             as_background(gmsh, sizes)
         elif grading is not None and front:
-            _graded_towards(gmsh, front, size, grading, min(box[1] - box[0], box[3] - box[2]))
+            graded_towards(gmsh, front, size, grading, min(box[1] - box[0], box[3] - box[2]))
         try:
             gmsh.model.mesh.generate(3)
         except Exception as exc:  # gmsh raises a bare Exception with its last error
@@ -262,7 +262,7 @@ def _on_ellipse(gmsh, curve: int, sigma: float, ellipses: list[Ellipse], toleran
         for crack in ellipses))
 
 
-def _graded_towards(gmsh, curves: list[int], size: float, mu: float, length: float) -> None:
+def graded_towards(gmsh, curves: list[int], size: float, mu: float, length: float) -> None:
     """The background size field h(r) = min(H, H ((r + r₀)/R)^(1−μ)) at distance r from the ``curves``
     (the plane grading, :func:`ddsolve.mesh.sizing.graded_size`, about a front instead of a tip)."""
     from ddsolve.mesh.sizing import GRADING_RADIUS, grading_offset
