@@ -127,7 +127,10 @@ def page(planes: list[dict], solids: list[dict], checked: dict) -> str:
              "`/interfaces/N/sigma`, `/fracture` with `/fracture/interface` (each front node's Σ, 1 the lowest), "
              "a VTU file per region and per Σ and the ParaView script that shows them.  `mesh.extrude`, "
              "`mesh.target_error` and slabs (`solver.pieces` > 1) are refused there; a region held only through its "
-             "interfaces floats and is solved as a floating slab is.", "",
+             "interfaces floats and is solved as a floating slab is.  A 3-D gmsh file of several interfaces "
+             "(surfaces `sigma1`, `sigma2`, … and a volume per region, [geometry.md](geometry.md#3-d-files)) is "
+             "solved the same way: `docs/three-d-interfaces.geo` (`three-d-interfaces-file.toml`) gives the "
+             "sample's tetrahedra, energy and G.", "",
              "### The plane structure extruded", "",
              f"docs/two-interfaces.toml's structure as one body, extruded over z in [0, {DEPTH:g}] with rollers on "
              f"both z faces; the plane reference at P2 gives the continuous energy per unit depth {exact:.9e} "

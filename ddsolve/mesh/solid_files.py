@@ -8,7 +8,9 @@ The contract is the plane one a dimension up: the physical volumes ``lower`` and
 between them (the plane y = const, for now), ``crack`` (its part where the faces are separate, optional) and any
 other named surface a boundary for loads and supports (``clamped``: fixed).  Each half takes its own copy of
 Σ's nodes, so the crack's faces are apart; the crack front is the crack's boundary edges inside the body (those
-not on Σ's own boundary, where Σ meets the body's surface).
+not on Σ's own boundary, where Σ meets the body's surface).  A file of several interfaces names them ``sigma1``,
+``sigma2`` … bottom to top (their cracks ``crack1`` …) and has a volume per region, any names, bottom to top
+(:func:`ddsolve.problem.reading.file_structure`): it is read as the box of several interfaces is built.
 """
 from __future__ import annotations
 

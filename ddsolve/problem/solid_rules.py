@@ -2,8 +2,9 @@
 alone: one body (``layer1``, its regions ``lower`` and ``upper`` below and above the plane Σ y = ``sigma``; or
 ``region1`` … between several interfaces, ``sigma = [y1, y2, ...]`` with one crack list per interface),
 cracks on Σ as rectangles or ellipses, the box meshed with ``mesh.size``, isotropic or transversely isotropic materials,
-temperature changes, loads and supports on the box's six sides.  What the plane scenes have and 3-D does not yet
-is refused in one line naming the key."""
+temperature changes, loads and supports on the box's six sides; or a 3-D gmsh file's body (its volumes the regions,
+its surfaces Σ, the cracks and the boundaries).  What the plane scenes have and 3-D does not yet is refused in one
+line naming the key."""
 from __future__ import annotations
 
 import numpy as np
