@@ -73,6 +73,8 @@ class Block:
         self.system = dataclasses.replace(system, indptr=_NONE, indices=_NONE, data=_NONE, modes=None)
         self.ksp = PETSc.KSP().create(comm=comm)
         self.ksp.setOptionsPrefix(f"{self.name}_")
+        if f"{self.name}_" not in _MADE_PREFIXES:
+            _MADE_PREFIXES.append(f"{self.name}_")
         self.ksp.setOperators(self.matrix)
         self.ksp.setType(PETSc.KSP.Type.PREONLY)
         pc = self.ksp.getPC()
@@ -682,6 +684,16 @@ def _mumps_defaults(ksp: PETSc.KSP, controls: dict[int, int]):
 
 #: Options PETSc itself reads only when it finalizes.
 _READ_AT_FINALIZE = ("options_left",)
+
+
+#: The options prefixes of the blocks this process has made, in order (:func:`made_prefixes`).
+_MADE_PREFIXES: list[str] = []
+
+
+def made_prefixes() -> list[str]:
+    """The options prefixes (``NAME_``) of the blocks this process has made so far: what the structure solved
+    takes, whatever its blocks (halves, slabs, regions or a file's volumes)."""
+    return list(_MADE_PREFIXES)
 
 
 def unused_options() -> list[str] | None:

@@ -172,17 +172,27 @@ def init_petsc(options: list[str]) -> None:
 def report_unused_options(comm, prefixes: tuple[str, ...] = ()) -> None:
     """A PETSc ``-options_left``-style warning on rank 0: the options no rank read (misspelt ones), with the
     options prefixes of the command's solvers."""
-    from ddsolve.parallel.blocks import unused_options
+    from ddsolve.parallel.blocks import made_prefixes, unused_options
 
-    left = unused_options()
-    every = comm.gather(left, root=0) if comm is not None else [left]
-    if every is None or any(options is None for options in every):
+    mine = (unused_options(), made_prefixes())
+    gathered = comm.gather(mine, root=0) if comm is not None else [mine]
+    if gathered is None or any(options is None for options, _ in gathered):
         return
+    every = [options for options, _ in gathered]
     common = [option for option in every[0] if all(option in other for other in every[1:])]
     if common:
+        prefixes = _solved_prefixes(prefixes, [prefix for _, made in gathered for prefix in made])
         named = f" the prefixes here are {', '.join(prefixes)}" if prefixes else ""
         print(f"ddsolve: warning: PETSc options not used (misspelt?{named}): {', '.join(common)}",
               file=sys.stderr, flush=True)
+
+
+def _solved_prefixes(known: tuple[str, ...], made: list[str]) -> tuple[str, ...]:
+    """The options prefixes of the blocks the ranks ``made`` (in the order of the ``known`` ones, then the others'),
+    or the ``known`` ones of the command when no block was made."""
+    if not made:
+        return known
+    return (*(prefix for prefix in known if prefix in made), *dict.fromkeys(p for p in made if p not in known))
 
 
 def unused_options_reported(command: Callable[[], int], prefixes: tuple[str, ...] = ()) -> int:

@@ -84,24 +84,33 @@ class FileStructure:
     regions: tuple[str, ...]
 
 
-def physical_names(path: Path) -> dict[int, list[str]]:
+def physical_names(path: Path, where: str) -> dict[int, list[str]] | None:
     """The physical groups' names of a gmsh file by dimension, in the file's order: a .geo's ``Physical Curve("name")``
-    ... (its text), a .msh's ``$PhysicalNames`` (by tag); nothing for a file that cannot be read."""
+    ... (its text), a .msh's ``$PhysicalNames`` (by tag); None for a file that cannot be read.  A file that names no
+    group, or names interfaces as surfaces (a 3-D file's) without a volume, is refused in one line naming it
+    (``where``): the scene would otherwise be read as another structure's and refused for keys it does not need."""
     try:
         data = readable(path, "mesh file").read_bytes()  # a FIFO or a folder is not read (its checks say so)
     except (DDSolveError, OSError):
-        return {}
+        return None
     names: dict[int, list[str]] = {}
     if Path(path).suffix.lower() == ".geo":
         dims = {"Point": 0, "Line": 1, "Curve": 1, "Surface": 2, "Volume": 3}
         for kind, name in GEO_GROUPS.findall(data.decode("utf-8", "replace")):
             names.setdefault(dims[kind], []).append(name)
-        return names
-    start, stop = data.find(b"$PhysicalNames"), data.find(b"$EndPhysicalNames")
-    rows = [line.split(maxsplit=2) for line in data[start:stop].decode("utf-8", "replace").splitlines()[2:]]
-    for dim, tag, name in sorted((int(row[0]), int(row[1]), row[2].strip().strip('"')) for row in rows
-                                 if len(row) == 3 and row[0].isdigit() and row[1].isdigit()):
-        names.setdefault(dim, []).append(name)
+    else:
+        start, stop = data.find(b"$PhysicalNames"), data.find(b"$EndPhysicalNames")
+        rows = [line.split(maxsplit=2) for line in data[start:stop].decode("utf-8", "replace").splitlines()[2:]]
+        for dim, tag, name in sorted((int(row[0]), int(row[1]), row[2].strip().strip('"')) for row in rows
+                                     if len(row) == 3 and row[0].isdigit() and row[1].isdigit()):
+            names.setdefault(dim, []).append(name)
+    if not names:
+        raise SceneError(f"{where}: no named physical group: the file names its interfaces, cracks and regions "
+                         "(docs/geometry.md)")
+    sides = [name for name in names.get(2, []) if name == "sigma" or NUMBERED_SIGMA.fullmatch(name)]
+    if sides and 3 not in names and 1 not in names:
+        raise SceneError(f"{where}: physical surface {sides[0]} and no physical volume: a 3-D file names one volume "
+                         "per region, bottom to top")
     return names
 
 
@@ -117,7 +126,8 @@ def file_structure(names: dict[int, list[str]], where: str, dimension: int = 2) 
     if not numbered:
         return None
     if "sigma" in curves or "crack" in curves:
-        raise SceneError(f"{where}: physical {side}s {'sigma' if 'sigma' in curves else 'crack'} and sigma1: name "
+        raise SceneError(f"{where}: physical {side}s {'sigma' if 'sigma' in curves else 'crack'} and "
+                         f"sigma{numbered[0]}: name "
                          "one interface sigma (and crack), several sigma1, sigma2, ... (and crack1, ...)")
     missing = next((k for k in range(1, numbered[-1] + 1) if k not in numbered), None)
     if missing is not None:

@@ -24,7 +24,7 @@ try:
 except ModuleNotFoundError:  # Python < 3.11
     import tomli as tomllib
 
-from ddsolve.errors import SceneError
+from ddsolve.errors import DDSolveError, SceneError
 from ddsolve.problem import expressions, materials
 from ddsolve.problem.expressions import Expression
 from ddsolve.problem.overrides import REPLACES, apply_overrides, dumps, override_items, parse_override
@@ -357,6 +357,11 @@ class Scene:
                                                   for key, displacement in self.displacements.items()})
 
 
+def _pieces(cracks: list) -> tuple:
+    """One interface's cracks as tuples: intervals and rectangles as tuples of numbers, ellipses as they are."""
+    return tuple(piece if isinstance(piece, Ellipse) else tuple(piece) for piece in cracks)
+
+
 def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str, source: str,
               overrides: tuple[str, ...]) -> Scene:
     mesh = dict(data["mesh"])
@@ -381,10 +386,9 @@ def _to_scene(data: dict, raw: dict, text: str, base: Path | None, origin: str, 
     return Scene(
         title=data["title"],
         geometry=Geometry(box=tuple(geometry["box"]), sigma=geometry["sigma"],
-                          cracks=tuple(piece if isinstance(piece, Ellipse) else tuple(piece)
-                                       for piece in geometry["cracks"]),
+                          cracks=_pieces(geometry["cracks"]),
                           clamped=tuple(geometry["clamped"]), layers=geometry["layers"], given=given,
-                          above=tuple((height, tuple(map(tuple, cracks))) for height, cracks in geometry["above"]),
+                          above=tuple((height, _pieces(cracks)) for height, cracks in geometry["above"]),
                           regions=tuple(geometry.get("regions", ())), solid_file=geometry.get("solid_file", False)),
         mesh=MeshOptions(**mesh),
         materials={layer: layer_material(data["materials"][layer]) for layer in layers_of(data)},
@@ -415,6 +419,15 @@ def _gmsh_file(raw: dict, base: Path | None) -> Path | None:
     if not isinstance(name, str) or not name.lower().endswith((".geo", ".msh")):
         return None
     return Path(name) if Path(name).is_absolute() or base is None else base / name
+
+
+def _unread(path: Path) -> str:
+    """Why the scene's gmsh file cannot be read, in :func:`readable`'s words."""
+    try:
+        readable(path, "mesh file")
+    except DDSolveError as error:
+        return str(error)
+    return f"{printable(str(path))}: cannot read mesh file"
 
 
 def builtin_folder() -> Path:
@@ -466,15 +479,21 @@ def loads(text: str, overrides: list[str] = (), origin: str = "scene", base: Pat
     apply_overrides(raw, list(overrides))
     path = _gmsh_file(raw, base)
     where = f"{origin}: mesh.file {printable(raw['mesh']['file'])}" if path else origin
-    names = physical_names(path) if path else {}
-    volumes = names if 3 in names else None  # a 3-D gmsh file's physical groups
-    structure = file_structure(names, where, 3 if volumes is not None else 2) if path else None
+    names = physical_names(path, where) if path else {}
+    volumes = names if names and 3 in names else None  # a 3-D gmsh file's physical groups
+    structure = file_structure(names, where, 3 if volumes is not None else 2) if names else None
     solid = is_solid(raw) or volumes is not None
-    data = check_table(raw, structure_schema(raw, origin, structure.regions if structure else (), solid), (), origin)
-    if solid:
-        solid_checks(data, raw, origin, volumes, where, structure)
-    else:
-        cross_checks(data, raw, origin, structure)
+    try:
+        data = check_table(raw, structure_schema(raw, origin, structure.regions if structure else (), solid), (),
+                           origin)
+        if solid:
+            solid_checks(data, raw, origin, volumes, where, structure)
+        else:
+            cross_checks(data, raw, origin, structure)
+    except SceneError as error:
+        if names is None:  # the file that names the structure is not there: the error may come from its absence
+            raise SceneError(f"{error}; and {_unread(path)} (its physical groups name the structure)") from None
+        raise
     written = {key: value for key, value in data.items() if key != "geometry"}
     if structure or volumes:  # its text names the file wherever it is read: the file gives the structure
         written["mesh"] = {**written["mesh"], "file": str(path.absolute())}
