@@ -1,6 +1,7 @@
 """Round 6, the 3-D surfaces of several interfaces: an ellipse crack on an interface above the first, 3-D gmsh files
 that are not there, name no group, or name interfaces without volumes, and the options prefixes a misspelt PETSc
-option is compared with (the blocks the run made: a 3-D box's regions, a file's volumes).
+option is compared with (the blocks the run made: a 3-D box's regions, a file's volumes); a 3-D result where a plane
+one is read (check, the Python API's load, compare against a plane result) said to be 3-D.
 
 Each refusal is one line naming the key or the file, exit status 1 before any work, the previous files
 byte-identical.
@@ -12,7 +13,8 @@ from pathlib import Path
 import pytest
 from conftest import ddsolve, previous_set, refused, unchanged
 
-from ddsolve.errors import SceneError
+from ddsolve import load
+from ddsolve.errors import DDSolveError, SceneError
 from ddsolve.problem import scene
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
@@ -77,3 +79,6 @@ def test_an_ellipse_on_sigma2_solves_and_a_misspelt_option_lists_the_regions_pre
                         "-upper_ksp_type", "preonly", "-o", str(tmp_path / "r.h5"))
     assert completed.stderr.strip() == ("ddsolve: warning: PETSc options not used (misspelt? the prefixes here are "
                                         "region1_, region2_, region3_): -upper_ksp_type preonly")
+    with pytest.raises(DDSolveError, match=rf"^{tmp_path / 'r.h5'}: the result of a 3-D solve, where a plane one is "
+                                           "read: plot and export read it, compare reads two of them; check and"):
+        load(tmp_path / "r.h5")

@@ -299,6 +299,10 @@ def _room(folder: Path, needed: int) -> bool:
     return stats.f_bavail * stats.f_frsize >= needed + HDF5_OVERHEAD
 
 
+class ThreeDimensional(Exception):
+    """A 3-D result met by the plane reader (:func:`read` refuses it in one line)."""
+
+
 def read(path: Path) -> Result | StackResult:
     """Read a result file written by :func:`write` (or, of several interfaces, by :func:`write_stack`: a
     :class:`~ddsolve.post.stack.StackResult`), checking that its parts fit together (one line naming the file
@@ -308,11 +312,17 @@ def read(path: Path) -> Result | StackResult:
     scenes.readable(path, "result file")
     try:
         with h5py.File(path, "r") as f:
+            if int(f.attrs.get("dimension", 2)) == 3:
+                raise ThreeDimensional
             runs, interfaces = _runs(f), int(f.attrs.get("interfaces", 1))
             if interfaces > 1 and "interfaces" not in f:
                 raise DDSolveError(f"a result of {interfaces} interfaces written before such files were read back "
                                    "(no /interfaces): solve it again (ddsolve reference or solve)")
             result = None if runs else _read_stack(f, path) if "interfaces" in f else _read(f, path)
+    except ThreeDimensional:
+        raise DDSolveError(f"{path}: the result of a 3-D solve, where a plane one is read: plot and export read it, "
+                           "compare reads two of them; check and the Python API's load take plane results only, "
+                           "for now") from None
     except (OSError, KeyError, TypeError, ValueError, IndexError, AttributeError, RuntimeError, MemoryError) as exc:
         raise DDSolveError(f"{path}: not a ddsolve result file ({' '.join(str(exc).split())})") from None
     except DDSolveError as exc:
