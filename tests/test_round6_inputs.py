@@ -1,7 +1,8 @@
 """Round 6, the 3-D surfaces of several interfaces: an ellipse crack on an interface above the first, 3-D gmsh files
 that are not there, name no group, or name interfaces without volumes, and the options prefixes a misspelt PETSc
 option is compared with (the blocks the run made: a 3-D box's regions, a file's volumes); a 3-D result where a plane
-one is read (check, the Python API's load, compare against a plane result) said to be 3-D.
+one is read (check, the Python API's load, compare against a plane result) said to be 3-D; 3-D moduli, loads,
+prescribed values and eigenstrains beyond double precision refused naming their keys, as in the plane.
 
 Each refusal is one line naming the key or the file, exit status 1 before any work, the previous files
 byte-identical.
@@ -82,3 +83,18 @@ def test_an_ellipse_on_sigma2_solves_and_a_misspelt_option_lists_the_regions_pre
     with pytest.raises(DDSolveError, match=rf"^{tmp_path / 'r.h5'}: the result of a 3-D solve, where a plane one is "
                                            "read: plot and export read it, compare reads two of them; check and"):
         load(tmp_path / "r.h5")
+
+
+@pytest.mark.mpi
+@pytest.mark.parametrize("command, overrides, expected", [
+    (["solve", "-n", "3"], ["temperature.layer1=1e301", "materials.layer1.region2.alpha=1e10"],
+     "materials.layer1.region2.alpha with temperature.layer1 up to 1e+301 give eigenstrains of order inf"),
+    (["reference"], ["loads.layer1.right.x=1e200"],
+     "materials.layer1.E: the elastic matrix (largest entry 1.35) with loads.layer1.right up to 1e+200"),
+], ids=["region-eigenstrain-solve", "load-reference"])
+def test_3d_data_beyond_double_precision_is_refused_naming_its_keys(tmp_path, command, overrides, expected):
+    output = tmp_path / "r.h5"
+    files = previous_set(output)
+    sets = [item for override in ["mesh.size=0.5", *overrides] for item in ("--set", override)]
+    refused(ddsolve(*command, str(BOX), *sets, "-o", str(output), check=False), 1, expected)
+    assert unchanged(files)

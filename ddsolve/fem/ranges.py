@@ -265,13 +265,24 @@ def check_range(scene: Scene, mesh) -> None:
         key = scene.material_key(layer, region) + (".E" if isinstance(material, materials.Isotropic) else "")
         with np.errstate(all="ignore"):
             D, _ = materials.elasticity(material, scene.model)
-        stiffness = float(np.abs(D).max())
-        low, high = STIFFNESS_RANGE
-        if not low <= stiffness <= high:
-            raise SceneError(f"{key}: the elastic matrix has entries of {stiffness:.3g}, outside the range a "
-                             f"double-precision solve represents ({low:g} to {high:g}): change the unit of stress")
+        stiffness = checked_stiffness(float(np.abs(D).max()), key)
         driven += driven_displacements(scene, mesh, (layer, region), size, key, stiffness)
         stiffest = max(stiffest, (stiffness, key))
+    refuse_driven(driven, stiffest)
+
+
+def checked_stiffness(stiffness: float, key: str) -> float:
+    """``stiffness``, the largest entry of the elastic matrix ``key``, if within STIFFNESS_RANGE; else refused."""
+    low, high = STIFFNESS_RANGE
+    if not low <= stiffness <= high:
+        raise SceneError(f"{key}: the elastic matrix has entries of {stiffness:.3g}, outside the range a "
+                         f"double-precision solve represents ({low:g} to {high:g}): change the unit of stress")
+    return stiffness
+
+
+def refuse_driven(driven: list[tuple[float, str, str]], stiffest: tuple[float, str]) -> None:
+    """Refuse the largest of the ``driven`` displacements (order, cause, message) outside DISPLACEMENT_RANGE, or
+    with the ``stiffest`` elastic matrix (largest entry, key) energies outside ENERGY_RANGE."""
     if not driven:
         return
     displacement, cause, message = max(driven, key=lambda item: item[0])
@@ -295,31 +306,46 @@ def driven_displacements(scene: Scene, mesh, block: tuple[str, str], size: float
     DISPLACEMENT_RANGE; those driven by zero are left out."""
     layer, region = block
     out = []
-    outside = "outside the range a double-precision solve represents ({:g} to {:g})".format(*DISPLACEMENT_RANGE)
     for (name, boundary), load in [*scene.loads.items(), *scene.displacements.items()]:
         halves = [half for half in mesh.halves
                   if name == layer and half.name == region and boundary in half.boundaries]
         value = max((load_extent(half.points, half.edges(boundary), load) for half in halves), default=0.0)
         if value == 0.0:
             continue
-        if isinstance(load, Load):
-            moved = value * size / stiffness
-            out.append((moved, load.key, f"{key}: the elastic matrix (largest entry {stiffness:.3g}) with {load.key} "
-                        f"up to {value:.3g} on a domain of size {size:.3g} gives displacements of order {moved:.1g}, "
-                        f"{outside}: change the units of the moduli and the loads"))
-        else:
-            out.append((value, load.key, f"{load.key}: prescribed values up to {value:.3g}, {outside}: change the "
-                        "unit of length"))
+        out.append(driven_by(load, value, size, key, stiffness))
     with np.errstate(all="ignore"):  # an expansion beyond double precision is refused below, naming its key
         thermal = thermal_of(scene, layer, region)
     if thermal is not None:
         change = max(field_extent(half.points, half.cells, thermal.temperature, f"temperature.{layer}")
                      for half in mesh.halves if half.name == region)
         if change != 0.0:
-            strain = float(np.nan_to_num(np.abs(thermal.eigenstrain), nan=np.inf).max()) * change
-            alpha = "alpha" if isinstance(scene.material(layer, region), materials.Isotropic) else "alpha1, alpha2"
-            cause = f"{scene.material_key(layer, region)}.{alpha} with temperature.{layer}"
-            out.append((strain * size, cause, f"{cause} up to {change:.3g} give eigenstrains of order {strain:.1g} "
-                        f"and, on a domain of size {size:.3g}, displacements of order {strain * size:.1g}, {outside}: "
-                        "change the units of the expansion coefficient and the temperature"))
+            out.append(heated(scene, (layer, region), thermal.eigenstrain, change, size))
     return out
+
+
+#: What a displacement outside DISPLACEMENT_RANGE is.
+OUTSIDE = "outside the range a double-precision solve represents ({:g} to {:g})".format(*DISPLACEMENT_RANGE)
+
+
+def driven_by(item, value: float, size: float, key: str, stiffness: float) -> tuple[float, str, str]:
+    """The order of the displacements a load or prescribed displacement ``item`` up to ``value`` makes on a
+    block (elastic matrix ``key``, largest entry ``stiffness``) of ``size``, its key and the message refusing it."""
+    if isinstance(item, Load):
+        moved = value * size / stiffness
+        return (moved, item.key, f"{key}: the elastic matrix (largest entry {stiffness:.3g}) with {item.key} up to "
+                f"{value:.3g} on a domain of size {size:.3g} gives displacements of order {moved:.1g}, {OUTSIDE}: "
+                "change the units of the moduli and the loads")
+    return (value, item.key, f"{item.key}: prescribed values up to {value:.3g}, {OUTSIDE}: change the unit of length")
+
+
+def heated(scene: Scene, block: tuple[str, str], eigenstrain: np.ndarray, change: float, size: float
+           ) -> tuple[float, str, str]:
+    """The order of the displacements the ``eigenstrain`` per degree times a temperature change up to ``change``
+    makes on the ``block`` (layer, region) of ``size``, its keys and the message refusing it."""
+    layer, region = block
+    strain = float(np.nan_to_num(np.abs(eigenstrain), nan=np.inf).max()) * change
+    alpha = "alpha" if isinstance(scene.material(layer, region), materials.Isotropic) else "alpha1, alpha2"
+    cause = f"{scene.material_key(layer, region)}.{alpha} with temperature.{layer}"
+    return (strain * size, cause, f"{cause} up to {change:.3g} give eigenstrains of order {strain:.1g} and, on a "
+            f"domain of size {size:.3g}, displacements of order {strain * size:.1g}, {OUTSIDE}: change the units of "
+            "the expansion coefficient and the temperature")

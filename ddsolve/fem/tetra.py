@@ -11,9 +11,10 @@ import numpy as np
 import scipy.sparse
 
 from ddsolve.errors import SceneError
+from ddsolve.fem import ranges
 from ddsolve.fem.assembly import BlockSystem
 from ddsolve.mesh.element import TRIANGLE_RULES, shape_functions
-from ddsolve.mesh.solid import SIDE_PLANES, TETRA_EDGES, SolidHalf
+from ddsolve.mesh.solid import SIDE_PLANES, TETRA_EDGES, SolidHalf, SolidMesh
 from ddsolve.problem import expressions, materials
 from ddsolve.problem.expressions import Expression
 from ddsolve.problem.scene import Load, Scene
@@ -257,3 +258,31 @@ def half_system(scene: Scene, half: SolidHalf, supports: tuple[np.ndarray, np.nd
         f += thermal
     dofs, values = prescribed(scene, half) if supports is None else supports
     return HalfSystem(K, f, dofs, values, offset)
+
+
+def check_range(scene: Scene, mesh: SolidMesh) -> SolidMesh:
+    """``mesh``, once the moduli, loads, prescribed values and temperature change of each of its regions are within
+    what a double-precision solve represents (the plane's rule, :func:`ddsolve.fem.ranges.check_range`, at the
+    regions' nodes); else refused in one line naming their keys, before any assembly."""
+    size = float(np.ptp(np.vstack([half.points for half in mesh.regions]), axis=0).max())
+    driven, stiffest = [], (0.0, "")
+    for half in mesh.regions:
+        material = scene.material("layer1", half.name)
+        key = scene.material_key("layer1", half.name) + (".E" if isinstance(material, materials.Isotropic) else "")
+        with np.errstate(all="ignore"):
+            stiffness = ranges.checked_stiffness(float(np.abs(elastic_matrix(material)).max()), key)
+        for (_, side), item in [*scene.loads.items(), *scene.displacements.items()]:
+            at = half.points[np.unique(half.faces[side])]
+            value = max((float(np.abs(_evaluated(part, at, item.key)).max(initial=0.0))
+                         for part in item.parts.values()), default=0.0)
+            if value:
+                driven.append(ranges.driven_by(item, value, size, key, stiffness))
+        if "layer1" in scene.temperature:
+            change = float(np.abs(_evaluated(scene.temperature["layer1"], half.points, "temperature.layer1")).max())
+            with np.errstate(all="ignore"):
+                eigenstrain = materials.solid_expansion(material)
+            if change:
+                driven.append(ranges.heated(scene, ("layer1", half.name), eigenstrain, change, size))
+        stiffest = max(stiffest, (stiffness, key))
+    ranges.refuse_driven(driven, stiffest)
+    return mesh

@@ -60,8 +60,10 @@ def numbering(mesh: SolidMesh, contact: bool) -> tuple[list[np.ndarray], list[np
 
 
 def solve_solid(scene: Scene, mesh: SolidMesh) -> SolidResult:
-    """The scene's discrete problem on ``mesh`` solved exactly, with its final check."""
+    """The scene's discrete problem on ``mesh`` solved exactly, with its final check (data a double-precision
+    solve cannot represent refused first, :func:`ddsolve.fem.tetra.check_range`)."""
     phases = Phases()
+    tetra.check_range(scene, mesh)
     systems = [tetra.half_system(scene, region) for region in mesh.regions]
     blocks = [system.decoupled(region.name) for system, region in zip(systems, mesh.regions)]
     numbers, jumps, jumping = numbering(mesh, scene.nonpenetration)

@@ -346,7 +346,8 @@ def prepare(scene: Scene, comm: MPI.Comm, progress=None, mesh: SolidMesh | None 
     every rank's blocks (collective: the refusals too); rank 0's ``progress`` lines after the mesh and after the
     factorization."""
     started = time.perf_counter()
-    mesh = comm.bcast(collective(comm, lambda: mesh or solid_meshes.build(scene), root_only=True), root=0)
+    mesh = comm.bcast(collective(comm, lambda: tetra.check_range(scene, mesh or solid_meshes.build(scene)),
+                                 root_only=True), root=0)
     meshed = time.perf_counter()
     if progress is not None and comm.rank == 0:
         progress(solid_lines.mesh_line(mesh, meshed - started))
