@@ -89,6 +89,7 @@ class Block:
             raise SolverError(message) from None
         self.rhs, self.x = self.matrix.createVecLeft(), self.matrix.createVecRight()
         self._schur: np.ndarray | None = None  # as stored by MUMPS (one triangle valid)
+        self.schur_factored = False  # factored with its Schur complement on the trace (method schur)
         self.route = "dirichlet"  # how schur_complement gets S (see factor)
         self._dirichlet = self._dirichlet_matrix = self._work = None  # see factor_dirichlet
         self.kernel: np.ndarray | None = None  # a floating block's rigid motions (m, local rows), see make_floating
@@ -187,8 +188,12 @@ class Block:
                 if not self.floating:  # a floating block's S is singular: K is never solved with
                     _call("MatFactorFactorizeSchurComplement", factor)
         except PETSc.Error as exc:
-            raise SolverError(f"block {self.name}: solver setup failed: "
-                              f"{petsc_failure(exc, self.ksp.getOptionsPrefix())}") from None
+            failure = petsc_failure(exc, self.ksp.getOptionsPrefix())
+            hint = SCHUR_HINT if schur and "(from -" not in failure else ""  # not an option's value
+            raise SolverError(f"block {self.name}: solver setup failed: {failure}{hint}") from None
+        except SolverError as exc:  # the Schur complement's own C calls
+            raise SolverError(f"block {self.name}: solver setup failed: {exc}{SCHUR_HINT}") from None
+        self.schur_factored = schur
 
     def factor_dirichlet(self, out_of_core: bool = False) -> None:
         """Set up the Dirichlet problem: K with the trace dofs held (their rows and columns replaced by
@@ -289,7 +294,7 @@ class Block:
         if reason < 0:
             raise SolverError(f"block {self.name}: {self.ksp.getType()} solve did not converge "
                               f"({_reason_name(reason)}); see the -{self.ksp.getOptionsPrefix()}ksp_* and "
-                              f"-{self.ksp.getOptionsPrefix()}pc_* options")
+                              f"-{self.ksp.getOptionsPrefix()}pc_* options{SCHUR_HINT * self.schur_factored}")
         return self.x.getArray(readonly=True)
 
     def _remember_loads(self, body: bool, load: np.ndarray) -> None:
@@ -597,6 +602,11 @@ def diagonal_scale(system: BlockSystem, comm) -> float:
     if not (math.isfinite(largest) and largest > 0.0):
         return 1.0
     return math.ldexp(1.0, math.frexp(largest)[1] - 1)
+
+
+#: What a block factored with its Schur complement on its trace (method schur) failing most likely means.
+SCHUR_HINT = ("; with its Schur complement on the trace (solver.method = schur), which fails on a block with few "
+              "or no nodes off its interfaces (a region thinner than mesh.size): use solver.method = feti or mprgp")
 
 
 def petsc_failure(exc: PETSc.Error, prefix: str | None) -> str:
