@@ -255,7 +255,7 @@ def candidates_launch(degree: int, size: float, contact: int, repeats: int, outp
     mesh = comm.bcast(collective(comm, lambda: solid.build(scene), root_only=True), root=0)
     reference = collective(comm, lambda: solid_solver.solve_solid(scene, mesh), root_only=True)
     parts = solid_dd.pieces_of(scene, mesh, comm.size)
-    parts, held = solid_dd.held_pieces(scene, mesh, parts)
+    held = solid_dd.kernels_of(parts)
     auto = solid_dd.method_of(scene, parts, held, comm.size).solver
     whole = solid_dd.decomposition(scene, mesh, 1)
     fitting = [count for count in solid_costs.PIECES if count == 1 or solid_dd.decomposition(scene, mesh, count)]

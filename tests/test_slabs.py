@@ -93,7 +93,8 @@ def test_slabs_and_the_lumped_preconditioner_are_refused_where_they_do_not_apply
         solid_dd.pieces_of(CLOSURE.with_({"solver.pieces": 9}), mesh, 1)
     held = HELD.with_({"solver.method": "mprgp"})
     held_mesh = solid.build(held)
-    parts, kernels = solid_dd.held_pieces(held, held_mesh, solid_dd.pieces_of(held, held_mesh, 1))
+    parts = solid_dd.pieces_of(held, held_mesh, 1)
+    kernels = solid_dd.kernels_of(parts)
     with pytest.raises(SceneError, match=r"^solver.method = mprgp: block u_minus, u_plus of the 3-D box is floating"):
         solid_dd.method_of(held, parts, kernels)
 
@@ -107,18 +108,20 @@ def test_slabs_held_only_through_their_neighbours_float_and_auto_keeps_them():
     from ddsolve.solvers import solid_dd
 
     penny_mesh = solid.build(PENNY)
-    parts, held = solid_dd.held_pieces(PENNY, penny_mesh, solid_dd.pieces_of(PENNY, penny_mesh, 1))
+    parts = solid_dd.pieces_of(PENNY, penny_mesh, 1)
+    held = solid_dd.kernels_of(parts)
     assert parts.count == 2 and held.floating == [0, 1, 3] and held.names() == "u_minus, u_plus, u_plus_1"
     assert [kernel.shape[1] for kernel in held.kernels] == [1, 1, 0, 1]
     mesh = solid.build(HELD)
-    parts, held = solid_dd.held_pieces(HELD.with_({"solver.pieces": "auto"}), mesh,
-                                       solid_dd.decomposition(HELD, mesh, 2))
+    parts = solid_dd.decomposition(HELD, mesh, 2)
+    held = solid_dd.kernels_of(parts)
     assert parts.count == 2 and held.floating == [0, 1]
     assert all(held.kernels[block].shape[1] == 6 for block in held.floating)
     assert solid_dd.method_of(HELD, parts, held).solver.method == "feti"  # auto on slabs
     for method in ("mprgp", "fista"):  # auto keeps the halves whole, which do not float
         scene = HELD.with_({"solver.pieces": "auto", "solver.method": method})
-        parts, held = solid_dd.held_pieces(scene, mesh, solid_dd.pieces_of(scene, mesh, 2))
+        parts = solid_dd.pieces_of(scene, mesh, 2)
+        held = solid_dd.kernels_of(parts)
         assert parts.count == 1 and held.floating == [], method
 
 

@@ -81,7 +81,7 @@ def test_the_regions_decomposition_equals_the_reference_with_both_cracks_shut_in
         "schur-region1.vtu", "schur-region2.vtu", "schur-region3.vtu", "schur-sigma1.vtu", "schur-sigma2.vtu"]
     assert solid_dd.decomposition(scene, mesh, 2) is None
     held = load(SAMPLE, [*COARSE, 'geometry.clamped=["bottom", "top"]'])  # the middle region floats
-    parts, kernels = solid_dd.held_pieces(held, mesh, solid_dd.decomposition(held, mesh, 1))
+    kernels = solid_dd.kernels_of(solid_dd.decomposition(held, mesh, 1))
     assert kernels.names() == "region2"
     floating_reference = solid_solver.reference_on(held, mesh)
     for method in ("schur", "feti"):

@@ -333,14 +333,6 @@ def pieces_of(scene: Scene, mesh: SolidMesh, ranks: int) -> Decomposition:
     return whole
 
 
-def held_pieces(scene: Scene, mesh: SolidMesh, parts: Decomposition) -> tuple[Decomposition, kernels.Kernels]:
-    """The decomposition and its blocks' kernels: slabs held only through their neighbours float, solved as a
-    floating half is (:func:`method_of` refuses a method that cannot solve them; ``auto`` keeps the halves whole for
-    those methods, :func:`ranking`); so do the regions of several interfaces."""
-    held = kernels_of(parts)
-    return parts, held
-
-
 def prepare(scene: Scene, comm: MPI.Comm, progress=None, mesh: SolidMesh | None = None) -> SolidSetup:
     """Build the mesh on rank 0 (rank 0's ``mesh`` if given), broadcast it, cut it into blocks, assemble and factor
     every rank's blocks (collective: the refusals too); rank 0's ``progress`` lines after the mesh and after the
@@ -358,7 +350,7 @@ def prepare(scene: Scene, comm: MPI.Comm, progress=None, mesh: SolidMesh | None 
                                  f"{parts.count} slabs per half)" if parts.regions == 2 else "one per region)"))
         error.collective = True  # every rank sees the same size
         raise error
-    parts, held = collective(comm, lambda: held_pieces(scene, mesh, parts))
+    held = collective(comm, lambda: kernels_of(parts))  # floating slabs and regions: solved as floating halves
     scene = collective(comm, lambda: method_of(scene, parts, held, comm.size))
     method = registry.METHODS[scene.solver.method]
     exchange = Exchange(comm, len(parts.slabs))
