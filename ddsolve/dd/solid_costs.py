@@ -24,7 +24,9 @@ class Laws:
     ``dirichlet_factor``, ``dirichlet_solve`` (its Dirichlet problem) and ``schur_factor`` (a half's factorization
     with its Schur complement on Σ); ``dense``: rank 0's Cholesky factorization of ``schur``'s interface stiffness,
     a·m^p on m = 3s unknowns; ``rounds``: feti's rounds at the default solver.tol per preconditioner,
-    a·k^b·N^c·e^(d·contact) (k slabs per half, N the box's unknowns, contact: the crack faces press); ``update``:
+    a·k^b·N^c·e^(d·contact) (k slabs per half, N the box's unknowns, contact: the crack faces press), with the
+    coarse directions of :data:`COARSE_DEGREE`, whose multi-column solve of :func:`coarse_columns` columns per block
+    is the block kind ``columns``; ``update``:
     feti's rank 0 per round outside the block solves, a·m^p on its m multipliers (:func:`multipliers`), per
     preconditioner (the lumped one is applied there); ``steps``:
     schur's active-set steps a·c^p on c contact rows."""
@@ -38,14 +40,28 @@ class Laws:
 
 #: The laws measured on this machine by ``./run scaling-3d`` (docs/scaling.md, section *scaling-3d*).
 FITTED = Laws(blocks={1: {"factor": (2.36e-09, 1.77, 0.111), "solve": (1.59e-09, 1.47, 0.177),
+                          "columns": (5.2e-09, 1.47, 0.177),
                           "dirichlet_factor": (2.25e-09, 1.75, 0.146), "dirichlet_solve": (2.55e-09, 1.43, 0.178),
                           "schur_factor": (2.5e-09, 1.93, 0)},
                       2: {"factor": (3e-09, 1.94, -0.144), "solve": (6.91e-10, 1.7, -0.0505),
+                          "columns": (2.3e-09, 1.7, -0.0505),
                           "dirichlet_factor": (1.3e-08, 2.18, -0.716), "dirichlet_solve": (9.06e-10, 1.6, 0.0987),
                           "schur_factor": (3.26e-09, 1.91, 0)}},
               dense=(7.9e-11, 2.73), steps=(1.63, 0.259),
               update={"dirichlet": (3.86e-05, 0.431), "lumped": (5.06e-05, 0.509)},
               rounds={"dirichlet": (1.23, 0.782, 0.301, 0.468), "lumped": (2.91, 0.634, 0.191, 0.273)})
+#: feti's polynomial coarse directions in a 3-D box (``solver.coarse_degree = auto``): degree 1 (three monomials on a
+#: joint's plane, three components).  On the 0.3 M bench box in four slabs per half they cut feti's iterations from
+#: 59 to 43 for one multi-column round; degree 2 cuts them to 36 but its twice as many columns cost what they save.
+COARSE_DEGREE = 1
+
+
+def coarse_columns(degree: int = COARSE_DEGREE) -> int:
+    """The multi-column round's columns per block: three components of the monomials of degree ≤ ``degree`` on each
+    of its two joints (plane)."""
+    return 2 * 3 * math.comb(degree + 2, 2)
+
+
 #: Slabs per half the model considers.  Eight are left out: on every mesh measured (to 0.3 M unknowns) their slabs
 #: are one or two elements thick and feti's rounds explode (``./run scaling-3d``: 167 to 3,104 rounds at 48 k
 #: unknowns, where four slabs take 51 to 119), which no law of the slab count follows.
@@ -113,7 +129,8 @@ def predicted_seconds(box: Box, candidate: Candidate, ranks: int, laws: Laws = F
     factor = _block(box, "factor", candidate.pieces, laws)
     if candidate.preconditioner == "dirichlet":
         factor += _block(box, "dirichlet_factor", candidate.pieces, laws)
-    block_rounds = solves * solve + held * _block(box, "dirichlet_solve", candidate.pieces, laws)
+    block_rounds = (solves * solve + held * _block(box, "dirichlet_solve", candidate.pieces, laws)
+                    + _block(box, "columns", candidate.pieces, laws))
     a, p = laws.update[candidate.preconditioner]
     return share * (factor + block_rounds) + (solves + held) * a * multipliers(box, candidate.pieces) ** p
 
