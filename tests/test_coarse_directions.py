@@ -136,3 +136,26 @@ def test_the_slabs_with_coarse_directions_equal_the_reference_in_fewer_iteration
             assert energy_error(result, reference) < 1e-8, (preconditioner, degree)
             iterations[degree] = result.steps
         assert iterations[2] < iterations[0] and iterations[1] < iterations[0], (preconditioner, iterations)
+
+
+@pytest.mark.mpi
+def test_coarse_directions_on_2_and_8_ranks_equal_the_reference(tmp_path):
+    """ddsolve solve -n 2 and -n 8 (four blocks: two a rank; a block on two ranks, its multi-column solve distributed)
+    with two slabs per half and the default coarse directions (degree 1) hold the reference's solution to 1e-8 with
+    contact active, and the result records the directions."""
+    from conftest import ddsolve
+
+    from ddsolve.io import solid as solid_files
+    from ddsolve.mesh import solid
+    from ddsolve.solvers import solid as solid_solver
+
+    path = tmp_path / "closure.toml"
+    path.write_text(CLOSURE.text)
+    reference = solid_solver.solve_solid(CLOSURE, solid.build(CLOSURE))
+    for ranks in (2, 8):
+        output = tmp_path / f"{ranks}.h5"
+        solved = ddsolve("solve", str(path), "-o", str(output), "--set", "solver.tol=1e-10", ranks=ranks)
+        assert "feti (3-D):" in solved.stdout and f"on {ranks} ranks" in solved.stdout
+        result = solid_files.read(output)
+        assert result.scene.solver.coarse_degree == 1
+        assert solid_solver.energy_error(result, reference) < 1e-8

@@ -18,7 +18,8 @@ from ddsolve.parallel.exchange import Exchange
 
 
 #: Commands whose round sends a trace vector to every block (SOLVE_HELD: two, loads and held traces; SOLVE_MANY:
-#: ``columns`` of them, rank 0 broadcasting their count after the command).
+#: ``columns`` loads of the block's entries, rank 0 broadcasting the entries and columns a block gets after the
+#: command).
 WITH_LOADS = (SOLVE_LOAD, SOLVE_FULL, DIRICHLET, SOLVE_HELD, SOLVE_MANY)
 
 
