@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ddsolve.dd.solid_costs import PIECES, multipliers
+from ddsolve.dd.solid_costs import PIECES, coarse_columns, multipliers
 from experiments import report, three_d
 
 RESULT = Path("results/scaling-3d.json")
@@ -60,7 +60,8 @@ def _seconds(action, repeats: int) -> float:
 
 def block_seconds(system, schur: bool, solves: int = 5) -> dict[str, float]:
     """One block on one rank: its factorization (with the Schur complement on its trace with ``schur``; else its
-    Dirichlet problem's too), one solve and (else) one Dirichlet solve, best of two."""
+    Dirichlet problem's too), one solve and (else) one multi-column solve of feti's coarse directions
+    (:func:`~ddsolve.dd.solid_costs.coarse_columns`) and one Dirichlet solve, best of two."""
     from ddsolve.parallel.blocks import Block
 
     out = {}
@@ -75,6 +76,8 @@ def block_seconds(system, schur: bool, solves: int = 5) -> dict[str, float]:
             load = np.ones(len(system.trace_dofs))
             timed["solve"] = _seconds(lambda: block.solve(load, body=True), solves)
             if not schur:
+                columns = np.ones((len(system.trace_dofs), coarse_columns()))
+                timed["columns"] = _seconds(lambda: block.solve_many(columns), 2)
                 started = time.perf_counter()
                 block.factor_dirichlet()
                 timed["dirichlet_factor"] = time.perf_counter() - started
@@ -222,7 +225,7 @@ def update_law(rows: list[dict], preconditioner: str) -> tuple[float, float]:
                     [row["update"] / row["rounds"] for row in mine])
 
 
-KINDS = ("factor", "solve", "dirichlet_factor", "dirichlet_solve", "schur_factor")
+KINDS = ("factor", "solve", "columns", "dirichlet_factor", "dirichlet_solve", "schur_factor")
 
 
 def fit(record: dict) -> dict:
@@ -427,8 +430,8 @@ def block_rows(record: dict) -> list[str]:
     """Markdown: every measured block against its laws."""
     laws = laws_of(record["laws"])
     rows = ["| degree | mesh.size | slabs per half | box unknowns | block unknowns | Σ vertices | factor (s) | "
-            "solve (ms) | Dirichlet factor (s) | Dirichlet solve (ms) | with the Schur complement (s) |",
-            "|---|---|---|---|---|---|---|---|---|---|---|"]
+            "solve (ms) | coarse columns (ms) | Dirichlet factor (s) | Dirichlet solve (ms) | with the Schur complement "
+            "(s) |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for row in record["blocks"]:
         def cell(kind: str, scale: float) -> str:
             if kind not in row:
@@ -437,7 +440,8 @@ def block_rows(record: dict) -> list[str]:
             predicted = a * (row["box"] / (2 * row["pieces"])) ** p * row["sigma"] ** q
             return f"{scale * row[kind]:.3g} ({row[kind] / predicted:.2f})"
         rows.append(f"| P{row['degree']} | {row['size']:g} | {row['pieces']} | {row['box']:,} | {row['unknowns']:,} | "
-                    f"{row['sigma']:,} | {cell('factor', 1)} | {cell('solve', 1e3)} | {cell('dirichlet_factor', 1)} | "
+                    f"{row['sigma']:,} | {cell('factor', 1)} | {cell('solve', 1e3)} | {cell('columns', 1e3)} | "
+                    f"{cell('dirichlet_factor', 1)} | "
                     f"{cell('dirichlet_solve', 1e3)} | {cell('schur_factor', 1)} |")
     return rows
 
@@ -472,10 +476,12 @@ def text(record: dict) -> str:
         "`./run scaling-3d`: the model by which `auto` decomposes a 3-D box (ddsolve/dd/solid_costs.py). The box is "
         "the 3-D page's (experiments/three_d.py), pulled open with its crack faces free or partly shut. Measured in "
         f"one process (load {record['load']:.1f}–{record['load_after']:.1f}, {record['seconds']:.0f} s): the slab at Σ "
-        "of 1, 2, 4 and 8 slabs per half (its plain MUMPS factorization, one solve, its Dirichlet problem's), a whole "
+        "of 1, 2, 4 and 8 slabs per half (its plain MUMPS factorization, one solve, the multi-column solve of feti's "
+        f"coarse directions ({coarse_columns()} columns), its Dirichlet problem's), a whole "
         "half with its Schur complement on Σ, rank 0's dense Cholesky factorization, and the methods' rounds on the "
         "smaller meshes. A candidate's solve phase on R ranks is its 2k blocks' share per rank of their "
-        "factorizations (feti Dirichlet's: two each) and of one solve per round, plus rank 0's work: schur's dense "
+        "factorizations (feti Dirichlet's: two each), of one solve per round and (feti) of its coarse directions' "
+        "multi-column solve, plus rank 0's work: schur's dense "
         "factorization on 3s unknowns and its active-set steps (each a dense factorization of at most the contact "
         "rows, the plane's law), feti's work per round outside the block solves. `schur` is a candidate only where its "
         "dense matrices fit the memory limit (as before).", "",

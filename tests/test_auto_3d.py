@@ -29,7 +29,8 @@ def test_the_model_follows_its_laws():
     """Made-up laws: blocks whose factorization grows fast with their size favour slabs; rounds that grow fast with
     the slabs favour the halves whole; a schur factorization that costs nothing takes schur."""
     def laws(factor: float, slab_rounds: float, schur: float) -> solid_costs.Laws:
-        kinds = {"factor": (1e-9, factor, 0.0), "solve": (1e-8, 1.0, 0.0), "dirichlet_factor": (1e-9, factor, 0.0),
+        kinds = {"factor": (1e-9, factor, 0.0), "solve": (1e-8, 1.0, 0.0), "columns": (3e-8, 1.0, 0.0),
+                 "dirichlet_factor": (1e-9, factor, 0.0),
                  "dirichlet_solve": (1e-8, 1.0, 0.0), "schur_factor": (schur, factor, 0.0)}
         return solid_costs.Laws(blocks={1: kinds}, dense=(1e-10, 2.0), steps=(1.0, 0.0),
                                 update={"dirichlet": (1e-9, 1.0), "lumped": (1e-9, 1.0)},

@@ -49,6 +49,10 @@ class Rounds(Protocol):
         them instead and solves its interior, x_I = K_II⁻¹(f_I − K_IΣ t_b).
         """
 
+    def solve_many(self, loads: list[np.ndarray]) -> list[np.ndarray]:
+        """Per block the traces ``(2k, m_b)`` of its solves with its trace loads ``(2k, m_b)``, no body load, in one
+        round (a multi-column solve per block; K_b⁺ for a floating block)."""
+
     def schur_complements(self) -> np.ndarray:
         """The blocks' Schur complements on their traces, S_b = (E K_b⁻¹ Eᵀ)⁻¹, ``(blocks, 2k, 2k)``."""
 
@@ -150,6 +154,13 @@ class DualProblem:
     def apply(self, y: np.ndarray) -> np.ndarray:
         traces, _ = self.rounds.solve(self.interface.loads(y / self.sqrt_w), full=False)
         return -self.sqrt_w * self.interface.gap(traces) + self.compliance * y
+
+    def apply_many(self, Y: np.ndarray) -> np.ndarray:
+        """A Y for the columns of ``Y`` ``(size, m)``, in one round."""
+        pieces = self.interface.column_loads(Y / self.sqrt_w[:, None])
+        traces = self.rounds.solve_many([loads for _, loads in pieces])
+        gap = self.interface.column_gap([(taken, trace) for (taken, _), trace in zip(pieces, traces)], Y.shape[1])
+        return -self.sqrt_w[:, None] * gap + self.compliance[:, None] * Y
 
     def criterion(self, y: np.ndarray, gradient: np.ndarray) -> float:
         return kkt_criterion(y, gradient, self.lower, self.upper, self.scale)

@@ -2,6 +2,7 @@
 Krylov subspace, with the natural coarse space of the floating blocks (TFETI)."""
 from __future__ import annotations
 
+import itertools
 from typing import Callable
 
 import numpy as np
@@ -150,6 +151,37 @@ def nearest_within(f: np.ndarray, rows: np.ndarray, low: np.ndarray,
 INDEPENDENT = 1e-14
 
 
+def polynomial_directions(interface: Interface, degree: int) -> np.ndarray:
+    """Directions ``(size, m)`` of the dual (y = W^½ λ) whose multipliers are the polynomials of degree ≤ ``degree``
+    in the nodes' coordinates (:attr:`Interface.points`), joint by joint (the rows between one pair of blocks) and
+    component by component, on the rows without bounds (a contact or friction row takes none): the smooth forces
+    between the blocks (a stack's bending), which the preconditioned iterations find last.  Each joint's and
+    component's columns are orthonormal, its dependent monomials dropped (a plane joint's normal coordinate)."""
+    if degree == 0 or interface.points is None:
+        return np.zeros((interface.size, 0))
+    sqrt_w = np.sqrt(interface.row_weights)
+    unbounded = ~(interface.is_contact | interface.is_friction)
+    pairs = np.sort(interface.row_blocks, axis=1)
+    dim = interface.points.shape[1]
+    powers = [p for p in itertools.product(range(degree + 1), repeat=dim) if sum(p) <= degree]
+    columns = []
+    for pair in np.unique(pairs[unbounded], axis=0):
+        joint = unbounded & (pairs == pair).all(axis=1)
+        for component in range(interface.components):
+            rows = np.flatnonzero(joint & (interface.component == component))
+            if not len(rows):
+                continue
+            at = interface.points[interface.vertex[rows]]
+            at = (at - at.mean(axis=0)) / max(float(np.ptp(at, axis=0).max()), np.finfo(float).tiny)
+            values = sqrt_w[rows, None] * np.column_stack([np.prod(at ** np.array(p), axis=1) for p in powers])
+            basis, singular, _ = np.linalg.svd(values, full_matrices=False)
+            kept = basis[:, singular > 1e-8 * singular[0]]
+            block = np.zeros((interface.size, kept.shape[1]))
+            block[rows] = kept
+            columns.append(block)
+    return np.hstack(columns) if columns else np.zeros((interface.size, 0))
+
+
 class Subspace:
     """The iterate y = y₀ + V c over an A-orthonormal basis V of the directions so far, with A V kept: the
     minimizer of the dual energy ½|c|² + cᵀVᵀ(A y₀ − b) over the bounds is the point of the bounds' polytope
@@ -161,15 +193,61 @@ class Subspace:
         self.problem, self.capacity, self.on_constraint = problem, capacity, on_constraint
         self.bounded = np.isfinite(problem.lower) | np.isfinite(problem.upper)
         self.restarts = 0
+        self.seeds = 0  # the first directions, kept through every rebase (:meth:`seed`)
+        self._rows = np.zeros((2, 8, len(y)))  # [V, AV] transposed, a direction a row; grown by doubling
+        self.size = 0
         self.rebase(y, g)
 
+    @property
+    def V(self) -> np.ndarray:
+        return self._rows[0, :self.size].T
+
+    @property
+    def AV(self) -> np.ndarray:
+        return self._rows[1, :self.size].T
+
     def rebase(self, y: np.ndarray, g: np.ndarray) -> None:
+        """A new subspace from y (gradient g): the seeds only."""
         self.y0, self.g0 = y, g
-        self.V, self.AV = np.zeros((len(y), 0)), np.zeros((len(y), 0))
+        self.size = self.seeds
+        # the unbounded minimizer: its coefficients −Vᵀg₀ (V is A-orthonormal), y and A y − b, kept as V grows
+        self._f = -(self.V.T @ g)
+        self._free_y, self._free_g = y + self.V @ self._f, g + self.AV @ self._f
+
+    def _append(self, v: np.ndarray, Av: np.ndarray) -> None:
+        """Appends the columns of ``v`` and ``Av`` ``(size, m)`` to V and A V."""
+        count = v.shape[1]
+        if self.size + count > self._rows.shape[1]:
+            grown = np.zeros((2, max(2 * self._rows.shape[1], self.size + count), self._rows.shape[2]))
+            grown[:, :self.size] = self._rows[:, :self.size]
+            self._rows = grown
+        self._rows[0, self.size:self.size + count] = v.T
+        self._rows[1, self.size:self.size + count] = Av.T
+        self.size += count
+        f = -(v.T @ self.g0)
+        self._f = np.concatenate([self._f, f])
+        self._free_y += v @ f
+        self._free_g += Av @ f
+
+    def seed(self, Z: np.ndarray) -> int:
+        """Puts the directions ``Z`` ``(size, m)`` (on the constraint) first in the subspace and keeps them through
+        every :meth:`rebase`: A Z in one round, A-orthonormalized by the eigenvectors of Zᵀ A Z (the directions A
+        barely sees dropped).  Returns the directions kept."""
+        Z = np.column_stack([self.on_constraint(z) for z in Z.T])
+        AZ = self.problem.apply_many(Z)
+        values, vectors = np.linalg.eigh(0.5 * (Z.T @ AZ + AZ.T @ Z))
+        kept = values > INDEPENDENT ** 0.5 * values.max(initial=0.0)
+        scale = vectors[:, kept] / np.sqrt(values[kept])
+        self.seeds = 0
+        self.rebase(self.y0, self.g0)
+        self._append(Z @ scale, AZ @ scale)
+        self.seeds = self.size
+        self.capacity += self.seeds
+        return self.seeds
 
     def add(self, z: np.ndarray) -> bool:
         """Appends direction z, A-orthogonalized (one round); False when it adds nothing new."""
-        if self.V.shape[1] >= self.capacity:
+        if self.size >= self.capacity:
             self.rebase(*self.point())
             self.restarts += 1
         known = 0.0  # |A-components of z along V|²
@@ -181,15 +259,15 @@ class Subspace:
         norm = float(z @ q)
         if not norm > INDEPENDENT * (norm + known):
             return False
-        self.V = np.column_stack([self.V, z / np.sqrt(norm)])
-        self.AV = np.column_stack([self.AV, q / np.sqrt(norm)])
+        self._append(z[:, None] / np.sqrt(norm), q[:, None] / np.sqrt(norm))
         return True
 
     def minimizer(self, constrained: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The minimizer y over the subspace within the bounds of the ``constrained`` rows, and A y − b."""
         lower, upper, b = self.problem.lower, self.problem.upper, constrained
-        c, at_low, at_high = nearest_within(
-            -self.V.T @ self.g0, self.V[b], lower[b] - self.y0[b], upper[b] - self.y0[b])
+        c, at_low, at_high = nearest_within(self._f, self.V[b], lower[b] - self.y0[b], upper[b] - self.y0[b])
+        if not (at_low.any() or at_high.any()):  # no bound holds it: the unbounded minimizer
+            return self._free_y.copy(), self._free_g.copy()
         y, g = self.y0 + self.V @ c, self.g0 + self.AV @ c
         held = y[b]
         held[at_low], held[at_high] = lower[b][at_low], upper[b][at_high]  # exactly, not to round-off
@@ -199,7 +277,7 @@ class Subspace:
     def holding(self, held: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The minimizer over the subspace with the ``held`` rows kept at their values in ``y`` and the
         others unbounded (an active-set step), and A y − b."""
-        f = -self.V.T @ self.g0
+        f = self._f
         c = f + np.linalg.lstsq(self.V[held], y[held] - self.y0[held] - self.V[held] @ f, rcond=None)[0]
         new, g = self.y0 + self.V @ c, self.g0 + self.AV @ c
         new[held] = y[held]
@@ -257,7 +335,8 @@ def feti(rounds: Rounds, interface: Interface, solver: Solver, progress: Progres
     problem = DualProblem(rounds, interface, solver)
     precondition = Preconditioner(rounds, interface, problem.sqrt_w, lumped=solver.preconditioner == "lumped")
     coarse = Coarse(rounds, interface, problem.sqrt_w)
-    outcome, free = minimize(problem, coarse, precondition, progress, start)
+    degree = 0 if solver.coarse_degree == "auto" else solver.coarse_degree
+    outcome, free = minimize(problem, coarse, precondition, progress, start, polynomial_directions(interface, degree))
     outcome.held = coarse.held(interface, outcome.lam, problem.sqrt_w, free)
     return outcome
 
@@ -284,6 +363,12 @@ class Iterations:
         self.outcome = Outcome(self.y, converged=False, iterations=0)
         self.expansions = self.reversals = 0
         self.step_iterations: list[int] = []  # the iteration each active-set step started at
+
+    def seed(self, Z: np.ndarray) -> None:
+        """The directions ``Z`` put first in the subspace (one round), the iterate their minimizer."""
+        Z = self.coarse.project(Z, np.ones(len(Z), dtype=bool))  # onto Gᵀz = 0
+        self.outcome.details["coarse_directions"] = self.space.seed(Z)
+        self.y, self.g = self.space.point()
 
     def free(self) -> np.ndarray:
         return (self.y > self.lower) & (self.y < self.upper)
@@ -342,7 +427,7 @@ class Iterations:
                 self.outcome.message = (f"feti: no new direction at iteration {self.outcome.iterations} "
                                         f"(criterion {criterion:.3e}, tol {self.solver.tol:g})")
                 return False
-            unheld, _ = space.minimizer(space.bounded & ~free)
+            unheld, _ = space.minimizer(space.bounded & ~free) if space.bounded.any() else (self.y, None)
             if np.any(unheld < lower) or np.any(unheld > upper):  # expansion
                 space.add(coarse.inside(unheld, lower, upper) - unheld)
                 self.expansions += 1
@@ -394,9 +479,13 @@ class Iterations:
 
 
 def minimize(problem: DualProblem, coarse: Coarse, precondition: Callable[[np.ndarray], np.ndarray],
-             progress: Progress, start: np.ndarray | None = None) -> tuple[Outcome, np.ndarray]:
-    """:func:`feti`'s iterations; returns the outcome and the free rows of its multipliers."""
+             progress: Progress, start: np.ndarray | None = None,
+             seeds: np.ndarray | None = None) -> tuple[Outcome, np.ndarray]:
+    """:func:`feti`'s iterations, their subspace starting from the directions ``seeds`` ``(size, m)`` (kept through
+    restarts); returns the outcome and the free rows of its multipliers."""
     run = Iterations(problem, coarse, precondition, progress, start)
+    if seeds is not None and seeds.shape[1]:
+        run.seed(seeds)
     if run.bounded():
         run.steps()
     outcome = run.outcome

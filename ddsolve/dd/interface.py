@@ -48,6 +48,7 @@ import copy
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse
 
 from ddsolve.errors import SceneError
 from ddsolve.mesh.mesh import U_MINUS, U_PLUS, BlockSpec, SigmaLine, blocks, glued_layers
@@ -75,7 +76,8 @@ class Interface:
 
     def __init__(self, weights: np.ndarray, crack: np.ndarray, contact: bool, fixed: np.ndarray | None = None,
                  modulus: float = 0.0, data: float = 0.0, friction: np.ndarray | None = None, coulomb: bool = False,
-                 specs: tuple[BlockSpec, ...] = blocks(2), bond: Bond | None = None, components: int = 2):
+                 specs: tuple[BlockSpec, ...] = blocks(2), bond: Bond | None = None, components: int = 2,
+                 points: np.ndarray | None = None):
         """``weights`` and ``crack`` (bool) of the k multiplier nodes; ``contact``: non-penetration holds;
         ``specs``: the structure's blocks (:func:`ddsolve.mesh.mesh.blocks`); ``components``: d, the trace
         entries per vertex (2 in the plane, 3 on a 3-D box's Σ: (τ₁, ν, τ₂), the normal component 1 always);
@@ -85,7 +87,9 @@ class Interface:
         KKT check); ``data``: the displacement the scene's data would make
         (:func:`ddsolve.fem.assembly.data_displacement`, the KKT check's scale when the solution is zero);
         ``friction`` ``(k,)``: Coulomb's μ (``coulomb``) or Tresca's bound g at each node (0: none); ``bond``: the
-        law of the bonded vertices (None: rigid), undamaged until :meth:`with_damage`."""
+        law of the bonded vertices (None: rigid), undamaged until :meth:`with_damage`; ``points`` ``(k, dim)``: the
+        nodes' coordinates (for feti's polynomial coarse directions, :func:`ddsolve.dd.feti.polynomial_directions`)."""
+        self.points = None if points is None else np.asarray(points, dtype=np.float64)
         self.modulus = float(modulus)
         self.data = float(data)
         self.components = int(components)
@@ -140,6 +144,8 @@ class Interface:
         out.components = d = parts[0].components
         out.data = max(part.data for part in parts)
         out.weights = np.concatenate([part.weights for part in parts])
+        out.points = (None if any(part.points is None for part in parts) else
+                      np.concatenate([part.points for part in parts]))
         out.crack = np.concatenate([part.crack for part in parts])
         out.contact = any(part.contact for part in parts)
         out.blocks = tuple(specs)
@@ -285,11 +291,33 @@ class Interface:
 
     def loads(self, lam: np.ndarray) -> np.ndarray:
         """Interface nodal forces −C_bᵀ W λ on each block's trace, ``(blocks, 2k)``."""
-        out = np.zeros((len(self.blocks), self.trace_size))
         force = self.row_weights * lam
-        for coupling, load in zip(self.couplings, out):
-            np.add.at(load, coupling.trace, -coupling.sign * force[coupling.rows])
+        return np.array([-(spread @ force) for spread in self._spreads()])
+
+    def column_loads(self, lam: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+        """For the columns of ``lam`` ``(size, m)``, per block: the columns that load it and their loads
+        −C_bᵀ W λ ``(2k, those columns)``."""
+        force = self.row_weights[:, None] * lam
+        out = []
+        for coupling, spread in zip(self.couplings, self._spreads()):
+            taken = np.flatnonzero(np.any(force[coupling.rows] != 0.0, axis=0))
+            out.append((taken, -(spread @ force[:, taken])))
         return out
+
+    def column_gap(self, traces: list[tuple[np.ndarray, np.ndarray]], columns: int) -> np.ndarray:
+        """Σ_b C_b t_b ``(size, columns)`` for, per block, the columns it has traces ``(2k, those columns)`` of (zero in
+        the others), as :meth:`column_loads` lists them."""
+        out = np.zeros((self.size, columns))
+        for coupling, (taken, trace) in zip(self.couplings, traces):
+            out[np.ix_(coupling.rows, taken)] += coupling.sign[:, None] * trace[coupling.trace]
+        return out
+
+    def _spreads(self) -> list[scipy.sparse.csr_matrix]:
+        """Per block C_bᵀ ``(2k, size)``, sparse (made once)."""
+        if getattr(self, "_spread_maps", None) is None:
+            self._spread_maps = [scipy.sparse.csr_matrix((c.sign, (c.trace, c.rows)), shape=(self.trace_size, self.size))
+                                 for c in self.couplings]
+        return self._spread_maps
 
     def multipliers(self, loads: np.ndarray) -> np.ndarray:
         """The λ with ``self.loads(λ) == loads`` when ``loads`` is in the range of that map.
@@ -376,7 +404,7 @@ def for_mesh(sigma: SigmaLine, contact: bool, fixed: np.ndarray | None = None, m
         raise SceneError("interface.law: the law acts on the bonded part of Σ, and the cracks cover all of Σ (a "
                          "crack's faces take contact.friction or contact.slip_bound instead)")
     return Interface(sigma.weights[nodes], sigma.crack[nodes], contact, fixed, modulus, data, values,
-                     friction is not None and friction.coulomb, specs, bond)
+                     friction is not None and friction.coulomb, specs, bond, points=sigma.points[nodes])
 
 
 def friction_values(sigma: SigmaLine, friction: Friction) -> np.ndarray:

@@ -24,7 +24,9 @@ class Laws:
     ``dirichlet_factor``, ``dirichlet_solve`` (its Dirichlet problem) and ``schur_factor`` (a half's factorization
     with its Schur complement on Σ); ``dense``: rank 0's Cholesky factorization of ``schur``'s interface stiffness,
     a·m^p on m = 3s unknowns; ``rounds``: feti's rounds at the default solver.tol per preconditioner,
-    a·k^b·N^c·e^(d·contact) (k slabs per half, N the box's unknowns, contact: the crack faces press); ``update``:
+    a·k^b·N^c·e^(d·contact) (k slabs per half, N the box's unknowns, contact: the crack faces press), with the
+    coarse directions of :data:`COARSE_DEGREE`, whose multi-column solve of :func:`coarse_columns` columns per block
+    is the block kind ``columns``; ``update``:
     feti's rank 0 per round outside the block solves, a·m^p on its m multipliers (:func:`multipliers`), per
     preconditioner (the lumped one is applied there); ``steps``:
     schur's active-set steps a·c^p on c contact rows."""
@@ -37,15 +39,27 @@ class Laws:
 
 
 #: The laws measured on this machine by ``./run scaling-3d`` (docs/scaling.md, section *scaling-3d*).
-FITTED = Laws(blocks={1: {"factor": (2.36e-09, 1.77, 0.111), "solve": (1.59e-09, 1.47, 0.177),
-                          "dirichlet_factor": (2.25e-09, 1.75, 0.146), "dirichlet_solve": (2.55e-09, 1.43, 0.178),
-                          "schur_factor": (2.5e-09, 1.93, 0)},
-                      2: {"factor": (3e-09, 1.94, -0.144), "solve": (6.91e-10, 1.7, -0.0505),
-                          "dirichlet_factor": (1.3e-08, 2.18, -0.716), "dirichlet_solve": (9.06e-10, 1.6, 0.0987),
-                          "schur_factor": (3.26e-09, 1.91, 0)}},
-              dense=(7.9e-11, 2.73), steps=(1.63, 0.259),
-              update={"dirichlet": (3.86e-05, 0.431), "lumped": (5.06e-05, 0.509)},
-              rounds={"dirichlet": (1.23, 0.782, 0.301, 0.468), "lumped": (2.91, 0.634, 0.191, 0.273)})
+FITTED = Laws(blocks={1: {"factor": (3.72e-09, 1.84, -0.0447), "solve": (2.56e-08, 1.35, -0.0175),
+                          "columns": (1.21e-07, 1.2, 0.112), "dirichlet_factor": (4.15e-09, 1.83, -0.0412),
+                          "dirichlet_solve": (3.1e-08, 1.28, 0.0688), "schur_factor": (1.53e-09, 1.98, 0)},
+                      2: {"factor": (6.35e-09, 1.81, -0.0827), "solve": (1.1e-08, 1.44, -0.0477),
+                          "columns": (5.88e-08, 1.26, 0.123), "dirichlet_factor": (6.62e-09, 1.8, -0.0631),
+                          "dirichlet_solve": (1.27e-08, 1.35, 0.104), "schur_factor": (1.93e-09, 1.95, 0)}},
+              dense=(7.13e-11, 2.74), steps=(1.63, 0.259),
+              update={"dirichlet": (3.89e-05, 0.374), "lumped": (8.72e-06, 0.64)},
+              rounds={"dirichlet": (1.19, 0.635, 0.29, 0.445), "lumped": (4.05, 0.472, 0.151, 0.217)})
+#: feti's polynomial coarse directions in a 3-D box (``solver.coarse_degree = auto``): degree 1 (three monomials on a
+#: joint's plane, three components).  On the 0.3 M bench box in four slabs per half they cut feti's iterations from
+#: 59 to 43 for one multi-column round; degree 2 cuts them to 36 but its twice as many columns cost what they save.
+COARSE_DEGREE = 1
+
+
+def coarse_columns(degree: int = COARSE_DEGREE) -> int:
+    """The multi-column round's columns per block: three components of the monomials of degree ≤ ``degree`` on each
+    of its two joints (plane)."""
+    return 2 * 3 * math.comb(degree + 2, 2)
+
+
 #: Slabs per half the model considers.  Eight are left out: on every mesh measured (to 0.3 M unknowns) their slabs
 #: are one or two elements thick and feti's rounds explode (``./run scaling-3d``: 167 to 3,104 rounds at 48 k
 #: unknowns, where four slabs take 51 to 119), which no law of the slab count follows.
@@ -113,7 +127,8 @@ def predicted_seconds(box: Box, candidate: Candidate, ranks: int, laws: Laws = F
     factor = _block(box, "factor", candidate.pieces, laws)
     if candidate.preconditioner == "dirichlet":
         factor += _block(box, "dirichlet_factor", candidate.pieces, laws)
-    block_rounds = solves * solve + held * _block(box, "dirichlet_solve", candidate.pieces, laws)
+    block_rounds = (solves * solve + held * _block(box, "dirichlet_solve", candidate.pieces, laws)
+                    + _block(box, "columns", candidate.pieces, laws))
     a, p = laws.update[candidate.preconditioner]
     return share * (factor + block_rounds) + (solves + held) * a * multipliers(box, candidate.pieces) ** p
 

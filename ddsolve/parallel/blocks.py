@@ -297,6 +297,32 @@ class Block:
                               f"-{self.ksp.getOptionsPrefix()}pc_* options{SCHUR_HINT * self.schur_factored}")
         return self.x.getArray(readonly=True)
 
+    def solve_many(self, loads: np.ndarray) -> np.ndarray | None:
+        """The traces of K⁻¹ E L (K⁺ for a floating block) for the trace loads ``loads`` ``(2k, m)`` (on every rank
+        of the block), ``(2k, m)`` on the leader: one multi-column solve where the block is factored (a block of
+        right-hand sides costs a few times one, not m times), m solves otherwise."""
+        if not self.is_direct():
+            return self._gather_trace(np.column_stack([self.solve(column, body=False)[self.trace_rows].copy()
+                                                       for column in loads.T]))
+        local, n = len(self.system.rhs), self.system.size
+        B = PETSc.Mat().createDense(((local, n), (None, loads.shape[1])), comm=self.matrix.getComm())
+        B.setUp()
+        values = B.getDenseArray()
+        values[self.trace_rows] = loads[self.trace_positions] / self.scale
+        values[self._fixed_rows] = 0.0  # K⁺, as in solve
+        B.assemble()
+        X = _dense_like(B)
+        try:
+            self.ksp.getPC().getFactorMatrix().matSolve(B, X)
+            traces = X.getDenseArray()[self.trace_rows].copy()
+        except PETSc.Error as exc:
+            raise SolverError(f"block {self.name}: multi-column solve failed: "
+                              f"{petsc_failure(exc, self.ksp.getOptionsPrefix())}") from None
+        finally:
+            B.destroy()
+            X.destroy()
+        return self._gather_trace(traces)
+
     def _remember_loads(self, body: bool, load: np.ndarray) -> None:
         """Keep the sizes of the two parts of b = f·[body] + E load for :meth:`residual`."""
         self._load_sizes = (float(np.abs(self.system.rhs).max(initial=0.0)) if body else 0.0,

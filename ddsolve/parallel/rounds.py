@@ -13,23 +13,28 @@ from ddsolve.errors import DDSolveError, SolverError
 from ddsolve.parallel.blocks import Block
 from ddsolve.parallel.exchange import Exchange
 
-STOP, SOLVE_LOAD, SOLVE_FULL, SCHUR, REPORT_ERROR, DIRICHLET, DIAGONAL, CONDENSED, KERNEL_WORK, SOLVE_HELD = range(10)
+(STOP, SOLVE_LOAD, SOLVE_FULL, SCHUR, REPORT_ERROR, DIRICHLET, DIAGONAL, CONDENSED, KERNEL_WORK, SOLVE_HELD,
+ SOLVE_MANY) = range(11)
 
 
-#: Commands whose round sends a trace vector to every block (SOLVE_HELD: two, loads and held traces).
-WITH_LOADS = (SOLVE_LOAD, SOLVE_FULL, DIRICHLET, SOLVE_HELD)
+#: Commands whose round sends a trace vector to every block (SOLVE_HELD: two, loads and held traces; SOLVE_MANY:
+#: ``columns`` loads of the block's entries, rank 0 broadcasting the entries and columns a block gets after the
+#: command).
+WITH_LOADS = (SOLVE_LOAD, SOLVE_FULL, DIRICHLET, SOLVE_HELD, SOLVE_MANY)
 
 
-def result_width(command: int, trace_size: int) -> int:
-    """Values per block a round returns (before the status flag): a Schur complement, or the trace,
-    the energy xᵀ K x, the work of the body loads, and (full solves) the relative residual and the
-    largest nodal |x|."""
+def result_width(command: int, trace_size: int, rows: int = 0, columns: int = 1) -> int:
+    """Values per block a round returns (before the status flag): a Schur complement, ``columns`` traces of
+    ``rows`` entries (SOLVE_MANY), or the trace, the energy xᵀ K x, the work of the body loads, and (full solves) the
+    relative residual and the largest nodal |x|."""
+    if command == SOLVE_MANY:
+        return rows * columns
     return trace_size ** 2 if command == SCHUR else trace_size + 4
 
 
-def load_width(command: int, trace_size: int) -> int:
+def load_width(command: int, trace_size: int, rows: int = 0, columns: int = 1) -> int:
     """Values per block a round sends."""
-    return 2 * trace_size if command == SOLVE_HELD else trace_size
+    return rows * columns if command == SOLVE_MANY else trace_size * (2 if command == SOLVE_HELD else 1)
 
 
 class BlockServer:
@@ -52,12 +57,15 @@ class BlockServer:
         """Bytes of the solutions held: the led blocks' whole ones and the pieces' values (once each)."""
         return sum({id(u): u.nbytes for u in (*self.solutions.values(), *self.piece_values.values())}.values())
 
-    def run(self, command: int, loads: list[np.ndarray] | None, width: int) -> np.ndarray:
-        """One round on the local blocks: the rows of the led blocks, each ending with a status flag."""
+    def run(self, command: int, loads: list[np.ndarray] | None, width: int, columns: int = 1) -> np.ndarray:
+        """One round on the local blocks: the rows of the led blocks, each ending with a status flag (``columns``:
+        the trace loads per block of SOLVE_MANY)."""
         rows, failed = {}, False
         try:
             for i, (index, block) in enumerate(zip(self.exchange.local_blocks, self.blocks)):
-                if command == SCHUR:
+                if command == SOLVE_MANY:
+                    value = self._solve_many(index, block, loads[i], columns)
+                elif command == SCHUR:
                     value = block.schur_complement()
                 elif command in (DIRICHLET, DIAGONAL, CONDENSED, KERNEL_WORK):
                     trace = (block.dirichlet(self._own(index, loads[i])) if command == DIRICHLET else
@@ -92,7 +100,7 @@ class BlockServer:
         """A block's round ``value`` on the structure's trace: a Schur complement with zero rows and columns off
         its entries, a trace with zeros (a diagonal: infinity, no share of a jump) and the numbers after it; the work
         in a floating block's rigid motions (KERNEL_WORK) is no trace and stays as it is."""
-        if index not in self.positions or command == KERNEL_WORK:
+        if index not in self.positions or command in (KERNEL_WORK, SOLVE_MANY):
             return value
         at, size = self.positions[index], len(self.positions[index])
         if command == SCHUR:
@@ -103,6 +111,21 @@ class BlockServer:
         out[width - 4:] = value[size:size + 4]  # see result_width
         out[at] = value[:size]
         return out
+
+    def _solve_many(self, index: int, block: Block, loads: np.ndarray, columns: int) -> np.ndarray | None:
+        """The block's traces ``(rows, columns)`` for the ``columns`` loads ``loads`` (raveled ``(rows, columns)``,
+        ``rows`` its entries of the structure's trace first, in order, then padding), raveled, on the leader; a
+        column that loads none of its entries is not solved."""
+        loads = loads.reshape(-1, columns)
+        own = loads[:len(self.positions[index])] if index in self.positions else loads
+        loaded = np.flatnonzero(np.any(own != 0.0, axis=0))
+        traces = block.solve_many(own[:, loaded]) if len(loaded) else None
+        if not block.is_leader:
+            return None
+        out = np.zeros_like(loads)
+        if len(loaded):
+            out[:len(own), loaded] = traces
+        return out.ravel()
 
     @staticmethod
     def _floating_value(block: Block, command: int) -> np.ndarray | None:
@@ -136,9 +159,12 @@ class ParallelRounds:
     """
 
     def __init__(self, exchange: Exchange, server: BlockServer, trace_size: int, stages: dict,
-                 kernel_traces: list[np.ndarray] | None = None, trace_stiffness: list | None = None):
-        """``trace_stiffness``: the blocks' stiffness on their traces (sparse, for :meth:`lumped`), where gathered."""
+                 kernel_traces: list[np.ndarray] | None = None, trace_stiffness: list | None = None,
+                 entries: list[np.ndarray] | None = None):
+        """``trace_stiffness``: the blocks' stiffness on their traces (sparse, for :meth:`lumped`), where gathered;
+        ``entries``: each block's entries of the structure's trace (None: every block holds all of it)."""
         self.exchange, self.server, self.trace_size, self.stages = exchange, server, trace_size, stages
+        self.entries = entries or [np.arange(trace_size)] * exchange.n_blocks
         self.trace_stiffness = trace_stiffness
         # the traces (2k, m_b) of the blocks' kernels (m_b = 0: invertible)
         self.kernel_traces = kernel_traces or [np.zeros((trace_size, 0))] * exchange.n_blocks
@@ -150,16 +176,21 @@ class ParallelRounds:
         self.residuals = np.zeros(exchange.n_blocks)  # relative residuals of the last full solve
         self.largest = 0.0  # largest nodal displacement in the last full solve
 
-    def _round(self, command: int, loads: np.ndarray | None) -> np.ndarray:
+    def _round(self, command: int, loads: np.ndarray | None, rows: int = 0, columns: int = 1) -> np.ndarray:
+        """One round of ``command`` (SOLVE_MANY: ``columns`` loads of ``rows`` entries per block, whose sizes rank 0
+        broadcasts after the command)."""
         self.stages["Update"].pop()
         self.stages["Rounds"].push()
         started = time.perf_counter()
         self.exchange.command(command)
+        if command == SOLVE_MANY:
+            self.exchange.command(rows)
+            self.exchange.command(columns)
         local = None
         if loads is not None:
-            local = self.exchange.scatter(loads, load_width(command, self.trace_size))
-        width = result_width(command, self.trace_size)
-        results = self.exchange.gather(self.server.run(command, local, width), width + 1)
+            local = self.exchange.scatter(loads, load_width(command, self.trace_size, rows, columns))
+        width = result_width(command, self.trace_size, rows, columns)
+        results = self.exchange.gather(self.server.run(command, local, width, columns), width + 1)
         self.count += 1
         if np.any(results[:, -1] != 0.0):
             self.exchange.command(REPORT_ERROR)
@@ -180,6 +211,23 @@ class ParallelRounds:
         if full:
             self.residuals, self.largest = results[:, trace + 2], float(results[:, trace + 3].max())
         return results[:, :trace], results[:, trace]
+
+    def solve_many(self, loads: list[np.ndarray]) -> list[np.ndarray]:
+        """Per block the traces ``(2k, m_b)`` of its solves with its trace loads ``(2k, m_b)``, in one round (a
+        multi-column solve per block).  A round carries per block its entries of the trace only, as many as the
+        largest block holds, and the widest block's columns; the rest is padding, which is not solved."""
+        rows, columns = max(len(entries) for entries in self.entries), max(load.shape[1] for load in loads)
+        out = [np.zeros_like(load) for load in loads]
+        if columns == 0:
+            return out
+        packed = np.zeros((len(loads), rows, columns))
+        for block, (load, entries) in enumerate(zip(loads, self.entries)):
+            packed[block, :len(entries), :load.shape[1]] = load[entries]
+        results = self._round(SOLVE_MANY, packed.reshape(len(loads), -1), rows, columns)
+        results = results.reshape(len(loads), rows, columns)
+        for block, (traces, entries) in enumerate(zip(out, self.entries)):
+            traces[entries] = results[block, :len(entries), :traces.shape[1]]
+        return out
 
     def potential_energy(self, energies: np.ndarray) -> float:
         """Π = Σ_b ½ x_bᵀ K_b x_b − (f_bᵀ x_b − c_b) of the last full solve, whose energies are given
@@ -227,9 +275,10 @@ def serve(exchange: Exchange, server: BlockServer, trace_size: int, stages: dict
         if command == REPORT_ERROR:
             exchange.comm.gather(server.error, root=0)
             continue
-        local = exchange.scatter(None, load_width(command, trace_size)) if command in WITH_LOADS else None
-        width = result_width(command, trace_size)
-        exchange.gather(server.run(command, local, width), width + 1)
+        rows, columns = (exchange.command(), exchange.command()) if command == SOLVE_MANY else (0, 1)
+        local = exchange.scatter(None, load_width(command, trace_size, rows, columns)) if command in WITH_LOADS else None
+        width = result_width(command, trace_size, rows, columns)
+        exchange.gather(server.run(command, local, width, columns), width + 1)
     stages["Rounds"].pop()
 
 
@@ -251,7 +300,7 @@ def drive(setup, server: BlockServer, work) -> tuple[object, ParallelRounds | No
         serve(exchange, server, setup.interface.trace_size, stages)
         return None, None, None
     rounds = ParallelRounds(exchange, server, setup.interface.trace_size, stages, setup.kernel_traces(),
-                            setup.trace_stiffness)
+                            setup.trace_stiffness, setup.trace_entries())
     value, failure = None, None
     stages["Update"].push()
     try:

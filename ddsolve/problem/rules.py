@@ -327,6 +327,9 @@ def solver_checks(data: dict, origin: str) -> None:
                          f"(method {method.name} stops on {' or '.join(method.stops)})")
     if solver["tol"] is None:
         solver["tol"] = DEFAULT_TOL[solver["stop"]]
+    if solver["coarse_degree"] not in ("auto", 0) and method.name not in ("feti", "auto"):
+        raise SceneError(f"{origin}: solver.coarse_degree = {solver['coarse_degree']}: feti's coarse directions; "
+                         f"method {method.name} takes none (solver.method = feti, or coarse_degree = 0)")
 
 
 def _radii_checks(data: dict, origin: str) -> None:

@@ -197,6 +197,7 @@ class Solver:
     out_of_core: bool = False  # MUMPS keeps the blocks' factors on disk
     pieces: int | str = "auto"  # slabs per half of a 3-D box in its domain decomposition (ddsolve.mesh.slabs)
     preconditioner: str = "auto"  # feti's: dirichlet, lumped (K on the traces), or auto (by the structure)
+    coarse_degree: int | str = "auto"  # feti's polynomial coarse directions on each joint (0: none), or auto
 
 
 @dataclass(frozen=True)

@@ -166,6 +166,15 @@ def _pieces(value: Any) -> int | str:
         raise ValueError('an integer >= 1 or "auto" (chosen from the size of the 3-D box\'s halves)') from None
 
 
+def _coarse_degree(value: Any) -> int | str:
+    if value == "auto":
+        return value
+    try:
+        return _count(0)(value)
+    except (TypeError, ValueError):
+        raise ValueError('an integer >= 0 (0: no polynomial coarse directions) or "auto" (by the structure)') from None
+
+
 def _choice(options: tuple[str, ...]) -> Callable[[Any], str]:
     def checked(value: Any) -> str:
         value = _string(value)
@@ -482,6 +491,7 @@ SCHEMA: dict[str, Any] = {
         "out_of_core": (_boolean, False),
         "pieces": (_pieces, "auto"),
         "preconditioner": (_choice(PRECONDITIONERS), "auto"),
+        "coarse_degree": (_coarse_degree, "auto"),
     },
     "fracture": {"inner": (_positive(_number), None), "outer": (_positive(_number), None),
                  "toughness": (_toughness, None), "law": (_choice(tuple(LAWS)), None),

@@ -95,6 +95,10 @@ class Setup:
         """Not gathered: the plane driver's feti takes Dirichlet's preconditioner."""
         return None
 
+    def trace_entries(self) -> None:
+        """Every block holds the whole trace (Σ's)."""
+        return None
+
     def kernel_traces(self) -> list[np.ndarray] | None:
         """The traces of the blocks' kernels (:func:`ddsolve.parallel.rounds.kernel_traces`)."""
         return kernel_traces(self.mesh)

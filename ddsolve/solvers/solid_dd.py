@@ -105,6 +105,10 @@ class SolidSetup:
         """The multipliers of every joint (rank 0 runs the method on them)."""
         return self.parts.interface
 
+    def trace_entries(self) -> list[np.ndarray] | None:
+        """Each block's entries of the structure's trace (None: one slab per half, every block holds Σ's whole)."""
+        return trace_layout(self.parts.joints, len(self.parts.slabs))[0] if self.positions is not None else None
+
     def kernel_traces(self) -> list[np.ndarray]:
         """The traces ``(trace size, m_b)`` of the blocks' kernels: zero off the entries a block holds."""
         modes = self.kernels.frame.modes(self.parts.points).T
@@ -153,8 +157,11 @@ def method_of(scene: Scene, parts: Decomposition, held: kernels.Kernels, ranks: 
         best = ranking(scene, box_of(scene, parts), ranks, [parts.count])[0]
     method = scene.solver.method if scene.solver.method in registry.METHODS else best.method
     preconditioner = best.preconditioner if scene.solver.preconditioner == "auto" else scene.solver.preconditioner
+    degree = scene.solver.coarse_degree
+    if degree == "auto":
+        degree = solid_costs.COARSE_DEGREE if method == "feti" else 0
     return dataclasses.replace(scene, solver=dataclasses.replace(scene.solver, method=method, pieces=parts.count,
-                                                                 preconditioner=preconditioner))
+                                                                 preconditioner=preconditioner, coarse_degree=degree))
 
 
 def schur_bytes(interface: Interface | int) -> float:
@@ -240,7 +247,7 @@ def interface_of(scene: Scene, mesh: SolidMesh, k: int = 0) -> Interface:
     for row, region, nodes in zip(fixed, mesh.regions[k:k + 2], mesh.border(k)):
         row[:] = np.isin(node_dofs(nodes), tetra.prescribed(scene, region)[0])
     return Interface(sigma.weights, sigma.cracked, scene.nonpenetration, fixed, modulus_of(scene, mesh),
-                     specs=block_list(1), components=COMPONENTS)
+                     specs=block_list(1), components=COMPONENTS, points=sigma.points)
 
 
 def modulus_of(scene: Scene, mesh: SolidMesh) -> float:
@@ -291,7 +298,7 @@ def decomposition(scene: Scene, mesh: SolidMesh, count: int) -> Decomposition | 
             _tie(values, pair, dofs)
             fixed = np.array([~np.isnan(values[block][own]) for own, block in zip(dofs, pair)])
             glued = Interface(between.weights, np.zeros(len(between.points), dtype=bool), False, fixed,
-                              modulus, specs=block_list(1), components=COMPONENTS)
+                              modulus, specs=block_list(1), components=COMPONENTS, points=between.points)
             joints.append(Joint(glued, pair, dofs))
             points.append(between.points)
     supports = [(np.flatnonzero(~np.isnan(v)), v[~np.isnan(v)]) for v in values]

@@ -60,6 +60,10 @@ class StackSetup:
         """Not gathered: this driver's feti takes Dirichlet's preconditioner."""
         return None
 
+    def trace_entries(self) -> list[np.ndarray]:
+        """Each block's entries of the structure's trace."""
+        return trace_layout(self.joints, self.exchange.n_blocks)[0]
+
     def kernel_traces(self) -> None:
         """No block floats (:func:`prepare` refuses it)."""
         return None
