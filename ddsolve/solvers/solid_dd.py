@@ -481,4 +481,15 @@ def finished(setup: SolidSetup, outcome, rounds, fields: list[np.ndarray]) -> So
                        converged=bool(outcome.converged), message=outcome.message or "",
                        checks={"residual": float(np.max(rounds.residuals, initial=0.0)),
                                **{name: float(outcome.details[f"kkt_{name}"]) for name in Constraints.NAMES}},
-                       timings={**setup.timings, "rounds": rounds.elapsed})
+                       timings={**setup.timings, "rounds": rounds.elapsed}, attrs=solver_record(setup.scene, outcome))
+
+
+def solver_record(scene: Scene, outcome) -> dict:
+    """What ran, for the result file: the method and slabs per half, feti's preconditioner, coarse degree and the
+    coarse directions kept."""
+    solver = scene.solver
+    record = {"method": solver.method, "pieces": solver.pieces}
+    if solver.method == "feti":
+        record.update(preconditioner=solver.preconditioner, coarse_degree=solver.coarse_degree,
+                      coarse_directions=int(outcome.details.get("coarse_directions", 0)))
+    return record
