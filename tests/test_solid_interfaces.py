@@ -92,9 +92,11 @@ def test_the_regions_decomposition_equals_the_reference_with_both_cracks_shut_in
 
 
 @pytest.mark.mpi
-def test_the_regions_on_3_ranks_equal_the_reference(tmp_path):
-    """ddsolve solve -n 3 (a region per rank): its file holds the reference's solution to 1e-8 in energy norm;
-    2 ranks are refused."""
+def test_the_regions_on_2_and_3_ranks_equal_the_reference(tmp_path):
+    """ddsolve solve -n 3 (a region per rank) and, in one launch, -n 2 with schur and feti (regions 1 and 3 on rank
+    0, region 2 on rank 1): their files hold the reference's solution to 1e-8 in energy norm; 4 ranks are refused
+    naming the regions' rule."""
+    import launch_many
     from conftest import ddsolve
 
     from ddsolve.io import solid as solid_files
@@ -106,6 +108,17 @@ def test_the_regions_on_3_ranks_equal_the_reference(tmp_path):
     solved = ddsolve("solve", str(SAMPLE), "-o", str(tmp_path / "3.h5"), "--set", COARSE[0], ranks=3)
     assert "on 3 ranks" in solved.stdout
     assert solid_solver.energy_error(solid_files.read(tmp_path / "3.h5"), reference) < 1e-8
+    methods = ("schur", "feti")
+    outputs = launch_many.launch([["solve", str(SAMPLE), "-o", str(tmp_path / f"{method}-2.h5"), "--set", COARSE[0],
+                                   "--set", f"solver.method={method}", "--set", "solver.tol=1e-12"]
+                                  for method in methods], 2, tmp_path)
+    for method, output in zip(methods, outputs):
+        assert f"{method} (3-D):" in output and "on 2 ranks" in output
+        assert solid_solver.energy_error(solid_files.read(tmp_path / f"{method}-2.h5"), reference) < 1e-8, method
+    refused = ddsolve("solve", str(SAMPLE), "-n", "4", "-o", str(tmp_path / "4.h5"), check=False)
+    assert refused.returncode == 2 and refused.stderr.strip() == (
+        "ddsolve: error: -n 4: unsupported number of ranks: use 1, 2 or a multiple of 3 (the 3 regions of the 3-D "
+        "box, a block each)")
 
 
 REFUSED = {

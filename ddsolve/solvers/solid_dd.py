@@ -1,7 +1,8 @@
 """The domain decomposition of a 3-D box (``geometry.box = [x0, x1, y0, y1, z0, z1]``): its two halves as the
 blocks u⁻ (below Σ) and u⁺ (above), or each half cut into slabs parallel to Σ (``solver.pieces``,
 :mod:`ddsolve.mesh.slabs`) glued across their cuts as Σ is off the cracks, the structure's trace Σ's and the cuts'
-(:meth:`~ddsolve.dd.interface.Interface.joined`, as for several interfaces); on 1, 2 or 2k ranks.
+(:meth:`~ddsolve.dd.interface.Interface.joined`, as for several interfaces); on any number of ranks up to the blocks
+(some holding a block more: every rank assembles its own blocks from the whole mesh) or a multiple of them.
 
 The plane driver's machinery (:mod:`ddsolve.solvers.stacked_dd`) with three trace entries per Σ vertex: a block's
 trace is its displacements at every Σ vertex in Σ's frame (x, ν = y, z; :class:`~ddsolve.dd.interface.Interface`
@@ -12,7 +13,7 @@ The mesh is built once on rank 0 and broadcast; each rank assembles its blocks (
 same files.  A half held only through Σ floats, as does a slab held only through its neighbours: its kernel is the
 rigid motions (of six) its own supports leave (:mod:`ddsolve.dd.kernels`), factored and solved as the plane driver
 does; a box that can move rigidly as a whole is refused in one line.  A box of several interfaces is decomposed into
-its regions, a block each, joined at every Σ (:func:`regions_decomposition`), on 1 rank or a multiple of the regions.
+its regions, a block each, joined at every Σ (:func:`regions_decomposition`).
 """
 from __future__ import annotations
 
@@ -193,7 +194,8 @@ def ranking(scene: Scene, box: solid_costs.Box, ranks: int, counts: list[int]) -
     fits = schur_bytes(COMPONENTS * box.sigma) <= schur_limit()
     method, preconditioner = scene.solver.method, scene.solver.preconditioner
     modelled = method in ("auto", "schur", "feti")
-    shared = [count for count in counts if supported(ranks, 2 * count) and (modelled or count == 1)] or counts
+    shared = [count for count in counts
+              if supported(ranks, 2 * count, uneven=True) and (modelled or count == 1)] or counts
     every = solid_costs.candidates(shared, fits)
     kept = [c for c in every if method in ("auto", c.method) or not modelled]
     kept = [c for c in kept if preconditioner in ("auto", c.preconditioner) or c.method == "schur"]
@@ -351,16 +353,16 @@ def prepare(scene: Scene, comm: MPI.Comm, progress=None, mesh: SolidMesh | None 
     if progress is not None and comm.rank == 0:
         progress(solid_lines.mesh_line(mesh, meshed - started))
     parts = collective(comm, lambda: pieces_of(scene, mesh, comm.size))
-    if not supported(comm.size, len(parts.slabs)):
-        error = DDSolveError(f"unsupported number of ranks {comm.size}: use {usable(len(parts.slabs))} (the "
-                             f"{len(parts.slabs)} blocks of the 3-D box: " + (
+    if not supported(comm.size, len(parts.slabs), uneven=True):
+        error = DDSolveError(f"unsupported number of ranks {comm.size}: use {usable(len(parts.slabs), uneven=True)} "
+                             f"(the {len(parts.slabs)} blocks of the 3-D box: " + (
                                  f"{parts.count} slabs per half)" if parts.regions == 2 else "one per region)"))
         error.collective = True  # every rank sees the same size
         raise error
     held = collective(comm, lambda: kernels_of(parts))  # floating slabs and regions: solved as floating halves
     scene = collective(comm, lambda: method_of(scene, parts, held, comm.size))
     method = registry.METHODS[scene.solver.method]
-    exchange = Exchange(comm, len(parts.slabs))
+    exchange = Exchange(comm, len(parts.slabs), uneven=True)
     positions, dofs = trace_layout(parts.joints, len(parts.slabs))
     stages = {name: PETSc.Log.Stage(name) for name in driver.STAGES}
     timings = {"meshing": meshed - started, "setup": time.perf_counter() - meshed}
