@@ -101,6 +101,10 @@ def _launch(args, petsc_options: list[str], scene_checks: bool) -> None:
     if args.ranks is None:
         return
     scene = _load_scene(args) if scene_checks else None
+    if not scene_checks:  # sweep and grow: plane only
+        from ddsolve.solvers import sweep
+
+        sweep.check_plane(args.scene, args.set or [])
     check_ranks(args.ranks, scene)
     check_petsc_files(petsc_options)
     for module in ("petsc4py", "mpi4py", "h5py"):  # if one is missing, one line here, not one per rank
