@@ -192,9 +192,10 @@ def thin_blocks(parts: Decomposition) -> list[int]:
     thin = []
     for block, slab in enumerate(parts.slabs):
         held = np.union1d(dofs[block], parts.supports[block][0])
-        faces = [np.isin(slab.piece.tetrahedra, joint.dofs[joint.blocks.index(block)][::COMPONENTS] // COMPONENTS)
-                 .any(axis=1) for joint in parts.joints if block in joint.blocks]
-        spanning = max((np.mean(a & b) for i, a in enumerate(faces) for b in faces[i + 1:]), default=0.0)
+        touching = [np.isin(slab.piece.tetrahedra, joint.dofs[joint.blocks.index(block)][::COMPONENTS] // COMPONENTS)
+                    .any(axis=1) for joint in parts.joints if block in joint.blocks]  # per joint: each tetrahedron
+        spanning = max((np.mean(first & second) for i, first in enumerate(touching) for second in touching[i + 1:]),
+                       default=0.0)
         if len(held) == slab.piece.dofs or spanning > THIN_SHARE:
             thin.append(block)
     return thin
