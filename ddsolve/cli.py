@@ -101,7 +101,11 @@ def _launch(args, petsc_options: list[str], scene_checks: bool) -> None:
     if args.ranks is None:
         return
     scene = _load_scene(args) if scene_checks else None
-    check_ranks(args.ranks, None if scene is None else scene.geometry.layers * len(scene.geometry.region_names))
+    if not scene_checks:  # sweep and grow: plane only
+        from ddsolve.solvers import sweep
+
+        sweep.check_plane(args.scene, args.set or [])
+    check_ranks(args.ranks, scene)
     check_petsc_files(petsc_options)
     for module in ("petsc4py", "mpi4py", "h5py"):  # if one is missing, one line here, not one per rank
         importlib.import_module(module)
@@ -604,7 +608,8 @@ def parser() -> argparse.ArgumentParser:
     p = scene_command("solve", "domain-decomposition solve (under mpiexec, or -n N to launch it)", cmd_solve)
     p.add_argument("-n", dest="ranks", type=int, metavar="N",
                    help="launch N ranks with mpiexec: 1, 2, 4 (a block per rank) or 4k (a block on k ranks); "
-                   "a one-layer structure (geometry.layers = 1): 1, 2 or 2k")
+                   "a one-layer structure (geometry.layers = 1): 1, 2 or 2k; a 3-D box: any up to its blocks (some "
+                   "ranks holding one more) or a multiple of them")
     p.add_argument("-o", dest="output", help="result file (default: SCENE.h5)")
     p = scene_command("sweep", "solves over ranges of scene values (--set KEY=START:STOP:COUNT), one launch, "
                       "one HDF5 file", cmd_sweep)

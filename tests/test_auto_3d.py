@@ -60,9 +60,9 @@ def test_the_fitted_laws_take_schur_on_small_boxes_and_slabs_on_the_baseline():
 
 @pytest.mark.unit
 def test_auto_leaves_what_the_scene_fixes_and_what_the_ranks_and_memory_refuse(monkeypatch):
-    """The ranking keeps the scene's method and preconditioner, the slab counts the ranks can share (6 ranks: the
-    halves only; a method the model does not know: the halves whole), and drops schur above its memory limit (auto
-    then takes feti)."""
+    """The ranking keeps the scene's method and preconditioner, the slab counts the ranks can share (10 ranks: the
+    halves only; 6: the halves and 4 slabs, not 2; a method the model does not know: the halves whole), and drops
+    schur above its memory limit (auto then takes feti)."""
     from ddsolve.mesh import solid
     from ddsolve.solvers import solid_dd
 
@@ -74,7 +74,8 @@ def test_auto_leaves_what_the_scene_fixes_and_what_the_ranks_and_memory_refuse(m
     assert {c.method for c in solid_dd.ranking(CLOSURE.with_({"solver.method": "feti"}), box, 2, pieces)} == {"feti"}
     lumped = solid_dd.ranking(CLOSURE.with_({"solver.preconditioner": "lumped"}), box, 2, pieces)
     assert {c.preconditioner for c in lumped if c.method == "feti"} == {"lumped"}
-    assert {c.pieces for c in solid_dd.ranking(CLOSURE, box, 6, pieces)} == {1}
+    assert {c.pieces for c in solid_dd.ranking(CLOSURE, box, 10, pieces)} == {1}
+    assert {c.pieces for c in solid_dd.ranking(CLOSURE, box, 6, pieces)} == {1, 4}
     assert {c.pieces for c in solid_dd.ranking(CLOSURE.with_({"solver.method": "mprgp"}), box, 2, pieces)} == {1}
     assert [c.method for c in solid_dd.ranking(CLOSURE.with_({"solver.method": "schur"}), box, 2, [2])] == ["feti"] * 2
     monkeypatch.setattr(solid_dd, "SCHUR_MEMORY_SHARE", 0.5 * solid_dd.schur_bytes(3 * box.sigma - 3)

@@ -103,6 +103,7 @@ def cases(folder: Path) -> list[tuple[str, list[str], list[str]]]:
             ("solver.out_of_core", [], ["solver.out_of_core=true"]),
             ("solver.pieces", [], ["solver.pieces=2"]),  # refused in the plane
             ("solver.preconditioner", [], ['solver.preconditioner="lumped"']),  # refused in the plane
+            ("solver.coarse_degree", ['solver.method="feti"'], ["solver.coarse_degree=2"]),
             ("fracture.inner", [], ["fracture.inner=0.1"]),
             ("fracture.outer", [], ["fracture.outer=0.3"]),
             ("fracture.toughness", [], ["fracture.toughness=1e-4"])]

@@ -100,6 +100,32 @@ def test_slabs_and_the_lumped_preconditioner_are_refused_where_they_do_not_apply
 
 
 @pytest.mark.unit
+def test_a_box_takes_any_rank_count_up_to_its_blocks_or_a_multiple():
+    """A 3-D box's blocks go on any rank count up to theirs (some ranks holding one more) or a multiple, where a plane
+    structure's take divisors and multiples only; ``-n`` is checked by that rule before mpiexec, auto's slab counts
+    together; the cost model charges the busiest rank: four blocks on 3 ranks cost as on 2."""
+    from ddsolve.dd import solid_costs
+    from ddsolve.errors import UsageError
+    from ddsolve.parallel import launch
+    from ddsolve.solvers import checks
+
+    assert [size for size in range(1, 17) if launch.supported(size, 8, uneven=True)] == [*range(1, 9), 16]
+    assert [size for size in range(1, 17) if launch.supported(size, 8)] == [1, 2, 4, 8, 16]
+    assert launch.usable(3, uneven=True) == "1, 2 or a multiple of 3"
+    assert launch.usable(8, uneven=True) == "1 to 7 or a multiple of 8" and launch.usable(4) == "1, 2 or a multiple of 4"
+    for ranks in (3, 5, 7, 8, 10):
+        checks.check_ranks(ranks, CLOSURE)
+    with pytest.raises(UsageError, match=r"^-n 9: unsupported number of ranks: use 1 to 8 or a multiple of 2 \(the "
+                                         r"3-D box's halves in 1, 2 or 4 slabs each\)$"):
+        checks.check_ranks(9, CLOSURE)
+    with pytest.raises(UsageError, match=r"^-n 3: .* use 1 or a multiple of 2 \(the 3-D box's halves in 1 slab each"):
+        checks.check_ranks(3, CLOSURE.with_({"solver.pieces": 1}))
+    box = solid_costs.Box(300_000, 3_000, 0, 1)
+    for candidate in solid_costs.candidates([2], schur_fits=False):
+        assert solid_costs.predicted_seconds(box, candidate, 3) == solid_costs.predicted_seconds(box, candidate, 2)
+
+
+@pytest.mark.unit
 def test_slabs_held_only_through_their_neighbours_float_and_auto_keeps_them():
     """The penny's slabs off its bottom keep the translation in y, the slabs at Σ of a box held on its top and
     bottom all six motions, kept as the slabs asked for (auto's method on them: feti); ``auto`` keeps the halves
@@ -178,16 +204,17 @@ def test_floating_slabs_equal_the_reference():
 
 
 @pytest.mark.mpi
-def test_the_slabs_on_2_and_4_ranks_equal_the_reference(tmp_path):
-    """ddsolve solve -n 2 and -n 4 with two slabs per half (four blocks: two a rank, one a rank), the partly shut
-    crack on 2 and the penny's floating slabs on 4, hold the reference's solution to 1e-8 in energy norm."""
+def test_the_slabs_on_2_3_and_4_ranks_equal_the_reference(tmp_path):
+    """ddsolve solve -n 2, -n 3 and -n 4 with two slabs per half (four blocks: two a rank; two on rank 0 and one on
+    each other; one a rank), the partly shut crack on 2 and 3 and the penny's floating slabs on 4, hold the
+    reference's solution to 1e-8 in energy norm; 5 ranks are refused naming the slabs' rule."""
     from conftest import ddsolve
 
     from ddsolve.io import solid as solid_files
     from ddsolve.mesh import solid
     from ddsolve.solvers import solid as solid_solver
 
-    for ranks, scene, tol in ((2, CLOSURE, 1e-10), (4, PENNY, 1e-11)):
+    for ranks, scene, tol in ((2, CLOSURE, 1e-10), (3, CLOSURE, 1e-10), (4, PENNY, 1e-11)):
         path = tmp_path / f"{ranks}.toml"
         path.write_text(scene.text)
         reference = solid_solver.solve_solid(scene, solid.build(scene))
@@ -195,3 +222,8 @@ def test_the_slabs_on_2_and_4_ranks_equal_the_reference(tmp_path):
                          "--set", f"solver.tol={tol:g}", ranks=ranks)
         assert "feti (3-D):" in solved.stdout and f"on {ranks} ranks" in solved.stdout
         assert solid_solver.energy_error(solid_files.read(tmp_path / f"{ranks}.h5"), reference) < 1e-8
+    refused = ddsolve("solve", str(tmp_path / "2.toml"), "-n", "5", "--set", "solver.pieces=2", "-o",
+                      str(tmp_path / "5.h5"), check=False)
+    assert refused.returncode == 2 and refused.stderr.strip() == (
+        "ddsolve: error: -n 5: unsupported number of ranks: use 1, 2, 3 or a multiple of 4 (the 3-D box's halves in "
+        "2 slabs each)")

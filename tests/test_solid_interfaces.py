@@ -91,10 +91,40 @@ def test_the_regions_decomposition_equals_the_reference_with_both_cracks_shut_in
         assert solid_solver.energy_error(result, floating_reference) < 1e-8
 
 
+@pytest.mark.solve
+def test_auto_takes_feti_where_a_region_is_one_element_thick():
+    """The middle region as thick as mesh.size (0.45): MUMPS cannot factor it with its Schur complement on the
+    trace, so an explicit schur stops with its one line and auto takes feti, which equals the reference; the sample
+    itself and a region a little thicker keep schur."""
+    from mpi4py import MPI
+
+    from ddsolve.errors import DDSolveError
+    from ddsolve.mesh import solid
+    from ddsolve.solvers import solid as solid_solver, solid_dd
+
+    for sigma, thin in (("[1.0, 2.0]", []), ("[1.0, 1.5]", []), ("[1.0, 1.45]", [1])):
+        scene = load(SAMPLE, [*COARSE, f"geometry.sigma={sigma}"])
+        mesh = solid.build(scene)
+        parts = solid_dd.decomposition(scene, mesh, 1)
+        assert solid_dd.thin_blocks(parts) == thin, sigma
+        method = solid_dd.method_of(scene, parts, solid_dd.kernels_of(parts)).solver.method
+        assert method == ("feti" if thin else "schur"), sigma
+    with pytest.raises(DDSolveError, match=r"^block region2: .*\(a region thinner than mesh.size\): use solver.method "
+                                           r"= feti or mprgp$"):
+        solid_dd.solve(scene.with_({"solver.method": "schur"}), MPI.COMM_SELF, None, progress=lambda _line: None,
+                       mesh=mesh)
+    result = solid_dd.solve(scene.with_({"solver.tol": 1e-12}), MPI.COMM_SELF, None, progress=lambda _line: None,
+                            mesh=mesh)
+    assert result.scene.solver.method == "feti" and result.converged
+    assert solid_solver.energy_error(result, solid_solver.reference_on(scene, mesh)) < 1e-8
+
+
 @pytest.mark.mpi
-def test_the_regions_on_3_ranks_equal_the_reference(tmp_path):
-    """ddsolve solve -n 3 (a region per rank): its file holds the reference's solution to 1e-8 in energy norm;
-    2 ranks are refused."""
+def test_the_regions_on_2_and_3_ranks_equal_the_reference(tmp_path):
+    """ddsolve solve -n 3 (a region per rank) and, in one launch, -n 2 with schur and feti (regions 1 and 3 on rank
+    0, region 2 on rank 1): their files hold the reference's solution to 1e-8 in energy norm; 4 ranks are refused
+    naming the regions' rule."""
+    import launch_many
     from conftest import ddsolve
 
     from ddsolve.io import solid as solid_files
@@ -106,6 +136,17 @@ def test_the_regions_on_3_ranks_equal_the_reference(tmp_path):
     solved = ddsolve("solve", str(SAMPLE), "-o", str(tmp_path / "3.h5"), "--set", COARSE[0], ranks=3)
     assert "on 3 ranks" in solved.stdout
     assert solid_solver.energy_error(solid_files.read(tmp_path / "3.h5"), reference) < 1e-8
+    methods = ("schur", "feti")
+    outputs = launch_many.launch([["solve", str(SAMPLE), "-o", str(tmp_path / f"{method}-2.h5"), "--set", COARSE[0],
+                                   "--set", f"solver.method={method}", "--set", "solver.tol=1e-12"]
+                                  for method in methods], 2, tmp_path)
+    for method, output in zip(methods, outputs):
+        assert f"{method} (3-D):" in output and "on 2 ranks" in output
+        assert solid_solver.energy_error(solid_files.read(tmp_path / f"{method}-2.h5"), reference) < 1e-8, method
+    refused = ddsolve("solve", str(SAMPLE), "-n", "4", "-o", str(tmp_path / "4.h5"), check=False)
+    assert refused.returncode == 2 and refused.stderr.strip() == (
+        "ddsolve: error: -n 4: unsupported number of ranks: use 1, 2 or a multiple of 3 (the 3 regions of the 3-D "
+        "box, a block each)")
 
 
 REFUSED = {

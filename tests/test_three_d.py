@@ -75,6 +75,24 @@ def test_scene_in_three_dimensions_and_its_refusals():
         checks.check_size(scene)  # what solve, sweep and mesh check first
 
 
+@pytest.mark.unit
+def test_sweep_and_grow_refuse_a_3d_scene_before_counting_its_ranks():
+    """``sweep -n 3`` and ``grow -n 3`` on a 3-D box name what refuses it (they are plane), not the plane's rank
+    counts (which a 3-D solve does not follow), before mpiexec; a plane scene, or one that needs its ranges to
+    load, passes to the rank check."""
+    from pathlib import Path
+
+    from ddsolve.solvers import sweep
+
+    sample = Path(__file__).resolve().parents[1] / "docs" / "three-d-interfaces.toml"
+    for items in (["loads.layer1.right.x=0:0.1:2"], []):
+        with pytest.raises(SceneError, match=r"^geometry.box: a 3-D box \(6 numbers\) is solved by ddsolve solve and "
+                                             r"ddsolve reference only, for now; the other commands are plane$"):
+            sweep.check_plane(sample, items)
+    sweep.check_plane("partial-closure", ["loads.layer1.top.y=0:1:2"])
+    sweep.check_plane(sample, ["geometry.sigma=oops"])
+
+
 def elevated_grid(counts, degree: int, box=(0.0, 1.0, 0.0, 1.0, 0.0, 1.0)) -> tuple[np.ndarray, np.ndarray]:
     """:func:`grid` with P1 or P2 tetrahedra."""
     points, cells = grid(counts, box)

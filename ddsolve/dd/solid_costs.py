@@ -116,10 +116,11 @@ def feti_rounds(box: Box, pieces: int, preconditioner: str, laws: Laws = FITTED)
 
 
 def predicted_seconds(box: Box, candidate: Candidate, ranks: int, laws: Laws = FITTED) -> float:
-    """The candidate's solve phase on ``ranks`` ranks: each rank's share of its blocks' factorizations and solves
-    (2k blocks over the ranks, a block's work shared ideally among its ranks) and rank 0's work."""
+    """The candidate's solve phase on ``ranks`` ranks: the busiest rank's share of the blocks' factorizations and
+    solves (2k blocks dealt over the ranks, some holding one more where the ranks do not divide them; a block's work
+    shared ideally among its ranks) and rank 0's work."""
     count = 2 * candidate.pieces
-    share = count / ranks  # blocks per rank, or the fraction of one block a rank holds
+    share = math.ceil(count / ranks) if ranks <= count else count / ranks  # the busiest rank's blocks, or block share
     solve = _block(box, "solve", candidate.pieces, laws)
     if candidate.method == "schur":
         return _schur_seconds(box, share, solve, distributed=ranks > count, laws=laws)

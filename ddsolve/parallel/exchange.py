@@ -60,15 +60,17 @@ class Exchange:
     and v⁺ on rank 1, so that a rank needs one half's mesh and its two blocks share a sparsity pattern (a
     one-layer structure's two blocks u⁻ and u⁺ are on one rank each).  With k ranks per block, block b is
     distributed over ranks b·k … (b+1)·k − 1 (its *block communicator*); the first of them is the block's
-    *leader*.  Rank 0 exchanges per-block arrays with the leaders (Scatterv/Gatherv, rows in block
-    order on rank 0); each leader shares them with its block communicator.  Ranks wait for rank 0
-    without spinning (:func:`wait`), so the cores stay free for the ranks that work.
+    *leader*.  ``uneven`` (a 3-D box's blocks) takes any rank count below the blocks too, dealt as a divisor's
+    are (rank r the blocks b with b mod size = r: some ranks hold one more).  Rank 0 exchanges per-block arrays
+    with the leaders (Scatterv/Gatherv, rows in block order on rank 0); each leader shares them with its block
+    communicator.  Ranks wait for rank 0 without spinning (:func:`wait`), so the cores stay free for the ranks
+    that work.
     """
 
-    def __init__(self, comm: MPI.Comm, n_blocks: int):
-        if not launch.supported(comm.size, n_blocks):
+    def __init__(self, comm: MPI.Comm, n_blocks: int, uneven: bool = False):
+        if not launch.supported(comm.size, n_blocks, uneven):
             error = DDSolveError(f"unsupported number of ranks {comm.size} for {n_blocks} blocks: use "
-                                 f"{launch.usable(n_blocks)}")
+                                 f"{launch.usable(n_blocks, uneven)}")
             error.collective = True  # every rank sees the same size
             raise error
         self.comm = comm

@@ -54,16 +54,20 @@ def world_position(environ: Mapping[str, str] = os.environ) -> tuple[int, int]:
     return 0, 1
 
 
-def supported(size: int, count: int = BLOCK_COUNT) -> bool:
+def supported(size: int, count: int = BLOCK_COUNT, uneven: bool = False) -> bool:
     """Whether ``size`` ranks can work on ``count`` blocks: a divisor of ``count`` (whole blocks per rank) or a
-    multiple of it (each block on size/count ranks): 1, 2, 4 or 4k ranks for 4 blocks, 1 or 2k for 2."""
-    return size > 0 and (count % size == 0 or size % count == 0)
+    multiple of it (each block on size/count ranks): 1, 2, 4 or 4k ranks for 4 blocks, 1 or 2k for 2.  ``uneven``
+    (a 3-D box's blocks, each rank assembling its own): any count up to ``count`` too, some ranks holding a block
+    more than others."""
+    return size > 0 and (count % size == 0 or size % count == 0 or uneven and size <= count)
 
 
-def usable(count: int = BLOCK_COUNT) -> str:
-    """The rank counts :func:`supported` takes for ``count`` blocks, in words: ``1, 2 or a multiple of 4``."""
-    divisors = [str(size) for size in range(1, count) if count % size == 0]
-    return f"{', '.join(divisors)} or a multiple of {count}"
+def usable(count: int = BLOCK_COUNT, uneven: bool = False) -> str:
+    """The rank counts :func:`supported` takes for ``count`` blocks, in words: ``1, 2 or a multiple of 4``
+    (``uneven``: ``1, 2, 3 or a multiple of 4``, ``1 to 7 or a multiple of 8``)."""
+    fewer = [size for size in range(1, count) if uneven or count % size == 0]
+    words = f"1 to {fewer[-1]}" if uneven and len(fewer) > 3 else ", ".join(map(str, fewer))
+    return f"{words} or a multiple of {count}" if fewer else f"a multiple of {count}"
 
 
 def mpiexec_command(ranks: int, arguments: list[str], module: str = "ddsolve") -> list[str]:

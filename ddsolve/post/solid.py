@@ -36,7 +36,8 @@ class SolidResult:
     checks: dict[str, float] = field(default_factory=dict)
     timings: dict[str, float] = field(default_factory=dict)
     fracture: FrontRelease | None = None
-    attrs: dict[str, float] = field(default_factory=dict)  # an adaptive run's: error_estimate, target_error, levels
+    # an adaptive run's error_estimate, target_error, levels; the decomposition's solver (solid_dd.solver_record)
+    attrs: dict[str, float | int | str] = field(default_factory=dict)
     levels: dict[str, np.ndarray] = field(default_factory=dict)  # an adaptive run's level table, a column each
     fracture_interface: np.ndarray | None = None
 

@@ -166,13 +166,22 @@ def _pieces(value: Any) -> int | str:
         raise ValueError('an integer >= 1 or "auto" (chosen from the size of the 3-D box\'s halves)') from None
 
 
+#: feti's largest coarse degree: a joint's columns grow as its square (three components of C(d + 2, 2) monomials on a
+#: plane), and already degree 3 costs more rounds' worth than it saves on the bench box (docs/methods.md).
+MAX_COARSE_DEGREE = 4
+
+
 def _coarse_degree(value: Any) -> int | str:
     if value == "auto":
         return value
     try:
-        return _count(0)(value)
+        degree = _count(0)(value)
     except (TypeError, ValueError):
-        raise ValueError('an integer >= 0 (0: no polynomial coarse directions) or "auto" (by the structure)') from None
+        degree = None
+    if degree is None or degree > MAX_COARSE_DEGREE:
+        raise ValueError(f'an integer from 0 (no polynomial coarse directions) to {MAX_COARSE_DEGREE}, or "auto" '
+                         "(by the structure)") from None
+    return degree
 
 
 def _choice(options: tuple[str, ...]) -> Callable[[Any], str]:

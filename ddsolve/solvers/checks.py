@@ -6,20 +6,51 @@ from ddsolve.environment import RANK_MEMORY, VERTEX_MEMORY, physical_memory
 from ddsolve.errors import DDSolveError, SceneError, UsageError
 
 
-def check_ranks(ranks: int, blocks: int | None = None) -> None:
-    """Refuse a rank count ddsolve cannot use on a structure of ``blocks`` blocks (None: on any structure, one
-    or two layers), or that this machine cannot start, before mpiexec."""
-    from ddsolve.parallel.launch import BLOCK_COUNT, supported, usable
+def check_ranks(ranks: int, structure=None) -> None:
+    """Refuse a rank count ddsolve cannot use on a structure (``structure``: its blocks, or its scene; None: any
+    plane structure, one or two layers), or that this machine cannot start, before mpiexec."""
+    from ddsolve.parallel.launch import supported
 
-    counts = (2, BLOCK_COUNT) if blocks is None else (blocks,)
-    if not any(supported(ranks, count) for count in counts):
-        raise UsageError(f"-n {ranks}: unsupported number of ranks: use {usable(counts[-1])}"
-                         + (f" ({usable(counts[0])} for a one-layer structure)" if blocks is None else ""))
+    counts, uneven, words = rank_rule(structure)
+    if not any(supported(ranks, count, uneven) for count in counts):
+        raise UsageError(f"-n {ranks}: unsupported number of ranks: use {words}")
     memory = ranks * RANK_MEMORY
     if memory > physical_memory():
         raise UsageError(f"-n {ranks}: {ranks} ranks need about {memory / 1e9:.3g} GB before any mesh "
                          f"(about {RANK_MEMORY / 1e6:g} MB each), more than this machine's "
                          f"{physical_memory() / 1e9:.3g} GB; for ranks on several machines start mpiexec yourself")
+
+
+def rank_rule(structure=None) -> tuple[tuple[int, ...], bool, str]:
+    """The block counts a structure's decomposition may take (``structure`` as for :func:`check_ranks`), whether a
+    rank may hold more of them than another (a 3-D box's, :func:`ddsolve.parallel.launch.supported`), and the rank
+    counts they take in words."""
+    from ddsolve.parallel.launch import BLOCK_COUNT, usable
+
+    if structure is None:
+        return (2, BLOCK_COUNT), False, f"{usable(BLOCK_COUNT)} ({usable(2)} for a one-layer structure)"
+    if isinstance(structure, int):
+        return (structure,), False, usable(structure)
+    if structure.geometry.dimension == 3:
+        return solid_rule(structure)
+    return rank_rule(structure.geometry.layers * len(structure.geometry.region_names))
+
+
+def solid_rule(scene) -> tuple[tuple[int, ...], bool, str]:
+    """:func:`rank_rule` of the 3-D box ``scene`` (:mod:`ddsolve.solvers.solid_dd`): its regions, a block each, with
+    several interfaces, else its halves in ``solver.pieces`` slabs each (``auto``: any count the model considers);
+    any rank count up to the blocks, or a multiple of them."""
+    from ddsolve.dd.solid_costs import PIECES
+    from ddsolve.parallel.launch import usable
+
+    regions = len(scene.geometry.region_names)
+    if regions > 2:
+        return (regions,), True, f"{usable(regions, uneven=True)} (the {regions} regions of the 3-D box, a block each)"
+    pieces = PIECES if scene.solver.pieces == "auto" else (scene.solver.pieces,)
+    counts = tuple(2 * count for count in pieces)  # each a multiple of the first: the first's multiples hold theirs
+    words = usable(counts[0], uneven=True) if len(counts) == 1 else f"1 to {counts[-1]} or a multiple of {counts[0]}"
+    slabs = f"{', '.join(map(str, pieces[:-1]))} or {pieces[-1]}" if len(pieces) > 1 else str(pieces[0])
+    return counts, True, f"{words} (the 3-D box's halves in {slabs} slab{'s' * (pieces != (1,))} each)"
 
 
 def check_size(scene, ranks: int = 1, solving: bool = True, stacks: bool = False, solid: bool = False) -> None:

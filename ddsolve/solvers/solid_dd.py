@@ -1,7 +1,8 @@
 """The domain decomposition of a 3-D box (``geometry.box = [x0, x1, y0, y1, z0, z1]``): its two halves as the
 blocks u⁻ (below Σ) and u⁺ (above), or each half cut into slabs parallel to Σ (``solver.pieces``,
 :mod:`ddsolve.mesh.slabs`) glued across their cuts as Σ is off the cracks, the structure's trace Σ's and the cuts'
-(:meth:`~ddsolve.dd.interface.Interface.joined`, as for several interfaces); on 1, 2 or 2k ranks.
+(:meth:`~ddsolve.dd.interface.Interface.joined`, as for several interfaces); on any number of ranks up to the blocks
+(some holding a block more: every rank assembles its own blocks from the whole mesh) or a multiple of them.
 
 The plane driver's machinery (:mod:`ddsolve.solvers.stacked_dd`) with three trace entries per Σ vertex: a block's
 trace is its displacements at every Σ vertex in Σ's frame (x, ν = y, z; :class:`~ddsolve.dd.interface.Interface`
@@ -12,7 +13,7 @@ The mesh is built once on rank 0 and broadcast; each rank assembles its blocks (
 same files.  A half held only through Σ floats, as does a slab held only through its neighbours: its kernel is the
 rigid motions (of six) its own supports leave (:mod:`ddsolve.dd.kernels`), factored and solved as the plane driver
 does; a box that can move rigidly as a whole is refused in one line.  A box of several interfaces is decomposed into
-its regions, a block each, joined at every Σ (:func:`regions_decomposition`), on 1 rank or a multiple of the regions.
+its regions, a block each, joined at every Σ (:func:`regions_decomposition`).
 """
 from __future__ import annotations
 
@@ -57,6 +58,11 @@ COMPONENTS = 3
 SCHUR_COPIES = 8
 #: The share of this machine's memory ``schur``'s dense matrices may take (above it: refused, ``auto`` takes feti).
 SCHUR_MEMORY_SHARE = 0.5
+#: The share of a block's tetrahedra with a vertex on each of two of its joints above which it is one element thick
+#: and MUMPS fails to factor it with its Schur complement on the trace (INFOG(1) = -8; ``auto`` then takes feti): the
+#: middle region of docs/three-d-interfaces.toml at mesh.size 0.25 and 0.45 fails at 0.76-0.81 (as thick as mesh.size
+#: or less), works at 0.64 and below (0.3 thick at 0.25, 0.5 at 0.45).
+THIN_SHARE = 0.7
 
 
 @dataclass(frozen=True, eq=False)
@@ -137,7 +143,8 @@ def kernels_of(parts: Decomposition) -> kernels.Kernels:
 
 def method_of(scene: Scene, parts: Decomposition, held: kernels.Kernels, ranks: int = 1) -> Scene:
     """The scene with ``auto`` resolved (the method and feti's preconditioner the cost model predicts fastest on
-    ``parts`` and ``ranks``, :func:`ranking`; several interfaces: ``schur`` while it fits) and the slabs per half of
+    ``parts`` and ``ranks``, :func:`ranking`; several interfaces: ``schur`` while it fits; never ``schur`` on
+    :func:`thin_blocks`) and the slabs per half of
     ``parts``; in one line, what this solve does not take: ``schur`` above its memory limit (:func:`schur_bytes`), a
     floating block (kernels ``held``) with a method that cannot solve it (friction and bonds the scene refuses)."""
     method = registry.METHODS.get(scene.solver.method)
@@ -151,10 +158,11 @@ def method_of(scene: Scene, parts: Decomposition, held: kernels.Kernels, ranks: 
                          f"({parts.interface.trace_size} trace entries) need about {dense / 1e9:.3g} GB, above the "
                          f"{limit / 1e9:.3g} GB allowed ({SCHUR_MEMORY_SHARE:g} of this machine's memory): use "
                          "solver.method = feti")
+    schur = dense <= limit and not thin_blocks(parts)
     if parts.regions > 2:  # the model knows a box of one Σ: several interfaces take schur while it fits
-        best = solid_costs.Candidate("schur" if dense <= limit else "feti", 1, "dirichlet")
+        best = solid_costs.Candidate("schur" if schur else "feti", 1, "dirichlet")
     else:
-        best = ranking(scene, box_of(scene, parts), ranks, [parts.count])[0]
+        best = ranking(scene, box_of(scene, parts), ranks, [parts.count], schur)[0]
     method = scene.solver.method if scene.solver.method in registry.METHODS else best.method
     preconditioner = best.preconditioner if scene.solver.preconditioner == "auto" else scene.solver.preconditioner
     degree = scene.solver.coarse_degree
@@ -176,6 +184,23 @@ def schur_limit() -> float:
     return SCHUR_MEMORY_SHARE * physical_memory()
 
 
+def thin_blocks(parts: Decomposition) -> list[int]:
+    """The blocks MUMPS cannot factor with their Schur complement on the trace (``schur``): those with no free dof
+    off their trace, and those one element thick between two of their joints (more than :data:`THIN_SHARE` of their
+    tetrahedra with a vertex on each: a region as thin as mesh.size)."""
+    _, dofs = trace_layout(parts.joints, len(parts.slabs))
+    thin = []
+    for block, slab in enumerate(parts.slabs):
+        held = np.union1d(dofs[block], parts.supports[block][0])
+        touching = [np.isin(slab.piece.tetrahedra, joint.dofs[joint.blocks.index(block)][::COMPONENTS] // COMPONENTS)
+                    .any(axis=1) for joint in parts.joints if block in joint.blocks]  # per joint: each tetrahedron
+        spanning = max((np.mean(first & second) for i, first in enumerate(touching) for second in touching[i + 1:]),
+                       default=0.0)
+        if len(held) == slab.piece.dofs or spanning > THIN_SHARE:
+            thin.append(block)
+    return thin
+
+
 def box_of(scene: Scene, parts: Decomposition) -> solid_costs.Box:
     """What the cost model reads of the box that ``parts`` cut: its unknowns (a cut's vertices once), Σ's vertices
     and contact rows, the element degree."""
@@ -185,15 +210,18 @@ def box_of(scene: Scene, parts: Decomposition) -> solid_costs.Box:
                            int(np.count_nonzero(surface.is_contact)), scene.mesh.degree)
 
 
-def ranking(scene: Scene, box: solid_costs.Box, ranks: int, counts: list[int]) -> list[solid_costs.Candidate]:
+def ranking(scene: Scene, box: solid_costs.Box, ranks: int, counts: list[int], schur: bool = True
+            ) -> list[solid_costs.Candidate]:
     """``auto``'s candidates on ``counts`` slabs per half that the ranks share and ``scene``'s solver keys leave
     (its method and feti's preconditioner; the halves whole for a method the model does not know), predicted
-    fastest first (:mod:`ddsolve.dd.solid_costs`); ``schur`` where its dense matrices fit.  Where none is left
-    (``schur`` asked on slabs, a count the ranks cannot share), feti's on those counts: its preconditioner."""
-    fits = schur_bytes(COMPONENTS * box.sigma) <= schur_limit()
+    fastest first (:mod:`ddsolve.dd.solid_costs`); ``schur`` where its dense matrices fit and ``schur`` (False: a
+    half is too thin for it, :func:`thin_blocks`).  Where none is left (``schur`` asked on slabs, a count the ranks
+    cannot share), feti's on those counts: its preconditioner."""
+    fits = schur and schur_bytes(COMPONENTS * box.sigma) <= schur_limit()
     method, preconditioner = scene.solver.method, scene.solver.preconditioner
     modelled = method in ("auto", "schur", "feti")
-    shared = [count for count in counts if supported(ranks, 2 * count) and (modelled or count == 1)] or counts
+    shared = [count for count in counts
+              if supported(ranks, 2 * count, uneven=True) and (modelled or count == 1)] or counts
     every = solid_costs.candidates(shared, fits)
     kept = [c for c in every if method in ("auto", c.method) or not modelled]
     kept = [c for c in kept if preconditioner in ("auto", c.preconditioner) or c.method == "schur"]
@@ -332,7 +360,7 @@ def pieces_of(scene: Scene, mesh: SolidMesh, ranks: int) -> Decomposition:
     whole = decomposition(scene, mesh, 1)
     if whole.regions > 2:  # several interfaces: a block a region
         return whole
-    ranked = ranking(scene, box_of(scene, whole), ranks, list(solid_costs.PIECES))
+    ranked = ranking(scene, box_of(scene, whole), ranks, list(solid_costs.PIECES), not thin_blocks(whole))
     for count in dict.fromkeys(candidate.pieces for candidate in ranked):
         parts = whole if count == 1 else decomposition(scene, mesh, count)
         if parts is not None:
@@ -351,16 +379,16 @@ def prepare(scene: Scene, comm: MPI.Comm, progress=None, mesh: SolidMesh | None 
     if progress is not None and comm.rank == 0:
         progress(solid_lines.mesh_line(mesh, meshed - started))
     parts = collective(comm, lambda: pieces_of(scene, mesh, comm.size))
-    if not supported(comm.size, len(parts.slabs)):
-        error = DDSolveError(f"unsupported number of ranks {comm.size}: use {usable(len(parts.slabs))} (the "
-                             f"{len(parts.slabs)} blocks of the 3-D box: " + (
+    if not supported(comm.size, len(parts.slabs), uneven=True):
+        error = DDSolveError(f"unsupported number of ranks {comm.size}: use {usable(len(parts.slabs), uneven=True)} "
+                             f"(the {len(parts.slabs)} blocks of the 3-D box: " + (
                                  f"{parts.count} slabs per half)" if parts.regions == 2 else "one per region)"))
         error.collective = True  # every rank sees the same size
         raise error
     held = collective(comm, lambda: kernels_of(parts))  # floating slabs and regions: solved as floating halves
     scene = collective(comm, lambda: method_of(scene, parts, held, comm.size))
     method = registry.METHODS[scene.solver.method]
-    exchange = Exchange(comm, len(parts.slabs))
+    exchange = Exchange(comm, len(parts.slabs), uneven=True)
     positions, dofs = trace_layout(parts.joints, len(parts.slabs))
     stages = {name: PETSc.Log.Stage(name) for name in driver.STAGES}
     timings = {"meshing": meshed - started, "setup": time.perf_counter() - meshed}
@@ -481,4 +509,15 @@ def finished(setup: SolidSetup, outcome, rounds, fields: list[np.ndarray]) -> So
                        converged=bool(outcome.converged), message=outcome.message or "",
                        checks={"residual": float(np.max(rounds.residuals, initial=0.0)),
                                **{name: float(outcome.details[f"kkt_{name}"]) for name in Constraints.NAMES}},
-                       timings={**setup.timings, "rounds": rounds.elapsed})
+                       timings={**setup.timings, "rounds": rounds.elapsed}, attrs=solver_record(setup.scene, outcome))
+
+
+def solver_record(scene: Scene, outcome) -> dict:
+    """What ran, for the result file: the method and slabs per half, feti's preconditioner, coarse degree and the
+    coarse directions kept."""
+    solver = scene.solver
+    record = {"method": solver.method, "pieces": solver.pieces}
+    if solver.method == "feti":
+        record.update(preconditioner=solver.preconditioner, coarse_degree=solver.coarse_degree,
+                      coarse_directions=int(outcome.details.get("coarse_directions", 0)))
+    return record

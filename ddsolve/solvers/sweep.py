@@ -223,6 +223,20 @@ def _base_seconds(source, fixed: list[str], ranks: int) -> float | None:
         return None
 
 
+def check_plane(source, items: list[str]) -> None:
+    """Refuse a 3-D scene in its own line where a command solves plane ones only (sweep, grow), before the ranks
+    are counted by the plane's rule: ``source`` a scene file or a built-in name, with the ``--set`` ``items`` that
+    are not ranges (a scene that does not load without its ranges is left to the command)."""
+    from ddsolve.solvers.checks import check_size
+
+    try:
+        scene = scene_with(source, parse(items)[0])
+    except DDSolveError:
+        return
+    if scene.geometry.dimension == 3:
+        check_size(scene, solving=False)
+
+
 def check_cost(items: list[str], scenes: list, runs: list[dict], ranges: list[Range], ranks: int) -> None:
     """Refuse a sweep given a key it does not read (:func:`ddsolve.cli.check_read`), or that cannot
     finish: one whose largest mesh does not fit in this machine's memory (:func:`ddsolve.cli.check_size`),
