@@ -233,7 +233,6 @@ class Subspace:
         """Puts the directions ``Z`` ``(size, m)`` (on the constraint) first in the subspace and keeps them through
         every :meth:`rebase`: A Z in one round, A-orthonormalized by the eigenvectors of Zᵀ A Z (the directions A
         barely sees dropped).  Returns the directions kept."""
-        Z = np.column_stack([self.on_constraint(z) for z in Z.T])
         AZ = self.problem.apply_many(Z)
         values, vectors = np.linalg.eigh(0.5 * (Z.T @ AZ + AZ.T @ Z))
         kept = values > INDEPENDENT ** 0.5 * values.max(initial=0.0)
@@ -427,7 +426,7 @@ class Iterations:
                 self.outcome.message = (f"feti: no new direction at iteration {self.outcome.iterations} "
                                         f"(criterion {criterion:.3e}, tol {self.solver.tol:g})")
                 return False
-            unheld, _ = space.minimizer(space.bounded & ~free) if space.bounded.any() else (self.y, None)
+            unheld, _ = space.minimizer(space.bounded & ~free)
             if np.any(unheld < lower) or np.any(unheld > upper):  # expansion
                 space.add(coarse.inside(unheld, lower, upper) - unheld)
                 self.expansions += 1

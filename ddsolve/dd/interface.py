@@ -196,6 +196,9 @@ class Interface:
             taking = np.flatnonzero((self.row_blocks == block).any(axis=1))
             sign = np.where(self.row_blocks[taking, 0] == block, 1.0, -1.0)
             self.couplings.append(Coupling(taking, self.trace_index[taking], sign))
+        #: per block C_bᵀ ``(2k, size)``, sparse: the interface loads of multipliers
+        self.spreads = [scipy.sparse.csr_matrix((c.sign, (c.trace, c.rows)), shape=(self.trace_size, self.size))
+                        for c in self.couplings]
 
     def _friction_rows(self, friction: np.ndarray, coulomb: bool) -> None:
         """The μ_t rows' data: ``is_friction``, Coulomb's μ or Tresca's g per row, the row of the contact
@@ -292,14 +295,14 @@ class Interface:
     def loads(self, lam: np.ndarray) -> np.ndarray:
         """Interface nodal forces −C_bᵀ W λ on each block's trace, ``(blocks, 2k)``."""
         force = self.row_weights * lam
-        return np.array([-(spread @ force) for spread in self._spreads()])
+        return np.array([-(spread @ force) for spread in self.spreads])
 
     def column_loads(self, lam: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
         """For the columns of ``lam`` ``(size, m)``, per block: the columns that load it and their loads
         −C_bᵀ W λ ``(2k, those columns)``."""
         force = self.row_weights[:, None] * lam
         out = []
-        for coupling, spread in zip(self.couplings, self._spreads()):
+        for coupling, spread in zip(self.couplings, self.spreads):
             taken = np.flatnonzero(np.any(force[coupling.rows] != 0.0, axis=0))
             out.append((taken, -(spread @ force[:, taken])))
         return out
@@ -311,13 +314,6 @@ class Interface:
         for coupling, (taken, trace) in zip(self.couplings, traces):
             out[np.ix_(coupling.rows, taken)] += coupling.sign[:, None] * trace[coupling.trace]
         return out
-
-    def _spreads(self) -> list[scipy.sparse.csr_matrix]:
-        """Per block C_bᵀ ``(2k, size)``, sparse (made once)."""
-        if getattr(self, "_spread_maps", None) is None:
-            self._spread_maps = [scipy.sparse.csr_matrix((c.sign, (c.trace, c.rows)), shape=(self.trace_size, self.size))
-                                 for c in self.couplings]
-        return self._spread_maps
 
     def multipliers(self, loads: np.ndarray) -> np.ndarray:
         """The λ with ``self.loads(λ) == loads`` when ``loads`` is in the range of that map.

@@ -464,19 +464,24 @@ class Block:
         return 0.5 * (out + out.T)
 
     def flexibility(self) -> np.ndarray | None:
-        """Dense (2k, 2k) interface flexibility E K⁻¹ Eᵀ on the leader, by multi-column solves."""
-        def columns_of(units: PETSc.Mat, solve: Callable[[PETSc.Mat, PETSc.Mat], None]) -> np.ndarray:
-            X = _dense_like(units)
-            solve(units, X)
-            out = X.getDenseArray()[self.trace_rows, :] / self.scale
-            X.destroy()
-            return out
-
-        return self._trace_columns(self.ksp, columns_of, lambda unit: self.solve(unit, body=False)[self.trace_rows])
+        """Dense (2k, 2k) interface flexibility E K⁻¹ Eᵀ on the leader, symmetrized: the traces of unit trace loads,
+        :data:`_CHUNK` columns per :meth:`solve_many`."""
+        k = len(self.trace_dofs)
+        chunks = []
+        for start in range(0, k, _CHUNK):
+            width = min(_CHUNK, k - start)
+            units = np.zeros((k, width))
+            units[start + np.arange(width), np.arange(width)] = 1.0
+            chunks.append(self.solve_many(units))
+        if not self.is_leader:
+            return None
+        out = np.hstack(chunks)
+        return 0.5 * (out + out.T)
 
     def _trace_columns(self, ksp: PETSc.KSP, columns_of: Callable, one_column: Callable[[np.ndarray], np.ndarray]
                        ) -> np.ndarray | None:
-        """A dense (2k, 2k) matrix on the leader, symmetrized, whose columns for unit traces are computed
+        """A dense (2k, 2k) matrix on the leader (:meth:`interface_stiffness`'s), symmetrized, whose columns for unit
+        traces are computed
         _CHUNK at a time from a dense matrix of unit columns at the trace rows by ``columns_of(units,
         solve)`` (``solve(B, X)``: X = (factored operator of ``ksp``)⁻¹ B) when ``ksp`` is a direct solver,
         one by one by ``one_column(unit trace)`` (this rank's trace rows) otherwise."""
